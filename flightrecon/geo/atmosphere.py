@@ -1,0 +1,69 @@
+"""International Standard Atmosphere (ICAO Doc 7488) and airspeed conversions.
+
+Pressure altitude is the ISA altitude at which the static pressure equals the measured one
+(1013.25 hPa datum).  Valid in the troposphere and the lower stratosphere (to 20 km).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+P0_PA = 101325.0
+T0_K = 288.15
+RHO0 = 1.225
+LAPSE_K_PER_M = -0.0065
+R_AIR = 287.05287
+GAMMA = 1.4
+G0 = 9.80665
+H_TROPOPAUSE_M = 11000.0
+T_TROPOPAUSE_K = T0_K + LAPSE_K_PER_M * H_TROPOPAUSE_M
+P_TROPOPAUSE_PA = P0_PA * (T_TROPOPAUSE_K / T0_K) ** (-G0 / (LAPSE_K_PER_M * R_AIR))
+A0_MPS = float(np.sqrt(GAMMA * R_AIR * T0_K))
+
+
+def isa_temperature_k(h_m):
+    """ISA temperature [K] at pressure altitude ``h_m``."""
+    h = np.asarray(h_m, float)
+    return np.where(h < H_TROPOPAUSE_M, T0_K + LAPSE_K_PER_M * h, T_TROPOPAUSE_K)
+
+
+def isa_pressure_pa(h_m):
+    """ISA static pressure [Pa] at pressure altitude ``h_m``."""
+    h = np.asarray(h_m, float)
+    n = -G0 / (LAPSE_K_PER_M * R_AIR)
+    tropo = P0_PA * (1.0 + LAPSE_K_PER_M * h / T0_K) ** n
+    strato = P_TROPOPAUSE_PA * np.exp(-G0 * (h - H_TROPOPAUSE_M) / (R_AIR * T_TROPOPAUSE_K))
+    return np.where(h < H_TROPOPAUSE_M, tropo, strato)
+
+
+def pressure_altitude_m(p_pa):
+    """Pressure altitude [m] for static pressure ``p_pa`` (inverse of :func:`isa_pressure_pa`)."""
+    p = np.asarray(p_pa, float)
+    n = -G0 / (LAPSE_K_PER_M * R_AIR)
+    tropo = T0_K / LAPSE_K_PER_M * ((p / P0_PA) ** (1.0 / n) - 1.0)
+    strato = H_TROPOPAUSE_M - R_AIR * T_TROPOPAUSE_K / G0 * np.log(p / P_TROPOPAUSE_PA)
+    return np.where(p > P_TROPOPAUSE_PA, tropo, strato)
+
+
+def cas_to_tas(cas_mps, pressure_alt_m, sat_degc):
+    """Calibrated to true airspeed (compressible, subsonic).
+
+    Impact pressure from CAS at sea level (St Venant), then Mach from the impact pressure at the
+    static pressure of ``pressure_alt_m``, then TAS = M * a(SAT).
+    """
+    cas = np.asarray(cas_mps, float)
+    p = isa_pressure_pa(pressure_alt_m)
+    qc = P0_PA * ((1.0 + 0.2 * (cas / A0_MPS) ** 2) ** 3.5 - 1.0)
+    mach = np.sqrt(5.0 * ((qc / p + 1.0) ** (2.0 / 7.0) - 1.0))
+    t = np.asarray(sat_degc, float) + 273.15
+    return mach * np.sqrt(GAMMA * R_AIR * t)
+
+
+def tas_to_cas(tas_mps, pressure_alt_m, sat_degc):
+    """True to calibrated airspeed (inverse of :func:`cas_to_tas`)."""
+    tas = np.asarray(tas_mps, float)
+    t = np.asarray(sat_degc, float) + 273.15
+    mach = tas / np.sqrt(GAMMA * R_AIR * t)
+    p = isa_pressure_pa(pressure_alt_m)
+    qc = p * ((1.0 + 0.2 * mach**2) ** 3.5 - 1.0)
+    return A0_MPS * np.sqrt(5.0 * ((qc / P0_PA + 1.0) ** (2.0 / 7.0) - 1.0))

@@ -1,0 +1,78 @@
+"""Geodetic frames through pyproj (WGS-84): geodetic <-> ECEF <-> local tangent plane.
+
+The local tangent plane (LTP) is east-north-up at an origin (normally the departure airfield).
+Heights here are ellipsoidal; convert MSL with the flight's geoid undulation first.  No
+ellipsoid formula is written by hand: PROJ's ``cart`` and ``topocentric`` operations do it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from pyproj import Transformer
+
+__all__ = ["TangentPlane", "geodetic_to_ecef", "ecef_to_geodetic"]
+
+
+@lru_cache(maxsize=1)
+def _cart() -> Transformer:
+    return Transformer.from_pipeline("+proj=cart +ellps=WGS84")
+
+
+def geodetic_to_ecef(lat_deg, lon_deg, h_m):
+    """Geodetic latitude, longitude [deg] and ellipsoidal height [m] to ECEF x, y, z [m]."""
+    x, y, z = _cart().transform(np.asarray(lon_deg, float), np.asarray(lat_deg, float),
+                                np.asarray(h_m, float))
+    return np.asarray(x), np.asarray(y), np.asarray(z)
+
+
+def ecef_to_geodetic(x, y, z):
+    """ECEF [m] to geodetic latitude, longitude [deg] and ellipsoidal height [m]."""
+    lon, lat, h = _cart().transform(np.asarray(x, float), np.asarray(y, float),
+                                    np.asarray(z, float), direction="INVERSE")
+    return np.asarray(lat), np.asarray(lon), np.asarray(h)
+
+
+@dataclass(frozen=True)
+class TangentPlane:
+    """East-north-up tangent plane at ``(lat0_deg, lon0_deg, h0_m)`` (ellipsoidal height).
+
+    Examples
+    --------
+    >>> tp = TangentPlane(40.0, 49.0, 0.0)
+    >>> e, n, u = tp.forward(40.0, 49.0, 100.0)
+    >>> round(float(u), 6)
+    100.0
+    """
+
+    lat0_deg: float
+    lon0_deg: float
+    h0_m: float = 0.0
+
+    def _transformer(self) -> Transformer:
+        return _topo(self.lat0_deg, self.lon0_deg, self.h0_m)
+
+    def forward(self, lat_deg, lon_deg, h_m):
+        """Geodetic [deg, deg, m] -> (east, north, up) [m]."""
+        e, n, u = self._transformer().transform(np.asarray(lon_deg, float),
+                                                np.asarray(lat_deg, float),
+                                                np.asarray(h_m, float))
+        return np.asarray(e), np.asarray(n), np.asarray(u)
+
+    def inverse(self, east_m, north_m, up_m):
+        """(east, north, up) [m] -> geodetic latitude, longitude [deg], ellipsoidal height [m]."""
+        lon, lat, h = self._transformer().transform(np.asarray(east_m, float),
+                                                    np.asarray(north_m, float),
+                                                    np.asarray(up_m, float),
+                                                    direction="INVERSE")
+        return np.asarray(lat), np.asarray(lon), np.asarray(h)
+
+
+@lru_cache(maxsize=64)
+def _topo(lat0: float, lon0: float, h0: float) -> Transformer:
+    return Transformer.from_pipeline(
+        "+proj=pipeline +step +proj=cart +ellps=WGS84 "
+        f"+step +proj=topocentric +ellps=WGS84 +lat_0={lat0!r} +lon_0={lon0!r} +h_0={h0!r}"
+    )

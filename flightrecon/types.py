@@ -1,0 +1,141 @@
+"""Small frozen dataclasses that flow one way through the pipeline.
+
+ingest -> :class:`Flight` -> cleaning -> :class:`CleanFlight` -> estimators -> :class:`MethodResult`
+-> export.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+
+@dataclass(frozen=True)
+class Position:
+    """A point on the WGS-84 ellipsoid.
+
+    ``elev_m`` is the elevation above mean sea level for airfields and stations (the way they
+    are published); code that needs ellipsoidal height says so.
+    """
+
+    lat_deg: float
+    lon_deg: float
+    elev_m: float = 0.0
+
+    def as_tuple(self) -> tuple[float, float, float]:
+        return (self.lat_deg, self.lon_deg, self.elev_m)
+
+
+@dataclass(frozen=True)
+class FlightMeta:
+    """Flight metadata, from the command line or a sidecar file next to the log.
+
+    Attributes
+    ----------
+    epoch_utc : ISO-8601 UTC time that ``t_s = 0`` stands for (``None`` if unknown)
+    departure, arrival : airfield reference or lift-off / touchdown point (MSL elevation)
+    station : ground radar (angle-range measuring system) position
+    gnss_lever_arm_m : GNSS antenna position in body FRD axes relative to the centre of mass
+    gnss_alt_datum : ``"ellipsoid"`` or ``"msl"``
+    baro_datum : ``"pressure"`` (1013.25 hPa) unless the log says otherwise
+    qnh_departure_hpa, qnh_arrival_hpa : sea-level pressure at the airfields, where known
+    geoid_undulation_m : ellipsoidal height minus MSL height in the area of the flight (one value
+        per flight; no geoid grid is shipped, so 0 unless given)
+    """
+
+    aircraft_id: str | None = None
+    flight_id: str | None = None
+    epoch_utc: str | None = None
+    departure: Position | None = None
+    arrival: Position | None = None
+    station: Position | None = None
+    gnss_lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gnss_alt_datum: str = "ellipsoid"
+    baro_datum: str = "pressure"
+    qnh_departure_hpa: float | None = None
+    qnh_arrival_hpa: float | None = None
+    geoid_undulation_m: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Flight:
+    """A validated flight in the canonical schema (output of :mod:`flightrecon.ingest`).
+
+    ``data`` has a ``t_s`` column, sorted strictly increasing, and canonical channel columns;
+    multi-rate logs leave NaN where a channel was not sampled.  ``row`` holds the 1-based data
+    row in the (first) source file, for error messages downstream.
+    """
+
+    data: pd.DataFrame
+    meta: FlightMeta
+    sources: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class FlightPhases:
+    """Lift-off and touchdown detected in the record (times in ``t_s``; NaN if not in record).
+
+    ``starts_airborne`` / ``ends_airborne`` say that the record is cut in the air.
+    ``liftoff_velocity_ned_mps`` is the ground velocity at lift-off estimated from the ground roll.
+    """
+
+    liftoff_t_s: float
+    touchdown_t_s: float
+    starts_airborne: bool
+    ends_airborne: bool
+    liftoff_velocity_ned_mps: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class CleanFlight:
+    """Cleaned flight (output of :mod:`flightrecon.cleaning`).
+
+    Attributes
+    ----------
+    grid : uniform time grid: ``t_s`` plus every input channel present, and for each a boolean
+        ``<channel>_valid`` mask (False where a long gap was left unfilled, values NaN there).
+        ``heading_deg`` and other angles are unwrapped (continuous, may leave [0, 360)).
+    rate_hz : grid rate
+    gnss, radar : measurements at their own times (one row per fix / plot; ``t_s`` first),
+        empty DataFrames when absent
+    meta : flight metadata
+    report : cleaning report, one dict per action (channel, what, rows / times, why)
+    phases : lift-off and touchdown
+    """
+
+    grid: pd.DataFrame
+    rate_hz: float
+    gnss: pd.DataFrame
+    radar: pd.DataFrame
+    meta: FlightMeta
+    report: tuple[dict[str, Any], ...] = ()
+    phases: FlightPhases | None = None
+
+
+@dataclass(frozen=True)
+class MethodResult:
+    """One estimator's contribution to a reconstruction.
+
+    Attributes
+    ----------
+    name : method name (``"sabziev"``, ``"arms"``, ``"azimuth"``, ``"sns"``, ``"joint"``)
+    track : DataFrame on the output time grid, ``t_s`` plus the method's columns *with* its
+        prefix (``sabziev_north_m``, ``sabziev_north_sd_m``, ...).  Positions are in the tangent
+        plane at the departure airfield (north/east/up, metres).
+    summary : JSON-serialisable dict for the summary file (coefficients, convergence, residuals,
+        estimated corrections with their standard deviations, warnings)
+    """
+
+    name: str
+    track: pd.DataFrame
+    summary: dict[str, Any]
+
+
+def as_float_array(x: Any) -> np.ndarray:
+    """Return ``x`` as a contiguous float64 array (helper for numba kernels)."""
+    return np.ascontiguousarray(np.asarray(x, dtype=np.float64))
