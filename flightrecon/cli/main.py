@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "flightrecon.cli.clean",
     "flightrecon.cli.simulate",
     "flightrecon.cli.reconstruct",
+    "flightrecon.cli.coeffs",
 )
 
 

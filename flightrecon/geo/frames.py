@@ -76,3 +76,30 @@ def _topo(lat0: float, lon0: float, h0: float) -> Transformer:
         "+proj=pipeline +step +proj=cart +ellps=WGS84 "
         f"+step +proj=topocentric +ellps=WGS84 +lat_0={lat0!r} +lon_0={lon0!r} +h_0={h0!r}"
     )
+
+
+def msl_to_ellipsoid(h_msl_m, geoid_undulation_m: float = 0.0):
+    """MSL height to ellipsoidal height with the flight's (constant) geoid undulation N."""
+    return np.asarray(h_msl_m, float) + geoid_undulation_m
+
+
+def output_plane(meta) -> TangentPlane:
+    """The output tangent plane: east-north-up at the departure airfield.
+
+    Parameters
+    ----------
+    meta : :class:`flightrecon.types.FlightMeta` with ``departure`` set.
+
+    Raises
+    ------
+    MetadataError
+        If the flight has no departure position (give ``--departure`` or a sidecar).
+    """
+    from flightrecon.errors import MetadataError
+
+    if meta.departure is None:
+        raise MetadataError("the flight has no departure position: give --departure LAT,LON,ELEV_M "
+                            "or a sidecar [departure] table")
+    d = meta.departure
+    return TangentPlane(d.lat_deg, d.lon_deg,
+                        float(msl_to_ellipsoid(d.elev_m, meta.geoid_undulation_m)))

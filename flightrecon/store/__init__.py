@@ -1,0 +1,1 @@
+"""flightrecon.store: per-aircraft coefficient store."""
