@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "flightrecon.cli.simulate",
     "flightrecon.cli.reconstruct",
     "flightrecon.cli.coeffs",
+    "flightrecon.cli.export",
 )
 
 

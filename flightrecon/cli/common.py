@@ -1,0 +1,63 @@
+"""Helpers shared by the CLI commands (option parsing, default paths, progress)."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import click
+
+from flightrecon.errors import MetadataError
+
+
+def parse_k(text: str) -> tuple[float, float, float]:
+    """Parse ``K1,K2,K3`` into three floats."""
+    try:
+        parts = [float(p) for p in text.split(",")]
+    except ValueError as exc:
+        raise MetadataError(f"--k expects three numbers K1,K2,K3, got '{text}'") from exc
+    if len(parts) != 3 or not all(map(math.isfinite, parts)):
+        raise MetadataError(f"--k expects three numbers K1,K2,K3, got '{text}'")
+    return (parts[0], parts[1], parts[2])
+
+
+def position_option_values(**opts: str | None) -> dict:
+    """``{'departure': Position, ...}`` from ``LAT,LON,ELEV_M`` option strings."""
+    from flightrecon.ingest import parse_position
+
+    return {k: parse_position(v) for k, v in opts.items() if v}
+
+
+def default_output(log: Path, suffix: str) -> Path:
+    """A path beside ``log`` that never overwrites it: ``<stem><suffix>``."""
+    stem = log.name
+    for s in (".parquet", ".csv", ".pq"):
+        if stem.lower().endswith(s):
+            stem = stem[: -len(s)]
+            break
+    return log.with_name(stem + suffix)
+
+
+@contextlib.contextmanager
+def progress_bar(quiet: bool) -> Iterator[Callable[[str], None]]:
+    """A stage progress display on stderr (tqdm); silent with ``quiet`` or when not a TTY."""
+    if quiet or not sys.stderr.isatty():
+        yield lambda name: None
+        return
+    from tqdm import tqdm
+
+    bar = tqdm(total=None, desc="flightrecon", unit=" stage", file=sys.stderr, leave=False)
+    try:
+        def stage(name: str) -> None:
+            bar.set_description(f"flightrecon: {name}")
+            bar.update(1)
+        yield stage
+    finally:
+        bar.close()
+
+
+def echo_err(msg: str) -> None:
+    click.echo(msg, err=True)

@@ -1,0 +1,88 @@
+"""``flightrecon reconstruct``: the main job."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from flightrecon.cli.common import default_output, parse_k, position_option_values, progress_bar
+
+
+@click.command("reconstruct")
+@click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--gnss", type=click.Path(dir_okay=False, path_type=Path), help="Separate GNSS file.")
+@click.option("--radar", type=click.Path(dir_okay=False, path_type=Path),
+              help="Separate radar (range/azimuth) file.")
+@click.option("--mapping", type=click.Path(dir_okay=False, path_type=Path),
+              help="Column-mapping TOML for a foreign log.")
+@click.option("--sidecar", type=click.Path(dir_okay=False, path_type=Path),
+              help="Metadata TOML (default: <log stem>.meta.toml beside the log).")
+@click.option("--departure", metavar="LAT,LON,ELEV_M", help="Departure airfield (MSL elevation).")
+@click.option("--arrival", metavar="LAT,LON,ELEV_M", help="Arrival airfield / touchdown point.")
+@click.option("--station", metavar="LAT,LON,ELEV_M", help="Ground radar position.")
+@click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
+@click.option("--methods", metavar="LIST",
+              help="Comma-separated methods to run (sabziev,arms,azimuth,sns); "
+                   "default: every method the data allow.")
+@click.option("--k", "k_text", metavar="K1,K2,K3",
+              help="Sabziev coefficients: initial-value mode, no arrival point needed.")
+@click.option("--rate", "rate_hz", type=float, help="Grid rate for input channels [Hz].")
+@click.option("--arms-form", type=click.Choice(["joint", "cascade"]), default="joint",
+              show_default=True)
+@click.option("--arms-linearisation", type=click.Choice(["ekf", "converted"]), default="ekf",
+              show_default=True)
+@click.option("--azimuth-model", type=click.Choice(["aided", "singer"]), default="aided",
+              show_default=True)
+@click.option("--sns-model", type=click.Choice(["auto", "airspeed", "doppler"]), default="auto",
+              show_default=True)
+@click.option("--sns-form", type=click.Choice(["consistent", "seed"]), default="consistent",
+              show_default=True)
+@click.option("--strict", is_flag=True, help="Fail on the first method that fails to converge.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Result file (.parquet, .csv, .geojson, .kml). Default: <log stem>.recon.parquet "
+                   "beside the log.")
+@click.option("--format", "fmt", type=click.Choice(["csv", "parquet", "geojson", "kml"]),
+              help="Output format (default: from the suffix of -o).")
+@click.option("--summary", "summary_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Summary JSON (default: <output stem>.summary.json).")
+@click.pass_context
+def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
+            station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
+            azimuth_model, sns_model, sns_form, strict, output, fmt, summary_path) -> None:
+    """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
+    from flightrecon.export.atomic import check_not_input, sweep_leftovers
+    from flightrecon.export.writers import write_summary, write_track
+    from flightrecon.pipeline import ReconstructSettings, reconstruct
+
+    quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    overrides = position_option_values(departure=departure, arrival=arrival, station=station)
+    if aircraft_id:
+        overrides["aircraft_id"] = aircraft_id
+    settings = ReconstructSettings(
+        methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
+        rate_hz=rate_hz, k=parse_k(k_text) if k_text else None, arms_form=arms_form,
+        arms_linearisation=arms_linearisation, azimuth_model=azimuth_model, sns_model=sns_model,
+        sns_form=sns_form, strict=strict)
+    out = output or default_output(log, ".recon.parquet")
+    inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
+    check_not_input(out, inputs)
+    summ = summary_path or out.with_name(out.stem + ".summary.json")
+    check_not_input(summ, inputs)
+    sweep_leftovers(out.parent)
+    with progress_bar(quiet) as stage:
+        rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                          meta_overrides=overrides, settings=settings, progress=stage)
+        stage("export")
+        write_track(out, rec.track, rec.summary, fmt)
+        write_summary(summ, rec.summary)
+    if not quiet:
+        for name, st in rec.summary["methods"].items():
+            line = f"  {name:8s} {st.get('status')}"
+            if st.get("reason"):
+                line += f": {st['reason']}"
+            click.echo(line, err=True)
+        for w in rec.summary["warnings"]:
+            click.echo(f"  warning: {w}", err=True)
+    click.echo(f"wrote {out}")
+    click.echo(f"wrote {summ}")

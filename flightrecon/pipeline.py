@@ -1,0 +1,364 @@
+"""The reconstruction pipeline: the library API behind ``flightrecon reconstruct``.
+
+Data flows one way::
+
+    load_flight (ingest) -> clean_flight (cleaning) -> estimators -> combine -> export
+
+Each estimator returns a :class:`flightrecon.types.MethodResult` whose columns carry its prefix
+(``sabziev_``, ``arms_``, ``azimuth_``, ``sns_``).  The unprefixed default result is taken, per
+sample, from the best available method (see :data:`DEFAULT_PRIORITY`) and the ``source`` column
+records which one informed each sample.
+
+Examples
+--------
+>>> from flightrecon.pipeline import reconstruct          # doctest: +SKIP
+>>> rec = reconstruct("sample_logs/circuit.parquet")      # doctest: +SKIP
+>>> rec.track[["t_s", "north_m", "east_m", "up_m"]]       # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import platform
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon import __version__
+from flightrecon.errors import FlightReconError, MetadataError
+from flightrecon.types import CleanFlight, Flight, MethodResult
+
+SUMMARY_SCHEMA_VERSION = 1
+
+#: method name -> (module, function)
+METHOD_FUNCTIONS: dict[str, tuple[str, str]] = {
+    "sabziev": ("flightrecon.fusion.method", "run_sabziev"),
+    "arms": ("flightrecon.filters.arms_method", "run_arms"),
+    "azimuth": ("flightrecon.filters.azimuth_method", "run_azimuth"),
+    "sns": ("flightrecon.filters.sns_method", "run_sns"),
+}
+ALL_METHODS: tuple[str, ...] = tuple(METHOD_FUNCTIONS)
+
+#: order in which methods supply the unprefixed horizontal track, sample by sample
+DEFAULT_PRIORITY: tuple[str, ...] = ("sns", "arms", "sabziev", "azimuth")
+
+
+@dataclass(frozen=True)
+class ReconstructSettings:
+    """Settings of one reconstruction (written into the summary so the run can be repeated).
+
+    Attributes
+    ----------
+    methods : methods to run; ``None`` runs every method the flight's data allows
+    rate_hz : grid rate for the input channels (``None``: the fastest input channel's rate)
+    k : Sabziev coefficients (k1, k2, k3) for the initial-value mode (no arrival point needed)
+    k_sd : their standard deviations (fleet spread), propagated into the Sabziev track
+    arms_form, arms_linearisation : ADS/ARMS estimator form (``joint``/``cascade``) and
+        linearisation (``ekf``/``converted``)
+    azimuth_model : ``aided`` or ``singer``
+    sns_model, sns_form : SNS dead-reckoning model (``auto``/``airspeed``/``doppler``) and
+        filter form (``consistent``/``seed``)
+    strict : raise on the first method that fails or does not converge
+    """
+
+    methods: tuple[str, ...] | None = None
+    rate_hz: float | None = None
+    k: tuple[float, float, float] | None = None
+    k_sd: tuple[float, float, float] | None = None
+    arms_form: str = "joint"
+    arms_linearisation: str = "ekf"
+    azimuth_model: str = "aided"
+    sns_model: str = "auto"
+    sns_form: str = "consistent"
+    strict: bool = False
+
+
+@dataclass(frozen=True)
+class Reconstruction:
+    """Result of :func:`reconstruct`: the combined track, the summary and the pieces."""
+
+    track: pd.DataFrame
+    summary: dict[str, Any]
+    clean: CleanFlight
+    results: dict[str, MethodResult] = field(default_factory=dict)
+
+
+def sha256_file(path: str | Path, chunk: int = 1 << 20) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while True:
+            b = fh.read(chunk)
+            if not b:
+                break
+            h.update(b)
+    return h.hexdigest()
+
+
+def available_methods(clean: CleanFlight, settings: ReconstructSettings) -> dict[str, str | None]:
+    """Which methods the data allow: name -> ``None`` if runnable, else the reason it is not."""
+    meta = clean.meta
+    out: dict[str, str | None] = {}
+    has_end = meta.arrival is not None or settings.k is not None
+    out["sabziev"] = None if has_end else (
+        "no arrival point and no coefficients (give --arrival, or --k / fleet coefficients)")
+    has_radar = len(clean.radar) > 0 and "arms_azimuth_deg" in clean.radar.columns
+    if not has_radar:
+        reason = "no radar plots in the data"
+    elif meta.station is None:
+        reason = "radar plots but no station position (give --station)"
+    else:
+        reason = None
+    out["arms"] = reason
+    out["azimuth"] = reason
+    has_gnss = len(clean.gnss) > 0 and "gnss_lat_deg" in clean.gnss.columns
+    out["sns"] = None if has_gnss else "no GNSS fixes in the data"
+    if meta.departure is None:
+        for m in out:
+            out[m] = out[m] or "no departure position (give --departure)"
+    return out
+
+
+def _method_kwargs(name: str, s: ReconstructSettings) -> dict[str, Any]:
+    if name == "sabziev":
+        return {"k": s.k, "k_sd": s.k_sd}
+    if name == "arms":
+        return {"form": s.arms_form, "linearisation": s.arms_linearisation}
+    if name == "azimuth":
+        return {"model": s.azimuth_model}
+    if name == "sns":
+        return {"model": s.sns_model, "form": s.sns_form}
+    raise KeyError(name)
+
+
+def run_method(name: str, clean: CleanFlight, settings: ReconstructSettings) -> MethodResult:
+    """Run one estimator by name on a cleaned flight."""
+    mod_name, fn_name = METHOD_FUNCTIONS[name]
+    fn: Callable[..., MethodResult] = getattr(importlib.import_module(mod_name), fn_name)
+    return fn(clean, **_method_kwargs(name, settings))
+
+
+def _method_healthy(res: MethodResult) -> bool:
+    s = res.summary
+    if s.get("converged") is False:
+        return False
+    return s.get("healthy", True) is not False
+
+
+def combine(clean: CleanFlight, results: dict[str, MethodResult],
+            priority: Sequence[str] = DEFAULT_PRIORITY) -> pd.DataFrame:
+    """Assemble the output table: the unprefixed default result plus every method's columns.
+
+    Horizontal position, velocity and their standard deviations come, sample by sample, from
+    the first healthy method in ``priority`` that covers the sample (``source`` says which).
+    The vertical comes from the Sabziev solution where present, else from pressure altitude
+    relative to the departure airfield (``up_source``); lat/lon/alt (WGS-84 ellipsoidal height)
+    are the tangent-plane position converted back through pyproj.
+    """
+    from flightrecon.geo.frames import output_plane
+
+    t = clean.grid["t_s"].to_numpy()
+    n = len(t)
+    out = pd.DataFrame({"t_s": t})
+    cols = {}
+    for q, unit in (("north", "m"), ("east", "m"), ("vn", "mps"), ("ve", "mps")):
+        cols[f"{q}_{unit}"] = np.full(n, np.nan)
+        cols[f"{q}_sd_{unit}"] = np.full(n, np.nan)
+    source = np.full(n, "", dtype=object)
+    for name in priority:
+        res = results.get(name)
+        if res is None or not _method_healthy(res):
+            continue
+        tr = res.track
+        if f"{name}_north_m" not in tr.columns:
+            continue
+        if len(tr) != n or not np.array_equal(tr["t_s"].to_numpy(), t):
+            tr = pd.DataFrame({"t_s": t}).merge(tr, on="t_s", how="left")
+        pos = tr[[f"{name}_north_m", f"{name}_east_m"]].to_numpy()
+        take = (source == "") & np.isfinite(pos).all(axis=1)
+        if not take.any():
+            continue
+        source[take] = name
+        for key in cols:
+            src = f"{name}_{key}"
+            if src in tr.columns:
+                cols[key][take] = tr[src].to_numpy()[take]
+    for key, val in cols.items():
+        out[key] = val
+    # vertical
+    up = np.full(n, np.nan)
+    up_sd = np.full(n, np.nan)
+    up_source = np.full(n, "", dtype=object)
+    sab = results.get("sabziev")
+    if sab is not None and _method_healthy(sab) and "sabziev_up_m" in sab.track.columns:
+        su = pd.DataFrame({"t_s": t}).merge(sab.track, on="t_s", how="left")
+        v = su["sabziev_up_m"].to_numpy()
+        ok = np.isfinite(v)
+        up[ok] = v[ok]
+        up_source[ok] = "sabziev"
+        if "sabziev_up_sd_m" in su.columns:
+            up_sd[ok] = su["sabziev_up_sd_m"].to_numpy()[ok]
+    if "baro_alt_m" in clean.grid.columns and clean.meta.departure is not None:
+        from flightrecon.geo.atmosphere import pressure_altitude_m, isa_pressure_pa
+
+        qnh = clean.meta.qnh_departure_hpa or 1013.25
+        # pressure altitude of the departure airfield: ISA altitude of its station pressure
+        p_field = isa_pressure_pa(clean.meta.departure.elev_m) * qnh / 1013.25
+        h_field = float(pressure_altitude_m(p_field))
+        baro = clean.grid["baro_alt_m"].to_numpy() - h_field
+        fill = ~np.isfinite(up) & np.isfinite(baro)
+        up[fill] = baro[fill]
+        up_source[fill] = "baro"
+    out["up_m"] = up
+    out["up_sd_m"] = up_sd
+    dt = np.gradient(t) if n > 1 else np.ones(n)
+    out["vu_mps"] = np.gradient(up) / dt if n > 1 else np.full(n, np.nan)
+    plane = output_plane(clean.meta)
+    lat, lon, alt = plane.inverse(out["east_m"].to_numpy(), out["north_m"].to_numpy(), up)
+    out["lat_deg"] = lat
+    out["lon_deg"] = lon
+    out["alt_m"] = alt
+    out["source"] = pd.array(source, dtype="string")
+    out["up_source"] = pd.array(up_source, dtype="string")
+    for name in ALL_METHODS:
+        res = results.get(name)
+        if res is None:
+            continue
+        tr = res.track
+        extra = [c for c in tr.columns if c != "t_s"]
+        if len(tr) == n and np.array_equal(tr["t_s"].to_numpy(), t):
+            for c in extra:
+                out[c] = tr[c].to_numpy()
+        else:
+            merged = pd.DataFrame({"t_s": t}).merge(tr, on="t_s", how="left")
+            for c in extra:
+                out[c] = merged[c].to_numpy()
+    return out
+
+
+def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = ReconstructSettings(),
+                      progress: Callable[[str], None] | None = None
+                      ) -> tuple[pd.DataFrame, dict[str, MethodResult], dict[str, Any]]:
+    """Run the estimators on a cleaned flight and combine them.
+
+    Returns the track, the method results and the per-method status for the summary.
+    """
+    avail = available_methods(clean, settings)
+    if settings.methods is None:
+        chosen = [m for m in ALL_METHODS if avail[m] is None]
+    else:
+        unknown = [m for m in settings.methods if m not in METHOD_FUNCTIONS]
+        if unknown:
+            raise MetadataError(f"unknown method(s) {', '.join(unknown)}; "
+                                f"choose from {', '.join(ALL_METHODS)}")
+        for m in settings.methods:
+            if avail[m] is not None:
+                raise MetadataError(f"method '{m}' cannot run on this flight: {avail[m]}")
+        chosen = list(settings.methods)
+    status: dict[str, Any] = {m: {"status": "skipped", "reason": avail[m]}
+                              for m in ALL_METHODS if m not in chosen}
+    results: dict[str, MethodResult] = {}
+    for m in chosen:
+        if progress:
+            progress(m)
+        try:
+            res = run_method(m, clean, settings)
+        except FlightReconError as exc:
+            if settings.strict:
+                raise
+            status[m] = {"status": "failed", "reason": str(exc)}
+            continue
+        results[m] = res
+        healthy = _method_healthy(res)
+        status[m] = {"status": "ok" if healthy else "unhealthy", **res.summary}
+    if not results:
+        raise MetadataError("no estimator could run on this flight: " + "; ".join(
+            f"{m}: {s.get('reason')}" for m, s in status.items()))
+    track = combine(clean, results)
+    return track, results, status
+
+
+def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str | Path | None = None,
+                mapping: str | Path | None = None, sidecar: str | Path | None = None,
+                meta_overrides: dict[str, Any] | None = None,
+                settings: ReconstructSettings = ReconstructSettings(),
+                progress: Callable[[str], None] | None = None) -> Reconstruction:
+    """Load, validate, clean and reconstruct a flight from its recorder log.
+
+    Parameters
+    ----------
+    log : recorder log (CSV or Parquet), canonical or with a ``mapping`` file
+    gnss, radar : separate GNSS / radar files merged on UTC time
+    sidecar : metadata TOML (default: ``<log stem>.meta.toml`` beside the log)
+    meta_overrides : metadata given on the command line (``departure``, ``arrival``, ...)
+    settings : :class:`ReconstructSettings`
+    progress : callback called with the name of each stage as it starts
+
+    Returns
+    -------
+    Reconstruction
+    """
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.ingest import load_flight
+
+    def stage(name: str) -> None:
+        if progress:
+            progress(name)
+
+    stage("ingest")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                                     meta_overrides=meta_overrides)
+        stage("cleaning")
+        clean = clean_flight(flight, rate_hz=settings.rate_hz)
+        track, results, status = reconstruct_clean(clean, settings, progress=stage)
+    warn_list = list(flight.warnings) + [str(w.message) for w in caught
+                                         if str(w.message) not in flight.warnings]
+    inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
+    summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
+    return Reconstruction(track=track, summary=summary, clean=clean, results=results)
+
+
+def _meta_dict(meta) -> dict[str, Any]:
+    d = asdict(meta)
+    d.pop("extra", None)
+    return d
+
+
+def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dict[str, Any], *,
+                  inputs: Sequence[str | Path] = (), warnings_: Sequence[str] = ()) -> dict[str, Any]:
+    """The summary document (JSON-serialisable) with its schema version."""
+    ph = clean.phases
+    return {
+        "schema_version": SUMMARY_SCHEMA_VERSION,
+        "software": {"name": "flightrecon", "version": __version__,
+                     "python": platform.python_version()},
+        "inputs": [{"path": str(p), "sha256": sha256_file(p)} for p in inputs if Path(p).is_file()],
+        "flight": _meta_dict(clean.meta),
+        "settings": asdict(settings),
+        "grid": {"rate_hz": clean.rate_hz, "samples": len(clean.grid),
+                 "t0_s": float(clean.grid["t_s"].iloc[0]) if len(clean.grid) else None,
+                 "t1_s": float(clean.grid["t_s"].iloc[-1]) if len(clean.grid) else None},
+        "measurements": {"gnss_fixes": len(clean.gnss), "radar_plots": len(clean.radar)},
+        "phases": None if ph is None else asdict(ph),
+        "cleaning": {"actions": len(clean.report), "report": list(clean.report)[:200]},
+        "output": {
+            "frame": "east-north-up tangent plane at the departure airfield (metres)",
+            "alt_datum": "WGS-84 ellipsoidal height (alt_m)",
+            "default_source_priority": list(DEFAULT_PRIORITY),
+        },
+        "methods": status,
+        "warnings": list(warnings_),
+    }
+
+
+def with_settings(settings: ReconstructSettings, **changes: Any) -> ReconstructSettings:
+    """A copy of ``settings`` with ``changes`` applied (unknown names raise TypeError)."""
+    return replace(settings, **changes)
