@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "flightrecon.cli.reconstruct",
     "flightrecon.cli.coeffs",
     "flightrecon.cli.export",
+    "flightrecon.cli.plot",
 )
 
 

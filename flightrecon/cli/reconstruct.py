@@ -46,10 +46,13 @@ from flightrecon.cli.common import default_output, parse_k, position_option_valu
               help="Output format (default: from the suffix of -o).")
 @click.option("--summary", "summary_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Summary JSON (default: <output stem>.summary.json).")
+@click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Also write figures and a self-contained report.html into this folder.")
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
             station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
-            azimuth_model, sns_model, sns_form, strict, output, fmt, summary_path) -> None:
+            azimuth_model, sns_model, sns_form, strict, output, fmt, summary_path,
+            report_dir) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
     from flightrecon.export.atomic import check_not_input, sweep_leftovers
     from flightrecon.export.writers import write_summary, write_track
@@ -76,6 +79,12 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
         stage("export")
         write_track(out, rec.track, rec.summary, fmt)
         write_summary(summ, rec.summary)
+        if report_dir:
+            from flightrecon.report import write_report
+
+            stage("report")
+            page = write_report(report_dir, rec.track, rec.summary,
+                                title=f"flightrecon: {log.name}")
     if not quiet:
         for name, st in rec.summary["methods"].items():
             line = f"  {name:8s} {st.get('status')}"
@@ -86,3 +95,5 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
             click.echo(f"  warning: {w}", err=True)
     click.echo(f"wrote {out}")
     click.echo(f"wrote {summ}")
+    if report_dir:
+        click.echo(f"wrote {page}")
