@@ -1,0 +1,551 @@
+"""Joint post-flight smoother: one trajectory from every source, with honest uncertainty.
+
+The state, its propagation by the kinematic accelerations from load factors and attitude, and
+the measurement models are in :mod:`flightrecon.filters.joint_kernels`.  This module builds
+their inputs from a cleaned flight, runs the forward filter and the RTS backward pass, and
+iterates (Gauss-Newton about the smoothed trajectory) with
+
+* the linearisation refreshed on the smoothed trajectory (nominal positions through pyproj);
+* robust re-weighting: each measurement's smoothed residual, normalised by its own standard
+  deviation sqrt(R - H P_s H^T), enters a Huber weight (threshold ``huber_c``), so a source that
+  jumps (a GNSS offset of 500 m for a minute) is down-weighted rather than trusted;
+* clock offsets of the GNSS and radar against the recorder estimated by weighted least squares
+  of the smoothed residuals against the rate of each predicted measurement (a plot stamped
+  t_m that belongs to true time t_m - o has residual -hdot * o);
+* optionally, a scale factor on each source's noise variance estimated from the flight
+  (variance-component estimation from the normalised residuals).
+
+Frame: position in ECEF, velocity in the local north-east-down frame of the (nominal) aircraft
+position: valid on flights of any length; outputs converted to the departure tangent plane.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.filters import joint_kernels as jk
+from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
+from flightrecon.geo.navframe import ned_to_ecef_matrix
+
+SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground")
+
+
+@dataclass(frozen=True)
+class JointNoise:
+    """Sensor error budget (one sigma unless stated) and process noise of the joint model.
+
+    Defaults are a stated budget for a transport aircraft's recorder data; see docs/joint.md.
+    """
+
+    accel_noise_mps2_sqrt_hz: float = 0.05   # velocity random walk from load-factor noise
+    accel_bias_g: float = 0.003              # accelerometer bias, Gauss-Markov sigma
+    accel_bias_tau_s: float = 3600.0
+    wind_prior_mps: float = 15.0
+    wind_rw_mps_sqrt_s: float = 0.05         # wind change with time
+    wind_shear_mps_per_sqrt_m: float = 0.15  # wind change with altitude: sd over 1 m of climb
+    heading_bias_deg: float = 2.0
+    heading_bias_rw_deg_sqrt_s: float = 1e-4
+    tas_scale: float = 0.03
+    baro_offset_m: float = 60.0
+    baro_offset_rw_m_sqrt_s: float = 0.05
+    baro_scale: float = 0.05
+    tas_mps: float = 1.5                     # airspeed noise (used at airdata_rate_hz)
+    heading_deg: float = 0.5
+    baro_m: float = 8.0
+    gnss_h_m: float = 5.0
+    gnss_v_m: float = 10.0
+    gnss_vel_mps: float = 0.3
+    radar_range_m: float = 50.0
+    radar_azimuth_deg: float = 0.25
+    radar_elevation_deg: float = 0.3
+    endpoint_h_m: float = 1500.0             # lift-off / touchdown point vs airfield reference
+    endpoint_v_m: float = 30.0
+    ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
+    init_pos_m: float = 3000.0
+    init_vel_mps: float = 30.0
+
+
+@dataclass(frozen=True)
+class JointSettings:
+    """Settings of the joint smoother."""
+
+    noise: JointNoise = field(default_factory=JointNoise)
+    state_rate_hz: float = 4.0
+    airdata_rate_hz: float = 1.0
+    baro_rate_hz: float = 1.0
+    ground_rate_hz: float = 1.0
+    min_airspeed_mps: float = 30.0
+    iterations: int = 4
+    huber_c: float = 3.0
+    robust: bool = True
+    estimate_clock: bool = True
+    estimate_noise: bool = False
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Scalar measurements sorted by state step (see joint_kernels for the types)."""
+
+    step: np.ndarray
+    source: np.ndarray      # index into SOURCES
+    mtype: np.ndarray
+    z: np.ndarray
+    r: np.ndarray
+    t: np.ndarray           # measurement time, recorder time base
+    H: np.ndarray           # (M, n) for LINEAR
+    d: np.ndarray
+    start: np.ndarray       # (N+1,)
+
+
+@dataclass(frozen=True)
+class JointRun:
+    """Result of :func:`smooth_joint` on the state grid."""
+
+    t: np.ndarray
+    x: np.ndarray            # smoothed states (N, n)
+    P_pv: np.ndarray         # smoothed position-velocity covariance block (ECEF p, NED v)
+    var: np.ndarray          # smoothed state variances (N, n)
+    xf: np.ndarray           # filtered states
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    h_m: np.ndarray          # ellipsoidal height
+    Cen: np.ndarray
+    meas: Measurements
+    weights: np.ndarray
+    resid_norm: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    clock_offsets_s: dict[str, tuple[float, float]]
+    noise_scale: dict[str, float]
+    iterations: list[dict[str, Any]]
+
+
+def enu_to_ecef_matrix(lat_deg: float, lon_deg: float) -> np.ndarray:
+    """(3, 3) rotation whose columns are the east, north, up unit vectors in ECEF."""
+    C = ned_to_ecef_matrix(lat_deg, lon_deg)[0]
+    return np.column_stack([C[:, 1], C[:, 0], -C[:, 2]])
+
+
+@dataclass(frozen=True)
+class JointInputs:
+    """Everything the smoother needs, in SI, on the state grid / at measurement times.
+
+    Attributes
+    ----------
+    t_in : input grid times (Ni,)
+    acc_ned : measured kinematic acceleration on the input grid (Ni, 3), NaN where missing
+    Cnb : body-to-NED rotations on the input grid (Ni, 3, 3)
+    tas, heading_rad : airspeed and (unwrapped) true heading on the input grid
+    baro_rel_m : pressure altitude minus the departure field's pressure altitude (input grid)
+    gnss : DataFrame t_s, lat_deg, lon_deg, h_m (ellipsoidal), vn_mps, ve_mps (may be empty)
+    radar : DataFrame t_s, range_m, azimuth_rad, elevation_rad (NaN if absent) (may be empty)
+    station : (lat, lon, h_ellipsoidal) or None
+    departure, arrival : (lat, lon, h_ellipsoidal) or None
+    liftoff_t, touchdown_t : NaN where not in the record
+    field_h : ellipsoidal height of the departure field (reference of baro_rel_m)
+    lever_arm : GNSS antenna in body FRD [m]
+    wind_ne : recorded wind (Ni, 2) where the air moves to, or None
+    """
+
+    t_in: np.ndarray
+    acc_ned: np.ndarray
+    Cnb: np.ndarray
+    tas: np.ndarray
+    heading_rad: np.ndarray
+    baro_rel_m: np.ndarray
+    gnss: pd.DataFrame
+    radar: pd.DataFrame
+    station: tuple[float, float, float] | None
+    departure: tuple[float, float, float] | None
+    arrival: tuple[float, float, float] | None
+    liftoff_t: float
+    touchdown_t: float
+    field_h: float
+    lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wind_ne: np.ndarray | None = None
+
+
+def _state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
+    """Indices of the input grid that are state steps (every ``stride``-th sample, and the last)."""
+    dt_in = float(np.median(np.diff(t_in))) if len(t_in) > 1 else 1.0
+    stride = max(1, int(round(1.0 / (rate_hz * dt_in))))
+    idx = np.arange(0, len(t_in), stride)
+    if idx[-1] != len(t_in) - 1:
+        idx = np.append(idx, len(t_in) - 1)
+    return idx
+
+
+def _increments(t_in, acc, idx):
+    """Exact velocity and position increments over each state step for held accelerations.
+
+    Over step k (from t_in[idx[k-1]] to t_in[idx[k]]) with accelerations a_i held on
+    [t_i, t_{i+1}): dV = sum a_i d_i, dP = sum a_i d_i (T_k - t_i - d_i / 2).
+    """
+    Ni = len(t_in)
+    d = np.diff(t_in, append=t_in[-1])  # hold of sample i; the last sample holds for 0 s
+    a = np.where(np.isfinite(acc), acc, 0.0)
+    missing = (~np.isfinite(acc)).any(axis=1).astype(float)
+    step_of = np.searchsorted(idx, np.arange(Ni), side="right")  # sample i belongs to step k
+    N = len(idx)
+    T = t_in[idx]
+    Tk = T[np.minimum(step_of, N - 1)]
+    w_p = d * (Tk - t_in - d / 2.0)
+    dV = np.zeros((N, 3))
+    dP = np.zeros((N, 3))
+    miss = np.zeros(N)
+    valid = step_of < N
+    for j in range(3):
+        dV[:, j] = np.bincount(step_of[valid], weights=(a[:, j] * d)[valid], minlength=N)[:N]
+        dP[:, j] = np.bincount(step_of[valid], weights=(a[:, j] * w_p)[valid], minlength=N)[:N]
+    miss = np.bincount(step_of[valid], weights=(missing * d)[valid], minlength=N)[:N]
+    return dV, dP, miss
+
+
+def _step_mean(x, idx, t_in):
+    """Mean of an input-grid quantity over each state step (sample-weighted)."""
+    Ni = len(t_in)
+    N = len(idx)
+    step_of = np.searchsorted(idx, np.arange(Ni), side="right")
+    valid = step_of < N
+    cnt = np.bincount(step_of[valid], minlength=N)[:N].astype(float)
+    flat = x.reshape(Ni, -1)
+    out = np.zeros((N, flat.shape[1]))
+    for j in range(flat.shape[1]):
+        v = np.where(np.isfinite(flat[:, j]), flat[:, j], 0.0)
+        out[:, j] = np.bincount(step_of[valid], weights=v[valid], minlength=N)[:N]
+    out /= np.maximum(cnt, 1.0)[:, None]
+    out[cnt == 0] = flat[np.minimum(idx[cnt == 0], Ni - 1)]
+    return out.reshape((N,) + x.shape[1:])
+
+
+def _decimate_mask(t: np.ndarray, rate_hz: float) -> np.ndarray:
+    """True for the first sample of each 1/rate_hz bin (keeps each measurement used once)."""
+    if rate_hz <= 0:
+        return np.zeros(len(t), bool)
+    b = np.floor((t - t[0]) * rate_hz + 1e-9).astype(np.int64)
+    keep = np.ones(len(t), bool)
+    keep[1:] = b[1:] != b[:-1]
+    return keep
+
+
+class _MeasBuilder:
+    def __init__(self, T: np.ndarray, n: int = jk.N_STATE):
+        self.T = T
+        self.n = n
+        self.parts: list[dict[str, np.ndarray]] = []
+
+    def add(self, source: str, mtype: int, t, z, r, H=None, d=None):
+        t = np.asarray(t, float)
+        z = np.asarray(z, float)
+        m = len(t)
+        if m == 0:
+            return
+        r = np.broadcast_to(np.asarray(r, float), (m,)).copy()
+        Hm = np.zeros((m, self.n)) if H is None else np.asarray(H, float)
+        dm = np.zeros(m) if d is None else np.broadcast_to(np.asarray(d, float), (m,)).copy()
+        ok = np.isfinite(z) & np.isfinite(t) & np.isfinite(r) & np.isfinite(Hm).all(axis=1)
+        ok &= np.isfinite(dm)
+        self.parts.append({"source": np.full(m, SOURCES.index(source)), "mtype": np.full(m, mtype),
+                           "t": t, "z": z, "r": r, "H": Hm, "d": dm, "ok": ok})
+
+    def build(self) -> Measurements:
+        T = self.T
+        N = len(T)
+        cat = {k: np.concatenate([p[k] for p in self.parts]) if self.parts else
+               np.zeros((0, self.n)) if k == "H" else np.zeros(0) for k in
+               ("source", "mtype", "t", "z", "r", "H", "d", "ok")}
+        ok = cat["ok"].astype(bool) & (cat["t"] >= T[0] - 0.5 * (T[1] - T[0] if N > 1 else 1)) & (
+            cat["t"] <= T[-1] + 0.5 * (T[-1] - T[-2] if N > 1 else 1))
+        for k in cat:
+            cat[k] = cat[k][ok]
+        step = np.clip(np.searchsorted(T, cat["t"]), 0, N - 1)
+        prev = np.clip(step - 1, 0, N - 1)
+        closer = np.abs(cat["t"] - T[prev]) < np.abs(cat["t"] - T[step])
+        step = np.where(closer, prev, step)
+        order = np.lexsort((cat["t"], step))
+        start = np.searchsorted(step[order], np.arange(N + 1), side="left")
+        return Measurements(step=step[order].astype(np.int64),
+                            source=cat["source"][order].astype(np.int64),
+                            mtype=cat["mtype"][order].astype(np.int64), z=cat["z"][order],
+                            r=cat["r"][order], t=cat["t"][order],
+                            H=np.ascontiguousarray(cat["H"][order]), d=cat["d"][order],
+                            start=start.astype(np.int64))
+
+
+def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
+                       Cnb_T: np.ndarray, clock: dict[str, float]) -> Measurements:
+    """Every source as scalar measurements at its own time (recorder time base)."""
+    nz = settings.noise
+    b = _MeasBuilder(T)
+    n = jk.N_STATE
+    t_in = inp.t_in
+
+    def step_of(t):
+        s = np.clip(np.searchsorted(T, t), 0, len(T) - 1)
+        p = np.clip(s - 1, 0, len(T) - 1)
+        return np.where(np.abs(t - T[p]) < np.abs(t - T[s]), p, s)
+
+    def linear_ned(source, t, comp_vals, sd, kind="pos", ecef=None):
+        """NED components of a position (given in ECEF) or a velocity, with tau terms."""
+        k = step_of(t)
+        tau = t - T[k]
+        for i in range(3 if kind == "pos" else 2):
+            H = np.zeros((len(t), n))
+            if kind == "pos":
+                c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
+                H[:, jk.IP:jk.IP + 3] = c
+                H[:, jk.IV + i] = tau
+                z = np.einsum("mj,mj->m", c, ecef)
+            else:
+                H[:, jk.IV + i] = 1.0
+                z = comp_vals[i]
+            b.add(source, jk.LINEAR, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), H)
+
+    # air data: airspeed and heading, decimated, airborne speeds only
+    ok = np.isfinite(inp.tas) & np.isfinite(inp.heading_rad) & (inp.tas >= settings.min_airspeed_mps)
+    keep = ok & _decimate_mask(t_in, settings.airdata_rate_hz)
+    b.add("air", jk.TAS, t_in[keep], inp.tas[keep], nz.tas_mps ** 2)
+    b.add("air", jk.HEADING, t_in[keep], inp.heading_rad[keep], np.radians(nz.heading_deg) ** 2)
+    # pressure altitude
+    okb = np.isfinite(inp.baro_rel_m) & _decimate_mask(t_in, settings.baro_rate_hz)
+    b.add("baro", jk.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
+    # GNSS
+    g = inp.gnss
+    if len(g):
+        tg = g["t_s"].to_numpy() - clock.get("gnss", 0.0)
+        ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(),
+                                      g["h_m"].to_numpy())
+        ant = np.c_[ex, ey, ez]
+        k = step_of(tg)
+        L = np.asarray(inp.lever_arm, float)
+        if np.any(L != 0):
+            # attitude at the fix: nearest input sample
+            ii = np.clip(np.searchsorted(t_in, tg), 0, len(t_in) - 1)
+            arm_ned = np.einsum("mij,j->mi", inp.Cnb[ii], L)
+            ant = ant - np.einsum("mij,mj->mi", Cen[k], arm_ned)
+        linear_ned("gnss_pos", tg, None, (nz.gnss_h_m, nz.gnss_h_m, nz.gnss_v_m), "pos", ant)
+        if {"vn_mps", "ve_mps"} <= set(g.columns):
+            linear_ned("gnss_vel", tg, (g["vn_mps"].to_numpy(), g["ve_mps"].to_numpy()),
+                       (nz.gnss_vel_mps, nz.gnss_vel_mps), "vel")
+    # radar
+    rd = inp.radar
+    if len(rd) and inp.station is not None:
+        tr = rd["t_s"].to_numpy() - clock.get("radar", 0.0)
+        b.add("radar", jk.RANGE, tr, rd["range_m"].to_numpy(), nz.radar_range_m ** 2)
+        b.add("radar", jk.AZIMUTH, tr, rd["azimuth_rad"].to_numpy(),
+              np.radians(nz.radar_azimuth_deg) ** 2)
+        if "elevation_rad" in rd.columns:
+            b.add("radar", jk.ELEVATION, tr, rd["elevation_rad"].to_numpy(),
+                  np.radians(nz.radar_elevation_deg) ** 2)
+    # end points: departure at lift-off (or first sample), arrival at touchdown (or last)
+    sd_end = (nz.endpoint_h_m, nz.endpoint_h_m, nz.endpoint_v_m)
+    for pos, tt in ((inp.departure, inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]),
+                    (inp.arrival, inp.touchdown_t if np.isfinite(inp.touchdown_t) else t_in[-1])):
+        if pos is None:
+            continue
+        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+        linear_ned("endpoint", np.array([tt]), None, sd_end, "pos",
+                   np.array([[float(ex), float(ey), float(ez)]]))
+    # on the ground: zero vertical velocity and zero cross-track velocity (rolling on a runway)
+    on_ground = np.zeros(len(t_in), bool)
+    if np.isfinite(inp.liftoff_t):
+        on_ground |= t_in < inp.liftoff_t - 2.0
+    if np.isfinite(inp.touchdown_t):
+        on_ground |= t_in > inp.touchdown_t + 2.0
+    keep = on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
+    if keep.any():
+        tt = t_in[keep]
+        H = np.zeros((len(tt), n))
+        H[:, jk.IV + 2] = 1.0
+        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+        H = np.zeros((len(tt), n))
+        psi = inp.heading_rad[keep]
+        H[:, jk.IV] = -np.sin(psi)
+        H[:, jk.IV + 1] = np.cos(psi)
+        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+    return b.build()
+
+
+def _q_vector(nz: JointNoise) -> np.ndarray:
+    return np.array([nz.accel_noise_mps2_sqrt_hz ** 2, nz.wind_rw_mps_sqrt_s ** 2,
+                     nz.wind_shear_mps_per_sqrt_m ** 2, nz.accel_bias_g ** 2, nz.accel_bias_tau_s,
+                     np.radians(nz.heading_bias_rw_deg_sqrt_s) ** 2,
+                     nz.baro_offset_rw_m_sqrt_s ** 2])
+
+
+def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
+    n = jk.N_STATE
+    x0 = np.zeros(n)
+    x0[jk.IP:jk.IP + 3] = nom_ecef[0]
+    i0 = 0
+    v0 = np.zeros(3)
+    if np.isfinite(inp.tas[i0]) and inp.tas[i0] >= min_speed:
+        v0[:2] = inp.tas[i0] * np.array([np.cos(inp.heading_rad[i0]), np.sin(inp.heading_rad[i0])])
+    x0[jk.IV:jk.IV + 3] = v0
+    P0 = np.zeros((n, n))
+    P0[0:3, 0:3] = np.eye(3) * nz.init_pos_m ** 2
+    P0[3:6, 3:6] = np.eye(3) * nz.init_vel_mps ** 2
+    P0[6:8, 6:8] = np.eye(2) * nz.wind_prior_mps ** 2
+    P0[8:11, 8:11] = np.eye(3) * nz.accel_bias_g ** 2
+    P0[jk.IPSI, jk.IPSI] = np.radians(nz.heading_bias_deg) ** 2
+    P0[jk.IS, jk.IS] = nz.tas_scale ** 2
+    P0[jk.IBH, jk.IBH] = nz.baro_offset_m ** 2
+    P0[jk.IC, jk.IC] = nz.baro_scale ** 2
+    return x0, P0
+
+
+def _nominal_dead_reckoning(inp: JointInputs, idx: np.ndarray):
+    """Iteration-0 linearisation trajectory: air-data dead reckoning (+ recorded wind) in the
+    departure tangent plane, heights from pressure altitude, converted through pyproj."""
+    from flightrecon.geo.frames import TangentPlane
+
+    t = inp.t_in
+    tas = np.where(np.isfinite(inp.tas), inp.tas, 0.0)
+    psi = np.where(np.isfinite(inp.heading_rad), inp.heading_rad, 0.0)
+    vn, ve = tas * np.cos(psi), tas * np.sin(psi)
+    if inp.wind_ne is not None:
+        w = np.where(np.isfinite(inp.wind_ne), inp.wind_ne, 0.0)
+        vn, ve = vn + w[:, 0], ve + w[:, 1]
+    dt = np.diff(t, prepend=t[0])
+    n = np.cumsum(vn * dt)
+    e = np.cumsum(ve * dt)
+    up = np.where(np.isfinite(inp.baro_rel_m), inp.baro_rel_m, 0.0)
+    ref = inp.departure
+    if ref is None:
+        g = inp.gnss
+        ref = (float(g["lat_deg"].iloc[0]), float(g["lon_deg"].iloc[0]), float(g["h_m"].iloc[0]))
+    tp = TangentPlane(*ref)
+    lat, lon, h = tp.inverse(e[idx], n[idx], up[idx])
+    return lat, lon, h
+
+
+def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) -> JointRun:
+    """Run the joint smoother (forward EKF, RTS, Gauss-Newton/IRLS iterations)."""
+    nz = settings.noise
+    idx = _state_grid(inp.t_in, settings.state_rate_hz)
+    T = inp.t_in[idx]
+    N = len(T)
+    dt = np.diff(T, prepend=T[0])
+    dV, dP, miss = _increments(inp.t_in, inp.acc_ned, idx)
+    acc = dV / np.where(dt > 0, dt, 1.0)[:, None]
+    Cnb = _step_mean(inp.Cnb, idx, inp.t_in)
+    qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
+    q = _q_vector(nz)
+    lat, lon, h = _nominal_dead_reckoning(inp, idx)
+    clock = {"gnss": 0.0, "radar": 0.0}
+    clock_sd = {"gnss": np.nan, "radar": np.nan}
+    scale = {s: 1.0 for s in SOURCES}
+    weights = None
+    history = []
+    Cst = np.eye(3)
+    pst = np.zeros(3)
+    if inp.station is not None:
+        Cst = enu_to_ecef_matrix(inp.station[0], inp.station[1])
+        sx, sy, sz = geodetic_to_ecef(*inp.station)
+        pst = np.array([float(sx), float(sy), float(sz)])
+    x0 = P0 = None
+    for it in range(max(1, settings.iterations)):
+        ex, ey, ez = geodetic_to_ecef(lat, lon, h)
+        pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
+        Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
+        hnom = h - inp.field_h
+        climb = np.abs(np.diff(h, prepend=h[0]))
+        meas = build_measurements(inp, settings, T, Cen, Cnb, clock)
+        src_scale = np.array([scale[SOURCES[s]] for s in meas.source]) if len(meas.z) else np.zeros(0)
+        r = meas.r * src_scale
+        if weights is None or len(weights) != len(meas.z):
+            weights = np.ones(len(meas.z))
+        if x0 is None:
+            x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps)
+        tau = meas.t - T[meas.step]
+        xf, Pf, xp, Pp, innov, innov_var = jk.forward(
+            x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
+            meas.z, r, weights, tau, meas.H, meas.d, pnom, hnom, pst, Cst)
+        xs, Pblk, var, res_n, res, rate = jk.backward(
+            xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, meas.start, meas.mtype, meas.z, r, tau,
+            meas.H, meas.d, pnom, hnom, pst, Cst)
+        del Pf, Pp
+        # new nominal: the smoothed trajectory
+        lat_new, lon_new, h_new = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+        shift = float(np.max(np.abs(np.c_[xs[:, 0:3] - pnom])))
+        info = {"iteration": it, "max_position_change_m": shift}
+        # robust weights from the smoothed residuals
+        if settings.robust:
+            a = np.abs(res_n)
+            weights = np.where(a > settings.huber_c, settings.huber_c / np.maximum(a, 1e-12), 1.0)
+            weights[~np.isfinite(weights)] = 1.0
+        # clock offsets: residual = -hdot * offset
+        if settings.estimate_clock:
+            for name, src in (("gnss", ("gnss_pos",)), ("radar", ("radar",))):
+                sel = np.isin(meas.source, [SOURCES.index(s) for s in src]) & np.isfinite(rate)
+                if sel.sum() < 10:
+                    continue
+                wv = weights[sel] / r[sel]
+                den = np.sum(wv * rate[sel] ** 2)
+                if den <= 0:
+                    continue
+                o = -np.sum(wv * rate[sel] * res[sel]) / den
+                sd = 1.0 / np.sqrt(den)
+                clock_sd[name] = sd
+                if abs(o) > 3 * sd:
+                    clock[name] += o
+                info[f"clock_{name}_s"] = clock[name]
+        if settings.estimate_noise:
+            for s_i, s_name in enumerate(SOURCES):
+                sel = (meas.source == s_i) & np.isfinite(res_n) & (weights >= 1.0)
+                if sel.sum() > 30:
+                    scale[s_name] *= float(np.clip(np.mean(res_n[sel] ** 2), 0.05, 20.0))
+        history.append(info)
+        lat, lon, h = lat_new, lon_new, h_new
+        if it > 0 and shift < 0.01 and not settings.estimate_clock:
+            break
+    return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
+                    Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
+                    innov_var=innov_var,
+                    clock_offsets_s={k: (clock[k], clock_sd[k]) for k in clock},
+                    noise_scale=scale, iterations=history)
+
+
+def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
+    """Per source: measurements used, mean squared normalised residual, down-weighted ones
+    and their time spans; a source with more than ``flag_fraction`` of its residuals beyond
+    5 sigma is flagged inconsistent."""
+    out: dict[str, Any] = {}
+    m = run.meas
+    for s_i, name in enumerate(SOURCES):
+        sel = m.source == s_i
+        if not sel.any():
+            continue
+        rn = run.resid_norm[sel]
+        w = run.weights[sel]
+        t = m.t[sel]
+        down = w < 0.999
+        big = np.abs(rn) > 5.0
+        spans = []
+        if big.any():
+            tb = np.unique(t[big])
+            start = prev = tb[0]
+            for ti in tb[1:]:
+                if ti - prev > 10.0:
+                    spans.append([float(start), float(prev)])
+                    start = ti
+                prev = ti
+            spans.append([float(start), float(prev)])
+        innov_ok = np.isfinite(run.innov[sel]) & (run.innov_var[sel] > 0)
+        nis = run.innov[sel][innov_ok] ** 2 / run.innov_var[sel][innov_ok]
+        out[name] = {"count": int(sel.sum()),
+                     "mean_norm_residual_sq": float(np.nanmean(rn ** 2)),
+                     "mean_nis": float(np.mean(nis)) if len(nis) else None,
+                     "downweighted": int(down.sum()),
+                     "beyond_5_sigma": int(big.sum()),
+                     "flagged_inconsistent": bool(big.mean() > flag_fraction),
+                     "flagged_spans_s": spans[:50]}
+    return out
+
+
+def to_dict(settings: JointSettings) -> dict[str, Any]:
+    return asdict(settings)

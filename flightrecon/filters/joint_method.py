@@ -1,0 +1,207 @@
+"""Adapter: the joint post-flight smoother on a cleaned flight (the default result).
+
+Builds :class:`flightrecon.filters.joint.JointInputs` from a
+:class:`flightrecon.types.CleanFlight`, runs :func:`flightrecon.filters.joint.smooth_joint` and
+returns its track on the input grid with the prefix ``joint_`` (the pipeline writes it as the
+unprefixed default result) and a summary with the estimated sensor errors, clock offsets and
+per-source innovation statistics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.filters import joint_kernels as jk
+from flightrecon.filters.joint import (SOURCES, JointInputs, JointRun, JointSettings,
+                                       smooth_joint, source_report)
+from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
+from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
+from flightrecon.types import CleanFlight, MethodResult
+
+PREFIX = "joint_"
+
+
+def field_pressure_altitude_m(elev_msl_m: float, qnh_hpa: float | None) -> float:
+    """Pressure altitude of an airfield: the ISA altitude of its station pressure.
+
+    Station pressure = ISA pressure at the field elevation scaled by QNH / 1013.25 hPa
+    (about 8.3 m of pressure altitude per hPa near sea level).
+    """
+    q = 1013.25 if qnh_hpa is None else float(qnh_hpa)
+    return float(pressure_altitude_m(isa_pressure_pa(elev_msl_m) * q / 1013.25))
+
+
+def joint_inputs(clean: CleanFlight) -> JointInputs:
+    """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base)."""
+    g = clean.grid
+    meta = clean.meta
+    N_und = meta.geoid_undulation_m
+
+    def col(name):
+        return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
+
+    lat0 = meta.departure.lat_deg if meta.departure is not None else 45.0
+    acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
+                                     col("roll_deg"), col("pitch_deg"), col("heading_deg"),
+                                     lat_deg=lat0, h_m=np.nan_to_num(col("baro_alt_m")))
+    Cnb = body_to_ned_matrix(np.nan_to_num(col("roll_deg")), np.nan_to_num(col("pitch_deg")),
+                             np.nan_to_num(col("heading_deg")))
+    dep = meta.departure
+    if dep is not None:
+        h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
+        field_h = float(msl_to_ellipsoid(dep.elev_m, N_und))
+    else:
+        h_pf = 0.0
+        field_h = 0.0
+    wind = None
+    if "wind_speed_mps" in g.columns and "wind_from_deg" in g.columns:
+        to = np.radians(col("wind_from_deg") + 180.0)
+        wind = np.c_[col("wind_speed_mps") * np.cos(to), col("wind_speed_mps") * np.sin(to)]
+    gn = clean.gnss
+    gnss = pd.DataFrame()
+    if len(gn) and {"gnss_lat_deg", "gnss_lon_deg"} <= set(gn.columns):
+        alt = gn["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in gn.columns else np.full(len(gn), np.nan)
+        if meta.gnss_alt_datum.lower() == "msl":
+            alt = alt + N_und
+        gnss = pd.DataFrame({"t_s": gn["t_s"].to_numpy(float), "lat_deg": gn["gnss_lat_deg"],
+                             "lon_deg": gn["gnss_lon_deg"], "h_m": alt})
+        if {"gnss_vn_mps", "gnss_ve_mps"} <= set(gn.columns):
+            gnss["vn_mps"] = gn["gnss_vn_mps"].to_numpy(float)
+            gnss["ve_mps"] = gn["gnss_ve_mps"].to_numpy(float)
+    rd = clean.radar
+    radar = pd.DataFrame()
+    if len(rd) and {"arms_range_m", "arms_azimuth_deg"} <= set(rd.columns):
+        radar = pd.DataFrame({"t_s": rd["t_s"].to_numpy(float),
+                              "range_m": rd["arms_range_m"].to_numpy(float),
+                              "azimuth_rad": np.radians(rd["arms_azimuth_deg"].to_numpy(float))})
+        if "arms_elevation_deg" in rd.columns:
+            radar["elevation_rad"] = np.radians(rd["arms_elevation_deg"].to_numpy(float))
+
+    def pos(p):
+        return None if p is None else (p.lat_deg, p.lon_deg, float(msl_to_ellipsoid(p.elev_m, N_und)))
+
+    ph = clean.phases
+    return JointInputs(
+        t_in=g["t_s"].to_numpy(float), acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
+        heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
+        gnss=gnss, radar=radar, station=pos(meta.station), departure=pos(meta.departure),
+        arrival=pos(meta.arrival),
+        liftoff_t=float(ph.liftoff_t_s) if ph is not None else np.nan,
+        touchdown_t=float(ph.touchdown_t_s) if ph is not None else np.nan,
+        field_h=field_h, lever_arm=tuple(meta.gnss_lever_arm_m), wind_ne=wind)
+
+
+def _provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.ndarray:
+    """Per output sample, the sources with a measurement within +-window_s ('+'-joined)."""
+    labels = np.full(len(t_out), "", dtype=object)
+    for s_i, name in enumerate(SOURCES):
+        tm = np.unique(run.meas.t[run.meas.source == s_i])
+        if len(tm) == 0:
+            continue
+        j = np.clip(np.searchsorted(tm, t_out), 1, len(tm) - 1) if len(tm) > 1 else np.zeros(
+            len(t_out), int)
+        near = np.minimum(np.abs(tm[j] - t_out), np.abs(tm[np.maximum(j - 1, 0)] - t_out))
+        has = near <= (window_s if name != "endpoint" else 60.0)
+        labels[has] = np.where(labels[has] == "", name, labels[has] + "+" + name)
+    return labels
+
+
+def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
+    """The smoothed trajectory on the input grid, in the output conventions (prefix joint_)."""
+    t_out = clean.grid["t_s"].to_numpy(float)
+    T = run.t
+    x = run.x
+
+    def interp(v):
+        return np.interp(t_out, T, v)
+
+    ecef = np.c_[[interp(x[:, i]) for i in range(3)]].T
+    lat, lon, h = ecef_to_geodetic(ecef[:, 0], ecef[:, 1], ecef[:, 2])
+    plane = output_plane(clean.meta)
+    e, n, u = plane.forward(lat, lon, h)
+    C = run.Cen
+    Pp = np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)  # ECEF -> local NED
+    sd_pos = np.sqrt(np.maximum(np.einsum("kii->ki", Pp), 0.0))
+    sd_vel = np.sqrt(np.maximum(run.var[:, 3:6], 0.0))
+    sd_w = np.sqrt(np.maximum(run.var[:, 6:8], 0.0))
+    out = pd.DataFrame({"t_s": t_out})
+    p = PREFIX
+    out[p + "north_m"] = n
+    out[p + "east_m"] = e
+    out[p + "up_m"] = u
+    out[p + "north_sd_m"] = interp(sd_pos[:, 0])
+    out[p + "east_sd_m"] = interp(sd_pos[:, 1])
+    out[p + "up_sd_m"] = interp(sd_pos[:, 2])
+    out[p + "vn_mps"] = interp(x[:, 3])
+    out[p + "ve_mps"] = interp(x[:, 4])
+    out[p + "vu_mps"] = -interp(x[:, 5])
+    out[p + "vn_sd_mps"] = interp(sd_vel[:, 0])
+    out[p + "ve_sd_mps"] = interp(sd_vel[:, 1])
+    out[p + "vu_sd_mps"] = interp(sd_vel[:, 2])
+    out[p + "lat_deg"] = lat
+    out[p + "lon_deg"] = lon
+    out[p + "alt_m"] = h
+    out[p + "wind_n_mps"] = interp(x[:, 6])
+    out[p + "wind_e_mps"] = interp(x[:, 7])
+    out[p + "wind_n_sd_mps"] = interp(sd_w[:, 0])
+    out[p + "wind_e_sd_mps"] = interp(sd_w[:, 1])
+    out[p + "sources"] = pd.array(_provenance(run, t_out), dtype="string")
+    return out
+
+
+def _corrections(run: JointRun) -> dict[str, Any]:
+    """Estimated sensor errors (value and sd at the middle of the record)."""
+    k = len(run.t) // 2
+    x, v = run.x[k], run.var[k]
+
+    def item(i, scale=1.0, unit=""):
+        return {"value": float(x[i] * scale), "sd": float(np.sqrt(max(v[i], 0.0)) * scale),
+                "unit": unit}
+
+    return {
+        "heading_bias_deg": item(jk.IPSI, np.degrees(1.0), "deg (measured - true)"),
+        "tas_scale": item(jk.IS, 1.0, "TAS_measured = (1 + s) TAS_true"),
+        "baro_offset_m": item(jk.IBH, 1.0, "m"),
+        "baro_scale": item(jk.IC, 1.0, "h_p - h_p,field = (1 + c)(h - h_field) + b_h"),
+        "accel_bias_x_g": item(jk.IBA, 1.0, "g (body forward, measured - true)"),
+        "accel_bias_y_g": item(jk.IBA + 1, 1.0, "g (body right)"),
+        "accel_bias_z_g": item(jk.IBA + 2, 1.0, "g (body down, of -n_norm)"),
+    }
+
+
+def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
+    """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
+    settings = settings or JointSettings()
+    inp = joint_inputs(clean)
+    run = smooth_joint(inp, settings)
+    track = joint_track(clean, run)
+    finite = np.isfinite(run.x).all() and np.all(run.var[:, :6] > 0)
+    sources = source_report(run)
+    warnings = []
+    for name, st in sources.items():
+        if st["flagged_inconsistent"]:
+            warnings.append(f"joint: source '{name}' inconsistent with the others in "
+                            f"{st['beyond_5_sigma']} measurements (spans {st['flagged_spans_s'][:5]}"
+                            " s); down-weighted")
+    for name, (o, sd) in run.clock_offsets_s.items():
+        if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
+            warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "
+                            "and corrected")
+    summary = {
+        "healthy": bool(finite),
+        "converged": bool(finite),
+        "iterations": run.iterations,
+        "state_rate_hz": settings.state_rate_hz,
+        "corrections": _corrections(run),
+        "clock_offsets_s": {k: {"value": o, "sd": sd} for k, (o, sd) in run.clock_offsets_s.items()},
+        "noise_scale": run.noise_scale,
+        "sources": sources,
+        "settings": asdict(settings),
+        "warnings": warnings,
+    }
+    return MethodResult(name="joint", track=track, summary=summary)
