@@ -38,6 +38,7 @@ SUMMARY_SCHEMA_VERSION = 1
 
 #: method name -> (module, function)
 METHOD_FUNCTIONS: dict[str, tuple[str, str]] = {
+    "joint": ("flightrecon.filters.joint_method", "run_joint"),
     "sabziev": ("flightrecon.fusion.method", "run_sabziev"),
     "arms": ("flightrecon.filters.arms_method", "run_arms"),
     "azimuth": ("flightrecon.filters.azimuth_method", "run_azimuth"),
@@ -46,7 +47,7 @@ METHOD_FUNCTIONS: dict[str, tuple[str, str]] = {
 ALL_METHODS: tuple[str, ...] = tuple(METHOD_FUNCTIONS)
 
 #: order in which methods supply the unprefixed horizontal track, sample by sample
-DEFAULT_PRIORITY: tuple[str, ...] = ("sns", "arms", "sabziev", "azimuth")
+DEFAULT_PRIORITY: tuple[str, ...] = ("joint", "sns", "arms", "sabziev", "azimuth")
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,9 @@ class ReconstructSettings:
     azimuth_model : ``aided`` or ``singer``
     sns_model, sns_form : SNS dead-reckoning model (``auto``/``airspeed``/``doppler``) and
         filter form (``consistent``/``seed``)
+    joint_noise : overrides of the joint smoother's error budget
+        (:class:`flightrecon.filters.joint.JointNoise` field -> value)
+    joint_estimate_noise : scale each source's noise from the flight's own residuals
     strict : raise on the first method that fails or does not converge
     """
 
@@ -76,6 +80,8 @@ class ReconstructSettings:
     azimuth_model: str = "aided"
     sns_model: str = "auto"
     sns_form: str = "consistent"
+    joint_noise: dict[str, float] | None = None
+    joint_estimate_noise: bool = False
     strict: bool = False
 
 
@@ -105,6 +111,10 @@ def available_methods(clean: CleanFlight, settings: ReconstructSettings) -> dict
     """Which methods the data allow: name -> ``None`` if runnable, else the reason it is not."""
     meta = clean.meta
     out: dict[str, str | None] = {}
+    g = clean.grid
+    needed = [c for c in ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg",
+                          "heading_deg", "tas_mps") if c not in g.columns]
+    out["joint"] = None if not needed else f"missing input channels {', '.join(needed)}"
     has_end = meta.arrival is not None or settings.k is not None
     out["sabziev"] = None if has_end else (
         "no arrival point and no coefficients (give --arrival, or --k / fleet coefficients)")
@@ -126,6 +136,14 @@ def available_methods(clean: CleanFlight, settings: ReconstructSettings) -> dict
 
 
 def _method_kwargs(name: str, s: ReconstructSettings) -> dict[str, Any]:
+    if name == "joint":
+        from flightrecon.filters.joint import JointNoise, JointSettings
+
+        try:
+            noise = replace(JointNoise(), **(s.joint_noise or {}))
+        except TypeError as exc:
+            raise MetadataError(f"unknown joint noise setting: {exc}") from exc
+        return {"settings": JointSettings(noise=noise, estimate_noise=s.joint_estimate_noise)}
     if name == "sabziev":
         return {"k": s.k, "k_sd": s.k_sd}
     if name == "arms":
@@ -226,9 +244,29 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
     out["alt_m"] = alt
     out["source"] = pd.array(source, dtype="string")
     out["up_source"] = pd.array(up_source, dtype="string")
+    jt = results.get("joint")
+    if jt is not None and _method_healthy(jt):
+        tj = jt.track
+        if len(tj) != n or not np.array_equal(tj["t_s"].to_numpy(), t):
+            tj = pd.DataFrame({"t_s": t}).merge(tj, on="t_s", how="left")
+        v = tj["joint_up_m"].to_numpy()
+        ok = np.isfinite(v)
+        out.loc[ok, "up_m"] = v[ok]
+        out.loc[ok, "up_sd_m"] = tj["joint_up_sd_m"].to_numpy()[ok]
+        out.loc[ok, "vu_mps"] = tj["joint_vu_mps"].to_numpy()[ok]
+        ups = out["up_source"].to_numpy(dtype=object)
+        ups[ok] = "joint"
+        out["up_source"] = pd.array(ups, dtype="string")
+        out["vu_sd_mps"] = tj["joint_vu_sd_mps"].to_numpy()
+        for c in ("wind_n_mps", "wind_e_mps", "wind_n_sd_mps", "wind_e_sd_mps"):
+            out[c] = tj["joint_" + c].to_numpy()
+        out["provenance"] = tj["joint_sources"].to_numpy()
+        lat, lon, alt = plane.inverse(out["east_m"].to_numpy(), out["north_m"].to_numpy(),
+                                      out["up_m"].to_numpy())
+        out["lat_deg"], out["lon_deg"], out["alt_m"] = lat, lon, alt
     for name in ALL_METHODS:
         res = results.get(name)
-        if res is None:
+        if res is None or name == "joint":
             continue
         tr = res.track
         extra = [c for c in tr.columns if c != "t_s"]

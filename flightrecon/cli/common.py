@@ -61,3 +61,33 @@ def progress_bar(quiet: bool) -> Iterator[Callable[[str], None]]:
 
 def echo_err(msg: str) -> None:
     click.echo(msg, err=True)
+
+
+def read_noise_file(path: Path) -> dict[str, float]:
+    """The ``[joint]`` table of a noise TOML file: field name -> number (safe parser)."""
+    import tomllib
+    from dataclasses import fields
+
+    from flightrecon.filters.joint import JointNoise
+
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError as exc:
+        raise MetadataError("noise file not found", file=str(path)) from exc
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise MetadataError(f"not a valid TOML file: {exc}", file=str(path)) from exc
+    table = doc.get("joint")
+    if not isinstance(table, dict):
+        raise MetadataError("the noise file needs a [joint] table", file=str(path))
+    known = {f.name for f in fields(JointNoise)}
+    out = {}
+    for k, v in table.items():
+        if k not in known:
+            raise MetadataError(f"unknown noise setting '{k}' (known: {', '.join(sorted(known))})",
+                                file=str(path))
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise MetadataError(f"noise setting '{k}' must be a non-negative number",
+                                file=str(path))
+        out[k] = float(v)
+    return out

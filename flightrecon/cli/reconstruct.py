@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from flightrecon.cli.common import default_output, parse_k, position_option_values, progress_bar
+from flightrecon.cli.common import (default_output, parse_k, position_option_values, progress_bar,
+                                    read_noise_file)
 
 
 @click.command("reconstruct")
@@ -23,7 +24,7 @@ from flightrecon.cli.common import default_output, parse_k, position_option_valu
 @click.option("--station", metavar="LAT,LON,ELEV_M", help="Ground radar position.")
 @click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
 @click.option("--methods", metavar="LIST",
-              help="Comma-separated methods to run (sabziev,arms,azimuth,sns); "
+              help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "
                    "default: every method the data allow.")
 @click.option("--k", "k_text", metavar="K1,K2,K3",
               help="Sabziev coefficients: initial-value mode, no arrival point needed.")
@@ -38,6 +39,11 @@ from flightrecon.cli.common import default_output, parse_k, position_option_valu
               show_default=True)
 @click.option("--sns-form", type=click.Choice(["consistent", "seed"]), default="consistent",
               show_default=True)
+@click.option("--noise", "noise_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="TOML file overriding the joint smoother's sensor error budget "
+                   "([joint] table, see docs/joint.md).")
+@click.option("--estimate-noise", is_flag=True,
+              help="Joint smoother: scale each source's noise from the flight's own residuals.")
 @click.option("--strict", is_flag=True, help="Fail on the first method that fails to converge.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Result file (.parquet, .csv, .geojson, .kml). Default: <log stem>.recon.parquet "
@@ -51,8 +57,8 @@ from flightrecon.cli.common import default_output, parse_k, position_option_valu
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
             station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
-            azimuth_model, sns_model, sns_form, strict, output, fmt, summary_path,
-            report_dir) -> None:
+            azimuth_model, sns_model, sns_form, noise_file, estimate_noise, strict, output, fmt,
+            summary_path, report_dir) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
     from flightrecon.export.atomic import check_not_input, sweep_leftovers
     from flightrecon.export.writers import write_summary, write_track
@@ -66,7 +72,9 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
         rate_hz=rate_hz, k=parse_k(k_text) if k_text else None, arms_form=arms_form,
         arms_linearisation=arms_linearisation, azimuth_model=azimuth_model, sns_model=sns_model,
-        sns_form=sns_form, strict=strict)
+        sns_form=sns_form, strict=strict,
+        joint_noise=read_noise_file(noise_file) if noise_file else None,
+        joint_estimate_noise=estimate_noise)
     out = output or default_output(log, ".recon.parquet")
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     check_not_input(out, inputs)

@@ -31,7 +31,7 @@ from flightrecon.filters import joint_kernels as jk
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
-SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground")
+SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway")
 
 
 @dataclass(frozen=True)
@@ -65,6 +65,7 @@ class JointNoise:
     endpoint_h_m: float = 1500.0             # lift-off / touchdown point vs airfield reference
     endpoint_v_m: float = 30.0
     ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
+    runway_halfwidth_m: float = 25.0         # cross-track offset from the runway centreline
     init_pos_m: float = 3000.0
     init_vel_mps: float = 30.0
 
@@ -81,6 +82,8 @@ class JointSettings:
     min_airspeed_mps: float = 30.0
     iterations: int = 4
     huber_c: float = 3.0
+    innovation_gate: float = 5.0
+    reject_c: float = 8.0
     robust: bool = True
     estimate_clock: bool = True
     estimate_noise: bool = False
@@ -357,6 +360,24 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     if np.isfinite(inp.touchdown_t):
         on_ground |= t_in > inp.touchdown_t + 2.0
     keep = on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
+    # on the runway: the cross-track offset from the line through the airfield reference point
+    # along the runway heading is zero (the reference point lies on the runway centreline)
+    for pos, side in ((inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t)
+                                               else -np.inf)),
+                      (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t)
+                                            else np.inf))):
+        sel = keep & side
+        if pos is None or not sel.any():
+            continue
+        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+        arp = np.array([float(ex), float(ey), float(ez)])
+        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
+        psi = inp.heading_rad[sel]
+        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
+        H = np.zeros((len(psi), n))
+        H[:, jk.IP:jk.IP + 3] = cross
+        b.add("runway", jk.LINEAR, t_in[sel], np.zeros(len(psi)), nz.runway_halfwidth_m ** 2, H,
+              -cross @ arp)
     if keep.any():
         tt = t_in[keep]
         H = np.zeros((len(tt), n))
@@ -462,12 +483,16 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if x0 is None:
             x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps)
         tau = meas.t - T[meas.step]
-        xf, Pf, xp, Pp, innov, innov_var = jk.forward(
+        xf, Pf, xp, Pp, innov, innov_var, infl = jk.forward(
             x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
-            meas.z, r, weights, tau, meas.H, meas.d, pnom, hnom, pst, Cst)
-        xs, Pblk, var, res_n, res, rate = jk.backward(
-            xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, meas.start, meas.mtype, meas.z, r, tau,
+            meas.z, r, weights, tau, meas.H, meas.d, pnom, hnom, pst, Cst,
+            settings.innovation_gate if settings.robust else 0.0)
+        r_used = r * infl
+        xs, Pblk, var, _, res, rate = jk.backward(
+            xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
             meas.H, meas.d, pnom, hnom, pst, Cst)
+        # residual in units of the measurement's own (nominal) standard deviation
+        res_n = res / np.sqrt(r)
         del Pf, Pp
         # new nominal: the smoothed trajectory
         lat_new, lon_new, h_new = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
@@ -477,6 +502,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if settings.robust:
             a = np.abs(res_n)
             weights = np.where(a > settings.huber_c, settings.huber_c / np.maximum(a, 1e-12), 1.0)
+            # gross errors (beyond reject_c sigma from the smoothed track) are set aside: a
+            # redescending rule, so a jumped source cannot pull the track at all
+            weights = np.where(a > settings.reject_c, 1e-8, weights)
             weights[~np.isfinite(weights)] = 1.0
         # clock offsets: residual = -hdot * offset
         if settings.estimate_clock:

@@ -199,11 +199,14 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
 
 @nb.njit(cache=True)
 def forward(x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw, mtau, mH,
-            md, pnom, hnom, pst, Cst):
+            md, pnom, hnom, pst, Cst, gate):
     """Forward extended Kalman filter with sequential scalar updates (Joseph form).
 
-    ``mstart`` (N+1,) indexes the measurements of each step (sorted by step).  Returns filtered
-    and predicted states/covariances and, per measurement, the innovation and its variance.
+    ``mstart`` (N+1,) indexes the measurements of each step (sorted by step).  A measurement
+    whose normalised innovation exceeds ``gate`` (0: off) has its variance inflated so that it
+    equals ``gate`` (a Huber-type robust update: a jump is followed only slowly, never trusted).
+    Returns filtered and predicted states/covariances and, per measurement, the innovation, its
+    variance (before inflation) and the inflation factor applied.
     """
     N = dt.shape[0]
     n = N_STATE
@@ -214,6 +217,7 @@ def forward(x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, mstart, mtype
     Pp = np.empty((N, n, n))
     nu_out = np.full(M, np.nan)
     s_out = np.full(M, np.nan)
+    infl = np.ones(M)
     x = x0.copy()
     P = P0.copy()
     for k in range(N):
@@ -239,17 +243,23 @@ def forward(x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, mstart, mtype
                 nu = _wrap(nu)
             PH = P @ H
             r = mr[j] / mw[j]
-            S = H @ PH + r
+            HPH = H @ PH
+            S = HPH + r
+            nu_out[j] = nu
+            s_out[j] = S
+            if gate > 0.0 and nu * nu > gate * gate * S:
+                r_new = nu * nu / (gate * gate) - HPH
+                infl[j] = r_new / r
+                r = r_new
+                S = HPH + r
             K = PH / S
             # Joseph form for a scalar update, O(n^2)
             P = P - np.outer(K, PH) - np.outer(PH, K) + S * np.outer(K, K)
             P = 0.5 * (P + P.T)
             x = x + K * nu
-            nu_out[j] = nu
-            s_out[j] = S
         xf[k] = x
         Pf[k] = P
-    return xf, Pf, xp, Pp, nu_out, s_out
+    return xf, Pf, xp, Pp, nu_out, s_out, infl
 
 
 @nb.njit(cache=True)

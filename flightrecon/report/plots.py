@@ -105,6 +105,16 @@ def method_differences(track: pd.DataFrame, summary: dict[str, Any],
     t = track["t_s"].to_numpy() / 60.0
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     drawn = False
+    if truth is not None:
+        dn, de = _col(track, "north_m"), _col(track, "east_m")
+        if dn is not None and de is not None:
+            drawn = True
+            axes[0].plot(t, dn - rn, "k--", lw=1, label="default result")
+            axes[1].plot(t, de - re_, "k--", lw=1, label="default result")
+            for ax, c in ((axes[0], "north_sd_m"), (axes[1], "east_sd_m")):
+                sd = _col(track, c)
+                if sd is not None:
+                    ax.fill_between(t, -2 * sd, 2 * sd, color="k", alpha=0.12)
     for p in PREFIXES:
         pn, pe = _col(track, f"{p}_north_m"), _col(track, f"{p}_east_m")
         if pn is None or pe is None:

@@ -1,0 +1,250 @@
+"""Monte Carlo study of the joint post-flight smoother against the single methods.
+
+Cases (simulated flights, every run a new seed of the scenario: new noise, new weather draw):
+
+* ``recorder``: 15-minute circuits, recorder only (no GNSS, no radar), wind varying with
+  altitude; end points = departure and arrival airfield reference points.  Joint smoother vs
+  the Sabziev fusion vs dead reckoning from airspeed and heading with and without a linear
+  end-point correction.
+* ``gnss``: the same circuits with 1 Hz GNSS and a 2-minute GNSS dropout; joint vs SNS smoother.
+  Consistency: run-averaged NEES of the joint smoother's north and east positions.
+* ``radar``: the ``landing`` scenario, radar only (no GNSS); joint vs ADS/ARMS and azimuth channel.
+* ``corrupt_gnss``: circuits with GNSS offset by 500 m north for 60 s; ``corrupt_radar``:
+  landings with GNSS and the radar clock 2 s late: detection and the error.
+
+Usage::
+
+    python scripts/mc_joint.py --runs 30            # full size; writes docs/tables/joint_mc.md
+    python scripts/mc_joint.py --runs 3 --no-write  # quick look
+
+Seeds: run i of case c uses seed 1000 * (case index + 1) + i.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from flightrecon.cleaning import clean_flight
+from flightrecon.filters.joint import JointNoise, JointSettings
+from flightrecon.filters.joint_method import run_joint
+from flightrecon.geo.frames import output_plane
+from flightrecon.pipeline import ReconstructSettings, run_method
+from flightrecon.sim import simulate
+from flightrecon.types import Flight
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = ("recorder", "gnss", "radar", "corrupt_gnss", "corrupt_radar")
+
+
+def make_flight(case: str, seed: int):
+    if case == "recorder":
+        return simulate("circuit", seed=seed, gnss_hz=0.0)
+    if case in ("gnss", "corrupt_gnss"):
+        return simulate("circuit", seed=seed, gnss_dropouts=((400.0, 120.0),))
+    if case == "radar":
+        return simulate("landing", seed=seed, gnss_hz=0.0)
+    if case == "corrupt_radar":
+        from flightrecon.sim.sensors import Faults
+
+        return simulate("landing", seed=seed, faults=Faults(clock_offsets=(("radar", 2.0),)))
+    raise ValueError(case)
+
+
+def corrupt_gnss(log: pd.DataFrame, t0: float = 300.0, length: float = 60.0,
+                 north_m: float = 500.0) -> pd.DataFrame:
+    """GNSS fixes moved ``north_m`` north for ``length`` seconds from ``t0`` (a new frame)."""
+    log = log.copy()
+    sel = (log["t_s"] >= t0) & (log["t_s"] < t0 + length) & log["gnss_lat_deg"].notna()
+    log.loc[sel, "gnss_lat_deg"] += north_m / 111_000.0
+    return log
+
+
+def dead_reckoning(clean, corrected: bool) -> pd.DataFrame:
+    """Airspeed-heading dead reckoning from the departure point, lift-off to touchdown;
+    with ``corrected`` a linear-in-time correction makes it end at the arrival point."""
+    g = clean.grid
+    t = g["t_s"].to_numpy()
+    ph = clean.phases
+    a, b = np.searchsorted(t, [ph.liftoff_t_s, ph.touchdown_t_s])
+    psi = np.radians(g["heading_deg"].to_numpy())
+    tas = g["tas_mps"].to_numpy()
+    dt = np.diff(t, prepend=t[0])
+    n = np.full(len(t), np.nan)
+    e = np.full(len(t), np.nan)
+    n[a:b] = np.cumsum((tas * np.cos(psi) * dt)[a:b])
+    e[a:b] = np.cumsum((tas * np.sin(psi) * dt)[a:b])
+    if corrected:
+        plane = output_plane(clean.meta)
+        arr = clean.meta.arrival
+        ea, na, _ = plane.forward(arr.lat_deg, arr.lon_deg, arr.elev_m)
+        frac = (t[a:b] - t[a]) / (t[b - 1] - t[a])
+        n[a:b] += frac * (float(na) - n[b - 1])
+        e[a:b] += frac * (float(ea) - e[b - 1])
+    return pd.DataFrame({"t_s": t, "north_m": n, "east_m": e})
+
+
+def noise_from_sensors(sensor_truth: dict) -> JointNoise:
+    """The joint smoother's noise budget set to the simulated sensors' specification (what an
+    analyst would take from the equipment's data sheets), for the consistency (NEES) check."""
+    s = sensor_truth["sensors"]
+    kw = {}
+    g0 = 9.80665
+    loads = s.get("loads") or {}
+    att = s.get("attitude") or {}
+    if loads:
+        # white load-factor and attitude noise at the input rate -> velocity random walk
+        sa = g0 * float(np.max(loads["noise_sd_g"]))
+        sth = g0 * np.radians(max(att.get("roll_noise_sd_deg", 0), att.get("pitch_noise_sd_deg", 0)))
+        kw["accel_noise_mps2_sqrt_hz"] = float(np.sqrt((sa**2 + sth**2) / loads["rate_hz"]))
+    if att:
+        kw["heading_deg"] = float(att["heading_noise_sd_deg"])
+    if s.get("airspeed"):
+        kw["tas_mps"] = float(s["airspeed"]["noise_sd_mps"])
+    if s.get("baro"):
+        b = s["baro"]
+        kw["baro_m"] = float(np.hypot(b["noise_sd_m"], b.get("quantum_m", 0.0) / np.sqrt(12)))
+    if s.get("gnss"):
+        kw["gnss_h_m"] = float(s["gnss"]["pos_sd_h_m"])
+        kw["gnss_v_m"] = float(s["gnss"]["pos_sd_v_m"])
+        kw["gnss_vel_mps"] = float(s["gnss"]["vel_sd_mps"])
+    if s.get("radar"):
+        r = s["radar"]
+        for src, dst in (("range_sd_m", "radar_range_m"), ("azimuth_sd_deg", "radar_azimuth_deg"),
+                         ("elevation_sd_deg", "radar_elevation_deg")):
+            if src in r:
+                kw[dst] = float(r[src])
+    return replace(JointNoise(), **kw)
+
+
+def errors(track: pd.DataFrame, prefix: str, truth: pd.DataFrame, airborne: np.ndarray):
+    m = pd.DataFrame({"t_s": truth["t_s"][airborne]}).merge(track, on="t_s", how="left")
+    tr = truth[airborne]
+    en = m[f"{prefix}north_m"].to_numpy() - tr["north_m"].to_numpy()
+    ee = m[f"{prefix}east_m"].to_numpy() - tr["east_m"].to_numpy()
+    ok = np.isfinite(en) & np.isfinite(ee)
+    out = {"rms_h_m": float(np.sqrt(np.mean(en[ok] ** 2 + ee[ok] ** 2))) if ok.any() else np.nan,
+           "max_h_m": float(np.max(np.hypot(en[ok], ee[ok]))) if ok.any() else np.nan,
+           "coverage": float(ok.mean())}
+    sdn, sde = f"{prefix}north_sd_m", f"{prefix}east_sd_m"
+    if sdn in m.columns and sde in m.columns:
+        s_n, s_e = m[sdn].to_numpy(), m[sde].to_numpy()
+        good = ok & (s_n > 0) & (s_e > 0)
+        out["nees_n"] = float(np.mean((en[good] / s_n[good]) ** 2))
+        out["nees_e"] = float(np.mean((ee[good] / s_e[good]) ** 2))
+    return out
+
+
+def one_run(case: str, seed: int) -> dict:
+    r = make_flight(case, seed)
+    log = r.log
+    if case == "corrupt_gnss":
+        log = corrupt_gnss(log)
+    clean = clean_flight(Flight(data=log, meta=r.meta))
+    truth = r.truth
+    airborne = ~truth["on_ground"].to_numpy(bool)
+    res = {"case": case, "seed": seed}
+    t0 = time.perf_counter()
+    j = run_joint(clean, settings=JointSettings(noise=noise_from_sensors(r.sensor_truth)))
+    res["joint_time_s"] = time.perf_counter() - t0
+    res["joint"] = errors(j.track, "joint_", truth, airborne)
+    res["joint_sources"] = {k: {a: v[a] for a in ("count", "beyond_5_sigma", "flagged_inconsistent")}
+                            for k, v in j.summary["sources"].items()}
+    res["joint_clock"] = j.summary["clock_offsets_s"]
+    others = {"recorder": ("sabziev",), "gnss": ("sns",), "radar": ("arms", "azimuth"),
+              "corrupt_gnss": ("sns",), "corrupt_radar": ("arms",)}[case]
+    for m in others:
+        try:
+            mr = run_method(m, clean, ReconstructSettings())
+            res[m] = errors(mr.track, f"{m}_", truth, airborne)
+        except Exception as exc:  # noqa: BLE001 - a comparison method failing is a result
+            res[m] = {"error": f"{type(exc).__name__}: {exc}"}
+    if case == "recorder":
+        res["dr"] = errors(dead_reckoning(clean, False), "", truth, airborne)
+        res["dr_linear"] = errors(dead_reckoning(clean, True), "", truth, airborne)
+    return res
+
+
+def summarise(rows: list[dict]) -> str:
+    lines = []
+    for case in CASES:
+        rs = [r for r in rows if r["case"] == case]
+        if not rs:
+            continue
+        M = len(rs)
+        methods = [k for k in rs[0] if isinstance(rs[0][k], dict) and "rms_h_m" in rs[0][k]]
+        lines += [f"### {case} ({M} runs)", "",
+                  "| method | mean RMS horizontal [m] | median | mean max [m] | runs where joint is better |",
+                  "|---|---|---|---|---|"]
+        jr = np.array([r["joint"]["rms_h_m"] for r in rs])
+        for m in methods:
+            v = np.array([r[m].get("rms_h_m", np.nan) for r in rs])
+            mx = np.array([r[m].get("max_h_m", np.nan) for r in rs])
+            better = "" if m == "joint" else f"{int(np.sum(jr < v))}/{M}"
+            lines.append(f"| {m} | {np.nanmean(v):.1f} | {np.nanmedian(v):.1f} | "
+                         f"{np.nanmean(mx):.1f} | {better} |")
+        for m in methods:
+            if m == "joint":
+                continue
+            v = np.array([r[m].get("rms_h_m", np.nan) for r in rs])
+            ok = np.isfinite(v)
+            if ok.sum() >= 3:
+                w = stats.wilcoxon(jr[ok], v[ok]) if np.any(jr[ok] != v[ok]) else None
+                ratio = np.exp(np.mean(np.log(jr[ok] / v[ok])))
+                lines.append(f"\njoint / {m}: geometric-mean RMS ratio {ratio:.3f}"
+                             + (f", paired Wilcoxon p = {w.pvalue:.2g}" if w else ""))
+        if "nees_n" in rs[0]["joint"]:
+            nn = np.array([r["joint"]["nees_n"] for r in rs])
+            ne = np.array([r["joint"]["nees_e"] for r in rs])
+            lo, hi = stats.chi2.ppf([0.025, 0.975], M) / M
+            lines.append(f"\njoint run-averaged NEES (1 dof each): north {nn.mean():.2f}, "
+                         f"east {ne.mean():.2f}; 95 % band for {M} runs [{lo:.2f}, {hi:.2f}] "
+                         "(time-averaged within each run)")
+        if case.startswith("corrupt"):
+            src = "gnss_pos" if case == "corrupt_gnss" else "radar"
+            flagged = sum(bool(r["joint_sources"].get(src, {}).get("flagged_inconsistent"))
+                          for r in rs)
+            lines.append(f"\n{src} flagged inconsistent in {flagged}/{M} runs")
+            if case == "corrupt_radar":
+                off = np.array([r["joint_clock"]["radar"]["value"] for r in rs])
+                lines.append(f"radar clock offset estimated: mean {off.mean():+.2f} s, "
+                             f"sd over runs {off.std(ddof=1) if M > 1 else 0:.2f} s (truth +2.00 s)")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=30)
+    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--no-write", action="store_true")
+    a = ap.parse_args()
+    rows = []
+    for ci, case in enumerate(CASES):
+        if case not in a.cases.split(","):
+            continue
+        for i in range(a.runs):
+            rows.append(one_run(case, 1000 * (ci + 1) + i))
+            print(case, i, json.dumps({k: v for k, v in rows[-1].items()
+                                       if k in ("joint", "sabziev", "sns", "arms", "dr_linear")},
+                                      default=str)[:300], file=sys.stderr)
+    text = summarise(rows)
+    print(text)
+    if not a.no_write:
+        (ROOT / "docs" / "tables").mkdir(parents=True, exist_ok=True)
+        (ROOT / "docs" / "tables" / "joint_mc.md").write_text(
+            f"<!-- generated by scripts/mc_joint.py --runs {a.runs} -->\n\n" + text + "\n")
+        (ROOT / "docs" / "tables" / "joint_mc_runs.json").write_text(
+            json.dumps(rows, indent=1, default=str))
+
+
+if __name__ == "__main__":
+    main()
