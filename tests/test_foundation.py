@@ -86,3 +86,12 @@ def test_cas_tas_sea_level_and_altitude():
     v = np.linspace(50, 250, 9)
     np.testing.assert_allclose(isa.tas_to_cas(isa.cas_to_tas(v, 9000.0, -40.0), 9000.0, -40.0), v,
                                rtol=1e-12)
+
+
+def test_tangent_plane_accepts_numpy_scalars():
+    """Regression: a numpy scalar's repr in the PROJ string was read as 0 (plane at 0N 0E)."""
+    a = TangentPlane(np.float64(40.1), np.float64(49.5), np.float64(12.0))
+    b = TangentPlane(40.1, 49.5, 12.0)
+    np.testing.assert_allclose(a.forward(40.2, 49.6, 100.0), b.forward(40.2, 49.6, 100.0))
+    lat, lon, _ = a.inverse(0.0, 0.0, 0.0)
+    assert abs(float(lat) - 40.1) < 1e-9 and abs(float(lon) - 49.5) < 1e-9

@@ -52,7 +52,8 @@ class TangentPlane:
     h0_m: float = 0.0
 
     def _transformer(self) -> Transformer:
-        return _topo(self.lat0_deg, self.lon0_deg, self.h0_m)
+        # plain floats: a numpy scalar's repr ('np.float64(40.1)') would be read by PROJ as 0
+        return _topo(float(self.lat0_deg), float(self.lon0_deg), float(self.h0_m))
 
     def forward(self, lat_deg, lon_deg, h_m):
         """Geodetic [deg, deg, m] -> (east, north, up) [m]."""
@@ -72,6 +73,7 @@ class TangentPlane:
 
 @lru_cache(maxsize=64)
 def _topo(lat0: float, lon0: float, h0: float) -> Transformer:
+    lat0, lon0, h0 = float(lat0), float(lon0), float(h0)
     return Transformer.from_pipeline(
         "+proj=pipeline +step +proj=cart +ellps=WGS84 "
         f"+step +proj=topocentric +ellps=WGS84 +lat_0={lat0!r} +lon_0={lon0!r} +h_0={h0!r}"
