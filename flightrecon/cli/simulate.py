@@ -1,0 +1,43 @@
+"""``flightrecon simulate``: write a simulated log with its truth, metadata and sensor truth."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+SCENARIO_NAMES = ("circuit", "regional", "seed-ads-arms", "landing", "longhaul")
+
+
+@click.command("simulate")
+@click.argument("scenario", type=click.Choice(SCENARIO_NAMES))
+@click.option("--seed", type=int, default=0, show_default=True, help="Noise seed.")
+@click.option("--fleet-flights", type=click.IntRange(min=1), default=None,
+              help="Simulate K flights of one airframe (files <stem>_F01... beside LOG).")
+@click.option("--aircraft-id", default="A1", show_default=True,
+              help="Airframe id for --fleet-flights (persistent errors drawn from it).")
+@click.option("-o", "--output", "output", required=True,
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Log file (.parquet or .csv); truth, sidecar and sensor truth beside it.")
+@click.pass_context
+def command(ctx: click.Context, scenario: str, seed: int, fleet_flights: int | None,
+            aircraft_id: str, output: Path) -> None:
+    """Simulate SCENARIO and write its log (-o), <stem>.truth.parquet, <stem>.meta.toml and
+    <stem>.sensors.json."""
+    from flightrecon.errors import OutputError
+    from flightrecon.sim import simulate, simulate_fleet, write_simulation
+
+    if output.suffix.lower() not in (".parquet", ".csv"):
+        raise OutputError("the log must end in .parquet or .csv", file=str(output))
+    quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    if fleet_flights is None:
+        results = [(output, simulate(scenario, seed))]
+    else:
+        flights = simulate_fleet(aircraft_id, fleet_flights, seed, scenario=scenario)
+        results = [(output.with_name(f"{output.stem}_{r.meta.flight_id}{output.suffix}"), r)
+                   for r in flights]
+    for path, result in results:
+        written = write_simulation(result, path)
+        if not quiet:
+            for p in written.values():
+                click.echo(f"wrote {p}")

@@ -1,0 +1,223 @@
+"""``load_flight``: read, map, merge and validate a recorder log into a :class:`Flight`.
+
+Order of work (docs/ingest.md): metadata (sidecar, then command-line overrides) -> mapping ->
+recorder log (read, map, time to seconds from the UTC epoch, time order) -> separate GNSS / radar
+files merged at their own times -> derived channels (TAS from IAS/CAS, magnetic -> true) ->
+validation of values and polarity.  Recoverable defects become warnings, both in
+``Flight.warnings`` and through :func:`warnings.warn` with :class:`FlightReconWarning`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
+from flightrecon.ingest.derive import derive_tas, true_from_magnetic
+from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
+from flightrecon.ingest.merge import Rows, merge_rows
+from flightrecon.ingest.readers import read_table
+from flightrecon.ingest.sidecar import (
+    apply_overrides,
+    discover_sidecar,
+    load_sidecar,
+    normalise_epoch,
+)
+from flightrecon.ingest.validate import (
+    Provenance,
+    check_polarity,
+    check_required,
+    check_time,
+    check_values,
+)
+from flightrecon.schema import BY_NAME, CHANNELS, GROUPS
+from flightrecon.types import Flight, FlightMeta
+
+__all__ = ["load_flight"]
+
+PathLike = str | os.PathLike
+
+
+def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike | None = None,
+                mapping: PathLike | None = None, sidecar: PathLike | None = None,
+                meta_overrides: dict[str, Any] | None = None,
+                allow_unsorted: bool = False) -> Flight:
+    """Load and validate a flight.
+
+    Parameters
+    ----------
+    log : recorder log, CSV or Parquet (canonical columns, or foreign ones with ``mapping``)
+    gnss, radar : separate GNSS / radar files, merged on UTC time (each fix one row at its own
+        time); default: the sidecar's ``[files]``
+    mapping : mapping file (TOML, docs/ingest.md); default: the sidecar's ``[files] mapping``
+    sidecar : metadata file; default ``<log stem>.meta.toml`` beside the log if it exists
+    meta_overrides : metadata from the command line (``FlightMeta`` field names; positions as
+        :class:`Position` or ``"LAT,LON,ELEV_M"``); they win over the sidecar
+    allow_unsorted : sort backward timestamps (and keep duplicates) with a warning instead of
+        raising; the cleaning layer then decides what to do with duplicates
+
+    Returns
+    -------
+    Flight
+        ``data``: ``t_s`` (seconds from ``meta.epoch_utc``, sorted), canonical channels in SI
+        units (NaN where not sampled), ``row`` (1-based data row in its source file) and
+        ``src_file`` (index into ``Flight.sources``).
+
+    Raises
+    ------
+    InputFileError, SchemaError, ValidationError, MappingError, MetadataError
+        See docs/ingest.md for each case; messages name the file, the column and the rows.
+    """
+    warns: list[str] = []
+    notes: list[str] = []
+    log = Path(log)
+    # ---- metadata
+    if sidecar is not None and not Path(sidecar).is_file():
+        raise MetadataError("sidecar file not found", file=str(sidecar))
+    sc_path = Path(sidecar) if sidecar is not None else discover_sidecar(log)
+    sc = load_sidecar(sc_path) if sc_path is not None else None
+    meta = sc.meta if sc else FlightMeta()
+    companion = sc.files if sc else {}
+    if sc:
+        warns += list(sc.warnings)
+    meta = apply_overrides(meta, meta_overrides)
+    gnss = gnss if gnss is not None else companion.get("gnss")
+    radar = radar if radar is not None else companion.get("radar")
+    mapping = mapping if mapping is not None else companion.get("mapping")
+    mp: Mapping | None = load_mapping(mapping) if mapping is not None else None
+    # ---- recorder log
+    raw = read_table(log)
+    if raw.blank_rows.size:
+        warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
+                     f"{raw.blank_rows[0]})")
+    mt = apply_mapping(raw, mp)
+    if raw.nan_is_missing:
+        notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
+    used = set(mt.source_column.values()) | {_time_column(mt, mp, raw.columns)}
+    ignored = [c for c in raw.columns if c not in used]
+    if ignored:
+        shown = ", ".join(ignored[:8]) + (" ..." if len(ignored) > 8 else "")
+        warns.append(f"{log}: {len(ignored)} column(s) not in the schema and not mapped, "
+                     f"ignored: {shown}")
+    present = set(mt.values) | set(mt.derived)
+    if "tas_mps" not in present and ("cas_mps" in present or "ias_mps" in present):
+        present.add("tas_mps")
+        mt = dataclasses.replace(mt, derived={**mt.derived, "tas_mps": "cas" if "cas_mps"
+                                              in present else "ias"})
+    check_required(present, str(log), ignored)
+    notes += list(mt.notes)
+    t, meta, epoch_ns, epoch_note = _log_seconds(mt, meta)
+    if epoch_note:
+        notes.append(epoch_note)
+    order, w = check_time(t, mt.rows, str(log), _time_column(mt, mp, raw.columns),
+                          allow_unsorted=allow_unsorted)
+    warns += w
+    sel = order if order is not None else slice(None)
+    rows = Rows(t=t[sel], values={k: v[sel] for k, v in mt.values.items()},
+                src_file=np.zeros(t.size, dtype=np.int64)[sel], row=mt.rows[sel],
+                nan_text={k: v[sel] for k, v in mt.nan_text.items()})
+    files = [str(log)]
+    source_cols: list[dict[str, str]] = [dict(mt.source_column)]
+    magnetic: dict[str, tuple[str, str]] = {c: (str(log), mt.source_column[c])
+                                            for c in mt.magnetic}
+    # ---- separate measurement files
+    for group, path in (("gnss", gnss), ("radar", radar)):
+        if path is None:
+            continue
+        sub = getattr(mp, group) if mp is not None else None
+        craw = read_table(path)
+        cm = apply_mapping(craw, sub, group=group, mapping_file=mp.file if mp else None)
+        if not cm.values:
+            raise SchemaError(f"no {group} columns ({', '.join(GROUPS[group])}) in the "
+                              f"{group} file", file=str(path))
+        clash = [c for c in cm.values if c in rows.values
+                 and (~np.isnan(rows.values[c])).any()]
+        if clash:
+            raise SchemaError(f"the log already has {group} data in {', '.join(clash)} and a "
+                              f"separate {group} file was given", file=str(path), column=clash[0])
+        ct = _companion_seconds(cm, meta, epoch_ns)
+        corder, w = check_time(ct, cm.rows, str(path), "time", allow_unsorted=allow_unsorted)
+        warns += w
+        csel = corder if corder is not None else slice(None)
+        k = len(files)
+        files.append(str(path))
+        source_cols.append(dict(cm.source_column))
+        for c in cm.magnetic:
+            magnetic[c] = (str(path), cm.source_column[c])
+        notes += list(cm.notes)
+        add = Rows(t=ct[csel], values={c: v[csel] for c, v in cm.values.items()},
+                   src_file=np.full(ct.size, k, dtype=np.int64), row=cm.rows[csel],
+                   nan_text={c: v[csel] for c, v in cm.nan_text.items()})
+        rows = merge_rows(rows, add)
+    values = dict(rows.values)
+    # ---- derived channels
+    for ch, src in mt.derived.items():
+        values[ch], w = derive_tas(rows.t, values, src, str(log))
+        warns += w
+        notes.append(f"{ch} computed from {src}_mps, sat_degc and baro_alt_m (ISA, compressible)")
+    for ch, (f, col) in magnetic.items():
+        values[ch], n = true_from_magnetic(rows.t, values[ch], values, meta, f, col)
+        notes += n
+    # ---- validation
+    data = pd.DataFrame({"t_s": rows.t, **{c.name: values[c.name] for c in CHANNELS
+                                           if c.name in values}})
+    prov = Provenance(files=tuple(files), src_file=rows.src_file, row=rows.row,
+                      source_column=tuple(source_cols))
+    warns += check_values(data, prov, rows.nan_text)
+    warns += check_polarity(data, prov)
+    for name in data.columns:
+        ch = BY_NAME.get(name)
+        if ch is not None and ch.angle:
+            data[name] = np.mod(data[name].to_numpy(), 360.0)
+    empty = [c for c in data.columns if c != "t_s" and data[c].isna().all()]
+    data = data.drop(columns=empty)
+    data["row"] = rows.row
+    data["src_file"] = rows.src_file.astype(np.int8)
+    meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
+                                            "mapping": None if mp is None else mp.file,
+                                            "sidecar": None if sc is None else sc.path})
+    for w in warns:
+        warnings.warn(w, FlightReconWarning, stacklevel=2)
+    return Flight(data=data, meta=meta, sources=tuple(files), warnings=tuple(warns))
+
+
+def _time_column(mt: MappedTable, mp: Mapping | None, columns) -> str:
+    if mp is not None and mp.time is not None:
+        return mp.time.column
+    return "t_s" if "t_s" in columns else "time_utc"
+
+
+def _epoch_ns(epoch_utc: str) -> int:
+    return int(np.datetime64(epoch_utc.rstrip("Z"), "ns").astype(np.int64))
+
+
+def _log_seconds(mt: MappedTable, meta: FlightMeta) -> tuple[np.ndarray, FlightMeta, int | None,
+                                                             str | None]:
+    """Recorder times in seconds from the epoch; the epoch from timestamps when not given."""
+    if mt.time_kind == "s":
+        ep = None if meta.epoch_utc is None else _epoch_ns(meta.epoch_utc)
+        return mt.time.astype(np.float64), meta, ep, None
+    note = None
+    if meta.epoch_utc is None:
+        ep = int(mt.time.min())
+        meta = dataclasses.replace(meta, epoch_utc=normalise_epoch(
+            str(np.datetime64(ep, "ns"))))
+        note = f"epoch_utc taken from the log's first timestamp: {meta.epoch_utc}"
+    else:
+        ep = _epoch_ns(meta.epoch_utc)
+    return (mt.time - ep).astype(np.float64) / 1e9, meta, ep, note
+
+
+def _companion_seconds(cm: MappedTable, meta: FlightMeta, epoch_ns: int | None) -> np.ndarray:
+    if cm.time_kind == "s":
+        return cm.time.astype(np.float64)
+    if epoch_ns is None:
+        raise MetadataError("this file has UTC timestamps but the log's times are seconds with "
+                            "no epoch_utc: give epoch_utc in the sidecar", file=cm.file)
+    return (cm.time - epoch_ns).astype(np.float64) / 1e9

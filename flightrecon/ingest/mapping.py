@@ -1,0 +1,431 @@
+"""Mapping files: foreign column names, units and signs -> the canonical schema.
+
+A mapping file is TOML (read with :mod:`tomllib`, which never executes anything); its format
+is documented with an example in ``docs/ingest.md``::
+
+    [time]
+    column = "TIME"        # source column
+    unit = "s"             # "s" (seconds from the flight's epoch_utc) or "timestamp"
+    format = "%H:%M:%S"    # optional strptime format for text timestamps (default ISO-8601)
+
+    [channels.n_norm_g]
+    column = "VRTG"
+    unit = "g"
+    sign = 1               # or -1 (source positive the other way)
+
+    [channels.heading_deg]
+    column = "HDG_MAG"
+    unit = "deg"
+    reference = "magnetic" # converted to true with the World Magnetic Model
+
+    [channels.tas_mps]
+    from = "cas"           # computed from cas_mps (or "ias": ias_mps) + sat_degc + baro_alt_m
+
+    [gnss]                 # optional: the same tables for a separate GNSS file
+    [gnss.time] ...
+    [gnss.channels.gnss_lat_deg] ...
+    [radar] ...            # and for a separate radar file
+
+Columns of a file that already carry canonical names need no entry.  Everything wrong in the
+mapping itself is a :class:`MappingError` (exit code 6) naming the mapping file and the key.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.errors import InputFileError, MappingError, ValidationError
+from flightrecon.ingest.readers import RawTable
+from flightrecon.ingest.units import (
+    CANONICAL_DIMENSION,
+    UNITS,
+    Unit,
+    lookup_unit,
+    to_canonical,
+)
+from flightrecon.schema import BY_NAME, GROUPS
+
+__all__ = [
+    "DEFAULT_TIME_COLUMNS",
+    "ChannelSpec",
+    "MappedTable",
+    "Mapping",
+    "TimeSpec",
+    "apply_mapping",
+    "load_mapping",
+]
+
+#: canonical time columns recognised without a mapping: seconds or UTC timestamps
+DEFAULT_TIME_COLUMNS = (("t_s", "s"), ("time_utc", "timestamp"))
+TIME_UNITS = ("s", "timestamp")
+MAGNETIC_OK = ("heading_deg", "wind_from_deg")
+DERIVED_OK = {"tas_mps": {"cas": "cas_mps", "ias": "ias_mps"}}
+
+
+@dataclass(frozen=True)
+class TimeSpec:
+    """Where the time is: ``column`` in ``unit`` ``"s"`` or ``"timestamp"`` (``format`` optional)."""
+
+    column: str
+    unit: str
+    format: str | None = None
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """One canonical channel's source.
+
+    Attributes
+    ----------
+    channel : canonical name
+    column : source column (``None`` for a derived channel)
+    unit : source unit
+    sign : +1 or -1, applied after the unit conversion
+    reference : ``"true"`` or ``"magnetic"`` (heading-like channels only)
+    derived_from : ``"cas"`` or ``"ias"`` for ``tas_mps`` computed from the air data
+    """
+
+    channel: str
+    column: str | None
+    unit: Unit | None
+    sign: float = 1.0
+    reference: str = "true"
+    derived_from: str | None = None
+
+
+@dataclass(frozen=True)
+class Mapping:
+    """A parsed mapping for one file (and optional sub-mappings for GNSS and radar files)."""
+
+    file: str
+    time: TimeSpec | None
+    channels: tuple[ChannelSpec, ...]
+    gnss: Mapping | None = None
+    radar: Mapping | None = None
+
+
+@dataclass(frozen=True)
+class MappedTable:
+    """A file's columns mapped to canonical channels (SI units, signs applied).
+
+    Attributes
+    ----------
+    file : source path
+    time_kind : ``"s"`` (seconds from the epoch) or ``"timestamp"``
+    time : float64 seconds, or int64 nanoseconds since 1970-01-01 UTC for timestamps
+    values : channel -> float64 array (NaN where not sampled)
+    nan_text : channel -> mask of cells the file wrote as NaN
+    source_column : channel -> source column name (for messages)
+    magnetic : channels given relative to magnetic north (still magnetic here)
+    derived : channel -> ``"cas"`` / ``"ias"`` for channels to compute
+    rows : 1-based data rows of the file for each kept row
+    notes : conversions applied (for the metadata)
+    """
+
+    file: str
+    time_kind: str
+    time: np.ndarray
+    values: dict[str, np.ndarray]
+    nan_text: dict[str, np.ndarray]
+    source_column: dict[str, str]
+    magnetic: tuple[str, ...]
+    derived: dict[str, str]
+    rows: np.ndarray
+    notes: tuple[str, ...] = ()
+
+
+def load_mapping(path: str | os.PathLike) -> Mapping:
+    """Parse a mapping file (TOML) into a :class:`Mapping`.
+
+    Raises
+    ------
+    InputFileError
+        The file is missing or unreadable.
+    MappingError
+        Not TOML, unknown keys, channels or units, bad sign, reference or derivation.
+    """
+    p = Path(path)
+    file = str(p)
+    if not p.is_file():
+        raise InputFileError("mapping file not found", file=file)
+    try:
+        doc = tomllib.loads(p.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError:
+        raise MappingError("mapping file is not UTF-8 text", file=file) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise MappingError(f"not a valid TOML file: {exc}", file=file) from None
+    return _parse(doc, file, "", allow_sub=True)
+
+
+def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
+    allowed = {"time", "channels"} | ({"gnss", "radar"} if allow_sub else set())
+    for k in doc:
+        if k not in allowed:
+            raise MappingError(f"unknown table or key '{prefix}{k}' (allowed: "
+                               f"{', '.join(sorted(allowed))})", file=file)
+    time = None
+    if "time" in doc:
+        t = _table(doc["time"], file, f"{prefix}time")
+        _only(t, {"column", "unit", "format"}, file, f"{prefix}time")
+        col = _str(t, "column", file, f"{prefix}time", required=True)
+        unit = _str(t, "unit", file, f"{prefix}time", required=False) or "s"
+        if unit not in TIME_UNITS:
+            raise MappingError(f"[{prefix}time] unit '{unit}' is not one of {TIME_UNITS}",
+                               file=file, column=col)
+        fmt = _str(t, "format", file, f"{prefix}time", required=False)
+        time = TimeSpec(col, unit, fmt)
+    chans: list[ChannelSpec] = []
+    targets = _table(doc.get("channels", {}), file, f"{prefix}channels")
+    for name, spec in targets.items():
+        chans.append(_parse_channel(name, spec, file, f"{prefix}channels.{name}"))
+    cols = [c.column for c in chans if c.column is not None]
+    dup = sorted({c for c in cols if cols.count(c) > 1})
+    if dup:
+        raise MappingError(f"source column mapped to several channels: {', '.join(dup)}",
+                           file=file)
+    sub = {}
+    for g in ("gnss", "radar"):
+        if allow_sub and g in doc:
+            sub[g] = _parse(_table(doc[g], file, g), file, f"{g}.", allow_sub=False)
+    return Mapping(file=file, time=time, channels=tuple(chans), **sub)
+
+
+def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
+    if name not in BY_NAME or BY_NAME[name].kind == "time":
+        close = difflib.get_close_matches(name, [c for c in BY_NAME if c != "t_s"], n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise MappingError(f"[{where}]: unknown channel '{name}'{hint}", file=file)
+    spec = _table(spec, file, where)
+    _only(spec, {"column", "unit", "sign", "reference", "from"}, file, where)
+    ch = BY_NAME[name]
+    if "from" in spec:
+        src = spec["from"]
+        if name not in DERIVED_OK or src not in DERIVED_OK[name]:
+            ok = ", ".join(f"{k} from {sorted(v)}" for k, v in DERIVED_OK.items())
+            raise MappingError(f"[{where}]: cannot derive {name} from '{src}' (possible: {ok})",
+                               file=file)
+        extra = set(spec) - {"from"}
+        if extra:
+            raise MappingError(f"[{where}]: a derived channel takes only 'from' (got "
+                               f"{', '.join(sorted(extra))})", file=file)
+        return ChannelSpec(name, None, None, derived_from=src)
+    col = _str(spec, "column", file, where, required=True)
+    unit_txt = _str(spec, "unit", file, where, required=False) or ch.unit
+    unit = lookup_unit(unit_txt)
+    if unit is None:
+        raise MappingError(f"[{where}]: unknown unit '{unit_txt}' (known: "
+                           f"{', '.join(UNITS)})", file=file, column=col)
+    need = CANONICAL_DIMENSION[ch.unit]
+    if unit.dimension != need:
+        raise MappingError(f"[{where}]: unit '{unit_txt}' is a {unit.dimension}, channel {name} "
+                           f"needs a {need} unit", file=file, column=col)
+    sign = spec.get("sign", 1)
+    if isinstance(sign, bool) or sign not in (1, -1):
+        raise MappingError(f"[{where}]: sign must be 1 or -1, got {sign!r}", file=file,
+                           column=col)
+    ref = spec.get("reference", "true")
+    if ref not in ("true", "magnetic"):
+        raise MappingError(f"[{where}]: reference must be 'true' or 'magnetic', got {ref!r}",
+                           file=file, column=col)
+    if ref == "magnetic" and name not in MAGNETIC_OK:
+        raise MappingError(f"[{where}]: reference = 'magnetic' only applies to "
+                           f"{', '.join(MAGNETIC_OK)}", file=file, column=col)
+    return ChannelSpec(name, col, unit, float(sign), ref)
+
+
+def _table(v, file: str, where: str) -> dict:
+    if not isinstance(v, dict):
+        raise MappingError(f"'{where}' must be a table", file=file)
+    return v
+
+
+def _only(t: dict, keys: set[str], file: str, where: str) -> None:
+    for k in t:
+        if k not in keys:
+            raise MappingError(f"[{where}]: unknown key '{k}' (allowed: "
+                               f"{', '.join(sorted(keys))})", file=file)
+
+
+def _str(t: dict, key: str, file: str, where: str, *, required: bool) -> str | None:
+    v = t.get(key)
+    if v is None:
+        if required:
+            raise MappingError(f"[{where}]: missing key '{key}'", file=file)
+        return None
+    if not isinstance(v, str) or not v:
+        raise MappingError(f"[{where}]: '{key}' must be a non-empty string", file=file)
+    return v
+
+
+# ------------------------------------------------------------------------------ applying
+
+
+def identity_specs(columns, exclude: set[str]) -> list[ChannelSpec]:
+    """Specs for columns that already carry canonical channel names (canonical units)."""
+    out = []
+    for c in columns:
+        if c in BY_NAME and BY_NAME[c].kind != "time" and c not in exclude:
+            out.append(ChannelSpec(c, c, lookup_unit(BY_NAME[c].unit)))
+    return out
+
+
+def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None = None,
+                  mapping_file: str | None = None) -> MappedTable:
+    """Map the raw columns of one file to canonical channels.
+
+    Parameters
+    ----------
+    raw : the file's columns (:func:`flightrecon.ingest.readers.read_table`)
+    mapping : its mapping, or ``None`` for a file with canonical column names
+    group : ``"gnss"`` or ``"radar"`` for a separate measurement file: only that group's
+        channels are taken from it
+    mapping_file : for messages
+
+    Raises
+    ------
+    MappingError
+        A mapped source column is not in the file.
+    SchemaError
+        No time column.
+    ValidationError
+        Non-numeric values in a used column, unparsable or missing timestamps.
+    """
+    from flightrecon.errors import SchemaError
+
+    file = raw.file
+    mfile = mapping_file or (mapping.file if mapping else None)
+    specs: list[ChannelSpec] = list(mapping.channels) if mapping else []
+    for s in specs:
+        if s.column is not None and s.column not in raw.columns:
+            close = difflib.get_close_matches(s.column, list(raw.columns), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise MappingError(f"mapping file {mfile} maps channel {s.channel} to a column that "
+                               f"is not in the file{hint}", file=file, column=s.column)
+    mapped_cols = {s.column for s in specs if s.column}
+    mapped_chans = {s.channel for s in specs}
+    specs += identity_specs([c for c in raw.columns if c not in mapped_cols], mapped_chans)
+    if group is not None:
+        allowed = set(GROUPS[group])
+        specs = [s for s in specs if s.channel in allowed]
+    # time
+    tspec = mapping.time if mapping and mapping.time else None
+    if tspec is None:
+        for col, unit in DEFAULT_TIME_COLUMNS:
+            if col in raw.columns:
+                tspec = TimeSpec(col, unit)
+                break
+    if tspec is None:
+        raise SchemaError("no time column: expected 't_s' (seconds from epoch_utc) or "
+                          "'time_utc' (UTC timestamps), or a [time] table in a mapping file",
+                          file=file)
+    if tspec.column not in raw.columns:
+        raise MappingError(f"mapping file {mfile}: time column is not in the file", file=file,
+                           column=tspec.column)
+    rows = np.arange(1, raw.n_rows + 1, dtype=np.int64)
+    if raw.blank_rows.size:
+        keep = np.ones(raw.n_rows, dtype=bool)
+        keep[raw.blank_rows - 1] = False
+        raw = RawTable(file=file, columns={k: v[keep] for k, v in raw.columns.items()},
+                       n_rows=int(keep.sum()),
+                       nan_text={k: m[keep] for k, m in raw.nan_text.items()}, fmt=raw.fmt,
+                       bad_text={k: (m[keep], t) for k, (m, t) in raw.bad_text.items()},
+                       nan_is_missing=raw.nan_is_missing)
+        rows = rows[keep]
+    time = _convert_time(raw, tspec, rows)
+    values: dict[str, np.ndarray] = {}
+    nan_text: dict[str, np.ndarray] = {}
+    source: dict[str, str] = {}
+    derived: dict[str, str] = {}
+    magnetic: list[str] = []
+    notes: list[str] = []
+    for s in specs:
+        if s.derived_from is not None:
+            derived[s.channel] = s.derived_from
+            continue
+        col = raw.columns[s.column]
+        arr = _numeric(col, file, s.column, rows, raw.bad_text.get(s.column))
+        v = to_canonical(arr, s.unit)
+        if s.sign < 0:
+            v = -v
+        values[s.channel] = v
+        source[s.channel] = s.column
+        if s.column in raw.nan_text:
+            nan_text[s.channel] = raw.nan_text[s.column]
+        if s.reference == "magnetic":
+            magnetic.append(s.channel)
+        if s.column != s.channel or s.unit.name != BY_NAME[s.channel].unit or s.sign < 0:
+            notes.append(f"{s.channel} <- {s.column} [{s.unit.name}]"
+                         + (" x -1" if s.sign < 0 else ""))
+    return MappedTable(file=file, time_kind=tspec.unit, time=time, values=values,
+                       nan_text=nan_text, source_column=source, magnetic=tuple(magnetic),
+                       derived=derived, rows=rows, notes=tuple(notes))
+
+
+def _numeric(col: np.ndarray, file: str, name: str, rows: np.ndarray,
+             bad_text: tuple[np.ndarray, str] | None = None) -> np.ndarray:
+    """Float64 values of a source column; non-numeric text is a ValidationError naming rows."""
+    if bad_text is not None:
+        bad = np.flatnonzero(bad_text[0])
+        raise ValidationError(f"{bad.size} non-numeric value(s), first: '{bad_text[1][:40]}'",
+                              file=file, column=name, rows=rows[bad])
+    if col.dtype == np.float64:
+        return col
+    if np.issubdtype(col.dtype, np.datetime64):
+        raise ValidationError("timestamps where numbers are expected", file=file, column=name)
+    s = pd.Series(col, dtype=object)
+    num = pd.to_numeric(s, errors="coerce").to_numpy(dtype=np.float64)
+    present = s.notna().to_numpy()
+    bad = np.flatnonzero(present & np.isnan(num)
+                         & ~s.astype(str).str.strip().str.lower().isin(["nan", "+nan", "-nan"])
+                         .to_numpy())
+    if bad.size:
+        first = str(s.iloc[bad[0]])[:40]
+        raise ValidationError(f"non-numeric value(s), first: '{first}'", file=file, column=name,
+                              rows=rows[bad])
+    return num
+
+
+def _convert_time(raw: RawTable, tspec: TimeSpec, rows: np.ndarray) -> np.ndarray:
+    """Seconds (float64) or UTC nanoseconds (int64) of every row; missing/bad times raise."""
+    col = raw.columns[tspec.column]
+    file = raw.file
+    if tspec.unit == "s":
+        if np.issubdtype(col.dtype, np.datetime64):
+            raise ValidationError("time column holds timestamps: set unit = \"timestamp\" in the "
+                                  "mapping's [time] table or name it 'time_utc'", file=file,
+                                  column=tspec.column)
+        t = _numeric(col, file, tspec.column, rows, raw.bad_text.get(tspec.column))
+        bad = np.flatnonzero(~np.isfinite(t))
+        if bad.size:
+            raise ValidationError("missing or non-finite time", file=file, column=tspec.column,
+                                  rows=rows[bad])
+        return t
+    if np.issubdtype(col.dtype, np.datetime64):
+        ts = col.astype("datetime64[ns]")
+        bad = np.flatnonzero(np.isnat(ts))
+    elif col.dtype == np.float64:
+        raise ValidationError("time column holds numbers, not timestamps: set unit = \"s\"",
+                              file=file, column=tspec.column)
+    else:
+        s = pd.Series(col, dtype=object)
+        try:
+            if tspec.format:
+                parsed = pd.to_datetime(s, format=tspec.format, utc=True, errors="coerce")
+            else:
+                parsed = pd.to_datetime(s, format="ISO8601", utc=True, errors="coerce")
+        except (ValueError, TypeError) as exc:
+            raise ValidationError(f"cannot parse timestamps: {exc}", file=file,
+                                  column=tspec.column) from None
+        ts = parsed.dt.tz_localize(None).to_numpy("datetime64[ns]")
+        bad = np.flatnonzero(np.isnat(ts))
+    if bad.size:
+        raise ValidationError("missing or unparsable timestamp(s)", file=file,
+                              column=tspec.column, rows=rows[bad])
+    return ts.astype(np.int64)

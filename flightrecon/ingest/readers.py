@@ -1,0 +1,326 @@
+"""Read a recorder, GNSS or radar file (CSV or Parquet) into a table of raw columns.
+
+The format is taken from the suffix (``.csv``/``.txt`` -> CSV, ``.parquet``/``.pq`` -> Parquet)
+and checked against the content: a Parquet file (magic bytes ``PAR1``) named ``.csv``, a binary
+file, a file that is not UTF-8 text or a truncated Parquet file is an :class:`InputFileError`
+naming the file (exit code 3).  Rows with the wrong number of fields are reported with their
+1-based data row numbers (header excluded).
+
+Numeric columns are float64.  Empty cells (and Parquet nulls and NaN) mean "not sampled in this
+row", which is normal in multi-rate logs.  In a CSV that uses empty cells for that, a literal
+``NaN`` written by the recorder is an invalid value: it is kept apart in
+:attr:`RawTable.nan_text` so that validation can tell it from a missing sample.
+Text cells that are not numbers are kept as text, and validation reports them.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+
+from flightrecon.errors import InputFileError, SchemaError
+
+__all__ = ["RawTable", "read_table", "sniff_format"]
+
+PARQUET_MAGIC = b"PAR1"
+CSV_SUFFIXES = (".csv", ".txt", ".tsv")
+PARQUET_SUFFIXES = (".parquet", ".pq", ".parq")
+#: a cell is numeric if it matches this (decimal, exponent, nan/inf in any case)
+NUMERIC_RE = r"^\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[nN][aA][nN]|[iI][nN][fF](?:[iI][nN][iI][tT][yY])?)\s*$"
+
+
+@dataclass(frozen=True)
+class RawTable:
+    """A file's columns before mapping.
+
+    Attributes
+    ----------
+    file : path as given (for messages)
+    columns : source column name -> array; float64 for numeric columns, ``datetime64[ns]`` (UTC)
+        for timestamp columns, object (str or None) for text columns
+    n_rows : number of data rows
+    nan_text : column -> boolean mask of cells the file wrote as NaN (not empty)
+    blank_rows : 1-based data rows that were empty lines (dropped by validation with a warning)
+    fmt : ``"csv"`` or ``"parquet"``
+    bad_text : column -> (mask of non-numeric text cells in a numeric column, first such text)
+    nan_is_missing : the file marks unsampled cells with NaN (Parquet, or a CSV without any
+        empty cell), so ``nan_text`` is empty: NaN cannot tell an invalid value there
+    """
+
+    file: str
+    columns: dict[str, np.ndarray]
+    n_rows: int
+    nan_text: dict[str, np.ndarray] = field(default_factory=dict)
+    blank_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    fmt: str = "csv"
+    bad_text: dict[str, tuple[np.ndarray, str]] = field(default_factory=dict)
+    nan_is_missing: bool = False
+
+
+def sniff_format(path: str | os.PathLike) -> str:
+    """``"csv"`` or ``"parquet"`` for ``path`` after checking its suffix against its content.
+
+    Raises
+    ------
+    InputFileError
+        Missing file, directory, empty file, Parquet content under a text suffix, or a file that
+        is neither Parquet nor text.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise InputFileError("file not found", file=str(p))
+    if not p.is_file():
+        raise InputFileError("not a regular file", file=str(p))
+    size = p.stat().st_size
+    if size == 0:
+        raise InputFileError("empty file (0 bytes)", file=str(p))
+    with open(p, "rb") as fh:
+        head = fh.read(4096)
+    suffix = p.suffix.lower()
+    is_parquet = head[:4] == PARQUET_MAGIC
+    if suffix in CSV_SUFFIXES:
+        if is_parquet:
+            raise InputFileError(f"this is a Parquet file named '{suffix}': rename it '.parquet'",
+                                 file=str(p))
+        return "csv"
+    if suffix in PARQUET_SUFFIXES:
+        if not is_parquet:
+            raise InputFileError("not a Parquet file (no 'PAR1' magic bytes at its start)",
+                                 file=str(p))
+        return "parquet"
+    return "parquet" if is_parquet else "csv"
+
+
+def read_table(path: str | os.PathLike) -> RawTable:
+    """Read ``path`` (CSV or Parquet, see :func:`sniff_format`) into a :class:`RawTable`.
+
+    Raises
+    ------
+    InputFileError
+        Unreadable, empty, binary, not UTF-8, truncated or corrupt file; rows with the wrong
+        number of fields.
+    SchemaError
+        Duplicate or empty column names.
+    """
+    fmt = sniff_format(path)
+    table = _read_parquet(Path(path)) if fmt == "parquet" else _read_csv(Path(path))
+    return table
+
+
+# ------------------------------------------------------------------------------------ CSV
+
+
+def _decode_check(raw: bytes, file: str) -> int:
+    """Check that ``raw`` is UTF-8 text; return the length of a UTF-8 BOM to skip (0 or 3)."""
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise InputFileError("file is UTF-16 encoded; re-save it as UTF-8 (CSV text)", file=file)
+    nul = raw.find(b"\x00", 0, 1 << 20)
+    if nul >= 0:
+        line = raw.count(b"\n", 0, nul) + 1
+        raise InputFileError(f"not a text file: NUL byte at byte {nul} (line {line}); "
+                             "binary data or a wrong encoding", file=file)
+    bom = 3 if raw[:3] == b"\xef\xbb\xbf" else 0
+    if len(raw) > bom and int(np.frombuffer(raw, dtype=np.uint8, offset=bom).max()) < 0x80:
+        return bom                     # plain ASCII (the usual case): valid UTF-8, no decoding
+    try:
+        raw[bom:].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        pos = bom + exc.start
+        line = raw.count(b"\n", 0, pos) + 1
+        hint = ""
+        try:
+            raw[bom:].decode("cp1252")
+            hint = " (it decodes as Windows-1252/Latin-1: re-save it as UTF-8)"
+        except UnicodeDecodeError:
+            hint = " (binary data?)"
+        row_txt = f"; data row {line - 1}" if line > 1 else " (header)"
+        raise InputFileError(f"not valid UTF-8 text at byte {pos}, line {line}{row_txt}{hint}",
+                             file=file) from None
+    return bom
+
+
+def _read_csv(p: Path) -> RawTable:
+    file = str(p)
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise InputFileError(f"cannot read: {exc.strerror}", file=file) from None
+    bom = _decode_check(raw, file)
+    body = raw[bom:]
+    if not body[:65536].strip() and not body.strip():
+        raise InputFileError("empty file (no header, no data)", file=file)
+    first_nl = body.find(b"\n")
+    header = body if first_nl < 0 else body[:first_nl]
+    if first_nl < 0 or not body[first_nl + 1:first_nl + 65537].strip() \
+            and not body[first_nl + 1:].strip():
+        raise InputFileError("no data rows (header only)", file=file)
+    delim = _sniff_delimiter(header.decode("utf-8"))
+    names = [h.strip().strip('"') for h in header.decode("utf-8").rstrip("\r").split(delim)]
+    _check_names(names, file)
+    read_opts = pacsv.ReadOptions(column_names=names, skip_rows=1, block_size=1 << 24)
+    parse_opts = pacsv.ParseOptions(delimiter=delim, ignore_empty_lines=False)
+    conv_opts = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True,
+                                     quoted_strings_can_be_null=True)
+    buf = pa.py_buffer(body)
+    try:
+        tbl = pacsv.read_csv(buf, read_options=read_opts, parse_options=parse_opts,
+                             convert_options=conv_opts)
+    except pa.ArrowInvalid as exc:
+        if "parse error" in str(exc) or "Expected" in str(exc):
+            _raise_ragged(buf, names, delim, body, file)
+        raise InputFileError(f"cannot parse CSV: {exc}", file=file) from None
+    return _from_arrow(tbl, file, "csv")
+
+
+def _sniff_delimiter(header: str) -> str:
+    counts = {d: header.count(d) for d in (",", ";", "\t")}
+    best = max(counts, key=lambda d: counts[d])
+    return best if counts[best] > 0 else ","
+
+
+def _check_names(names: list[str], file: str) -> None:
+    seen: dict[str, int] = {}
+    for i, n in enumerate(names):
+        if n == "":
+            raise SchemaError(f"header field {i + 1} is empty", file=file)
+        if n in seen:
+            raise SchemaError(f"duplicate column name (header fields {seen[n] + 1} and {i + 1})",
+                              file=file, column=n)
+        seen[n] = i
+
+
+def _raise_ragged(buf: pa.Buffer, names: list[str], delim: str, body: bytes, file: str) -> None:
+    """Re-read single-threaded to find the rows with the wrong number of fields, then raise."""
+    bad: list[tuple[int, int]] = []
+
+    def handler(row) -> str:
+        # row.number is the 1-based line number counted after the skipped header line
+        bad.append((int(row.number) if row.number is not None else -1, int(row.actual_columns)))
+        return "skip"
+
+    try:
+        pacsv.read_csv(buf, read_options=pacsv.ReadOptions(column_names=names, skip_rows=1,
+                                                           use_threads=False),
+                       parse_options=pacsv.ParseOptions(delimiter=delim, ignore_empty_lines=False,
+                                                        invalid_row_handler=handler),
+                       convert_options=pacsv.ConvertOptions(null_values=[""],
+                                                            strings_can_be_null=True))
+    except pa.ArrowInvalid as exc:
+        raise InputFileError(f"cannot parse CSV: {exc}", file=file) from None
+    # the handler's number is the file's line number (header = line 1): data row = line - 1
+    rows = [r - 1 for r, _ in bad if r > 1]
+    n_data = body.count(b"\n") + (0 if body.endswith(b"\n") else 1) - 1
+    got = bad[0][1] if bad else 0
+    if bad and len(bad) == 1 and rows and rows[0] == n_data and not body.endswith(b"\n"):
+        raise InputFileError(f"file is truncated: the last row has {got} of {len(names)} fields "
+                             "and no line end", file=file, rows=rows)
+    raise InputFileError(f"wrong number of fields (expected {len(names)}, first bad row has {got})",
+                         file=file, rows=rows or None)
+
+
+# -------------------------------------------------------------------------------- Parquet
+
+
+def _read_parquet(p: Path) -> RawTable:
+    file = str(p)
+    size = p.stat().st_size
+    with open(p, "rb") as fh:
+        fh.seek(max(0, size - 4))
+        tail = fh.read(4)
+    if size < 12 or tail != PARQUET_MAGIC:
+        raise InputFileError("truncated or corrupt Parquet file (no 'PAR1' footer)", file=file)
+    try:
+        tbl = pq.read_table(p)
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise InputFileError(f"corrupt Parquet file: {exc}", file=file) from None
+    if tbl.num_rows == 0:
+        raise InputFileError("no data rows", file=file)
+    _check_names([str(n) for n in tbl.column_names], file)
+    return _from_arrow(tbl, file, "parquet")
+
+
+# ----------------------------------------------------------------------------- conversion
+
+
+def _from_arrow(tbl: pa.Table, file: str, fmt: str) -> RawTable:
+    n = tbl.num_rows
+    if n == 0:
+        raise InputFileError("no data rows", file=file)
+    cols: dict[str, np.ndarray] = {}
+    nan_text: dict[str, np.ndarray] = {}
+    bad_text: dict[str, tuple[np.ndarray, str]] = {}
+    all_null = np.ones(n, dtype=bool)
+    any_null = False
+    for name in tbl.column_names:
+        col = tbl.column(name).combine_chunks() if tbl.column(name).num_chunks != 1 \
+            else tbl.column(name).chunk(0)
+        valid = col.is_valid().to_numpy(zero_copy_only=False)
+        all_null &= ~valid
+        any_null = any_null or not valid.all()
+        t = col.type
+        if pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t) \
+                or pa.types.is_decimal(t) or pa.types.is_null(t):
+            arr = pc.cast(col, pa.float64()) if not pa.types.is_null(t) else \
+                pa.array(np.full(n, np.nan))
+            vals = arr.to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
+            nan_mask = np.isnan(vals) & valid
+            if nan_mask.any():
+                nan_text[name] = nan_mask
+            vals = np.where(valid, vals, np.nan) if not valid.all() else vals
+            cols[name] = vals
+        elif pa.types.is_timestamp(t) or pa.types.is_date(t):
+            s = pd.Series(col.to_pandas())
+            s = pd.to_datetime(s, utc=True)
+            cols[name] = s.dt.tz_convert("UTC").dt.tz_localize(None).to_numpy("datetime64[ns]")
+        elif pa.types.is_string(t) or pa.types.is_large_string(t):
+            cols[name], bad, first_bad = _string_column(col, valid)
+            if bad is not None:
+                bad_text[name] = (bad, first_bad)
+            if cols[name].dtype == np.float64:
+                txt = pc.fill_null(pc.match_substring_regex(pc.utf8_lower(pc.utf8_trim_whitespace(
+                    col)), r"^[+-]?nan$"), False).to_numpy(zero_copy_only=False)
+                if txt.any():
+                    nan_text[name] = txt
+        else:
+            raise SchemaError(f"unsupported column type {t}", file=file, column=name)
+    blank = np.flatnonzero(all_null) + 1 if fmt == "csv" else np.zeros(0, np.int64)
+    nan_is_missing = False
+    if nan_text and (fmt == "parquet" or not any_null):
+        # Parquet has no empty cell, and a CSV with no empty cell at all writes NaN for "not
+        # sampled" (numpy/MATLAB style): there NaN cannot mark an invalid value
+        nan_text = {}
+        nan_is_missing = True
+    return RawTable(file=file, columns=cols, n_rows=n, nan_text=nan_text,
+                    blank_rows=blank.astype(np.int64), fmt=fmt, bad_text=bad_text,
+                    nan_is_missing=nan_is_missing)
+
+
+def _string_column(col: pa.Array, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray | None,
+                                                                 str | None]:
+    """A text column, classified in one vectorised pass.
+
+    Returns ``(values, bad, first_bad)``: float64 values and ``bad=None`` if every non-empty
+    cell is a number; float64 values (NaN at the bad cells), the mask of non-numeric cells and
+    the first bad text if the column is mostly numbers; an object array of str and ``None`` if
+    no cell is a number (timestamps, identifiers).
+    """
+    ok_arr = pc.fill_null(pc.match_substring_regex(col, NUMERIC_RE), True)
+    ok = ok_arr.to_numpy(zero_copy_only=False)
+    if ok.all():
+        trimmed = pc.utf8_trim_whitespace(col)
+        vals = pc.cast(trimmed, pa.float64()).to_numpy(zero_copy_only=False)
+        return vals.astype(np.float64), None, None
+    if not ok[valid].any():
+        return np.asarray(col.to_pandas(), dtype=object), None, None
+    kept = pc.if_else(ok_arr, pc.utf8_trim_whitespace(col), pa.scalar(None, pa.string()))
+    vals = pc.cast(kept, pa.float64()).to_numpy(zero_copy_only=False).astype(np.float64)
+    bad = ~ok
+    return vals, bad, str(col[int(np.argmax(bad))].as_py())

@@ -1,0 +1,321 @@
+"""Validation of a merged flight table: every check vectorised over the whole record.
+
+Errors name the file, the source column and the 1-based data rows of that file
+(:mod:`flightrecon.errors`).  Checks (docs/ingest.md, "Validation"):
+
+* time: missing, non-finite, duplicate or backward timestamps (rows named; no silent fix);
+* schema: required channels present, a required channel with no sample at all;
+* physically impossible values: outside ``Channel.lo``/``Channel.hi`` (schema.py), +-inf included;
+* NaN storms: a channel whose recorded samples are mostly literal ``NaN`` (an error); a few
+  literal NaN are a recoverable defect (a warning, the values stay missing);
+* polarity (METHODS.md, "Common ground"): ``n_norm_g`` is +1 at rest and about +1 on average in
+  flight, so a median near -1 means a flipped channel; at rest ``n_long_g = sin(pitch)`` (the
+  specific force is g0 up; its forward body component is g0 sin(theta)), so ``n_long_g`` matching
+  ``-sin(pitch)`` means a flipped channel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.constants import G0
+from flightrecon.errors import SchemaError, ValidationError
+from flightrecon.schema import BY_NAME, REQUIRED
+
+__all__ = [
+    "GROUND_TAS_MPS",
+    "NAN_STORM_FRACTION",
+    "Provenance",
+    "check_polarity",
+    "check_required",
+    "check_time",
+    "check_values",
+]
+
+#: fraction of a channel's recorded samples written as NaN above which the channel is unusable
+NAN_STORM_FRACTION = 0.5
+#: true airspeed below which a sample counts as "at rest / taxiing" for the polarity checks;
+#: below every transport or light aircraft's stall speed (about 25 m/s = 49 kt)
+GROUND_TAS_MPS = 20.0
+#: minimum number of samples for a polarity verdict (a median of fewer is not trusted)
+MIN_POLARITY_SAMPLES = 16
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where each row of the merged table came from.
+
+    Attributes
+    ----------
+    files : source paths (index 0 is the recorder log)
+    src_file : (N,) index into ``files`` for every row
+    row : (N,) 1-based data row in that file
+    source_column : per file, channel -> source column name
+    """
+
+    files: tuple[str, ...]
+    src_file: np.ndarray
+    row: np.ndarray
+    source_column: tuple[dict[str, str], ...]
+
+    def locate(self, mask: np.ndarray, channel: str) -> dict:
+        """``file``, ``column`` and ``rows`` keywords for an error about the True rows of ``mask``
+        (the first file that has any)."""
+        idx = np.flatnonzero(mask)
+        f = int(self.src_file[idx[0]])
+        in_f = idx[self.src_file[idx] == f]
+        col = self.source_column[f].get(channel, channel)
+        col_txt = col if col == channel else f"{col}' -> '{channel}"
+        return {"file": self.files[f], "column": col_txt, "rows": self.row[in_f]}
+
+
+def check_time(t: np.ndarray, rows: np.ndarray, file: str, column: str, *,
+               allow_unsorted: bool) -> tuple[np.ndarray | None, list[str]]:
+    """Check that the times of one file strictly increase.
+
+    Returns
+    -------
+    order : a stable sorting permutation if ``allow_unsorted`` and the times were unsorted,
+        else ``None``
+    warnings : what was found when ``allow_unsorted``
+
+    Raises
+    ------
+    ValidationError
+        Duplicate or backward times (naming the rows where time stops increasing), unless
+        ``allow_unsorted``.
+    """
+    if t.size < 2:
+        return None, []
+    dt = np.diff(t)
+    back = np.flatnonzero(dt < 0) + 1
+    dup = np.flatnonzero(dt == 0) + 1
+    warns: list[str] = []
+    if back.size or dup.size:
+        if not allow_unsorted:
+            if back.size:
+                raise ValidationError(f"time goes backward ({back.size} times; the rows named "
+                                      "are earlier than the row before them)", file=file,
+                                      column=column, rows=rows[back])
+            raise ValidationError(f"duplicate timestamps ({dup.size}; the rows named repeat the "
+                                  "time of the row before them)", file=file, column=column,
+                                  rows=rows[dup])
+        if back.size:
+            warns.append(f"{file}: time goes backward at {back.size} row(s) (first: row "
+                         f"{rows[back[0]]}); rows sorted by time as allowed")
+        if dup.size:
+            warns.append(f"{file}: {dup.size} duplicate timestamp(s) (first: row "
+                         f"{rows[dup[0]]}) kept for the cleaning layer")
+        return (np.argsort(t, kind="stable") if back.size else None), warns
+    return None, warns
+
+
+def check_required(channels, file: str, other_columns=()) -> None:
+    """Raise :class:`SchemaError` naming the required channels missing from ``channels``
+    (with the closest of ``other_columns``, the file's unused columns, as a hint)."""
+    import difflib
+
+    missing = [c for c in REQUIRED if c != "t_s" and c not in channels]
+    if missing:
+        hints = []
+        for m in missing:
+            close = difflib.get_close_matches(m, [c for c in other_columns if c not in BY_NAME],
+                                              n=1)
+            if close:
+                hints.append(f"'{close[0]}' -> {m}?")
+        hint = f" (similar columns: {', '.join(hints)})" if hints else ""
+        raise SchemaError(f"missing required channel(s): {', '.join(missing)}{hint}; map foreign "
+                          "names with a mapping file (docs/ingest.md)", file=file,
+                          column=missing[0])
+
+
+def check_values(data: pd.DataFrame, prov: Provenance,
+                 nan_text: dict[str, np.ndarray]) -> list[str]:
+    """Range, inf, empty-channel and NaN-storm checks over every canonical channel.
+
+    Parameters
+    ----------
+    data : merged table (canonical columns)
+    prov : row provenance
+    nan_text : channel -> (N,) mask of cells written as literal NaN
+
+    Returns
+    -------
+    warnings : recoverable defects found
+
+    Raises
+    ------
+    ValidationError
+        A value outside the channel's physical range (infinities included), a required channel
+        with no sample, a NaN storm.
+    """
+    warns: list[str] = []
+    for name in data.columns:
+        ch = BY_NAME.get(name)
+        if ch is None or ch.kind == "time":
+            continue
+        v = data[name].to_numpy()
+        txt = nan_text.get(name)
+        n_txt = int(txt.sum()) if txt is not None else 0
+        n_val = int(np.count_nonzero(~np.isnan(v)))
+        if n_val == 0 and n_txt == 0:
+            if ch.required:
+                raise ValidationError("required channel has no sample (empty column)",
+                                      file=prov.files[0],
+                                      column=prov.source_column[0].get(name, name))
+            warns.append(f"channel {name} has no sample; ignored")
+            continue
+        bad = (v < ch.lo) | (v > ch.hi)
+        if bad.any():
+            where = prov.locate(bad, name)
+            first = v[bad][0]
+            raise ValidationError(f"{int(bad.sum())} physically impossible value(s) (first "
+                                  f"{first:g} {ch.unit}; possible range [{ch.lo:g}, {ch.hi:g}] "
+                                  f"{ch.unit})", **where)
+        if n_txt:
+            frac = n_txt / (n_txt + n_val)
+            where = prov.locate(txt, name)
+            if frac > NAN_STORM_FRACTION or n_val == 0:
+                raise ValidationError(f"NaN storm: {n_txt} of {n_txt + n_val} recorded samples "
+                                      f"are NaN ({100 * frac:.0f} %)", **where)
+            warns.append(f"{where['file']}: column '{where['column']}': {n_txt} NaN value(s) "
+                         f"(first: row {where['rows'][0]}) treated as missing samples")
+    return warns
+
+
+def _on_common_rows(data: pd.DataFrame, a: str, b: str) -> tuple[np.ndarray, np.ndarray]:
+    """Values of ``b`` interpolated (linearly in time) at the rows where ``a`` was sampled."""
+    t = data["t_s"].to_numpy()
+    va = data[a].to_numpy()
+    vb = data[b].to_numpy()
+    ia = ~np.isnan(va)
+    ib = ~np.isnan(vb)
+    if ib.sum() < 2:
+        return va[ia], np.full(int(ia.sum()), np.nan)
+    if ib[ia].all():                      # sampled on the same rows: no interpolation needed
+        return va[ia], vb[ia]
+    return va[ia], np.interp(t[ia], t[ib], vb[ib], left=np.nan, right=np.nan)
+
+
+def check_polarity(data: pd.DataFrame, prov: Provenance) -> list[str]:
+    """Polarity checks of the load factors (see the module docstring).
+
+    Raises
+    ------
+    ValidationError
+        ``n_norm_g`` or ``n_long_g`` flipped.
+    """
+    warns: list[str] = []
+    nn = data["n_norm_g"].to_numpy()
+    nn_ok = nn[~np.isnan(nn)]
+    col = prov.source_column[0].get("n_norm_g", "n_norm_g")
+    if nn_ok.size >= MIN_POLARITY_SAMPLES:
+        med = float(np.median(nn_ok))
+        if med < 0.0:
+            raise ValidationError(f"n_norm_g looks flipped: median {med:.2f} g over the record; "
+                                  "it is +1 at rest and about +1 in flight (n_norm = -f_z/g0). "
+                                  "Use sign = -1 in a mapping file", file=prov.files[0],
+                                  column=col)
+    nn_r, tas_r = _on_common_rows(data, "n_norm_g", "tas_mps")
+    ground = tas_r < GROUND_TAS_MPS
+    if ground.sum() >= MIN_POLARITY_SAMPLES:
+        med = float(np.median(nn_r[ground]))
+        if abs(med - 1.0) > 0.3:
+            raise ValidationError(f"n_norm_g is {med:.2f} g at rest (true airspeed below "
+                                  f"{GROUND_TAS_MPS:g} m/s); expected +1 (n_norm = -f_z/g0): a "
+                                  "flipped or mis-scaled channel", file=prov.files[0], column=col)
+    _check_long_polarity(data, prov)
+    _check_turn_polarity(data, prov)
+    return warns
+
+
+#: half-width of the window for the airspeed derivative in the n_long check [s]: long enough
+#: to average airspeed noise (0.5 m/s noise -> 0.007 g), short against speed changes
+ACCEL_HALF_WINDOW_S = 5.0
+
+
+def _check_long_polarity(data: pd.DataFrame, prov: Provenance) -> None:
+    """``n_long_g`` sign: along the body x axis the specific force is the acceleration plus the
+    component of g0 up, so n_long = dV/dt / g0 + sin(pitch) (exact at rest; in flight up to
+    angle-of-attack and turn terms, small for a sign test).  A channel matching
+    ``-(dV/dt / g0 + sin(pitch))`` twice as well as ``+(...)``, where that expected value is
+    visibly non-zero (median above 0.02 g), is flipped.  dV/dt is the airspeed difference over
+    +-5 s."""
+    nl, pitch = _on_common_rows(data, "n_long_g", "pitch_deg")
+    t_all = data["t_s"].to_numpy()
+    t = t_all[~np.isnan(data["n_long_g"].to_numpy())]
+    tas = data["tas_mps"].to_numpy()
+    it = ~np.isnan(tas)
+    if it.sum() < 2:
+        return
+    tt, vv = t_all[it], tas[it]
+    h = ACCEL_HALF_WINDOW_S
+    lo = np.clip(t - h, tt[0], tt[-1])
+    hi = np.clip(t + h, tt[0], tt[-1])
+    span = hi - lo
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vdot = np.where(span > 0, (np.interp(hi, tt, vv) - np.interp(lo, tt, vv)) / span, np.nan)
+    expected = np.sin(np.radians(pitch)) + vdot / G0
+    ok = ~np.isnan(expected) & ~np.isnan(nl)
+    if ok.sum() < MIN_POLARITY_SAMPLES:
+        return
+    e, n = expected[ok], nl[ok]
+    if np.median(np.abs(e)) <= 0.02:
+        return
+    r_same = float(np.median(np.abs(n - e)))
+    r_flip = float(np.median(np.abs(n + e)))
+    if r_flip < 0.5 * r_same:
+        raise ValidationError(
+            f"n_long_g looks flipped: it matches -(sin(pitch) + dV/dt/g0) (median misfit "
+            f"{r_flip:.3f} g) rather than +(sin(pitch) + dV/dt/g0) ({r_same:.3f} g); n_long_g "
+            "is positive forward. Use sign = -1 in a mapping file", file=prov.files[0],
+            column=prov.source_column[0].get("n_long_g", "n_long_g"))
+
+
+#: thresholds for the turn check: bank and turn rate clearly non-zero, airborne speed
+TURN_MIN_ROLL_DEG = 10.0
+TURN_MIN_RATE_DEG_S = 0.5
+TURN_MIN_TAS_MPS = 30.0
+#: fraction of turning samples whose heading rate has the sign opposite to the bank
+TURN_FLIP_FRACTION = 0.8
+
+
+def _check_turn_polarity(data: pd.DataFrame, prov: Provenance) -> None:
+    """Bank and turn direction agree: in a coordinated turn the heading rate is
+    ``g0 tan(roll) / V`` (METHODS.md conventions: roll + right wing down, heading clockwise), so
+    a right bank turns the heading clockwise.  If at least 32 clearly turning samples mostly
+    (> 80 %) turn against the bank, roll or heading has the wrong sign."""
+    t = data["t_s"].to_numpy()
+    hdg = data["heading_deg"].to_numpy()
+    ih = ~np.isnan(hdg)
+    if ih.sum() < 3:
+        return
+    th = t[ih]
+    psi = np.unwrap(np.radians(hdg[ih]))
+    dt = np.diff(th)
+    rate = np.full(th.size, np.nan)
+    ok = dt > 0
+    mid = np.diff(psi)[ok] / dt[ok]
+    # centred difference on the interior samples
+    r = np.full(dt.size, np.nan)
+    r[ok] = mid
+    rate[1:-1] = 0.5 * (r[:-1] + r[1:])
+    _, roll = _on_common_rows(data, "heading_deg", "roll_deg")
+    _, tas = _on_common_rows(data, "heading_deg", "tas_mps")
+    turning = (np.abs(roll) > TURN_MIN_ROLL_DEG) & (tas > TURN_MIN_TAS_MPS) \
+        & (np.abs(rate) > np.radians(TURN_MIN_RATE_DEG_S))
+    n = int(turning.sum())
+    if n < 2 * MIN_POLARITY_SAMPLES:
+        return
+    against = np.sign(rate[turning]) != np.sign(roll[turning])
+    frac = float(against.mean())
+    if frac > TURN_FLIP_FRACTION:
+        raise ValidationError(
+            f"roll_deg or heading_deg has the wrong sign: in {100 * frac:.0f} % of {n} turning "
+            "samples the heading turns against the bank (roll is + right wing down, heading "
+            "clockwise from north, so a right bank turns the heading clockwise). Use sign = -1 in "
+            "a mapping file", file=prov.files[0],
+            column=prov.source_column[0].get("roll_deg", "roll_deg"))

@@ -1,0 +1,578 @@
+"""Named scenarios and the public entry points :func:`simulate` and :func:`simulate_fleet`.
+
+Scenarios (docs/simulator.md, "Scenarios"): ``circuit``, ``regional``, ``seed-ads-arms``,
+``landing``, ``longhaul``.  Each is a :class:`ScenarioConfig` (weather, rates, radar, faults)
+plus a route builder; ``simulate(name, seed, **overrides)`` replaces config fields by name
+(an unknown name is an error, never ignored).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.errors import ValidationError
+from flightrecon.geo.frames import TangentPlane, output_plane
+from flightrecon.sim.aircraft import JET, LIGHT, TURBOPROP, Aircraft, aircraft_seed, draw_aircraft
+from flightrecon.sim.recorder import record_log, stream
+from flightrecon.sim.sensors import (
+    AirspeedSensor,
+    ArmsRadar,
+    AttitudeSensor,
+    BaroSensor,
+    DopplerSensor,
+    Faults,
+    GnssReceiver,
+    LoadFactorSensor,
+    SensorSuite,
+    WindSensor,
+    gauss_markov,
+    wrap360,
+)
+from flightrecon.sim.trajectory import FlightPlan, PlanBuilder, simulate_truth
+from flightrecon.sim.weather import Atmosphere, WindField, qnh_hpa
+from flightrecon.types import FlightMeta, Position
+
+__all__ = [
+    "SCENARIOS",
+    "ScenarioConfig",
+    "SimResult",
+    "build_plan",
+    "scenario_config",
+    "simulate",
+    "simulate_fleet",
+]
+
+ARP_OFFSET_M = 800.0
+"""Airfield reference point: this far down the runway from the start of the take-off roll
+(departure) or from the touchdown point (arrival)."""
+
+
+DEFAULT_AIRFIELD = Position(40.46, 50.05, 3.0)
+"""Departure airfield of the circuit, regional and long-haul scenarios (MSL elevation)."""
+CALM = WindField()
+NO_FAULTS = Faults()
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """Settings of a scenario run (override any field by name in :func:`simulate`).
+
+    Rates are in Hz and must divide ``truth_rate_hz``; 0 disables a channel.  Positions: MSL
+    elevations.  ``leg_scale`` stretches the route's straight legs (fleet variation).
+    """
+
+    aircraft: Aircraft = LIGHT
+    flight_id: str = "F1"
+    epoch_utc: str = "2026-01-01T10:00:00Z"
+    airfield: Position = DEFAULT_AIRFIELD
+    runway_deg: float = 160.0
+    arrival_elev_m: float = 3.0
+    geoid_undulation_m: float = -22.0
+    wind: WindField = CALM
+    temp_offset_k: float = 0.0
+    p_sl_departure_hpa: float = 1013.25
+    p_sl_arrival_hpa: float = 1013.25
+    truth_rate_hz: float = 16.0
+    loads_hz: float = 16.0
+    attitude_hz: float = 8.0
+    airspeed_hz: float = 4.0
+    baro_hz: float = 4.0
+    gnss_hz: float = 1.0
+    doppler_hz: float = 0.0
+    wind_hz: float = 0.0
+    gnss_dropouts: tuple[tuple[float, float], ...] = ()
+    radar_scan_s: float = 0.0
+    radar_range_sd_m: float = 50.0
+    radar_azimuth_sd_deg: float = 0.25
+    radar_elevation_sd_deg: float = 0.1
+    radar_outages: tuple[tuple[float, float], ...] = ()
+    station_offset_m: tuple[float, float] = (0.0, 0.0)
+    airdata_gm_sigma_mps: float = 0.0
+    airdata_gm_tau_s: float = 360.0
+    duration_s: float = 0.0
+    cruise_alt_msl_m: float = 0.0
+    leg_scale: float = 1.0
+    faults: Faults = NO_FAULTS
+    ideal_sensors: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class SimResult:
+    """A simulated flight.
+
+    Attributes
+    ----------
+    log : recorded multi-rate log, canonical columns (what an estimator gets)
+    truth : truth on the uniform truth grid (``t_s`` first; see docs/simulator.md)
+    meta : flight metadata (what the sidecar carries)
+    sensor_truth : persistent sensor errors, weather, events, injected faults (JSON-able)
+    """
+
+    log: pd.DataFrame
+    truth: pd.DataFrame
+    meta: FlightMeta
+    sensor_truth: dict[str, Any]
+
+
+# --------------------------------------------------------------------------------------------
+# routes
+
+
+def _offset(p: Position, north_m: float, east_m: float) -> tuple[float, float]:
+    """Lat/lon of a point ``north_m, east_m`` from ``p`` in its tangent plane (at ground)."""
+    # plain floats: geo.frames builds a PROJ string from repr() (np.float64 would not parse)
+    lat, lon, _ = TangentPlane(float(p.lat_deg), float(p.lon_deg), 0.0).inverse(
+        float(east_m), float(north_m), 0.0)
+    return float(lat), float(lon)
+
+
+def _builder(cfg: ScenarioConfig, atmosphere: Atmosphere, start: tuple[float, float, float],
+             track_deg: float, airborne_tas: float | None) -> PlanBuilder:
+    a = cfg.aircraft
+    return PlanBuilder(lat_deg=start[0], lon_deg=start[1], elev_msl_m=start[2],
+                       track_deg=track_deg, wind=cfg.wind, atmosphere=atmosphere,
+                       geoid_undulation_m=cfg.geoid_undulation_m,
+                       alpha_ref_deg=a.alpha_ref_deg, alpha_ref_tas_mps=a.alpha_ref_tas_mps,
+                       airborne_tas_mps=airborne_tas)
+
+
+def _takeoff_start(cfg: ScenarioConfig) -> tuple[float, float, float]:
+    r = np.radians(cfg.runway_deg)
+    lat, lon = _offset(cfg.airfield, -ARP_OFFSET_M * np.cos(r), -ARP_OFFSET_M * np.sin(r))
+    return lat, lon, cfg.airfield.elev_m
+
+
+CIRCUIT_TOUCHDOWN_M = -500.0
+"""Circuit touchdown point: this far along the runway from the airfield reference point
+(300 m past the start of the take-off roll), on the centre line."""
+
+
+def _route_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float,
+                   legs: tuple[float, float] = (215.0, 60.0)) -> PlanBuilder:
+    """Left-hand pattern at 450 m AGL: upwind, crosswind, downwind, base, final, landing.
+
+    ``legs`` = (downwind, base) times [s]; :func:`_close_circuit` adjusts them so that the
+    final approach lies on the runway centre line and touches down at
+    :data:`CIRCUIT_TOUCHDOWN_M`.
+    """
+    a, s = cfg.aircraft, cfg.leg_scale
+    b = _builder(cfg, atm, _takeoff_start(cfg), cfg.runway_deg, None)
+    pattern = cfg.airfield.elev_m + (cfg.cruise_alt_msl_m or 450.0)
+    b.hold(extra_s)  # lined up, standing still: the scenario's duration is exact
+    b.takeoff(rotate_tas_mps=a.rotate_tas_mps, climb_rate_mps=a.climb_rate_mps)
+    b.set_tas(a.climb_tas_mps)
+    b.level_off(pattern, wait=False)
+    b.hold(90 * s).turn(-90, 3.0).hold(60 * s).turn(-90, 3.0)
+    b.set_tas(a.cruise_tas_mps).hold(legs[0] * s).turn(-90, 3.0)
+    b.set_tas(a.approach_tas_mps).hold(legs[1]).turn(-90, 3.0).hold(10)
+    b.land(elev_msl_m=cfg.arrival_elev_m, glide_rate_mps=a.glide_rate_mps)
+    return b
+
+
+def _touchdown_offset(cfg: ScenarioConfig, b: PlanBuilder) -> tuple[float, float]:
+    """(along, cross) runway position of the touchdown relative to the airfield reference
+    point, flat-earth integration of the ground velocity on a 0.25 s grid (planning only)."""
+    from flightrecon.sim.trajectory import kinematics
+
+    plan = b.plan()
+    t = np.arange(0.0, plan.touchdown_s + 0.25, 0.25)
+    k = kinematics(plan, t)
+    n = np.sum(0.5 * (k.vn_mps[1:] + k.vn_mps[:-1]) * 0.25)
+    e = np.sum(0.5 * (k.ve_mps[1:] + k.ve_mps[:-1]) * 0.25)
+    r = np.radians(cfg.runway_deg)
+    along = n * np.cos(r) + e * np.sin(r) - ARP_OFFSET_M
+    cross = -n * np.sin(r) + e * np.cos(r)
+    return float(along), float(cross)
+
+
+def _close_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> tuple[float, float]:
+    """Downwind and base leg times that put the touchdown on the centre line at
+    :data:`CIRCUIT_TOUCHDOWN_M` (fixed-point iteration; the downwind leg moves the touchdown
+    along the runway, the base leg across it)."""
+    legs = np.array([215.0, 60.0])
+    for _ in range(6):
+        b = _route_circuit(cfg, atm, extra_s, tuple(legs))
+        along, cross = _touchdown_offset(cfg, b)
+        g = cfg.aircraft.cruise_tas_mps
+        legs = legs + np.array([(along - CIRCUIT_TOUCHDOWN_M) / (g * cfg.leg_scale),
+                                -cross / cfg.aircraft.approach_tas_mps])
+        if abs(along - CIRCUIT_TOUCHDOWN_M) < 1.0 and abs(cross) < 1.0:
+            break
+    if legs.min() <= 20.0:
+        raise ValidationError("the circuit cannot be closed in this wind (a leg would vanish)")
+    return float(legs[0]), float(legs[1])
+
+
+def _route_regional(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+    """About 300 km: climb to 4500 m with turns, cruise with heading changes, descent,
+    approach turns, landing (about 1 h)."""
+    a, s = cfg.aircraft, cfg.leg_scale
+    b = _builder(cfg, atm, _takeoff_start(cfg), cfg.runway_deg, None)
+    cruise = cfg.cruise_alt_msl_m or 4500.0
+    b.takeoff(rotate_tas_mps=a.rotate_tas_mps, climb_rate_mps=a.climb_rate_mps)
+    b.set_tas(a.climb_tas_mps)
+    b.level_off(cfg.airfield.elev_m + 1500.0, wait=False)
+    b.hold(60).turn(60, 3.0).hold(120)
+    b.change_altitude(cruise, a.climb_rate_mps, wait=False)
+    b.set_tas(a.cruise_tas_mps, wait=False)
+    b.hold(500 * s).turn(-35, 1.5).hold(700 * s).turn(25, 1.5).hold(600 * s + extra_s)
+    b.change_altitude(1200.0, a.descent_rate_mps)
+    b.set_tas(a.approach_tas_mps + 15.0, wait=True)
+    b.turn(-70, 2.5).hold(90).turn(80, 3.0).hold(40)
+    b.set_tas(a.approach_tas_mps)
+    b.change_altitude(cfg.arrival_elev_m + 450.0, 4.0).hold(30)
+    b.land(elev_msl_m=cfg.arrival_elev_m, glide_rate_mps=a.glide_rate_mps)
+    return b
+
+
+def _route_landing(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+    """Approach from 2500 m, 40 km out: descending turns, base, final, landing (about 12 min)."""
+    a = cfg.aircraft
+    lat, lon = _offset(cfg.airfield, 22e3, -30e3)
+    b = _builder(cfg, atm, (lat, lon, 2500.0), cfg.runway_deg + 70.0, a.cruise_tas_mps)
+    b.hold(40).change_altitude(1500.0, 8.0, wait=False)
+    b.turn(-40, 2.0).hold(60 + extra_s)
+    b.set_tas(a.approach_tas_mps + 20.0, wait=True).turn(-60, 3.0).hold(50).turn(100, 3.0).hold(40)
+    b.change_altitude(cfg.arrival_elev_m + 500.0, 6.0, wait=False)
+    b.hold(30).turn(-70, 3.0).hold(30)
+    b.set_tas(a.approach_tas_mps).hold(60)
+    b.land(elev_msl_m=cfg.arrival_elev_m, glide_rate_mps=a.glide_rate_mps)
+    return b
+
+
+def _route_seed_ads_arms(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+    """Straight and level at 100 m/s, 1000 m, passing the station (METHODS.md section 2)."""
+    lat, lon = _offset(cfg.airfield, 15e3, -60e3)
+    b = _builder(cfg, atm, (lat, lon, 1000.0), 90.0, 100.0)
+    b.hold(cfg.duration_s or 1200.0)
+    return b
+
+
+def _route_longhaul(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+    """10 h: climb to 10 500 m, cruise with course changes, descent, landing."""
+    a = cfg.aircraft
+    b = _builder(cfg, atm, _takeoff_start(cfg), cfg.runway_deg, None)
+    cruise = cfg.cruise_alt_msl_m or 10500.0
+    b.takeoff(rotate_tas_mps=a.rotate_tas_mps, climb_rate_mps=a.climb_rate_mps)
+    b.set_tas(a.climb_tas_mps)
+    b.level_off(cfg.airfield.elev_m + 3000.0, wait=False)
+    b.hold(90).turn(40, 2.0).hold(300)
+    b.change_altitude(cruise, a.climb_rate_mps, wait=False)
+    b.set_tas(a.cruise_tas_mps, wait=False)
+    for k, d in enumerate((20, -30, 15, -25, 30, -10, 20, -15)):
+        b.hold(3000 + (extra_s if k == 7 else 0.0)).turn(d, 1.0)
+    b.hold(600)
+    b.change_altitude(1500.0, a.descent_rate_mps)
+    b.set_tas(a.approach_tas_mps + 20.0, wait=True).turn(-50, 2.0).hold(60)
+    b.set_tas(a.approach_tas_mps)
+    b.change_altitude(cfg.arrival_elev_m + 500.0, 5.0).hold(30)
+    b.land(elev_msl_m=cfg.arrival_elev_m, glide_rate_mps=a.glide_rate_mps)
+    return b
+
+
+@dataclass(frozen=True)
+class _Scenario:
+    config: ScenarioConfig
+    route: Callable[[ScenarioConfig, Atmosphere, float], PlanBuilder]
+    target_s: float = 0.0          # exact duration (the last cruise leg absorbs the difference)
+    airborne: bool = False
+
+
+SCENARIOS: dict[str, _Scenario] = {
+    "circuit": _Scenario(ScenarioConfig(
+        aircraft=LIGHT, wind=WindField(6.0, 0.004, 230.0, 0.02, 1.0, 5.0, 1800.0),
+        temp_offset_k=6.0, p_sl_departure_hpa=1006.0, p_sl_arrival_hpa=1006.5,
+    ), _route_circuit, target_s=900.0),
+    "regional": _Scenario(ScenarioConfig(
+        aircraft=TURBOPROP, runway_deg=300.0, arrival_elev_m=25.0,
+        wind=WindField(8.0, 0.004, 250.0, 0.006, 3.0, 10.0, 3.0 * 3600.0),
+        temp_offset_k=8.0, p_sl_departure_hpa=1008.0, p_sl_arrival_hpa=1016.0,
+        truth_rate_hz=8.0, loads_hz=8.0, attitude_hz=4.0, airspeed_hz=4.0, baro_hz=2.0,
+        gnss_hz=1.0, doppler_hz=2.0, wind_hz=1.0, gnss_dropouts=((1500.0, 600.0),),
+        faults=Faults(spikes=3, spike_channels=(("n_norm_g", 1.5), ("tas_mps", 40.0),
+                                                ("baro_alt_m", 300.0)),
+                      gaps=(("tas_mps", 2000.0, 20.0),)),
+    ), _route_regional, target_s=3600.0),
+    "seed-ads-arms": _Scenario(ScenarioConfig(
+        aircraft=TURBOPROP, airfield=Position(40.0, 49.0, 0.0), arrival_elev_m=0.0,
+        truth_rate_hz=4.0, loads_hz=4.0, attitude_hz=1.0, airspeed_hz=1.0, baro_hz=1.0,
+        gnss_hz=0.0, radar_scan_s=1.0, radar_range_sd_m=50.0, radar_azimuth_sd_deg=0.25,
+        airdata_gm_sigma_mps=20.0, airdata_gm_tau_s=360.0, duration_s=1200.0,
+    ), _route_seed_ads_arms, airborne=True),
+    "landing": _Scenario(ScenarioConfig(
+        aircraft=TURBOPROP, airfield=Position(40.0, 49.0, 0.0), runway_deg=100.0,
+        arrival_elev_m=-20.0, wind=WindField(5.0, 0.003, 30.0, 0.01, 1.0, 5.0, 1800.0),
+        temp_offset_k=-5.0, p_sl_departure_hpa=1021.0, p_sl_arrival_hpa=1021.0,
+        truth_rate_hz=8.0, loads_hz=8.0, attitude_hz=8.0, airspeed_hz=4.0, baro_hz=4.0,
+        gnss_hz=1.0, radar_scan_s=4.0, radar_range_sd_m=50.0, radar_azimuth_sd_deg=0.15,
+        radar_outages=((400.0, 60.0),), station_offset_m=(-1500.0, 1000.0),
+    ), _route_landing, airborne=True),
+    "longhaul": _Scenario(ScenarioConfig(
+        aircraft=JET, runway_deg=230.0, arrival_elev_m=120.0,
+        wind=WindField(6.0, 0.002, 260.0, 0.004, 4.0, 15.0, 4.0 * 3600.0),
+        temp_offset_k=-4.0, p_sl_departure_hpa=1011.0, p_sl_arrival_hpa=1019.0,
+        doppler_hz=4.0, wind_hz=1.0, gnss_dropouts=((12000.0, 900.0),),
+    ), _route_longhaul, target_s=36000.0 - 1.0 / 16.0),
+}
+
+
+def scenario_config(name: str, **overrides: Any) -> ScenarioConfig:
+    """The configuration of scenario ``name`` with ``overrides`` applied.
+
+    Raises
+    ------
+    ValidationError
+        Unknown scenario or unknown override name.
+    """
+    if name not in SCENARIOS:
+        raise ValidationError(f"unknown scenario '{name}'; choose one of {sorted(SCENARIOS)}")
+    fields = {f.name for f in dataclasses.fields(ScenarioConfig)}
+    bad = sorted(set(overrides) - fields)
+    if bad:
+        raise ValidationError(f"unknown scenario setting(s) {bad}; valid: {sorted(fields)}")
+    return replace(SCENARIOS[name].config, **overrides)
+
+
+# --------------------------------------------------------------------------------------------
+# running
+
+
+def build_plan(name: str, cfg: ScenarioConfig) -> tuple[FlightPlan, Atmosphere]:
+    """The flight plan and atmosphere of scenario ``name`` under ``cfg`` (exact duration for
+    scenarios with a target; the circuit closed on the runway centre line)."""
+    sc = SCENARIOS[name]
+    atm = Atmosphere(cfg.temp_offset_k, 100.0 * cfg.p_sl_departure_hpa,
+                     100.0 * cfg.p_sl_arrival_hpa, 1.0)
+
+    def route_for(atm_: Atmosphere, extra_: float):
+        if name != "circuit":
+            return lambda c, a, x: sc.route(c, a, x)
+        legs = _close_circuit(cfg, atm_, extra_)
+        return lambda c, a, x: _route_circuit(c, a, x, legs)
+
+    def absorb(t_natural: float) -> float:
+        # the circuit waits lined up, the others fly a longer cruise leg; a circuit stretched
+        # by a fleet's leg_scale and wind may simply last longer than its nominal 15 minutes
+        if sc.target_s <= 0.0:
+            return 0.0
+        extra_ = sc.target_s - t_natural
+        if extra_ < 0.0:
+            if name == "circuit":
+                return 0.0
+            raise ValidationError(f"the {name} route is longer than its {sc.target_s} s")
+        return extra_
+
+    route = route_for(atm, 0.0)
+    extra = absorb(route(cfg, atm, 0.0).t)
+    if name == "circuit" and extra > 0.0:  # the stand-still shifts the pattern in time
+        route = route_for(atm, extra)
+        extra = absorb(route(cfg, atm, 0.0).t)
+    b = route(cfg, atm, extra)
+    atm = replace(atm, t_end_s=b.t)
+    b = route(cfg, atm, extra)
+    return b.plan(b.t), atm
+
+
+def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
+    a = cfg.aircraft
+    ideal = cfg.ideal_sensors
+    air_gm = cfg.airdata_gm_sigma_mps > 0.0
+
+    def rate(x):
+        return x if x > 0 else None
+
+    loads = LoadFactorSensor(cfg.loads_hz, a.accel_bias_g, a.accel_scale)
+    att = AttitudeSensor(cfg.attitude_hz, heading_bias_deg=a.heading_bias_deg)
+    aspd = AirspeedSensor(cfg.airspeed_hz, scale=a.airspeed_scale)
+    baro = BaroSensor(cfg.baro_hz, bias_m=a.baro_bias_m)
+    if air_gm:  # air data = ground velocity + Gauss-Markov error, nothing else (METHODS.md 2)
+        att = replace(att, heading_noise_sd_deg=0.0, heading_bias_deg=0.0)
+        aspd = replace(aspd, scale=0.0, noise_sd_mps=0.0, lag_s=0.0)
+    if ideal:
+        loads = LoadFactorSensor(cfg.loads_hz, (0.0,) * 3, (0.0,) * 3, (0.0,) * 3)
+        att = AttitudeSensor(cfg.attitude_hz, 0.0, 0.0, 0.0, 0.0)
+        aspd = AirspeedSensor(cfg.airspeed_hz, 0.0, 0.0, 0.0)
+        baro = BaroSensor(cfg.baro_hz, 0.0, 0.0, 0.0, 0.0, 0.0)
+    gnss = None
+    if rate(cfg.gnss_hz):
+        gnss = GnssReceiver(cfg.gnss_hz, dropouts=cfg.gnss_dropouts,
+                            lever_arm_m=a.gnss_lever_arm_m)
+        if ideal:
+            gnss = replace(gnss, pos_sd_h_m=0.0, pos_sd_v_m=0.0, vel_sd_mps=0.0)
+    radar = None
+    if cfg.radar_scan_s > 0 and station is not None:
+        radar = ArmsRadar(station, cfg.geoid_undulation_m, cfg.radar_scan_s,
+                          cfg.radar_range_sd_m, cfg.radar_azimuth_sd_deg,
+                          cfg.radar_elevation_sd_deg, cfg.radar_outages)
+    doppler = (DopplerSensor(cfg.doppler_hz, a.doppler_scale, a.drift_bias_deg)
+               if rate(cfg.doppler_hz) else None)
+    wind = (WindSensor(cfg.wind_hz, speed_bias_mps=1.0, from_bias_deg=-4.0,
+                       speed_gm_sd_mps=2.0, speed_gm_tau_s=900.0, from_gm_sd_deg=5.0,
+                       from_gm_tau_s=900.0) if rate(cfg.wind_hz) else None)
+    return SensorSuite(loads, att, aspd, baro, gnss, radar, doppler, wind)
+
+
+def _json(x: Any) -> Any:
+    if dataclasses.is_dataclass(x):
+        return {f.name: _json(getattr(x, f.name)) for f in dataclasses.fields(x)}
+    if isinstance(x, (tuple, list)):
+        return [_json(v) for v in x]
+    if isinstance(x, dict):
+        return {str(k): _json(v) for k, v in x.items()}
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    return x
+
+
+def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
+    sc = SCENARIOS[name]
+    plan, atm = build_plan(name, cfg)
+    # a record that starts airborne: departure = the ground point below its first sample
+    departure = (Position(float(plan.lat0_deg), float(plan.lon0_deg), cfg.arrival_elev_m)
+                 if sc.airborne else cfg.airfield)
+    pre_meta = FlightMeta(departure=departure, geoid_undulation_m=cfg.geoid_undulation_m)
+    truth = simulate_truth(plan, cfg.truth_rate_hz, output_plane(pre_meta))
+
+    t = truth["t_s"].to_numpy()
+    events: dict[str, Any] = {"liftoff_t_s": None, "touchdown_t_s": None}
+    for key, t_ev in (("liftoff", plan.liftoff_s), ("touchdown", plan.touchdown_s)):
+        if np.isfinite(t_ev):
+            i = int(np.searchsorted(t, t_ev))
+            events[f"{key}_t_s"] = float(t_ev)
+            events[f"{key}_lat_deg"] = float(truth["lat_deg"].iloc[i])
+            events[f"{key}_lon_deg"] = float(truth["lon_deg"].iloc[i])
+    # arrival airfield
+    last = truth.iloc[-1]
+    if name == "circuit":
+        arrival = cfg.airfield
+    elif np.isfinite(plan.touchdown_s):
+        i = int(np.searchsorted(t, plan.touchdown_s))
+        trk = np.radians(truth["track_deg"].iloc[i])
+        lat, lon = _offset(Position(float(truth["lat_deg"].iloc[i]),
+                                    float(truth["lon_deg"].iloc[i])),
+                           ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
+        arrival = Position(lat, lon, cfg.arrival_elev_m)
+    else:
+        arrival = Position(float(last["lat_deg"]), float(last["lon_deg"]),
+                           float(cfg.arrival_elev_m))
+    station = None
+    if cfg.radar_scan_s > 0:
+        base = cfg.airfield if name == "seed-ads-arms" else arrival
+        lat, lon = _offset(base, *cfg.station_offset_m)
+        station = Position(lat, lon, base.elev_m)
+    suite = _sensors(cfg, station)
+
+    airdata_truth = None
+    extra_truth: dict[str, np.ndarray] = {}
+    if cfg.airdata_gm_sigma_mps > 0.0:
+        rng = stream(seed, "airdata")
+        dt = 1.0 / cfg.truth_rate_hz
+        dv_e = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
+        dv_n = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
+        ve = truth["ve_mps"].to_numpy() + dv_e
+        vn = truth["vn_mps"].to_numpy() + dv_n
+        airdata_truth = truth.assign(tas_mps=np.hypot(ve, vn),
+                                     heading_deg=wrap360(np.degrees(np.arctan2(ve, vn))))
+        extra_truth = {"airdata_err_e_mps": dv_e, "airdata_err_n_mps": dv_n}
+    rec = record_log(truth, suite, seed, cfg.truth_rate_hz, cfg.faults, airdata_truth)
+    extra_truth.update(rec.truth_extra)
+    if extra_truth:
+        truth = truth.assign(**extra_truth)
+
+    meta = FlightMeta(
+        aircraft_id=cfg.aircraft.aircraft_id, flight_id=cfg.flight_id, epoch_utc=cfg.epoch_utc,
+        departure=departure, arrival=arrival, station=station,
+        gnss_lever_arm_m=tuple(float(v) for v in cfg.aircraft.gnss_lever_arm_m),
+        gnss_alt_datum="ellipsoid", baro_datum="pressure",
+        qnh_departure_hpa=round(qnh_hpa(atm, departure.elev_m, 0.0), 2),
+        qnh_arrival_hpa=round(qnh_hpa(atm, arrival.elev_m, plan.t_end_s), 2),
+        geoid_undulation_m=cfg.geoid_undulation_m,
+    )
+    a = cfg.aircraft
+    sensor_truth = {
+        "scenario": name, "seed": int(seed),
+        "aircraft": _json(a),
+        "persistent_errors": {
+            "accel_bias_g": list(suite.loads.bias_g), "accel_scale": list(suite.loads.scale),
+            "heading_bias_deg": suite.attitude.heading_bias_deg,
+            "airspeed_scale": suite.airspeed.scale, "baro_bias_m": suite.baro.bias_m,
+            "doppler_scale": suite.doppler.scale if suite.doppler else None,
+            "drift_bias_deg": suite.doppler.drift_bias_deg if suite.doppler else None,
+            "wind_speed_bias_mps": suite.wind.speed_bias_mps if suite.wind else None,
+            "wind_from_bias_deg": suite.wind.from_bias_deg if suite.wind else None,
+            "gnss_lever_arm_m": list(a.gnss_lever_arm_m),
+        },
+        "airdata_error_gm": ({"sigma_mps": cfg.airdata_gm_sigma_mps,
+                              "tau_s": cfg.airdata_gm_tau_s,
+                              "series": ["airdata_err_e_mps", "airdata_err_n_mps"]}
+                             if cfg.airdata_gm_sigma_mps > 0 else None),
+        "sensors": {s.group: _json(s) for s in suite.fitted()},
+        "weather": {"wind": _json(cfg.wind), "temp_offset_k": cfg.temp_offset_k,
+                    "p_sl_departure_hpa": cfg.p_sl_departure_hpa,
+                    "p_sl_arrival_hpa": cfg.p_sl_arrival_hpa},
+        "events": events,
+        "faults": [_json(f) for f in rec.faults],
+        "truth_rate_hz": cfg.truth_rate_hz,
+    }
+    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=_json(sensor_truth))
+
+
+def simulate(scenario: str, seed: int = 0, **overrides: Any) -> SimResult:
+    """Simulate a named scenario.
+
+    Parameters
+    ----------
+    scenario : ``circuit``, ``regional``, ``seed-ads-arms``, ``landing`` or ``longhaul``
+    seed : noise seed (same seed, same numbers, byte-identical files)
+    **overrides : :class:`ScenarioConfig` fields to replace (unknown names are an error)
+
+    Raises
+    ------
+    ValidationError
+        Unknown scenario or setting, a negative seed, or settings that cannot be flown.
+    """
+    _check_seed(seed)
+    return _run(scenario, scenario_config(scenario, **overrides), seed)
+
+
+def _check_seed(seed: int) -> None:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValidationError(f"the seed must be a non-negative integer, got {seed!r}")
+
+
+def simulate_fleet(aircraft_id: str, n_flights: int, seed: int = 0,
+                   scenario: str = "circuit", **overrides: Any) -> tuple[SimResult, ...]:
+    """``n_flights`` flights of one airframe (same persistent errors and performance), differing
+    in route (``leg_scale``), weather (wind, temperature, sea-level pressure) and noise.
+
+    The airframe is :func:`~flightrecon.sim.aircraft.draw_aircraft` of ``aircraft_id`` and
+    ``seed`` on the scenario's aircraft type; flight ``i`` draws its weather from
+    ``SeedSequence([seed, crc32(id), i])``.
+    """
+    _check_seed(seed)
+    if n_flights < 1:
+        raise ValidationError("a fleet needs at least one flight")
+    base = scenario_config(scenario, **overrides)
+    aircraft = draw_aircraft(aircraft_id, seed, base.aircraft)
+    out = []
+    root = aircraft_seed(aircraft_id, seed)
+    for i in range(n_flights):
+        ss = np.random.SeedSequence(root.entropy, spawn_key=(1000 + i,))
+        rng = np.random.Generator(np.random.PCG64(ss))
+        w = base.wind
+        wind = replace(w, speed0_mps=float(rng.uniform(0.0, 1.5) * max(w.speed0_mps, 4.0)),
+                       from0_deg=float(rng.uniform(0.0, 360.0)))
+        cfg = replace(base, aircraft=aircraft, flight_id=f"F{i + 1:02d}", wind=wind,
+                      temp_offset_k=float(rng.normal(0.0, 8.0)),
+                      p_sl_departure_hpa=float(rng.normal(1013.0, 8.0)),
+                      leg_scale=float(rng.uniform(0.8, 1.2)))
+        cfg = replace(cfg, p_sl_arrival_hpa=cfg.p_sl_departure_hpa + float(rng.normal(0, 2.0)))
+        noise_seed = int(ss.generate_state(1)[0])
+        out.append(_run(scenario, cfg, noise_seed))
+    return tuple(out)

@@ -1,0 +1,314 @@
+"""Truth self-consistency of the simulator (docs/simulator.md, "Tests").
+
+The truth is what every estimator is judged against, so each relation that defines it is
+checked independently: position vs velocity (an independent ODE solver and pyproj's ECEF),
+velocity vs acceleration (finite differences), loads vs acceleration and attitude (METHODS.md
+"Common ground"), the tangent plane (pyproj round trip), long legs (pyproj geodesic).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pyproj import Geod
+from scipy.integrate import quad, solve_ivp
+
+from flightrecon.constants import G0, WGS84_A, WGS84_E2
+from flightrecon.geo.atmosphere import pressure_altitude_m
+from flightrecon.geo.frames import TangentPlane, geodetic_to_ecef, output_plane
+from flightrecon.sim import acceleration_from_loads, simulate
+from flightrecon.sim.kinematics import coordinated_roll_rad, loads_from_acceleration
+from flightrecon.sim.profiles import SmoothProfile
+from flightrecon.sim.scenarios import build_plan, scenario_config
+from flightrecon.sim.trajectory import PlanBuilder, kinematics, simulate_truth
+from flightrecon.sim.weather import Atmosphere, WindField, geopotential_height_m
+from flightrecon.types import FlightMeta
+
+
+@pytest.fixture(scope="module")
+def circuit():
+    return simulate("circuit", seed=0)
+
+
+@pytest.fixture(scope="module")
+def circuit_plan():
+    return build_plan("circuit", scenario_config("circuit"))[0]
+
+
+def test_profile_derivative_and_integral_match_numerics():
+    """Closed-form derivative and integral of a smooth-step profile vs finite differences and
+    adaptive quadrature (both exact to ~1e-9 here: h = 1e-5 s, S''' <= 60 / d^3)."""
+    p = SmoothProfile.build(2.0, [(1.0, 3.0, 5.0), (2.5, 2.0, -4.0), (10.0, 0.5, 1.0)])
+    t = np.linspace(0.0, 12.0, 241)
+    v, d, integ = p.evaluate(t)
+    h = 1e-5
+    fd = (p.value(t + h) - p.value(t - h)) / (2 * h)
+    assert np.max(np.abs(fd - d)) < 1e-6  # truncation h^2/6*S''' ~ 1e-9, rounding 1e-11/h
+    for tj, ij in zip(t[::20], integ[::20]):
+        ref = quad(lambda x: float(p.value(np.array([x]))[0]), 0.0, tj, points=[1, 2.5, 4, 4.5,
+                                                                                  10, 10.5],
+                   epsabs=1e-12, limit=200)[0]
+        assert abs(ref - ij) < 1e-8
+    assert v[-1] == pytest.approx(p.final(), abs=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.0, 50.0), st.floats(0.2, 20.0), st.floats(-50.0, 50.0)),
+                min_size=1, max_size=6),
+       st.floats(0.0, 80.0))
+def test_profile_derivative_property(steps, t):
+    """Any profile: derivative = central difference (h = 1e-4 s; truncation h^2/6 * 60 * 50 /
+    0.2^3 ~ 6e-4 worst case, so 1e-3 absolute) and integral increments = Simpson's rule on a
+    0.01 s panel (error 0.01^5/2880 max|v''''| < 4e-7 for the steepest step drawn: 50 in
+    0.2 s; so 1e-6)."""
+    p = SmoothProfile.build(1.0, steps)
+    h = 1e-4
+    v, d, i = p.evaluate(np.array([t, t + 0.01]))
+    fd = (p.value(np.array([t + h])) - p.value(np.array([t - h])))[0] / (2 * h)
+    assert abs(fd - d[0]) < 1e-3
+    mid = p.value(np.array([t + 0.005]))[0]
+    simpson = 0.01 / 6 * (v[0] + 4 * mid + v[1])
+    assert abs((i[1] - i[0]) - simpson) < 1e-6
+
+
+def test_truth_gravity_and_loads_agree_with_geo_modules(circuit):
+    """The truth uses flightrecon.geo.gravity, and its loads agree with the estimators'
+    flightrecon.geo.kinematics relation (two implementations of METHODS.md "Common ground")."""
+    from flightrecon.geo.gravity import normal_gravity
+    from flightrecon.geo.kinematics import kinematic_acceleration_ned
+    tr = circuit.truth
+    assert np.array_equal(tr.gravity_mps2, normal_gravity(tr.lat_deg, tr.alt_m))
+    a = kinematic_acceleration_ned(tr.n_long_g, tr.n_lat_g, tr.n_norm_g, tr.roll_deg,
+                                   tr.pitch_deg, tr.heading_deg, lat_deg=tr.lat_deg,
+                                   h_m=tr.alt_m)
+    ref = np.column_stack([tr.an_mps2, tr.ae_mps2, -tr.au_mps2])
+    assert np.max(np.abs(a - ref)) < 1e-9
+
+
+def test_velocity_integrates_to_position_independent_solver(circuit_plan):
+    """DOP853 (rtol 1e-12) on the geodetic ODE with the closed-form velocity reproduces the
+    truth latitude/longitude; RK4 at dt = 1/16 s has a global error far below 1 mm here."""
+    plan = circuit_plan
+    cfg = scenario_config("circuit")
+    truth = simulate_truth(plan, 16.0, output_plane(FlightMeta(
+        departure=cfg.airfield, geoid_undulation_m=cfg.geoid_undulation_m)))
+
+    def rhs(t, y):
+        k = kinematics(plan, np.array([t]))
+        s2 = np.sin(y[0]) ** 2
+        w = np.sqrt(1 - WGS84_E2 * s2)
+        h = k.h_msl_m[0] + plan.geoid_undulation_m
+        return [k.vn_mps[0] / (WGS84_A * (1 - WGS84_E2) / w**3 + h),
+                k.ve_mps[0] / ((WGS84_A / w + h) * np.cos(y[0]))]
+
+    t_end = 400.0  # take-off, climb and two turns: keeps the solver fast
+    sol = solve_ivp(rhs, (0, t_end), [np.radians(plan.lat0_deg), np.radians(plan.lon0_deg)],
+                    method="DOP853", rtol=1e-12, atol=1e-14, max_step=2.0)
+    i = int(t_end * 16)
+    dn = (np.degrees(sol.y[0, -1]) - truth["lat_deg"].iloc[i]) * 111e3
+    de = (np.degrees(sol.y[1, -1]) - truth["lon_deg"].iloc[i]) * 85e3
+    assert abs(dn) < 1e-3 and abs(de) < 1e-3  # metres
+
+
+def test_ecef_central_difference_matches_ned_velocity(circuit):
+    """pyproj ECEF positions differenced over one step match the NED velocity rotated to ECEF
+    at the mid time.  Central-difference truncation dt^2/24 * |v''| (mid-point form) with
+    |v''| < 5 m/s^3 here gives < 1e-3 m/s."""
+    tr = circuit.truth
+    x, y, z = geodetic_to_ecef(tr.lat_deg, tr.lon_deg, tr.alt_m)
+    dt = tr.t_s.diff().iloc[1]
+    v_ecef = np.column_stack([np.diff(x), np.diff(y), np.diff(z)]) / dt
+    lat = np.radians(tr.lat_deg.to_numpy())
+    lon = np.radians(tr.lon_deg.to_numpy())
+    vn, ve, vu = tr.vn_mps.to_numpy(), tr.ve_mps.to_numpy(), tr.vu_mps.to_numpy()
+    # mid-point: average the rotated velocities of both ends (second order like the difference)
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    vx = -sl * co * vn - so * ve + cl * co * vu
+    vy = -sl * so * vn + co * ve + cl * so * vu
+    vz = cl * vn + sl * vu
+    mid = np.column_stack([vx, vy, vz])
+    mid = 0.5 * (mid[1:] + mid[:-1])
+    jerk_dot = np.abs(np.diff(tr.an_mps2.to_numpy(), 2)).max() / dt**2
+    bound = max(dt**2 / 8 * jerk_dot, 1e-4)  # trapezoid-vs-difference error, floor 0.1 mm/s
+    assert np.max(np.abs(v_ecef - mid)) < bound
+
+
+def test_acceleration_is_derivative_of_velocity(circuit_plan):
+    """Central differences (h = 1e-3 s) of the closed-form velocity equal the truth
+    acceleration to 1e-5 m/s^2 (truncation h^2/6 |v'''| < 1e-6, rounding 1e-13/h)."""
+    t = np.linspace(0.5, circuit_plan.t_end_s - 0.5, 3001)
+    h = 1e-3
+    k0 = kinematics(circuit_plan, t)
+    kp = kinematics(circuit_plan, t + h)
+    km = kinematics(circuit_plan, t - h)
+    for v, a in (("vn_mps", "an_mps2"), ("ve_mps", "ae_mps2"), ("vu_mps", "au_mps2")):
+        fd = (getattr(kp, v) - getattr(km, v)) / (2 * h)
+        assert np.max(np.abs(fd - getattr(k0, a))) < 1e-5, v
+
+
+def test_acceleration_continuous_on_grid(circuit):
+    """Smooth commands: the sampled acceleration changes by less than 0.3 m/s^2 per 1/16 s
+    (jerk below 4.8 m/s^3 everywhere, take-off and touchdown included; the circuit's largest
+    is 3.2 m/s^3, a step change would show as g-sized jumps)."""
+    for c in ("an_mps2", "ae_mps2", "au_mps2"):
+        assert np.abs(np.diff(circuit.truth[c].to_numpy())).max() < 0.3
+
+
+def test_loads_rebuild_acceleration(circuit):
+    """METHODS.md "Common ground": C_nb g0 [n_long, n_lat, -n_norm] + [0, 0, g] = a_NED,
+    exactly (rounding only)."""
+    tr = circuit.truth
+    n = tr[["n_long_g", "n_lat_g", "n_norm_g"]].to_numpy()
+    a = acceleration_from_loads(n, tr.gravity_mps2.to_numpy(), np.radians(tr.heading_deg),
+                                np.radians(tr.pitch_deg), np.radians(tr.roll_deg))
+    ref = np.column_stack([tr.an_mps2, tr.ae_mps2, -tr.au_mps2])
+    assert np.max(np.abs(a - ref)) < 1e-10
+    assert np.max(np.abs(tr.n_lat_g)) < 1e-12  # coordinated flight
+
+
+def test_noise_free_recorder_equals_truth_loads():
+    """With ideal sensors the recorded loads, attitude, TAS and baro altitude equal the truth
+    at their sample times (exactly: no noise, no lag, no quantisation)."""
+    r = simulate("circuit", seed=0, ideal_sensors=True)
+    tr = r.truth.set_index("t_s")
+    log = r.log.set_index("t_s")
+    for c in ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg",
+              "tas_mps"):
+        s = log[c].dropna()
+        assert np.max(np.abs(s.to_numpy() - tr.loc[s.index, c].to_numpy())) < 1e-12, c
+    s = log["baro_alt_m"].dropna()
+    assert np.max(np.abs(s.to_numpy() - tr.loc[s.index, "pressure_alt_m"].to_numpy())) < 1e-9
+
+
+def test_level_flight_and_coordinated_turn():
+    """Level unaccelerated flight: n = (g/g0) (sin pitch, 0, cos pitch).  Level coordinated turn
+    without wind and angle of attack: tan(roll) = V psi_dot / g and n_norm = (g/g0)/cos(roll),
+    n_lat = 0 (g/g0 because the load factor's unit is standard gravity)."""
+    b = PlanBuilder(lat_deg=45.0, lon_deg=10.0, elev_msl_m=1000.0, track_deg=30.0,
+                    wind=WindField(), atmosphere=Atmosphere(), alpha_ref_deg=0.0,
+                    airborne_tas_mps=100.0)
+    b.hold(30).turn(90.0, 3.0, tau_s=4.0).hold(30)
+    plan = b.plan()
+    tr = simulate_truth(plan, 16.0, TangentPlane(45.0, 10.0, 0.0))
+    gr = tr.gravity_mps2 / G0
+    level = tr.t_s < 25
+    assert np.allclose(tr.n_norm_g[level], gr[level], atol=1e-12)
+    assert np.allclose(tr.n_long_g[level], 0.0, atol=1e-12)
+    turning = (tr.t_s > 35) & (tr.t_s < 55)  # constant rate part of the turn
+    rate = np.radians(3.0)
+    assert np.allclose(np.tan(np.radians(tr.roll_deg[turning])),
+                       100.0 * rate / tr.gravity_mps2[turning], rtol=1e-9)
+    assert np.allclose(tr.n_norm_g[turning], gr[turning] / np.cos(np.radians(tr.roll_deg[turning])),
+                       rtol=1e-9)
+    # with angle of attack, level flight: n = (g/g0) (sin a, 0, cos a)
+    b2 = PlanBuilder(lat_deg=45.0, lon_deg=10.0, elev_msl_m=1000.0, track_deg=30.0,
+                     wind=WindField(), atmosphere=Atmosphere(), alpha_ref_deg=4.0,
+                     alpha_ref_tas_mps=100.0, airborne_tas_mps=100.0)
+    tr2 = simulate_truth(b2.hold(20).plan(), 4.0, TangentPlane(45.0, 10.0, 0.0))
+    g2 = tr2.gravity_mps2 / G0
+    assert np.allclose(tr2.n_long_g, g2 * np.sin(np.radians(4.0)), atol=1e-12)
+    assert np.allclose(tr2.n_norm_g, g2 * np.cos(np.radians(4.0)), atol=1e-12)
+
+
+def test_coordinated_roll_finite_difference_of_lateral_load():
+    """The coordinated roll zeroes the lateral load: perturbing it by +-1e-6 rad changes n_lat
+    with slope -n_norm (d n_lat / d roll = f2_z cos - f2_y sin = -n_norm), checked by finite
+    differences."""
+    rng = np.random.default_rng(1)
+    a = rng.normal(0, 3, (50, 3))
+    hd, pt = rng.uniform(0, 6, 50), rng.uniform(-0.3, 0.3, 50)
+    g = np.full(50, 9.8)
+    roll = coordinated_roll_rad(a, g, hd, pt)
+    n0 = loads_from_acceleration(a, g, hd, pt, roll)
+    assert np.max(np.abs(n0[:, 1])) < 1e-14
+    h = 1e-6
+    fd = (loads_from_acceleration(a, g, hd, pt, roll + h)[:, 1]
+          - loads_from_acceleration(a, g, hd, pt, roll - h)[:, 1]) / (2 * h)
+    assert np.allclose(fd, -n0[:, 2], atol=1e-8)
+
+
+def test_air_velocity_plus_wind_is_ground_velocity(circuit):
+    """Airborne (crab weight 1): TAS cos(gamma) (cos hdg, sin hdg) + wind = ground velocity."""
+    tr = circuit.truth
+    ev = circuit.sensor_truth["events"]
+    air = (tr.t_s > ev["liftoff_t_s"] + 10) & (tr.t_s < ev["touchdown_t_s"] - 6)
+    t = tr[air]
+    vh = np.sqrt(t.tas_mps**2 - t.vu_mps**2)
+    hd = np.radians(t.heading_deg)
+    assert np.max(np.abs(vh * np.cos(hd) + t.wind_n_mps - t.vn_mps)) < 1e-9
+    assert np.max(np.abs(vh * np.sin(hd) + t.wind_e_mps - t.ve_mps)) < 1e-9
+    assert np.hypot(t.wind_n_mps, t.wind_e_mps).min() > 5.0  # the circuit has wind
+
+
+def test_tangent_plane_round_trip(circuit):
+    """north/east/up -> pyproj inverse -> the truth's lat/lon/ellipsoidal height (1e-9 deg
+    ~ 0.1 mm; 1e-4 m in height)."""
+    tr = circuit.truth
+    tp = output_plane(circuit.meta)
+    lat, lon, h = tp.inverse(tr.east_m, tr.north_m, tr.up_m)
+    assert np.max(np.abs(lat - tr.lat_deg)) < 1e-9
+    assert np.max(np.abs(lon - tr.lon_deg)) < 1e-9
+    assert np.max(np.abs(h - tr.alt_m)) < 1e-4
+    assert np.allclose(tr.alt_m - tr.alt_msl_m, circuit.meta.geoid_undulation_m, atol=1e-9)
+
+
+@pytest.mark.parametrize("track, lat0", [(0.0, 40.0), (90.0, 0.0)])
+def test_400km_leg_matches_pyproj_geodesic(track, lat0):
+    """A 400 km leg along a geodesic (a meridian; the equator) at zero ellipsoidal height ends
+    where pyproj's geodesic puts it (RK4 at 1 s: error << 1 mm), and the geodesic distance
+    equals the flown distance."""
+    b = PlanBuilder(lat_deg=lat0, lon_deg=20.0, elev_msl_m=0.0, track_deg=track,
+                    wind=WindField(), atmosphere=Atmosphere(), geoid_undulation_m=0.0,
+                    airborne_tas_mps=200.0)
+    tr = simulate_truth(b.hold(2000.0).plan(), 1.0, TangentPlane(lat0, 20.0, 0.0))
+    geod = Geod(ellps="WGS84")
+    lon_e, lat_e, _ = geod.fwd(20.0, lat0, track, 400e3)
+    assert abs(tr.lat_deg.iloc[-1] - lat_e) * 111e3 < 1e-3
+    assert abs(tr.lon_deg.iloc[-1] - lon_e) * 111e3 < 1e-3
+    dist = geod.inv(20.0, lat0, tr.lon_deg.iloc[-1], tr.lat_deg.iloc[-1])[2]
+    assert dist == pytest.approx(400e3, abs=1e-3)
+    # and the tangent plane is far off the aircraft there (METHODS.md "Frames": ~12.6 km)
+    assert tr.up_m.iloc[-1] < -12e3
+
+
+def test_nonstandard_atmosphere_hydrostatic_and_pressure_altitude():
+    """dp/dz = -rho g(z) with g = g0 (r/(r+z))^2 (geopotential), checked by central
+    differences (h = 0.5 m; relative error ~ h^2 p'''/p'' < 1e-9); pressure altitude differs
+    from geometric height when dT != 0 or p_sl != 1013.25 hPa, and equals the geopotential
+    height in the ISA."""
+    from flightrecon.geo.atmosphere import G0 as ATM_G0
+    from flightrecon.geo.atmosphere import R_AIR
+    atm = Atmosphere(temp_offset_k=12.0, p_sl_start_pa=100200.0, p_sl_end_pa=100200.0)
+    z = np.array([0.0, 1000.0, 5000.0, 10000.0])
+    h = 0.5
+    dpdz = (atm.pressure_pa(z + h, 0.0) - atm.pressure_pa(z - h, 0.0)) / (2 * h)
+    rho = atm.pressure_pa(z, 0.0) / (R_AIR * atm.temperature_k(z))
+    g = ATM_G0 * (6356766.0 / (6356766.0 + z)) ** 2
+    assert np.allclose(dpdz, -rho * g, rtol=1e-7)
+    pa = atm.pressure_altitude_m(z, 0.0)
+    assert np.all(np.abs(pa - z) > 40.0)  # 11 hPa low and 12 K warm: 50-350 m here
+    isa = Atmosphere()
+    assert np.allclose(isa.pressure_altitude_m(z, 0.0), geopotential_height_m(z), atol=1e-6)
+    assert np.allclose(pressure_altitude_m(isa.pressure_pa(z, 0)), geopotential_height_m(z),
+                       atol=1e-6)
+
+
+def test_truth_columns_and_events(circuit):
+    tr = circuit.truth
+    assert tr.columns[0] == "t_s"
+    for c in ("lat_deg", "lon_deg", "alt_m", "alt_msl_m", "north_m", "east_m", "up_m",
+              "vn_mps", "ve_mps", "vu_mps", "an_mps2", "ae_mps2", "au_mps2", "roll_deg",
+              "pitch_deg", "heading_deg", "tas_mps", "wind_n_mps", "wind_e_mps",
+              "pressure_alt_m", "on_ground"):
+        assert c in tr.columns
+    assert tr.on_ground.dtype == bool
+    ev = circuit.sensor_truth["events"]
+    on = tr.on_ground.to_numpy()
+    assert on[0] and on[-1] and not on[len(on) // 2]
+    ground = tr[on]
+    # on the ground the aircraft is at the runway elevation (within the 1 s touchdown step)
+    assert np.allclose(ground.alt_msl_m, 3.0, atol=0.2)
+    assert ev["liftoff_t_s"] < ev["touchdown_t_s"]
+    assert tr.t_s.iloc[-1] == pytest.approx(900.0)
