@@ -145,7 +145,7 @@ def _method_kwargs(name: str, s: ReconstructSettings) -> dict[str, Any]:
             raise MetadataError(f"unknown joint noise setting: {exc}") from exc
         return {"settings": JointSettings(noise=noise, estimate_noise=s.joint_estimate_noise)}
     if name == "sabziev":
-        return {"k": s.k, "k_sd": s.k_sd}
+        return {"k": s.k, "k_sd": s.k_sd, "strict": s.strict}
     if name == "arms":
         return {"form": s.arms_form, "linearisation": s.arms_linearisation}
     if name == "azimuth":
@@ -233,12 +233,15 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
         fill = ~np.isfinite(up) & np.isfinite(baro)
         up[fill] = baro[fill]
         up_source[fill] = "baro"
+    plane = output_plane(clean.meta)
+    # Sabziev and pressure heights are heights above the departure airfield: turn them into
+    # tangent-plane up (the plane falls below the ellipsoid with distance, 31 m at 20 km)
+    up, lat, lon, alt = _height_to_plane_up(plane, out["east_m"].to_numpy(),
+                                            out["north_m"].to_numpy(), up)
     out["up_m"] = up
     out["up_sd_m"] = up_sd
     dt = np.gradient(t) if n > 1 else np.ones(n)
     out["vu_mps"] = np.gradient(up) / dt if n > 1 else np.full(n, np.nan)
-    plane = output_plane(clean.meta)
-    lat, lon, alt = plane.inverse(out["east_m"].to_numpy(), out["north_m"].to_numpy(), up)
     out["lat_deg"] = lat
     out["lon_deg"] = lon
     out["alt_m"] = alt
@@ -278,6 +281,23 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
             for c in extra:
                 out[c] = merged[c].to_numpy()
     return out
+
+
+def _height_to_plane_up(plane, east, north, height_above_origin):
+    """Tangent-plane ``up`` of points given by plane (east, north) and height above the plane's
+    origin along the local vertical; returns (up, lat, lon, ellipsoidal height).
+
+    Two fixed-point steps (the local vertical is within a few mrad of the plane's normal for
+    flights of a few hundred km) give millimetres.
+    """
+    target = plane.h0_m + np.asarray(height_above_origin, float)
+    up = np.asarray(height_above_origin, float).copy()
+    ok = np.isfinite(east) & np.isfinite(north) & np.isfinite(up)
+    for _ in range(3):
+        lat, lon, h = plane.inverse(east, north, up)
+        up = np.where(ok, up + (target - h), up)
+    lat, lon, h = plane.inverse(east, north, up)
+    return up, lat, lon, h
 
 
 def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = ReconstructSettings(),
@@ -322,11 +342,56 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     return track, results, status
 
 
+def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
+                   aircraft_id: str | None) -> tuple[ReconstructSettings, dict[str, Any]]:
+    """Settings with the aircraft's fleet-mean coefficients for the initial-value mode.
+
+    The mean is taken by :meth:`flightrecon.store.CoefficientStore.fleet_mean` (converged fits on
+    the majority branch per axis); its flight-to-flight spread is propagated into the Sabziev
+    track's standard deviations.  At least two fits per axis are required.
+    """
+    from flightrecon.store import CoefficientStore
+
+    if not aircraft_id:
+        raise MetadataError("fleet coefficients need the aircraft id (--aircraft or the "
+                            "sidecar's flight.aircraft_id)")
+    with CoefficientStore(store_path, create=False) as store:
+        fm = store.fleet_mean(aircraft_id, min_flights=2)
+    info = {"aircraft_id": aircraft_id, "k": list(fm.k), "sd": list(fm.sd), "flights": list(fm.n),
+            "branch": list(fm.branch), "store": str(store_path)}
+    return replace(settings, k=tuple(fm.k), k_sd=tuple(fm.sd)), info
+
+
+def record_coefficients(store_path: str | Path | None, rec: Reconstruction) -> dict[str, Any]:
+    """Record the flight's fitted Sabziev coefficients in the store (one transaction; a re-run
+    of the same aircraft and flight replaces its row).  Returns what was recorded."""
+    from flightrecon.store import CoefficientStore, from_sabziev_summary
+
+    sab = rec.results.get("sabziev")
+    meta = rec.clean.meta
+    if sab is None:
+        raise MetadataError("nothing to record: the Sabziev fusion did not run on this flight")
+    if not meta.aircraft_id:
+        raise MetadataError("recording coefficients needs the aircraft id (--aircraft)")
+    flight_id = meta.flight_id or (rec.summary["inputs"][0]["sha256"][:16]
+                                   if rec.summary["inputs"] else "unknown")
+    fit = from_sabziev_summary(
+        sab.summary, aircraft_id=meta.aircraft_id, flight_id=flight_id,
+        flight_date_utc=meta.epoch_utc or "1970-01-01T00:00:00Z", settings=rec.summary["settings"],
+        input_hashes={i["path"]: i["sha256"] for i in rec.summary["inputs"]})
+    with CoefficientStore(store_path) as store:
+        store.record(fit)
+    return {"store": str(store_path), "aircraft_id": fit.aircraft_id, "flight_id": fit.flight_id,
+            "k": [fit.k1, fit.k2, fit.k3], "converged": fit.converged}
+
+
 def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str | Path | None = None,
                 mapping: str | Path | None = None, sidecar: str | Path | None = None,
                 meta_overrides: dict[str, Any] | None = None,
                 settings: ReconstructSettings = ReconstructSettings(),
-                progress: Callable[[str], None] | None = None) -> Reconstruction:
+                progress: Callable[[str], None] | None = None,
+                store: str | Path | None = None, use_fleet_coefficients: bool = False,
+                record: bool = True) -> Reconstruction:
     """Load, validate, clean and reconstruct a flight from its recorder log.
 
     Parameters
@@ -337,6 +402,10 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     meta_overrides : metadata given on the command line (``departure``, ``arrival``, ...)
     settings : :class:`ReconstructSettings`
     progress : callback called with the name of each stage as it starts
+    store : coefficient store (SQLite file); with ``record`` a boundary-value Sabziev fit is
+        recorded there under the flight's aircraft id
+    use_fleet_coefficients : reconstruct with the aircraft's fleet-mean coefficients from
+        ``store`` (initial-value mode: no arrival point needed)
 
     Returns
     -------
@@ -354,6 +423,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         warnings.simplefilter("always")
         flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                                      meta_overrides=meta_overrides)
+        fleet = None
+        if use_fleet_coefficients:
+            settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id)
         stage("cleaning")
         clean = clean_flight(flight, rate_hz=settings.rate_hz)
         track, results, status = reconstruct_clean(clean, settings, progress=stage)
@@ -361,7 +433,13 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                                          if str(w.message) not in flight.warnings]
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
-    return Reconstruction(track=track, summary=summary, clean=clean, results=results)
+    if fleet is not None:
+        summary["fleet_coefficients"] = fleet
+    rec = Reconstruction(track=track, summary=summary, clean=clean, results=results)
+    if store is not None and record and not use_fleet_coefficients and "sabziev" in results:
+        stage("store")
+        summary["stored_coefficients"] = record_coefficients(store, rec)
+    return rec
 
 
 def _meta_dict(meta) -> dict[str, Any]:

@@ -44,6 +44,12 @@ from flightrecon.cli.common import (default_output, parse_k, position_option_val
                    "([joint] table, see docs/joint.md).")
 @click.option("--estimate-noise", is_flag=True,
               help="Joint smoother: scale each source's noise from the flight's own residuals.")
+@click.option("--store", "store_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Coefficient store (SQLite): a fitted flight's k1..k3 are recorded there "
+                   "under its aircraft id.")
+@click.option("--use-fleet-coefficients", is_flag=True,
+              help="Reconstruct with the aircraft's mean k1..k3 from --store (no arrival "
+                   "point needed).")
 @click.option("--strict", is_flag=True, help="Fail on the first method that fails to converge.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Result file (.parquet, .csv, .geojson, .kml). Default: <log stem>.recon.parquet "
@@ -57,8 +63,8 @@ from flightrecon.cli.common import (default_output, parse_k, position_option_val
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
             station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
-            azimuth_model, sns_model, sns_form, noise_file, estimate_noise, strict, output, fmt,
-            summary_path, report_dir) -> None:
+            azimuth_model, sns_model, sns_form, noise_file, estimate_noise, store_path,
+            use_fleet_coefficients, strict, output, fmt, summary_path, report_dir) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
     from flightrecon.export.atomic import check_not_input, sweep_leftovers
     from flightrecon.export.writers import write_summary, write_track
@@ -75,6 +81,10 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
         sns_form=sns_form, strict=strict,
         joint_noise=read_noise_file(noise_file) if noise_file else None,
         joint_estimate_noise=estimate_noise)
+    if use_fleet_coefficients and not store_path:
+        from flightrecon.store import default_store_path
+
+        store_path = default_store_path()
     out = output or default_output(log, ".recon.parquet")
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     check_not_input(out, inputs)
@@ -83,7 +93,8 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
     sweep_leftovers(out.parent)
     with progress_bar(quiet) as stage:
         rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-                          meta_overrides=overrides, settings=settings, progress=stage)
+                          meta_overrides=overrides, settings=settings, progress=stage,
+                          store=store_path, use_fleet_coefficients=use_fleet_coefficients)
         stage("export")
         write_track(out, rec.track, rec.summary, fmt)
         write_summary(summ, rec.summary)
@@ -94,6 +105,14 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
             page = write_report(report_dir, rec.track, rec.summary,
                                 title=f"flightrecon: {log.name}")
     if not quiet:
+        fc = rec.summary.get("fleet_coefficients")
+        if fc:
+            click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
+                       f"(flights per axis {fc['flights']})", err=True)
+        sc = rec.summary.get("stored_coefficients")
+        if sc:
+            click.echo(f"  recorded k = {sc['k']} for {sc['aircraft_id']}/{sc['flight_id']} "
+                       f"in {sc['store']}", err=True)
         for name, st in rec.summary["methods"].items():
             line = f"  {name:8s} {st.get('status')}"
             if st.get("reason"):

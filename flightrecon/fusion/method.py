@@ -1,0 +1,303 @@
+"""Method adapter: the Sabziev boundary-value fusion on a cleaned flight.
+
+:func:`run_sabziev` takes a :class:`flightrecon.types.CleanFlight`, builds the inputs of
+:func:`flightrecon.fusion.sabziev.fuse` (METHODS.md section 1) and returns a
+:class:`flightrecon.types.MethodResult` with ``sabziev_``-prefixed columns.  The practical
+choices the paper leaves open are documented in docs/sabziev.md, "The adapter":
+
+* Interval: lift-off to touchdown from ``clean.phases``; a record cut in the air starts (ends)
+  at its first (last) sample, and the departure (arrival) position is then taken as the given
+  point.  The lift-off point is the departure position (origin of the output tangent plane)
+  unless given (``liftoff``); the arrival point can be overridden (``arrival``: the touchdown
+  point rather than the airfield reference point, 1-3 km apart).
+* Horizontal end point: the arrival position in the output tangent plane
+  (:func:`flightrecon.geo.frames.output_plane`, east-north-up at the departure airfield).
+* Vertical, in pressure terms: the pressure altitude of an airfield of elevation ``E`` under
+  sea-level pressure ``QNH`` is ``H_p(E, QNH) = pressure_altitude(p_ISA(E) * QNH / 1013.25)``
+  (the ISA profile scaled to the QNH; about ``E - 8.3 m/hPa * (QNH - 1013.25)`` near sea
+  level).  ``h = baro_alt_m - H_p(dep)`` and ``y_T = H_p(arr) - H_p(dep)``; the output
+  ``sabziev_up_m`` is this pressure-consistent height above the departure airfield (the same
+  datum as the pipeline's baro fallback).
+* Lift-off velocity: ``clean.phases.liftoff_velocity_ned_mps``; when unknown (record starts in
+  the air), the air-derived velocity (plus wind) and the baro climb rate at the first sample.
+* Wind: from ``wind_speed_mps`` / ``wind_from_deg`` (meteorological, blowing from) when the
+  grid has them; otherwise the summary warns "wind unmodelled".
+* Gaps (NaN) inside the interval are bridged linearly and reported (the fusion integrates
+  every sample; a long bridged gap is a defect the analyst must see).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.errors import (
+    FlightReconWarning,
+    MetadataError,
+    SchemaError,
+    ValidationError,
+)
+from flightrecon.fusion.sabziev import KT_MAX, SabzievSolution, air_velocity, fuse
+from flightrecon.types import CleanFlight, MethodResult, Position
+
+__all__ = ["REQUIRED_CHANNELS", "field_pressure_altitude_m", "run_sabziev"]
+
+REQUIRED_CHANNELS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg",
+                     "tas_mps", "baro_alt_m")
+STANDARD_QNH_HPA = 1013.25
+
+
+def field_pressure_altitude_m(elev_m: float, qnh_hpa: float | None) -> float:
+    """Pressure altitude [m] of an airfield of MSL elevation ``elev_m`` under ``qnh_hpa``.
+
+    ``H_p = pressure_altitude(p_ISA(elev) * QNH / 1013.25)`` (ISA, ICAO Doc 7488): the station
+    pressure is the ISA pressure at the elevation scaled to the QNH.  ``qnh_hpa=None`` means
+    standard pressure (``H_p = elev``).  Near sea level ``dH_p/dQNH = -8.3 m/hPa``.
+    """
+    from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+
+    qnh = STANDARD_QNH_HPA if qnh_hpa is None else float(qnh_hpa)
+    if not (800.0 < qnh < 1100.0):
+        raise MetadataError(f"QNH {qnh} hPa is outside 800..1100 hPa")
+    p = float(isa_pressure_pa(float(elev_m))) * qnh / STANDARD_QNH_HPA
+    return float(pressure_altitude_m(p))
+
+
+def _interval(clean: CleanFlight, t: np.ndarray) -> tuple[int, int, list[str]]:
+    notes = []
+    ph = clean.phases
+    i0, i1 = 0, len(t) - 1
+    if ph is None:
+        notes.append("no phases detected: the whole record is used, its first and last samples "
+                     "taken as the departure and arrival points")
+        return i0, i1, notes
+    if not ph.starts_airborne and np.isfinite(ph.liftoff_t_s):
+        i0 = int(np.argmin(np.abs(t - ph.liftoff_t_s)))
+    elif ph.starts_airborne:
+        notes.append("record starts airborne: the departure position is taken as the position "
+                     "at the first sample")
+    if not ph.ends_airborne and np.isfinite(ph.touchdown_t_s):
+        i1 = int(np.argmin(np.abs(t - ph.touchdown_t_s)))
+    elif ph.ends_airborne:
+        notes.append("record ends airborne: the arrival position is taken as the position at "
+                     "the last sample")
+    if i1 - i0 < 2:
+        raise ValidationError(f"lift-off to touchdown spans {i1 - i0 + 1} grid samples: "
+                              "nothing to fuse")
+    return i0, i1, notes
+
+
+def _column(grid: pd.DataFrame, name: str, sl: slice, notes: list[str]) -> np.ndarray:
+    x = grid[name].to_numpy(dtype=np.float64)[sl].copy()
+    bad = ~np.isfinite(x)
+    if bad.all():
+        raise ValidationError("no valid samples between lift-off and touchdown", column=name)
+    if bad.any():
+        idx = np.arange(len(x))
+        x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+        notes.append(f"{name}: {int(bad.sum())} missing samples bridged linearly for the fusion")
+    return x
+
+
+def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = None,
+                k_sd: tuple[float, float, float] | None = None,
+                arrival: Position | None = None, liftoff: Position | None = None,
+                liftoff_velocity_ned: tuple[float, float, float] | None = None,
+                k0: tuple[float, float, float] | None = None,
+                hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
+                vertical_rule: str = "baro", kt_max: float = KT_MAX, strict: bool = False,
+                acceleration_ned: np.ndarray | None = None) -> MethodResult:
+    """Run the Sabziev fusion on a cleaned flight (METHODS.md section 1; module docstring).
+
+    Parameters
+    ----------
+    clean : cleaned flight (grid, phases, meta with the departure position)
+    k : (k1, k2, k3) for the initial-value mode (arrival not needed)
+    k_sd : standard deviations of ``k`` (fleet spread): adds ``sabziev_*_sd_*`` columns by
+        first-order propagation through the exact sensitivities
+    arrival : arrival position overriding ``clean.meta.arrival`` (e.g. the touchdown point
+        instead of the airfield reference point: they are 1-3 km apart)
+    liftoff : lift-off point, when known (default: the departure position); the track is
+        still output relative to the departure airfield
+    liftoff_velocity_ned : ground velocity at lift-off [m/s], when known better than from the
+        ground roll (``clean.phases``), e.g. from GNSS
+    k0 : start values of the iterations
+    hold, tol_m, max_iter, vertical_rule, kt_max, strict : see
+        :func:`flightrecon.fusion.sabziev.fuse`
+    acceleration_ned : (N, 3) kinematic acceleration on the whole grid, if already computed
+        (default: :func:`flightrecon.geo.kinematics.kinematic_acceleration_ned` of the loads)
+
+    Returns
+    -------
+    MethodResult
+        ``track`` on the grid times: ``sabziev_north_m``, ``sabziev_east_m``, ``sabziev_up_m``
+        (tangent plane at the departure airfield; up is the pressure-consistent height above
+        it), ``sabziev_vn_mps``, ``sabziev_ve_mps``, ``sabziev_vu_mps``, NaN outside
+        lift-off..touchdown, plus ``*_sd_*`` columns when ``k_sd`` is given.  ``summary``:
+        ``converged``, ``k1..k3``, ``axes`` (per-axis report), ``history`` (Newton ``[k, F]``
+        per axis), ``wind_modelled``, ``warnings``.
+
+    Raises
+    ------
+    MetadataError
+        No departure position; neither an arrival position nor ``k``.
+    SchemaError
+        A required channel is missing from the grid.
+    ConvergenceError
+        ``strict`` and an axis found no root.
+    """
+    from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+
+    meta = clean.meta
+    plane = output_plane(meta)  # raises MetadataError without a departure
+    grid = clean.grid
+    missing = [c for c in ("t_s", *REQUIRED_CHANNELS) if c not in grid.columns]
+    if missing:
+        raise SchemaError(f"the Sabziev fusion needs {', '.join(missing)}")
+    arr = arrival if arrival is not None else meta.arrival
+    if k is None and arr is None:
+        raise MetadataError("the Sabziev fusion needs the arrival position (--arrival) or the "
+                            "coefficients k (--k / fleet coefficients)")
+    t_all = grid["t_s"].to_numpy(dtype=np.float64)
+    i0, i1, notes = _interval(clean, t_all)
+    sl = slice(i0, i1 + 1)
+    t = t_all[sl]
+    cols = {c: _column(grid, c, sl, notes) for c in REQUIRED_CHANNELS}
+    dep = meta.departure
+    if acceleration_ned is None:
+        from flightrecon.geo.kinematics import kinematic_acceleration_ned
+
+        a_ned = kinematic_acceleration_ned(cols["n_long_g"], cols["n_lat_g"], cols["n_norm_g"],
+                                           cols["roll_deg"], cols["pitch_deg"],
+                                           cols["heading_deg"], lat_deg=dep.lat_deg,
+                                           h_m=cols["baro_alt_m"])
+    else:
+        a_ned = np.asarray(acceleration_ned, dtype=np.float64)
+        if a_ned.shape != (len(t_all), 3):
+            raise ValidationError(f"acceleration_ned must have shape ({len(t_all)}, 3)")
+        a_ned = a_ned[sl]
+    hp_dep = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
+    origin = np.zeros(3)  # lift-off point in the output frame: north, east, up (pressure)
+    if liftoff is not None:
+        e0, n0, _u0 = plane.forward(liftoff.lat_deg, liftoff.lon_deg,
+                                    msl_to_ellipsoid(liftoff.elev_m, meta.geoid_undulation_m))
+        origin = np.array([float(n0), float(e0),
+                           field_pressure_altitude_m(liftoff.elev_m, meta.qnh_departure_hpa)
+                           - hp_dep])
+    h_rel = cols["baro_alt_m"] - hp_dep - origin[2]
+    psi = np.radians(cols["heading_deg"])
+    wind = None
+    if all(c in grid.columns and np.isfinite(grid[c].to_numpy(dtype=float)[sl]).any()
+           for c in ("wind_speed_mps", "wind_from_deg")):
+        ws = _column(grid, "wind_speed_mps", sl, notes)
+        wf = np.radians(_column(grid, "wind_from_deg", sl, notes))
+        wind = np.column_stack([-ws * np.cos(wf), -ws * np.sin(wf)])  # blowing toward
+    if liftoff_velocity_ned is not None:
+        v0 = np.asarray(liftoff_velocity_ned, dtype=np.float64)
+        if v0.shape != (3,) or not np.all(np.isfinite(v0)):
+            raise ValidationError("liftoff_velocity_ned must be three finite numbers")
+    else:
+        v0 = _liftoff_velocity(clean, t, h_rel, cols, psi, wind, notes)
+    end_ned = None
+    end_info: dict[str, Any] = {}
+    if arr is not None:
+        e, n, _u = plane.forward(arr.lat_deg, arr.lon_deg,
+                                 msl_to_ellipsoid(arr.elev_m, meta.geoid_undulation_m))
+        qnh_arr = meta.qnh_arrival_hpa if meta.qnh_arrival_hpa is not None \
+            else meta.qnh_departure_hpa
+        y_T = field_pressure_altitude_m(arr.elev_m, qnh_arr) - hp_dep
+        end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
+        end_info = {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
+                    "departure_pressure_alt_m": hp_dep,
+                    "liftoff_point_m": [float(x) for x in origin]}
+    sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
+               tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
+               vertical_rule=vertical_rule)
+    warn = list(sol.warnings) + notes
+    for w in sol.warnings:
+        warnings.warn(f"sabziev: {w}", FlightReconWarning, stacklevel=2)
+    track = _track(t_all, sl, sol, k_sd, origin)
+    summary = _summary(sol, k, k_sd, t, v0, end_info, warn, hold, vertical_rule)
+    return MethodResult(name="sabziev", track=track, summary=summary)
+
+
+def _liftoff_velocity(clean: CleanFlight, t, h_rel, cols, psi, wind, notes) -> np.ndarray:
+    ph = clean.phases
+    if ph is not None and not ph.starts_airborne \
+            and np.all(np.isfinite(ph.liftoff_velocity_ned_mps)):
+        return np.asarray(ph.liftoff_velocity_ned_mps, dtype=np.float64)
+    n_fit = max(2, min(len(t), round(2.0 / (t[1] - t[0])) + 1))
+    climb = float(np.polyfit(t[:n_fit] - t[0], h_rel[:n_fit], 1)[0])
+    vn, ve = air_velocity(cols["tas_mps"][:1], psi[:1], np.array([climb]),
+                          None if wind is None else wind[:1])
+    notes.append("lift-off velocity not known from the ground roll: air-derived velocity"
+                 f"{' plus wind' if wind is not None else ''} and the 2 s baro climb rate at "
+                 "the first sample")
+    return np.array([float(vn[0]), float(ve[0]), -climb])
+
+
+def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray) -> pd.DataFrame:
+    n = len(t_all)
+    out = {"t_s": t_all}
+    names = (("sabziev_north_m", 0), ("sabziev_up_m", 1), ("sabziev_east_m", 2))
+    vnames = (("sabziev_vn_mps", 0), ("sabziev_vu_mps", 1), ("sabziev_ve_mps", 2))
+    offset = (origin[0], origin[2], origin[1])  # Sabziev order: north, up, east
+    for cname, j in names:
+        col = np.full(n, np.nan)
+        col[sl] = sol.xyz_m[:, j] + offset[j]
+        out[cname] = col
+    for cname, j in vnames:
+        col = np.full(n, np.nan)
+        col[sl] = sol.vxyz_mps[:, j]
+        out[cname] = col
+    if k_sd is not None:
+        psd = sol.position_sd_m(k_sd)
+        vsd = sol.velocity_sd_mps(k_sd)
+        for (cname, j), (vname, _) in zip(names, vnames):
+            col = np.full(n, np.nan)
+            col[sl] = psd[:, j]
+            out[cname.replace("_m", "_sd_m")] = col
+            vcol = np.full(n, np.nan)
+            vcol[sl] = vsd[:, j]
+            out[vname.replace("_mps", "_sd_mps")] = vcol
+    order = ["t_s", "sabziev_north_m", "sabziev_east_m", "sabziev_up_m", "sabziev_vn_mps",
+             "sabziev_ve_mps", "sabziev_vu_mps"]
+    order += [c for c in out if c not in order]
+    return pd.DataFrame({c: out[c] for c in order})
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _summary(sol: SabzievSolution, k, k_sd, t, v0, end_info, warn, hold, rule) -> dict:
+    axes = {}
+    history = {}
+    for name, ax in sol.axes.items():
+        if ax.report is None:
+            axes[name] = {"converged": True, "k": _num(ax.k), "mode": "initial-value"}
+            continue
+        d = ax.report.as_dict()
+        history[name] = d.pop("history")
+        axes[name] = d
+    res = sol.end_residual_m
+    return {
+        "converged": bool(sol.converged),
+        "mode": "initial-value" if k is not None else "boundary-value",
+        "k1": _num(sol.k[0]), "k2": _num(sol.k[1]), "k3": _num(sol.k[2]),
+        "k_sd": None if k_sd is None else [float(x) for x in k_sd],
+        "axes": axes,
+        "history": history,
+        "end_point": end_info,
+        "end_residual_m": {"north": _num(res[0]), "up": _num(res[1]), "east": _num(res[2])},
+        "interval_s": [float(t[0]), float(t[-1])],
+        "liftoff_velocity_ned_mps": [float(x) for x in v0],
+        "wind_modelled": bool(sol.wind_modelled),
+        "hold": hold,
+        "vertical_rule": rule,
+        "warnings": warn,
+    }

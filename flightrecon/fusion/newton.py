@@ -1,0 +1,415 @@
+"""Safeguarded Newton-Raphson for one Sabziev coefficient, with a root-selection rule and a report.
+
+Solves ``F(k) = s_N(k) - s_T = 0`` (METHODS.md section 1; seed 001, equations (5)-(7)) where
+``F`` and its exact derivative come from the discrete recursion of
+:mod:`flightrecon.fusion.sabziev`.  The paper iterates from ``k = 1``; over a flight of length
+``T`` that weights lift-off data by ``e^T`` and overflows, so here (docs/sabziev.md,
+"Root finding"):
+
+1. **Scale.** ``k_ref = 1/T`` for the horizontal axes (k in 1/s) and ``(1/T)^2`` for the
+   vertical axis (k2 in 1/s^2).  The default start is ``-3 k_ref``: time constant
+   T/3 for the horizontal axes, ``w = sqrt(3)/T`` (loop period about 3.6 T) for the vertical.
+2. **Damped Newton** from the start: each step may change ``|k|`` by at most a factor 10 and
+   never crosses ``k = 0`` (the branches are searched separately); a non-finite ``F``
+   (overflow) halves the step back towards the last good iterate, and ``k T`` above
+   ``kt_max`` on the positive branch is pulled back (both recorded as ``overflow``).  The
+   phase ends early when Newton heads below the scan range, is held at the branch limit three
+   times running, or has not improved ``|F|`` for :data:`STAGNATION` iterations (``F``
+   oscillates on the vertical negative branch).  A sign change between iterates is a bracket.
+3. **Scan.** ``F`` is tabulated on a geometric grid of ``|k|`` (``points_per_decade``) from
+   ``span[0] k_ref`` to ``k_max`` on each branch; sign changes are brackets.
+4. **Selection rule** (negative branch first; it is the stable, physical one).
+   ``rule="slowest"`` (horizontal axes): the root with the smallest ``|k|``.
+   ``rule="baro"`` (vertical axis, default there): on the oscillatory branch ``F(k2)`` has a
+   root about every ``pi/T`` in ``w = sqrt(-k2)`` and the slowest ones integrate the
+   accelerometers almost open-loop (kilometres off on a one-hour flight with a 0.004 m/s^2
+   bias); the root taken is the one whose track stays closest, in RMS over the flight, to the
+   baro height it is tied to.  The three brackets with the smallest misfit at their ends (and
+   the Newton root, if on this branch) are refined and compared.  If the negative branch has no
+   root, the smallest ``|k|`` root on the positive branch is taken and reported
+   ``branch="positive"``: an exponential weighting of the lift-off data, not physical.
+   Brackets are refined by Newton steps kept inside the bracket (bisection when a step leaves
+   it), :func:`scipy.optimize.brentq` as a last fallback.  Roots closer together than the scan
+   grid can hide from the scan (every bracket found is a real root: ``F`` is continuous).
+5. **No root.** When neither branch changes sign the result is ``converged=False`` with the
+   reason and the smallest ``|F|`` seen; never a silent NaN.
+
+The paper's own iteration on ``alpha = sqrt(k2)`` (plain Newton from ``alpha = 1``) is
+available as ``parametrisation="alpha"`` to reproduce the paper; it covers ``k2 > 0`` only and
+``F`` is even in ``alpha`` with ``F'(0) = 0``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightrecon.errors import ConvergenceError, ValidationError
+
+__all__ = ["PARAMETRISATIONS", "RULES", "RootReport", "find_coefficient"]
+
+PARAMETRISATIONS = ("k", "alpha")
+
+Evaluator = Callable[[float], tuple[float, float, float]]
+"""``k -> (F(k), dF/dk(k), misfit(k))``: end-point residual [m], its exact derivative and the
+track's RMS distance from its reference (used by ``rule="baro"``; NaN when unused)."""
+
+STAGNATION = 8
+"""Damped-Newton iterations without a new smallest |F| before the scan takes over."""
+
+RULES = ("slowest", "baro")
+"""Root-selection rules on the negative branch (module docstring, step 4)."""
+
+
+@dataclass(frozen=True)
+class RootReport:
+    """What the root finder did for one axis.
+
+    Attributes
+    ----------
+    converged : ``|F(root)| <= tol_m``
+    root : the coefficient taken (NaN only when ``converged`` is False)
+    residual_m : ``F(root)`` [m] (for a failure: the smallest ``|F|`` seen, signed)
+    misfit_m : the track's RMS distance from its reference at the root (vertical: from the
+        baro height) [m]; NaN if not computed
+    rule : the selection rule applied
+    iterations : Newton iterations (start phase plus refinement)
+    evaluations : evaluations of ``F`` in total (scan included)
+    branch : ``"negative"`` (stable / physical), ``"positive"`` (non-physical exponential
+        weighting of lift-off data) or ``"none"``
+    reason : one line on how the root was found or why none was
+    history : ``(k, F)`` at every Newton iterate, in order (for plotting)
+    brackets : sign-change intervals ``(k_a, k_b)`` found by the scan, both branches
+    start : the start value used
+    parametrisation : ``"k"`` or ``"alpha"``
+    overflow : an iterate overflowed or exceeded ``kt_max`` and was pulled back
+    """
+
+    converged: bool
+    root: float
+    residual_m: float
+    iterations: int
+    evaluations: int
+    branch: str
+    reason: str
+    history: tuple[tuple[float, float], ...] = ()
+    brackets: tuple[tuple[float, float], ...] = ()
+    start: float = float("nan")
+    parametrisation: str = "k"
+    overflow: bool = False
+    misfit_m: float = float("nan")
+    rule: str = "slowest"
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable summary (history as lists ``[k, F]``)."""
+        return {
+            "converged": bool(self.converged), "k": _num(self.root),
+            "residual_m": _num(self.residual_m), "iterations": int(self.iterations),
+            "evaluations": int(self.evaluations), "branch": self.branch, "reason": self.reason,
+            "start": _num(self.start), "parametrisation": self.parametrisation,
+            "overflow": bool(self.overflow), "misfit_m": _num(self.misfit_m),
+            "rule": self.rule,
+            "history": [[_num(k), _num(f)] for k, f in self.history],
+        }
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+@dataclass
+class _Counter:
+    fun: Evaluator
+    n: int = 0
+    best: tuple[float, float] = (float("nan"), float("inf"))
+
+    def __call__(self, k: float) -> tuple[float, float, float]:
+        self.n += 1
+        with np.errstate(over="ignore", invalid="ignore"):
+            F, dF, m = self.fun(float(k))
+        F, dF, m = float(F), float(dF), float(m)
+        if np.isfinite(F) and abs(F) < abs(self.best[1]):
+            self.best = (float(k), F)
+        return F, dF, m
+
+
+def _sign(x: float) -> float:
+    return 1.0 if x >= 0 else -1.0
+
+
+def _damped_newton(f: _Counter, k0: float, k_max_pos: float, k_max_neg: float, tol_m: float,
+                   max_iter: int, history: list,
+                   k_floor: float = 0.0) -> tuple[float | None, tuple | None, int, bool]:
+    """Step 2 of the module docstring. Returns (root or None, bracket or None, iters, overflow).
+
+    The phase ends early (the scan takes over) when Newton keeps pushing ``|k|`` below
+    ``k_floor`` (the root lies on the other branch or at k = 0), when it is held at the branch
+    limit three times running (F flat towards the limit), or when ``|F|`` has not improved for
+    ``STAGNATION`` iterations (F oscillating: the vertical negative branch).
+    """
+    k = k0
+    overflow = False
+    s = _sign(k0)
+    lim = k_max_pos if s > 0 else k_max_neg
+    if abs(k) > lim:
+        overflow = s > 0
+        k = s * lim
+    F, dF, _ = f(k)
+    it = 0
+    k_good, F_good = None, None
+    clamps = 0
+    best, since_best = np.inf, 0
+    while it < max_iter:
+        if not (np.isfinite(F) and np.isfinite(dF)):
+            overflow = True
+            k = 0.5 * k if k_good is None else 0.5 * (k + k_good)
+            if abs(k) < 1e-300:
+                break
+            F, dF, _ = f(k)
+            it += 1
+            continue
+        history.append((k, F))
+        if abs(F) <= tol_m:
+            return k, None, it, overflow
+        if abs(F) < best:
+            best, since_best = abs(F), 0
+        else:
+            since_best += 1
+            if since_best >= STAGNATION:
+                break
+        if k_good is not None and _sign(F) != _sign(F_good):
+            return None, (min(k, k_good), max(k, k_good)), it, overflow
+        k_good, F_good = k, F
+        if dF == 0.0:
+            break
+        k_new = k - F / dF
+        if k_new * s <= 0.0 or abs(k_new) < abs(k) / 10.0:
+            k_new = k / 10.0
+            if abs(k_new) < k_floor:
+                break
+        elif abs(k_new) > 10.0 * abs(k):
+            k_new = 10.0 * k
+        if abs(k_new) > lim:
+            clamps += 1
+            if clamps >= 3:
+                break
+            if s > 0:
+                overflow = True
+            k_new = s * 0.5 * (abs(k) + lim)
+        else:
+            clamps = 0
+        k = k_new
+        F, dF, _ = f(k)
+        it += 1
+    return None, None, it, overflow
+
+
+def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
+            history: list) -> tuple[float, float, int, str]:
+    """Newton kept inside the bracket [a, b] (bisection otherwise), brentq as the fallback."""
+    Fa = f(a)[0]
+    k = 0.5 * (a + b)
+    it = 0
+    while it < max_iter:
+        F, dF, _ = f(k)
+        history.append((k, F))
+        it += 1
+        if abs(F) <= tol_m:
+            return k, F, it, "Newton in bracket"
+        if _sign(F) == _sign(Fa):
+            a, Fa = k, F
+        else:
+            b = k
+        if abs(b - a) <= 4e-16 * max(abs(a), abs(b)):
+            return k, F, it, "bracket collapsed before |F| <= tol: F not resolvable in floating point"
+        k_new = k - F / dF if dF != 0.0 and np.isfinite(dF) else np.nan
+        if not (min(a, b) < k_new < max(a, b)):
+            k_new = 0.5 * (a + b)
+        k = k_new
+    from scipy.optimize import brentq
+
+    root = brentq(lambda x: f(x)[0], min(a, b), max(a, b), xtol=1e-300, rtol=4e-16,
+                  maxiter=200)
+    F = f(root)[0]
+    history.append((root, F))
+    return root, F, it, "brentq fallback"
+
+
+def _polish(f: _Counter, k: float, F: float, history: list, steps: int = 3) -> tuple[float, float]:
+    """A few plain Newton steps after ``|F| <= tol``, each kept only if it reduces ``|F|``:
+    the tolerance is a test on metres, the polish makes ``k`` itself accurate (fleet means
+    average it)."""
+    for _ in range(steps):
+        _, dF, _ = f(k)
+        if dF == 0.0 or not np.isfinite(dF):
+            break
+        k_new = k - F / dF
+        if k_new * k <= 0.0:
+            break
+        F_new = f(k_new)[0]
+        if not (np.isfinite(F_new) and abs(F_new) < abs(F)):
+            break
+        k, F = k_new, F_new
+        history.append((k, F))
+        if F == 0.0:
+            break
+    return k, F
+
+
+def _scan(f: _Counter, sign: float, k_lo: float, k_hi: float,
+          points_per_decade: int) -> list[tuple[float, float, float]]:
+    """Sign changes of F on a geometric grid of |k| in [k_lo, k_hi] on one branch.
+
+    Returns ``(k_a, k_b, misfit)`` per bracket, ``misfit`` the mean of the end misfits.
+    """
+    if k_hi <= k_lo:
+        return []
+    n = max(2, int(np.ceil(np.log10(k_hi / k_lo) * points_per_decade)) + 1)
+    ks = sign * np.geomspace(k_lo, k_hi, n)
+    out = []
+    prev = None
+    for k in ks:
+        F, _, m = f(k)
+        if not np.isfinite(F):
+            break  # beyond here the branch overflows
+        if prev is not None and _sign(F) != _sign(prev[1]):
+            out.append((min(prev[0], k), max(prev[0], k), 0.5 * (m + prev[2])))
+        prev = (k, F, m)
+    return out
+
+
+def find_coefficient(fun: Evaluator, *, k_ref: float, k_max_pos: float, k_max_neg: float,
+                     k0: float | None = None, tol_m: float = 1e-3, max_iter: int = 60,
+                     span_lo: float = 1e-2, points_per_decade: int = 12,
+                     parametrisation: str = "k", rule: str = "slowest", n_refine: int = 3,
+                     strict: bool = False, axis: str = "") -> RootReport:
+    """Find one Sabziev coefficient by the safeguarded Newton iteration and selection rule.
+
+    Parameters
+    ----------
+    fun : ``k -> (F, dF/dk, misfit)`` (:data:`Evaluator`)
+    k_ref : natural scale of ``|k|`` (``1/T`` or ``1/T^2``)
+    k_max_pos : largest ``k`` allowed on the positive branch (overflow guard, from ``kt_max``)
+    k_max_neg : largest ``|k|`` scanned on the negative branch
+    k0 : start value (default ``-3 k_ref``); with ``parametrisation="alpha"`` the start
+        ``alpha`` (default 1, the paper's)
+    tol_m : convergence: ``|F| <= tol_m`` [m]
+    max_iter : Newton iterations per phase
+    span_lo : the scan starts at ``span_lo * k_ref``
+    points_per_decade : density of the scan grid
+    parametrisation : ``"k"`` (default) or ``"alpha"`` (paper: ``k = alpha^2``, plain Newton)
+    rule : ``"slowest"`` or ``"baro"`` (module docstring, step 4)
+    n_refine : with ``rule="baro"``, how many brackets (best misfit first) are refined
+    strict : raise :class:`~flightrecon.errors.ConvergenceError` instead of returning a
+        non-converged report
+    axis : axis name for messages
+
+    Returns
+    -------
+    RootReport
+    """
+    if parametrisation not in PARAMETRISATIONS:
+        raise ValidationError(f"parametrisation must be one of {PARAMETRISATIONS}, "
+                              f"got {parametrisation!r}")
+    if rule not in RULES:
+        raise ValidationError(f"rule must be one of {RULES}, got {rule!r}")
+    if not (k_ref > 0 and k_max_pos > 0 and k_max_neg > 0 and tol_m > 0):
+        raise ValidationError("k_ref, k_max_pos, k_max_neg and tol_m must be positive")
+    f = _Counter(fun)
+    if parametrisation == "alpha":
+        rep = _alpha_newton(f, 1.0 if k0 is None else float(k0), k_max_pos, tol_m, max_iter)
+    else:
+        rep = _k_search(f, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, span_lo,
+                        points_per_decade, rule, n_refine)
+    if strict and not rep.converged:
+        raise ConvergenceError(f"Sabziev {axis} axis: {rep.reason}")
+    return rep
+
+
+def _k_search(f: _Counter, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, span_lo, ppd,
+              rule, n_refine):
+    start = -3.0 * k_ref if k0 is None else float(k0)
+    if start == 0.0 or not np.isfinite(start):
+        raise ValidationError("the start value of k must be finite and non-zero")
+    history: list = []
+    k_lo = span_lo * k_ref
+    root_n, bracket_n, it, overflow = _damped_newton(f, start, k_max_pos, k_max_neg, tol_m,
+                                                     max_iter, history, 1e-2 * k_lo)
+    all_brackets: list = []
+    candidates: list = []  # (root, F, misfit, how)
+    for sign, k_hi in ((-1.0, k_max_neg), (1.0, k_max_pos)):
+        found = _scan(f, sign, k_lo, k_hi, ppd)
+        all_brackets.extend((a, b) for a, b, _ in found)
+        if bracket_n is not None and _sign(bracket_n[0]) == sign:
+            found.append((bracket_n[0], bracket_n[1], f(bracket_n[0])[2]))
+        use_rule = rule if sign < 0 else "slowest"
+        if use_rule == "slowest":
+            found.sort(key=lambda br: min(abs(br[0]), abs(br[1])))
+            pick = found[:1]
+        else:
+            found.sort(key=lambda br: br[2] if np.isfinite(br[2]) else np.inf)
+            pick = found[:n_refine]
+        for a, b, _ in pick:
+            r, F, it2, how = _refine(f, a, b, tol_m, max_iter, history)
+            it += it2
+            candidates.append((r, F, f(r)[2], f"scan bracket refined ({how})"))
+        if root_n is not None and _sign(root_n) == sign and not any(
+                abs(c[0] - root_n) <= 1e-9 * abs(root_n) for c in candidates):
+            Fn, _, mn = f(root_n)
+            candidates.append((root_n, Fn, mn, "damped Newton from the start value"))
+        good = [c for c in candidates if abs(c[1]) <= tol_m]
+        if good:
+            if use_rule == "slowest":
+                best = min(good, key=lambda c: abs(c[0]))
+            else:
+                best = min(good, key=lambda c: c[2] if np.isfinite(c[2]) else np.inf)
+            root, F, mis, how = best
+            root, F = _polish(f, root, F, history)
+            branch = "negative" if root < 0 else "positive"
+            how = (f"rule '{use_rule}' among {len(good)} root(s) on the {branch} branch; {how}")
+            return RootReport(True, float(root), float(F), it, f.n, branch, how, tuple(history),
+                              tuple(all_brackets), start, "k", overflow, float(mis), use_rule)
+    kb, Fb = f.best
+    if candidates:
+        worst = min(candidates, key=lambda c: abs(c[1]))
+        reason = (f"no root resolved to tol {tol_m:g} m: the best bracketed candidate k = "
+                  f"{worst[0]:.6g} leaves |F| = {abs(worst[1]):.3g} m ({worst[3]})")
+    else:
+        reason = (f"no root: F does not change sign on either branch (|k| from {k_lo:.3g} to "
+                  f"{k_max_neg:.3g} negative, to {k_max_pos:.3g} positive) and Newton did not "
+                  f"converge; smallest |F| = {abs(Fb):.3g} m at k = {kb:.6g}")
+    return RootReport(False, float("nan"), Fb, it, f.n, "none", reason, tuple(history),
+                      tuple(all_brackets), start, "k", overflow, float("nan"), rule)
+
+
+def _alpha_newton(f: _Counter, alpha0: float, k_max_pos: float, tol_m: float, max_iter: int):
+    """The paper's iteration: plain Newton on alpha = sqrt(k2), dF/dalpha = 2 alpha dF/dk."""
+    alpha = alpha0
+    history: list = []
+    F = float("nan")
+    for it in range(max_iter + 1):
+        k = alpha * alpha
+        F, dFk, mis = f(k)
+        if k > k_max_pos or not (np.isfinite(F) and np.isfinite(dFk)):
+            return RootReport(False, float("nan"), F, it, f.n, "none",
+                              f"alpha iteration overflowed at alpha = {alpha:.6g} (alpha T is "
+                              f"{alpha / np.sqrt(k_max_pos):.3g} times the guard kt_max): the "
+                              "paper's start alpha = 1 weights lift-off data by e^(alpha T)",
+                              tuple(history), (), alpha0, "alpha", True)
+        history.append((k, F))
+        if abs(F) <= tol_m:
+            k, F = _polish(f, k, F, history)
+            mis = f(k)[2]
+            return RootReport(True, float(k), F, it, f.n, "positive" if k > 0 else "negative",
+                              "plain Newton on alpha (paper)", tuple(history), (), alpha0,
+                              "alpha", False, float(mis), "alpha")
+        dFa = 2.0 * alpha * dFk
+        if dFa == 0.0:
+            break
+        alpha = alpha - F / dFa
+    return RootReport(False, float("nan"), F, max_iter, f.n, "none",
+                      f"alpha iteration did not converge in {max_iter} iterations "
+                      f"(|F| = {abs(F):.3g} m)", tuple(history), (), alpha0, "alpha", False)
