@@ -1,0 +1,314 @@
+"""Adapter: the azimuth channel (METHODS.md section 3) on a cleaned flight -> ``MethodResult``.
+
+Pipeline, all on one event timeline (the union of the radar plots' own times and the grid times
+inside radar coverage; measurements are used once, at their own time):
+
+1. horizontal range of each plot, in the station's tangent plane: ``r = rho cos(elevation)``
+   when the plot has an elevation, else ``r = sqrt(rho^2 - dh^2)`` with ``dh`` the pressure
+   altitude above the station less the earth-curvature drop ``r^2 / (2 R)``;
+2. range tracker (:func:`flightrecon.filters.azimuth.track_range`, CV filter + RTS smoother);
+3. on-board observation at the downlink rate: (a_N, a_E) from the body load factors and attitude
+   with its propagated covariance;
+4. azimuth filter and RTS smoother, ``model = "aided"`` or ``"singer"``;
+5. output on the grid times inside radar coverage (NaN outside): azimuth, rate, acceleration and
+   the implied position (station tangent plane -> geodetic -> output tangent plane at the
+   departure airfield) with standard deviations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.filters.azimuth import (
+    azimuth_filter,
+    horizontal_acceleration,
+    horizontal_acceleration_covariance,
+    track_range,
+)
+from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
+from flightrecon.types import CleanFlight, MethodResult
+
+__all__ = ["AzimuthSettings", "run_azimuth"]
+
+_EARTH_RADIUS_M = 6371000.0  # mean radius; only for the r^2/(2R) drop (31 m at 20 km)
+_LOADS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg")
+
+
+@dataclass(frozen=True)
+class AzimuthSettings:
+    """Settings of the azimuth channel (all one-sigma errors; written into the summary).
+
+    Attributes
+    ----------
+    sigma_range_m, sigma_azimuth_deg, sigma_elevation_deg : radar plot errors
+    sigma_altitude_m : error of the pressure altitude used for the height above the station when
+        the plots carry no elevation (pressure vs geometric height: QNH and temperature)
+    onboard_rate_hz : downlink rate of the on-board observation (``None``: every grid sample)
+    sigma_load_g, sigma_load_bias_g : load-factor white noise and bias per axis
+    sigma_attitude_deg, sigma_heading_deg : roll/pitch and heading errors
+    alpha_m, sigma_m_mps2 : Singer model (manoeuvre rate [1/s], acceleration sd [m/s^2])
+    q_jerk_m2ps5 : aided model, transverse-jerk spectral density
+    q_range_m2ps3 : range tracker, range-acceleration spectral density
+    correlation_time_s : correlation time of the slowly varying errors of the on-board
+        observation (see :func:`flightrecon.filters.azimuth.azimuth_filter`)
+    """
+
+    sigma_range_m: float = 50.0
+    sigma_azimuth_deg: float = 0.15
+    sigma_elevation_deg: float = 0.2
+    sigma_altitude_m: float = 30.0
+    onboard_rate_hz: float | None = 1.0
+    sigma_load_g: float = 0.01
+    sigma_load_bias_g: float = 0.003
+    sigma_attitude_deg: float = 0.2
+    sigma_heading_deg: float = 0.5
+    alpha_m: float = 0.05
+    sigma_m_mps2: float = 2.0
+    q_jerk_m2ps5: float = 0.2
+    q_range_m2ps3: float = 10.0
+    correlation_time_s: float = 0.0
+
+    def validate(self) -> None:
+        """Raise :class:`ValidationError` for a negative, zero or non-finite setting."""
+        for name, v in asdict(self).items():
+            if v is None and name == "onboard_rate_hz":
+                continue
+            if not (np.isfinite(v) and v >= 0):
+                raise ValidationError(f"azimuth setting {name} must be finite and >= 0, got {v}")
+        for name in ("sigma_range_m", "sigma_azimuth_deg", "alpha_m", "q_jerk_m2ps5",
+                     "q_range_m2ps3"):
+            if getattr(self, name) <= 0:
+                raise ValidationError(f"azimuth setting {name} must be > 0")
+        if self.onboard_rate_hz is not None and self.onboard_rate_hz <= 0:
+            raise ValidationError("onboard_rate_hz must be > 0 (or None for every grid sample)")
+
+
+def _radar_plots(clean: CleanFlight) -> pd.DataFrame:
+    radar = clean.radar
+    need = ("t_s", "arms_range_m", "arms_azimuth_deg")
+    if len(radar) == 0 or any(c not in radar.columns for c in need):
+        raise ValidationError("the azimuth channel needs radar plots with t_s, arms_range_m and "
+                              "arms_azimuth_deg", column="arms_azimuth_deg")
+    ok = np.isfinite(radar["arms_range_m"].to_numpy(float)) & np.isfinite(
+        radar["arms_azimuth_deg"].to_numpy(float)) & np.isfinite(radar["t_s"].to_numpy(float))
+    plots = radar.loc[ok].sort_values("t_s", kind="stable")
+    if len(plots) < 2:
+        raise ValidationError("the azimuth channel needs at least two complete radar plots")
+    t = plots["t_s"].to_numpy(float)
+    dup = np.flatnonzero(np.diff(t) <= 0)
+    if dup.size:
+        raise ValidationError(f"{dup.size} radar plot(s) share a time stamp with another "
+                              f"(first at t = {t[dup[0]]:.3f} s)", column="t_s")
+    if np.any(plots["arms_range_m"].to_numpy(float) <= 0):
+        raise ValidationError("radar range must be positive", column="arms_range_m")
+    return plots
+
+
+def _horizontal_range(plots: pd.DataFrame, clean: CleanFlight, s: AzimuthSettings,
+                      h_station_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """Horizontal range [m], its variance and the height above the station plane [m]."""
+    rho = plots["arms_range_m"].to_numpy(float)
+    el = (plots["arms_elevation_deg"].to_numpy(float) if "arms_elevation_deg" in plots.columns
+          else np.full(rho.size, np.nan))
+    if np.all(np.isfinite(el)):
+        e = np.radians(el)
+        r = rho * np.cos(e)
+        var = (np.cos(e) * s.sigma_range_m) ** 2 + (
+            rho * np.sin(e) * np.radians(s.sigma_elevation_deg)) ** 2
+        return r, var, rho * np.sin(e), "elevation"
+    grid = clean.grid
+    if "baro_alt_m" not in grid.columns:
+        raise ValidationError("radar plots without elevation need baro_alt_m for the height "
+                              "above the station", column="arms_elevation_deg")
+    tg = grid["t_s"].to_numpy(float)
+    hb = grid["baro_alt_m"].to_numpy(float)
+    good = np.isfinite(hb)
+    dh = np.interp(plots["t_s"].to_numpy(float), tg[good], hb[good]) - h_station_m
+    dh = dh - rho**2 / (2 * _EARTH_RADIUS_M)  # height above the station's tangent plane
+    r2 = rho**2 - dh**2
+    if np.any(r2 <= 0):
+        raise ValidationError("radar slant range shorter than the altitude difference to the "
+                              "station (check the station elevation and baro datum)",
+                              column="arms_range_m")
+    r = np.sqrt(r2)
+    var = (rho / r) ** 2 * s.sigma_range_m**2 + (dh / r) ** 2 * s.sigma_altitude_m**2
+    return r, var, dh, "pressure altitude"
+
+
+def run_azimuth(clean: CleanFlight, *, model: str = "aided",
+                settings: AzimuthSettings | None = None) -> MethodResult:
+    """Azimuth channel of the approach radar, Singer or load-factor aided (METHODS.md s. 3).
+
+    Parameters
+    ----------
+    clean : cleaned flight; ``clean.radar`` one row per plot (``t_s``, ``arms_range_m``,
+        ``arms_azimuth_deg``, optional ``arms_elevation_deg``), ``clean.grid`` with the loads and
+        attitude (aided model), ``meta.station`` and ``meta.departure`` set
+    model : ``"aided"`` (load-factor aided, seed 002 eqs. (5)-(9)) or ``"singer"``
+    settings : :class:`AzimuthSettings` (default values if ``None``)
+
+    Returns
+    -------
+    MethodResult
+        ``track`` on the grid times: ``azimuth_azimuth_deg`` [0, 360), ``azimuth_rate_dps``,
+        ``azimuth_accel_dps2``, ``azimuth_range_m`` (horizontal), ``azimuth_north_m``,
+        ``azimuth_east_m``, ``azimuth_vn_mps``, ``azimuth_ve_mps``, each with its ``_sd_``
+        column (smoothed estimates; NaN outside radar coverage).  ``summary``: model,
+        settings, NIS of both observations, counts.
+
+    Raises
+    ------
+    MetadataError
+        No station or departure position.
+    ValidationError
+        Unusable radar or on-board data, or an unknown model.
+    """
+    s = settings if settings is not None else AzimuthSettings()
+    s.validate()
+    if model not in ("aided", "singer"):
+        raise ValidationError(f"unknown azimuth model '{model}': choose 'aided' or 'singer'")
+    meta = clean.meta
+    if meta.station is None:
+        raise MetadataError("the azimuth channel needs the radar station position (--station)")
+    plane_out = output_plane(meta)
+    st = meta.station
+    h_station = float(msl_to_ellipsoid(st.elev_m, meta.geoid_undulation_m))
+    plots = _radar_plots(clean)
+    tp = plots["t_s"].to_numpy(float)
+    r_p, r_var_p, up_p, range_from = _horizontal_range(plots, clean, s, st.elev_m)
+
+    grid = clean.grid
+    tg = grid["t_s"].to_numpy(float)
+    cover = (tg >= tp[0]) & (tg <= tp[-1])
+    ig = np.flatnonzero(cover)
+    # on-board observations: grid samples at the downlink rate with valid loads and attitude
+    io = np.empty(0, dtype=np.int64)
+    if model == "aided":
+        missing = [c for c in _LOADS if c not in grid.columns]
+        if missing:
+            raise ValidationError(f"the aided azimuth model needs {', '.join(missing)}",
+                                  column=missing[0])
+        if s.onboard_rate_hz is None:
+            cand = ig
+        else:
+            tick = np.floor((tg[ig] - tp[0]) * s.onboard_rate_hz + 1e-9)
+            cand = ig[np.r_[True, np.diff(tick) > 0]] if ig.size else ig
+        vals = np.stack([grid[c].to_numpy(float)[cand] for c in _LOADS], -1)
+        io = cand[np.isfinite(vals).all(axis=1)]
+        if io.size == 0:
+            raise ValidationError("no valid load-factor/attitude sample inside radar coverage")
+
+    # event timeline: plots and grid samples, merged where they coincide (to the nanosecond)
+    t_all = np.concatenate([tp, tg[ig]])
+    key = np.round(t_all * 1e9)
+    uniq, inv = np.unique(key, return_inverse=True)
+    t_ev = uniq * 1e-9
+    n = t_ev.size
+    pos_p = inv[: tp.size]
+    pos_g = inv[tp.size:]
+    eps_meas = np.full(n, np.nan)
+    eps_meas[pos_p] = np.radians(plots["arms_azimuth_deg"].to_numpy(float))
+    eps_var = np.full(n, np.radians(s.sigma_azimuth_deg) ** 2)
+    r_meas = np.full(n, np.nan)
+    r_var = np.full(n, np.nan)
+    r_meas[pos_p] = r_p
+    r_var[pos_p] = r_var_p
+    rt = track_range(t_ev, r_meas, r_var, q_range_m2ps3=s.q_range_m2ps3)
+
+    a_ne = a_cov = a_corr = None
+    if model == "aided":
+        pos_o = pos_g[np.searchsorted(ig, io)]
+        args = [grid[c].to_numpy(float)[io] for c in _LOADS]
+        a_ne = np.full((n, 2), np.nan)
+        a_ne[pos_o] = horizontal_acceleration(*args)
+        a_cov = np.zeros((n, 2, 2))
+        a_cov[pos_o] = horizontal_acceleration_covariance(
+            *args, sigma_load_g=s.sigma_load_g, sigma_attitude_deg=s.sigma_attitude_deg,
+            sigma_heading_deg=s.sigma_heading_deg)
+        a_corr = np.zeros((n, 2, 2))
+        a_corr[pos_o] = horizontal_acceleration_covariance(
+            *args, sigma_load_g=s.sigma_load_bias_g, sigma_attitude_deg=0.0,
+            sigma_heading_deg=0.0)
+    run = azimuth_filter(t_ev, eps_meas, eps_var, rt, model=model, a_ne=a_ne, a_ne_cov=a_cov,
+                         a_ne_cov_corr=a_corr, alpha_m=s.alpha_m, sigma_m_mps2=s.sigma_m_mps2,
+                         q_jerk_m2ps5=s.q_jerk_m2ps5, correlation_time_s=s.correlation_time_s)
+
+    # ---- output on the grid (smoothed) ----
+    x = run.xs[pos_g]
+    P = run.Ps[pos_g]
+    r = rt.r[pos_g]
+    rd = rt.r_dot[pos_g]
+    Pr = rt.P[pos_g]
+    eps, om = x[:, 0], x[:, 1]
+    sd = np.sqrt(np.diagonal(P, axis1=1, axis2=2))
+    se, ce = np.sin(eps), np.cos(eps)
+    # station-plane position and velocity; range and azimuth channels are independent
+    n_st, e_st = r * ce, r * se
+    var_r = Pr[:, 0, 0]
+    var_n = ce**2 * var_r + (r * se) ** 2 * P[:, 0, 0]
+    var_e = se**2 * var_r + (r * ce) ** 2 * P[:, 0, 0]
+    vn = rd * ce - r * om * se
+    ve = rd * se + r * om * ce
+    # first-order: d(vn, ve)/d(r, r_dot) and /d(eps, omega)
+    Jr = np.stack([np.stack([-om * se, ce], -1), np.stack([om * ce, se], -1)], -2)
+    Je = np.stack([np.stack([-rd * se - r * om * ce, -r * se], -1),
+                   np.stack([rd * ce - r * om * se, r * ce], -1)], -2)
+    Cv = Jr @ Pr @ Jr.transpose(0, 2, 1) + Je @ P[:, :2, :2] @ Je.transpose(0, 2, 1)
+    # height above the station plane at the grid times: interpolated from the plots
+    up_st = np.interp(tg[ig], tp, up_p)
+    stp = TangentPlane(st.lat_deg, st.lon_deg, h_station)
+    lat, lon, h = stp.inverse(e_st, n_st, up_st)
+    e_out, n_out, _ = plane_out.forward(lat, lon, h)
+
+    N = tg.size
+    cols: dict[str, np.ndarray] = {}
+
+    def put(name: str, val: np.ndarray) -> None:
+        full = np.full(N, np.nan)
+        full[ig] = val
+        cols[name] = full
+
+    put("azimuth_azimuth_deg", np.mod(np.degrees(eps), 360.0))
+    put("azimuth_azimuth_sd_deg", np.degrees(sd[:, 0]))
+    put("azimuth_rate_dps", np.degrees(om))
+    put("azimuth_rate_sd_dps", np.degrees(sd[:, 1]))
+    put("azimuth_accel_dps2", np.degrees(x[:, 2]))
+    put("azimuth_accel_sd_dps2", np.degrees(sd[:, 2]))
+    put("azimuth_range_m", r)
+    put("azimuth_range_sd_m", np.sqrt(var_r))
+    put("azimuth_north_m", n_out)
+    put("azimuth_north_sd_m", np.sqrt(var_n))
+    put("azimuth_east_m", e_out)
+    put("azimuth_east_sd_m", np.sqrt(var_e))
+    put("azimuth_vn_mps", vn)
+    put("azimuth_vn_sd_mps", np.sqrt(Cv[:, 0, 0]))
+    put("azimuth_ve_mps", ve)
+    put("azimuth_ve_sd_mps", np.sqrt(Cv[:, 1, 1]))
+    track = pd.DataFrame({"t_s": tg, **cols})
+
+    nis_e = run.nis_eps[np.isfinite(run.nis_eps)]
+    nis_z = run.nis_z[np.isfinite(run.nis_z)]
+    finite = bool(np.all(np.isfinite(run.xs)) and np.all(np.isfinite(run.Ps)))
+    gaps = np.diff(tp)
+    summary = {
+        "model": model,
+        "settings": asdict(s),
+        "range_from": range_from,
+        "radar_plots_used": int(tp.size),
+        "radar_plots_dropped": int(len(clean.radar) - tp.size),
+        "longest_radar_gap_s": float(gaps.max()),
+        "onboard_observations": int(io.size),
+        "coverage_s": [float(tp[0]), float(tp[-1])],
+        "nis_azimuth_mean": float(nis_e.mean()) if nis_e.size else None,
+        "nis_transverse_mean": float(nis_z.mean()) if nis_z.size else None,
+        "nis_range_mean": float(np.nanmean(rt.nis)),
+        "correlated_error_inflation": float(run.n_corr),
+        "healthy": finite,
+    }
+    if not finite:
+        summary["warning"] = "non-finite estimates: the filter diverged"
+    return MethodResult(name="azimuth", track=track, summary=summary)
