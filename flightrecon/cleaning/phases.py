@@ -1,0 +1,290 @@
+"""Flight phases: lift-off and touchdown detected in the cleaned grid.
+
+The rules (``docs/signals.md``, section "Phase detection") use airspeed, pressure altitude and
+the vertical kinematic acceleration ``a_up = -a_D`` from the load factors and attitude
+(:func:`flightrecon.geo.kinematics.kinematic_acceleration_ned`), which is zero on the ground
+(the wheel reaction is part of the measured specific force) and departs from zero when the
+wheels leave or meet the runway:
+
+* On the ground / possibly flying: airspeed below / above ``airborne_speed_mps`` (30 m/s).
+  The record *starts airborne* (*ends airborne*) when the airspeed over its first (last)
+  second is above it.
+* Field level: median pressure altitude over ``ground_window_s`` (20 s) of slow ground run
+  before the take-off run (after the landing run).  *Certainly airborne*: more than
+  ``airborne_height_m`` (15 m) above field level.
+* Lift-off: the vertical velocity ``v_up`` is integrated from ``a_up`` (minus its mean over the
+  ground window, the accelerometer/attitude bias) from the start of the fast ground run, with
+  ``v_up = 0`` there; a linear drift fitted on the ground part is removed; lift-off is the knee
+  of ``v_up`` (the point farthest below the chord) in the 6 s before ``v_up`` finally exceeds
+  0.6 m/s.
+* Touchdown: between the last time the aircraft is certainly airborne and the end of the fast
+  landing run, ``a_up`` is smoothed (0.5 s running mean); its quiet level and noise are taken
+  from the last ``ground_window_s`` of the fast landing run; touchdown is the falling
+  half-maximum of the *last* excursion above ``max(0.2 m/s^2, 5 sigma)``: the moment the
+  wheels have arrested the sink rate, after which the vertical acceleration stays quiet.  A
+  landing so smooth that no such excursion exists falls back to the last time the pressure
+  altitude is 2 m above field level.  (Integrating ``a_up`` back from the end of the landing
+  run was tried first: over 30-40 s of landing run the integrated noise and speed-dependent
+  bias reach 0.3 m/s, the size of a gentle sink rate.)  The report says which rule was used.
+* Lift-off ground velocity: the runway direction is the mean heading over the last 10 s of the
+  ground run; airspeed over those 10 s is fitted as ``V(t) = c + integral of a_along`` (the
+  along-runway kinematic acceleration), which averages the airspeed noise with the
+  accelerometer's shape; the wind component along the runway is subtracted when the log has a
+  wind channel (otherwise wind is unmodelled and the report says so); the vertical component is
+  zero at lift-off.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.cleaning.report import report_entry
+from flightrecon.errors import ValidationError
+from flightrecon.geo.kinematics import kinematic_acceleration_ned
+from flightrecon.types import FlightPhases
+
+__all__ = ["PhaseSettings", "detect_phases", "detect_phases_with_report"]
+
+_NAN3 = (float("nan"), float("nan"), float("nan"))
+_LOAD_CHANNELS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg")
+
+
+@dataclass(frozen=True)
+class PhaseSettings:
+    """Thresholds of the phase detector (module docstring).
+
+    Attributes
+    ----------
+    airborne_speed_mps : airspeed below which the aircraft is on the ground [m/s]
+    airborne_height_m : pressure height above field level that proves flight [m]
+    ground_window_s : ground stretch used for field level and accelerometer bias [s]
+    roll_fit_s : end of the ground run used for the lift-off velocity [s]
+    v_up_high_mps : vertical speed that proves the climb has begun [m/s]
+    knee_window_s : window before that crossing searched for the lift-off knee [s]
+    sink_mps : vertical speed below which the aircraft is still descending [m/s]
+    td_smooth_s : running mean applied to the vertical acceleration at touchdown [s]
+    td_accel_mps2 : smallest touchdown excursion of the vertical acceleration [m/s^2]
+    """
+
+    airborne_speed_mps: float = 30.0
+    airborne_height_m: float = 15.0
+    ground_window_s: float = 20.0
+    roll_fit_s: float = 10.0
+    v_up_high_mps: float = 0.6
+    knee_window_s: float = 6.0
+    sink_mps: float = 0.2
+    td_smooth_s: float = 0.5
+    td_accel_mps2: float = 0.2
+
+
+def _filled(grid: pd.DataFrame, name: str) -> np.ndarray | None:
+    if name not in grid.columns:
+        return None
+    v = pd.Series(grid[name].to_numpy(dtype=float))
+    if v.notna().sum() == 0:
+        return None
+    return v.interpolate(limit_direction="both").to_numpy()
+
+
+def _speed(grid: pd.DataFrame) -> tuple[np.ndarray, str]:
+    for name in ("tas_mps", "cas_mps", "ias_mps"):
+        v = _filled(grid, name)
+        if v is not None:
+            return v, name
+    raise ValidationError("phase detection needs an airspeed channel (tas_mps, cas_mps or "
+                          "ias_mps)")
+
+
+def _cumint(a: np.ndarray, dt: float) -> np.ndarray:
+    """Trapezoidal running integral, zero at the first sample."""
+    out = np.zeros(len(a))
+    if len(a) > 1:
+        out[1:] = np.cumsum(0.5 * (a[1:] + a[:-1])) * dt
+    return out
+
+
+def _liftoff(t, dt, speed, baro, a_up, s: PhaseSettings, rep: list) -> tuple[float, int, int]:
+    """Lift-off time, its index and the index where the fast ground run starts (or NaN, -1)."""
+    fast = np.flatnonzero(speed >= s.airborne_speed_mps)
+    if len(fast) == 0:
+        rep.append(report_entry("phases", "no_liftoff", "airspeed never reaches "
+                                f"{s.airborne_speed_mps:g} m/s", count=0))
+        return float("nan"), -1, -1
+    i_fast = int(fast[0])
+    ng = max(int(round(s.ground_window_s / dt)), 1)
+    i_b0 = max(i_fast - ng, 0)
+    h_dep = float(np.median(baro[i_b0:i_fast + 1]))
+    high = np.flatnonzero((baro[i_fast:] - h_dep) > s.airborne_height_m)
+    if len(high) == 0:
+        rep.append(report_entry("phases", "no_liftoff", f"pressure altitude never "
+                                f"{s.airborne_height_m:g} m above field level after the "
+                                "take-off run (rejected take-off or ground run only)", count=0))
+        return float("nan"), -1, i_fast
+    i_air = i_fast + int(high[0])
+    bias = float(np.mean(a_up[i_b0:i_fast + 1]))
+    v = _cumint(a_up[i_fast:i_air + 1] - bias, dt)
+    tt = t[i_fast:i_air + 1]
+    below = np.flatnonzero(v < s.v_up_high_mps)
+    i_hi = int(below[-1]) + 1 if len(below) else 0
+    # remove a linear drift fitted on the ground part (up to 2 s before the climb is certain)
+    i_g = max(i_hi - int(round(2.0 / dt)), 0)
+    if i_g >= 10:
+        coef = np.polyfit(tt[:i_g] - tt[0], v[:i_g], 1)
+        v = v - np.polyval(coef, tt - tt[0])
+    below_hi = np.flatnonzero(v < s.v_up_high_mps)
+    if len(below_hi) == 0 or below_hi[-1] + 1 >= len(v):
+        t_lo = float(tt[0])
+        method = "start of the fast ground run (vertical speed never crosses the threshold)"
+    else:
+        j_hi = int(below_hi[-1]) + 1  # first sample of the final climb above the threshold
+        j_w = max(j_hi - int(round(s.knee_window_s / dt)), 0)
+        seg_t, seg_v = tt[j_w:j_hi + 1], v[j_w:j_hi + 1]
+        chord = seg_v[0] + (seg_v[-1] - seg_v[0]) * (seg_t - seg_t[0]) / max(seg_t[-1] - seg_t[0],
+                                                                            dt)
+        t_lo = float(seg_t[int(np.argmax(chord - seg_v))])
+        method = (f"vertical speed from the loads: knee (largest distance below the chord) in the "
+                  f"{s.knee_window_s:g} s before it exceeds {s.v_up_high_mps:g} m/s")
+    i_lo = int(np.clip(np.searchsorted(t, t_lo), 0, len(t) - 1))
+    rep.append(report_entry("phases", "liftoff", method, count=1, t_s=[t_lo],
+                            field_pressure_alt_m=h_dep))
+    return t_lo, i_lo, i_fast
+
+
+def _touchdown(t, dt, speed, baro, a_up, i_from: int, s: PhaseSettings, rep: list) -> float:
+    """Touchdown time (module docstring) or NaN."""
+    fast = np.flatnonzero(speed[i_from:] >= s.airborne_speed_mps)
+    if len(fast) == 0:
+        return float("nan")
+    i_slow = i_from + int(fast[-1])
+    ng = max(int(round(s.ground_window_s / dt)), 1)
+    i_b1 = min(i_slow + ng, len(t) - 1)
+    h_arr = float(np.median(baro[i_slow:i_b1 + 1]))
+    high = np.flatnonzero((baro[i_from:i_slow + 1] - h_arr) > s.airborne_height_m)
+    if len(high) == 0:
+        rep.append(report_entry("phases", "no_touchdown", "no airborne stretch before the "
+                                "landing run", count=0))
+        return float("nan")
+    i_low = i_from + int(high[-1])
+    seg = a_up[i_low:i_slow + 1]
+    tt = t[i_low:i_slow + 1]
+    k = max(int(round(s.td_smooth_s / dt)), 1)
+    a_s = pd.Series(seg).rolling(k, center=True, min_periods=1).mean().to_numpy()
+    # quiet level and noise of the smoothed vertical acceleration on the fast ground run
+    n_g = max(int(round(s.ground_window_s / dt)), 3)
+    ground = a_s[-n_g:]
+    base = float(np.median(ground))
+    noise = 1.4826 * float(np.median(np.abs(ground - base)))
+    thr = max(s.td_accel_mps2, 5.0 * noise)
+    exc = np.flatnonzero(a_s - base > thr)
+    if len(exc) and exc[-1] + 1 < len(a_s):
+        j_end = int(exc[-1])
+        gaps = np.flatnonzero(np.diff(exc) > 1)
+        j_start = int(exc[gaps[-1] + 1]) if len(gaps) else int(exc[0])
+        peak = float(np.max(a_s[j_start:j_end + 1]) - base)
+        below = np.flatnonzero(a_s[j_end:] - base < 0.5 * peak)
+        j = max(j_end + int(below[0]) if len(below) else j_end, 1)
+        y0, y1 = a_s[j - 1] - base, a_s[j] - base
+        t_td = float(tt[j - 1] + (y0 - 0.5 * peak) / (y0 - y1) * dt) if y0 != y1 else float(tt[j])
+        method = (f"end (falling half-maximum) of the last excursion of the vertical acceleration "
+                  f"above {thr:.3g} m/s^2 before the quiet landing run: the sink rate arrested")
+    else:
+        above = np.flatnonzero(baro[i_low:i_slow + 1] - h_arr > 2.0)
+        t_td = float(tt[int(above[-1])]) if len(above) else float(tt[0])
+        method = "last time the pressure altitude is 2 m above field level (fallback)"
+    rep.append(report_entry("phases", "touchdown", method, count=1, t_s=[t_td],
+                            field_pressure_alt_m=h_arr))
+    return t_td
+
+
+def _liftoff_velocity(grid, t, dt, i_lo, i_fast, a_ned, s: PhaseSettings, rep: list
+                      ) -> tuple[float, float, float]:
+    tas = _filled(grid, "tas_mps")
+    hdg = _filled(grid, "heading_deg")
+    if tas is None or hdg is None or i_lo <= 0:
+        return _NAN3
+    i0 = max(i_lo - int(round(s.roll_fit_s / dt)), i_fast, 0)
+    if i_lo - i0 < 2:
+        i0 = max(i_lo - 2, 0)
+    psi = np.radians(float(np.mean(hdg[i0:i_lo + 1])))
+    a_along = a_ned[i0:i_lo + 1, 0] * np.cos(psi) + a_ned[i0:i_lo + 1, 1] * np.sin(psi)
+    A = _cumint(a_along, dt)
+    c = float(np.mean(tas[i0:i_lo + 1] - A))
+    v_air = c + A[-1]
+    ws, wf = _filled(grid, "wind_speed_mps"), _filled(grid, "wind_from_deg")
+    if ws is not None and wf is not None:
+        head = float(np.mean(ws[i0:i_lo + 1] * np.cos(np.radians(wf[i0:i_lo + 1]) - psi)))
+        why = "airspeed fitted with the along-runway acceleration, minus the headwind"
+    else:
+        head = 0.0
+        why = "airspeed fitted with the along-runway acceleration; wind unmodelled (no wind channel)"
+    vg = v_air - head
+    vel = (float(vg * np.cos(psi)), float(vg * np.sin(psi)), 0.0)
+    rep.append(report_entry("phases", "liftoff_velocity", why, count=i_lo + 1 - i0,
+                            runway_heading_deg=float(np.degrees(psi) % 360.0),
+                            headwind_mps=head, ground_speed_mps=float(vg)))
+    return vel
+
+
+def detect_phases_with_report(grid: pd.DataFrame, settings: PhaseSettings = PhaseSettings(), *,
+                              lat_deg: float = 45.0) -> tuple[FlightPhases, list[dict]]:
+    """Detect lift-off and touchdown (module docstring); also return the report entries.
+
+    Parameters
+    ----------
+    grid : DataFrame
+        The cleaned uniform grid (:attr:`flightrecon.types.CleanFlight.grid`): ``t_s``,
+        an airspeed, ``baro_alt_m``, load factors and attitude.
+    settings : PhaseSettings
+    lat_deg : float
+        Latitude for normal gravity (the departure airfield's where known).
+
+    Raises
+    ------
+    ValidationError
+        Fewer than two grid points, a non-uniform grid, or no airspeed / pressure altitude.
+    """
+    rep: list[dict] = []
+    t = grid["t_s"].to_numpy(dtype=float) if "t_s" in grid.columns else np.empty(0)
+    if len(t) < 2:
+        raise ValidationError("phase detection needs at least two grid points")
+    d = np.diff(t)
+    dt = float(np.median(d))
+    if not dt > 0 or np.max(np.abs(d - dt)) > 1e-6 * max(dt, 1.0):
+        raise ValidationError("phase detection needs a uniform grid")
+    speed, _ = _speed(grid)
+    baro = _filled(grid, "baro_alt_m")
+    if baro is None:
+        raise ValidationError("phase detection needs baro_alt_m")
+    n1 = max(int(round(1.0 / dt)), 1)
+    starts_air = bool(np.median(speed[:n1]) >= settings.airborne_speed_mps)
+    ends_air = bool(np.median(speed[-n1:]) >= settings.airborne_speed_mps)
+    cols = [_filled(grid, c) for c in _LOAD_CHANNELS]
+    if any(c is None for c in cols):
+        raise ValidationError("phase detection needs load factors and attitude")
+    a_ned = kinematic_acceleration_ned(*cols, lat_deg=lat_deg, h_m=baro)
+    a_up = -a_ned[:, 2]
+    t_lo, i_lo, i_fast, vel = float("nan"), -1, -1, _NAN3
+    if not starts_air:
+        t_lo, i_lo, i_fast = _liftoff(t, dt, speed, baro, a_up, settings, rep)
+        if np.isfinite(t_lo):
+            vel = _liftoff_velocity(grid, t, dt, i_lo, i_fast, a_ned, settings, rep)
+    t_td = float("nan")
+    if not ends_air and (starts_air or np.isfinite(t_lo)):
+        t_td = _touchdown(t, dt, speed, baro, a_up, max(i_lo, 0), settings, rep)
+    if starts_air:
+        rep.append(report_entry("phases", "starts_airborne", "airspeed over the first second "
+                                f">= {settings.airborne_speed_mps:g} m/s", count=1))
+    if ends_air:
+        rep.append(report_entry("phases", "ends_airborne", "airspeed over the last second "
+                                f">= {settings.airborne_speed_mps:g} m/s", count=1))
+    return FlightPhases(liftoff_t_s=t_lo, touchdown_t_s=t_td, starts_airborne=starts_air,
+                        ends_airborne=ends_air, liftoff_velocity_ned_mps=vel), rep
+
+
+def detect_phases(grid: pd.DataFrame, settings: PhaseSettings = PhaseSettings(), *,
+                  lat_deg: float = 45.0) -> FlightPhases:
+    """Lift-off and touchdown (:func:`detect_phases_with_report` without the report)."""
+    return detect_phases_with_report(grid, settings, lat_deg=lat_deg)[0]

@@ -1,0 +1,114 @@
+"""``clean_flight``: from a validated :class:`~flightrecon.types.Flight` to a
+:class:`~flightrecon.types.CleanFlight`.
+
+Order: resolve time stamps -> unwrap angles -> despike input channels -> bring inputs onto the
+uniform grid (short gaps bridged, long gaps flagged, anti-alias on downsampling) -> measurement
+tables at their own (clock-offset) times -> phase detection.  ``docs/signals.md`` documents each
+rule and its numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.cleaning.despike import DespikeSettings
+from flightrecon.cleaning.phases import PhaseSettings, detect_phases_with_report
+from flightrecon.cleaning.report import report_entry
+from flightrecon.cleaning.resample import resample_inputs
+from flightrecon.cleaning.steps import (
+    Despike,
+    ResolveTimestamps,
+    UnwrapAngles,
+    run_steps,
+)
+from flightrecon.cleaning.timebase import check_clock_offsets, measurement_table
+from flightrecon.errors import FlightReconError, ValidationError
+from flightrecon.schema import GROUPS
+from flightrecon.types import CleanFlight, Flight
+
+__all__ = ["CleaningSettings", "clean_flight"]
+
+
+@dataclass(frozen=True)
+class CleaningSettings:
+    """Settings of :func:`clean_flight`.
+
+    Attributes
+    ----------
+    max_gap_s : longest gap between samples of an input channel that is interpolated [s]
+    despike : despiking parameters (``None`` switches despiking off)
+    clock_offsets_s : seconds added to the sample times of a measurement group
+        (``{"gnss": 0.0, "radar": 0.0}``)
+    phases : phase-detector thresholds (``None`` skips phase detection)
+    """
+
+    max_gap_s: float = 2.0
+    despike: DespikeSettings | None = field(default_factory=DespikeSettings)
+    clock_offsets_s: dict[str, float] = field(default_factory=lambda: {"gnss": 0.0, "radar": 0.0})
+    phases: PhaseSettings | None = field(default_factory=PhaseSettings)
+
+
+def clean_flight(flight: Flight, *, rate_hz: float | None = None,
+                 settings: CleaningSettings = CleaningSettings()) -> CleanFlight:
+    """Clean a flight and bring its input channels onto one grid.
+
+    Parameters
+    ----------
+    flight : Flight
+        Validated canonical log (not modified).
+    rate_hz : float, optional
+        Grid rate [Hz]; default: the fastest input channel's rate.
+    settings : CleaningSettings
+
+    Returns
+    -------
+    CleanFlight
+        ``grid`` (``t_s``, each input channel and ``<channel>_valid``; angles unwrapped),
+        ``gnss`` / ``radar`` (one row per fix / plot at its own time, ``t_s`` first), the report
+        and the phases (METHODS.md, "Two kinds of channel").  ``phases`` is ``None`` when
+        phase detection is switched off or impossible on this data (no airspeed, no pressure
+        altitude, no loads or attitude); the report then says why (``not_detected``).
+
+    Raises
+    ------
+    ValidationError
+        Bad settings, no input channel, non-finite time stamps, or a grid that would exceed
+        50 million points.
+    """
+    if not isinstance(flight, Flight):
+        raise ValidationError("clean_flight expects a flightrecon.types.Flight")
+    if not (np.isfinite(settings.max_gap_s) and settings.max_gap_s >= 0.0):
+        raise ValidationError(f"max_gap_s must be a non-negative number, got {settings.max_gap_s}")
+    offsets = check_clock_offsets(settings.clock_offsets_s)
+    data = flight.data
+    if not isinstance(data, pd.DataFrame):
+        raise ValidationError("flight.data must be a pandas DataFrame")
+    steps: list = [ResolveTimestamps(), UnwrapAngles()]
+    if settings.despike is not None:
+        steps.append(Despike(settings.despike))
+    try:
+        work, report = run_steps(data, steps)
+    except (TypeError, ValueError) as exc:  # non-numeric channel content
+        raise ValidationError(f"cannot clean the log: {exc}") from exc
+    grid, rate, rep = resample_inputs(work, rate_hz, settings.max_gap_s)
+    report.extend(rep)
+    tables = {}
+    for g in GROUPS:
+        off = offsets.get(g, 0.0)
+        tables[g] = measurement_table(work, g, off)
+        if off != 0.0 and len(tables[g]):
+            report.append(report_entry(g, "clock_offset", f"{off:+g} s added to the {g} times",
+                                       count=len(tables[g]), offset_s=off))
+    phases = None
+    if settings.phases is not None:
+        lat = flight.meta.departure.lat_deg if flight.meta.departure is not None else 45.0
+        try:
+            phases, rep = detect_phases_with_report(grid, settings.phases, lat_deg=lat)
+        except FlightReconError as exc:
+            rep = [report_entry("phases", "not_detected", str(exc), count=0)]
+        report.extend(rep)
+    return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
+                       meta=flight.meta, report=tuple(report), phases=phases)

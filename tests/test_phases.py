@@ -1,0 +1,109 @@
+"""Flight-phase detection (flightrecon.cleaning.phases): lift-off and touchdown within 1 s."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_cleaning_synth import LIFTOFF_S, TD_S, synthetic_flight
+
+from flightrecon.cleaning import clean_flight, detect_phases
+from flightrecon.errors import ValidationError
+from flightrecon.types import Flight
+
+# Acceptance tolerance of the issue: lift-off and touchdown within 1 s of the truth.
+TOL_S = 1.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_liftoff_touchdown_synthetic(seed):
+    flight, _ = synthetic_flight(seed)
+    ph = clean_flight(flight).phases
+    assert abs(ph.liftoff_t_s - LIFTOFF_S) < TOL_S
+    assert abs(ph.touchdown_t_s - TD_S) < TOL_S
+    assert not ph.starts_airborne and not ph.ends_airborne
+
+
+def test_liftoff_velocity_with_wind_channel():
+    """Ground speed at lift-off (70 m/s along 020) from airspeed minus the recorded headwind.
+    Airspeed noise is 0.3 m/s per 8 Hz sample, averaged over the 10 s fit: 0.5 m/s is ~10 sigma
+    of the fit yet far below the 6 m/s wind that would be missed without the wind channel."""
+    flight, _ = synthetic_flight(4, wind_ne=(-6.0, 2.0), wind_channel=True)
+    clean = clean_flight(flight)
+    v = np.array(clean.phases.liftoff_velocity_ned_mps)
+    truth = 70.0 * np.array([np.cos(np.radians(20.0)), np.sin(np.radians(20.0)), 0.0])
+    np.testing.assert_allclose(v, truth, atol=0.5)
+    entry = [r for r in clean.report if r["action"] == "liftoff_velocity"][0]
+    assert "headwind" in entry["why"]
+
+
+def test_wind_unmodelled_is_reported():
+    flight, _ = synthetic_flight(4, wind_ne=(-6.0, 2.0), wind_channel=False)
+    clean = clean_flight(flight)
+    entry = [r for r in clean.report if r["action"] == "liftoff_velocity"][0]
+    assert "wind unmodelled" in entry["why"]
+
+
+def test_record_cut_in_the_air():
+    flight, _ = synthetic_flight(5)
+    d = flight.data
+    cut = d[(d["t_s"] >= 150.0) & (d["t_s"] <= 400.0)].reset_index(drop=True)
+    ph = clean_flight(Flight(cut, flight.meta)).phases
+    assert ph.starts_airborne and ph.ends_airborne
+    assert np.isnan(ph.liftoff_t_s) and np.isnan(ph.touchdown_t_s)
+    assert all(np.isnan(ph.liftoff_velocity_ned_mps))
+    # starts in the air, ends on the ground: touchdown only
+    late = d[d["t_s"] >= 150.0].reset_index(drop=True)
+    ph = clean_flight(Flight(late, flight.meta)).phases
+    assert ph.starts_airborne and not ph.ends_airborne
+    assert np.isnan(ph.liftoff_t_s) and abs(ph.touchdown_t_s - TD_S) < TOL_S
+
+
+def test_ground_only_record_has_no_phases():
+    flight, _ = synthetic_flight(6)
+    d = flight.data
+    ground = d[d["t_s"] <= 50.0].reset_index(drop=True)  # taxi and the start of the roll
+    clean = clean_flight(Flight(ground, flight.meta))
+    ph = clean.phases
+    assert not ph.starts_airborne and np.isnan(ph.liftoff_t_s) and np.isnan(ph.touchdown_t_s)
+    assert any(r["action"] == "no_liftoff" for r in clean.report)
+
+
+def test_bad_grid_rejected():
+    with pytest.raises(ValidationError):
+        detect_phases(pd.DataFrame({"t_s": [0.0]}))
+    with pytest.raises(ValidationError):
+        detect_phases(pd.DataFrame({"t_s": [0.0, 1.0, 3.0], "tas_mps": [1.0, 2.0, 3.0],
+                                    "baro_alt_m": [0.0, 0.0, 0.0]}))
+
+
+SIM_SCENARIOS = [("circuit", 0), ("circuit", 1), ("regional", 0), ("landing", 0)]
+
+
+def _sim():
+    try:
+        from flightrecon.sim import simulate
+    except ImportError:  # the simulator is written in parallel; absent in early checkouts
+        pytest.skip("flightrecon.sim is not available")
+    return simulate
+
+
+@pytest.mark.parametrize("scenario,seed", SIM_SCENARIOS)
+def test_liftoff_touchdown_simulated(scenario, seed):
+    """Acceptance on the project's simulator: truth ``on_ground`` transitions within 1 s."""
+    simulate = _sim()
+    res = simulate(scenario, seed)
+    tr = res.truth
+    og = tr["on_ground"].to_numpy().astype(bool)
+    t = tr["t_s"].to_numpy()
+    ups = t[np.flatnonzero(og[:-1] & ~og[1:]) + 1]
+    downs = t[np.flatnonzero(~og[:-1] & og[1:]) + 1]
+    ph = clean_flight(Flight(res.log, res.meta)).phases
+    if len(ups):
+        assert abs(ph.liftoff_t_s - ups[0]) < TOL_S
+        assert not ph.starts_airborne
+    else:
+        assert ph.starts_airborne and np.isnan(ph.liftoff_t_s)
+    if len(downs):
+        assert abs(ph.touchdown_t_s - downs[-1]) < TOL_S
+        assert not ph.ends_airborne
+    else:
+        assert ph.ends_airborne and np.isnan(ph.touchdown_t_s)
