@@ -113,7 +113,7 @@ def main() -> None:
              "RMS fleet mean [m] | RMS own k [m] | RMS dead reckoning [m] | reported sd (fleet) [m] |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        ko = ", ".join(f"{x:.3g}" for x in r["k_own"])
+        ko = ", ".join("-" if x is None else f"{x:.3g}" for x in r["k_own"])
         kf = ", ".join(f"{x:.3g}" for x in r["k_fleet"])
         lines.append(f"| {r['aircraft']} | {r['flight']} | {ko} ({r['converged_own']}) | {kf} "
                      f"({', '.join(map(str, r['n_fleet']))}) | {r['rms_fleet_mean_m']:.0f} | "
