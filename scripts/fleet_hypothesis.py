@@ -34,7 +34,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from flightrecon.cleaning import clean_flight  # noqa: E402
+from flightrecon.cleaning import clean_flight
+from flightrecon.fusion.baselines import dead_reckoning  # noqa: E402
 from flightrecon.fusion.method import run_sabziev  # noqa: E402
 from flightrecon.sim import simulate_fleet  # noqa: E402
 from flightrecon.store import CoefficientStore, from_sabziev_summary  # noqa: E402
@@ -50,21 +51,6 @@ def horizontal_rms(track: pd.DataFrame, prefix: str, truth: pd.DataFrame) -> flo
     e = np.hypot(m[f"{prefix}north_m"].to_numpy() - tr["north_m"].to_numpy(),
                  m[f"{prefix}east_m"].to_numpy() - tr["east_m"].to_numpy())
     return float(np.sqrt(np.nanmean(e ** 2)))
-
-
-def dead_reckoning(clean) -> pd.DataFrame:
-    g = clean.grid
-    t = g["t_s"].to_numpy()
-    ph = clean.phases
-    a, b = np.searchsorted(t, [ph.liftoff_t_s, ph.touchdown_t_s])
-    psi = np.radians(g["heading_deg"].to_numpy())
-    tas = g["tas_mps"].to_numpy()
-    dt = np.diff(t, prepend=t[0])
-    n = np.full(len(t), np.nan)
-    e = np.full(len(t), np.nan)
-    n[a:b] = np.cumsum((tas * np.cos(psi) * dt)[a:b])
-    e[a:b] = np.cumsum((tas * np.sin(psi) * dt)[a:b])
-    return pd.DataFrame({"t_s": t, "north_m": n, "east_m": e})
 
 
 def main() -> None:

@@ -34,9 +34,9 @@ import pandas as pd
 from scipy import stats
 
 from flightrecon.cleaning import clean_flight
+from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.filters.joint import JointNoise, JointSettings
 from flightrecon.filters.joint_method import run_joint
-from flightrecon.geo.frames import output_plane
 from flightrecon.pipeline import ReconstructSettings, run_method
 from flightrecon.sim import simulate
 from flightrecon.types import Flight
@@ -66,30 +66,6 @@ def corrupt_gnss(log: pd.DataFrame, t0: float = 300.0, length: float = 60.0,
     sel = (log["t_s"] >= t0) & (log["t_s"] < t0 + length) & log["gnss_lat_deg"].notna()
     log.loc[sel, "gnss_lat_deg"] += north_m / 111_000.0
     return log
-
-
-def dead_reckoning(clean, corrected: bool) -> pd.DataFrame:
-    """Airspeed-heading dead reckoning from the departure point, lift-off to touchdown;
-    with ``corrected`` a linear-in-time correction makes it end at the arrival point."""
-    g = clean.grid
-    t = g["t_s"].to_numpy()
-    ph = clean.phases
-    a, b = np.searchsorted(t, [ph.liftoff_t_s, ph.touchdown_t_s])
-    psi = np.radians(g["heading_deg"].to_numpy())
-    tas = g["tas_mps"].to_numpy()
-    dt = np.diff(t, prepend=t[0])
-    n = np.full(len(t), np.nan)
-    e = np.full(len(t), np.nan)
-    n[a:b] = np.cumsum((tas * np.cos(psi) * dt)[a:b])
-    e[a:b] = np.cumsum((tas * np.sin(psi) * dt)[a:b])
-    if corrected:
-        plane = output_plane(clean.meta)
-        arr = clean.meta.arrival
-        ea, na, _ = plane.forward(arr.lat_deg, arr.lon_deg, arr.elev_m)
-        frac = (t[a:b] - t[a]) / (t[b - 1] - t[a])
-        n[a:b] += frac * (float(na) - n[b - 1])
-        e[a:b] += frac * (float(ea) - e[b - 1])
-    return pd.DataFrame({"t_s": t, "north_m": n, "east_m": e})
 
 
 def noise_from_sensors(sensor_truth: dict) -> JointNoise:
@@ -168,8 +144,8 @@ def one_run(case: str, seed: int) -> dict:
         except Exception as exc:  # noqa: BLE001 - a comparison method failing is a result
             res[m] = {"error": f"{type(exc).__name__}: {exc}"}
     if case == "recorder":
-        res["dr"] = errors(dead_reckoning(clean, False), "", truth, airborne)
-        res["dr_linear"] = errors(dead_reckoning(clean, True), "", truth, airborne)
+        res["dr"] = errors(dead_reckoning(clean, corrected=False), "", truth, airborne)
+        res["dr_linear"] = errors(dead_reckoning(clean, corrected=True), "", truth, airborne)
     return res
 
 
