@@ -1,0 +1,415 @@
+"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (METHODS.md 4).
+
+:func:`run_sns` takes a :class:`flightrecon.types.CleanFlight` and returns a
+:class:`flightrecon.types.MethodResult` with the smoothed track on the recorder grid;
+:func:`solve_sns` returns everything (forward run, smoothed run, inputs) for diagnostics.
+
+Preparation (all vectorised):
+
+* model chosen from the channels: ``doppler_gs_mps`` and ``drift_deg`` present -> heading-Doppler,
+  else heading-airspeed with the wind channels (``wind_speed_mps``, ``wind_from_deg``, FROM:
+  the vector used blows toward ``wind_from + 180 deg``) or zero forecast wind;
+* the readings are held between recorder samples (zero-order hold) and integrated exactly
+  (cumulative integrals); the filter runs on every ``decimation``-th recorder sample (default:
+  about 2 Hz), each filter step using the exact integral of the held readings over the step;
+* GNSS fixes are used once each at their own time (the observation maps the state at the start of
+  the step to the fix time with the partial integral); the antenna is reduced to the centre of mass
+  with the lever arm: ``r_cm = r_ant - C_nb l`` and ``v_cm = v_ant - d(C_nb l)/dt``, the latter
+  from the attitude on the recorder grid (central differences), i.e. the rotation-rate term is
+  included;
+* the height for the metres-to-radians conversion is the GNSS height interpolated to the grid
+  (a scale factor only: 100 m of height error is 1.6e-5 of the distance flown).
+
+Output positions are in the output tangent plane at the departure airfield (north/east with the
+covariance rotated into the plane's axes); velocities are true north/east at the aircraft.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
+from flightrecon.filters import sns as core
+from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+from flightrecon.types import CleanFlight, MethodResult
+
+MODELS = {"airspeed": core.MODEL_AIRSPEED, "doppler": core.MODEL_DOPPLER}
+FORMS = {"consistent": core.FORM_CONSISTENT, "seed": core.FORM_SEED}
+GNSS_COLUMNS = ("t_s", "gnss_lat_deg", "gnss_lon_deg", "gnss_alt_m")
+
+
+@dataclass(frozen=True)
+class SnsSolution:
+    """Full result of :func:`solve_sns`.
+
+    ``idx`` are the recorder-grid indices of the filter points; ``fix_t`` the times of the fixes
+    used; ``lat``/``lon`` (rad), ``P_ne``, ``v_ne``, ``P_v`` the smoothed output on the grid.
+    """
+
+    model: int
+    form: int
+    noise: core.SnsNoise
+    inputs: core.StepInputs
+    run: core.SnsRun
+    smoothed: core.SnsSmoothed
+    idx: np.ndarray
+    fix_t: np.ndarray
+    n_fix_dropped: int
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    P_ne: np.ndarray
+    v_ne: np.ndarray
+    P_v: np.ndarray
+    notes: tuple[str, ...]
+
+
+def choose_model(grid: pd.DataFrame, model: str = "auto") -> int:
+    """The dead-reckoning model for ``model`` (``auto``, ``airspeed`` or ``doppler``).
+
+    Raises
+    ------
+    SchemaError
+        ``doppler`` asked without the Doppler channels, or an unknown model name.
+    """
+    has_doppler = all(c in grid.columns and np.isfinite(grid[c].to_numpy(float)).any()
+                      for c in ("doppler_gs_mps", "drift_deg"))
+    if model == "auto":
+        return core.MODEL_DOPPLER if has_doppler else core.MODEL_AIRSPEED
+    if model not in MODELS:
+        raise SchemaError(f"unknown SNS model '{model}': choose auto, airspeed or doppler")
+    if model == "doppler" and not has_doppler:
+        raise SchemaError("heading-Doppler model needs the doppler_gs_mps and drift_deg channels")
+    return MODELS[model]
+
+
+def _channel(grid: pd.DataFrame, name: str, notes: list[str], fill: float | None = None
+             ) -> np.ndarray:
+    """A grid channel as float array; NaN gaps filled by linear interpolation (noted)."""
+    if name not in grid.columns:
+        if fill is None:
+            raise SchemaError("the SNS method needs this channel", column=name)
+        return np.full(len(grid), fill)
+    x = grid[name].to_numpy(dtype=float).copy()
+    bad = ~np.isfinite(x)
+    if bad.all():
+        if fill is None:
+            raise ValidationError("channel has no valid sample", column=name)
+        notes.append(f"{name}: no valid sample, {fill} used")
+        return np.full(len(grid), fill)
+    if bad.any():
+        i = np.arange(len(x))
+        x[bad] = np.interp(i[bad], i[~bad], x[~bad])
+        notes.append(f"{name}: {int(bad.sum())} missing samples interpolated for dead reckoning")
+    return x
+
+
+def _readings(grid: pd.DataFrame, model: int, notes: list[str]):
+    """Per recorder sample: measured velocity vector a, its unit vector u, wind (toward) w."""
+    psi = np.deg2rad(_channel(grid, "heading_deg", notes))
+    if model == core.MODEL_DOPPLER:
+        gs = _channel(grid, "doppler_gs_mps", notes)
+        ang = psi + np.deg2rad(_channel(grid, "drift_deg", notes))
+        u = np.column_stack([np.cos(ang), np.sin(ang)])
+        return u * gs[:, None], u, np.zeros_like(u)
+    tas = _channel(grid, "tas_mps", notes)
+    u = np.column_stack([np.cos(psi), np.sin(psi)])
+    if "wind_speed_mps" in grid.columns and "wind_from_deg" in grid.columns:
+        ws = _channel(grid, "wind_speed_mps", notes, fill=0.0)
+        wf = np.deg2rad(_channel(grid, "wind_from_deg", notes, fill=0.0))
+        w = -ws[:, None] * np.column_stack([np.cos(wf), np.sin(wf)])
+    else:
+        notes.append("no wind channel: zero forecast wind, the wind correction is the whole wind")
+        w = np.zeros_like(u)
+    return u * tas[:, None], u, w
+
+
+def lever_arm_ne(grid: pd.DataFrame, lever_arm_m: tuple[float, float, float]) -> np.ndarray:
+    """North/east components (N, 2) of ``C_nb(heading, pitch, roll) l`` on the grid [m].
+
+    ZYX Euler rotation of the body (FRD) lever arm; roll and pitch zero where not recorded.
+    """
+    n = len(grid)
+    notes: list[str] = []
+    psi = np.deg2rad(_channel(grid, "heading_deg", notes))
+    th = np.deg2rad(_channel(grid, "pitch_deg", notes, fill=0.0))
+    ph = np.deg2rad(_channel(grid, "roll_deg", notes, fill=0.0))
+    l0, l1, l2 = (float(v) for v in lever_arm_m)
+    b1 = np.cos(ph) * l1 - np.sin(ph) * l2
+    b2 = np.sin(ph) * l1 + np.cos(ph) * l2
+    c0 = np.cos(th) * l0 + np.sin(th) * b2
+    c1 = b1
+    out = np.empty((n, 2))
+    out[:, 0] = np.cos(psi) * c0 - np.sin(psi) * c1
+    out[:, 1] = np.sin(psi) * c0 + np.cos(psi) * c1
+    return out
+
+
+def _cumulative(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Integral of the held (left zero-order hold) series ``v`` from ``t[0]`` to each ``t[j]``."""
+    out = np.zeros_like(v)
+    out[1:] = np.cumsum(v[:-1] * np.diff(t)[:, None], axis=0)
+    return out
+
+
+def _at(t: np.ndarray, cum: np.ndarray, v: np.ndarray, tq: np.ndarray) -> np.ndarray:
+    """Integral of the held series up to arbitrary times ``tq`` (within ``[t[0], t[-1]]``)."""
+    j = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
+    return cum[j] + v[j] * (tq - t[j])[:, None]
+
+
+def _gaps(t_fix: np.ndarray, t0: float, t1: float, min_gap_s: float) -> list[dict[str, float]]:
+    """GNSS gaps longer than ``min_gap_s`` (also before the first and after the last fix)."""
+    edges = np.concatenate([[t0], t_fix, [t1]])
+    dt = np.diff(edges)
+    out = []
+    for i in np.flatnonzero(dt > min_gap_s):
+        out.append({"start_s": float(edges[i]), "end_s": float(edges[i + 1]),
+                    "duration_s": float(dt[i])})
+    return out
+
+
+def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
+              filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None) -> SnsSolution:
+    """Filter and smooth a cleaned flight (see module docstring).
+
+    Parameters
+    ----------
+    clean : cleaned flight (grid with ``t_s``, ``tas_mps``, ``heading_deg``, ...; GNSS fixes)
+    model : ``auto``, ``airspeed`` or ``doppler``
+    form : ``consistent`` (correlated-noise terms) or ``seed`` (the paper's form)
+    filter_rate_hz : rate of the filter grid (every ``round(rate / filter_rate_hz)``-th recorder
+        sample, raised if two fixes of one step would fall in different recorder samples);
+        the answer does not depend on it beyond rounding and linearisation (sensor noise is
+        per recorder sample and split exactly between the steps and the fixes)
+    noise : :class:`flightrecon.filters.sns.SnsNoise` (default :func:`~sns.default_noise`)
+
+    Raises
+    ------
+    SchemaError, ValidationError, MetadataError
+        Missing channels, too few fixes, bad settings, no departure airfield.
+    ConvergenceError
+        A predicted covariance became singular (the smoother cannot proceed).
+    """
+    notes: list[str] = []
+    if form not in FORMS:
+        raise ValidationError(f"unknown SNS form '{form}': choose consistent or seed")
+    if not np.isfinite(filter_rate_hz) or filter_rate_hz <= 0:
+        raise ValidationError(f"filter_rate_hz must be positive, got {filter_rate_hz}")
+    output_plane(clean.meta)  # MetadataError early if there is no departure airfield
+    grid = clean.grid
+    if "t_s" not in grid.columns or len(grid) < 2:
+        raise SchemaError("the recorder grid needs t_s and at least two samples", column="t_s")
+    t = grid["t_s"].to_numpy(float)
+    if not np.all(np.diff(t) > 0):
+        raise ValidationError("grid times must increase strictly", column="t_s")
+    m = choose_model(grid, model)
+    fm = FORMS[form]
+    noise = noise or core.default_noise(m)
+
+    g = clean.gnss
+    for c in GNSS_COLUMNS:
+        if c not in g.columns:
+            raise SchemaError("the SNS method needs GNSS fixes with this column", column=c)
+    g = g[np.isfinite(g[list(GNSS_COLUMNS)].to_numpy(float)).all(axis=1)].sort_values("t_s")
+    inside = (g["t_s"] >= t[0]) & (g["t_s"] <= t[-1])
+    n_drop = int((~inside).sum())
+    g = g[inside]
+    if len(g) < 2:
+        raise ValidationError("fewer than two GNSS fixes inside the recorder grid")
+    tf = g["t_s"].to_numpy(float)
+    h_fix = g["gnss_alt_m"].to_numpy(float)
+    if clean.meta.gnss_alt_datum == "msl":
+        h_fix = msl_to_ellipsoid(h_fix, clean.meta.geoid_undulation_m)
+    h_grid = np.interp(t, tf, h_fix)
+
+    a, u, w = _readings(grid, m, notes)
+    IA, IU, IW = _cumulative(t, a), _cumulative(t, u), _cumulative(t, w)
+
+    # per-sample noise sums dt^2 [u u^T, (Ja)(Ja)^T, 1] for the summed errors of whole samples
+    dts = np.append(np.diff(t), 0.0)[:, None] ** 2
+    ja = np.column_stack([-a[:, 1], a[:, 0]])
+    qs = dts * np.column_stack([u[:, 0] ** 2, u[:, 0] * u[:, 1], u[:, 1] ** 2, ja[:, 0] ** 2,
+                                ja[:, 0] * ja[:, 1], ja[:, 1] ** 2, np.ones(len(t))])
+    CQ = np.vstack([np.zeros((1, 7)), np.cumsum(qs, axis=0)])  # CQ[j] = sum over samples < j
+
+    # filter grid: every dec-th sample, dec reduced until each step's fixes share one sample
+    jf = np.clip(np.searchsorted(t, tf, side="right") - 1, 0, len(t) - 1)
+    rate = 1.0 / np.median(np.diff(t))
+    dec = max(1, round(rate / filter_rate_hz))
+    while True:
+        idx = np.arange(0, len(t), dec)
+        if idx[-1] != len(t) - 1:
+            idx = np.append(idx, len(t) - 1)
+        tk = t[idx]
+        N = len(idx)
+        kf = np.clip(np.searchsorted(tk, tf, side="right") - 1, 0, N - 1)
+        same_step = kf[1:] == kf[:-1]
+        if dec == 1 or not np.any(same_step & (jf[1:] != jf[:-1])):
+            break
+        dec = max(1, dec // 2)
+    if dec != max(1, round(rate / filter_rate_hz)):
+        notes.append(f"filter grid raised to {rate / dec:.3g} Hz so that each step's GNSS fixes "
+                     "fall in one recorder sample")
+    A = np.zeros((N, 2))
+    U = np.zeros((N, 2))
+    W = np.zeros((N, 2))
+    A[:-1], U[:-1], W[:-1] = np.diff(IA[idx], axis=0), np.diff(IU[idx], axis=0), np.diff(
+        IW[idx], axis=0)
+    ks = np.arange(N)
+    fstart = np.searchsorted(kf, ks, side="left")
+    fend = np.searchsorted(kf, ks, side="right")
+    has = fend > fstart
+    jstar = np.where(has, jf[np.minimum(fstart, len(jf) - 1)], idx)
+    nxt = np.append(idx[1:], idx[-1])  # first sample of the next step
+    star = np.zeros((N, 3, 2))
+    star[has] = np.stack([a[jstar[has]], u[jstar[has]], w[jstar[has]]], axis=1)
+    dt_star = np.zeros(N)
+    inner = has & (jstar < nxt)
+    dt_star[inner] = t[np.minimum(jstar[inner] + 1, len(t) - 1)] - t[jstar[inner]]
+    Qb = np.where(has[:, None], CQ[jstar] - CQ[idx], CQ[nxt] - CQ[idx])
+    Qa = np.where(inner[:, None], CQ[nxt] - CQ[np.minimum(jstar + 1, len(t))], 0.0)
+
+    # fixes: centre of mass, step, partial integrals, held readings
+    arm = lever_arm_ne(grid, clean.meta.gnss_lever_arm_m)
+    darm = np.gradient(arm, t, axis=0)
+    arm_f = np.column_stack([np.interp(tf, t, arm[:, i]) for i in range(2)])
+    darm_f = np.column_stack([np.interp(tf, t, darm[:, i]) for i in range(2)])
+    lat_a = np.deg2rad(g["gnss_lat_deg"].to_numpy(float))
+    lon_a = np.deg2rad(g["gnss_lon_deg"].to_numpy(float))
+    mh, nh = _radii_np(lat_a, h_fix)
+    flat = lat_a - arm_f[:, 0] / mh
+    flon = lon_a - arm_f[:, 1] / (nh * np.cos(lat_a))
+    fv = np.full((len(tf), 2), np.nan)
+    for i, c in enumerate(("gnss_vn_mps", "gnss_ve_mps")):
+        if c in g.columns:
+            fv[:, i] = g[c].to_numpy(float) - darm_f[:, i]
+    inputs = core.StepInputs(
+        t=tk, h=h_grid[idx], A=A, U=U, W=W, fix_start=fstart, fix_end=fend,
+        fix_lat=flat, fix_lon=flon, fix_v=fv, fix_tau=tf - tk[kf],
+        fix_PA=_at(t, IA, a, tf) - IA[idx[kf]], fix_PU=_at(t, IU, u, tf) - IU[idx[kf]],
+        fix_PW=_at(t, IW, w, tf) - IW[idx[kf]],
+        fix_a=a[jf], fix_u=u[jf], fix_w=w[jf], star=star, dt_star=dt_star, Qb=Qb, Qa=Qa,
+        fix_tau_in=tf - t[jf])
+
+    # initial state: first fix moved back by the uncorrected dead reckoning
+    back = (_at(t, IA, a, tf[:1]) + _at(t, IW, w, tf[:1]) - IA[:1] - IW[:1])[0]
+    lat0, lon0 = core.boxplus(flat[0], flon[0], -back[0], -back[1], h_fix[0])
+    sd0 = 3.0 * noise.pos_sd_m + 0.1 * float(np.hypot(*back)) + 1.0
+    x0 = np.array([lat0, lon0, 0.0, 0.0, 0.0])
+    P0 = np.diag([sd0 ** 2, sd0 ** 2, *np.square(noise.prior_sd)])
+    try:
+        run = core.sns_filter(inputs, x0, P0, noise, model=m, form=fm)
+        sm = core.sns_smooth(run)
+    except np.linalg.LinAlgError as exc:
+        raise ConvergenceError(f"SNS filter/smoother failed: {exc} (a covariance became "
+                               "singular: check the noise settings)") from exc
+
+    kq = np.clip(np.searchsorted(idx, np.arange(len(t)), side="right") - 1, 0, N - 1)
+    lat, lon, P_ne, v_ne, P_v = core.densify(
+        m, sm.x, sm.P, kq, t, tk, (IA, IU, IW), (IA[idx], IU[idx], IW[idx]), h_grid, (a, u, w),
+        np.asarray(noise.sensor_sd, float))
+    if n_drop:
+        notes.append(f"{n_drop} GNSS fixes outside the recorder grid not used")
+    return SnsSolution(m, fm, noise, inputs, run, sm, idx, tf, n_drop, lat, lon, h_grid, P_ne,
+                       v_ne, P_v, tuple(notes))
+
+
+def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised twin of :func:`flightrecon.filters.sns.radii`."""
+    s = np.sin(lat)
+    wq = 1.0 - core._E2 * s * s
+    n = core._A / np.sqrt(wq)
+    return n * (1.0 - core._E2) / wq + h, n + h
+
+
+def plane_track(sol: SnsSolution, plane) -> dict[str, np.ndarray]:
+    """Positions and their standard deviations in the output tangent plane's axes.
+
+    The local north/east covariance is rotated by the angle between local north and the plane's
+    north at each point (meridian convergence), found through pyproj.
+    """
+    latd, lond = np.rad2deg(sol.lat), np.rad2deg(sol.lon)
+    e, n, _ = plane.forward(latd, lond, sol.h)
+    e1, n1, _ = plane.forward(latd + 1e-4, lond, sol.h)
+    gam = np.arctan2(e1 - e, n1 - n)
+    cg, sg = np.cos(gam), np.sin(gam)
+    R = np.empty((len(gam), 2, 2))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1] = cg, -sg, sg, cg
+    Pt = R @ sol.P_ne @ np.transpose(R, (0, 2, 1))
+    return {"north_m": n, "east_m": e, "north_sd_m": np.sqrt(Pt[:, 0, 0]),
+            "east_sd_m": np.sqrt(Pt[:, 1, 1])}
+
+
+def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
+    """Estimated corrections (true minus measured) with standard deviations at filter step k.
+
+    The smoothed estimate at the last step uses every fix.  Heading-Doppler also reports the
+    track-angle correction ``corr_c + corr_psi``, the combination the data determine.
+    """
+    x = sol.smoothed.x[k]
+    P = sol.smoothed.P[k]
+    sd = np.sqrt(np.diag(P))
+    deg = np.rad2deg
+    if sol.model == core.MODEL_AIRSPEED:
+        return {"heading_corr_deg": float(deg(x[4])), "heading_corr_sd_deg": float(deg(sd[4])),
+                "wind_corr_n_mps": float(x[2]), "wind_corr_n_sd_mps": float(sd[2]),
+                "wind_corr_e_mps": float(x[3]), "wind_corr_e_sd_mps": float(sd[3])}
+    track_sd = np.sqrt(P[3, 3] + P[4, 4] + 2 * P[3, 4])
+    return {"doppler_scale_corr": float(x[2]), "doppler_scale_corr_sd": float(sd[2]),
+            "drift_corr_deg": float(deg(x[3])), "drift_corr_sd_deg": float(deg(sd[3])),
+            "heading_corr_deg": float(deg(x[4])), "heading_corr_sd_deg": float(deg(sd[4])),
+            "track_corr_deg": float(deg(x[3] + x[4])), "track_corr_sd_deg": float(deg(track_sd))}
+
+
+def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
+            filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None) -> MethodResult:
+    """Dead reckoning fused with SNS, smoothed, on the recorder grid (METHODS.md section 4).
+
+    Parameters are those of :func:`solve_sns`.
+
+    Returns
+    -------
+    MethodResult
+        ``name="sns"``; track columns ``t_s``, ``sns_north_m``, ``sns_east_m`` (output tangent
+        plane), ``sns_north_sd_m``, ``sns_east_sd_m``, ``sns_vn_mps``, ``sns_ve_mps`` (true
+        north/east), ``sns_vn_sd_mps``, ``sns_ve_sd_mps``; summary with model, form, corrections
+        and their standard deviations, fixes used, GNSS gaps, innovation statistics.
+    """
+    sol = solve_sns(clean, model=model, form=form, filter_rate_hz=filter_rate_hz, noise=noise)
+    plane = output_plane(clean.meta)
+    tr = plane_track(sol, plane)
+    t = clean.grid["t_s"].to_numpy(float)
+    track = pd.DataFrame({
+        "t_s": t,
+        "sns_north_m": tr["north_m"], "sns_east_m": tr["east_m"],
+        "sns_north_sd_m": tr["north_sd_m"], "sns_east_sd_m": tr["east_sd_m"],
+        "sns_vn_mps": sol.v_ne[:, 0], "sns_ve_mps": sol.v_ne[:, 1],
+        "sns_vn_sd_mps": np.sqrt(sol.P_v[:, 0, 0]), "sns_ve_sd_mps": np.sqrt(sol.P_v[:, 1, 1]),
+    })
+    nis = sol.run.nis
+    ok = np.isfinite(nis)
+    dof = float(sol.run.rank[ok].sum())
+    nis_ratio = float(nis[ok].sum() / dof) if dof > 0 else float("nan")
+    finite = bool(np.isfinite(track.to_numpy()).all())
+    dt_fix = np.diff(sol.fix_t)
+    min_gap = 3.0 * float(np.median(dt_fix)) if len(dt_fix) else 0.0
+    summary: dict[str, Any] = {
+        "model": "doppler" if sol.model == core.MODEL_DOPPLER else "airspeed",
+        "form": form,
+        "filter_rate_hz": float(1.0 / np.median(np.diff(sol.inputs.t))),
+        "corrections": corrections_summary(sol),
+        "n_fixes_used": len(sol.fix_t),
+        "n_fixes_dropped": sol.n_fix_dropped,
+        "gaps": _gaps(sol.fix_t, float(t[0]), float(t[-1]), min_gap),
+        "nis_per_dof": nis_ratio,
+        "converged": finite,
+        # a mean NIS per degree of freedom far above 1 means the noise settings do not fit
+        "healthy": finite and bool(np.isfinite(nis_ratio) and nis_ratio < 10.0),
+        "notes": list(sol.notes),
+    }
+    return MethodResult(name="sns", track=track, summary=summary)
