@@ -90,3 +90,13 @@ def test_absurd_grid_refused():
     d = pd.DataFrame({"t_s": t, "n_norm_g": np.ones_like(t)})
     with pytest.raises(ValidationError):
         clean_flight(Flight(d, FlightMeta()))
+
+
+def test_same_row_from_two_files_is_a_plain_duplicate():
+    """Regression: ingest's bookkeeping columns (row, src_file) made a GNSS fix repeated in the
+    recorder file and the GNSS file look like a conflict instead of a duplicate."""
+    d = pd.DataFrame({"t_s": [0.0, 1.0, 1.0, 2.0], "tas_mps": [10.0, 11.0, 11.0, 12.0],
+                      "row": [1, 2, 1, 3], "src_file": [0, 0, 1, 0]})
+    out, rep = resolve_timestamps(d)
+    np.testing.assert_array_equal(out["t_s"], [0.0, 1.0, 2.0])
+    assert [r["action"] for r in rep] == ["drop_duplicate_rows"]

@@ -23,6 +23,10 @@ from flightrecon.cleaning.report import report_entry
 from flightrecon.errors import ValidationError
 from flightrecon.schema import GROUPS
 
+
+#: columns that say where a row came from, not what it measured (ingest adds them)
+BOOKKEEPING = ("row", "src_file")
+
 __all__ = [
     "CLOCK_SOURCES",
     "channel_samples",
@@ -99,8 +103,9 @@ def resolve_timestamps(data: pd.DataFrame) -> tuple[pd.DataFrame, list[dict]]:
     orig_rows = np.flatnonzero(keep)
     # identical repeats: dropped
     same_as_prev = np.zeros(len(out), dtype=bool)
-    # the bookkeeping column ``row`` (source-file row number) never makes rows different
-    vals = out.drop(columns=[c for c in ("t_s", "row") if c in out.columns])
+    # the bookkeeping columns ``row`` / ``src_file`` (where a row came from) never make rows
+    # different
+    vals = out.drop(columns=[c for c in ("t_s", *BOOKKEEPING) if c in out.columns])
     prev = vals.shift(1)
     eq = (vals == prev) | (vals.isna() & prev.isna())
     same_as_prev[1:] = (eq.all(axis=1).to_numpy() & dup)[1:]
@@ -116,7 +121,7 @@ def resolve_timestamps(data: pd.DataFrame) -> tuple[pd.DataFrame, list[dict]]:
         return out.copy(), report
     # conflicting or complementary rows sharing a time stamp: merge (first non-missing wins)
     grp = out.groupby("t_s", sort=False)
-    nunique = grp.nunique(dropna=True).drop(columns=["row"], errors="ignore")
+    nunique = grp.nunique(dropna=True).drop(columns=list(BOOKKEEPING), errors="ignore")
     sizes = grp.size()
     multi = sizes[sizes > 1].index
     for col in nunique.columns:
