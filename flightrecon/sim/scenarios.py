@@ -265,8 +265,12 @@ def _route_longhaul(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> Pla
     b.hold(90).turn(40, 2.0).hold(300)
     b.change_altitude(cruise, a.climb_rate_mps, wait=False)
     b.set_tas(a.cruise_tas_mps, wait=False)
+    # shorter flights (``duration_s``, for benchmarks of the growth with length) shorten the
+    # cruise legs; the last leg absorbs the rest of the exact duration
+    # (about 3200 s of the route is climb, descent and approach)
+    leg = 3000.0 if not cfg.duration_s else min(3000.0, max(30.0, (cfg.duration_s - 3400.0) / 8))
     for k, d in enumerate((20, -30, 15, -25, 30, -10, 20, -15)):
-        b.hold(3000 + (extra_s if k == 7 else 0.0)).turn(d, 1.0)
+        b.hold(leg + (extra_s if k == 7 else 0.0)).turn(d, 1.0)
     b.hold(600)
     b.change_altitude(1500.0, a.descent_rate_mps)
     b.set_tas(a.approach_tas_mps + 20.0, wait=True).turn(-50, 2.0).hold(60)
@@ -356,16 +360,20 @@ def build_plan(name: str, cfg: ScenarioConfig) -> tuple[FlightPlan, Atmosphere]:
         legs = _close_circuit(cfg, atm_, extra_)
         return lambda c, a, x: _route_circuit(c, a, x, legs)
 
+    target_s = sc.target_s
+    if name == "longhaul" and cfg.duration_s > 0.0:
+        target_s = cfg.duration_s - 1.0 / cfg.truth_rate_hz
+
     def absorb(t_natural: float) -> float:
         # the circuit waits lined up, the others fly a longer cruise leg; a circuit stretched
         # by a fleet's leg_scale and wind may simply last longer than its nominal 15 minutes
-        if sc.target_s <= 0.0:
+        if target_s <= 0.0:
             return 0.0
-        extra_ = sc.target_s - t_natural
+        extra_ = target_s - t_natural
         if extra_ < 0.0:
             if name == "circuit":
                 return 0.0
-            raise ValidationError(f"the {name} route is longer than its {sc.target_s} s")
+            raise ValidationError(f"the {name} route is longer than its {target_s} s")
         return extra_
 
     route = route_for(atm, 0.0)
