@@ -22,6 +22,8 @@ def _setup(rng):
     x[jk.IS] = 0.02
     x[jk.IBH] = 12.0
     x[jk.IC] = 0.03
+    x[jk.IDW] = 0.01
+    x[jk.IDC] = np.radians(0.4)
     st = (40.3, 49.7, 20.0)
     sx, sy, sz = geodetic_to_ecef(*st)
     pst = np.array([float(sx), float(sy), float(sz)])
@@ -30,7 +32,7 @@ def _setup(rng):
 
 
 @pytest.mark.parametrize("mtype", [jk.LINEAR, jk.RANGE, jk.AZIMUTH, jk.ELEVATION, jk.TAS,
-                                   jk.HEADING, jk.BARO])
+                                   jk.HEADING, jk.BARO, jk.DOPPLER, jk.TRACK])
 def test_measurement_jacobian_vs_central_differences(mtype):
     rng = np.random.default_rng(mtype)
     x, p, Cen, pst, Cst, h = _setup(rng)
@@ -61,7 +63,8 @@ def test_transition_propagates_held_acceleration():
     Cen2 = np.repeat(Cen, N, axis=0)
     Cnb = np.repeat(np.eye(3)[None], N, axis=0)
     acc = np.array([[0, 0, 0], [0.4, -0.2, 0.1]])
-    F = jk.transition(1, dt, Cen2, Cnb, acc, 3600.0)
+    Csf = np.zeros((N, 3, 3))
+    F = jk.transition(1, dt, Cen2, Cnb, Csf, acc, 3600.0)
     xn = F @ x
     np.testing.assert_allclose(xn[jk.IP:jk.IP + 3], x[jk.IP:jk.IP + 3] + Cen[0] @ x[3:6] * 0.25,
                                atol=1e-9)

@@ -31,7 +31,8 @@ from flightrecon.filters import joint_kernels as jk
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
-SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway")
+SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway",
+           "doppler", "wind")
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,7 @@ class JointNoise:
     accel_noise_mps2_sqrt_hz: float = 0.05   # velocity random walk from load-factor noise
     accel_bias_g: float = 0.003              # accelerometer bias, Gauss-Markov sigma
     accel_bias_tau_s: float = 3600.0
+    accel_scale: float = 0.005               # accelerometer scale errors, prior per axis
     wind_prior_mps: float = 15.0
     wind_rw_mps_sqrt_s: float = 0.05         # wind change with time
     wind_shear_mps_per_sqrt_m: float = 0.15  # wind change with altitude: sd over 1 m of climb
@@ -66,6 +68,11 @@ class JointNoise:
     endpoint_v_m: float = 30.0
     ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
     runway_halfwidth_m: float = 25.0         # cross-track offset from the runway centreline
+    doppler_gs_mps: float = 0.5              # Doppler ground-speed noise (used at airdata rate)
+    drift_deg: float = 0.3                   # drift-angle noise
+    doppler_scale: float = 0.02              # prior of the Doppler scale error
+    drift_bias_deg: float = 1.0              # prior of the drift-angle bias
+    wind_sensor_mps: float = 4.0             # recorded / forecast wind, per component
     init_pos_m: float = 3000.0
     init_vel_mps: float = 30.0
 
@@ -78,6 +85,7 @@ class JointSettings:
     state_rate_hz: float = 4.0
     airdata_rate_hz: float = 1.0
     baro_rate_hz: float = 1.0
+    wind_rate_hz: float = 1.0 / 1800.0       # recorded wind: errors correlated over ~15 min
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
     iterations: int = 4
@@ -152,6 +160,8 @@ class JointInputs:
     field_h : ellipsoidal height of the departure field (reference of baro_rel_m)
     lever_arm : GNSS antenna in body FRD [m]
     wind_ne : recorded wind (Ni, 2) where the air moves to, or None
+    doppler_gs, drift_rad : Doppler ground speed [m/s] and drift angle [rad] (Ni,), or None
+    f_body_g : measured specific force in body FRD axes [n_long, n_lat, -n_norm] (Ni, 3) [g]
     """
 
     t_in: np.ndarray
@@ -170,6 +180,9 @@ class JointInputs:
     field_h: float
     lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     wind_ne: np.ndarray | None = None
+    doppler_gs: np.ndarray | None = None
+    drift_rad: np.ndarray | None = None
+    f_body_g: np.ndarray | None = None
 
 
 def _state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -313,6 +326,22 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     keep = ok & _decimate_mask(t_in, settings.airdata_rate_hz)
     b.add("air", jk.TAS, t_in[keep], inp.tas[keep], nz.tas_mps ** 2)
     b.add("air", jk.HEADING, t_in[keep], inp.heading_rad[keep], np.radians(nz.heading_deg) ** 2)
+    # Doppler ground speed and drift (track = heading + drift), at the air-data rate
+    if inp.doppler_gs is not None:
+        okd = np.isfinite(inp.doppler_gs) & (inp.doppler_gs >= settings.min_airspeed_mps)
+        okd &= _decimate_mask(t_in, settings.airdata_rate_hz)
+        b.add("doppler", jk.DOPPLER, t_in[okd], inp.doppler_gs[okd], nz.doppler_gs_mps ** 2)
+        if inp.drift_rad is not None:
+            okc = okd & np.isfinite(inp.drift_rad) & np.isfinite(inp.heading_rad)
+            b.add("doppler", jk.TRACK, t_in[okc], inp.heading_rad[okc] + inp.drift_rad[okc],
+                  np.radians(nz.drift_deg) ** 2 + np.radians(nz.heading_deg) ** 2)
+    # recorded (or forecast) wind, sparsely: its errors are correlated over minutes
+    if inp.wind_ne is not None:
+        okw = np.isfinite(inp.wind_ne).all(axis=1) & _decimate_mask(t_in, settings.wind_rate_hz)
+        for i in range(2):
+            H = np.zeros((int(okw.sum()), n))
+            H[:, jk.IW + i] = 1.0
+            b.add("wind", jk.LINEAR, t_in[okw], inp.wind_ne[okw, i], nz.wind_sensor_mps ** 2, H)
     # pressure altitude
     okb = np.isfinite(inp.baro_rel_m) & _decimate_mask(t_in, settings.baro_rate_hz)
     b.add("baro", jk.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
@@ -416,6 +445,9 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     P0[jk.IS, jk.IS] = nz.tas_scale ** 2
     P0[jk.IBH, jk.IBH] = nz.baro_offset_m ** 2
     P0[jk.IC, jk.IC] = nz.baro_scale ** 2
+    P0[jk.IDW, jk.IDW] = nz.doppler_scale ** 2
+    P0[jk.IDC, jk.IDC] = np.radians(nz.drift_bias_deg) ** 2
+    P0[jk.IKS:jk.IKS + 3, jk.IKS:jk.IKS + 3] = np.eye(3) * nz.accel_scale ** 2
     return x0, P0
 
 
@@ -454,6 +486,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     dV, dP, miss = _increments(inp.t_in, inp.acc_ned, idx)
     acc = dV / np.where(dt > 0, dt, 1.0)[:, None]
     Cnb = _step_mean(inp.Cnb, idx, inp.t_in)
+    fb = np.zeros((len(inp.t_in), 3)) if inp.f_body_g is None else np.nan_to_num(inp.f_body_g)
+    Csf = np.ascontiguousarray(_step_mean(inp.Cnb * fb[:, None, :], idx, inp.t_in))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
     q = _q_vector(nz)
     lat, lon, h = _nominal_dead_reckoning(inp, idx)
@@ -484,12 +518,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps)
         tau = meas.t - T[meas.step]
         xf, Pf, xp, Pp, innov, innov_var, infl = jk.forward(
-            x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
+            x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.d, pnom, hnom, pst, Cst,
             settings.innovation_gate if settings.robust else 0.0)
         r_used = r * infl
         xs, Pblk, var, _, res, rate = jk.backward(
-            xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
+            xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
             meas.H, meas.d, pnom, hnom, pst, Cst)
         # residual in units of the measurement's own (nominal) standard deviation
         res_n = res / np.sqrt(r)

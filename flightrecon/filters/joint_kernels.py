@@ -10,6 +10,9 @@ State (n = 15), SI units::
     12    s      airspeed scale error: TAS_measured = (1 + s) TAS_true
     13    b_h    pressure-altitude offset [m]
     14    c      pressure-altitude scale: h_p - h_p,field = (1 + c)(h - h_field) + b_h
+    15    k_W    Doppler ground-speed scale error: W_measured = (1 + k_W) |v_horizontal|
+    16    dc     drift-angle bias [rad] (measured - true)
+    17:20 s_a    accelerometer scale errors, body axes: f_measured = (1 + s_a) f_true + b_a
 
 Propagation over one state step of length dt (inputs held between input samples)::
 
@@ -18,8 +21,9 @@ Propagation over one state step of length dt (inputs held between input samples)
     w+ = w + noise (random walk in time and in altitude)     over the step (exact for held inputs)
     b_a+ = exp(-dt/tau) b_a + noise
 
-with J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt] and J_p = J_v dt / 2: the heading bias rotates the
-measured horizontal acceleration, the bias adds through the attitude.  C_en (NED -> ECEF) is
+with J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt, -g0 C_nb diag(f) dt] and J_p = J_v dt / 2: the
+heading bias rotates the measured horizontal acceleration, the accelerometer bias and scale
+errors add through the attitude (f: measured specific force in body axes, in g).  C_en (NED -> ECEF) is
 evaluated on the nominal trajectory (Gauss-Newton linearisation, refreshed each iteration).
 
 Measurements are scalars processed one at a time at their own step, with ``tau`` = their time
@@ -30,6 +34,8 @@ minus the step's time (the state is carried to the measurement time by the veloc
 * ``TAS``: (1 + s) |v - w| (three-dimensional air velocity, vertical wind neglected)
 * ``HEADING``: atan2(v_E - w_E, v_N - w_N) + dpsi (innovation wrapped to (-pi, pi])
 * ``BARO``: (1 + c) (h_nom + up . (p - p_nom) - v_D tau) + b_h
+* ``DOPPLER``: (1 + k_W) |v_horizontal|
+* ``TRACK``: heading + drift as recorded = atan2(v_E, v_N) + dpsi + dc (innovation wrapped)
 """
 
 from __future__ import annotations
@@ -37,12 +43,12 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-N_STATE = 15
-IP, IV, IW, IBA, IPSI, IS, IBH, IC = 0, 3, 6, 8, 11, 12, 13, 14
+N_STATE = 20
+IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS = 0, 3, 6, 8, 11, 12, 13, 14, 15, 16, 17
 G0 = 9.80665
 
-LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO = 0, 1, 2, 3, 4, 5, 6
-ANGLE_TYPES = (AZIMUTH, ELEVATION, HEADING)
+LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO, DOPPLER, TRACK = 0, 1, 2, 3, 4, 5, 6, 7, 8
+ANGLE_TYPES = (AZIMUTH, ELEVATION, HEADING, TRACK)
 
 
 @nb.njit(cache=True)
@@ -51,8 +57,9 @@ def _wrap(a):
 
 
 @nb.njit(cache=True)
-def transition(k, dt, Cen, Cnb, acc, tau_ba):
-    """Transition matrix F_k from step k-1 to step k (k >= 1)."""
+def transition(k, dt, Cen, Cnb, Csf, acc, tau_ba):
+    """Transition matrix F_k from step k-1 to step k (k >= 1).  ``Csf[k]`` is the step mean of
+    C_nb diag(f_body) (the Jacobian of the acceleration in the accelerometer scale errors)."""
     n = N_STATE
     F = np.eye(n)
     h = dt[k]
@@ -66,8 +73,17 @@ def transition(k, dt, Cen, Cnb, acc, tau_ba):
         F[IV + i, IPSI] = gpsi[i] * h
         for j in range(3):
             F[IV + i, IBA + j] = Jb[i, j] * h
+    Js = -G0 * Csf[k]
+    for i in range(3):
+        for j in range(3):
+            F[IV + i, IKS + j] = Js[i, j] * h
     # position: C_en times the velocity terms times dt/2
     for i in range(3):
+        for j in range(3):
+            s_ks = 0.0
+            for m in range(3):
+                s_ks += C[i, m] * Js[m, j]
+            F[IP + i, IKS + j] = s_ks * h * h / 2.0
         s_psi = 0.0
         for m in range(3):
             s_psi += C[i, m] * gpsi[m]
@@ -184,6 +200,24 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
         H[IW + 1] = -an / v2
         H[IPSI] = 1.0
         return np.arctan2(ae, an) + x[IPSI], H
+    if t == DOPPLER:
+        vn = x[IV]
+        ve = x[IV + 1]
+        w = np.sqrt(vn * vn + ve * ve)
+        f = 1.0 + x[IDW]
+        H[IV] = f * vn / w
+        H[IV + 1] = f * ve / w
+        H[IDW] = w
+        return f * w, H
+    if t == TRACK:
+        vn = x[IV]
+        ve = x[IV + 1]
+        v2 = vn * vn + ve * ve
+        H[IV] = -ve / v2
+        H[IV + 1] = vn / v2
+        H[IPSI] = 1.0
+        H[IDC] = 1.0
+        return np.arctan2(ve, vn) + x[IPSI] + x[IDC], H
     # BARO
     base = hnom[k] - x[IV + 2] * tau
     for i in range(3):
@@ -198,7 +232,7 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
 
 
 @nb.njit(cache=True)
-def forward(x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw, mtau, mH,
+def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw, mtau, mH,
             md, pnom, hnom, pst, Cst, gate):
     """Forward extended Kalman filter with sequential scalar updates (Joseph form).
 
@@ -222,7 +256,7 @@ def forward(x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, mstart, mtype
     P = P0.copy()
     for k in range(N):
         if k > 0:
-            F = transition(k, dt, Cen, Cnb, acc, q[4])
+            F = transition(k, dt, Cen, Cnb, Csf, acc, q[4])
             Q = process_noise(k, dt, Cen, climb, qv_extra, q)
             x = F @ x
             for i in range(3):
@@ -239,7 +273,7 @@ def forward(x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, mstart, mtype
             hx, H = measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst)
             nu = mz[j] - hx
             t = mtype[j]
-            if t == AZIMUTH or t == ELEVATION or t == HEADING:
+            if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 nu = _wrap(nu)
             PH = P @ H
             r = mr[j] / mw[j]
@@ -263,7 +297,7 @@ def forward(x0, P0, dt, Cen, Cnb, acc, dP, dV, climb, qv_extra, q, mstart, mtype
 
 
 @nb.njit(cache=True)
-def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, mstart, mtype, mz, mr, mtau, mH, md, pnom,
+def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, mtau, mH, md, pnom,
              hnom, pst, Cst):
     """RTS backward pass; also the smoothed residual of every measurement, normalised by
     sqrt(R - H P_s H^T), and its rate dh/dtau (for clock-offset estimation).
@@ -282,7 +316,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, mstart, mtype, mz, mr, mtau, 
     Ps_next = Pf[N - 1].copy()
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            F = transition(k + 1, dt, Cen, Cnb, acc, q[4])
+            F = transition(k + 1, dt, Cen, Cnb, Csf, acc, q[4])
             A = F @ Pf[k]
             C = np.linalg.solve(Pp[k + 1], A).T
             xs[k] = xf[k] + C @ (xs[k + 1] - xp[k + 1])
@@ -299,7 +333,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, mstart, mtype, mz, mr, mtau, 
             hx, H = measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst)
             e = mz[j] - hx
             t = mtype[j]
-            if t == AZIMUTH or t == ELEVATION or t == HEADING:
+            if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 e = _wrap(e)
             v = mr[j] - H @ Pk @ H
             if v < 1e-3 * mr[j]:
@@ -315,7 +349,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, acc, q, mstart, mtype, mz, mr, mtau, 
                         s += mH[j, IP + i] * Cen[k, i, m]
                     rd += s * x[IV + m]
                 rate[j] = rd
-            elif t == TAS or t == HEADING:
+            elif t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
                 rate[j] = 0.0
             else:
                 rd = 0.0

@@ -93,7 +93,10 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         arrival=pos(meta.arrival),
         liftoff_t=float(ph.liftoff_t_s) if ph is not None else np.nan,
         touchdown_t=float(ph.touchdown_t_s) if ph is not None else np.nan,
-        field_h=field_h, lever_arm=tuple(meta.gnss_lever_arm_m), wind_ne=wind)
+        field_h=field_h, lever_arm=tuple(meta.gnss_lever_arm_m), wind_ne=wind,
+        doppler_gs=col("doppler_gs_mps") if "doppler_gs_mps" in g.columns else None,
+        drift_rad=np.radians(col("drift_deg")) if "drift_deg" in g.columns else None,
+        f_body_g=np.c_[col("n_long_g"), col("n_lat_g"), -col("n_norm_g")])
 
 
 def _provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.ndarray:
@@ -171,6 +174,11 @@ def _corrections(run: JointRun) -> dict[str, Any]:
         "accel_bias_x_g": item(jk.IBA, 1.0, "g (body forward, measured - true)"),
         "accel_bias_y_g": item(jk.IBA + 1, 1.0, "g (body right)"),
         "accel_bias_z_g": item(jk.IBA + 2, 1.0, "g (body down, of -n_norm)"),
+        "doppler_scale": item(jk.IDW, 1.0, "W_measured = (1 + k) W_true"),
+        "accel_scale_x": item(jk.IKS, 1.0, "f_measured = (1 + s) f_true + b, body forward"),
+        "accel_scale_y": item(jk.IKS + 1, 1.0, "body right"),
+        "accel_scale_z": item(jk.IKS + 2, 1.0, "body down"),
+        "drift_bias_deg": item(jk.IDC, np.degrees(1.0), "deg (measured - true)"),
     }
 
 
