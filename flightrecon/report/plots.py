@@ -180,13 +180,19 @@ def sensor_corrections(track: pd.DataFrame, summary: dict[str, Any],
                 items.append((f"{name}: {key}", float(val["value"]), float(val.get("sd") or np.nan)))
     if not items:
         return None
-    fig, ax = plt.subplots(figsize=(8, 0.5 * len(items) + 1.5))
-    y = np.arange(len(items))
-    ax.errorbar([v for _, v, _ in items], y, xerr=[2 * s for _, _, s in items], fmt="o", capsize=4)
-    ax.set_yticks(y, [k for k, _, _ in items])
-    ax.axvline(0, color="k", lw=0.5)
-    ax.grid(alpha=0.3)
-    ax.set_title("Estimated sensor corrections (bars: 2 sigma; units in the names)")
+    # one row per correction, each on its own scale (the units differ: deg, m, g, ratios)
+    fig, axes = plt.subplots(len(items), 1, figsize=(8, 0.55 * len(items) + 1.2), squeeze=False)
+    for ax, (name, v, sd) in zip(axes[:, 0], items):
+        ax.errorbar([v], [0], xerr=[2 * sd] if np.isfinite(sd) else None, fmt="o", capsize=4)
+        ax.axvline(0, color="k", lw=0.5)
+        half = max(abs(v) + 2.5 * (sd if np.isfinite(sd) else 0), 1e-12)
+        ax.set_xlim(-half, half)
+        ax.set_yticks([])
+        ax.set_ylabel(name, rotation=0, ha="right", va="center", fontsize=8)
+        ax.tick_params(axis="x", labelsize=7)
+        ax.text(0.99, 0.5, f"{v:.4g} +- {2 * sd:.2g}", transform=ax.transAxes, ha="right",
+                va="center", fontsize=7)
+    axes[0, 0].set_title("Estimated sensor corrections (bars: 2 sigma; units in the names)")
     fig.tight_layout()
     return fig
 
