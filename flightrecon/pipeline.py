@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon import __version__
-from flightrecon.errors import FlightReconError, MetadataError
+from flightrecon.errors import FlightReconError, FlightReconWarning, MetadataError
 from flightrecon.types import CleanFlight, Flight, MethodResult
 
 SUMMARY_SCHEMA_VERSION = 1
@@ -412,6 +412,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     Reconstruction
     """
     from flightrecon.cleaning import clean_flight
+    from flightrecon.cleaning.plausibility import plausibility_checks
     from flightrecon.ingest import load_flight
 
     def stage(name: str) -> None:
@@ -428,11 +429,20 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
             settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id)
         stage("cleaning")
         clean = clean_flight(flight, rate_hz=settings.rate_hz)
+        stage("plausibility")
+        findings = plausibility_checks(clean)
+        for f in findings:
+            warnings.warn(f"{f['check']}: {f['message']}"
+                          + (f" (t = {f['spans_s'][0][0]:.0f}..{f['spans_s'][0][1]:.0f} s"
+                             + (f" and {len(f['spans_s']) - 1} more" if len(f['spans_s']) > 1
+                                else "") + ")" if f["spans_s"] else ""),
+                          FlightReconWarning, stacklevel=2)
         track, results, status = reconstruct_clean(clean, settings, progress=stage)
     warn_list = list(flight.warnings) + [str(w.message) for w in caught
                                          if str(w.message) not in flight.warnings]
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
+    summary["plausibility"] = findings
     if fleet is not None:
         summary["fleet_coefficients"] = fleet
     rec = Reconstruction(track=track, summary=summary, clean=clean, results=results)
