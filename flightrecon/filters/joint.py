@@ -82,7 +82,7 @@ class JointSettings:
     """Settings of the joint smoother."""
 
     noise: JointNoise = field(default_factory=JointNoise)
-    state_rate_hz: float = 4.0
+    state_rate_hz: float = 1.0
     airdata_rate_hz: float = 1.0
     baro_rate_hz: float = 1.0
     wind_rate_hz: float = 1.0 / 1800.0       # recorded wind: errors correlated over ~15 min

@@ -114,6 +114,24 @@ def _provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.n
     return labels
 
 
+def _hermite_positions(t_out: np.ndarray, T: np.ndarray, p: np.ndarray, v: np.ndarray
+                       ) -> np.ndarray:
+    """Cubic Hermite interpolation of positions ``p`` (N, 3) with their velocities ``v`` (N, 3)
+    from the state times ``T`` to ``t_out`` (error O(dt^4) instead of the a dt^2 / 8 of linear
+    interpolation: 0.6 m in a 25-degree turn at a 1 s state step)."""
+    if len(T) < 2:
+        return np.repeat(p[:1], len(t_out), axis=0)
+    k = np.clip(np.searchsorted(T, t_out, side="right") - 1, 0, len(T) - 2)
+    h = T[k + 1] - T[k]
+    s = np.clip((t_out - T[k]) / np.where(h > 0, h, 1.0), 0.0, 1.0)[:, None]
+    h = h[:, None]
+    h00 = 2 * s**3 - 3 * s**2 + 1
+    h10 = s**3 - 2 * s**2 + s
+    h01 = -2 * s**3 + 3 * s**2
+    h11 = s**3 - s**2
+    return h00 * p[k] + h10 * h * v[k] + h01 * p[k + 1] + h11 * h * v[k + 1]
+
+
 def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     """The smoothed trajectory on the input grid, in the output conventions (prefix joint_)."""
     t_out = clean.grid["t_s"].to_numpy(float)
@@ -123,7 +141,7 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     def interp(v):
         return np.interp(t_out, T, v)
 
-    ecef = np.c_[[interp(x[:, i]) for i in range(3)]].T
+    ecef = _hermite_positions(t_out, T, x[:, 0:3], np.einsum("kij,kj->ki", run.Cen, x[:, 3:6]))
     lat, lon, h = ecef_to_geodetic(ecef[:, 0], ecef[:, 1], ecef[:, 2])
     plane = output_plane(clean.meta)
     e, n, u = plane.forward(lat, lon, h)
