@@ -9,6 +9,8 @@ from typing import Any
 
 import click
 
+from flightrecon.cli.common import input_options
+
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
 
 
@@ -75,18 +77,12 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
 
 @click.command("clean")
 @click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
+@input_options
 @click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False,
               path_type=Path), help="Cleaned grid (.parquet or .csv); the measurements and the "
               "report go beside it as <stem>.gnss.<ext>, <stem>.radar.<ext>, <stem>.cleaning.json.")
 @click.option("--rate", "rate_hz", type=float, help="Grid rate [Hz] (default: the fastest input "
               "channel's rate).")
-@click.option("--gnss", type=click.Path(dir_okay=False, path_type=Path), help="Separate GNSS file.")
-@click.option("--radar", type=click.Path(dir_okay=False, path_type=Path),
-              help="Separate radar (range/azimuth) file.")
-@click.option("--mapping", type=click.Path(dir_okay=False, path_type=Path),
-              help="Column-mapping TOML for a foreign log.")
-@click.option("--sidecar", type=click.Path(dir_okay=False, path_type=Path),
-              help="Metadata TOML (default: <log stem>.meta.toml beside the log).")
 @click.option("--max-gap", "max_gap_s", type=float, default=2.0, show_default=True,
               help="Longest gap of an input channel that is interpolated [s].")
 @click.option("--gnss-clock-offset", type=float, default=0.0, show_default=True,

@@ -13,6 +13,20 @@ import click
 from flightrecon.errors import MetadataError
 
 
+def input_options(f):
+    """The options naming a flight's companion files: --gnss, --radar, --mapping, --sidecar."""
+    path = click.Path(dir_okay=False, path_type=Path)
+    for opt in reversed((
+        click.option("--gnss", type=path, help="Separate GNSS file."),
+        click.option("--radar", type=path, help="Separate radar (range/azimuth) file."),
+        click.option("--mapping", type=path, help="Column-mapping TOML for a foreign log."),
+        click.option("--sidecar", type=path,
+                     help="Metadata TOML (default: <log stem>.meta.toml beside the log)."),
+    )):
+        f = opt(f)
+    return f
+
+
 def parse_k(text: str) -> tuple[float, float, float]:
     """Parse ``K1,K2,K3`` into three floats."""
     try:

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from flightrecon.cli.common import input_options
+
 
 def _fmt(v, spec: str = ".3g", none: str = "-") -> str:
     return none if v is None else format(v, spec)
@@ -14,11 +16,7 @@ def _fmt(v, spec: str = ".3g", none: str = "-") -> str:
 
 @click.command("info")
 @click.argument("log", type=click.Path(path_type=Path))
-@click.option("--gnss", type=click.Path(path_type=Path), help="Separate GNSS file.")
-@click.option("--radar", type=click.Path(path_type=Path), help="Separate radar file.")
-@click.option("--mapping", type=click.Path(path_type=Path), help="Column mapping file (TOML).")
-@click.option("--sidecar", type=click.Path(path_type=Path),
-              help="Metadata file (default: <log stem>.meta.toml beside the log).")
+@input_options
 @click.option("--json", "as_json", is_flag=True, help="Machine-readable output (JSON).")
 def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool) -> None:
     """Show the channels, rates, duration, gaps and metadata of LOG (validating it)."""

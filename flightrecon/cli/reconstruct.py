@@ -6,19 +6,13 @@ from pathlib import Path
 
 import click
 
-from flightrecon.cli.common import (default_output, parse_k, position_option_values, progress_bar,
-                                    read_noise_file)
+from flightrecon.cli.common import (default_output, input_options, parse_k,
+                                    position_option_values, progress_bar, read_noise_file)
 
 
 @click.command("reconstruct")
 @click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--gnss", type=click.Path(dir_okay=False, path_type=Path), help="Separate GNSS file.")
-@click.option("--radar", type=click.Path(dir_okay=False, path_type=Path),
-              help="Separate radar (range/azimuth) file.")
-@click.option("--mapping", type=click.Path(dir_okay=False, path_type=Path),
-              help="Column-mapping TOML for a foreign log.")
-@click.option("--sidecar", type=click.Path(dir_okay=False, path_type=Path),
-              help="Metadata TOML (default: <log stem>.meta.toml beside the log).")
+@input_options
 @click.option("--departure", metavar="LAT,LON,ELEV_M", help="Departure airfield (MSL elevation).")
 @click.option("--arrival", metavar="LAT,LON,ELEV_M", help="Arrival airfield / touchdown point.")
 @click.option("--station", metavar="LAT,LON,ELEV_M", help="Ground radar position.")
