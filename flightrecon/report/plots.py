@@ -236,13 +236,46 @@ def innovation_statistics(track: pd.DataFrame, summary: dict[str, Any],
         for key, val in st.items():
             if "nis" in key.lower() and isinstance(val, (int, float)) and np.isfinite(val):
                 rows.append((f"{name}: {key}", float(val)))
+        # the joint smoother's statistics per source
+        for src, stats in (st.get("sources") or {}).items() if isinstance(st.get("sources"), dict) else ():
+            val = stats.get("mean_nis") if isinstance(stats, dict) else None
+            if isinstance(val, (int, float)) and np.isfinite(val):
+                flag = " (flagged)" if stats.get("flagged_inconsistent") else ""
+                rows.append((f"{name}: {src}{flag}", float(val)))
     if not rows:
         return None
     fig, ax = plt.subplots(figsize=(8, 0.45 * len(rows) + 1.5))
     ax.barh(range(len(rows)), [v for _, v in rows])
+    ax.axvline(1.0, color="k", lw=0.8, ls="--")
+    ax.text(1.0, len(rows) - 0.4, " consistent: 1 per component", fontsize=7)
     ax.set_yticks(range(len(rows)), [k for k, _ in rows])
     ax.grid(alpha=0.3)
     ax.set_title("Innovation statistics per method (mean NIS)")
+    fig.tight_layout()
+    return fig
+
+
+def wind(track: pd.DataFrame, summary: dict[str, Any],
+         truth: pd.DataFrame | None = None) -> Figure | None:
+    """Wind estimated by the joint smoother (where the air moves to), with 2-sigma bands."""
+    wn, we = _col(track, "wind_n_mps"), _col(track, "wind_e_mps")
+    if wn is None or we is None:
+        return None
+    t = track["t_s"].to_numpy() / 60.0
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for v, name, c in ((wn, "north", "tab:blue"), (we, "east", "tab:orange")):
+        ax.plot(t, v, color=c, lw=1, label=f"wind {name} (joint)")
+        sd = _col(track, f"wind_{name[0]}_sd_mps")
+        if sd is not None:
+            ax.fill_between(t, v - 2 * sd, v + 2 * sd, color=c, alpha=0.15)
+    if truth is not None and {"wind_n_mps", "wind_e_mps"} <= set(truth.columns):
+        ax.plot(truth["t_s"] / 60, truth["wind_n_mps"], ":", color="tab:blue", label="north (truth)")
+        ax.plot(truth["t_s"] / 60, truth["wind_e_mps"], ":", color="tab:orange", label="east (truth)")
+    ax.set_xlabel("time [min]")
+    ax.set_ylabel("m/s")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("Wind (velocity of the air over the ground); unobservable on the ground")
     fig.tight_layout()
     return fig
 
@@ -251,6 +284,7 @@ FIGURES: dict[str, Callable[..., Figure | None]] = {
     "ground_track": ground_track,
     "altitude_profile": altitude_profile,
     "method_differences": method_differences,
+    "wind": wind,
     "air_data_error": corrections_and_wind,
     "sensor_corrections": sensor_corrections,
     "innovations": innovation_statistics,
