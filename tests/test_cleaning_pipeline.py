@@ -35,7 +35,7 @@ def random_tables(draw):
     return pd.DataFrame(data)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(random_tables(), st.one_of(st.none(), st.floats(0.5, 32.0)))
 def test_pipeline_property(table, rate):
     """Returns a CleanFlight or raises a FlightReconError, and never mutates its input."""

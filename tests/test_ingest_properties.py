@@ -16,8 +16,9 @@ from flightrecon.ingest import load_flight, load_mapping
 from flightrecon.schema import BY_NAME, REQUIRED
 from flightrecon.types import Flight
 
-# small example counts keep the file at a few seconds; deadline off (first calls compile/import)
-FAST = settings(max_examples=40, deadline=None,
+# 400 examples per test: thousands of fuzzed inputs per CI run in ~20 s; deadline off (first
+# calls compile/import)
+FAST = settings(max_examples=400, deadline=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
                                        HealthCheck.too_slow])
 
