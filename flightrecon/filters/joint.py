@@ -533,6 +533,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         shift = float(np.max(np.abs(np.c_[xs[:, 0:3] - pnom])))
         info = {"iteration": it, "max_position_change_m": shift}
         # robust weights from the smoothed residuals
+        w_before = weights.copy()
+        clock_before = dict(clock)
         if settings.robust:
             a = np.abs(res_n)
             weights = np.where(a > settings.huber_c, settings.huber_c / np.maximum(a, 1e-12), 1.0)
@@ -563,7 +565,10 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     scale[s_name] *= float(np.clip(np.mean(res_n[sel] ** 2), 0.05, 20.0))
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
-        if it > 0 and shift < 0.01 and not settings.estimate_clock:
+        # converged: the linearisation point, the weights and the clock offsets stand still
+        if (it > 0 and shift < 0.05 and clock == clock_before and not settings.estimate_noise
+                and np.all(np.abs(weights - w_before) <= 1e-3 * np.maximum(w_before, 1e-8))):
+            info["converged"] = True
             break
     return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,

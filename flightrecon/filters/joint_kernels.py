@@ -286,11 +286,16 @@ def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, 
                 infl[j] = r_new / r
                 r = r_new
                 S = HPH + r
-            K = PH / S
-            # Joseph form for a scalar update, O(n^2)
-            P = P - np.outer(K, PH) - np.outer(PH, K) + S * np.outer(K, K)
-            P = 0.5 * (P + P.T)
-            x = x + K * nu
+            # Joseph form for a scalar update, O(n^2), in place (no temporaries):
+            # P <- P - K PH^T - PH K^T + S K K^T with K = PH / S (symmetric by construction)
+            for a in range(n):
+                ka = PH[a] / S
+                for b in range(a, n):
+                    kb = PH[b] / S
+                    v = P[a, b] - ka * PH[b] - PH[a] * kb + S * ka * kb
+                    P[a, b] = v
+                    P[b, a] = v
+                x[a] += ka * nu
         xf[k] = x
         Pf[k] = P
     return xf, Pf, xp, Pp, nu_out, s_out, infl

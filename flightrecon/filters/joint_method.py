@@ -101,17 +101,19 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
 
 def _provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.ndarray:
     """Per output sample, the sources with a measurement within +-window_s ('+'-joined)."""
-    labels = np.full(len(t_out), "", dtype=object)
+    code = np.zeros(len(t_out), dtype=np.int64)
     for s_i, name in enumerate(SOURCES):
         tm = np.unique(run.meas.t[run.meas.source == s_i])
         if len(tm) == 0:
             continue
-        j = np.clip(np.searchsorted(tm, t_out), 1, len(tm) - 1) if len(tm) > 1 else np.zeros(
-            len(t_out), int)
-        near = np.minimum(np.abs(tm[j] - t_out), np.abs(tm[np.maximum(j - 1, 0)] - t_out))
-        has = near <= (window_s if name != "endpoint" else 60.0)
-        labels[has] = np.where(labels[has] == "", name, labels[has] + "+" + name)
-    return labels
+        j = np.clip(np.searchsorted(tm, t_out), 1, max(len(tm) - 1, 1))
+        near = np.minimum(np.abs(tm[np.minimum(j, len(tm) - 1)] - t_out),
+                          np.abs(tm[j - 1] - t_out))
+        code |= (near <= (window_s if name != "endpoint" else 60.0)).astype(np.int64) << s_i
+    uniq, inv = np.unique(code, return_inverse=True)
+    names = np.array(["+".join(n for i, n in enumerate(SOURCES) if c >> i & 1) for c in uniq],
+                     dtype=object)
+    return names[inv]
 
 
 def _hermite_positions(t_out: np.ndarray, T: np.ndarray, p: np.ndarray, v: np.ndarray
