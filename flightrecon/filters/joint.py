@@ -525,7 +525,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         xs, Pblk, var, _, res, rate = jk.backward(
             xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
             meas.H, meas.d, pnom, hnom, pst, Cst)
-        # residual in units of the measurement's own (nominal) standard deviation
+        # residual in units of the measurement's own (nominal, not inflated) standard deviation
         res_n = res / np.sqrt(r)
         del Pf, Pp
         # new nominal: the smoothed trajectory

@@ -304,8 +304,8 @@ def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, 
 @nb.njit(cache=True)
 def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, mtau, mH, md, pnom,
              hnom, pst, Cst):
-    """RTS backward pass; also the smoothed residual of every measurement, normalised by
-    sqrt(R - H P_s H^T), and its rate dh/dtau (for clock-offset estimation).
+    """RTS backward pass; also the smoothed residual of every measurement (raw, and in units of
+    its own standard deviation sqrt(R)), and its rate dh/dtau (for clock-offset estimation).
 
     Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
     smoothed state variances (N, n), normalised residuals, raw residuals and rates.
@@ -340,11 +340,8 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
             t = mtype[j]
             if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 e = _wrap(e)
-            v = mr[j] - H @ Pk @ H
-            if v < 1e-3 * mr[j]:
-                v = 1e-3 * mr[j]
             res[j] = e
-            res_n[j] = e / np.sqrt(v)
+            res_n[j] = e / np.sqrt(mr[j])
             # rate of the predicted measurement with the measurement time: dh/dtau
             if t == LINEAR:
                 rd = 0.0
