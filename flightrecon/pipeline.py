@@ -529,8 +529,3 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
         "methods": status,
         "warnings": list(warnings_),
     }
-
-
-def with_settings(settings: ReconstructSettings, **changes: Any) -> ReconstructSettings:
-    """A copy of ``settings`` with ``changes`` applied (unknown names raise TypeError)."""
-    return replace(settings, **changes)

@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 
@@ -134,8 +133,3 @@ class MethodResult:
     name: str
     track: pd.DataFrame
     summary: dict[str, Any]
-
-
-def as_float_array(x: Any) -> np.ndarray:
-    """Return ``x`` as a contiguous float64 array (helper for numba kernels)."""
-    return np.ascontiguousarray(np.asarray(x, dtype=np.float64))

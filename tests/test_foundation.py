@@ -1,6 +1,5 @@
 """Foundation pieces: errors, atomic writes, frames, standard atmosphere."""
 
-import os
 
 import numpy as np
 import pytest

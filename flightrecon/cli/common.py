@@ -73,10 +73,6 @@ def progress_bar(quiet: bool) -> Iterator[Callable[[str], None]]:
         bar.close()
 
 
-def echo_err(msg: str) -> None:
-    click.echo(msg, err=True)
-
-
 def read_noise_file(path: Path) -> dict[str, float]:
     """The ``[joint]`` table of a noise TOML file: field name -> number (safe parser)."""
     import tomllib

@@ -21,7 +21,7 @@ position: valid on flights of any length; outputs converted to the departure tan
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -481,7 +481,6 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     nz = settings.noise
     idx = _state_grid(inp.t_in, settings.state_rate_hz)
     T = inp.t_in[idx]
-    N = len(T)
     dt = np.diff(T, prepend=T[0])
     dV, dP, miss = _increments(inp.t_in, inp.acc_ned, idx)
     acc = dV / np.where(dt > 0, dt, 1.0)[:, None]
@@ -612,7 +611,3 @@ def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
                      "flagged_inconsistent": bool(big.mean() > flag_fraction),
                      "flagged_spans_s": spans[:50]}
     return out
-
-
-def to_dict(settings: JointSettings) -> dict[str, Any]:
-    return asdict(settings)
