@@ -1,6 +1,5 @@
 """Foundation pieces: errors, atomic writes, frames, standard atmosphere."""
 
-
 import numpy as np
 import pytest
 from pyproj import Geod

@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "flightrecon.cli.coeffs",
     "flightrecon.cli.export",
     "flightrecon.cli.plot",
+    "flightrecon.cli.batch",
 )
 
 
