@@ -54,7 +54,8 @@ def main(argv: list[str] | None = None) -> None:
     """Console entry point: run the CLI and map project errors to exit codes."""
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
     try:
-        cli.main(args=argv, prog_name="flightrecon", standalone_mode=False)
+        # with standalone_mode=False click returns a ctx.exit(code) as the code
+        rv = cli.main(args=argv, prog_name="flightrecon", standalone_mode=False)
     except FlightReconError as exc:
         if debug:
             raise
@@ -76,7 +77,7 @@ def main(argv: list[str] | None = None) -> None:
             raise
         click.echo(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", err=True)
         sys.exit(1)
-    sys.exit(0)
+    sys.exit(rv if isinstance(rv, int) else 0)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,321 @@
+"""Fleet processing: many flights as Dask tasks, one coefficient-store writer (docs/batch.md).
+
+The client (this process) discovers the logs, skips those already done (manifests,
+:mod:`flightrecon.batch.manifest`), submits one :func:`flightrecon.batch.task.run_flight` task
+per remaining flight and, as each finishes, records its Sabziev fit in the coefficient store in
+one transaction, then writes its manifest.  Workers never open the store: SQLite has one writer,
+and the client is it.  At the end it refreshes the per-aircraft averages and writes the batch
+summary table.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+import uuid
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from flightrecon.batch.discover import LogEntry, confined, discover_logs, output_paths
+from flightrecon.batch.manifest import (
+    input_hashes,
+    is_up_to_date,
+    read_manifest,
+    settings_key,
+    write_manifest,
+)
+from flightrecon.errors import FlightReconError, OutputError
+from flightrecon.pipeline import ReconstructSettings
+
+FORMATS: tuple[str, ...] = ("parquet", "csv", "geojson", "kml")
+
+#: columns of ``batch_summary.csv``
+SUMMARY_COLUMNS: tuple[str, ...] = (
+    "input", "name", "status", "error", "exit_code", "aircraft_id", "flight_id", "duration_s",
+    "k1", "k2", "k3", "sabziev_converged", "stored", "sources", "joint_mean_nis",
+    "sns_nis_per_dof", "north_sd_m_median", "east_sd_m_median", "up_sd_m_median", "warnings",
+    "elapsed_s", "result")
+
+#: columns of ``aircraft_averages.csv`` (per axis: fits used, mean, sd, branch)
+AVERAGE_COLUMNS: tuple[str, ...] = ("aircraft_id", "n_flights") + tuple(
+    f"{a}_{q}" for a in ("k1", "k2", "k3") for q in ("n", "mean", "sd", "branch"))
+
+
+@dataclass(frozen=True)
+class FlightOutcome:
+    """One flight of a batch: ``status`` is ``ok``, ``failed`` or ``skipped``; ``row`` its line of
+    the batch summary table (:data:`SUMMARY_COLUMNS`)."""
+
+    log: Path
+    name: str
+    status: str
+    row: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """Result of :func:`batch`.
+
+    Attributes
+    ----------
+    outcomes : one per flight, in input order
+    averages : rows of ``aircraft_averages.csv`` (:data:`AVERAGE_COLUMNS`)
+    summary_csv, averages_csv : the tables written
+    elapsed_s : wall time of the batch
+    """
+
+    outcomes: tuple[FlightOutcome, ...]
+    averages: tuple[dict[str, Any], ...]
+    summary_csv: Path
+    averages_csv: Path
+    elapsed_s: float
+
+    def count(self, status: str) -> int:
+        """Number of flights with ``status``."""
+        return sum(1 for o in self.outcomes if o.status == status)
+
+    @property
+    def exit_code(self) -> int:
+        """0 when no flight failed, else the exit code of the first failed flight."""
+        for o in self.outcomes:
+            if o.status == "failed":
+                return int(o.row.get("exit_code") or 1)
+        return 0
+
+
+def _row(entry: LogEntry, out: dict[str, Any], stored: str) -> dict[str, Any]:
+    k = out.get("k") or [None, None, None]
+    src = out.get("sources") or {}
+    row = {"input": str(entry.log), "name": entry.name, "status": out["status"],
+           "error": out.get("error", ""), "exit_code": out.get("exit_code", 0),
+           "aircraft_id": out.get("aircraft_id"), "flight_id": out.get("flight_id"),
+           "duration_s": out.get("duration_s"), "k1": k[0], "k2": k[1], "k3": k[2],
+           "sabziev_converged": out.get("sabziev_converged"), "stored": stored,
+           "sources": ";".join(f"{n}:{c}" for n, c in sorted(src.items())),
+           "elapsed_s": out.get("elapsed_s"), "result": out.get("result")}
+    for c in ("joint_mean_nis", "sns_nis_per_dof", "north_sd_m_median", "east_sd_m_median",
+              "up_sd_m_median", "warnings"):
+        row[c] = out.get(c)
+    return row
+
+
+def _fit(out: dict[str, Any]):
+    """The store record of a finished flight (StoreError / MetadataError when there is none)."""
+    from flightrecon.errors import MetadataError
+    from flightrecon.store import from_sabziev_summary
+
+    if out.get("sabziev") is None:
+        raise MetadataError("the Sabziev fusion did not run on this flight")
+    if not out.get("aircraft_id"):
+        raise MetadataError("no aircraft id")
+    inputs = out.get("inputs") or []
+    flight_id = out.get("flight_id") or (inputs[0]["sha256"][:16] if inputs else "unknown")
+    return from_sabziev_summary(
+        out["sabziev"], aircraft_id=str(out["aircraft_id"]), flight_id=str(flight_id),
+        flight_date_utc=out.get("epoch_utc") or "1970-01-01T00:00:00Z",
+        settings=out.get("settings"), input_hashes={i["path"]: i["sha256"] for i in inputs})
+
+
+def _has_row(db, fit) -> bool:
+    from flightrecon.errors import StoreError
+
+    try:
+        db.get(fit.aircraft_id, fit.flight_id)
+    except StoreError:
+        return False
+    return True
+
+
+def _fmt(v: Any) -> Any:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return v
+
+
+def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> Path:
+    from flightrecon.export.atomic import atomic_path
+
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([_fmt(r.get(c)) for c in columns])
+    return path
+
+
+def _average_rows(stats_list) -> list[dict[str, Any]]:
+    rows = []
+    for st in stats_list:
+        r: dict[str, Any] = {"aircraft_id": st.aircraft_id, "n_flights": st.n_flights}
+        for a in st.axes:
+            r.update({f"{a.axis}_n": a.n, f"{a.axis}_mean": a.mean, f"{a.axis}_sd": a.std,
+                      f"{a.axis}_branch": a.branch})
+        rows.append(r)
+    return rows
+
+
+def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = None,
+          settings: ReconstructSettings = ReconstructSettings(), store: str | Path | None = None,
+          force: bool = False, progress: Callable[[FlightOutcome, int], None] | None = None,
+          fmt: str = "parquet") -> BatchResult:
+    """Reconstruct many flights on a Dask cluster; record their coefficients; summarise.
+
+    Parameters
+    ----------
+    inputs : log files, folders (searched recursively) or globs (:func:`discover_logs`)
+    out_dir : output folder (created); every output is confined to it
+    client : a ``dask.distributed.Client``; ``None`` runs a local cluster sized to the machine
+        (:func:`flightrecon.batch.cluster.open_client`) for the duration of the call
+    settings : reconstruction settings of every flight
+    store : coefficient store (SQLite) in which the client records each boundary-value Sabziev
+        fit, one transaction per flight; ``None``: none (the averages are then taken over this
+        batch's fits)
+    force : redo flights whose manifest says they are up to date
+    progress : called with each :class:`FlightOutcome` as it is known (skipped ones first) and
+        the number of flights in the batch
+    fmt : result format, one of :data:`FORMATS`
+
+    Returns
+    -------
+    BatchResult
+        Failed flights are in it with their error and exit code; this function raises only for
+        a batch that cannot start (no logs, bad output folder, unusable store).
+    """
+    from flightrecon.store import CoefficientStore
+    from flightrecon.store import stats as store_stats
+
+    t_start = time.perf_counter()
+    if fmt not in FORMATS:
+        raise OutputError(f"unknown format '{fmt}' (choose from {', '.join(FORMATS)})")
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputError("the output folder is a file", file=str(out_dir))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    from flightrecon.export.atomic import sweep_leftovers
+
+    sweep_leftovers(out_dir)
+    entries = discover_logs(inputs, out_dir)
+    store_path = None if store is None else Path(store)
+    key = settings_key(settings, fmt, store_path)
+    db = CoefficientStore(store_path) if store_path is not None else None
+    outcomes: dict[int, FlightOutcome] = {}
+    fits = {}  # (aircraft, flight) -> FlightCoefficients, for averages without a store
+
+    def finish(i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
+        e = entries[i]
+        stored = ""
+        paths = output_paths(out_dir, e.name, fmt)
+        if out["status"] == "ok":
+            try:
+                fit = _fit(out)
+            except FlightReconError as exc:  # nothing to record: said in the table
+                stored = f"no: {exc}"
+            else:
+                fits[(fit.aircraft_id, fit.flight_id)] = fit
+                if db is not None:
+                    db.record(fit)  # one transaction; a StoreError stops the (resumable) batch
+                    stored = "yes"
+            row = _row(e, out, stored)
+            write_manifest(paths["manifest"], {
+                "status": "ok", "log": str(e.log), "inputs": hashes, "settings_key": key,
+                "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                "row": row, "outcome": {k: v for k, v in out.items() if k != "warnings"}})
+        else:
+            row = _row(e, out, stored)
+            paths["manifest"].unlink(missing_ok=True)  # a stale manifest must not outlive this
+        oc = FlightOutcome(log=e.log, name=e.name, status=out["status"], row=row)
+        outcomes[i] = oc
+        if progress:
+            progress(oc, len(entries))
+
+    try:
+        todo = []
+        for i, e in enumerate(entries):
+            paths = output_paths(out_dir, e.name, fmt)
+            hashes = input_hashes(e.log, e.sidecar)
+            man = read_manifest(paths["manifest"])
+            if not force and is_up_to_date(man, hashes, key,
+                                           [paths["result"], paths["summary"]]):
+                prev = man["outcome"]
+                try:
+                    fit = _fit(prev)
+                except FlightReconError:
+                    fit = None  # the flight had nothing to record
+                if fit is not None:
+                    fits[(fit.aircraft_id, fit.flight_id)] = fit
+                    if db is not None and not _has_row(db, fit):
+                        db.record(fit)  # the store was replaced since: restore the row
+                row = {**man["row"], "status": "skipped"}
+                oc = FlightOutcome(log=e.log, name=e.name, status="skipped", row=row)
+                outcomes[i] = oc
+                if progress:
+                    progress(oc, len(entries))
+            else:
+                todo.append((i, e, paths, hashes))
+        if todo:
+            _run(todo, client, settings, fmt, finish)
+        ordered = tuple(outcomes[i] for i in range(len(entries)))
+        aircraft = sorted({str(o.row["aircraft_id"]) for o in ordered
+                           if o.status != "failed" and o.row.get("aircraft_id")})
+        stats_list = []
+        for a in aircraft:
+            if db is not None:
+                if db.list_flights(a):
+                    stats_list.append(db.aircraft_stats(a))
+            else:
+                recs = [f for (ac, _), f in sorted(fits.items()) if ac == a]
+                if recs:
+                    stats_list.append(store_stats.aircraft_stats(a, recs))
+    finally:
+        if db is not None:
+            db.close()
+    averages = _average_rows(stats_list)
+    summary_csv = _write_csv(confined(out_dir, "batch_summary.csv"), SUMMARY_COLUMNS,
+                             [o.row for o in ordered])
+    averages_csv = _write_csv(confined(out_dir, "aircraft_averages.csv"), AVERAGE_COLUMNS,
+                              averages)
+    return BatchResult(outcomes=ordered, averages=tuple(averages), summary_csv=summary_csv,
+                       averages_csv=averages_csv, elapsed_s=time.perf_counter() - t_start)
+
+
+def _run(todo, client, settings, fmt, finish) -> None:
+    """Submit one task per flight and hand each result to ``finish`` as it completes."""
+    from flightrecon.batch.cluster import open_client
+
+    if client is None:
+        with open_client() as c:
+            _submit_all(c, todo, settings, fmt, finish)
+    else:
+        _submit_all(client, todo, settings, fmt, finish)
+
+
+def _submit_all(client, todo, settings, fmt, finish) -> None:
+    from distributed import as_completed
+
+    from flightrecon.batch.task import run_flight
+
+    futures = {}
+    for i, e, paths, hashes in todo:
+        fut = client.submit(run_flight, str(e.log.resolve()),
+                            None if e.sidecar is None else str(e.sidecar.resolve()),
+                            str(paths["result"].resolve()), str(paths["summary"].resolve()),
+                            settings, fmt, key=f"flightrecon-{e.name}-{uuid.uuid4().hex[:12]}",
+                            pure=False)
+        futures[fut] = (i, hashes)
+    try:
+        for fut in as_completed(list(futures)):
+            i, hashes = futures[fut]
+            try:
+                out = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a worker died or the task was lost
+                out = {"status": "failed", "error": f"task lost: {type(exc).__name__}: {exc}",
+                       "exit_code": 1, "elapsed_s": None}
+            finish(i, out, hashes)
+    finally:
+        for fut in futures:
+            fut.release()

@@ -1,0 +1,89 @@
+"""``flightrecon batch``: reconstruct many flights on a Dask cluster (docs/batch.md)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from flightrecon.cli.common import parse_k
+
+
+@click.command("batch")
+@click.argument("inputs", nargs=-1, required=True)
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Output folder: results, summaries, manifests, batch_summary.csv, "
+                   "aircraft_averages.csv.")
+@click.option("--scheduler", metavar="ADDRESS",
+              help="Dask scheduler address (tcp://host:port) or scheduler file (*.json); "
+                   "default: a local cluster on this machine.")
+@click.option("--workers", type=click.IntRange(min=1),
+              help="Worker processes of the local cluster (default: the CPU count).")
+@click.option("--store", "store_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Coefficient store (SQLite): each fitted flight's k1..k3 is recorded there "
+                   "by this process (single writer).")
+@click.option("--force", is_flag=True, help="Redo flights already done with the same inputs "
+                                            "and settings.")
+@click.option("--methods", metavar="LIST",
+              help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "
+                   "default: every method each flight's data allow.")
+@click.option("--rate", "rate_hz", type=float, help="Grid rate for input channels [Hz].")
+@click.option("--k", "k_text", metavar="K1,K2,K3",
+              help="Sabziev coefficients: initial-value mode, no arrival point needed.")
+@click.option("--estimate-noise", is_flag=True,
+              help="Joint smoother: scale each source's noise from the flight's own residuals.")
+@click.option("--format", "fmt", type=click.Choice(["parquet", "csv", "geojson", "kml"]),
+              default="parquet", show_default=True, help="Result format.")
+@click.pass_context
+def command(ctx: click.Context, inputs: tuple[str, ...], out_dir: Path, scheduler: str | None,
+            workers: int | None, store_path: Path | None, force: bool, methods: str | None,
+            rate_hz: float | None, k_text: str | None, estimate_noise: bool, fmt: str) -> None:
+    """Reconstruct every log among INPUTS (files, folders, globs) into --out, one Dask task per
+    flight; a failed flight is reported and the batch goes on; a re-run skips finished flights."""
+    from flightrecon.batch import batch, open_client
+    from flightrecon.pipeline import ReconstructSettings
+
+    quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    settings = ReconstructSettings(
+        methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
+        rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
+        joint_estimate_noise=estimate_noise)
+    bar = None
+    if not quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=None, desc="batch", unit=" flight", file=sys.stderr, leave=True)
+    counts = {"ok": 0, "failed": 0, "skipped": 0}
+
+    def progress(oc, total: int) -> None:
+        counts[oc.status] += 1
+        if bar is not None:
+            bar.total = total
+            bar.update(1)
+            rate = bar.format_dict.get("rate")
+            bar.set_postfix(done=counts["ok"], failed=counts["failed"], skipped=counts["skipped"],
+                            per_h=f"{3600 * rate:.0f}" if rate else "-")
+        if not quiet and oc.status == "failed":
+            click.echo(f"  failed {oc.log}: {oc.row['error']}", err=True)
+
+    try:
+        with open_client(scheduler, workers) as client:
+            res = batch(list(inputs), out_dir, client=client, settings=settings,
+                        store=store_path, force=force, progress=progress, fmt=fmt)
+    finally:
+        if bar is not None:
+            bar.close()
+    if not quiet:
+        for r in res.averages:
+            ks = ", ".join(f"{a} = {r[a + '_mean']:.6g} (n {r[a + '_n']})" for a in ("k1", "k2",
+                                                                                   "k3"))
+            click.echo(f"  {r['aircraft_id']}: {ks}", err=True)
+    click.echo(f"{res.count('ok')} ok, {res.count('failed')} failed, {res.count('skipped')} "
+               f"skipped in {res.elapsed_s:.1f} s")
+    click.echo(f"wrote {res.summary_csv}")
+    click.echo(f"wrote {res.averages_csv}")
+    if res.exit_code:
+        # SystemExit, not ctx.exit: the CLI runs click with standalone_mode=False, which turns
+        # ctx.exit(code) into a return value that flightrecon.cli.main.main() drops
+        sys.exit(res.exit_code)

@@ -1,0 +1,152 @@
+"""A batch of simulated flights on a 2-worker LocalCluster: results, failures, the store, the
+averages and resuming (docs/batch.md)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flightrecon.batch import batch, open_client
+from flightrecon.export.writers import read_track
+from flightrecon.sim.io import write_simulation
+from flightrecon.sim.scenarios import simulate_fleet
+from flightrecon.store import CoefficientStore
+
+GOOD = ("A1_F01", "A1_F02", "B2_F01", "B2_F02")
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory) -> Path:
+    """2 aircraft x 2 short circuits (15 min at 16 Hz, about a second each to reconstruct) and
+    one truncated Parquet log."""
+    d = tmp_path_factory.mktemp("fleet")
+    for a in ("A1", "B2"):
+        for r in simulate_fleet(a, 2, seed=3, scenario="circuit"):
+            write_simulation(r, d / f"{a}_{r.meta.flight_id}.parquet")
+    raw = (d / "A1_F01.parquet").read_bytes()
+    (d / "bad.parquet").write_bytes(raw[: len(raw) // 3])
+    return d
+
+
+@pytest.fixture(scope="module")
+def client():
+    with open_client(workers=2) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def first_subset_then_all(fleet, client, tmp_path_factory):
+    """An interrupted batch (only the A1 flights done), then the full batch in the same folder."""
+    out = tmp_path_factory.mktemp("out")
+    store = out.parent / (out.name + ".sqlite")
+    seen: list[tuple[str, int]] = []
+    r1 = batch([str(fleet / "A1_*.parquet")], out, client=client, store=store)
+    mtimes = {n: (out / f"{n}.manifest.json").stat().st_mtime_ns for n in ("A1_F01", "A1_F02")}
+    r2 = batch([fleet], out, client=client, store=store,
+               progress=lambda oc, total: seen.append((oc.status, total)))
+    return out, store, r1, r2, mtimes, seen
+
+
+def _read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_good_flights_reconstructed_bad_one_reported(first_subset_then_all):
+    out, _, r1, r2, _, seen = first_subset_then_all
+    assert [o.status for o in r1.outcomes] == ["ok", "ok"]
+    status = {o.name: o.status for o in r2.outcomes}
+    assert status == {"A1_F01": "skipped", "A1_F02": "skipped", "B2_F01": "ok", "B2_F02": "ok",
+                      "bad": "failed"}
+    bad = next(o for o in r2.outcomes if o.name == "bad")
+    assert bad.row["exit_code"] == 3 and "Parquet" in bad.row["error"]
+    assert r2.exit_code == 3
+    assert sorted(seen) == sorted([(s, 5) for s in status.values()])
+    for name in GOOD:
+        track, _ = read_track(out / f"{name}.recon.parquet")
+        summary = json.loads((out / f"{name}.recon.summary.json").read_text())
+        assert len(track) == summary["grid"]["samples"] > 10_000
+        assert np.isfinite(track[["north_m", "east_m", "up_m"]].to_numpy()).all()
+        assert (out / f"{name}.manifest.json").is_file()
+    assert not list(out.glob("bad.*")), "a failed flight leaves no result or manifest"
+    assert not list(out.glob(".*")), "no temporary files left behind"
+
+
+def test_summary_table(first_subset_then_all):
+    out, *_ = first_subset_then_all
+    rows = {r["name"]: r for r in _read_csv(out / "batch_summary.csv")}
+    assert set(rows) == set(GOOD) | {"bad"}
+    for name in GOOD:
+        r = rows[name]
+        # a 15-minute circuit: the grid spans 900 s within the simulated leg-scale spread
+        assert 700.0 < float(r["duration_s"]) < 1200.0
+        assert all(math.isfinite(float(r[k])) for k in ("k1", "k2", "k3", "joint_mean_nis",
+                                                          "north_sd_m_median"))
+        assert r["sources"].startswith("joint:") and r["stored"] == "yes"
+    assert rows["bad"]["status"] == "failed" and rows["bad"]["k1"] == ""
+
+
+def test_store_rows_and_averages_by_hand(first_subset_then_all):
+    """One store row per good flight; the written averages equal the rule of
+    flightrecon.store.stats (converged fits on the majority branch, tie -> negative) applied
+    by hand to the recorded fits."""
+    out, store, *_ = first_subset_then_all
+    with CoefficientStore(store, create=False) as db:
+        recs = db.list_flights()
+    assert sorted((r.aircraft_id, r.flight_id) for r in recs) == [
+        ("A1", "F01"), ("A1", "F02"), ("B2", "F01"), ("B2", "F02")]
+    table = {r["aircraft_id"]: r for r in _read_csv(out / "aircraft_averages.csv")}
+    assert set(table) == {"A1", "B2"}
+    for ac in ("A1", "B2"):
+        mine = [r for r in recs if r.aircraft_id == ac]
+        for i, axis in enumerate(("k1", "k2", "k3")):
+            conv = [r for r in mine if r.axis_converged[i]]
+            neg = sum(r.branch[i] == "negative" for r in conv)
+            branch = "negative" if 2 * neg >= len(conv) else "positive"
+            k = np.array([getattr(r, axis) for r in conv if r.branch[i] == branch])
+            row = table[ac]
+            assert int(row[f"{axis}_n"]) == len(k)
+            # the CSV holds repr() of the float: only summation order can differ (1e-12)
+            assert float(row[f"{axis}_mean"]) == pytest.approx(k.mean(), rel=1e-12)
+            if len(k) > 1:
+                assert float(row[f"{axis}_sd"]) == pytest.approx(k.std(ddof=1), rel=1e-12)
+            else:
+                assert row[f"{axis}_sd"] == ""
+    # each fit equals the k the worker reported for that flight
+    rows = {r["name"]: r for r in _read_csv(out / "batch_summary.csv")}
+    for r in recs:
+        row = rows[f"{r.aircraft_id}_{r.flight_id}"]
+        assert [float(row[a]) for a in ("k1", "k2", "k3")] == pytest.approx(list(r.k), rel=1e-15)
+
+
+def test_resume_does_not_redo_finished_flights(first_subset_then_all, fleet, client):
+    out, store, _, r2, mtimes, _ = first_subset_then_all
+    for n, t in mtimes.items():
+        assert (out / f"{n}.manifest.json").stat().st_mtime_ns == t
+    before = {n: (out / f"{n}.manifest.json").stat().st_mtime_ns for n in GOOD}
+    r3 = batch([fleet], out, client=client, store=store)
+    assert r3.count("skipped") == len(GOOD) == r2.count("ok") + r2.count("skipped")
+    assert r3.count("failed") == 1  # a failed flight is retried on every run
+    for n in GOOD:
+        assert (out / f"{n}.manifest.json").stat().st_mtime_ns == before[n]
+    # a changed sidecar redoes that flight only
+    side = fleet / "B2_F02.meta.toml"
+    side.write_text(side.read_text() + "\n# edited\n")
+    r4 = batch([fleet], out, client=client, store=store)
+    assert {o.name: o.status for o in r4.outcomes if o.status != "skipped"} == {
+        "B2_F02": "ok", "bad": "failed"}
+    with CoefficientStore(store, create=False) as db:
+        assert db.count() == len(GOOD)  # re-recording a flight replaces its row
+        db.remove("A1", "F02")
+    # a store that lost a skipped flight's row gets it back without the flight being redone
+    r5 = batch([fleet], out, client=client, store=store)
+    assert r5.count("skipped") == len(GOOD)
+    with CoefficientStore(store, create=False) as db:
+        assert db.count() == len(GOOD) and db.get("A1", "F02").k == pytest.approx(
+            [float(next(o.row[a] for o in r5.outcomes if o.name == "A1_F02"))
+             for a in ("k1", "k2", "k3")], rel=1e-15)
