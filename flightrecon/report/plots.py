@@ -142,29 +142,43 @@ def method_differences(track: pd.DataFrame, summary: dict[str, Any],
     return fig
 
 
-def corrections_and_wind(track: pd.DataFrame, summary: dict[str, Any],
-                         truth: pd.DataFrame | None = None) -> Figure | None:
-    """Estimated air-data error (wind plus sensor error) from ADS/ARMS, with 2-sigma bands."""
-    dvn, dve = _col(track, "arms_dvn_mps"), _col(track, "arms_dve_mps")
-    if dvn is None or dve is None:
+def _north_east_with_bands(track: pd.DataFrame, cols: tuple[str, str], sd_cols: tuple[str, str],
+                           label: str, title: str, truth: pd.DataFrame | None,
+                           truth_sign: float) -> Figure | None:
+    """North and east series of ``track`` with 2-sigma bands, and the truth wind (times
+    ``truth_sign``) dotted when given."""
+    vn, ve = _col(track, cols[0]), _col(track, cols[1])
+    if vn is None or ve is None:
         return None
     t = track["t_s"].to_numpy() / 60.0
     fig, ax = plt.subplots(figsize=(9, 4))
-    for v, name, c in ((dvn, "north", "tab:blue"), (dve, "east", "tab:orange")):
-        ax.plot(t, v, color=c, lw=1, label=f"air-data error {name}")
-        sd = _col(track, f"arms_dv{name[0]}_sd_mps")
+    for v, sd_col, name, c in ((vn, sd_cols[0], "north", "tab:blue"),
+                               (ve, sd_cols[1], "east", "tab:orange")):
+        ax.plot(t, v, color=c, lw=1, label=f"{label} {name}")
+        sd = _col(track, sd_col)
         if sd is not None:
             ax.fill_between(t, v - 2 * sd, v + 2 * sd, color=c, alpha=0.15)
     if truth is not None and {"wind_n_mps", "wind_e_mps"} <= set(truth.columns):
-        ax.plot(truth["t_s"] / 60, -truth["wind_n_mps"], ":", color="tab:blue", label="-wind north (truth)")
-        ax.plot(truth["t_s"] / 60, -truth["wind_e_mps"], ":", color="tab:orange", label="-wind east (truth)")
+        sign = "-" if truth_sign < 0 else ""
+        for col, name, c in (("wind_n_mps", "north", "tab:blue"), ("wind_e_mps", "east", "tab:orange")):
+            ax.plot(truth["t_s"] / 60, truth_sign * truth[col], ":", color=c,
+                    label=f"{sign}wind {name} (truth)")
     ax.set_xlabel("time [min]")
     ax.set_ylabel("m/s")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title("ADS/ARMS: estimated air-data error (air-data velocity minus ground velocity)")
+    ax.set_title(title)
     fig.tight_layout()
     return fig
+
+
+def corrections_and_wind(track: pd.DataFrame, summary: dict[str, Any],
+                         truth: pd.DataFrame | None = None) -> Figure | None:
+    """Estimated air-data error (wind plus sensor error) from ADS/ARMS, with 2-sigma bands."""
+    return _north_east_with_bands(
+        track, ("arms_dvn_mps", "arms_dve_mps"), ("arms_dvn_sd_mps", "arms_dve_sd_mps"),
+        "air-data error", "ADS/ARMS: estimated air-data error (air-data velocity minus ground "
+        "velocity)", truth, -1.0)
 
 
 def sensor_corrections(track: pd.DataFrame, summary: dict[str, Any],
@@ -258,26 +272,9 @@ def innovation_statistics(track: pd.DataFrame, summary: dict[str, Any],
 def wind(track: pd.DataFrame, summary: dict[str, Any],
          truth: pd.DataFrame | None = None) -> Figure | None:
     """Wind estimated by the joint smoother (where the air moves to), with 2-sigma bands."""
-    wn, we = _col(track, "wind_n_mps"), _col(track, "wind_e_mps")
-    if wn is None or we is None:
-        return None
-    t = track["t_s"].to_numpy() / 60.0
-    fig, ax = plt.subplots(figsize=(9, 4))
-    for v, name, c in ((wn, "north", "tab:blue"), (we, "east", "tab:orange")):
-        ax.plot(t, v, color=c, lw=1, label=f"wind {name} (joint)")
-        sd = _col(track, f"wind_{name[0]}_sd_mps")
-        if sd is not None:
-            ax.fill_between(t, v - 2 * sd, v + 2 * sd, color=c, alpha=0.15)
-    if truth is not None and {"wind_n_mps", "wind_e_mps"} <= set(truth.columns):
-        ax.plot(truth["t_s"] / 60, truth["wind_n_mps"], ":", color="tab:blue", label="north (truth)")
-        ax.plot(truth["t_s"] / 60, truth["wind_e_mps"], ":", color="tab:orange", label="east (truth)")
-    ax.set_xlabel("time [min]")
-    ax.set_ylabel("m/s")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title("Wind (velocity of the air over the ground); unobservable on the ground")
-    fig.tight_layout()
-    return fig
+    return _north_east_with_bands(
+        track, ("wind_n_mps", "wind_e_mps"), ("wind_n_sd_mps", "wind_e_sd_mps"), "wind (joint)",
+        "Wind (velocity of the air over the ground); unobservable on the ground", truth, 1.0)
 
 
 FIGURES: dict[str, Callable[..., Figure | None]] = {
