@@ -38,7 +38,7 @@ import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters.kalman import FilterRun, kalman_filter
+from flightrecon.filters.kalman import FilterRun, joseph_update, kalman_filter
 from flightrecon.smoothing.rts import SmootherRun, rts_smooth_run
 
 __all__ = [
@@ -475,7 +475,6 @@ def _arms_kernel(x0, P0, F, Q, radar, radar_sd, air, Rv, lin):
     air_used = np.zeros(N, dtype=np.bool_)
     x = x0.copy()
     P = P0.copy()
-    eye = np.eye(n)
     for k in range(N):
         if k > 0:
             x = F[k] @ x
@@ -545,22 +544,8 @@ def _arms_kernel(x0, P0, F, Q, radar, radar_sd, air, Rv, lin):
             c += 2
             air_used[k] = True
         if c > 0:
-            H = Hk[:c].copy()
-            R = Rk[:c, :c].copy()
             v = nu[:c].copy()
-            PHt = P @ H.T
-            S = H @ PHt + R
-            S = 0.5 * (S + S.T)
-            L = np.linalg.cholesky(S)
-            Kt = np.linalg.solve(L, PHt.T)
-            Kt = np.linalg.solve(L.T, Kt)
-            K = Kt.T
-            x = x + K @ v
-            IKH = eye - K @ H
-            P = IKH @ P @ IKH.T + K @ R @ K.T
-            P = 0.5 * (P + P.T)
-            w = np.linalg.solve(L, v)
-            nis[k] = w @ w
+            x, P, S, nis[k] = joseph_update(x, P, v, Hk[:c].copy(), Rk[:c, :c].copy())
             nmeas[k] = c
             for a in range(c):
                 nus[k, slot[a]] = v[a]

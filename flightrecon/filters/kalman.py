@@ -47,6 +47,30 @@ class FilterRun:
 
 
 @nb.njit(cache=True)
+def joseph_update(x, P, nu, H, R):
+    """Measurement update with innovation ``nu`` (m,), ``H`` (m, n), ``R`` (m, m).
+
+    Gain through a Cholesky factor of S (no explicit inverse); Joseph-form covariance, then
+    symmetrised.  Returns the updated ``x``, ``P``, the innovation covariance ``S`` and the
+    normalised innovation squared ``nu^T S^-1 nu``.
+    """
+    n = x.shape[0]
+    PHt = P @ H.T
+    S = H @ PHt + R
+    S = 0.5 * (S + S.T)
+    L = np.linalg.cholesky(S)
+    Kt = np.linalg.solve(L, PHt.T)
+    Kt = np.linalg.solve(L.T, Kt)
+    K = Kt.T
+    x = x + K @ nu
+    IKH = np.eye(n) - K @ H
+    P = IKH @ P @ IKH.T + K @ R @ K.T
+    P = 0.5 * (P + P.T)
+    w = np.linalg.solve(L, nu)
+    return x, P, S, w @ w
+
+
+@nb.njit(cache=True)
 def _kf_kernel(x0, P0, F, Q, z, H, R):
     N = z.shape[0]
     n = x0.shape[0]
@@ -61,7 +85,6 @@ def _kf_kernel(x0, P0, F, Q, z, H, R):
     nmeas = np.zeros(N, dtype=np.int64)
     x = x0.copy()
     P = P0.copy()
-    eye = np.eye(n)
     for k in range(N):
         if k > 0:
             x = F[k] @ x
@@ -85,20 +108,7 @@ def _kf_kernel(x0, P0, F, Q, z, H, R):
                     Rk[a, b] = R[k, idx[a], idx[b]]
             for a in range(c):
                 nu[a] = z[k, idx[a]] - Hk[a] @ x
-            PHt = P @ Hk.T
-            S = Hk @ PHt + Rk
-            S = 0.5 * (S + S.T)
-            L = np.linalg.cholesky(S)
-            # K = P H^T S^-1 via two triangular solves
-            Kt = np.linalg.solve(L, PHt.T)
-            Kt = np.linalg.solve(L.T, Kt)
-            K = Kt.T
-            x = x + K @ nu
-            IKH = eye - K @ Hk
-            P = IKH @ P @ IKH.T + K @ Rk @ K.T
-            P = 0.5 * (P + P.T)
-            w = np.linalg.solve(L, nu)
-            nis[k] = w @ w
+            x, P, S, nis[k] = joseph_update(x, P, nu, Hk, Rk)
             nmeas[k] = c
             for a in range(c):
                 nus[k, idx[a]] = nu[a]
