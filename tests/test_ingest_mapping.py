@@ -244,3 +244,16 @@ def test_time_format_and_sidecar_epoch(tmp_path):
                                      'format = "%d/%m/%Y %H:%M:%S.%f"\n')
     fl = load_flight(tmp_path / "c.csv", mapping=tmp_path / "c.toml")
     np.testing.assert_allclose(fl.data.t_s, d.t_s + 10.0, atol=1e-6)  # microsecond text
+
+
+def test_derived_channel_source_must_be_a_name(tmp_path):
+    """Regression (found by hypothesis): ``from = [1, 2]`` raised TypeError, not MappingError."""
+    import pytest
+
+    from flightrecon.errors import MappingError
+    from flightrecon.ingest import load_mapping
+
+    p = tmp_path / "m.toml"
+    p.write_text('[channels.tas_mps]\nfrom = [1, 2]\n')
+    with pytest.raises(MappingError):
+        load_mapping(p)

@@ -207,7 +207,7 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
     ch = BY_NAME[name]
     if "from" in spec:
         src = spec["from"]
-        if name not in DERIVED_OK or src not in DERIVED_OK[name]:
+        if not isinstance(src, str) or name not in DERIVED_OK or src not in DERIVED_OK[name]:
             ok = ", ".join(f"{k} from {sorted(v)}" for k, v in DERIVED_OK.items())
             raise MappingError(f"[{where}]: cannot derive {name} from '{src}' (possible: {ok})",
                                file=file)
