@@ -52,7 +52,9 @@ def test_sigint_leaves_previous_output_and_no_temp_files(tmp_path, previous_resu
     time.sleep(delay_s)
     p.send_signal(signal.SIGINT)
     p.communicate(timeout=600)
-    assert p.returncode in (0, 130)  # finished before the signal, or interrupted cleanly
+    # finished before the signal (0), interrupted cleanly (130), or - when the signal lands
+    # while the interpreter is still importing, before main() can catch it - ended by SIGINT
+    assert p.returncode in (0, 130, -signal.SIGINT)
     _valid_previous_or_new(out, previous_result)
     assert not [f for f in os.listdir(tmp_path) if "flightrecon-tmp" in f]
 
