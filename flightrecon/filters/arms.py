@@ -38,7 +38,7 @@ import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters.kalman import FilterRun, joseph_update, kalman_filter
+from flightrecon.filters.kalman import FilterRun, joseph_update, kalman_filter, predict
 from flightrecon.smoothing.rts import SmootherRun, rts_smooth_run
 
 __all__ = [
@@ -477,9 +477,7 @@ def _arms_kernel(x0, P0, F, Q, radar, radar_sd, air, Rv, lin):
     P = P0.copy()
     for k in range(N):
         if k > 0:
-            x = F[k] @ x
-            P = F[k] @ P @ F[k].T + Q[k]
-            P = 0.5 * (P + P.T)
+            x, P = predict(x, P, F[k], Q[k])
         xp[k] = x
         Pp[k] = P
         nu = np.zeros(4)

@@ -47,6 +47,14 @@ class FilterRun:
 
 
 @nb.njit(cache=True)
+def predict(x, P, F, Q):
+    """Prediction ``x^- = F x``, ``P^- = F P F^T + Q`` (symmetrised)."""
+    x = F @ x
+    P = F @ P @ F.T + Q
+    return x, 0.5 * (P + P.T)
+
+
+@nb.njit(cache=True)
 def joseph_update(x, P, nu, H, R):
     """Measurement update with innovation ``nu`` (m,), ``H`` (m, n), ``R`` (m, m).
 
@@ -87,9 +95,7 @@ def _kf_kernel(x0, P0, F, Q, z, H, R):
     P = P0.copy()
     for k in range(N):
         if k > 0:
-            x = F[k] @ x
-            P = F[k] @ P @ F[k].T + Q[k]
-            P = 0.5 * (P + P.T)
+            x, P = predict(x, P, F[k], Q[k])
         xp[k] = x
         Pp[k] = P
         idx = np.empty(m, dtype=np.int64)
