@@ -37,7 +37,8 @@ def test_measurement_jacobian_vs_central_differences(mtype):
     rng = np.random.default_rng(mtype)
     x, p, Cen, pst, Cst, h = _setup(rng)
     mH = rng.normal(size=(1, jk.N_STATE))
-    args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.array([1.5]), Cen,
+    args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.zeros(1, np.int64),
+            np.array([1.5]), Cen,
             p[None, :], np.array([h - 10.0]), pst, Cst)
     hx, H = jk.measure(0, 0, x, *args)
     num = np.empty(jk.N_STATE)
@@ -74,3 +75,72 @@ def test_transition_propagates_held_acceleration():
     y[jk.IPSI] = 1e-3
     dv = (F @ y)[3:6]
     np.testing.assert_allclose(dv, [acc[1, 1] * 1e-3 * 0.25, -acc[1, 0] * 1e-3 * 0.25, 0.0])
+
+
+def _random_spd(rng, n):
+    A = rng.normal(size=(n, n))
+    return A @ A.T + n * np.eye(n)
+
+
+def test_sparse_prediction_equals_dense_products():
+    """P <- F P F^T with the row-compressed F equals the dense product (round-off only)."""
+    rng = np.random.default_rng(11)
+    x, p, Cen, *_ = _setup(rng)
+    N = 2
+    dt = np.array([0.0, 1.0])
+    Cen2 = np.repeat(Cen, N, axis=0)
+    Cnb = np.repeat(ned_to_ecef_matrix(np.array([10.0]), np.array([20.0])), N, axis=0)
+    Csf = rng.normal(size=(N, 3, 3))
+    acc = rng.normal(size=(N, 3))
+    F = jk.transition(1, dt, Cen2, Cnb, Csf, acc, 3600.0)
+    n = jk.N_STATE
+    cols = np.empty((n, n), np.int64)
+    vals = np.empty((n, n))
+    cnt = np.empty(n, np.int64)
+    jk._sparse_rows(F, cols, vals, cnt)
+    assert cnt.sum() == np.count_nonzero(F)
+    P = _random_spd(rng, n)
+    want = F @ P @ F.T
+    got = P.copy()
+    jk._predict_cov(got, cols, vals, cnt, np.empty((n, n)))
+    # entries up to ~1e2 * 1e2; 1e-12 relative is a few ulps of the largest term summed
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    assert np.array_equal(got, got.T)
+    y = rng.normal(size=n)
+    out = np.empty(n)
+    jk._sparse_matvec(cols, vals, cnt, y, out)
+    np.testing.assert_allclose(out, F @ y, rtol=1e-13, atol=1e-13 * np.abs(F @ y).max())
+    jk._sparse_rmatvec(cols, vals, cnt, y, out)
+    np.testing.assert_allclose(out, F.T @ y, rtol=1e-13, atol=1e-13 * np.abs(F.T @ y).max())
+
+
+def test_cholesky_solve_and_its_refusal():
+    rng = np.random.default_rng(5)
+    n = jk.N_STATE
+    A = _random_spd(rng, n)
+    b = rng.normal(size=n)
+    y = np.empty(n)
+    assert jk._cholesky_solve(A, b, np.empty((n, n)), y)
+    # condition number of A is O(10): 1e-12 is far above round-off, far below any real error
+    np.testing.assert_allclose(A @ y, b, atol=1e-12)
+    A[3, 3] = -1.0
+    assert not jk._cholesky_solve(A, b, np.empty((n, n)), y)
+
+
+def test_mean_only_backward_pass_gives_the_covariance_pass_states():
+    """The Gauss-Newton iterations use the mean-only RTS pass; the final covariance pass must
+    reproduce its states (same gains, same linearisation) to round-off."""
+    from pathlib import Path
+
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.filters.joint import JointSettings, smooth_joint
+    from flightrecon.filters.joint_method import joint_inputs
+    from flightrecon.ingest import load_flight
+
+    log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
+    run = smooth_joint(joint_inputs(clean_flight(load_flight(log))), JointSettings(iterations=1))
+    # run.lat/lon/h: geodetic of the mean-only pass; run.x: states of the covariance pass
+    ex, ey, ez = geodetic_to_ecef(run.lat_deg, run.lon_deg, run.h_m)
+    # pyproj's geodetic round trip is good to ~1e-9 m; Cholesky vs LU solves differ by
+    # round-off times the condition number of P_p (ECEF variances 1e6 .. angles 1e-10): 1 mm
+    np.testing.assert_allclose(np.c_[ex, ey, ez], run.x[:, :3], rtol=0, atol=1e-3)

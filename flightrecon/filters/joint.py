@@ -99,7 +99,11 @@ class JointSettings:
 
 @dataclass(frozen=True)
 class Measurements:
-    """Scalar measurements sorted by state step (see joint_kernels for the types)."""
+    """Scalar measurements sorted by state step (see joint_kernels for the types).
+
+    Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]`` (``hrow`` is -1 for the
+    others), so the table stays small when most measurements are nonlinear scalars.
+    """
 
     step: np.ndarray
     source: np.ndarray      # index into SOURCES
@@ -107,7 +111,8 @@ class Measurements:
     z: np.ndarray
     r: np.ndarray
     t: np.ndarray           # measurement time, recorder time base
-    H: np.ndarray           # (M, n) for LINEAR
+    H: np.ndarray           # (M_linear, n)
+    hrow: np.ndarray        # (M,) row of H, -1 where the measurement has none
     d: np.ndarray
     start: np.ndarray       # (N+1,)
 
@@ -253,6 +258,8 @@ class _MeasBuilder:
         self.T = T
         self.n = n
         self.parts: list[dict[str, np.ndarray]] = []
+        self.H: list[np.ndarray] = []
+        self.n_rows = 0
 
     def add(self, source: str, mtype: int, t, z, r, H=None, d=None):
         t = np.asarray(t, float)
@@ -261,34 +268,40 @@ class _MeasBuilder:
         if m == 0:
             return
         r = np.broadcast_to(np.asarray(r, float), (m,)).copy()
-        Hm = np.zeros((m, self.n)) if H is None else np.asarray(H, float)
         dm = np.zeros(m) if d is None else np.broadcast_to(np.asarray(d, float), (m,)).copy()
-        ok = np.isfinite(z) & np.isfinite(t) & np.isfinite(r) & np.isfinite(Hm).all(axis=1)
-        ok &= np.isfinite(dm)
+        ok = np.isfinite(z) & np.isfinite(t) & np.isfinite(r) & np.isfinite(dm)
+        hrow = np.full(m, -1, dtype=np.int64)
+        if H is not None:
+            Hm = np.asarray(H, float)
+            ok &= np.isfinite(Hm).all(axis=1)
+            hrow = self.n_rows + np.arange(m)
+            self.H.append(Hm)
+            self.n_rows += m
         self.parts.append({"source": np.full(m, SOURCES.index(source)), "mtype": np.full(m, mtype),
-                           "t": t, "z": z, "r": r, "H": Hm, "d": dm, "ok": ok})
+                           "t": t, "z": z, "r": r, "hrow": hrow, "d": dm, "ok": ok})
 
     def build(self) -> Measurements:
         T = self.T
         N = len(T)
-        cat = {k: np.concatenate([p[k] for p in self.parts]) if self.parts else
-               np.zeros((0, self.n)) if k == "H" else np.zeros(0) for k in
-               ("source", "mtype", "t", "z", "r", "H", "d", "ok")}
+        keys = ("source", "mtype", "t", "z", "r", "hrow", "d", "ok")
+        cat = {k: np.concatenate([p[k] for p in self.parts]) if self.parts else np.zeros(0)
+               for k in keys}
+        H = np.concatenate(self.H) if self.H else np.zeros((0, self.n))
         ok = cat["ok"].astype(bool) & (cat["t"] >= T[0] - 0.5 * (T[1] - T[0] if N > 1 else 1)) & (
             cat["t"] <= T[-1] + 0.5 * (T[-1] - T[-2] if N > 1 else 1))
-        for k in cat:
-            cat[k] = cat[k][ok]
-        step = np.clip(np.searchsorted(T, cat["t"]), 0, N - 1)
+        t = cat["t"][ok]
+        step = np.clip(np.searchsorted(T, t), 0, N - 1)
         prev = np.clip(step - 1, 0, N - 1)
-        closer = np.abs(cat["t"] - T[prev]) < np.abs(cat["t"] - T[step])
+        closer = np.abs(t - T[prev]) < np.abs(t - T[step])
         step = np.where(closer, prev, step)
-        order = np.lexsort((cat["t"], step))
-        start = np.searchsorted(step[order], np.arange(N + 1), side="left")
-        return Measurements(step=step[order].astype(np.int64),
+        order = np.flatnonzero(ok)[np.lexsort((t, step))]
+        step = np.sort(step, kind="stable")
+        start = np.searchsorted(step, np.arange(N + 1), side="left")
+        return Measurements(step=step.astype(np.int64),
                             source=cat["source"][order].astype(np.int64),
                             mtype=cat["mtype"][order].astype(np.int64), z=cat["z"][order],
-                            r=cat["r"][order], t=cat["t"][order],
-                            H=np.ascontiguousarray(cat["H"][order]), d=cat["d"][order],
+                            r=cat["r"][order], t=cat["t"][order], H=np.ascontiguousarray(H),
+                            hrow=cat["hrow"][order].astype(np.int64), d=cat["d"][order],
                             start=start.astype(np.int64))
 
 
@@ -451,10 +464,19 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     return x0, P0
 
 
-def _nominal_dead_reckoning(inp: JointInputs, idx: np.ndarray):
-    """Iteration-0 linearisation trajectory: air-data dead reckoning (+ recorded wind) in the
-    departure tangent plane, heights from pressure altitude, converted through pyproj."""
-    from flightrecon.geo.frames import TangentPlane
+def _nominal_trajectory(inp: JointInputs, idx: np.ndarray):
+    """Iteration-0 linearisation trajectory on the state grid.
+
+    Air-data dead reckoning (airspeed and heading, plus the recorded wind) integrated on the
+    ellipsoid (:func:`flightrecon.geo.navframe.integrate_local_level`, valid on flights of any
+    length), heights from pressure altitude; then tied to the data that fix position: to the
+    GNSS fixes where there are any (the differences at the fixes, interpolated linearly in time;
+    the track between fixes keeps the shape of the dead reckoning), otherwise to the arrival
+    point at touchdown (a correction growing linearly from lift-off, as the DR+linear baseline).
+    Only the starting point of the Gauss-Newton iterations: it decides how many are needed,
+    not where they converge.
+    """
+    from flightrecon.geo.navframe import integrate_local_level
 
     t = inp.t_in
     tas = np.where(np.isfinite(inp.tas), inp.tas, 0.0)
@@ -463,16 +485,52 @@ def _nominal_dead_reckoning(inp: JointInputs, idx: np.ndarray):
     if inp.wind_ne is not None:
         w = np.where(np.isfinite(inp.wind_ne), inp.wind_ne, 0.0)
         vn, ve = vn + w[:, 0], ve + w[:, 1]
-    dt = np.diff(t, prepend=t[0])
-    n = np.cumsum(vn * dt)
-    e = np.cumsum(ve * dt)
-    up = np.where(np.isfinite(inp.baro_rel_m), inp.baro_rel_m, 0.0)
+    g = inp.gnss
+    gok = np.zeros(0, bool)
+    if len(g):
+        gok = (np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
+               & np.isfinite(g["t_s"].to_numpy(float)))
     ref = inp.departure
+    t_ref = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t[0]
+    if ref is None and gok.any():
+        i0 = int(np.flatnonzero(gok)[0])
+        ref = (float(g["lat_deg"].iloc[i0]), float(g["lon_deg"].iloc[i0]),
+               float(np.nan_to_num(g["h_m"].iloc[i0])))
+        t_ref = float(g["t_s"].iloc[i0])
     if ref is None:
-        g = inp.gnss
-        ref = (float(g["lat_deg"].iloc[0]), float(g["lon_deg"].iloc[0]), float(g["h_m"].iloc[0]))
-    tp = TangentPlane(*ref)
-    lat, lon, h = tp.inverse(e[idx], n[idx], up[idx])
+        ref = inp.station if inp.station is not None else (0.0, 0.0, 0.0)
+    # state-grid velocities held over each step (the grid is fine enough for a nominal)
+    T = t[idx]
+    dts = np.diff(T)
+    steps = np.maximum(dts, 1e-9)
+    lat, lon, _ = integrate_local_level(ref[0], ref[1], 0.0, vn[idx[:-1]], ve[idx[:-1]], 0.0,
+                                        steps) if len(idx) > 1 else (np.array([ref[0]]),
+                                                                     np.array([ref[1]]), None)
+    # the integration starts at the first sample; the reference holds at t_ref
+    k_ref = int(np.clip(np.searchsorted(T, t_ref), 0, len(T) - 1))
+    lat = lat - lat[k_ref] + ref[0]
+    lon = lon - lon[k_ref] + ref[1]
+    baro = np.where(np.isfinite(inp.baro_rel_m), inp.baro_rel_m, 0.0)[idx]
+    h = inp.field_h + baro
+    if gok.any():
+        tg = g["t_s"].to_numpy(float)[gok]
+        dlat = g["lat_deg"].to_numpy(float)[gok] - np.interp(tg, T, lat)
+        dlon = (g["lon_deg"].to_numpy(float)[gok] - np.interp(tg, T, lon) + 180.0) % 360.0 - 180.0
+        lat = lat + np.interp(T, tg, dlat)
+        lon = lon + np.interp(T, tg, dlon)
+        hg = g["h_m"].to_numpy(float)[gok]
+        okh = np.isfinite(hg)
+        if okh.any():
+            h = h + np.interp(T, tg[okh], hg[okh] - np.interp(tg[okh], T, h))
+    elif inp.arrival is not None and np.isfinite(inp.touchdown_t):
+        t_end = inp.touchdown_t
+        k_end = int(np.clip(np.searchsorted(T, t_end), 0, len(T) - 1))
+        dlat = inp.arrival[0] - lat[k_end]
+        dlon = (inp.arrival[1] - lon[k_end] + 180.0) % 360.0 - 180.0
+        frac = np.clip((T - t_ref) / max(t_end - t_ref, 1e-9), 0.0, 1.0)
+        lat = lat + frac * dlat
+        lon = lon + frac * dlon
+    lon = (lon + 180.0) % 360.0 - 180.0
     return lat, lon, h
 
 
@@ -489,7 +547,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     Csf = np.ascontiguousarray(_step_mean(inp.Cnb * fb[:, None, :], idx, inp.t_in))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
     q = _q_vector(nz)
-    lat, lon, h = _nominal_dead_reckoning(inp, idx)
+    lat, lon, h = _nominal_trajectory(inp, idx)
     clock = {"gnss": 0.0, "radar": 0.0}
     clock_sd = {"gnss": np.nan, "radar": np.nan}
     scale = {s: 1.0 for s in SOURCES}
@@ -518,15 +576,15 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         tau = meas.t - T[meas.step]
         xf, Pf, xp, Pp, innov, innov_var, infl = jk.forward(
             x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
-            meas.z, r, weights, tau, meas.H, meas.d, pnom, hnom, pst, Cst,
+            meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
             settings.innovation_gate if settings.robust else 0.0)
         r_used = r * infl
-        xs, Pblk, var, _, res, rate = jk.backward(
-            xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
-            meas.H, meas.d, pnom, hnom, pst, Cst)
+        # the iterations need the smoothed trajectory only; covariances once, after the last
+        kern_args = (dt, Cen, Cnb, Csf, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
+                     meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst)
+        xs, _, res, rate = jk.backward_mean(xf, Pf, xp, Pp, *kern_args)
         # residual in units of the measurement's own (nominal, not inflated) standard deviation
         res_n = res / np.sqrt(r)
-        del Pf, Pp
         # new nominal: the smoothed trajectory
         lat_new, lon_new, h_new = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
         shift = float(np.max(np.abs(np.c_[xs[:, 0:3] - pnom])))
@@ -569,6 +627,10 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                 and np.all(np.abs(weights - w_before) <= 1e-3 * np.maximum(w_before, 1e-8))):
             info["converged"] = True
             break
+    # smoothed covariances of the last pass (its states equal those of the mean-only pass to
+    # round-off: same gains, same linearisation)
+    xs, Pblk, var, *_ = jk.backward(xf, Pf, xp, Pp, *kern_args)
+    del Pf, Pp
     return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
                     innov_var=innov_var,

@@ -57,46 +57,145 @@ def _wrap(a):
 
 
 @nb.njit(cache=True)
-def transition(k, dt, Cen, Cnb, Csf, acc, tau_ba):
-    """Transition matrix F_k from step k-1 to step k (k >= 1).  ``Csf[k]`` is the step mean of
-    C_nb diag(f_body) (the Jacobian of the acceleration in the accelerometer scale errors)."""
+def transition_into(F, k, dt, Cen, Cnb, Csf, acc, tau_ba):
+    """Fill ``F`` (n, n) with the transition matrix F_k from step k-1 to step k (k >= 1).
+
+    ``Csf[k]`` is the step mean of C_nb diag(f_body) (the Jacobian of the acceleration in the
+    accelerometer scale errors).  Only the position, velocity and accelerometer-bias rows differ
+    from the identity (see the module docstring).
+    """
     n = N_STATE
-    F = np.eye(n)
+    for i in range(n):
+        for j in range(n):
+            F[i, j] = 0.0
+        F[i, i] = 1.0
     h = dt[k]
-    C = Cen[k - 1]
     for i in range(3):
         for j in range(3):
-            F[IP + i, IV + j] = C[i, j] * h
-    gpsi = np.array([acc[k, 1], -acc[k, 0], 0.0])
-    Jb = -G0 * Cnb[k]
-    for i in range(3):
-        F[IV + i, IPSI] = gpsi[i] * h
-        for j in range(3):
-            F[IV + i, IBA + j] = Jb[i, j] * h
-    Js = -G0 * Csf[k]
+            F[IP + i, IV + j] = Cen[k - 1, i, j] * h
+    g0 = acc[k, 1]
+    g1 = -acc[k, 0]
+    F[IV, IPSI] = g0 * h
+    F[IV + 1, IPSI] = g1 * h
     for i in range(3):
         for j in range(3):
-            F[IV + i, IKS + j] = Js[i, j] * h
+            F[IV + i, IBA + j] = -G0 * Cnb[k, i, j] * h
+            F[IV + i, IKS + j] = -G0 * Csf[k, i, j] * h
     # position: C_en times the velocity terms times dt/2
+    hh = h * h / 2.0
     for i in range(3):
+        c0, c1, c2 = Cen[k - 1, i, 0], Cen[k - 1, i, 1], Cen[k - 1, i, 2]
+        F[IP + i, IPSI] = (c0 * g0 + c1 * g1) * hh
         for j in range(3):
-            s_ks = 0.0
-            for m in range(3):
-                s_ks += C[i, m] * Js[m, j]
-            F[IP + i, IKS + j] = s_ks * h * h / 2.0
-        s_psi = 0.0
-        for m in range(3):
-            s_psi += C[i, m] * gpsi[m]
-        F[IP + i, IPSI] = s_psi * h * h / 2.0
-        for j in range(3):
-            s = 0.0
-            for m in range(3):
-                s += C[i, m] * Jb[m, j]
-            F[IP + i, IBA + j] = s * h * h / 2.0
+            F[IP + i, IKS + j] = -G0 * (c0 * Csf[k, 0, j] + c1 * Csf[k, 1, j]
+                                        + c2 * Csf[k, 2, j]) * hh
+            F[IP + i, IBA + j] = -G0 * (c0 * Cnb[k, 0, j] + c1 * Cnb[k, 1, j]
+                                        + c2 * Cnb[k, 2, j]) * hh
     e = np.exp(-h / tau_ba)
     for j in range(3):
         F[IBA + j, IBA + j] = e
+
+
+@nb.njit(cache=True)
+def transition(k, dt, Cen, Cnb, Csf, acc, tau_ba):
+    """Transition matrix F_k from step k-1 to step k (k >= 1); see :func:`transition_into`."""
+    F = np.empty((N_STATE, N_STATE))
+    transition_into(F, k, dt, Cen, Cnb, Csf, acc, tau_ba)
     return F
+
+
+@nb.njit(cache=True)
+def _sparse_rows(F, cols, vals, cnt):
+    """Row-compressed copy of ``F``: row i has ``cnt[i]`` nonzeros ``vals[i, :cnt[i]]`` in the
+    columns ``cols[i, :cnt[i]]`` (F_k is the identity plus a few blocks: 11 nonzeros at most
+    per row, so products with it cost O(n nnz) instead of O(n^3))."""
+    n = F.shape[0]
+    for i in range(n):
+        c = 0
+        for m in range(n):
+            if F[i, m] != 0.0:
+                cols[i, c] = m
+                vals[i, c] = F[i, m]
+                c += 1
+        cnt[i] = c
+
+
+@nb.njit(cache=True)
+def _predict_cov(P, cols, vals, cnt, B):
+    """P <- F P F^T in place with the row-compressed F (:func:`_sparse_rows`); B is scratch.
+
+    B = P F^T (B[a, i] = sum_m P[a, m] F[i, m]), then P = F B, symmetrised.
+    """
+    n = P.shape[0]
+    for i in range(n):
+        for a in range(n):
+            s = 0.0
+            for c in range(cnt[i]):
+                s += P[a, cols[i, c]] * vals[i, c]
+            B[a, i] = s
+    for i in range(n):
+        for j in range(i, n):
+            s = 0.0
+            for c in range(cnt[i]):
+                s += vals[i, c] * B[cols[i, c], j]
+            P[i, j] = s
+    for i in range(n):
+        for j in range(i):
+            P[i, j] = P[j, i]
+
+
+@nb.njit(cache=True)
+def _sparse_matvec(cols, vals, cnt, x, out):
+    """out = F x with the row-compressed F."""
+    for i in range(x.shape[0]):
+        s = 0.0
+        for c in range(cnt[i]):
+            s += vals[i, c] * x[cols[i, c]]
+        out[i] = s
+
+
+@nb.njit(cache=True)
+def _sparse_rmatvec(cols, vals, cnt, y, out):
+    """out = F^T y with the row-compressed F."""
+    n = y.shape[0]
+    for m in range(n):
+        out[m] = 0.0
+    for i in range(n):
+        for c in range(cnt[i]):
+            out[cols[i, c]] += vals[i, c] * y[i]
+
+
+@nb.njit(cache=True)
+def _cholesky_solve(A, b, L, y):
+    """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
+
+    Returns False (and leaves y undefined) if A is not numerically positive definite.
+    """
+    n = A.shape[0]
+    for j in range(n):
+        s = A[j, j]
+        for m in range(j):
+            s -= L[j, m] * L[j, m]
+        if not s > 0.0:
+            return False
+        d = np.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            s = A[i, j]
+            for m in range(j):
+                s -= L[i, m] * L[j, m]
+            L[i, j] = s / d
+    for i in range(n):          # L z = b
+        s = b[i]
+        for m in range(i):
+            s -= L[i, m] * y[m]
+        y[i] = s / L[i, i]
+    for i in range(n - 1, -1, -1):   # L^T y = z
+        s = y[i]
+        for m in range(i + 1, n):
+            s -= L[m, i] * y[m]
+        y[i] = s / L[i, i]
+    return True
 
 
 @nb.njit(cache=True)
@@ -127,19 +226,34 @@ def process_noise(k, dt, Cen, climb, qv_extra, q):
 
 
 @nb.njit(cache=True)
-def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
-    """h(x) and its gradient for scalar measurement j at step k (state x at the step)."""
+def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
+    """h(x) and its gradient for scalar measurement j at step k (state x at the step).
+
+    See :func:`measure_into` (this form allocates the gradient; for tests and analysis)."""
+    H = np.empty(N_STATE)
+    hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst)
+    return hx, H
+
+
+@nb.njit(cache=True)
+def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
+    """h(x) of scalar measurement j at step k (state x at the step); its gradient into ``H``.
+
+    ``LINEAR`` measurements have their row of H in ``mH[mrow[j]]`` (only those rows are stored).
+    """
     n = N_STATE
-    H = np.zeros(n)
+    for i in range(n):
+        H[i] = 0.0
     t = mtype[j]
     tau = mtau[j]
     C = Cen[k]
     if t == LINEAR:
         hx = md[j]
+        row = mrow[j]
         for i in range(n):
-            H[i] = mH[j, i]
-            hx += mH[j, i] * x[i]
-        return hx, H
+            H[i] = mH[row, i]
+            hx += mH[row, i] * x[i]
+        return hx
     if t == RANGE or t == AZIMUTH or t == ELEVATION:
         pos = np.empty(3)
         for i in range(3):
@@ -176,7 +290,7 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
             for i in range(3):
                 s += gp[i] * C[i, m]
             H[IV + m] = s * tau
-        return hx, H
+        return hx
     if t == TAS:
         an = x[IV] - x[IW]
         ae = x[IV + 1] - x[IW + 1]
@@ -189,7 +303,7 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
         H[IW] = -H[IV]
         H[IW + 1] = -H[IV + 1]
         H[IS] = va
-        return f * va, H
+        return f * va
     if t == HEADING:
         an = x[IV] - x[IW]
         ae = x[IV + 1] - x[IW + 1]
@@ -199,7 +313,7 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
         H[IW] = ae / v2
         H[IW + 1] = -an / v2
         H[IPSI] = 1.0
-        return np.arctan2(ae, an) + x[IPSI], H
+        return np.arctan2(ae, an) + x[IPSI]
     if t == DOPPLER:
         vn = x[IV]
         ve = x[IV + 1]
@@ -208,7 +322,7 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
         H[IV] = f * vn / w
         H[IV + 1] = f * ve / w
         H[IDW] = w
-        return f * w, H
+        return f * w
     if t == TRACK:
         vn = x[IV]
         ve = x[IV + 1]
@@ -217,7 +331,7 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
         H[IV + 1] = vn / v2
         H[IPSI] = 1.0
         H[IDC] = 1.0
-        return np.arctan2(ve, vn) + x[IPSI] + x[IDC], H
+        return np.arctan2(ve, vn) + x[IPSI] + x[IDC]
     # BARO
     base = hnom[k] - x[IV + 2] * tau
     for i in range(3):
@@ -228,19 +342,22 @@ def measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst):
     H[IV + 2] = -f * tau
     H[IC] = base
     H[IBH] = 1.0
-    return f * base + x[IBH], H
+    return f * base + x[IBH]
 
 
 @nb.njit(cache=True)
-def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw, mtau, mH,
-            md, pnom, hnom, pst, Cst, gate):
-    """Forward extended Kalman filter with sequential scalar updates (Joseph form).
+def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw,
+            mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate):
+    """Forward extended Kalman filter with sequential scalar updates.
 
     ``mstart`` (N+1,) indexes the measurements of each step (sorted by step).  A measurement
     whose normalised innovation exceeds ``gate`` (0: off) has its variance inflated so that it
     equals ``gate`` (a Huber-type robust update: a jump is followed only slowly, never trusted).
     Returns filtered and predicted states/covariances and, per measurement, the innovation, its
     variance (before inflation) and the inflation factor applied.
+
+    Allocation-free per step: the prediction uses the row-compressed F_k (P <- F P F^T + Q in
+    O(n nnz)), the update the nonzero entries of each measurement's gradient.
     """
     N = dt.shape[0]
     n = N_STATE
@@ -254,30 +371,56 @@ def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, 
     infl = np.ones(M)
     x = x0.copy()
     P = P0.copy()
+    F = np.empty((n, n))
+    B = np.empty((n, n))
+    cols = np.empty((n, n), dtype=np.int64)
+    vals = np.empty((n, n))
+    cnt = np.empty(n, dtype=np.int64)
+    xn = np.empty(n)
+    H = np.empty(n)
+    PH = np.empty(n)
+    hnz = np.empty(n, dtype=np.int64)
     for k in range(N):
         if k > 0:
-            F = transition(k, dt, Cen, Cnb, Csf, acc, q[4])
-            Q = process_noise(k, dt, Cen, climb, qv_extra, q)
-            x = F @ x
+            transition_into(F, k, dt, Cen, Cnb, Csf, acc, q[4])
+            _sparse_rows(F, cols, vals, cnt)
+            _sparse_matvec(cols, vals, cnt, x, xn)
+            for i in range(n):
+                x[i] = xn[i]
             for i in range(3):
                 for m in range(3):
                     x[IP + i] += Cen[k - 1, i, m] * dP[k, m]
                 x[IV + i] += dV[k, i]
-            P = F @ P @ F.T + Q
-            P = 0.5 * (P + P.T)
+            _predict_cov(P, cols, vals, cnt, B)
+            Q = process_noise(k, dt, Cen, climb, qv_extra, q)
+            for i in range(n):
+                for m in range(n):
+                    P[i, m] += Q[i, m]
         xp[k] = x
         Pp[k] = P
         for j in range(mstart[k], mstart[k + 1]):
             if mw[j] <= 0.0:
                 continue
-            hx, H = measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst)
+            hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
+                              Cst)
             nu = mz[j] - hx
             t = mtype[j]
             if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 nu = _wrap(nu)
-            PH = P @ H
+            nh = 0
+            for i in range(n):
+                if H[i] != 0.0:
+                    hnz[nh] = i
+                    nh += 1
+            HPH = 0.0
+            for a in range(n):
+                v = 0.0
+                for c in range(nh):
+                    v += P[a, hnz[c]] * H[hnz[c]]
+                PH[a] = v
+            for c in range(nh):
+                HPH += H[hnz[c]] * PH[hnz[c]]
             r = mr[j] / mw[j]
-            HPH = H @ PH
             S = HPH + r
             nu_out[j] = nu
             s_out[j] = S
@@ -286,26 +429,99 @@ def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, 
                 infl[j] = r_new / r
                 r = r_new
                 S = HPH + r
-            # Joseph form for a scalar update, O(n^2), in place (no temporaries):
-            # P <- P - K PH^T - PH K^T + S K K^T with K = PH / S (symmetric by construction)
+            # scalar update with K = PH / S, in place, O(n^2): the Joseph form
+            # (I - K H) P (I - K H)^T + K r K^T expanded for the optimal gain is
+            # P - K PH^T - PH K^T + S K K^T = P - PH PH^T / S; (PH_a PH_b) / S is bitwise
+            # symmetric, so P stays exactly symmetric
+            inv_s = 1.0 / S
             for a in range(n):
-                ka = PH[a] / S
-                for b in range(a, n):
-                    kb = PH[b] / S
-                    v = P[a, b] - ka * PH[b] - PH[a] * kb + S * ka * kb
-                    P[a, b] = v
-                    P[b, a] = v
-                x[a] += ka * nu
+                pa = PH[a]
+                for b in range(n):
+                    P[a, b] -= (pa * PH[b]) * inv_s
+                x[a] += pa * inv_s * nu
         xf[k] = x
         Pf[k] = P
     return xf, Pf, xp, Pp, nu_out, s_out, infl
 
 
 @nb.njit(cache=True)
-def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, mtau, mH, md, pnom,
-             hnom, pst, Cst):
-    """RTS backward pass; also the smoothed residual of every measurement (raw, and in units of
-    its own standard deviation sqrt(R)), and its rate dh/dtau (for clock-offset estimation).
+def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst,
+                  H, res, res_n, rate):
+    """Residuals z - h(x) of step k's measurements at the smoothed state ``x``: raw, in units of
+    sqrt(R), and the rate dh/dtau of each predicted measurement (for the clock offsets)."""
+    for j in range(mstart[k], mstart[k + 1]):
+        hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst)
+        e = mz[j] - hx
+        t = mtype[j]
+        if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
+            e = _wrap(e)
+        res[j] = e
+        res_n[j] = e / np.sqrt(mr[j])
+        # rate of the predicted measurement with the measurement time: dh/dtau
+        if t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
+            rate[j] = 0.0
+            continue
+        rd = 0.0
+        for m in range(3):
+            s = 0.0
+            for i in range(3):
+                g = mH[mrow[j], IP + i] if t == LINEAR else H[IP + i]
+                s += g * Cen[k, i, m]
+            rd += s * x[IV + m]
+        rate[j] = rd
+
+
+@nb.njit(cache=True)
+def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, mtau, mH,
+                  mrow, md, pnom, hnom, pst, Cst):
+    """RTS backward pass for the smoothed states only (no covariances), and the residuals.
+
+    x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
+    mean as :func:`backward` (Rauch, Tung & Striebel 1965) at O(n^3 / 6) per step (one Cholesky
+    solve with a vector) instead of O(n^3) products; used in the Gauss-Newton iterations, which
+    need the trajectory and the residuals but not the smoothed covariances.
+
+    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`).
+    """
+    N, n = xf.shape
+    M = mtype.shape[0]
+    xs = xf.copy()
+    res_n = np.full(M, np.nan)
+    res = np.full(M, np.nan)
+    rate = np.full(M, np.nan)
+    F = np.empty((n, n))
+    cols = np.empty((n, n), dtype=np.int64)
+    vals = np.empty((n, n))
+    cnt = np.empty(n, dtype=np.int64)
+    L = np.empty((n, n))
+    d = np.empty(n)
+    y = np.empty(n)
+    z = np.empty(n)
+    H = np.empty(n)
+    for k in range(N - 1, -1, -1):
+        if k < N - 1:
+            transition_into(F, k + 1, dt, Cen, Cnb, Csf, acc, q[4])
+            _sparse_rows(F, cols, vals, cnt)
+            for i in range(n):
+                d[i] = xs[k + 1, i] - xp[k + 1, i]
+            if not _cholesky_solve(Pp[k + 1], d, L, y):
+                y[:] = np.linalg.solve(Pp[k + 1], d)
+            _sparse_rmatvec(cols, vals, cnt, y, z)
+            for a in range(n):
+                v = xf[k, a]
+                for b in range(n):
+                    v += Pf[k, a, b] * z[b]
+                xs[k, a] = v
+        _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
+                      Cst, H, res, res_n, rate)
+    return xs, res_n, res, rate
+
+
+@nb.njit(cache=True)
+def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
+             md, pnom, hnom, pst, Cst):
+    """RTS backward pass with covariances; also the smoothed residuals (see
+    :func:`backward_mean`, which gives the same states without the covariances).
 
     Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
     smoothed state variances (N, n), normalised residuals, raw residuals and rates.
@@ -318,11 +534,24 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
     res_n = np.full(M, np.nan)
     res = np.full(M, np.nan)
     rate = np.full(M, np.nan)
+    F = np.empty((n, n))
+    cols = np.empty((n, n), dtype=np.int64)
+    vals = np.empty((n, n))
+    cnt = np.empty(n, dtype=np.int64)
+    A = np.empty((n, n))
+    H = np.empty(n)
     Ps_next = Pf[N - 1].copy()
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            F = transition(k + 1, dt, Cen, Cnb, Csf, acc, q[4])
-            A = F @ Pf[k]
+            transition_into(F, k + 1, dt, Cen, Cnb, Csf, acc, q[4])
+            _sparse_rows(F, cols, vals, cnt)
+            # A = F P_f[k] (row-compressed F); gain C = P_f F^T P_p^-1 = (P_p^-1 A)^T
+            for i in range(n):
+                for b in range(n):
+                    v = 0.0
+                    for c in range(cnt[i]):
+                        v += vals[i, c] * Pf[k, cols[i, c], b]
+                    A[i, b] = v
             C = np.linalg.solve(Pp[k + 1], A).T
             xs[k] = xf[k] + C @ (xs[k + 1] - xp[k + 1])
             Pk = Pf[k] + C @ (Ps_next - Pp[k + 1]) @ C.T
@@ -333,32 +562,6 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
         Pblk[k] = Pk[0:6, 0:6]
         for i in range(n):
             var[k, i] = Pk[i, i]
-        x = xs[k]
-        for j in range(mstart[k], mstart[k + 1]):
-            hx, H = measure(j, k, x, mtype, mz, mtau, mH, md, Cen, pnom, hnom, pst, Cst)
-            e = mz[j] - hx
-            t = mtype[j]
-            if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
-                e = _wrap(e)
-            res[j] = e
-            res_n[j] = e / np.sqrt(mr[j])
-            # rate of the predicted measurement with the measurement time: dh/dtau
-            if t == LINEAR:
-                rd = 0.0
-                for m in range(3):
-                    s = 0.0
-                    for i in range(3):
-                        s += mH[j, IP + i] * Cen[k, i, m]
-                    rd += s * x[IV + m]
-                rate[j] = rd
-            elif t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
-                rate[j] = 0.0
-            else:
-                rd = 0.0
-                for m in range(3):
-                    s = 0.0
-                    for i in range(3):
-                        s += H[IP + i] * Cen[k, i, m]
-                    rd += s * x[IV + m]
-                rate[j] = rd
+        _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
+                      Cst, H, res, res_n, rate)
     return xs, Pblk, var, res_n, res, rate
