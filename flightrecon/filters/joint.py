@@ -261,6 +261,13 @@ class _MeasBuilder:
         self.H: list[np.ndarray] = []
         self.n_rows = 0
 
+    def copy(self) -> _MeasBuilder:
+        b = _MeasBuilder(self.T, self.n)
+        b.parts = list(self.parts)
+        b.H = list(self.H)
+        b.n_rows = self.n_rows
+        return b
+
     def add(self, source: str, mtype: int, t, z, r, H=None, d=None):
         t = np.asarray(t, float)
         z = np.asarray(z, float)
@@ -305,34 +312,13 @@ class _MeasBuilder:
                             start=start.astype(np.int64))
 
 
-def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
-                       Cnb_T: np.ndarray, clock: dict[str, float]) -> Measurements:
-    """Every source as scalar measurements at its own time (recorder time base)."""
+def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
+    """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
+    recorded wind, pressure altitude, ground and runway constraints (built once)."""
     nz = settings.noise
     b = _MeasBuilder(T)
     n = jk.N_STATE
     t_in = inp.t_in
-
-    def step_of(t):
-        s = np.clip(np.searchsorted(T, t), 0, len(T) - 1)
-        p = np.clip(s - 1, 0, len(T) - 1)
-        return np.where(np.abs(t - T[p]) < np.abs(t - T[s]), p, s)
-
-    def linear_ned(source, t, comp_vals, sd, kind="pos", ecef=None):
-        """NED components of a position (given in ECEF) or a velocity, with tau terms."""
-        k = step_of(t)
-        tau = t - T[k]
-        for i in range(3 if kind == "pos" else 2):
-            H = np.zeros((len(t), n))
-            if kind == "pos":
-                c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
-                H[:, jk.IP:jk.IP + 3] = c
-                H[:, jk.IV + i] = tau
-                z = np.einsum("mj,mj->m", c, ecef)
-            else:
-                H[:, jk.IV + i] = 1.0
-                z = comp_vals[i]
-            b.add(source, jk.LINEAR, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), H)
 
     # air data: airspeed and heading, decimated, airborne speeds only
     ok = np.isfinite(inp.tas) & np.isfinite(inp.heading_rad) & (inp.tas >= settings.min_airspeed_mps)
@@ -358,6 +344,79 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     # pressure altitude
     okb = np.isfinite(inp.baro_rel_m) & _decimate_mask(t_in, settings.baro_rate_hz)
     b.add("baro", jk.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
+    # on the ground: zero vertical velocity and zero cross-track velocity (rolling on a runway)
+    on_ground = np.zeros(len(t_in), bool)
+    if np.isfinite(inp.liftoff_t):
+        on_ground |= t_in < inp.liftoff_t - 2.0
+    if np.isfinite(inp.touchdown_t):
+        on_ground |= t_in > inp.touchdown_t + 2.0
+    keep = on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
+    # on the runway: the cross-track offset from the line through the airfield reference point
+    # along the runway heading is zero (the reference point lies on the runway centreline)
+    for pos, side in ((inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t)
+                                               else -np.inf)),
+                      (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t)
+                                            else np.inf))):
+        sel = keep & side
+        if pos is None or not sel.any():
+            continue
+        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+        arp = np.array([float(ex), float(ey), float(ez)])
+        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
+        psi = inp.heading_rad[sel]
+        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
+        H = np.zeros((len(psi), n))
+        H[:, jk.IP:jk.IP + 3] = cross
+        b.add("runway", jk.LINEAR, t_in[sel], np.zeros(len(psi)), nz.runway_halfwidth_m ** 2, H,
+              -cross @ arp)
+    if keep.any():
+        tt = t_in[keep]
+        H = np.zeros((len(tt), n))
+        H[:, jk.IV + 2] = 1.0
+        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+        H = np.zeros((len(tt), n))
+        psi = inp.heading_rad[keep]
+        H[:, jk.IV] = -np.sin(psi)
+        H[:, jk.IV + 1] = np.cos(psi)
+        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+    return b
+
+
+def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
+                       Cnb_T: np.ndarray, clock: dict[str, float],
+                       static: _MeasBuilder | None = None) -> Measurements:
+    """Every source as scalar measurements at its own time (recorder time base).
+
+    ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar
+    and end-point measurements depend on the linearisation (``Cen``) and on the clock offsets
+    and are rebuilt on each call.
+    """
+    nz = settings.noise
+    b = (static if static is not None else static_measurements(inp, settings, T)).copy()
+    n = jk.N_STATE
+    t_in = inp.t_in
+
+    def step_of(t):
+        s = np.clip(np.searchsorted(T, t), 0, len(T) - 1)
+        p = np.clip(s - 1, 0, len(T) - 1)
+        return np.where(np.abs(t - T[p]) < np.abs(t - T[s]), p, s)
+
+    def linear_ned(source, t, comp_vals, sd, kind="pos", ecef=None):
+        """NED components of a position (given in ECEF) or a velocity, with tau terms."""
+        k = step_of(t)
+        tau = t - T[k]
+        for i in range(3 if kind == "pos" else 2):
+            H = np.zeros((len(t), n))
+            if kind == "pos":
+                c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
+                H[:, jk.IP:jk.IP + 3] = c
+                H[:, jk.IV + i] = tau
+                z = np.einsum("mj,mj->m", c, ecef)
+            else:
+                H[:, jk.IV + i] = 1.0
+                z = comp_vals[i]
+            b.add(source, jk.LINEAR, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), H)
+
     # GNSS
     g = inp.gnss
     if len(g):
@@ -395,41 +454,6 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
         linear_ned("endpoint", np.array([tt]), None, sd_end, "pos",
                    np.array([[float(ex), float(ey), float(ez)]]))
-    # on the ground: zero vertical velocity and zero cross-track velocity (rolling on a runway)
-    on_ground = np.zeros(len(t_in), bool)
-    if np.isfinite(inp.liftoff_t):
-        on_ground |= t_in < inp.liftoff_t - 2.0
-    if np.isfinite(inp.touchdown_t):
-        on_ground |= t_in > inp.touchdown_t + 2.0
-    keep = on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
-    # on the runway: the cross-track offset from the line through the airfield reference point
-    # along the runway heading is zero (the reference point lies on the runway centreline)
-    for pos, side in ((inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t)
-                                               else -np.inf)),
-                      (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t)
-                                            else np.inf))):
-        sel = keep & side
-        if pos is None or not sel.any():
-            continue
-        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-        arp = np.array([float(ex), float(ey), float(ez)])
-        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
-        psi = inp.heading_rad[sel]
-        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
-        H = np.zeros((len(psi), n))
-        H[:, jk.IP:jk.IP + 3] = cross
-        b.add("runway", jk.LINEAR, t_in[sel], np.zeros(len(psi)), nz.runway_halfwidth_m ** 2, H,
-              -cross @ arp)
-    if keep.any():
-        tt = t_in[keep]
-        H = np.zeros((len(tt), n))
-        H[:, jk.IV + 2] = 1.0
-        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
-        H = np.zeros((len(tt), n))
-        psi = inp.heading_rad[keep]
-        H[:, jk.IV] = -np.sin(psi)
-        H[:, jk.IV + 1] = np.cos(psi)
-        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
     return b.build()
 
 
@@ -560,13 +584,14 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         sx, sy, sz = geodetic_to_ecef(*inp.station)
         pst = np.array([float(sx), float(sy), float(sz)])
     x0 = P0 = None
+    static = static_measurements(inp, settings, T)
     for it in range(max(1, settings.iterations)):
         ex, ey, ez = geodetic_to_ecef(lat, lon, h)
         pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
         Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
         hnom = h - inp.field_h
         climb = np.abs(np.diff(h, prepend=h[0]))
-        meas = build_measurements(inp, settings, T, Cen, Cnb, clock)
+        meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static)
         src_scale = np.array([scale[SOURCES[s]] for s in meas.source]) if len(meas.z) else np.zeros(0)
         r = meas.r * src_scale
         if weights is None or len(weights) != len(meas.z):
@@ -574,8 +599,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if x0 is None:
             x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps)
         tau = meas.t - T[meas.step]
-        xf, Pf, xp, Pp, innov, innov_var, infl = jk.forward(
-            x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
+        if it == 0:  # filter outputs, reused by every pass (allocated and paged in once)
+            n = jk.N_STATE
+            xf, xp = np.empty((len(T), n)), np.empty((len(T), n))
+            Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
+        innov, innov_var, infl = jk.forward(
+            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
             settings.innovation_gate if settings.robust else 0.0)
         r_used = r * infl

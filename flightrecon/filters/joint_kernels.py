@@ -166,11 +166,9 @@ def _sparse_rmatvec(cols, vals, cnt, y, out):
 
 
 @nb.njit(cache=True)
-def _cholesky_solve(A, b, L, y):
-    """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
-
-    Returns False (and leaves y undefined) if A is not numerically positive definite.
-    """
+def _cholesky_factor(A, L):
+    """Lower Cholesky factor of a symmetric positive-definite A into L; False if A is not
+    numerically positive definite."""
     n = A.shape[0]
     for j in range(n):
         s = A[j, j]
@@ -178,23 +176,51 @@ def _cholesky_solve(A, b, L, y):
             s -= L[j, m] * L[j, m]
         if not s > 0.0:
             return False
-        d = np.sqrt(s)
-        L[j, j] = d
+        dj = np.sqrt(s)
+        L[j, j] = dj
         for i in range(j + 1, n):
             s = A[i, j]
             for m in range(j):
                 s -= L[i, m] * L[j, m]
-            L[i, j] = s / d
-    for i in range(n):          # L z = b
-        s = b[i]
+            L[i, j] = s / dj
+    return True
+
+
+@nb.njit(cache=True)
+def _cholesky_solve_columns(L, B, X):
+    """X = (L L^T)^{-1} B: forward then back substitution, all columns of B at once (the row
+    operations run along contiguous rows, so they vectorise)."""
+    n = L.shape[0]
+    nc = B.shape[1]
+    for i in range(n):
+        for c in range(nc):
+            X[i, c] = B[i, c]
         for m in range(i):
-            s -= L[i, m] * y[m]
-        y[i] = s / L[i, i]
-    for i in range(n - 1, -1, -1):   # L^T y = z
-        s = y[i]
+            lim = L[i, m]
+            for c in range(nc):
+                X[i, c] -= lim * X[m, c]
+        inv = 1.0 / L[i, i]
+        for c in range(nc):
+            X[i, c] *= inv
+    for i in range(n - 1, -1, -1):
         for m in range(i + 1, n):
-            s -= L[m, i] * y[m]
-        y[i] = s / L[i, i]
+            lmi = L[m, i]
+            for c in range(nc):
+                X[i, c] -= lmi * X[m, c]
+        inv = 1.0 / L[i, i]
+        for c in range(nc):
+            X[i, c] *= inv
+
+
+@nb.njit(cache=True)
+def _cholesky_solve(A, b, L, y):
+    """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
+
+    Returns False (and leaves y undefined) if A is not numerically positive definite.
+    """
+    if not _cholesky_factor(A, L):
+        return False
+    _cholesky_solve_columns(L, b.reshape((-1, 1)), y.reshape((-1, 1)))
     return True
 
 
@@ -346,15 +372,16 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
 
 
 @nb.njit(cache=True)
-def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw,
+def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw,
             mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate):
     """Forward extended Kalman filter with sequential scalar updates.
 
     ``mstart`` (N+1,) indexes the measurements of each step (sorted by step).  A measurement
     whose normalised innovation exceeds ``gate`` (0: off) has its variance inflated so that it
     equals ``gate`` (a Huber-type robust update: a jump is followed only slowly, never trusted).
-    Returns filtered and predicted states/covariances and, per measurement, the innovation, its
-    variance (before inflation) and the inflation factor applied.
+    Fills the filtered and predicted states/covariances ``xf``, ``Pf`` (N, n[, n]), ``xp``,
+    ``Pp`` (given, so that the Gauss-Newton iterations reuse them) and returns, per
+    measurement, the innovation, its variance (before inflation) and the inflation factor.
 
     Allocation-free per step: the prediction uses the row-compressed F_k (P <- F P F^T + Q in
     O(n nnz)), the update the nonzero entries of each measurement's gradient.
@@ -362,10 +389,6 @@ def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, 
     N = dt.shape[0]
     n = N_STATE
     M = mtype.shape[0]
-    xf = np.empty((N, n))
-    Pf = np.empty((N, n, n))
-    xp = np.empty((N, n))
-    Pp = np.empty((N, n, n))
     nu_out = np.full(M, np.nan)
     s_out = np.full(M, np.nan)
     infl = np.ones(M)
@@ -441,7 +464,7 @@ def forward(x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, 
                 x[a] += pa * inv_s * nu
         xf[k] = x
         Pf[k] = P
-    return xf, Pf, xp, Pp, nu_out, s_out, infl
+    return nu_out, s_out, infl
 
 
 @nb.njit(cache=True)
@@ -539,29 +562,57 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
     vals = np.empty((n, n))
     cnt = np.empty(n, dtype=np.int64)
     A = np.empty((n, n))
+    G = np.empty((n, n))
+    GT = np.empty((n, n))
+    L = np.empty((n, n))
+    D = np.empty((n, n))
+    E = np.empty((n, n))
+    d = np.empty(n)
     H = np.empty(n)
-    Ps_next = Pf[N - 1].copy()
+    Ps = Pf[N - 1].copy()
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             transition_into(F, k + 1, dt, Cen, Cnb, Csf, acc, q[4])
             _sparse_rows(F, cols, vals, cnt)
-            # A = F P_f[k] (row-compressed F); gain C = P_f F^T P_p^-1 = (P_p^-1 A)^T
+            # A = F P_f[k] (row-compressed F); the gain G = P_f F^T P_p^-1, i.e. G^T = P_p^-1 A
             for i in range(n):
                 for b in range(n):
                     v = 0.0
                     for c in range(cnt[i]):
                         v += vals[i, c] * Pf[k, cols[i, c], b]
                     A[i, b] = v
-            C = np.linalg.solve(Pp[k + 1], A).T
-            xs[k] = xf[k] + C @ (xs[k + 1] - xp[k + 1])
-            Pk = Pf[k] + C @ (Ps_next - Pp[k + 1]) @ C.T
-            Pk = 0.5 * (Pk + Pk.T)
-        else:
-            Pk = Pf[k].copy()
-        Ps_next = Pk
-        Pblk[k] = Pk[0:6, 0:6]
+            if _cholesky_factor(Pp[k + 1], L):
+                _cholesky_solve_columns(L, A, GT)     # GT = P_p^-1 A = G^T
+            else:
+                GT[:, :] = np.linalg.solve(Pp[k + 1], A)
+            for i in range(n):
+                for j in range(n):
+                    G[i, j] = GT[j, i]
+            # x_s[k] = x_f[k] + G (x_s[k+1] - x_p[k+1])
+            for i in range(n):
+                d[i] = xs[k + 1, i] - xp[k + 1, i]
+            for i in range(n):
+                v = xf[k, i]
+                for j in range(n):
+                    v += G[i, j] * d[j]
+                xs[k, i] = v
+            # P_s[k] = P_f[k] + G (P_s[k+1] - P_p[k+1]) G^T (BLAS products into buffers)
+            for i in range(n):
+                for j in range(n):
+                    D[i, j] = Ps[i, j] - Pp[k + 1, i, j]
+            np.dot(G, D, E)
+            np.dot(E, GT, Ps)
+            for i in range(n):
+                for j in range(i, n):
+                    Ps[i, j] += Pf[k, i, j]
+            for i in range(n):           # the upper triangle mirrored: exactly symmetric
+                for j in range(i):
+                    Ps[i, j] = Ps[j, i]
+        for i in range(6):
+            for j in range(6):
+                Pblk[k, i, j] = Ps[i, j]
         for i in range(n):
-            var[k, i] = Pk[i, i]
+            var[k, i] = Ps[i, i]
         _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
                       Cst, H, res, res_n, rate)
     return xs, Pblk, var, res_n, res, rate
