@@ -240,33 +240,30 @@ def _liftoff_velocity(clean: CleanFlight, t, h_rel, cols, psi, wind, notes) -> n
 
 
 def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray) -> pd.DataFrame:
+    """The output columns, built in one (N, m) float block (one DataFrame block, no copies)."""
     n = len(t_all)
-    out = {"t_s": t_all}
-    names = (("sabziev_north_m", 0), ("sabziev_up_m", 1), ("sabziev_east_m", 2))
-    vnames = (("sabziev_vn_mps", 0), ("sabziev_vu_mps", 1), ("sabziev_ve_mps", 2))
+    names = (("sabziev_north_m", 0), ("sabziev_east_m", 2), ("sabziev_up_m", 1))
+    vnames = (("sabziev_vn_mps", 0), ("sabziev_ve_mps", 2), ("sabziev_vu_mps", 1))
     offset = (origin[0], origin[2], origin[1])  # Sabziev order: north, up, east
-    for cname, j in names:
-        col = np.full(n, np.nan)
-        col[sl] = sol.xyz_m[:, j] + offset[j]
-        out[cname] = col
-    for cname, j in vnames:
-        col = np.full(n, np.nan)
-        col[sl] = sol.vxyz_mps[:, j]
-        out[cname] = col
+    cols = ["t_s"] + [c for c, _ in names] + [c for c, _ in vnames]
+    if k_sd is not None:
+        # order as before: per axis (north, up, east) the position then the velocity spread
+        for (cname, _), (vname, _) in zip(sorted(names, key=lambda x: x[1]),
+                                          sorted(vnames, key=lambda x: x[1])):
+            cols += [cname.replace("_m", "_sd_m"), vname.replace("_mps", "_sd_mps")]
+    block = np.full((n, len(cols)), np.nan)
+    block[:, 0] = t_all
+    for c, (cname, j) in enumerate(names, start=1):
+        block[sl, c] = sol.xyz_m[:, j] + offset[j]
+    for c, (vname, j) in enumerate(vnames, start=4):
+        block[sl, c] = sol.vxyz_mps[:, j]
     if k_sd is not None:
         psd = sol.position_sd_m(k_sd)
         vsd = sol.velocity_sd_mps(k_sd)
-        for (cname, j), (vname, _) in zip(names, vnames):
-            col = np.full(n, np.nan)
-            col[sl] = psd[:, j]
-            out[cname.replace("_m", "_sd_m")] = col
-            vcol = np.full(n, np.nan)
-            vcol[sl] = vsd[:, j]
-            out[vname.replace("_mps", "_sd_mps")] = vcol
-    order = ["t_s", "sabziev_north_m", "sabziev_east_m", "sabziev_up_m", "sabziev_vn_mps",
-             "sabziev_ve_mps", "sabziev_vu_mps"]
-    order += [c for c in out if c not in order]
-    return pd.DataFrame({c: out[c] for c in order})
+        for j in range(3):
+            block[sl, 7 + 2 * j] = psd[:, j]
+            block[sl, 8 + 2 * j] = vsd[:, j]
+    return pd.DataFrame(block, columns=cols, copy=False)
 
 
 def _num(x: float) -> float | None:

@@ -17,7 +17,10 @@ Solves ``F(k) = s_N(k) - s_T = 0`` (METHODS.md section 1; seed 001, equations (5
    times running, or has not improved ``|F|`` for :data:`STAGNATION` iterations (``F``
    oscillates on the vertical negative branch).  A sign change between iterates is a bracket.
 3. **Scan.** ``F`` is tabulated on a geometric grid of ``|k|`` (``points_per_decade``) from
-   ``span[0] k_ref`` to ``k_max`` on each branch; sign changes are brackets.
+   ``span[0] k_ref`` to ``k_max`` on each branch; sign changes are brackets.  With a batch
+   evaluator (``fun_many``) the whole grid of a branch is computed in one call; the values
+   are then taken in grid order exactly as point by point.  Values already computed are
+   memoised (``F`` is deterministic), so a bracket end or a refined root is not recomputed.
 4. **Selection rule** (negative branch first; it is the stable, physical one).
    ``rule="slowest"`` (horizontal axes): the root with the smallest ``|k|``.
    ``rule="baro"`` (vertical axis, default there): on the oscillatory branch ``F(k2)`` has a
@@ -42,13 +45,13 @@ available as ``parametrisation="alpha"`` to reproduce the paper; it covers ``k2 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from flightrecon.errors import ConvergenceError, ValidationError
 
-__all__ = ["PARAMETRISATIONS", "RULES", "RootReport", "find_coefficient"]
+__all__ = ["PARAMETRISATIONS", "RULES", "ManyEvaluator", "RootReport", "find_coefficient"]
 
 PARAMETRISATIONS = ("k", "alpha")
 
@@ -76,7 +79,8 @@ class RootReport:
         baro height) [m]; NaN if not computed
     rule : the selection rule applied
     iterations : Newton iterations (start phase plus refinement)
-    evaluations : evaluations of ``F`` in total (scan included)
+    evaluations : evaluations of ``F`` in total (scan included; values reused from the memo
+        are not counted)
     branch : ``"negative"`` (stable / physical), ``"positive"`` (non-physical exponential
         weighting of lift-off data) or ``"none"``
     reason : one line on how the root was found or why none was
@@ -120,20 +124,71 @@ def _num(x: float) -> float | None:
     return x if np.isfinite(x) else None
 
 
+ManyEvaluator = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``ks -> (F(ks), misfit(ks))`` for many ``k`` at once, without derivatives (the scan).  Must
+return the same numbers as :data:`Evaluator` for each ``k`` (one pass over the data for all
+of them is what makes the scan cheap: docs/sabziev.md, "Speed")."""
+
+
 @dataclass
 class _Counter:
+    """Evaluations of ``F`` with a memo: ``F`` is a deterministic function of ``k``, so a value
+    already computed (a scan point that became a bracket end, the last Newton iterate of a
+    refinement) is not recomputed.  ``n`` counts the evaluations actually made."""
+
     fun: Evaluator
+    many: ManyEvaluator | None = None
     n: int = 0
     best: tuple[float, float] = (float("nan"), float("inf"))
+    memo: dict = field(default_factory=dict)
+
+    def _seen(self, k: float, F: float) -> None:
+        if np.isfinite(F) and abs(F) < abs(self.best[1]):
+            self.best = (k, F)
 
     def __call__(self, k: float) -> tuple[float, float, float]:
+        k = float(k)
+        hit = self.memo.get(k)
+        if hit is not None and not np.isnan(hit[1]):
+            return hit
         self.n += 1
         with np.errstate(over="ignore", invalid="ignore"):
-            F, dF, m = self.fun(float(k))
+            F, dF, m = self.fun(k)
         F, dF, m = float(F), float(dF), float(m)
-        if np.isfinite(F) and abs(F) < abs(self.best[1]):
-            self.best = (float(k), F)
+        self._seen(k, F)
+        self.memo[k] = (F, dF, m)
         return F, dF, m
+
+    def value(self, k: float) -> float:
+        """``F(k)`` alone (from the memo when the scan or Newton already has it)."""
+        hit = self.memo.get(float(k))
+        return hit[0] if hit is not None else self(k)[0]
+
+    def scan(self, ks: np.ndarray):
+        """Yield ``(k, F, misfit)`` along a grid of ``k``, each accounted for (count, best,
+        memo) as it is taken: the caller may stop early (overflow) and the report is the same
+        as for point-by-point evaluation.  With ``many`` the whole grid is computed in one
+        batch first (values past an early stop are then computed but not used)."""
+        ks = np.asarray(ks, dtype=np.float64)
+        if self.many is None:
+            for k in ks.tolist():
+                F, _, m = self(k)
+                yield k, F, m
+            return
+        with np.errstate(over="ignore", invalid="ignore"):
+            Fs, ms = self.many(ks)
+        for k, F, m in zip(ks.tolist(), np.asarray(Fs, dtype=np.float64).tolist(),
+                           np.asarray(ms, dtype=np.float64).tolist()):
+            self.consume(k, F, m)
+            yield k, F, m
+
+    def consume(self, k: float, F: float, m: float) -> None:
+        """Account for one scan value (count, best |F|, memo)."""
+        k, F, m = float(k), float(F), float(m)
+        self.n += 1
+        self._seen(k, F)
+        if k not in self.memo:
+            self.memo[k] = (F, float("nan"), m)
 
 
 def _sign(x: float) -> float:
@@ -210,7 +265,7 @@ def _damped_newton(f: _Counter, k0: float, k_max_pos: float, k_max_neg: float, t
 def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
             history: list) -> tuple[float, float, int, str]:
     """Newton kept inside the bracket [a, b] (bisection otherwise), brentq as the fallback."""
-    Fa = f(a)[0]
+    Fa = f.value(a)
     k = 0.5 * (a + b)
     it = 0
     while it < max_iter:
@@ -271,8 +326,7 @@ def _scan(f: _Counter, sign: float, k_lo: float, k_hi: float,
     ks = sign * np.geomspace(k_lo, k_hi, n)
     out = []
     prev = None
-    for k in ks:
-        F, _, m = f(k)
+    for k, F, m in f.scan(ks):
         if not np.isfinite(F):
             break  # beyond here the branch overflows
         if prev is not None and _sign(F) != _sign(prev[1]):
@@ -285,7 +339,8 @@ def find_coefficient(fun: Evaluator, *, k_ref: float, k_max_pos: float, k_max_ne
                      k0: float | None = None, tol_m: float = 1e-3, max_iter: int = 60,
                      span_lo: float = 1e-2, points_per_decade: int = 12,
                      parametrisation: str = "k", rule: str = "slowest", n_refine: int = 3,
-                     strict: bool = False, axis: str = "") -> RootReport:
+                     strict: bool = False, axis: str = "",
+                     fun_many: ManyEvaluator | None = None) -> RootReport:
     """Find one Sabziev coefficient by the safeguarded Newton iteration and selection rule.
 
     Parameters
@@ -306,6 +361,9 @@ def find_coefficient(fun: Evaluator, *, k_ref: float, k_max_pos: float, k_max_ne
     strict : raise :class:`~flightrecon.errors.ConvergenceError` instead of returning a
         non-converged report
     axis : axis name for messages
+    fun_many : optional ``ks -> (F, misfit)`` for many ``k`` at once (:data:`ManyEvaluator`),
+        used by the scan; it must agree with ``fun`` (the Sabziev one is bit-identical).
+        Without it the scan calls ``fun`` point by point: same result, slower.
 
     Returns
     -------
@@ -318,7 +376,7 @@ def find_coefficient(fun: Evaluator, *, k_ref: float, k_max_pos: float, k_max_ne
         raise ValidationError(f"rule must be one of {RULES}, got {rule!r}")
     if not (k_ref > 0 and k_max_pos > 0 and k_max_neg > 0 and tol_m > 0):
         raise ValidationError("k_ref, k_max_pos, k_max_neg and tol_m must be positive")
-    f = _Counter(fun)
+    f = _Counter(fun, fun_many)
     if parametrisation == "alpha":
         rep = _alpha_newton(f, 1.0 if k0 is None else float(k0), k_max_pos, tol_m, max_iter)
     else:

@@ -41,13 +41,18 @@ of the *discrete* end point, which is what Newton-Raphson solves)::
     sigma_{i+1} = Phi sigma_i + Phi' q_i + G0' u_i + G1' (u_{i+1} - u_i)
                   + G0 u'_i + G1 (u'_{i+1} - u'_i),     u' = d u / d k = -w
 
-Both recursions are compiled with numba: one pass over 691,200 samples takes a few ms.
+Both recursions are compiled with numba: one pass over 691,200 samples takes a few ms.  The
+root scan, which needs ``F`` (not its derivative) at a few hundred ``k``, evaluates all of
+them in one pass over the data (:func:`propagate_end_many`, SIMD across ``k``); every lane
+does the same floating-point operations as the single evaluation, so the scan values, and
+with them the brackets and the root taken, are bit-identical to point-by-point evaluation.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numba as nb
 import numpy as np
@@ -73,6 +78,7 @@ __all__ = [
     "paper_vertical_residual_alpha",
     "phi_functions",
     "propagate_end",
+    "propagate_end_many",
     "propagate_path",
     "psi_functions",
     "solve_axis_horizontal",
@@ -210,6 +216,44 @@ class StepCoefficients:
                      for a in (self.Phi, self.dPhi, self.G0, self.dG0, self.G1, self.dG1))
 
 
+@nb.njit(cache=True)
+def _step_rows(vertical: bool, ks, dt: float, linear: bool):
+    """(8, K) rows ``Phi00, Phi01, Phi10, Phi11, G0[0], G0[1], G1[0], G1[1]`` for many ``k``.
+
+    The same floating-point operations as :func:`horizontal_step` / :func:`vertical_step`
+    (bit-identical; tested), compiled: the scan needs hundreds of them.
+    """
+    K = ks.shape[0]
+    C = np.zeros((8, K))
+    h = dt
+    h2 = h * h
+    for j in range(K):
+        k = ks[j]
+        if vertical:
+            psi, _ = psi_functions(k * h2)
+            C[0, j] = psi[0]
+            C[1, j] = h * psi[1]
+            C[2, j] = k * h * psi[1]
+            C[3, j] = psi[0]
+            C[4, j] = h2 * psi[2]
+            C[5, j] = h * psi[1]
+            if linear:
+                C[6, j] = h2 * psi[3]
+                C[7, j] = h * psi[2]
+        else:
+            phi, _ = phi_functions(k * h)
+            C[0, j] = 1.0
+            C[1, j] = h * phi[1]
+            C[2, j] = 0.0
+            C[3, j] = phi[0]
+            C[4, j] = h * h * phi[2]
+            C[5, j] = h * phi[1]
+            if linear:
+                C[6, j] = h * h * phi[3]
+                C[7, j] = h * phi[2]
+    return C
+
+
 def _check_hold(hold: str) -> None:
     if hold not in HOLDS:
         raise ValidationError(f"hold must be one of {HOLDS}, got {hold!r}")
@@ -286,11 +330,24 @@ def _step(Phi, dPhi, G0, dG0, G1, dG1, q0, q1, s0, s1, u0, u1, du0, du1):
 
 
 @nb.njit(cache=True)
-def _run_end(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
-    """End state, sensitivity and misfits; input ``u_i = a_i - k w_i``, ``du_i/dk = -dscale w_i``.
+def _is_horizontal(Phi, dPhi) -> bool:
+    """The horizontal structure ``Phi[:, 0] = (1, 0)``, ``dPhi[:, 0] = 0`` (module docstring).
 
-    Returns ``[q_N, sigma_N, rms(q[:, 0] - w), rms(q[:, 1] - w)]`` (6 numbers); the first misfit
-    is the vertical track's RMS distance from the baro height used by the root selection.
+    With it the terms ``1 * x``, ``0 * x`` of :func:`_step` are dropped: the same numbers for
+    finite states (``1 x = x`` and ``x + 0 = x`` exactly in IEEE arithmetic; only the sign of
+    an exact zero can differ), a fifth fewer operations on the hot loop.
+    """
+    return (Phi[0, 0] == 1.0 and Phi[1, 0] == 0.0 and dPhi[0, 0] == 0.0
+            and dPhi[1, 0] == 0.0)
+
+
+@nb.njit(cache=True)
+def _run_end(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
+    """End state, sensitivity and misfit; input ``u_i = a_i - k w_i``, ``du_i/dk = -dscale w_i``.
+
+    Returns ``[q_N, sigma_N, rms(q[:, 0] - w)]`` (5 numbers); the misfit is the vertical
+    track's RMS distance from the baro height used by the root selection.  The horizontal
+    structure (:func:`_is_horizontal`) runs a loop without the unit and zero entries.
     """
     n = a.shape[0]
     x0 = q0[0]
@@ -300,23 +357,52 @@ def _run_end(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
     u_prev = a[0] - k * w[0]
     du_prev = -dscale * w[0]
     m0 = (x0 - w[0]) ** 2
-    m1 = (x1 - w[0]) ** 2
-    for i in range(n - 1):
-        u_next = a[i + 1] - k * w[i + 1]
-        du_next = -dscale * w[i + 1]
-        x0, x1, y0, y1 = _step(Phi, dPhi, G0, dG0, G1, dG1, x0, x1, y0, y1,
-                               u_prev, u_next, du_prev, du_next)
-        m0 += (x0 - w[i + 1]) ** 2
-        m1 += (x1 - w[i + 1]) ** 2
-        u_prev = u_next
-        du_prev = du_next
-    out = np.empty(6)
+    if _is_horizontal(Phi, dPhi):
+        p01 = Phi[0, 1]
+        p11 = Phi[1, 1]
+        dp01 = dPhi[0, 1]
+        dp11 = dPhi[1, 1]
+        g00 = G0[0]
+        g01 = G0[1]
+        g10 = G1[0]
+        g11 = G1[1]
+        dg00 = dG0[0]
+        dg01 = dG0[1]
+        dg10 = dG1[0]
+        dg11 = dG1[1]
+        for i in range(n - 1):
+            u_next = a[i + 1] - k * w[i + 1]
+            du_next = -dscale * w[i + 1]
+            d = u_next - u_prev
+            dd = du_next - du_prev
+            n0 = x0 + p01 * x1 + g00 * u_prev + g10 * d
+            n1 = p11 * x1 + g01 * u_prev + g11 * d
+            z0 = (y0 + p01 * y1 + dp01 * x1 + dg00 * u_prev + dg10 * d + g00 * du_prev
+                  + g10 * dd)
+            z1 = (p11 * y1 + dp11 * x1 + dg01 * u_prev + dg11 * d + g01 * du_prev
+                  + g11 * dd)
+            x0 = n0
+            x1 = n1
+            y0 = z0
+            y1 = z1
+            m0 += (x0 - w[i + 1]) ** 2
+            u_prev = u_next
+            du_prev = du_next
+    else:
+        for i in range(n - 1):
+            u_next = a[i + 1] - k * w[i + 1]
+            du_next = -dscale * w[i + 1]
+            x0, x1, y0, y1 = _step(Phi, dPhi, G0, dG0, G1, dG1, x0, x1, y0, y1,
+                                   u_prev, u_next, du_prev, du_next)
+            m0 += (x0 - w[i + 1]) ** 2
+            u_prev = u_next
+            du_prev = du_next
+    out = np.empty(5)
     out[0] = x0
     out[1] = x1
     out[2] = y0
     out[3] = y1
     out[4] = np.sqrt(m0 / n)
-    out[5] = np.sqrt(m1 / n)
     return out
 
 
@@ -346,6 +432,82 @@ def _run_path(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
     return Q, S
 
 
+@nb.njit(cache=True)
+def _run_end_batch(C, q0, a, w, ks):
+    """End state and misfit for many ``k`` in one pass over the data (no sensitivity).
+
+    ``C`` is (8, K): rows ``Phi00, Phi01, Phi10, Phi11, G0[0], G0[1], G1[0], G1[1]`` of each
+    lane's :class:`StepCoefficients`; lane ``j`` has input ``u = a - ks[j] w``.  Every lane
+    performs the same floating-point operations in the same order as the state part of
+    :func:`_run_end`, so its end state and first misfit are bit-identical to a single call
+    (tested); the lanes are independent, so the inner loop over ``k`` runs in SIMD and the
+    pass reads ``a`` and ``w`` once for all lanes instead of once per ``k``.
+
+    Returns
+    -------
+    (K, 3): ``[q_N[0], q_N[1], rms(q[:, 0] - w)]`` per lane
+    """
+    n = a.shape[0]
+    K = ks.shape[0]
+    p00 = C[0]
+    p01 = C[1]
+    p10 = C[2]
+    p11 = C[3]
+    g00 = C[4]
+    g01 = C[5]
+    g10 = C[6]
+    g11 = C[7]
+    x0 = np.empty(K)
+    x1 = np.empty(K)
+    up = np.empty(K)
+    m0 = np.empty(K)
+    for j in range(K):
+        x0[j] = q0[0]
+        x1[j] = q0[1]
+        up[j] = a[0] - ks[j] * w[0]
+        m0[j] = (q0[0] - w[0]) ** 2
+    horizontal = True
+    for j in range(K):
+        if p00[j] != 1.0 or p10[j] != 0.0:
+            horizontal = False
+    if horizontal:  # unit and zero entries dropped: same numbers (see _is_horizontal)
+        for i in range(n - 1):
+            ai = a[i + 1]
+            wi = w[i + 1]
+            for j in range(K):
+                un = ai - ks[j] * wi
+                u0 = up[j]
+                d = un - u0
+                X1 = x1[j]
+                n0 = x0[j] + p01[j] * X1 + g00[j] * u0 + g10[j] * d
+                x1[j] = p11[j] * X1 + g01[j] * u0 + g11[j] * d
+                x0[j] = n0
+                m0[j] += (n0 - wi) ** 2
+                up[j] = un
+    else:
+        for i in range(n - 1):
+            ai = a[i + 1]
+            wi = w[i + 1]
+            for j in range(K):
+                un = ai - ks[j] * wi
+                u0 = up[j]
+                d = un - u0
+                X0 = x0[j]
+                X1 = x1[j]
+                n0 = p00[j] * X0 + p01[j] * X1 + g00[j] * u0 + g10[j] * d
+                n1 = p10[j] * X0 + p11[j] * X1 + g01[j] * u0 + g11[j] * d
+                x0[j] = n0
+                x1[j] = n1
+                m0[j] += (n0 - wi) ** 2
+                up[j] = un
+    out = np.empty((K, 3))
+    for j in range(K):
+        out[j, 0] = x0[j]
+        out[j, 1] = x1[j]
+        out[j, 2] = np.sqrt(m0[j] / n)
+    return out
+
+
 def _f64(x) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(x, dtype=np.float64))
 
@@ -370,6 +532,35 @@ def propagate_end(coef: StepCoefficients, q0, a, w, k: float, *, s0=(0.0, 0.0),
     """
     out = _run_end(*coef.packed(), _f64(q0), _f64(s0), _f64(a), _f64(w), float(k), float(dscale))
     return out[:2], out[2:4], float(out[4])
+
+
+def propagate_end_many(kind: str, ks, dt: float, q0, a, w, *,
+                       hold: str = "linear") -> tuple[np.ndarray, np.ndarray]:
+    """End states and misfits for many ``k`` at once (the root scan; no sensitivities).
+
+    Parameters
+    ----------
+    kind : ``"horizontal"`` or ``"vertical"`` (:func:`horizontal_step` / :func:`vertical_step`)
+    ks : (K,) coefficients; lane ``j`` has input ``u = a - ks[j] w``
+    dt : step [s]
+    q0 : (2,) initial state
+    a, w : (N,) input arrays on the grid
+    hold : ``"linear"`` or ``"zero"``
+
+    Returns
+    -------
+    q_N : (K, 2) end states, bit-identical to :func:`propagate_end` with the same ``k``
+    misfit : (K,) RMS of ``q[:, 0] - w``, bit-identical to :func:`propagate_end`'s
+    """
+    _check_hold(hold)
+    if kind not in ("horizontal", "vertical"):
+        raise ValidationError(f"kind must be 'horizontal' or 'vertical', got {kind!r}")
+    ks = _f64(ks).reshape(-1)
+    if ks.size == 0:
+        return np.empty((0, 2)), np.empty(0)
+    C = _step_rows(kind == "vertical", ks, float(dt), hold == "linear")
+    out = _run_end_batch(C, _f64(q0), _f64(a), _f64(w), ks)
+    return out[:, :2], out[:, 2]
 
 
 def propagate_path(coef: StepCoefficients, q0, a, w, k: float, *, s0=(0.0, 0.0),
@@ -611,13 +802,18 @@ def _solve_axis(kind: str, t, a, w, v0: float, s_T: float | None, k: float | Non
             q, s, misfit = propagate_end(step(kk, dt, hold), (0.0, v0), a, w, kk)
             return float(q[0]) - s_T, float(s[0]), misfit
 
+        def fun_many(kks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            # the scan: same F and misfit as fun, all k in one pass over the data
+            q, misfit = propagate_end_many(kind, kks, dt, (0.0, v0), a, w, hold=hold)
+            return q[:, 0] - s_T, misfit
+
         if kind == "vertical":
             k_ref, k_pos, k_neg = T**-2, (kt_max / T) ** 2, (0.5 / dt) ** 2
         else:
             k_ref, k_pos, k_neg = 1.0 / T, kt_max / T, 1.0 / dt
         report = find_coefficient(fun, k_ref=k_ref, k_max_pos=k_pos, k_max_neg=k_neg, k0=k0,
                                   tol_m=tol_m, max_iter=max_iter,
-                                  points_per_decade=POINTS_PER_DECADE,
+                                  points_per_decade=POINTS_PER_DECADE, fun_many=fun_many,
                                   parametrisation=parametrisation, strict=strict, axis=axis,
                                   rule=rule if kind == "vertical" else "slowest")
         if not report.converged:
@@ -698,13 +894,15 @@ class SabzievSolution:
     vxyz_mps : (N, 3) velocity, same axes [m/s]
     k : (k1, k2, k3)
     axes : ``{"x": AxisSolution, "y": ..., "z": ...}``
-    dxyz_dk : (N, 3, 3) ``d xyz[:, i] / d k[j]`` (``k = (k1, k2, k3)``): own-axis terms from the
-        sensitivity recursion, and the cross terms ``d x / d k2``, ``d z / d k2`` through
-        ``y'`` in the air-derived velocity; ``d y / d k1 = d y / d k3 = 0``
-    dvxyz_dk : (N, 3, 3) the same for the velocity
+    cross_dk2_m : (N, 2) the cross terms ``d x / d k2``, ``d z / d k2`` through ``y'`` in the
+        air-derived velocity (NaN where an axis has no root)
+    cross_dk2_mps : (N, 2) the same for the velocities
     end_residual_m : (3,) end point minus target (NaN where no target was given)
     wind_modelled : whether a wind was added to the air-derived velocity
     warnings : what the caller should show the analyst
+
+    The full Jacobians ``dxyz_dk`` and ``dvxyz_dk`` (N, 3, 3) are assembled on first use (two
+    arrays of 72 bytes a sample: 83 MB on a 10-hour 16 Hz flight, needed only for ``k_sd``).
     """
 
     t_s: np.ndarray
@@ -712,11 +910,32 @@ class SabzievSolution:
     vxyz_mps: np.ndarray
     k: tuple[float, float, float]
     axes: dict
-    dxyz_dk: np.ndarray
-    dvxyz_dk: np.ndarray
+    cross_dk2_m: np.ndarray
+    cross_dk2_mps: np.ndarray
     end_residual_m: np.ndarray
     wind_modelled: bool
     warnings: tuple[str, ...] = ()
+
+    def _jacobian(self, own: str, cross: np.ndarray) -> np.ndarray:
+        n = len(self.t_s)
+        d = np.zeros((n, 3, 3))
+        for i, name in enumerate(("x", "y", "z")):
+            d[:, i, i] = getattr(self.axes[name], own)
+        d[:, 0, 1] = cross[:, 0]
+        d[:, 2, 1] = cross[:, 1]
+        return d
+
+    @cached_property
+    def dxyz_dk(self) -> np.ndarray:
+        """(N, 3, 3) ``d xyz[:, i] / d k[j]`` (``k = (k1, k2, k3)``): own-axis terms from the
+        sensitivity recursion, and the cross terms ``d x / d k2``, ``d z / d k2`` through
+        ``y'`` in the air-derived velocity; ``d y / d k1 = d y / d k3 = 0``."""
+        return self._jacobian("dposition_dk", self.cross_dk2_m)
+
+    @cached_property
+    def dvxyz_dk(self) -> np.ndarray:
+        """(N, 3, 3) as :attr:`dxyz_dk` for the velocity."""
+        return self._jacobian("dvelocity_dk", self.cross_dk2_mps)
 
     @property
     def converged(self) -> bool:
@@ -857,24 +1076,21 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
         dvh = np.where(v_h2 > 0, -climb * dclimb / np.sqrt(np.where(v_h2 > 0, v_h2, 1.0)), 0.0)
     xyz = np.column_stack([ax_x.position_m, ax_y.position_m, ax_z.position_m])
     vxyz = np.column_stack([ax_x.velocity_mps, ax_y.velocity_mps, ax_z.velocity_mps])
-    dxyz = np.zeros((n, 3, 3))
-    dvxyz = np.zeros((n, 3, 3))
-    for i, ax in ((0, ax_x), (1, ax_y), (2, ax_z)):
-        dxyz[:, i, i] = ax.dposition_dk
-        dvxyz[:, i, i] = ax.dvelocity_dk
-    for i, ax, a_col, v_col, trig in ((0, ax_x, 0, vn, np.cos(psi)), (2, ax_z, 1, ve, np.sin(psi))):
+    cross = np.zeros((n, 2))
+    dcross = np.zeros((n, 2))
+    for i, ax, a_col, v_col, trig in ((0, ax_x, 0, vn, np.cos(psi)), (1, ax_z, 1, ve, np.sin(psi))):
         if not (np.isfinite(ax.k) and np.isfinite(ax_y.k)):
-            dxyz[:, i, 1] = np.nan
-            dvxyz[:, i, 1] = np.nan
+            cross[:, i] = np.nan
+            dcross[:, i] = np.nan
             continue
         c = horizontal_step(ax.k, dt, hold)
         zero = StepCoefficients(c.Phi, np.zeros((2, 2)), c.G0, np.zeros(2), c.G1, np.zeros(2))
         u = a_ned[:, a_col] - ax.k * v_col
         _, S = propagate_path(zero, (0.0, v0[a_col]), u, dvh * trig, 0.0, dscale=ax.k)
-        dxyz[:, i, 1] = S[:, 0]
-        dvxyz[:, i, 1] = S[:, 1]
+        cross[:, i] = S[:, 0]
+        dcross[:, i] = S[:, 1]
     res = np.full(3, np.nan)
     if end is not None:
         res = xyz[-1] - np.array([end[0], -end[2], end[1]])
     return SabzievSolution(t, xyz, vxyz, (ax_x.k, ax_y.k, ax_z.k), {"x": ax_x, "y": ax_y,
-                           "z": ax_z}, dxyz, dvxyz, res, wind_ne is not None, tuple(warn))
+                           "z": ax_z}, cross, dcross, res, wind_ne is not None, tuple(warn))
