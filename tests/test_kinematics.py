@@ -136,3 +136,18 @@ def test_speed_576k_samples():
     assert a.shape == (n, 3)
     # vectorised numpy: ~0.1 s here; 5 s leaves room for a loaded shared machine
     assert time.perf_counter() - t0 < 5.0
+
+
+def test_given_rotation_gives_the_same_acceleration_and_nan_where_an_angle_is_missing():
+    rng = np.random.default_rng(8)
+    n = 50
+    roll, pitch, hdg = rng.uniform(-60, 60, n), rng.uniform(-20, 20, n), rng.uniform(0, 360, n)
+    nl, nt, nn = rng.normal(0, 0.1, n), rng.normal(0, 0.1, n), 1 + rng.normal(0, 0.2, n)
+    roll[7] = np.nan
+    want = kinematic_acceleration_ned(nl, nt, nn, roll, pitch, hdg, lat_deg=30.0, h_m=1000.0)
+    C = body_to_ned_matrix(np.nan_to_num(roll), pitch, hdg)
+    got = kinematic_acceleration_ned(nl, nt, nn, roll, pitch, hdg, lat_deg=30.0, h_m=1000.0,
+                                     C_nb=C)
+    assert np.isnan(got[7]).all() and np.isnan(want[7]).all()
+    # same products in a different order: round-off of ~10 m/s^2 values
+    np.testing.assert_allclose(np.delete(got, 7, 0), np.delete(want, 7, 0), atol=1e-12)

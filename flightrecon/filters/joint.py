@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numba as nb
 import numpy as np
 import pandas as pd
 
@@ -227,20 +228,36 @@ def _increments(t_in, acc, idx):
 
 
 def _step_mean(x, idx, t_in):
-    """Mean of an input-grid quantity over each state step (sample-weighted)."""
+    """Mean of an input-grid quantity over each state step (the samples i with
+    idx[k-1] <= i < idx[k], held over step k; non-finite values count as zero); the sample
+    itself where a step holds none (the first)."""
     Ni = len(t_in)
-    N = len(idx)
-    step_of = np.searchsorted(idx, np.arange(Ni), side="right")
-    valid = step_of < N
-    cnt = np.bincount(step_of[valid], minlength=N)[:N].astype(float)
-    flat = x.reshape(Ni, -1)
-    out = np.zeros((N, flat.shape[1]))
-    for j in range(flat.shape[1]):
-        v = np.where(np.isfinite(flat[:, j]), flat[:, j], 0.0)
-        out[:, j] = np.bincount(step_of[valid], weights=v[valid], minlength=N)[:N]
-    out /= np.maximum(cnt, 1.0)[:, None]
-    out[cnt == 0] = flat[np.minimum(idx[cnt == 0], Ni - 1)]
-    return out.reshape((N,) + x.shape[1:])
+    flat = np.ascontiguousarray(x.reshape(Ni, -1), dtype=float)
+    return _step_mean_kernel(flat, np.asarray(idx, np.int64)).reshape((len(idx),) + x.shape[1:])
+
+
+@nb.njit(cache=True)
+def _step_mean_kernel(flat, idx):
+    N = idx.shape[0]
+    m = flat.shape[1]
+    out = np.empty((N, m))
+    for j in range(m):
+        out[0, j] = flat[min(idx[0], flat.shape[0] - 1), j]
+    acc = np.empty(m)
+    for k in range(1, N):
+        a, b = idx[k - 1], idx[k]
+        if b <= a:
+            out[k] = flat[min(b, flat.shape[0] - 1)]
+            continue
+        acc[:] = 0.0
+        for i in range(a, b):
+            for j in range(m):
+                v = flat[i, j]
+                if np.isfinite(v):
+                    acc[j] += v
+        for j in range(m):
+            out[k, j] = acc[j] / (b - a)
+    return out
 
 
 def _decimate_mask(t: np.ndarray, rate_hz: float) -> np.ndarray:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
+import numba as nb
 import numpy as np
 import pandas as pd
 
@@ -46,11 +47,11 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
 
     lat0 = meta.departure.lat_deg if meta.departure is not None else 45.0
-    acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
-                                     col("roll_deg"), col("pitch_deg"), col("heading_deg"),
-                                     lat_deg=lat0, h_m=np.nan_to_num(col("baro_alt_m")))
     Cnb = body_to_ned_matrix(np.nan_to_num(col("roll_deg")), np.nan_to_num(col("pitch_deg")),
                              np.nan_to_num(col("heading_deg")))
+    acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
+                                     col("roll_deg"), col("pitch_deg"), col("heading_deg"),
+                                     lat_deg=lat0, h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
     dep = meta.departure
     if dep is not None:
         h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
@@ -99,21 +100,36 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         f_body_g=np.c_[col("n_long_g"), col("n_lat_g"), -col("n_norm_g")])
 
 
+@nb.njit(cache=True)
+def _near_any(t_out, tm, window):
+    """For sorted ``t_out`` and sorted ``tm``: is some tm within +-window of each t_out?
+    One merge-like pass, O(len(t_out) + len(tm))."""
+    out = np.zeros(t_out.shape[0], dtype=np.bool_)
+    j = 0
+    m = tm.shape[0]
+    for i in range(t_out.shape[0]):
+        t = t_out[i]
+        while j < m and tm[j] < t - window:
+            j += 1
+        out[i] = j < m and tm[j] <= t + window
+    return out
+
+
 def _provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.ndarray:
     """Per output sample, the sources with a measurement within +-window_s ('+'-joined)."""
     code = np.zeros(len(t_out), dtype=np.int64)
     for s_i, name in enumerate(SOURCES):
-        tm = np.unique(run.meas.t[run.meas.source == s_i])
+        tm = np.sort(run.meas.t[run.meas.source == s_i])
         if len(tm) == 0:
             continue
-        j = np.clip(np.searchsorted(tm, t_out), 1, max(len(tm) - 1, 1))
-        near = np.minimum(np.abs(tm[np.minimum(j, len(tm) - 1)] - t_out),
-                          np.abs(tm[j - 1] - t_out))
-        code |= (near <= (window_s if name != "endpoint" else 60.0)).astype(np.int64) << s_i
-    uniq, inv = np.unique(code, return_inverse=True)
-    names = np.array(["+".join(n for i, n in enumerate(SOURCES) if c >> i & 1) for c in uniq],
+        near = _near_any(t_out, tm, window_s if name != "endpoint" else 60.0)
+        code |= near.astype(np.int64) << s_i
+    present = np.flatnonzero(np.bincount(code, minlength=1 << len(SOURCES)))
+    lookup = np.zeros(1 << len(SOURCES), dtype=np.int64)
+    lookup[present] = np.arange(len(present))
+    names = np.array(["+".join(n for i, n in enumerate(SOURCES) if c >> i & 1) for c in present],
                      dtype=object)
-    return names[inv]
+    return names[lookup[code]]
 
 
 def _hermite_positions(t_out: np.ndarray, T: np.ndarray, p: np.ndarray, v: np.ndarray

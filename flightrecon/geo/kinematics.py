@@ -55,7 +55,7 @@ def body_to_ned_matrix(roll_deg, pitch_deg, heading_deg) -> np.ndarray:
 
 
 def kinematic_acceleration_ned(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg, heading_deg, *,
-                               lat_deg=45.0, h_m=0.0) -> np.ndarray:
+                               lat_deg=45.0, h_m=0.0, C_nb=None) -> np.ndarray:
     """Kinematic acceleration ``a_NED`` [m/s^2], shape (N, 3), from body load factors.
 
     ``a_NED = C_nb(heading, pitch, roll) g0 [n_long, n_lat, -n_norm] + [0, 0, g(lat, h)]``
@@ -74,6 +74,9 @@ def kinematic_acceleration_ned(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,
     lat_deg, h_m : array_like, shape (N,) or scalar
         Geodetic latitude [deg] and ellipsoidal height [m] at which gravity is evaluated
         (a pressure altitude is close enough: 100 m of height changes g by 3e-4 m/s^2).
+    C_nb : numpy.ndarray, shape (N, 3, 3), optional
+        :func:`body_to_ned_matrix` of the same angles, when the caller has it already; the
+        acceleration is NaN wherever an angle is non-finite either way.
 
     Returns
     -------
@@ -82,9 +85,19 @@ def kinematic_acceleration_ned(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,
     """
     nl, nt, nn = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, float))
                                        for a in (n_long_g, n_lat_g, n_norm_g)))
-    C = body_to_ned_matrix(roll_deg, pitch_deg, heading_deg)
+    if C_nb is None:
+        C = body_to_ned_matrix(roll_deg, pitch_deg, heading_deg)
+    else:
+        C = np.asarray(C_nb, float)
+        bad = ~(np.isfinite(np.asarray(roll_deg, float)) & np.isfinite(np.asarray(pitch_deg, float))
+                & np.isfinite(np.asarray(heading_deg, float)))
+        nl = np.where(bad, np.nan, nl)
     f_body = G0 * np.stack([nl, nt, -nn], axis=-1)
-    a = np.einsum("...ij,...j->...i", C, np.broadcast_to(f_body, C.shape[:-1]))
+    f_body = np.broadcast_to(f_body, C.shape[:-1])
+    a = np.empty(C.shape[:-1])
+    for i in range(3):  # C f row by row: three fused products instead of a general einsum
+        a[..., i] = C[..., i, 0] * f_body[..., 0] + C[..., i, 1] * f_body[..., 1] \
+            + C[..., i, 2] * f_body[..., 2]
     a[..., 2] += normal_gravity(lat_deg, h_m)
     return a
 
