@@ -53,3 +53,30 @@ def test_recorder_only_beats_linear_end_point_correction():
     r = mc.one_run("recorder", 1001)
     assert r["joint"]["rms_h_m"] < r["dr_linear"]["rms_h_m"]
     assert np.isfinite(r["joint"]["rms_h_m"])
+
+
+def test_noise_estimation_by_em_recovers_the_simulated_sensor_noise():
+    """Default budget (GNSS 5/10 m, airspeed 1.5 m/s, baro 8 m) on a circuit whose simulated
+    sensors are 2/4 m, 0.3 m/s and 1.5 m: EM must find the variance factors (2/5)^2 = 0.16,
+    (0.3/1.5)^2 = 0.04, (1.5/8)^2 = 0.035 and make the uncertainty consistent."""
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.filters.joint import JointSettings
+    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.types import Flight
+
+    r = mc.make_flight("gnss", 2001)
+    clean = clean_flight(Flight(data=r.log, meta=r.meta))
+    j = run_joint(clean, settings=JointSettings(estimate_noise=True))
+    s = j.summary
+    assert s["iterations"][-1].get("converged")
+    f = s["noise_scale"]
+    # ~2,700 GNSS components: a variance estimate's relative sd is sqrt(2/n) ~ 3 %; the bands
+    # (+-30 % and more for the smaller groups) leave room for the linearisation and for the
+    # robust exclusions, and still fail on a factor-2 error or on no estimation at all (1.0)
+    assert 0.11 < f["gnss_pos"] < 0.22
+    assert 0.025 < f["air_tas"] < 0.06
+    assert 0.02 < f["baro"] < 0.05
+    e = mc.errors(j.track, "joint_", r.truth, ~r.truth["on_ground"].to_numpy(bool))
+    # one run's time-averaged NEES (1 dof, time-correlated): 0.4 .. 2.5
+    assert 0.4 < e["nees_n"] < 2.5 and 0.4 < e["nees_e"] < 2.5
+    assert e["rms_h_m"] < 3.0

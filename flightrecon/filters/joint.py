@@ -96,6 +96,8 @@ class JointSettings:
     robust: bool = True
     estimate_clock: bool = True
     estimate_noise: bool = False
+    noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
+    noise_tol: float = 0.01                  # EM stops when no variance moves by more
 
 
 @dataclass(frozen=True)
@@ -575,6 +577,40 @@ def _nominal_trajectory(inp: JointInputs, idx: np.ndarray):
     return lat, lon, h
 
 
+NOISE_GROUPS = {("air", jk.TAS): "air_tas", ("air", jk.HEADING): "air_heading",
+                ("baro", jk.BARO): "baro", ("gnss_pos", jk.LINEAR): "gnss_pos",
+                ("gnss_vel", jk.LINEAR): "gnss_vel", ("radar", jk.RANGE): "radar_range",
+                ("radar", jk.AZIMUTH): "radar_azimuth", ("radar", jk.ELEVATION): "radar_elevation",
+                ("doppler", jk.DOPPLER): "doppler_speed", ("doppler", jk.TRACK): "doppler_track"}
+"""Sensor error variances that ``estimate_noise`` scales, one factor per group (the end points,
+ground and runway constraints and the sparse recorded wind are priors, not estimated)."""
+
+
+def _noise_groups(meas: Measurements) -> np.ndarray:
+    """Index into NOISE_GROUPS of each measurement, -1 where its variance is not estimated."""
+    g = np.full(len(meas.z), -1, dtype=np.int64)
+    for i, (src, mt) in enumerate(NOISE_GROUPS):
+        g[(meas.source == SOURCES.index(src)) & (meas.mtype == mt)] = i
+    return g
+
+
+def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int, float]:
+    """M-step of expectation-maximisation for one variance factor c per group.
+
+    With z_j = h_j(x) + v_j, v_j ~ N(0, c R0_j), the expected complete-data log-likelihood under
+    the smoothed posterior is maximised by c = mean_j[(e_j^2 + H_j P_s H_j^T) / R0_j] over the
+    group's measurements (e: smoothed residual; Shumway & Stoffer 1982, eq. 12 for a scalar
+    factor; linearised at the smoothed trajectory).  Groups with fewer than ``min_count``
+    measurements keep their factor.
+    """
+    out = {}
+    for gi in np.unique(groups[groups >= 0]):
+        sel = (groups == gi) & use & np.isfinite(res) & np.isfinite(hph)
+        if sel.sum() >= min_count:
+            out[int(gi)] = float(np.mean((res[sel] ** 2 + hph[sel]) / r0[sel]))
+    return out
+
+
 def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) -> JointRun:
     """Run the joint smoother (forward EKF, RTS, Gauss-Newton/IRLS iterations)."""
     nz = settings.noise
@@ -591,7 +627,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     lat, lon, h = _nominal_trajectory(inp, idx)
     clock = {"gnss": 0.0, "radar": 0.0}
     clock_sd = {"gnss": np.nan, "radar": np.nan}
-    scale = {s: 1.0 for s in SOURCES}
+    scale = np.ones(len(NOISE_GROUPS))       # variance factor per noise group (EM)
     weights = None
     history = []
     Cst = np.eye(3)
@@ -602,15 +638,18 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         pst = np.array([float(sx), float(sy), float(sz)])
     x0 = P0 = None
     static = static_measurements(inp, settings, T)
-    for it in range(max(1, settings.iterations)):
+    n_iter = max(1, settings.iterations)
+    if settings.estimate_noise:
+        n_iter = max(n_iter, settings.noise_iterations)
+    for it in range(n_iter):
         ex, ey, ez = geodetic_to_ecef(lat, lon, h)
         pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
         Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
         hnom = h - inp.field_h
         climb = np.abs(np.diff(h, prepend=h[0]))
         meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static)
-        src_scale = np.array([scale[SOURCES[s]] for s in meas.source]) if len(meas.z) else np.zeros(0)
-        r = meas.r * src_scale
+        groups = _noise_groups(meas)
+        r = meas.r * np.where(groups >= 0, scale[np.maximum(groups, 0)], 1.0)
         if weights is None or len(weights) != len(meas.z):
             weights = np.ones(len(meas.z))
         if x0 is None:
@@ -628,7 +667,10 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         # the iterations need the smoothed trajectory only; covariances once, after the last
         kern_args = (dt, Cen, Cnb, Csf, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
                      meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst)
-        xs, _, res, rate = jk.backward_mean(xf, Pf, xp, Pp, *kern_args)
+        if settings.estimate_noise:  # EM needs the smoothed covariances in every pass
+            xs, Pblk, var, _, res, rate, hph = jk.backward(xf, Pf, xp, Pp, *kern_args)
+        else:
+            xs, _, res, rate = jk.backward_mean(xf, Pf, xp, Pp, *kern_args)
         # residual in units of the measurement's own (nominal, not inflated) standard deviation
         res_n = res / np.sqrt(r)
         # new nominal: the smoothed trajectory
@@ -661,27 +703,38 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                 if abs(o) > 3 * sd:
                     clock[name] += o
                 info[f"clock_{name}_s"] = clock[name]
+        noise_moved = False
         if settings.estimate_noise:
-            for s_i, s_name in enumerate(SOURCES):
-                sel = (meas.source == s_i) & np.isfinite(res_n) & (weights >= 1.0)
-                if sel.sum() > 30:
-                    scale[s_name] *= float(np.clip(np.mean(res_n[sel] ** 2), 0.05, 20.0))
+            # measurements taken at face value in this pass: full weight, not gated
+            use = (weights >= 1.0) & (w_before >= 1.0) & (infl <= 1.0)
+            new_scale = scale.copy()
+            for gi, c in _em_noise_scales(groups, res, hph, meas.r, use).items():
+                new_scale[gi] = c
+            noise_moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
+            scale = new_scale
+            info["noise_scale"] = {name: float(scale[i])
+                                   for i, name in enumerate(NOISE_GROUPS.values())
+                                   if np.any(groups == i)}
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
-        # converged: the linearisation point, the weights and the clock offsets stand still
-        if (it > 0 and shift < 0.05 and clock == clock_before and not settings.estimate_noise
+        # converged: the linearisation point, the weights, the clock offsets and (with
+        # estimate_noise) the noise variances stand still
+        if (it > 0 and shift < 0.05 and clock == clock_before and not noise_moved
                 and np.all(np.abs(weights - w_before) <= 1e-3 * np.maximum(w_before, 1e-8))):
             info["converged"] = True
             break
-    # smoothed covariances of the last pass (its states equal those of the mean-only pass to
-    # round-off: same gains, same linearisation)
-    xs, Pblk, var, *_ = jk.backward(xf, Pf, xp, Pp, *kern_args)
+    if not settings.estimate_noise:
+        # smoothed covariances of the last pass (its states equal those of the mean-only pass
+        # to round-off: same gains, same linearisation)
+        xs, Pblk, var, *_ = jk.backward(xf, Pf, xp, Pp, *kern_args)
     del Pf, Pp
     return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
                     innov_var=innov_var,
                     clock_offsets_s={k: (clock[k], clock_sd[k]) for k in clock},
-                    noise_scale=scale, iterations=history)
+                    noise_scale={name: float(scale[i]) for i, name in
+                                 enumerate(NOISE_GROUPS.values())},
+                    iterations=history)
 
 
 def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:

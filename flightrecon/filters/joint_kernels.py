@@ -469,11 +469,20 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_ex
 
 @nb.njit(cache=True)
 def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst,
-                  H, res, res_n, rate):
+                  H, res, res_n, rate, P, hph):
     """Residuals z - h(x) of step k's measurements at the smoothed state ``x``: raw, in units of
-    sqrt(R), and the rate dh/dtau of each predicted measurement (for the clock offsets)."""
+    sqrt(R), and the rate dh/dtau of each predicted measurement (for the clock offsets); with a
+    smoothed covariance ``P`` (n, n) (an empty array: skipped) also H P H^T into ``hph``."""
+    n = x.shape[0]
     for j in range(mstart[k], mstart[k + 1]):
         hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst)
+        if P.shape[0] == n:
+            v = 0.0
+            for a in range(n):
+                if H[a] != 0.0:
+                    for b in range(n):
+                        v += H[a] * P[a, b] * H[b]
+            hph[j] = v
         e = mz[j] - hx
         t = mtype[j]
         if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
@@ -521,6 +530,8 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, 
     y = np.empty(n)
     z = np.empty(n)
     H = np.empty(n)
+    no_P = np.empty((0, 0))
+    no_hph = np.empty(0)
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             transition_into(F, k + 1, dt, Cen, Cnb, Csf, acc, q[4])
@@ -536,7 +547,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, 
                     v += Pf[k, a, b] * z[b]
                 xs[k, a] = v
         _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
-                      Cst, H, res, res_n, rate)
+                      Cst, H, res, res_n, rate, no_P, no_hph)
     return xs, res_n, res, rate
 
 
@@ -547,7 +558,8 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
     :func:`backward_mean`, which gives the same states without the covariances).
 
     Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
-    smoothed state variances (N, n), normalised residuals, raw residuals and rates.
+    smoothed state variances (N, n), normalised residuals, raw residuals, rates and, per
+    measurement, H P_s H^T (the smoothed variance of the predicted measurement).
     """
     N, n = xf.shape
     M = mtype.shape[0]
@@ -557,6 +569,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
     res_n = np.full(M, np.nan)
     res = np.full(M, np.nan)
     rate = np.full(M, np.nan)
+    hph = np.full(M, np.nan)
     F = np.empty((n, n))
     cols = np.empty((n, n), dtype=np.int64)
     vals = np.empty((n, n))
@@ -614,5 +627,5 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
         for i in range(n):
             var[k, i] = Ps[i, i]
         _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
-                      Cst, H, res, res_n, rate)
-    return xs, Pblk, var, res_n, res, rate
+                      Cst, H, res, res_n, rate, Ps, hph)
+    return xs, Pblk, var, res_n, res, rate, hph

@@ -232,6 +232,9 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
             warnings.append(f"joint: source '{name}' inconsistent with the others in "
                             f"{st['beyond_5_sigma']} measurements (spans {st['flagged_spans_s'][:5]}"
                             " s); down-weighted")
+    if settings.estimate_noise and not run.iterations[-1].get("converged"):
+        warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
+                        "iterations; the last factors are used")
     for name, (o, sd) in run.clock_offsets_s.items():
         if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
             warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "
