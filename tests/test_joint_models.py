@@ -65,7 +65,7 @@ def test_transition_propagates_held_acceleration():
     Cnb = np.repeat(np.eye(3)[None], N, axis=0)
     acc = np.array([[0, 0, 0], [0.4, -0.2, 0.1]])
     Csf = np.zeros((N, 3, 3))
-    F = jk.transition(1, dt, Cen2, Cnb, Csf, acc, 3600.0)
+    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0)
     xn = F @ x
     np.testing.assert_allclose(xn[jk.IP:jk.IP + 3], x[jk.IP:jk.IP + 3] + Cen[0] @ x[3:6] * 0.25,
                                atol=1e-9)
@@ -92,7 +92,7 @@ def test_sparse_prediction_equals_dense_products():
     Cnb = np.repeat(ned_to_ecef_matrix(np.array([10.0]), np.array([20.0])), N, axis=0)
     Csf = rng.normal(size=(N, 3, 3))
     acc = rng.normal(size=(N, 3))
-    F = jk.transition(1, dt, Cen2, Cnb, Csf, acc, 3600.0)
+    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0)
     n = jk.N_STATE
     cols = np.empty((n, n), np.int64)
     vals = np.empty((n, n))
@@ -144,3 +144,39 @@ def test_mean_only_backward_pass_gives_the_covariance_pass_states():
     # pyproj's geodetic round trip is good to ~1e-9 m; Cholesky vs LU solves differ by
     # round-off times the condition number of P_p (ECEF variances 1e6 .. angles 1e-10): 1 mm
     np.testing.assert_allclose(np.c_[ex, ey, ez], run.x[:, :3], rtol=0, atol=1e-3)
+
+
+def test_attitude_jacobian_against_central_differences():
+    """d(C_nb f)/d(roll, pitch) of joint.attitude_jacobian vs differences of body_to_ned_matrix."""
+    from flightrecon.filters.joint import attitude_jacobian
+    from flightrecon.geo.kinematics import body_to_ned_matrix
+
+    rng = np.random.default_rng(4)
+    roll, pitch, hdg = rng.uniform(-50, 50, 20), rng.uniform(-25, 25, 20), rng.uniform(0, 360, 20)
+    f = rng.normal(0, 1, (20, 3))
+    J = attitude_jacobian(body_to_ned_matrix(roll, pitch, hdg), f)
+    h = 1e-4  # deg; central differences: truncation ~ (h in rad)^2 ~ 3e-12 relative
+    for col, (dr, dp) in enumerate(((h, 0.0), (0.0, h))):
+        cp = np.einsum("kij,kj->ki", body_to_ned_matrix(roll + dr, pitch + dp, hdg), f)
+        cm = np.einsum("kij,kj->ki", body_to_ned_matrix(roll - dr, pitch - dp, hdg), f)
+        num = (cp - cm) / (2 * np.radians(h))
+        np.testing.assert_allclose(J[:, :, col], num, atol=1e-7)
+
+
+def test_transition_applies_attitude_biases_with_the_right_sign():
+    """A pitch bias of +1 mrad (measured nose-up too much) over one 1 s step: the true velocity
+    change is the measured one minus g0 dC/dtheta f * 1e-3 * dt."""
+    rng = np.random.default_rng(6)
+    x, p, Cen, *_ = _setup(rng)
+    N = 2
+    dt = np.array([0.0, 1.0])
+    Cen2 = np.repeat(Cen, N, axis=0)
+    Cnb = np.repeat(np.eye(3)[None], N, axis=0)
+    Jatt = np.zeros((N, 3, 2))
+    Jatt[1, :, 1] = [-1.0, 0.0, 0.0]  # level, f = (0, 0, -1) g: dC/dtheta f = (-1, 0, 0)
+    F = jk.transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0)
+    y = np.zeros(jk.N_STATE)
+    y[jk.IATT + 1] = 1e-3
+    # measured pitch too high by 1 mrad tilts the measured specific force backward: the true
+    # acceleration is g0 * 1e-3 further north than measured
+    np.testing.assert_allclose((F @ y)[3:6], [jk.G0 * 1e-3, 0.0, 0.0], atol=1e-15)

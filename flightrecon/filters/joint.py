@@ -51,6 +51,7 @@ class JointNoise:
     wind_rw_mps_sqrt_s: float = 0.05         # wind change with time
     wind_shear_mps_per_sqrt_m: float = 0.15  # wind change with altitude: sd over 1 m of climb
     heading_bias_deg: float = 2.0
+    attitude_bias_deg: float = 0.5           # roll and pitch biases (attitude reference), each
     heading_bias_rw_deg_sqrt_s: float = 1e-4
     tas_scale: float = 0.03
     baro_offset_m: float = 60.0
@@ -227,6 +228,24 @@ def _increments(t_in, acc, idx):
         dP[:, j] = np.bincount(step_of[valid], weights=(a[:, j] * w_p)[valid], minlength=N)[:N]
     miss = np.bincount(step_of[valid], weights=(missing * d)[valid], minlength=N)[:N]
     return dV, dP, miss
+
+
+def attitude_jacobian(Cnb: np.ndarray, f_body: np.ndarray) -> np.ndarray:
+    """Derivatives of the rotated specific force C_nb f with respect to roll and pitch.
+
+    For C_nb = R_z(psi) R_y(theta) R_x(phi): dC/dphi f = C_nb (e_x x f) and
+    dC/dtheta f = R_z R_y (e_y x R_x f) = C_nb (u x f) with u = R_x^T e_y = (0, cos phi,
+    -sin phi); phi = atan2(C_32, C_33).  Returns (N, 3, 2): columns roll, pitch (per radian,
+    in the units of ``f_body``).
+    """
+    phi = np.arctan2(Cnb[:, 2, 1], Cnb[:, 2, 2])
+    ex = np.zeros_like(f_body)
+    ex[:, 1], ex[:, 2] = -f_body[:, 2], f_body[:, 1]
+    u = np.c_[np.zeros(len(phi)), np.cos(phi), -np.sin(phi)]
+    out = np.empty((len(phi), 3, 2))
+    out[:, :, 0] = np.einsum("kij,kj->ki", Cnb, ex)
+    out[:, :, 1] = np.einsum("kij,kj->ki", Cnb, np.cross(u, f_body))
+    return out
 
 
 def _step_mean(x, idx, t_in):
@@ -504,6 +523,7 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     P0[jk.IDW, jk.IDW] = nz.doppler_scale ** 2
     P0[jk.IDC, jk.IDC] = np.radians(nz.drift_bias_deg) ** 2
     P0[jk.IKS:jk.IKS + 3, jk.IKS:jk.IKS + 3] = np.eye(3) * nz.accel_scale ** 2
+    P0[jk.IATT:jk.IATT + 2, jk.IATT:jk.IATT + 2] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
     return x0, P0
 
 
@@ -622,6 +642,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     Cnb = _step_mean(inp.Cnb, idx, inp.t_in)
     fb = np.zeros((len(inp.t_in), 3)) if inp.f_body_g is None else np.nan_to_num(inp.f_body_g)
     Csf = np.ascontiguousarray(_step_mean(inp.Cnb * fb[:, None, :], idx, inp.t_in))
+    Jatt = np.ascontiguousarray(_step_mean(attitude_jacobian(inp.Cnb, fb), idx, inp.t_in))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
     q = _q_vector(nz)
     lat, lon, h = _nominal_trajectory(inp, idx)
@@ -660,12 +681,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             xf, xp = np.empty((len(T), n)), np.empty((len(T), n))
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
         innov, innov_var, infl = jk.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
+            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
             settings.innovation_gate if settings.robust else 0.0)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
-        kern_args = (dt, Cen, Cnb, Csf, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
+        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
                      meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst)
         if settings.estimate_noise:  # EM needs the smoothed covariances in every pass
             xs, Pblk, var, _, res, rate, hph = jk.backward(xf, Pf, xp, Pp, *kern_args)

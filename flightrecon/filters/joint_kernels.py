@@ -13,6 +13,8 @@ State (n = 15), SI units::
     15    k_W    Doppler ground-speed scale error: W_measured = (1 + k_W) |v_horizontal|
     16    dc     drift-angle bias [rad] (measured - true)
     17:20 s_a    accelerometer scale errors, body axes: f_measured = (1 + s_a) f_true + b_a
+    20    dphi   roll bias [rad] (measured - true)
+    21    dtheta pitch bias [rad] (measured - true)
 
 Propagation over one state step of length dt (inputs held between input samples)::
 
@@ -21,9 +23,12 @@ Propagation over one state step of length dt (inputs held between input samples)
     w+ = w + noise (random walk in time and in altitude)     over the step (exact for held inputs)
     b_a+ = exp(-dt/tau) b_a + noise
 
-with J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt, -g0 C_nb diag(f) dt] and J_p = J_v dt / 2: the
-heading bias rotates the measured horizontal acceleration, the accelerometer bias and scale
-errors add through the attitude (f: measured specific force in body axes, in g).  C_en (NED -> ECEF) is
+with J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt, -g0 C_nb diag(f) dt, -g0 dC/dphi f dt,
+-g0 dC/dtheta f dt] and J_p = J_v dt / 2: the heading bias rotates the measured horizontal
+acceleration, the accelerometer bias and scale errors add through the attitude (f: measured
+specific force in body axes, in g), and the roll and pitch biases tilt it:
+dC/dphi f = C_nb (e_x x f) and dC/dtheta f = C_nb (u x f), u = (0, cos phi, -sin phi)
+(C_nb = R_z R_y R_x; R_x^T e_y = u), both as step means over the held inputs.  C_en (NED -> ECEF) is
 evaluated on the nominal trajectory (Gauss-Newton linearisation, refreshed each iteration).
 
 Measurements are scalars processed one at a time at their own step, with ``tau`` = their time
@@ -43,8 +48,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-N_STATE = 20
-IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS = 0, 3, 6, 8, 11, 12, 13, 14, 15, 16, 17
+N_STATE = 22
+IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT = 0, 3, 6, 8, 11, 12, 13, 14, 15, 16, 17, 20
 G0 = 9.80665
 
 LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO, DOPPLER, TRACK = 0, 1, 2, 3, 4, 5, 6, 7, 8
@@ -57,12 +62,13 @@ def _wrap(a):
 
 
 @nb.njit(cache=True)
-def transition_into(F, k, dt, Cen, Cnb, Csf, acc, tau_ba):
+def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
     """Fill ``F`` (n, n) with the transition matrix F_k from step k-1 to step k (k >= 1).
 
     ``Csf[k]`` is the step mean of C_nb diag(f_body) (the Jacobian of the acceleration in the
-    accelerometer scale errors).  Only the position, velocity and accelerometer-bias rows differ
-    from the identity (see the module docstring).
+    accelerometer scale errors), ``Jatt[k]`` (3, 2) that of dC/dphi f and dC/dtheta f (roll and
+    pitch biases).  Only the position, velocity and accelerometer-bias rows differ from the
+    identity (see the module docstring).
     """
     n = N_STATE
     for i in range(n):
@@ -81,6 +87,8 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, acc, tau_ba):
         for j in range(3):
             F[IV + i, IBA + j] = -G0 * Cnb[k, i, j] * h
             F[IV + i, IKS + j] = -G0 * Csf[k, i, j] * h
+        for j in range(2):
+            F[IV + i, IATT + j] = -G0 * Jatt[k, i, j] * h
     # position: C_en times the velocity terms times dt/2
     hh = h * h / 2.0
     for i in range(3):
@@ -91,16 +99,19 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, acc, tau_ba):
                                         + c2 * Csf[k, 2, j]) * hh
             F[IP + i, IBA + j] = -G0 * (c0 * Cnb[k, 0, j] + c1 * Cnb[k, 1, j]
                                         + c2 * Cnb[k, 2, j]) * hh
+        for j in range(2):
+            F[IP + i, IATT + j] = -G0 * (c0 * Jatt[k, 0, j] + c1 * Jatt[k, 1, j]
+                                         + c2 * Jatt[k, 2, j]) * hh
     e = np.exp(-h / tau_ba)
     for j in range(3):
         F[IBA + j, IBA + j] = e
 
 
 @nb.njit(cache=True)
-def transition(k, dt, Cen, Cnb, Csf, acc, tau_ba):
+def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
     """Transition matrix F_k from step k-1 to step k (k >= 1); see :func:`transition_into`."""
     F = np.empty((N_STATE, N_STATE))
-    transition_into(F, k, dt, Cen, Cnb, Csf, acc, tau_ba)
+    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba)
     return F
 
 
@@ -372,7 +383,7 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
 
 
 @nb.njit(cache=True)
-def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw,
+def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw,
             mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate):
     """Forward extended Kalman filter with sequential scalar updates.
 
@@ -405,7 +416,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, acc, dP, dV, climb, qv_ex
     hnz = np.empty(n, dtype=np.int64)
     for k in range(N):
         if k > 0:
-            transition_into(F, k, dt, Cen, Cnb, Csf, acc, q[4])
+            transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
             _sparse_rows(F, cols, vals, cnt)
             _sparse_matvec(cols, vals, cnt, x, xn)
             for i in range(n):
@@ -504,7 +515,7 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
 
 
 @nb.njit(cache=True)
-def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, mtau, mH,
+def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH,
                   mrow, md, pnom, hnom, pst, Cst):
     """RTS backward pass for the smoothed states only (no covariances), and the residuals.
 
@@ -534,7 +545,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, 
     no_hph = np.empty(0)
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            transition_into(F, k + 1, dt, Cen, Cnb, Csf, acc, q[4])
+            transition_into(F, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
             _sparse_rows(F, cols, vals, cnt)
             for i in range(n):
                 d[i] = xs[k + 1, i] - xp[k + 1, i]
@@ -552,7 +563,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, 
 
 
 @nb.njit(cache=True)
-def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
+def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
              md, pnom, hnom, pst, Cst):
     """RTS backward pass with covariances; also the smoothed residuals (see
     :func:`backward_mean`, which gives the same states without the covariances).
@@ -585,7 +596,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, acc, q, mstart, mtype, mz, mr, m
     Ps = Pf[N - 1].copy()
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            transition_into(F, k + 1, dt, Cen, Cnb, Csf, acc, q[4])
+            transition_into(F, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
             _sparse_rows(F, cols, vals, cnt)
             # A = F P_f[k] (row-compressed F); the gain G = P_f F^T P_p^-1, i.e. G^T = P_p^-1 A
             for i in range(n):

@@ -215,6 +215,8 @@ def _corrections(run: JointRun) -> dict[str, Any]:
         "accel_scale_y": item(jk.IKS + 1, 1.0, "body right"),
         "accel_scale_z": item(jk.IKS + 2, 1.0, "body down"),
         "drift_bias_deg": item(jk.IDC, np.degrees(1.0), "deg (measured - true)"),
+        "roll_bias_deg": item(jk.IATT, np.degrees(1.0), "deg (measured - true)"),
+        "pitch_bias_deg": item(jk.IATT + 1, np.degrees(1.0), "deg (measured - true)"),
     }
 
 

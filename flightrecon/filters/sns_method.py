@@ -40,6 +40,8 @@ from flightrecon.types import CleanFlight, MethodResult
 MODELS = {"airspeed": core.MODEL_AIRSPEED, "doppler": core.MODEL_DOPPLER}
 FORMS = {"consistent": core.FORM_CONSISTENT, "seed": core.FORM_SEED}
 GNSS_COLUMNS = ("t_s", "gnss_lat_deg", "gnss_lon_deg", "gnss_alt_m")
+TRACK_COLUMNS = ("t_s", "sns_north_m", "sns_east_m", "sns_north_sd_m", "sns_east_sd_m",
+                 "sns_vn_mps", "sns_ve_mps", "sns_vn_sd_mps", "sns_ve_sd_mps")
 
 
 @dataclass(frozen=True)
@@ -149,16 +151,74 @@ def lever_arm_ne(grid: pd.DataFrame, lever_arm_m: tuple[float, float, float]) ->
     return out
 
 
-def _cumulative(t: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Integral of the held (left zero-order hold) series ``v`` from ``t[0]`` to each ``t[j]``."""
-    out = np.zeros_like(v)
-    out[1:] = np.cumsum(v[:-1] * np.diff(t)[:, None], axis=0)
+def _lever_arm_rows(grid: pd.DataFrame, rows: np.ndarray,
+                    lever_arm_m: tuple[float, float, float]) -> np.ndarray:
+    """:func:`lever_arm_ne` at the grid rows ``rows`` only (same arithmetic, same NaN filling)."""
+    notes: list[str] = []
+    psi = np.deg2rad(_channel(grid, "heading_deg", notes)[rows])
+    th = np.deg2rad(_channel(grid, "pitch_deg", notes, fill=0.0)[rows])
+    ph = np.deg2rad(_channel(grid, "roll_deg", notes, fill=0.0)[rows])
+    l0, l1, l2 = (float(v) for v in lever_arm_m)
+    cph, sph = np.cos(ph), np.sin(ph)
+    b1 = cph * l1 - sph * l2
+    b2 = sph * l1 + cph * l2
+    c0 = np.cos(th) * l0 + np.sin(th) * b2
+    c1 = b1
+    cpsi, spsi = np.cos(psi), np.sin(psi)
+    out = np.empty((len(rows), 2))
+    out[:, 0] = cpsi * c0 - spsi * c1
+    out[:, 1] = spsi * c0 + cpsi * c1
     return out
 
 
-def _at(t: np.ndarray, cum: np.ndarray, v: np.ndarray, tq: np.ndarray) -> np.ndarray:
-    """Integral of the held series up to arbitrary times ``tq`` (within ``[t[0], t[-1]]``)."""
-    j = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
+def _lever_arm_at(grid: pd.DataFrame, t: np.ndarray, tf: np.ndarray, jf: np.ndarray,
+                  lever_arm_m: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Lever arm ``C_nb l`` (north/east) and its time derivative at the fix times ``tf``.
+
+    Equal to ``np.interp(tf, t, arm)`` and ``np.interp(tf, t, np.gradient(arm, t))`` with
+    ``arm = lever_arm_ne(grid, l)`` on the whole grid, but the attitude is rotated only at the
+    rows those need: the samples ``jf``, ``jf + 1`` bracketing each fix (``jf`` the sample held at
+    the fix) and their neighbours for the central differences (numpy's second-order
+    non-uniform formula inside, one-sided at the ends).
+    """
+    M = len(t)
+    mask = np.zeros(M, dtype=bool)
+    for off in (-1, 0, 1, 2):
+        mask[np.clip(jf + off, 0, M - 1)] = True
+    need = np.flatnonzero(mask)
+    arm = _lever_arm_rows(grid, need, lever_arm_m)
+    tr = t[need]
+    # derivative at the rows whose grid neighbours are also computed (jf and jf + 1 always are)
+    darm = np.zeros_like(arm)
+    ip = np.minimum(np.searchsorted(need, need - 1), len(need) - 1)
+    inx = np.minimum(np.searchsorted(need, need + 1), len(need) - 1)
+    has_p = need[ip] == need - 1
+    has_n = need[inx] == need + 1
+    mid = has_p & has_n
+    dx1 = tr[mid] - tr[ip[mid]]
+    dx2 = tr[inx[mid]] - tr[mid]
+    ca = -(dx2) / (dx1 * (dx1 + dx2))
+    cb = (dx2 - dx1) / (dx1 * dx2)
+    cc = dx1 / (dx2 * (dx1 + dx2))
+    darm[mid] = (ca[:, None] * arm[ip[mid]] + cb[:, None] * arm[mid]
+                 + cc[:, None] * arm[inx[mid]])
+    first = (need == 0) & has_n
+    darm[first] = (arm[inx[first]] - arm[first]) / (tr[inx[first]] - tr[first])[:, None]
+    last = (need == M - 1) & has_p
+    darm[last] = (arm[last] - arm[ip[last]]) / (tr[last] - tr[ip[last]])[:, None]
+    arm_f = np.column_stack([np.interp(tf, tr, arm[:, i]) for i in range(2)])
+    darm_f = np.column_stack([np.interp(tf, tr, darm[:, i]) for i in range(2)])
+    return arm_f, darm_f
+
+
+def _at(t: np.ndarray, cum: np.ndarray, v: np.ndarray, tq: np.ndarray,
+        j: np.ndarray | None = None) -> np.ndarray:
+    """Integral of the held series up to arbitrary times ``tq`` (within ``[t[0], t[-1]]``).
+
+    ``j`` (optional) are the samples held at ``tq`` if already known.
+    """
+    if j is None:
+        j = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
     return cum[j] + v[j] * (tq - t[j])[:, None]
 
 
@@ -228,14 +288,9 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
     h_grid = np.interp(t, tf, h_fix)
 
     a, u, w = _readings(grid, m, notes)
-    IA, IU, IW = _cumulative(t, a), _cumulative(t, u), _cumulative(t, w)
-
-    # per-sample noise sums dt^2 [u u^T, (Ja)(Ja)^T, 1] for the summed errors of whole samples
-    dts = np.append(np.diff(t), 0.0)[:, None] ** 2
-    ja = np.column_stack([-a[:, 1], a[:, 0]])
-    qs = dts * np.column_stack([u[:, 0] ** 2, u[:, 0] * u[:, 1], u[:, 1] ** 2, ja[:, 0] ** 2,
-                                ja[:, 0] * ja[:, 1], ja[:, 1] ** 2, np.ones(len(t))])
-    CQ = np.vstack([np.zeros((1, 7)), np.cumsum(qs, axis=0)])  # CQ[j] = sum over samples < j
+    # cumulative integrals of the held readings, and CQ[j] = sum over samples < j of
+    # dt^2 [u u^T, (Ja)(Ja)^T, 1] for the summed errors of whole samples (one compiled pass)
+    IA, IU, IW, CQ = core.integrate_readings(t, a, u, w)
 
     # filter grid: every dec-th sample, dec reduced until each step's fixes share one sample
     jf = np.clip(np.searchsorted(t, tf, side="right") - 1, 0, len(t) - 1)
@@ -275,10 +330,7 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
     Qa = np.where(inner[:, None], CQ[nxt] - CQ[np.minimum(jstar + 1, len(t))], 0.0)
 
     # fixes: centre of mass, step, partial integrals, held readings
-    arm = lever_arm_ne(grid, clean.meta.gnss_lever_arm_m)
-    darm = np.gradient(arm, t, axis=0)
-    arm_f = np.column_stack([np.interp(tf, t, arm[:, i]) for i in range(2)])
-    darm_f = np.column_stack([np.interp(tf, t, darm[:, i]) for i in range(2)])
+    arm_f, darm_f = _lever_arm_at(grid, t, tf, jf, clean.meta.gnss_lever_arm_m)
     lat_a = np.deg2rad(g["gnss_lat_deg"].to_numpy(float))
     lon_a = np.deg2rad(g["gnss_lon_deg"].to_numpy(float))
     mh, nh = _radii_np(lat_a, h_fix)
@@ -291,8 +343,8 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
     inputs = core.StepInputs(
         t=tk, h=h_grid[idx], A=A, U=U, W=W, fix_start=fstart, fix_end=fend,
         fix_lat=flat, fix_lon=flon, fix_v=fv, fix_tau=tf - tk[kf],
-        fix_PA=_at(t, IA, a, tf) - IA[idx[kf]], fix_PU=_at(t, IU, u, tf) - IU[idx[kf]],
-        fix_PW=_at(t, IW, w, tf) - IW[idx[kf]],
+        fix_PA=_at(t, IA, a, tf, jf) - IA[idx[kf]], fix_PU=_at(t, IU, u, tf, jf) - IU[idx[kf]],
+        fix_PW=_at(t, IW, w, tf, jf) - IW[idx[kf]],
         fix_a=a[jf], fix_u=u[jf], fix_w=w[jf], star=star, dt_star=dt_star, Qb=Qb, Qa=Qa,
         fix_tau_in=tf - t[jf])
 
@@ -309,7 +361,9 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         raise ConvergenceError(f"SNS filter/smoother failed: {exc} (a covariance became "
                                "singular: check the noise settings)") from exc
 
-    kq = np.clip(np.searchsorted(idx, np.arange(len(t)), side="right") - 1, 0, N - 1)
+    # filter step of each recorder sample: idx = [0, dec, 2 dec, ...] (+ the last sample)
+    kq = np.minimum(np.arange(len(t)) // dec, N - 1)
+    kq[-1] = N - 1
     lat, lon, P_ne, v_ne, P_v = core.densify(
         m, sm.x, sm.P, kq, t, tk, (IA, IU, IW), (IA[idx], IU[idx], IW[idx]), h_grid, (a, u, w),
         np.asarray(noise.sensor_sd, float))
@@ -327,22 +381,46 @@ def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return n * (1.0 - core._E2) / wq + h, n + h
 
 
-def plane_track(sol: SnsSolution, plane) -> dict[str, np.ndarray]:
+GAMMA_STRIDE = 16  # recorder samples between pyproj evaluations of the meridian convergence
+
+
+def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
+                ) -> dict[str, np.ndarray]:
     """Positions and their standard deviations in the output tangent plane's axes.
 
-    The local north/east covariance is rotated by the angle between local north and the plane's
-    north at each point (meridian convergence), found through pyproj.
+    The local north/east covariance is rotated by the angle ``gamma`` between local north and
+    the plane's north (meridian convergence), found through pyproj as the direction of a 1e-4 deg
+    step north.  ``gamma`` is a smooth function of position (its second derivative along the
+    track is of order ``1 / R_earth^2``), so it is evaluated every ``GAMMA_STRIDE`` recorder
+    samples (and at the last) and interpolated linearly: over 16 samples (one second at 16 Hz,
+    about 250 m) the interpolation error is below ``250^2 / 8 / R^2``, 2e-10 rad, which changes a
+    standard deviation by less than 1e-9 of itself.  The rotated variances are written in closed
+    form: ``north = cg^2 Pnn - 2 cg sg Pne + sg^2 Pee``, ``east = sg^2 Pnn + 2 cg sg Pne +
+    cg^2 Pee``.  ``out`` (4, M), if given, receives ``north_m, east_m, north_sd_m, east_sd_m``.
     """
     latd, lond = np.rad2deg(sol.lat), np.rad2deg(sol.lon)
+    M = len(latd)
     e, n, _ = plane.forward(latd, lond, sol.h)
-    e1, n1, _ = plane.forward(latd + 1e-4, lond, sol.h)
-    gam = np.arctan2(e1 - e, n1 - n)
-    cg, sg = np.cos(gam), np.sin(gam)
-    R = np.empty((len(gam), 2, 2))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1] = cg, -sg, sg, cg
-    Pt = R @ sol.P_ne @ np.transpose(R, (0, 2, 1))
-    return {"north_m": n, "east_m": e, "north_sd_m": np.sqrt(Pt[:, 0, 0]),
-            "east_sd_m": np.sqrt(Pt[:, 1, 1])}
+    sub = np.arange(0, M, GAMMA_STRIDE)
+    if sub[-1] != M - 1:
+        sub = np.append(sub, M - 1)
+    e1, n1, _ = plane.forward(latd[sub] + 1e-4, lond[sub], sol.h[sub])
+    gam_sub = np.arctan2(e1 - e[sub], n1 - n[sub])
+    # cos and sin interpolated directly: the chord of the unit circle over one interval
+    # (gamma changes by < 1e-5 rad) is shorter than the arc by < 1e-11 relative
+    pos = np.arange(M, dtype=float)
+    cg = np.interp(pos, sub, np.cos(gam_sub))
+    sg = np.interp(pos, sub, np.sin(gam_sub))
+    pnn, pne, pee = sol.P_ne[:, 0, 0], 0.5 * (sol.P_ne[:, 0, 1] + sol.P_ne[:, 1, 0]), \
+        sol.P_ne[:, 1, 1]
+    cs2 = 2.0 * cg * sg * pne
+    if out is None:
+        out = np.empty((4, M))
+    out[0] = n
+    out[1] = e
+    np.sqrt(cg * cg * pnn - cs2 + sg * sg * pee, out=out[2])
+    np.sqrt(sg * sg * pnn + cs2 + cg * cg * pee, out=out[3])
+    return {"north_m": out[0], "east_m": out[1], "north_sd_m": out[2], "east_sd_m": out[3]}
 
 
 def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
@@ -382,20 +460,21 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     """
     sol = solve_sns(clean, model=model, form=form, filter_rate_hz=filter_rate_hz, noise=noise)
     plane = output_plane(clean.meta)
-    tr = plane_track(sol, plane)
     t = clean.grid["t_s"].to_numpy(float)
-    track = pd.DataFrame({
-        "t_s": t,
-        "sns_north_m": tr["north_m"], "sns_east_m": tr["east_m"],
-        "sns_north_sd_m": tr["north_sd_m"], "sns_east_sd_m": tr["east_sd_m"],
-        "sns_vn_mps": sol.v_ne[:, 0], "sns_ve_mps": sol.v_ne[:, 1],
-        "sns_vn_sd_mps": np.sqrt(sol.P_v[:, 0, 0]), "sns_ve_sd_mps": np.sqrt(sol.P_v[:, 1, 1]),
-    })
+    # one (columns, rows) block filled in place and wrapped without a copy
+    block = np.empty((len(TRACK_COLUMNS), len(t)))
+    block[0] = t
+    plane_track(sol, plane, out=block[1:5])
+    block[5] = sol.v_ne[:, 0]
+    block[6] = sol.v_ne[:, 1]
+    np.sqrt(sol.P_v[:, 0, 0], out=block[7])
+    np.sqrt(sol.P_v[:, 1, 1], out=block[8])
+    track = pd.DataFrame(block.T, columns=list(TRACK_COLUMNS), copy=False)
     nis = sol.run.nis
     ok = np.isfinite(nis)
     dof = float(sol.run.rank[ok].sum())
     nis_ratio = float(nis[ok].sum() / dof) if dof > 0 else float("nan")
-    finite = bool(np.isfinite(track.to_numpy()).all())
+    finite = bool(np.isfinite(block).all())
     dt_fix = np.diff(sol.fix_t)
     min_gap = 3.0 * float(np.median(dt_fix)) if len(dt_fix) else 0.0
     summary: dict[str, Any] = {

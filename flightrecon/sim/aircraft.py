@@ -28,6 +28,8 @@ class Aircraft:
     alpha_ref_deg, alpha_ref_tas_mps : 1 g angle of attack at a reference airspeed
     accel_bias_g, accel_scale : accelerometer bias [g] and scale error (long, lat, norm)
     heading_bias_deg : heading reference bias (reading minus true)
+    roll_bias_deg, pitch_bias_deg : attitude reference biases (reading minus true); 0 unless a
+        study sets them
     airspeed_scale : TAS scale error (reading = (1 + scale) TAS)
     doppler_scale, drift_bias_deg : Doppler ground-speed scale error and drift-angle bias
     baro_bias_m : static-source error as a pressure-altitude bias
@@ -52,6 +54,8 @@ class Aircraft:
     drift_bias_deg: float = 0.4
     baro_bias_m: float = 5.0
     gnss_lever_arm_m: tuple[float, float, float] = (2.0, 0.0, -1.0)
+    roll_bias_deg: float = 0.0
+    pitch_bias_deg: float = 0.0
 
 
 LIGHT = Aircraft()

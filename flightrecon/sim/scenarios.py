@@ -396,7 +396,8 @@ def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
         return x if x > 0 else None
 
     loads = LoadFactorSensor(cfg.loads_hz, a.accel_bias_g, a.accel_scale)
-    att = AttitudeSensor(cfg.attitude_hz, heading_bias_deg=a.heading_bias_deg)
+    att = AttitudeSensor(cfg.attitude_hz, heading_bias_deg=a.heading_bias_deg,
+                         roll_bias_deg=a.roll_bias_deg, pitch_bias_deg=a.pitch_bias_deg)
     aspd = AirspeedSensor(cfg.airspeed_hz, scale=a.airspeed_scale)
     baro = BaroSensor(cfg.baro_hz, bias_m=a.baro_bias_m)
     if air_gm:  # air data = ground velocity + Gauss-Markov error, nothing else (METHODS.md 2)
@@ -509,6 +510,8 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
         "persistent_errors": {
             "accel_bias_g": list(suite.loads.bias_g), "accel_scale": list(suite.loads.scale),
             "heading_bias_deg": suite.attitude.heading_bias_deg,
+            "roll_bias_deg": suite.attitude.roll_bias_deg,
+            "pitch_bias_deg": suite.attitude.pitch_bias_deg,
             "airspeed_scale": suite.airspeed.scale, "baro_bias_m": suite.baro.bias_m,
             "doppler_scale": suite.doppler.scale if suite.doppler else None,
             "drift_bias_deg": suite.doppler.drift_bias_deg if suite.doppler else None,

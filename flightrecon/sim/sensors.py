@@ -126,7 +126,7 @@ class LoadFactorSensor:
 class AttitudeSensor:
     """Attitude and heading reference: roll, pitch, true heading.
 
-    heading reading = heading + bias + noise (wrapped to [0, 360)); roll, pitch: + noise.
+    heading reading = heading + bias + noise (wrapped to [0, 360)); roll, pitch: + bias + noise.
     """
 
     rate_hz: float = 8.0
@@ -135,14 +135,16 @@ class AttitudeSensor:
     heading_noise_sd_deg: float = 0.1
     heading_bias_deg: float = 0.0
     quantum_deg: float = 0.0
+    roll_bias_deg: float = 0.0
+    pitch_bias_deg: float = 0.0
 
     group = "attitude"
 
     def record(self, truth, src, rng, dt_s):
-        roll = truth["roll_deg"].to_numpy()[src] + self.roll_noise_sd_deg * \
-            rng.standard_normal(src.size)
-        pitch = truth["pitch_deg"].to_numpy()[src] + self.pitch_noise_sd_deg * \
-            rng.standard_normal(src.size)
+        roll = truth["roll_deg"].to_numpy()[src] + self.roll_bias_deg + \
+            self.roll_noise_sd_deg * rng.standard_normal(src.size)
+        pitch = truth["pitch_deg"].to_numpy()[src] + self.pitch_bias_deg + \
+            self.pitch_noise_sd_deg * rng.standard_normal(src.size)
         hdg = (truth["heading_deg"].to_numpy()[src] + self.heading_bias_deg
                + self.heading_noise_sd_deg * rng.standard_normal(src.size))
         return {"roll_deg": quantise(roll, self.quantum_deg),
