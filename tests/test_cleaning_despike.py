@@ -139,3 +139,68 @@ def test_running_median_kernel_equals_pandas():
         for w in (0, 1, 7):
             ref = pd.Series(x).rolling(2 * w + 1, center=True, min_periods=1).median()
             np.testing.assert_array_equal(_running_median(x, w), ref.to_numpy())
+
+
+def _spiky(rng, n, quantum):
+    x = 0.2 * np.sin(np.arange(n) / 40.0) + rng.normal(0, 0.01, n)
+    if quantum:
+        x = np.round(x / quantum) * quantum
+    i = rng.choice(n, max(n // 50, 1), replace=False)
+    x[i] += rng.choice([-1.0, 1.0], len(i)) * rng.uniform(0.1, 1.0, len(i))
+    return x
+
+
+def test_sparse_threshold_gives_the_same_candidates_and_spikes():
+    """``hampel_candidates(full_threshold=False)`` (the running MAD evaluated only where a
+    sample can exceed the threshold at all) gives exactly the candidates and spikes of the full
+    evaluation, the exact threshold at every candidate and never more than it elsewhere."""
+    from flightrecon.cleaning.despike import hampel_candidates, isolated_runs
+
+    rng = np.random.default_rng(11)
+    s = DespikeSettings()
+    cases = [_spiky(rng, n, q) for n in (3, 4, 16, 17, 40, 5000) for q in (0.0, 0.01)]
+    cases += [np.zeros(50), np.r_[np.zeros(30), 1.0, np.zeros(30)]]
+    for x in cases:
+        c_full, t_full, f_full = hampel_candidates(x, s)
+        c_fast, t_fast, f_fast = hampel_candidates(x, s, full_threshold=False)
+        assert f_fast == f_full
+        np.testing.assert_array_equal(c_fast, c_full)
+        np.testing.assert_array_equal(t_fast[c_full], t_full[c_full])
+        assert np.all(t_fast <= t_full)
+        np.testing.assert_array_equal(isolated_runs(x, c_fast, t_fast, s.max_run),
+                                      isolated_runs(x, c_full, t_full, s.max_run))
+    assert sum(hampel_candidates(x, s)[0].sum() for x in cases) > 50  # the test has spikes
+
+
+def test_median_at_equals_running_median():
+    """The pointwise window median equals the running median at the same samples, ends
+    (truncated, even-length windows) included."""
+    from flightrecon.cleaning.despike import _median_at_kernel, _running_median
+
+    rng = np.random.default_rng(12)
+    for n in (1, 2, 9, 15, 16, 200):
+        x = np.round(rng.normal(0, 1, n), 1)
+        idx = np.arange(n)
+        for w in (0, 1, 7):
+            np.testing.assert_array_equal(_median_at_kernel(x, idx, w), _running_median(x, w))
+
+
+def test_estimate_quantum_equals_distinct_value_spacing():
+    """The sort-based quantum equals the smallest spacing of ``numpy.unique`` values (ties,
+    signed zeros, NaN, a single distinct value, values near the 1e-9 relative cut-off)."""
+    rng = np.random.default_rng(13)
+
+    def reference(x):
+        u = np.unique(x[np.isfinite(x)])
+        if len(u) < 2:
+            return 0.0
+        d = np.diff(u)
+        d = d[d > 1e-9 * max(float(np.max(np.abs(u))), 1.0)]
+        return float(d.min()) if len(d) else 0.0
+
+    cases = [np.round(rng.normal(0, 5, 1000) / 0.25) * 0.25, rng.normal(0, 1, 500),
+             np.array([-0.0, 0.0, 0.0]), np.array([3.0]), np.array([np.nan, 2.0, np.inf]),
+             np.array([1e12, 1e12 + 1e-4, 1e12 + 2.0]), np.array([1.0, 1.0 + 1e-10, 2.0]),
+             np.array([-7.0, 2.0, np.nan, 2.0, 5.5])]
+    for x in cases:
+        assert estimate_quantum(x) == reference(x)

@@ -76,3 +76,40 @@ def test_downsampling_boxcar_antialias():
     # boxcar gain at 3.9 Hz over 4 samples at 16 Hz is 0.155; the slow term loses < 1e-3
     assert np.max(np.abs(resid[inner])) < 0.16 + 1e-3
     assert boxcar(np.arange(5.0), 1).tolist() == [0, 1, 2, 3, 4]
+
+
+def _reference_interpolation(t, x, grid, period_s, max_gap_s):
+    """The gap rule evaluated grid point by grid point (each one located among the samples)."""
+    hold = 0.5 * period_s
+    values = np.interp(grid, t, x)
+    valid = (grid >= t[0] - hold) & (grid <= t[-1] + hold)
+    j = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 2)
+    inside = (grid > t[j]) & (grid < t[j + 1])
+    valid &= ~inside | (t[j + 1] - t[j] <= max(max_gap_s, 1.5 * period_s))
+    values[~valid] = np.nan
+    return values, valid
+
+
+def test_gap_search_equals_pointwise_rule():
+    """Locating only the long intervals in the grid gives exactly the pointwise rule, for
+    gaps at the edges, back to back, on grid points and between them, and for a shuffled
+    grid."""
+    rng = np.random.default_rng(21)
+    for trial in range(20):
+        t = np.arange(0, 120, 0.25)
+        drop = np.zeros(len(t), bool)
+        for _ in range(rng.integers(0, 6)):
+            a = rng.integers(0, len(t))
+            drop[a:a + rng.integers(1, 40)] = True
+        t = t[~drop] + (0.0 if trial % 2 else 0.1)
+        x = rng.normal(0, 1, len(t))
+        grid = np.arange(-1.0, 122.0, 1 / 16 if trial % 3 else 0.25)
+        for max_gap in (0.0, 0.5, 2.0, 5.0):
+            vals, valid = interpolate_with_gaps(t, x, grid, 0.25, max_gap)
+            ref_v, ref_ok = _reference_interpolation(t, x, grid, 0.25, max_gap)
+            np.testing.assert_array_equal(valid, ref_ok)
+            np.testing.assert_array_equal(vals, ref_v)
+            perm = rng.permutation(len(grid))
+            v2, ok2 = interpolate_with_gaps(t, x, grid[perm], 0.25, max_gap)
+            np.testing.assert_array_equal(ok2, ref_ok[perm])
+            np.testing.assert_array_equal(v2, ref_v[perm])

@@ -107,3 +107,24 @@ def test_liftoff_touchdown_simulated(scenario, seed):
         assert not ph.ends_airborne
     else:
         assert ph.ends_airborne and np.isnan(ph.touchdown_t_s)
+
+
+def test_filled_equals_pandas_interpolation():
+    """The numpy fill of grid columns equals ``Series.interpolate(limit_direction="both")``
+    (inner gaps linear in the row index, leading and trailing NaN held), bit for bit."""
+    from flightrecon.cleaning.phases import _filled
+
+    rng = np.random.default_rng(31)
+    for n in (1, 2, 10, 500):
+        for frac in (0.0, 0.3, 0.9):
+            x = rng.normal(0, 1, n)
+            x[rng.random(n) < frac] = np.nan
+            x[: n // 10] = np.nan
+            grid = pd.DataFrame({"a": x})
+            if np.isnan(x).all():
+                assert _filled(grid, "a") is None
+                continue
+            ref = pd.Series(x).interpolate(limit_direction="both").to_numpy()
+            np.testing.assert_array_equal(_filled(grid, "a"), ref)
+            np.testing.assert_array_equal(grid["a"].to_numpy(), x)  # input unchanged
+    assert _filled(pd.DataFrame({"a": [1.0]}), "b") is None

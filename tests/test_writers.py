@@ -47,6 +47,23 @@ def test_csv_and_parquet_round_trip(tmp_path, track):
     assert read_parquet_metadata(tmp_path / "r.parquet")["inputs"][0]["sha256"] == "00"
 
 
+def test_parquet_is_exact_with_dictionary_only_on_text(tmp_path, track):
+    """The Parquet result reads back bit for bit with the same dtypes (the text column
+    included); only the text column is dictionary-encoded and the codec is Snappy."""
+    import pyarrow.parquet as pq
+
+    p = write_track(tmp_path / "r.parquet", track, META)
+    back = pd.read_parquet(p)
+    pd.testing.assert_frame_equal(back, track, check_exact=True)
+    md = pq.ParquetFile(p).metadata
+    for i in range(md.num_columns):
+        col = md.row_group(0).column(i)
+        dictionary = any("DICTIONARY" in e for e in col.encodings)
+        assert dictionary == (col.path_in_schema == "source"), col.path_in_schema
+        assert col.compression == "SNAPPY"
+        assert col.statistics is not None
+
+
 def test_geojson_rfc7946_structure(tmp_path, track):
     p = write_track(tmp_path / "r.geojson", track, META)
     doc = json.loads(p.read_text())
@@ -74,3 +91,77 @@ def test_kml_parses_with_msl_altitude(tmp_path, track):
 def test_summary_is_standard_json(tmp_path):
     p = write_summary(tmp_path / "s.json", {"x": float("nan"), "k": np.float64(1.5)})
     assert json.loads(p.read_text()) == {"x": None, "k": 1.5}
+
+
+def test_combine_assembles_the_result_table():
+    """``pipeline.combine``: horizontal source by priority, vertical source joint > sabziev >
+    baro; where the joint smoother gives no height, up and its vertical velocity equal the
+    conversion of the heights done on *every* sample (the conversion is restricted to those
+    samples and their neighbours), bit for bit; lat/lon/alt are the tangent-plane position
+    converted back; the method columns follow and the table is its own (editing it leaves the
+    method's track unchanged)."""
+    from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+    from flightrecon.geo.frames import output_plane
+    from flightrecon.pipeline import _height_to_plane_up, combine
+    from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position
+
+    n = 400
+    t = np.arange(n) * 0.25
+    meta = FlightMeta(departure=Position(40.0, 49.0, 10.0), qnh_departure_hpa=1013.25)
+    baro = 10.0 + 0.5 * t  # pressure altitude [m]
+    grid = pd.DataFrame({"t_s": t, "baro_alt_m": baro})
+    clean = CleanFlight(grid=grid, rate_hz=4.0, gnss=pd.DataFrame({"t_s": []}),
+                        radar=pd.DataFrame({"t_s": []}), meta=meta)
+    north, east = 250.0 * t * 3, -120.0 * t * 3  # reaches 75 km: the plane leaves the ellipsoid
+
+    def track(name, **extra):
+        cols = {"t_s": t, f"{name}_north_m": north + 1.0, f"{name}_east_m": east - 1.0}
+        for q in ("north_sd_m", "east_sd_m", "vn_mps", "vn_sd_mps", "ve_mps", "ve_sd_mps"):
+            cols[f"{name}_{q}"] = np.full(n, 2.0)
+        cols.update(extra)
+        return pd.DataFrame(cols)
+
+    j = track("joint")
+    j.loc[100:140, ["joint_north_m", "joint_east_m"]] = np.nan
+    j_up = 30.0 + t
+    j_up[50:80] = np.nan
+    j_up[390:] = np.nan
+    j_up[0] = np.nan
+    for c, v in (("up_m", j_up), ("up_sd_m", 1.0), ("vu_mps", 4.0), ("vu_sd_mps", 0.1),
+                 ("wind_n_mps", 3.0), ("wind_e_mps", -2.0), ("wind_n_sd_mps", 0.5),
+                 ("wind_e_sd_mps", 0.5)):
+        j[f"joint_{c}"] = v
+    j["joint_sources"] = pd.array(["air+gnss_pos"] * n, dtype="string")
+    sab_up = 20.0 + 0.4 * t
+    sab_up[60:70] = np.nan
+    sab = track("sabziev", sabziev_up_m=sab_up, sabziev_up_sd_m=np.full(n, 5.0))
+    results = {"joint": MethodResult("joint", j, {}), "sns": MethodResult("sns", track("sns"), {}),
+               "sabziev": MethodResult("sabziev", sab, {})}
+    out = combine(clean, results)
+
+    src = np.where(np.isnan(j["joint_north_m"].to_numpy()), "sns", "joint")
+    np.testing.assert_array_equal(out["source"].to_numpy(dtype=object), src)
+    j_ok = np.isfinite(j_up)
+    h_field = float(pressure_altitude_m(isa_pressure_pa(10.0)))
+    height = np.where(np.isfinite(sab_up), sab_up, baro - h_field)
+    ups = np.where(j_ok, "joint", np.where(np.isfinite(sab_up), "sabziev", "baro"))
+    np.testing.assert_array_equal(out["up_source"].to_numpy(dtype=object), ups)
+    plane = output_plane(meta)
+    e, nn = out["east_m"].to_numpy(), out["north_m"].to_numpy()
+    up_all = _height_to_plane_up(plane, e, nn, height)[0]
+    assert np.nanmax(np.abs(up_all - height)) > 100.0  # the conversion matters here
+    np.testing.assert_array_equal(out["up_m"].to_numpy()[~j_ok], up_all[~j_ok])
+    np.testing.assert_array_equal(out["up_m"].to_numpy()[j_ok], j_up[j_ok])
+    vu_all = np.gradient(up_all) / np.gradient(t)
+    np.testing.assert_array_equal(out["vu_mps"].to_numpy()[~j_ok], vu_all[~j_ok])
+    lat, lon, alt = plane.inverse(e, nn, out["up_m"].to_numpy())
+    np.testing.assert_array_equal(out["alt_m"].to_numpy(), alt)
+    np.testing.assert_array_equal(out["lat_deg"].to_numpy(), lat)
+    np.testing.assert_array_equal(out["lon_deg"].to_numpy(), lon)
+    assert list(out.columns[-len(sab.columns) - len(results["sns"].track.columns) + 2:]) == [
+        c for m in ("sabziev", "sns") for c in results[m].track.columns if c != "t_s"]
+    assert str(out["provenance"].dtype) == "str" and out["provenance"].iloc[0] == "air+gnss_pos"
+    out.loc[0, "sns_north_m"] = -1.0
+    out.loc[0, "t_s"] = -1.0
+    assert results["sns"].track["sns_north_m"].iloc[0] == north[0] + 1.0
+    assert grid["t_s"].iloc[0] == 0.0

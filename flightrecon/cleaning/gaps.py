@@ -49,7 +49,7 @@ def interpolate_with_gaps(t: np.ndarray, x: np.ndarray, grid: np.ndarray, period
     t, x : numpy.ndarray, shape (n,)
         Sample times (strictly increasing) and finite values.
     grid : numpy.ndarray, shape (N,)
-        Target times.
+        Target times (increasing in the fast path; any order is accepted).
     period_s : float
         Nominal sample period of the channel.
     max_gap_s : float
@@ -68,10 +68,21 @@ def interpolate_with_gaps(t: np.ndarray, x: np.ndarray, grid: np.ndarray, period
     values = np.interp(grid, t, x)
     valid = (grid >= t[0] - hold) & (grid <= t[-1] + hold)
     if len(t) >= 2:
-        j = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 2)
-        inside = (grid > t[j]) & (grid < t[j + 1])
-        interval = t[j + 1] - t[j]
-        bridge_ok = interval <= max(max_gap_s, GAP_FACTOR * period_s)
-        valid &= ~inside | bridge_ok
+        # grid points strictly inside an interval between samples longer than the bridge are
+        # not valid; the (few) long intervals are located in the sorted grid, so the cost is
+        # O(gaps log N) rather than a search of every grid point among the samples
+        bridge = max(max_gap_s, GAP_FACTOR * period_s)
+        long_ = np.flatnonzero(np.diff(t) > bridge)
+        if len(long_) and not np.all(grid[1:] >= grid[:-1]):  # unsorted targets: search each
+            j = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 2)
+            inside = (grid > t[j]) & (grid < t[j + 1])
+            valid &= ~inside | (t[j + 1] - t[j] <= bridge)
+        elif len(long_):
+            lo = np.searchsorted(grid, t[long_], side="right")
+            hi = np.searchsorted(grid, t[long_ + 1], side="left")
+            inside = np.zeros(N + 1, dtype=np.int64)
+            np.add.at(inside, lo, 1)
+            np.add.at(inside, hi, -1)
+            valid &= np.cumsum(inside[:N]) == 0
     values[~valid] = np.nan
     return values, valid

@@ -81,17 +81,24 @@ class PhaseSettings:
 
 
 def _filled(grid: pd.DataFrame, name: str) -> np.ndarray | None:
+    """A grid column with its NaN filled linearly in the row index, and held at the ends
+    (what ``Series.interpolate(limit_direction="both")`` gives, without pandas' overhead);
+    ``None`` if the column is absent or has no value."""
     if name not in grid.columns:
         return None
-    v = pd.Series(grid[name].to_numpy(dtype=float))
-    if v.notna().sum() == 0:
+    v = grid[name].to_numpy(dtype=float, copy=True)
+    bad = np.isnan(v)
+    if bad.all():
         return None
-    return v.interpolate(limit_direction="both").to_numpy()
+    if bad.any():
+        idx = np.arange(len(v))
+        v[bad] = np.interp(idx[bad], idx[~bad], v[~bad])
+    return v
 
 
-def _speed(grid: pd.DataFrame) -> tuple[np.ndarray, str]:
+def _speed(filled) -> tuple[np.ndarray, str]:
     for name in ("tas_mps", "cas_mps", "ias_mps"):
-        v = _filled(grid, name)
+        v = filled(name)
         if v is not None:
             return v, name
     raise ValidationError("phase detection needs an airspeed channel (tas_mps, cas_mps or "
@@ -106,8 +113,10 @@ def _cumint(a: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
-def _liftoff(t, dt, speed, baro, a_up, s: PhaseSettings, rep: list) -> tuple[float, int, int]:
-    """Lift-off time, its index and the index where the fast ground run starts (or NaN, -1)."""
+def _liftoff(t, dt, speed, baro, accel, s: PhaseSettings, rep: list) -> tuple[float, int, int]:
+    """Lift-off time, its index and the index where the fast ground run starts (or NaN, -1).
+
+    ``accel(lo, hi)`` is the kinematic acceleration NED on grid rows ``lo:hi``."""
     fast = np.flatnonzero(speed >= s.airborne_speed_mps)
     if len(fast) == 0:
         rep.append(report_entry("phases", "no_liftoff", "airspeed never reaches "
@@ -124,8 +133,9 @@ def _liftoff(t, dt, speed, baro, a_up, s: PhaseSettings, rep: list) -> tuple[flo
                                 "take-off run (rejected take-off or ground run only)", count=0))
         return float("nan"), -1, i_fast
     i_air = i_fast + int(high[0])
-    bias = float(np.mean(a_up[i_b0:i_fast + 1]))
-    v = _cumint(a_up[i_fast:i_air + 1] - bias, dt)
+    a_up = -accel(i_b0, i_air + 1)[:, 2]  # rows i_b0 .. i_air
+    bias = float(np.mean(a_up[:i_fast + 1 - i_b0]))
+    v = _cumint(a_up[i_fast - i_b0:] - bias, dt)
     tt = t[i_fast:i_air + 1]
     below = np.flatnonzero(v < s.v_up_high_mps)
     i_hi = int(below[-1]) + 1 if len(below) else 0
@@ -153,8 +163,8 @@ def _liftoff(t, dt, speed, baro, a_up, s: PhaseSettings, rep: list) -> tuple[flo
     return t_lo, i_lo, i_fast
 
 
-def _touchdown(t, dt, speed, baro, a_up, i_from: int, s: PhaseSettings, rep: list) -> float:
-    """Touchdown time (module docstring) or NaN."""
+def _touchdown(t, dt, speed, baro, accel, i_from: int, s: PhaseSettings, rep: list) -> float:
+    """Touchdown time (module docstring) or NaN; ``accel`` as in :func:`_liftoff`."""
     fast = np.flatnonzero(speed[i_from:] >= s.airborne_speed_mps)
     if len(fast) == 0:
         return float("nan")
@@ -168,7 +178,7 @@ def _touchdown(t, dt, speed, baro, a_up, i_from: int, s: PhaseSettings, rep: lis
                                 "landing run", count=0))
         return float("nan")
     i_low = i_from + int(high[-1])
-    seg = a_up[i_low:i_slow + 1]
+    seg = -accel(i_low, i_slow + 1)[:, 2]
     tt = t[i_low:i_slow + 1]
     k = max(int(round(s.td_smooth_s / dt)), 1)
     a_s = pd.Series(seg).rolling(k, center=True, min_periods=1).mean().to_numpy()
@@ -199,21 +209,22 @@ def _touchdown(t, dt, speed, baro, a_up, i_from: int, s: PhaseSettings, rep: lis
     return t_td
 
 
-def _liftoff_velocity(grid, t, dt, i_lo, i_fast, a_ned, s: PhaseSettings, rep: list
+def _liftoff_velocity(filled, t, dt, i_lo, i_fast, accel, s: PhaseSettings, rep: list
                       ) -> tuple[float, float, float]:
-    tas = _filled(grid, "tas_mps")
-    hdg = _filled(grid, "heading_deg")
+    tas = filled("tas_mps")
+    hdg = filled("heading_deg")
     if tas is None or hdg is None or i_lo <= 0:
         return _NAN3
     i0 = max(i_lo - int(round(s.roll_fit_s / dt)), i_fast, 0)
     if i_lo - i0 < 2:
         i0 = max(i_lo - 2, 0)
     psi = np.radians(float(np.mean(hdg[i0:i_lo + 1])))
-    a_along = a_ned[i0:i_lo + 1, 0] * np.cos(psi) + a_ned[i0:i_lo + 1, 1] * np.sin(psi)
+    a_ned = accel(i0, i_lo + 1)
+    a_along = a_ned[:, 0] * np.cos(psi) + a_ned[:, 1] * np.sin(psi)
     A = _cumint(a_along, dt)
     c = float(np.mean(tas[i0:i_lo + 1] - A))
     v_air = c + A[-1]
-    ws, wf = _filled(grid, "wind_speed_mps"), _filled(grid, "wind_from_deg")
+    ws, wf = filled("wind_speed_mps"), filled("wind_from_deg")
     if ws is not None and wf is not None:
         head = float(np.mean(ws[i0:i_lo + 1] * np.cos(np.radians(wf[i0:i_lo + 1]) - psi)))
         why = "airspeed fitted with the along-runway acceleration, minus the headwind"
@@ -254,26 +265,38 @@ def detect_phases_with_report(grid: pd.DataFrame, settings: PhaseSettings = Phas
     dt = float(np.median(d))
     if not dt > 0 or np.max(np.abs(d - dt)) > 1e-6 * max(dt, 1.0):
         raise ValidationError("phase detection needs a uniform grid")
-    speed, _ = _speed(grid)
-    baro = _filled(grid, "baro_alt_m")
+    cache: dict[str, np.ndarray | None] = {}
+
+    def filled(name: str) -> np.ndarray | None:  # each filled column computed once
+        if name not in cache:
+            cache[name] = _filled(grid, name)
+        return cache[name]
+
+    speed, _ = _speed(filled)
+    baro = filled("baro_alt_m")
     if baro is None:
         raise ValidationError("phase detection needs baro_alt_m")
     n1 = max(int(round(1.0 / dt)), 1)
     starts_air = bool(np.median(speed[:n1]) >= settings.airborne_speed_mps)
     ends_air = bool(np.median(speed[-n1:]) >= settings.airborne_speed_mps)
-    cols = [_filled(grid, c) for c in _LOAD_CHANNELS]
+    cols = [filled(c) for c in _LOAD_CHANNELS]
     if any(c is None for c in cols):
         raise ValidationError("phase detection needs load factors and attitude")
-    a_ned = kinematic_acceleration_ned(*cols, lat_deg=lat_deg, h_m=baro)
-    a_up = -a_ned[:, 2]
+
+    def accel(lo: int, hi: int) -> np.ndarray:
+        # a_NED on rows lo:hi only: the rules look at a few windows around lift-off and
+        # touchdown, and the conversion is row by row, so this equals slicing the whole record
+        return kinematic_acceleration_ned(*(c[lo:hi] for c in cols), lat_deg=lat_deg,
+                                          h_m=baro[lo:hi])
+
     t_lo, i_lo, i_fast, vel = float("nan"), -1, -1, _NAN3
     if not starts_air:
-        t_lo, i_lo, i_fast = _liftoff(t, dt, speed, baro, a_up, settings, rep)
+        t_lo, i_lo, i_fast = _liftoff(t, dt, speed, baro, accel, settings, rep)
         if np.isfinite(t_lo):
-            vel = _liftoff_velocity(grid, t, dt, i_lo, i_fast, a_ned, settings, rep)
+            vel = _liftoff_velocity(filled, t, dt, i_lo, i_fast, accel, settings, rep)
     t_td = float("nan")
     if not ends_air and (starts_air or np.isfinite(t_lo)):
-        t_td = _touchdown(t, dt, speed, baro, a_up, max(i_lo, 0), settings, rep)
+        t_td = _touchdown(t, dt, speed, baro, accel, max(i_lo, 0), settings, rep)
     if starts_air:
         rep.append(report_entry("phases", "starts_airborne", "airspeed over the first second "
                                 f">= {settings.airborne_speed_mps:g} m/s", count=1))

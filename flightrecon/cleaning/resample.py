@@ -22,8 +22,8 @@ from flightrecon.cleaning.gaps import find_gaps, interpolate_with_gaps
 from flightrecon.cleaning.report import report_entry
 from flightrecon.cleaning.timebase import (
     channel_samples,
-    estimate_rate_hz,
     nominal_period_s,
+    rate_from_period_hz,
     uniform_grid,
 )
 from flightrecon.errors import ValidationError
@@ -48,10 +48,15 @@ def default_rate_hz(data: pd.DataFrame) -> tuple[float, str]:
     ValidationError
         If no input channel has two samples.
     """
+    return _fastest({c: nominal_period_s(channel_samples(data, c)[0])
+                     for c in input_channels(data)})
+
+
+def _fastest(periods: dict[str, float]) -> tuple[float, str]:
+    """:func:`default_rate_hz` from the channels' nominal periods (name -> period [s])."""
     best, name = float("nan"), ""
-    for c in input_channels(data):
-        t, _ = channel_samples(data, c)
-        r = estimate_rate_hz(t)
+    for c, p in periods.items():
+        r = rate_from_period_hz(p)
         if np.isfinite(r) and (not np.isfinite(best) or r > best):
             best, name = r, c
     if not np.isfinite(best):
@@ -78,7 +83,9 @@ def resample_inputs(data: pd.DataFrame, rate_hz: float | None, max_gap_s: float
     chans = input_channels(data)
     if not chans:
         raise ValidationError("the log has no input channel with samples")
-    fast_rate, fast_name = default_rate_hz(data)
+    samples = {c: channel_samples(data, c) for c in chans}  # each channel extracted once
+    periods = {c: nominal_period_s(samples[c][0]) for c in chans}
+    fast_rate, fast_name = _fastest(periods)
     if rate_hz is None:
         rate_hz = fast_rate
         why = f"fastest input channel {fast_name} at {fast_rate:g} Hz"
@@ -86,16 +93,16 @@ def resample_inputs(data: pd.DataFrame, rate_hz: float | None, max_gap_s: float
         if not (np.isfinite(rate_hz) and rate_hz > 0.0):
             raise ValidationError(f"grid rate must be a positive number, got {rate_hz!r}")
         why = "requested"
-    t_first = min(channel_samples(data, c)[0][0] for c in chans)
-    t_last = max(channel_samples(data, c)[0][-1] for c in chans)
-    anchor = channel_samples(data, fast_name)[0][0]
+    t_first = min(samples[c][0][0] for c in chans)
+    t_last = max(samples[c][0][-1] for c in chans)
+    anchor = samples[fast_name][0][0]
     grid_t = uniform_grid(t_first, t_last, float(rate_hz), anchor_s=anchor)
     report.append(report_entry("*", "grid", why, count=len(grid_t), rate_hz=float(rate_hz),
                                t0_s=float(grid_t[0]) if len(grid_t) else float("nan")))
     cols: dict[str, np.ndarray] = {"t_s": grid_t}
     for c in chans:
-        t, x = channel_samples(data, c)
-        period = nominal_period_s(t)
+        t, x = samples[c]
+        period = periods[c]
         rate_c = 1.0 / period if np.isfinite(period) and period > 0 else float("nan")
         if np.isfinite(rate_c) and rate_c > ANTIALIAS_RATIO * rate_hz:
             length = min(int(round(rate_c / rate_hz)), len(x))
@@ -119,4 +126,5 @@ def resample_inputs(data: pd.DataFrame, rate_hz: float | None, max_gap_s: float
                                        t_s=np.column_stack([g0[~short], g1[~short]]).ravel()))
         cols[c] = vals
         cols[f"{c}_valid"] = valid
-    return pd.DataFrame(cols), float(rate_hz), report
+    # the arrays are this function's own: the table takes them without a consolidating copy
+    return pd.DataFrame(cols, copy=False), float(rate_hz), report

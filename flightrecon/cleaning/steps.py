@@ -113,22 +113,27 @@ class Despike:
         t = data["t_s"].to_numpy(dtype=float)
         rep = []
         s = self.settings
-        found: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, float, float]] = {}
+        # per channel: (rows sampled, their times, candidates, spikes, floor)
+        found: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]] = {}
         for c in chans:
             v = out[c].to_numpy(dtype=float)
-            ok = np.flatnonzero(np.isfinite(v))
-            if len(ok) < 3:
+            fin = np.isfinite(v)
+            n_ok = int(np.count_nonzero(fin))
+            if n_ok < 3:
                 continue
-            x = v[ok]
-            cand, thr, floor = hampel_candidates(x, s)
+            whole = n_ok == len(v)  # sampled on every row: no selection copies
+            x = v if whole else v[fin]
+            tc = t if whole else t[fin]
+            cand, thr, floor = hampel_candidates(x, s, full_threshold=False)
             spikes = isolated_runs(x, cand, thr, s.max_run)
-            period = float(np.median(np.diff(t[ok])))
-            found[c] = (ok, cand, spikes, floor, period)
-        for c, (ok, _cand, spikes, floor, period) in found.items():
+            found[c] = (fin, tc, cand, spikes, floor)
+        for c, (fin, t_c, _cand, spikes, floor) in found.items():
             if not spikes.any():
                 continue
+            ok = np.flatnonzero(fin)
             if c in self.coincidence_group:
-                others = [t[o][cd] for name, (o, cd, _, _, _) in found.items()
+                period = float(np.median(np.diff(t_c)))  # only needed here
+                others = [tc[cd] for name, (_, tc, cd, _, _) in found.items()
                           if name != c and name in self.coincidence_group]
                 other_t = np.sort(np.concatenate(others)) if others else np.empty(0)
                 ts = t[ok[spikes]]

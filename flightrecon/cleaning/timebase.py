@@ -34,6 +34,7 @@ __all__ = [
     "estimate_rate_hz",
     "measurement_table",
     "nominal_period_s",
+    "rate_from_period_hz",
     "resolve_timestamps",
     "uniform_grid",
 ]
@@ -95,7 +96,9 @@ def resolve_timestamps(data: pd.DataFrame) -> tuple[pd.DataFrame, list[dict]]:
                                    "time stamp earlier than a previous row's: the later, "
                                    "out-of-order row is dropped", count=len(idx), rows=idx,
                                    t_s=t[idx]))
-    out = data.iloc[np.flatnonzero(keep)].reset_index(drop=True)
+    # nothing dropped (the usual case): a lazy copy-on-write view, not a copy of every column
+    out = (data.reset_index(drop=True) if not backward.any()
+           else data.iloc[np.flatnonzero(keep)].reset_index(drop=True))
     t2 = t[keep]
     dup = np.concatenate([[False], np.diff(t2) == 0.0])
     if not dup.any():
@@ -145,7 +148,10 @@ def channel_samples(data: pd.DataFrame, name: str, offset_s: float = 0.0
     """A channel's own samples: ``(t_s + offset_s, values)`` over its non-NaN rows."""
     v = data[name].to_numpy(dtype=float)
     ok = np.isfinite(v)
-    return data["t_s"].to_numpy(dtype=float)[ok] + offset_s, v[ok]
+    t = data["t_s"].to_numpy(dtype=float)
+    if ok.all():  # sampled on every row: plain copies instead of selections
+        return t + offset_s, v.copy()
+    return t[ok] + offset_s, v[ok]
 
 
 def nominal_period_s(t: np.ndarray) -> float:
@@ -157,10 +163,14 @@ def nominal_period_s(t: np.ndarray) -> float:
 
 def estimate_rate_hz(t: np.ndarray) -> float:
     """Nominal sampling rate [Hz]: 1 / median spacing, rounded to 6 significant digits."""
-    p = nominal_period_s(t)
-    if not np.isfinite(p) or p <= 0.0:
+    return rate_from_period_hz(nominal_period_s(t))
+
+
+def rate_from_period_hz(period_s: float) -> float:
+    """1 / ``period_s`` rounded to 6 significant digits (NaN for a non-positive period)."""
+    if not np.isfinite(period_s) or period_s <= 0.0:
         return float("nan")
-    return float(f"{1.0 / p:.6g}")
+    return float(f"{1.0 / period_s:.6g}")
 
 
 def measurement_table(data: pd.DataFrame, group: str, offset_s: float = 0.0) -> pd.DataFrame:

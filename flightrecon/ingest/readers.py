@@ -262,19 +262,26 @@ def _from_arrow(tbl: pa.Table, file: str, fmt: str) -> RawTable:
     for name in tbl.column_names:
         col = tbl.column(name).combine_chunks() if tbl.column(name).num_chunks != 1 \
             else tbl.column(name).chunk(0)
-        valid = col.is_valid().to_numpy(zero_copy_only=False)
-        all_null &= ~valid
-        any_null = any_null or not valid.all()
+        no_null = col.null_count == 0
+        valid = np.ones(n, dtype=bool) if no_null else col.is_valid().to_numpy(
+            zero_copy_only=False)
+        if not no_null:
+            all_null &= ~valid
+        else:
+            all_null[:] = False
+        any_null = any_null or not no_null
         t = col.type
         if pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t) \
                 or pa.types.is_decimal(t) or pa.types.is_null(t):
             arr = pc.cast(col, pa.float64()) if not pa.types.is_null(t) else \
                 pa.array(np.full(n, np.nan))
+            # Arrow converts the nulls of a floating array to NaN: no masking pass needed
             vals = arr.to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
-            nan_mask = np.isnan(vals) & valid
+            nan_mask = np.isnan(vals)
+            if not no_null:
+                nan_mask &= valid
             if nan_mask.any():
                 nan_text[name] = nan_mask
-            vals = np.where(valid, vals, np.nan) if not valid.all() else vals
             cols[name] = vals
         elif pa.types.is_timestamp(t) or pa.types.is_date(t):
             s = pd.Series(col.to_pandas())

@@ -186,18 +186,32 @@ def check_values(data: pd.DataFrame, prov: Provenance,
     return warns
 
 
-def _on_common_rows(data: pd.DataFrame, a: str, b: str) -> tuple[np.ndarray, np.ndarray]:
+class _Sampled:
+    """Each channel's samples, extracted once for all the polarity checks: ``sampled(name)``
+    is ``(values, mask of sampled rows, values there, their times)``."""
+
+    def __init__(self, data: pd.DataFrame):
+        self.data = data
+        self.t = data["t_s"].to_numpy()
+        self._cache: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        if name not in self._cache:
+            v = self.data[name].to_numpy()
+            ok = ~np.isnan(v)
+            self._cache[name] = (v, ok, v[ok], self.t[ok])
+        return self._cache[name]
+
+
+def _on_common_rows(sampled: _Sampled, a: str, b: str) -> tuple[np.ndarray, np.ndarray]:
     """Values of ``b`` interpolated (linearly in time) at the rows where ``a`` was sampled."""
-    t = data["t_s"].to_numpy()
-    va = data[a].to_numpy()
-    vb = data[b].to_numpy()
-    ia = ~np.isnan(va)
-    ib = ~np.isnan(vb)
-    if ib.sum() < 2:
-        return va[ia], np.full(int(ia.sum()), np.nan)
+    _, ia, va, ta = sampled(a)
+    vb_all, ib, vb, tb = sampled(b)
+    if len(vb) < 2:
+        return va, np.full(len(va), np.nan)
     if ib[ia].all():                      # sampled on the same rows: no interpolation needed
-        return va[ia], vb[ia]
-    return va[ia], np.interp(t[ia], t[ib], vb[ib], left=np.nan, right=np.nan)
+        return va, vb_all[ia]
+    return va, np.interp(ta, tb, vb, left=np.nan, right=np.nan)
 
 
 def check_polarity(data: pd.DataFrame, prov: Provenance) -> list[str]:
@@ -209,8 +223,8 @@ def check_polarity(data: pd.DataFrame, prov: Provenance) -> list[str]:
         ``n_norm_g`` or ``n_long_g`` flipped.
     """
     warns: list[str] = []
-    nn = data["n_norm_g"].to_numpy()
-    nn_ok = nn[~np.isnan(nn)]
+    sampled = _Sampled(data)
+    nn_ok = sampled("n_norm_g")[2]
     col = prov.source_column[0].get("n_norm_g", "n_norm_g")
     if nn_ok.size >= MIN_POLARITY_SAMPLES:
         med = float(np.median(nn_ok))
@@ -219,7 +233,7 @@ def check_polarity(data: pd.DataFrame, prov: Provenance) -> list[str]:
                                   "it is +1 at rest and about +1 in flight (n_norm = -f_z/g0). "
                                   "Use sign = -1 in a mapping file", file=prov.files[0],
                                   column=col)
-    nn_r, tas_r = _on_common_rows(data, "n_norm_g", "tas_mps")
+    nn_r, tas_r = _on_common_rows(sampled, "n_norm_g", "tas_mps")
     ground = tas_r < GROUND_TAS_MPS
     if ground.sum() >= MIN_POLARITY_SAMPLES:
         med = float(np.median(nn_r[ground]))
@@ -227,8 +241,8 @@ def check_polarity(data: pd.DataFrame, prov: Provenance) -> list[str]:
             raise ValidationError(f"n_norm_g is {med:.2f} g at rest (true airspeed below "
                                   f"{GROUND_TAS_MPS:g} m/s); expected +1 (n_norm = -f_z/g0): a "
                                   "flipped or mis-scaled channel", file=prov.files[0], column=col)
-    _check_long_polarity(data, prov)
-    _check_turn_polarity(data, prov)
+    _check_long_polarity(sampled, prov)
+    _check_turn_polarity(sampled, prov)
     return warns
 
 
@@ -237,24 +251,22 @@ def check_polarity(data: pd.DataFrame, prov: Provenance) -> list[str]:
 ACCEL_HALF_WINDOW_S = 5.0
 
 
-def _check_long_polarity(data: pd.DataFrame, prov: Provenance) -> None:
+def _check_long_polarity(sampled: _Sampled, prov: Provenance) -> None:
     """``n_long_g`` sign: along the body x axis the specific force is the acceleration plus the
     component of g0 up, so n_long = dV/dt / g0 + sin(pitch) (exact at rest; in flight up to
     angle-of-attack and turn terms, small for a sign test).  A channel matching
     ``-(dV/dt / g0 + sin(pitch))`` twice as well as ``+(...)``, where that expected value is
     visibly non-zero (median above 0.02 g), is flipped.  dV/dt is the airspeed difference over
     +-5 s."""
-    nl, pitch = _on_common_rows(data, "n_long_g", "pitch_deg")
-    t_all = data["t_s"].to_numpy()
-    t = t_all[~np.isnan(data["n_long_g"].to_numpy())]
-    tas = data["tas_mps"].to_numpy()
-    it = ~np.isnan(tas)
-    if it.sum() < 2:
+    nl, pitch = _on_common_rows(sampled, "n_long_g", "pitch_deg")
+    t = sampled("n_long_g")[3]
+    _, _, vv, tt = sampled("tas_mps")
+    if len(vv) < 2:
         return
-    tt, vv = t_all[it], tas[it]
     h = ACCEL_HALF_WINDOW_S
-    lo = np.clip(t - h, tt[0], tt[-1])
-    hi = np.clip(t + h, tt[0], tt[-1])
+    # np.clip without its overhead (the times are finite)
+    lo = np.minimum(np.maximum(t - h, tt[0]), tt[-1])
+    hi = np.minimum(np.maximum(t + h, tt[0]), tt[-1])
     span = hi - lo
     with np.errstate(invalid="ignore", divide="ignore"):
         vdot = np.where(span > 0, (np.interp(hi, tt, vv) - np.interp(lo, tt, vv)) / span, np.nan)
@@ -283,18 +295,15 @@ TURN_MIN_TAS_MPS = 30.0
 TURN_FLIP_FRACTION = 0.8
 
 
-def _check_turn_polarity(data: pd.DataFrame, prov: Provenance) -> None:
+def _check_turn_polarity(sampled: _Sampled, prov: Provenance) -> None:
     """Bank and turn direction agree: in a coordinated turn the heading rate is
     ``g0 tan(roll) / V`` (METHODS.md conventions: roll + right wing down, heading clockwise), so
     a right bank turns the heading clockwise.  If at least 32 clearly turning samples mostly
     (> 80 %) turn against the bank, roll or heading has the wrong sign."""
-    t = data["t_s"].to_numpy()
-    hdg = data["heading_deg"].to_numpy()
-    ih = ~np.isnan(hdg)
-    if ih.sum() < 3:
+    _, _, hdg, th = sampled("heading_deg")
+    if len(hdg) < 3:
         return
-    th = t[ih]
-    psi = np.unwrap(np.radians(hdg[ih]))
+    psi = np.unwrap(np.radians(hdg))
     dt = np.diff(th)
     rate = np.full(th.size, np.nan)
     ok = dt > 0
@@ -303,8 +312,8 @@ def _check_turn_polarity(data: pd.DataFrame, prov: Provenance) -> None:
     r = np.full(dt.size, np.nan)
     r[ok] = mid
     rate[1:-1] = 0.5 * (r[:-1] + r[1:])
-    _, roll = _on_common_rows(data, "heading_deg", "roll_deg")
-    _, tas = _on_common_rows(data, "heading_deg", "tas_mps")
+    _, roll = _on_common_rows(sampled, "heading_deg", "roll_deg")
+    _, tas = _on_common_rows(sampled, "heading_deg", "tas_mps")
     turning = (np.abs(roll) > TURN_MIN_ROLL_DEG) & (tas > TURN_MIN_TAS_MPS) \
         & (np.abs(rate) > np.radians(TURN_MIN_RATE_DEG_S))
     n = int(turning.sum())
