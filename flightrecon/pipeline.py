@@ -21,8 +21,10 @@ from __future__ import annotations
 import hashlib
 import importlib
 import platform
+import os
 import warnings
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -404,12 +406,23 @@ def _height_to_plane_up(plane, east, north, height_above_origin, where=None):
     return up, lat, lon, h
 
 
+def default_workers() -> int:
+    """Threads for the estimators: two where the machine has two cores or more.
+
+    The estimators are independent and their compiled kernels release the GIL, so the joint
+    smoother runs beside the others; the results do not depend on the number of threads.
+    """
+    return max(1, min(2, os.cpu_count() or 1))
+
+
 def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = ReconstructSettings(),
-                      progress: Callable[[str], None] | None = None
+                      progress: Callable[[str], None] | None = None, workers: int | None = None
                       ) -> tuple[pd.DataFrame, dict[str, MethodResult], dict[str, Any]]:
     """Run the estimators on a cleaned flight and combine them.
 
-    Returns the track, the method results and the per-method status for the summary.
+    ``workers`` threads run the estimators (default :func:`default_workers`; 1: one after the
+    other, in the order of ``ALL_METHODS``).  Returns the track, the method results and the
+    per-method status for the summary.
     """
     avail = available_methods(clean, settings)
     if settings.methods is None:
@@ -426,11 +439,25 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     status: dict[str, Any] = {m: {"status": "skipped", "reason": avail[m]}
                               for m in ALL_METHODS if m not in chosen}
     results: dict[str, MethodResult] = {}
-    for m in chosen:
+    workers = default_workers() if workers is None else max(1, int(workers))
+    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 and len(chosen) > 1 else None
+    def run(name: str) -> MethodResult:
         if progress:
-            progress(m)
+            progress(name)
+        return run_method(name, clean, settings)
+
+    futures: dict[str, Future] = {}
+    if pool is None:
+        for m in chosen:
+            futures[m] = _completed(run, m)
+    else:
+        # the joint smoother is the longest: started first, it runs beside all the others
+        with pool:
+            for m in sorted(chosen, key=lambda name: name != "joint"):
+                futures[m] = pool.submit(run, m)
+    for m in chosen:
         try:
-            res = run_method(m, clean, settings)
+            res = futures[m].result()
         except FlightReconError as exc:
             if settings.strict:
                 raise
@@ -445,6 +472,16 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
             f"{m}: {s.get('reason')}" for m, s in status.items()))
     track = combine(clean, results)
     return track, results, status
+
+
+def _completed(fn: Callable[..., Any], *args: Any) -> Future:
+    """``fn(*args)`` run now, as a finished future (its exception kept for ``result()``)."""
+    fut: Future = Future()
+    try:
+        fut.set_result(fn(*args))
+    except Exception as exc:  # re-raised by result(), as from a pool
+        fut.set_exception(exc)
+    return fut
 
 
 def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
@@ -496,7 +533,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                 settings: ReconstructSettings = ReconstructSettings(),
                 progress: Callable[[str], None] | None = None,
                 store: str | Path | None = None, use_fleet_coefficients: bool = False,
-                record: bool = True) -> Reconstruction:
+                record: bool = True, workers: int | None = None) -> Reconstruction:
     """Load, validate, clean and reconstruct a flight from its recorder log.
 
     Parameters
@@ -511,6 +548,8 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         recorded there under the flight's aircraft id
     use_fleet_coefficients : reconstruct with the aircraft's fleet-mean coefficients from
         ``store`` (initial-value mode: no arrival point needed)
+    workers : threads for the estimators (default :func:`default_workers`; the result does
+        not depend on it)
 
     Returns
     -------
@@ -542,7 +581,8 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                              + (f" and {len(f['spans_s']) - 1} more" if len(f['spans_s']) > 1
                                 else "") + ")" if f["spans_s"] else ""),
                           FlightReconWarning, stacklevel=2)
-        track, results, status = reconstruct_clean(clean, settings, progress=stage)
+        track, results, status = reconstruct_clean(clean, settings, progress=stage,
+                                                   workers=workers)
     warn_list = list(flight.warnings) + [str(w.message) for w in caught
                                          if str(w.message) not in flight.warnings]
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]

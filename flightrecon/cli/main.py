@@ -50,8 +50,33 @@ for _name in COMMAND_MODULES:
     cli.add_command(_mod.command)
 
 
+def _keep_freed_memory() -> None:
+    """Let glibc's allocator keep and reuse freed memory instead of returning it to the OS.
+
+    A reconstruction allocates and frees arrays of tens to hundreds of megabytes stage after
+    stage; by default glibc maps each large block fresh and unmaps it when freed, so every
+    stage pays the kernel's page faults again (about 240,000 minor faults, 1.5-2.5 s of system
+    time for the 10-hour benchmark flight on our 2-core machines). Blocks up to 32 MB (glibc's
+    ceiling for this setting) then come from the heap, and the heap is not trimmed: 180,000
+    faults, about 1 s less system time, peak memory 1.43 -> 1.49 GB. No effect elsewhere than
+    glibc (the call is skipped) and on the results.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6")
+        m_trim_threshold, m_mmap_threshold = -1, -3
+        libc.mallopt(m_mmap_threshold, 32 * 1024 * 1024)
+        libc.mallopt(m_trim_threshold, 1 << 30)
+    except (OSError, AttributeError):  # not glibc
+        return
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: run the CLI and map project errors to exit codes."""
+    _keep_freed_memory()
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
     try:
         # with standalone_mode=False click returns a ctx.exit(code) as the code

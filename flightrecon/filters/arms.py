@@ -452,7 +452,7 @@ def joint_process_noise(dt, q_m2ps3: float, alpha_ps: float, sigma_mps: float) -
 # the forward kernel (EKF / converted measurements, optional air-data velocity measurement)
 # --------------------------------------------------------------------------------------------
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _arms_kernel(x0, P0, F, Q, radar, radar_sd, air, Rv, lin):
     """Forward pass of the CV (n=4) or joint (n=6) model.
 

@@ -404,12 +404,12 @@ def track_range(t_s, r_meas_m, r_var_m2, *, q_range_m2ps3: float) -> RangeTrack:
 # ---------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _wrap(x):
     return np.pi - np.mod(np.pi - x, 2.0 * np.pi)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _predict(F, Q, x, P):
     """``x = F x``, ``P = F P F^T + Q`` (3 x 3, explicit loops), symmetrised."""
     xn = np.zeros(3)
@@ -434,7 +434,7 @@ def _predict(F, Q, x, P):
     return xn, Pn
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _scalar_update(x, P, h, nu, r):
     """Joseph-form scalar update ``P = (I - K h^T) P (I - K h^T)^T + r K K^T``; x, P, S."""
     Ph = np.zeros(3)
@@ -470,7 +470,7 @@ def _scalar_update(x, P, h, nu, r):
     return xn, Pn, S
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _azimuth_kernel(x0, P0, F, Q, eps_meas, eps_var, a_ne, Sa, Sb, r, rdot, Pr, n_corr):
     """Forward pass over the events (module docstring; docs/azimuth.md "Observations").
 

@@ -56,12 +56,12 @@ LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO, DOPPLER, TRACK = 0, 1, 2,
 ANGLE_TYPES = (AZIMUTH, ELEVATION, HEADING, TRACK)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _wrap(a):
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
     """Fill ``F`` (n, n) with the transition matrix F_k from step k-1 to step k (k >= 1).
 
@@ -107,7 +107,7 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
         F[IBA + j, IBA + j] = e
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
     """Transition matrix F_k from step k-1 to step k (k >= 1); see :func:`transition_into`."""
     F = np.empty((N_STATE, N_STATE))
@@ -115,7 +115,7 @@ def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
     return F
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _sparse_rows(F, cols, vals, cnt):
     """Row-compressed copy of ``F``: row i has ``cnt[i]`` nonzeros ``vals[i, :cnt[i]]`` in the
     columns ``cols[i, :cnt[i]]`` (F_k is the identity plus a few blocks: 11 nonzeros at most
@@ -131,7 +131,7 @@ def _sparse_rows(F, cols, vals, cnt):
         cnt[i] = c
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _predict_cov(P, cols, vals, cnt, B):
     """P <- F P F^T in place with the row-compressed F (:func:`_sparse_rows`); B is scratch.
 
@@ -155,7 +155,7 @@ def _predict_cov(P, cols, vals, cnt, B):
             P[i, j] = P[j, i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _sparse_matvec(cols, vals, cnt, x, out):
     """out = F x with the row-compressed F."""
     for i in range(x.shape[0]):
@@ -165,7 +165,7 @@ def _sparse_matvec(cols, vals, cnt, x, out):
         out[i] = s
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _sparse_rmatvec(cols, vals, cnt, y, out):
     """out = F^T y with the row-compressed F."""
     n = y.shape[0]
@@ -176,7 +176,7 @@ def _sparse_rmatvec(cols, vals, cnt, y, out):
             out[cols[i, c]] += vals[i, c] * y[i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _cholesky_factor(A, L):
     """Lower Cholesky factor of a symmetric positive-definite A into L; False if A is not
     numerically positive definite."""
@@ -197,7 +197,7 @@ def _cholesky_factor(A, L):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _cholesky_solve_columns(L, B, X):
     """X = (L L^T)^{-1} B: forward then back substitution, all columns of B at once (the row
     operations run along contiguous rows, so they vectorise)."""
@@ -223,7 +223,7 @@ def _cholesky_solve_columns(L, B, X):
             X[i, c] *= inv
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _cholesky_solve(A, b, L, y):
     """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
 
@@ -235,7 +235,7 @@ def _cholesky_solve(A, b, L, y):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def process_noise(k, dt, Cen, climb, qv_extra, q):
     """Process-noise covariance Q_k.  q = [q_acc, q_wind_t, q_wind_h, var_ba, tau_ba,
     q_psi, q_bh] (see JointNoise); ``climb[k]`` is |height change| over the step (wind varies
@@ -262,7 +262,7 @@ def process_noise(k, dt, Cen, climb, qv_extra, q):
     return Q
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
     """h(x) and its gradient for scalar measurement j at step k (state x at the step).
 
@@ -272,7 +272,7 @@ def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
     return hx, H
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
     """h(x) of scalar measurement j at step k (state x at the step); its gradient into ``H``.
 
@@ -382,7 +382,7 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
     return f * base + x[IBH]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw,
             mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate):
     """Forward extended Kalman filter with sequential scalar updates.
@@ -478,7 +478,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
     return nu_out, s_out, infl
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst,
                   H, res, res_n, rate, P, hph):
     """Residuals z - h(x) of step k's measurements at the smoothed state ``x``: raw, in units of
@@ -514,7 +514,7 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
         rate[j] = rd
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH,
                   mrow, md, pnom, hnom, pst, Cst):
     """RTS backward pass for the smoothed states only (no covariances), and the residuals.
@@ -562,7 +562,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     return xs, res_n, res, rate
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
              md, pnom, hnom, pst, Cst):
     """RTS backward pass with covariances; also the smoothed residuals (see

@@ -100,7 +100,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         f_body_g=np.c_[col("n_long_g"), col("n_lat_g"), -col("n_norm_g")])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _near_any(t_out, tm, window):
     """For sorted ``t_out`` and sorted ``tm``: is some tm within +-window of each t_out?
     One merge-like pass, O(len(t_out) + len(tm))."""

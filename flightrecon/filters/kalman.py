@@ -46,7 +46,7 @@ class FilterRun:
     n_meas: np.ndarray
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def predict(x, P, F, Q):
     """Prediction ``x^- = F x``, ``P^- = F P F^T + Q`` (symmetrised)."""
     x = F @ x
@@ -54,7 +54,7 @@ def predict(x, P, F, Q):
     return x, 0.5 * (P + P.T)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def joseph_update(x, P, nu, H, R):
     """Measurement update with innovation ``nu`` (m,), ``H`` (m, n), ``R`` (m, m).
 
@@ -78,7 +78,7 @@ def joseph_update(x, P, nu, H, R):
     return x, P, S, w @ w
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _kf_kernel(x0, P0, F, Q, z, H, R):
     N = z.shape[0]
     n = x0.shape[0]

@@ -122,7 +122,7 @@ _A = WGS84_A
 _E2 = WGS84_E2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def radii(lat_rad: float, h_m: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature plus height, ``(M + h, N + h)`` [m].
 
@@ -135,7 +135,7 @@ def radii(lat_rad: float, h_m: float) -> tuple[float, float]:
     return m + h_m, n + h_m
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def boxplus(lat: float, lon: float, dn: float, de: float, h: float) -> tuple[float, float]:
     """Move ``(lat, lon)`` [rad] by ``dn`` north and ``de`` east metres in the local-level frame.
 
@@ -147,7 +147,7 @@ def boxplus(lat: float, lon: float, dn: float, de: float, h: float) -> tuple[flo
     return lat + dn / mh, lon + de / (nh * np.cos(latm))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def boxminus(lat1: float, lon1: float, lat0: float, lon0: float, h: float) -> tuple[float, float]:
     """North/east metres from ``(lat0, lon0)`` to ``(lat1, lon1)`` [rad] (inverse of boxplus)."""
     latm = 0.5 * (lat1 + lat0)
@@ -155,7 +155,7 @@ def boxminus(lat1: float, lon1: float, lat0: float, lon0: float, h: float) -> tu
     return (lat1 - lat0) * mh, (lon1 - lon0) * nh * np.cos(latm)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _increment_into(model: int, c: np.ndarray, A0: float, A1: float, U0: float, U1: float,
                     W0: float, W1: float, tau: float, sig: np.ndarray, d: np.ndarray,
                     J: np.ndarray, Gs: np.ndarray) -> None:
@@ -168,7 +168,7 @@ def _increment_into(model: int, c: np.ndarray, A0: float, A1: float, U0: float, 
                        d, J, Gs)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _increment_cs_into(model: int, s: float, ct: float, st: float, c: np.ndarray, A0: float,
                        A1: float, U0: float, U1: float, W0: float, W1: float, tau: float,
                        sig: np.ndarray, d: np.ndarray, J: np.ndarray, Gs: np.ndarray) -> None:
@@ -217,7 +217,7 @@ def _increment_cs_into(model: int, s: float, ct: float, st: float, c: np.ndarray
         Gs[1, 3] = 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def increment(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: np.ndarray,
               tau: float, sig: np.ndarray):
     """Dead-reckoning increment over an interval, its Jacobian and its noise matrix.
@@ -247,7 +247,7 @@ def increment(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: np.nd
     return d, J, Gs
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
     """Lower Cholesky factor of the PSD 2x2 [[a, b], [b, c]] into ``L`` (semi-definite allowed)."""
     L[0, 1] = 0.0
@@ -261,7 +261,7 @@ def _chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
         L[1, 1] = np.sqrt(max(c, 0.0))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _chol2(a: float, b: float, c: float) -> np.ndarray:
     """Lower Cholesky factor of the PSD 2x2 matrix [[a, b], [b, c]] (semi-definite allowed)."""
     L = np.empty((2, 2))
@@ -269,7 +269,7 @@ def _chol2(a: float, b: float, c: float) -> np.ndarray:
     return L
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _segment_factor_into(model: int, c: np.ndarray, Q: np.ndarray, sig: np.ndarray,
                          L: np.ndarray) -> None:
     """:func:`segment_factor` writing into a caller-owned (2, 2) ``L``."""
@@ -277,7 +277,7 @@ def _segment_factor_into(model: int, c: np.ndarray, Q: np.ndarray, sig: np.ndarr
     _segment_factor_cs_into(model, s, np.cos(th), np.sin(th), Q, sig, L)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _scale_angle(model: int, c: np.ndarray) -> tuple[float, float]:
     """Scale ``s`` and rotation angle ``theta`` of the corrected reading (module docstring)."""
     if model == MODEL_AIRSPEED:
@@ -285,7 +285,7 @@ def _scale_angle(model: int, c: np.ndarray) -> tuple[float, float]:
     return 1.0 + c[0], c[1] + c[2]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _segment_factor_cs_into(model: int, s: float, ct: float, st: float, Q: np.ndarray,
                             sig: np.ndarray, L: np.ndarray) -> None:
     """:func:`_segment_factor_into` given ``s`` and ``cos``/``sin`` of ``theta``."""
@@ -308,7 +308,7 @@ def _segment_factor_cs_into(model: int, s: float, ct: float, st: float, Q: np.nd
     _chol2_into(s * s * r00 + wn, s * s * r01, s * s * r11 + we, L)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def segment_factor(model: int, c: np.ndarray, Q: np.ndarray, sig: np.ndarray) -> np.ndarray:
     """Factor L (2, 2) of the increment noise of whole recorder samples, ``L L^T = Cov``.
 
@@ -324,7 +324,7 @@ def segment_factor(model: int, c: np.ndarray, Q: np.ndarray, sig: np.ndarray) ->
     return L
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _step_matrices_into(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray,
                         Wv: np.ndarray, tau: float, sig: np.ndarray, q: np.ndarray,
                         star: np.ndarray, dt_star: float, Qb: np.ndarray, Qa: np.ndarray,
@@ -365,7 +365,7 @@ def _step_matrices_into(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray,
         B[2 + j, 8 + j] = np.sqrt(q[j] * tau)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def step_matrices(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: np.ndarray,
                   tau: float, sig: np.ndarray, q: np.ndarray, star: np.ndarray, dt_star: float,
                   Qb: np.ndarray, Qa: np.ndarray):
@@ -386,7 +386,7 @@ def step_matrices(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: n
     return d, Phi, B
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _observation_rows_into(model: int, c: np.ndarray, PA: np.ndarray, PU: np.ndarray,
                            PW: np.ndarray, tau: float, a: np.ndarray, u: np.ndarray,
                            w: np.ndarray, sig: np.ndarray, tau_in: float, Qb: np.ndarray,
@@ -433,7 +433,7 @@ def _observation_rows_into(model: int, c: np.ndarray, PA: np.ndarray, PU: np.nda
             G[2 + i, j] = Gs[i, j]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def observation_rows(model: int, c: np.ndarray, PA: np.ndarray, PU: np.ndarray, PW: np.ndarray,
                      tau: float, a: np.ndarray, u: np.ndarray, w: np.ndarray, sig: np.ndarray,
                      tau_in: float, Qb: np.ndarray):
@@ -453,7 +453,7 @@ def observation_rows(model: int, c: np.ndarray, PA: np.ndarray, PU: np.ndarray, 
     return h, H, G
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _jacobi_eigh(A: np.ndarray, V: np.ndarray) -> None:
     """Eigen-decomposition of a symmetric matrix by cyclic Jacobi rotations, in place.
 
@@ -512,7 +512,7 @@ def _jacobi_eigh(A: np.ndarray, V: np.ndarray) -> None:
                     V[r, q] = sn * vrp + cs * vrq
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _inv_spd_into(S: np.ndarray, rcond: float, Sp: np.ndarray, L: np.ndarray) -> bool:
     """``Sp = S^{-1}`` by Cholesky when that provably equals the pseudo-inverse of :func:`pinv_sym`.
 
@@ -565,7 +565,7 @@ def _inv_spd_into(S: np.ndarray, rcond: float, Sp: np.ndarray, L: np.ndarray) ->
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _pinv_sym_into(S: np.ndarray, rcond: float, Sp: np.ndarray, A: np.ndarray,
                    V: np.ndarray) -> int:
     """:func:`pinv_sym` writing ``S^+`` into ``Sp``; ``A``, ``V`` scratch of ``S``'s shape.
@@ -603,7 +603,7 @@ def _pinv_sym_into(S: np.ndarray, rcond: float, Sp: np.ndarray, A: np.ndarray,
     return rank
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def pinv_sym(S: np.ndarray, rcond: float):
     """Moore-Penrose pseudo-inverse of a symmetric matrix and its numerical rank.
 
@@ -763,7 +763,7 @@ class SnsSmoothed:
     P: np.ndarray
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _mm(A, B, out):
     """``out = A @ B`` for small matrices (plain loops: no allocation, no BLAS call overhead).
 
@@ -782,7 +782,7 @@ def _mm(A, B, out):
                     out[i, j] += a * B[l, j]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _mmt(A, B, out):
     """``out = A @ B.T`` for small matrices (row-update order, as :func:`_mm`)."""
     n, kk = A.shape
@@ -797,7 +797,7 @@ def _mmt(A, B, out):
                     out[i, j] += a * B[j, l]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _mdmt_acc(A, dg, B, out):
     """``out += A @ diag(dg) @ B.T`` for small matrices (row-update order, as :func:`_mm`)."""
     n, kk = A.shape
@@ -810,7 +810,7 @@ def _mdmt_acc(A, dg, B, out):
                     out[i, j] += a * B[j, l]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _sym_into(M, out):
     """``out = (M + M^T) / 2``."""
     n = M.shape[0]
@@ -821,7 +821,7 @@ def _sym_into(M, out):
             out[j, i] = v
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _filter_kernel(model, form, x0, P0, t, hgt, A, U, W, fs, fe, flat, flon, fv, ftau,
                    fPA, fPU, fPW, fa, fu, fw, star, dt_star, Qb, Qa, ftau_in, sig, q, pos_sd,
                    vel_sd, rcond):
@@ -1078,7 +1078,7 @@ def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoi
                   int(form))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _chol_solve_rows(P, Cr, L, out) -> bool:
     """``out = Cr P^{-1}`` for a symmetric positive-definite ``P`` (n, n) by Cholesky.
 
@@ -1113,7 +1113,7 @@ def _chol_solve_rows(P, Cr, L, out) -> bool:
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
     N, n = xf.shape
     xs = xf.copy()
@@ -1164,7 +1164,7 @@ def sns_smooth(run: SnsRun) -> SnsSmoothed:
     return SnsSmoothed(xs, Ps)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _inc_pos(model, s, ct, st, c0, c1, A0, A1, W0, W1, tau):
     """North/east increment ``s R(theta) A + Wv + dw tau`` of :func:`increment` (scalars)."""
     ra0 = ct * A0 - st * A1
@@ -1174,7 +1174,7 @@ def _inc_pos(model, s, ct, st, c0, c1, A0, A1, W0, W1, tau):
     return s * ra0, s * ra1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _boxplus_pre(lat: float, lon: float, slat: float, clat: float, mr: float, nr: float,
                  dn: float, de: float, h: float) -> tuple[float, float]:
     """:func:`boxplus` from a point whose ``sin``/``cos`` of latitude and height-free radii
@@ -1201,7 +1201,7 @@ def _boxplus_pre(lat: float, lon: float, slat: float, clat: float, mr: float, nr
     return lat + dn / (m + h), lon + de / ((n + h) * cm)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _densify_kernel(model, xs, Ps, kidx, tq, tf, IA, IU, IW, FA, FU, FW, hq, a, u, w, sig):
     # Scalar form of the per-sample work (no allocation): the increments of :func:`increment`
     # (only ``d`` is needed for the positions; the velocity uses ``d``, ``J`` and ``Gs`` at
@@ -1327,7 +1327,7 @@ def densify(model: int, xs: np.ndarray, Ps: np.ndarray, kidx: np.ndarray, tq: np
                            _c(t_filter), IA, IU, IW, FA, FU, FW, _c(hq), a, u, w, _c(sig))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _integrate_kernel(t, a, u, w):
     M = t.shape[0]
     IA = np.empty((M, 2))

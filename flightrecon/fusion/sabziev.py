@@ -98,7 +98,7 @@ _SERIES_TERMS = 30
 # --------------------------------------------------------------------------------------------
 # phi_j(z) and psi_j(q) with their derivatives
 # --------------------------------------------------------------------------------------------
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def phi_functions(z: float) -> tuple[np.ndarray, np.ndarray]:
     """Exponential-integrator functions ``phi_j(z) = sum_m z^m/(m+j)!``, j = 0..3, and derivatives.
 
@@ -141,7 +141,7 @@ def phi_functions(z: float) -> tuple[np.ndarray, np.ndarray]:
     return phi, dphi
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def psi_functions(q: float) -> tuple[np.ndarray, np.ndarray]:
     """Even kernels ``psi_j(q) = sum_m q^m/(2m+j)!``, j = 0..3, and their derivatives in ``q``.
 
@@ -216,7 +216,7 @@ class StepCoefficients:
                      for a in (self.Phi, self.dPhi, self.G0, self.dG0, self.G1, self.dG1))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _step_rows(vertical: bool, ks, dt: float, linear: bool):
     """(8, K) rows ``Phi00, Phi01, Phi10, Phi11, G0[0], G0[1], G1[0], G1[1]`` for many ``k``.
 
@@ -316,7 +316,7 @@ def vertical_step(k2: float, dt: float, hold: str = "linear") -> StepCoefficient
 # --------------------------------------------------------------------------------------------
 # Compiled recursions
 # --------------------------------------------------------------------------------------------
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _step(Phi, dPhi, G0, dG0, G1, dG1, q0, q1, s0, s1, u0, u1, du0, du1):
     d = u1 - u0
     dd = du1 - du0
@@ -329,7 +329,7 @@ def _step(Phi, dPhi, G0, dG0, G1, dG1, q0, q1, s0, s1, u0, u1, du0, du1):
     return n0, n1, m0, m1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _is_horizontal(Phi, dPhi) -> bool:
     """The horizontal structure ``Phi[:, 0] = (1, 0)``, ``dPhi[:, 0] = 0`` (module docstring).
 
@@ -341,7 +341,7 @@ def _is_horizontal(Phi, dPhi) -> bool:
             and dPhi[1, 0] == 0.0)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _run_end(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
     """End state, sensitivity and misfit; input ``u_i = a_i - k w_i``, ``du_i/dk = -dscale w_i``.
 
@@ -406,7 +406,7 @@ def _run_end(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _run_path(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
     """Whole path of state (n, 2) and sensitivity (n, 2); same inputs as :func:`_run_end`."""
     n = a.shape[0]
@@ -432,7 +432,7 @@ def _run_path(Phi, dPhi, G0, dG0, G1, dG1, q0, s0, a, w, k, dscale):
     return Q, S
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _run_end_batch(C, q0, a, w, ks):
     """End state and misfit for many ``k`` in one pass over the data (no sensitivity).
 

@@ -102,7 +102,7 @@ def transport_rate_ned(lat_deg, h_m, vn_mps, ve_mps) -> np.ndarray:
                                         -ve * np.tan(lat) / (rn + h)), axis=-1)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _rates(lat, h, vn, ve, vu, a, e2):
     s = np.sin(lat)
     w = 1.0 - e2 * s * s
@@ -111,7 +111,7 @@ def _rates(lat, h, vn, ve, vu, a, e2):
     return vn / (rm + h), ve / ((rn + h) * np.cos(lat)), vu
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _integrate_kernel(lat0, lon0, h0, vn, ve, vu, dt, a, e2, max_sub_m):
     n = vn.shape[0]
     lat = np.empty(n + 1)

@@ -27,7 +27,7 @@ class SmootherRun:
     C: np.ndarray
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _rts_kernel(x, P, xp, Pp, F):
     N, n = x.shape
     xs = x.copy()
