@@ -90,7 +90,9 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
 
     t0 = time.perf_counter()
     try:
-        rec = reconstruct(log, sidecar=sidecar, settings=settings, store=None, record=False)
+        # one thread per flight: the batch's parallelism is across flights (Dask workers)
+        rec = reconstruct(log, sidecar=sidecar, settings=settings, store=None, record=False,
+                          workers=1)
         write_track(result_path, rec.track, rec.summary, fmt)
         write_summary(summary_path, rec.summary)
     except FlightReconError as exc:

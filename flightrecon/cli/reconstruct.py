@@ -45,6 +45,9 @@ from flightrecon.cli.common import (default_output, input_options, parse_k,
               help="Reconstruct with the aircraft's mean k1..k3 from --store (no arrival "
                    "point needed).")
 @click.option("--strict", is_flag=True, help="Fail on the first method that fails to converge.")
+@click.option("--workers", type=click.IntRange(min=1),
+              help="Threads for the estimators (default: 2 on a machine with 2 cores or more; "
+                   "the result does not depend on it).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Result file (.parquet, .csv, .geojson, .kml). Default: <log stem>.recon.parquet "
                    "beside the log.")
@@ -58,7 +61,8 @@ from flightrecon.cli.common import (default_output, input_options, parse_k,
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
             station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
             azimuth_model, sns_model, sns_form, noise_file, estimate_noise, store_path,
-            use_fleet_coefficients, strict, output, fmt, summary_path, report_dir) -> None:
+            use_fleet_coefficients, strict, workers, output, fmt, summary_path,
+            report_dir) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
     from flightrecon.export.atomic import check_not_input, sweep_leftovers
     from flightrecon.export.writers import write_summary, write_track
@@ -88,7 +92,8 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
     with progress_bar(quiet) as stage:
         rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                           meta_overrides=overrides, settings=settings, progress=stage,
-                          store=store_path, use_fleet_coefficients=use_fleet_coefficients)
+                          store=store_path, use_fleet_coefficients=use_fleet_coefficients,
+                          workers=workers)
         stage("export")
         write_track(out, rec.track, rec.summary, fmt)
         write_summary(summ, rec.summary)
