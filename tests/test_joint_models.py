@@ -180,3 +180,41 @@ def test_transition_applies_attitude_biases_with_the_right_sign():
     # measured pitch too high by 1 mrad tilts the measured specific force backward: the true
     # acceleration is g0 * 1e-3 further north than measured
     np.testing.assert_allclose((F @ y)[3:6], [jk.G0 * 1e-3, 0.0, 0.0], atol=1e-15)
+
+
+def test_fused_attitude_step_means_equal_the_per_sample_route():
+    from flightrecon.filters.joint import (_attitude_step_means, _state_grid, _step_mean,
+                                           attitude_jacobian)
+    from flightrecon.geo.kinematics import body_to_ned_matrix
+
+    rng = np.random.default_rng(9)
+    n = 1000
+    t = np.arange(n) / 16.0
+    C = body_to_ned_matrix(rng.uniform(-40, 40, n), rng.uniform(-15, 15, n),
+                           rng.uniform(0, 360, n))
+    f = rng.normal(0, 1, (n, 3))
+    idx = _state_grid(t, 1.0)
+    Cm, Sm, Jm = _attitude_step_means(C, f, idx)
+    # same sums in a different order: a few ulps of O(1) values
+    np.testing.assert_allclose(Cm, _step_mean(C, idx, t), atol=1e-13)
+    np.testing.assert_allclose(Sm, _step_mean(C * f[:, None, :], idx, t), atol=1e-13)
+    np.testing.assert_allclose(Jm, _step_mean(attitude_jacobian(C, f), idx, t), atol=1e-13)
+
+
+def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
+    """Positions of a cubic path with exact velocities are reproduced to round-off."""
+    from flightrecon.filters.joint_method import _hermite_positions
+
+    T = np.array([0.0, 1.0, 2.5, 4.0])
+    t = np.linspace(-0.5, 4.5, 41)   # includes points outside (clamped to the ends)
+
+    def path(tt):
+        return np.c_[tt ** 3 - 2 * tt, 0.5 * tt ** 2, 3.0 + 0 * tt]
+
+    def vel(tt):
+        return np.c_[3 * tt ** 2 - 2, tt, 0 * tt]
+
+    got = _hermite_positions(t, T, path(T), vel(T))
+    inside = (t >= 0) & (t <= 4)
+    np.testing.assert_allclose(got[inside], path(t[inside]), atol=1e-12)
+    np.testing.assert_allclose(got[t < 0], np.repeat(path(T[:1]), (t < 0).sum(), 0), atol=1e-12)

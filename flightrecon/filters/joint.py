@@ -250,6 +250,43 @@ def attitude_jacobian(Cnb: np.ndarray, f_body: np.ndarray) -> np.ndarray:
     return out
 
 
+@nb.njit(cache=True, nogil=True)
+def _attitude_step_means(Cnb, fb, idx):
+    """Step means (as :func:`_step_mean`) of C_nb, C_nb diag(f) and :func:`attitude_jacobian`
+    in one pass over the input samples, without the per-sample intermediate arrays."""
+    N = idx.shape[0]
+    Ni = Cnb.shape[0]
+    C_m = np.zeros((N, 3, 3))
+    S_m = np.zeros((N, 3, 3))
+    J_m = np.zeros((N, 3, 2))
+    for k in range(N):
+        a = idx[k - 1] if k > 0 else idx[0]
+        b = idx[k] if k > 0 else min(idx[0] + 1, Ni)
+        cnt = b - a
+        for i in range(a, b):
+            f0, f1, f2 = fb[i, 0], fb[i, 1], fb[i, 2]
+            phi = np.arctan2(Cnb[i, 2, 1], Cnb[i, 2, 2])
+            uy, uz = np.cos(phi), -np.sin(phi)
+            # e_x x f = (0, -f2, f1); u x f = (uy f2 - uz f1, uz f0, -uy f0)
+            r0, r1, r2 = 0.0, -f2, f1
+            p0, p1, p2 = uy * f2 - uz * f1, uz * f0, -uy * f0
+            for r in range(3):
+                c0, c1, c2 = Cnb[i, r, 0], Cnb[i, r, 1], Cnb[i, r, 2]
+                C_m[k, r, 0] += c0
+                C_m[k, r, 1] += c1
+                C_m[k, r, 2] += c2
+                S_m[k, r, 0] += c0 * f0
+                S_m[k, r, 1] += c1 * f1
+                S_m[k, r, 2] += c2 * f2
+                J_m[k, r, 0] += c0 * r0 + c1 * r1 + c2 * r2
+                J_m[k, r, 1] += c0 * p0 + c1 * p1 + c2 * p2
+        if cnt > 0:
+            C_m[k] /= cnt
+            S_m[k] /= cnt
+            J_m[k] /= cnt
+    return C_m, S_m, J_m
+
+
 def _step_mean(x, idx, t_in):
     """Mean of an input-grid quantity over each state step (the samples i with
     idx[k-1] <= i < idx[k], held over step k; non-finite values count as zero); the sample
@@ -656,10 +693,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     dt = np.diff(T, prepend=T[0])
     dV, dP, miss = _increments(inp.t_in, inp.acc_ned, idx)
     acc = dV / np.where(dt > 0, dt, 1.0)[:, None]
-    Cnb = _step_mean(inp.Cnb, idx, inp.t_in)
     fb = np.zeros((len(inp.t_in), 3)) if inp.f_body_g is None else np.nan_to_num(inp.f_body_g)
-    Csf = np.ascontiguousarray(_step_mean(inp.Cnb * fb[:, None, :], idx, inp.t_in))
-    Jatt = np.ascontiguousarray(_step_mean(attitude_jacobian(inp.Cnb, fb), idx, inp.t_in))
+    Cnb, Csf, Jatt = _attitude_step_means(np.ascontiguousarray(inp.Cnb, dtype=float),
+                                          np.ascontiguousarray(fb), idx.astype(np.int64))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
     q = _q_vector(nz)
     lat, lon, h = _nominal_trajectory(inp, idx)
