@@ -17,12 +17,16 @@ class Position:
     """A point on the WGS-84 ellipsoid.
 
     ``elev_m`` is the elevation above mean sea level for airfields and stations (the way they
-    are published); code that needs ellipsoidal height says so.
+    are published); code that needs ellipsoidal height says so.  ``runway_true_deg`` is, for an
+    airfield, the true direction of the runway used (the take-off or landing direction, from the
+    runway designator or a database; ``None`` when unknown): it fixes the heading reference
+    on the ground roll (docs/joint.md).
     """
 
     lat_deg: float
     lon_deg: float
     elev_m: float = 0.0
+    runway_true_deg: float | None = None
 
     def as_tuple(self) -> tuple[float, float, float]:
         return (self.lat_deg, self.lon_deg, self.elev_m)

@@ -3,9 +3,11 @@
 Cases (simulated flights, every run a new seed of the scenario: new noise, new weather draw):
 
 * ``recorder``: 15-minute circuits, recorder only (no GNSS, no radar), wind varying with
-  altitude; end points = departure and arrival airfield reference points.  Joint smoother vs
-  the Sabziev fusion vs dead reckoning from airspeed and heading with and without a linear
-  end-point correction.
+  altitude; end points = departure and arrival airfield reference points with the runway's
+  true direction.  Joint smoother vs the Sabziev fusion vs dead reckoning from airspeed and
+  heading with and without a linear end-point correction.
+* ``recorder_no_runway``: the same flights (same seeds) without the runway direction in the
+  metadata (the heading bias then has no absolute reference but the end points).
 * ``gnss``: the same circuits with 1 Hz GNSS and a 2-minute GNSS dropout; joint vs SNS smoother.
   Consistency: run-averaged NEES of the joint smoother's north and east positions.
 * ``radar``: the ``landing`` scenario, radar only (no GNSS); joint vs ADS/ARMS and azimuth channel.
@@ -17,7 +19,8 @@ Usage::
     python scripts/mc_joint.py --runs 30            # full size; writes docs/tables/joint_mc.md
     python scripts/mc_joint.py --runs 3 --no-write  # quick look
 
-Seeds: run i of case c uses seed 1000 * (case index + 1) + i.
+Seeds: run i of case c uses seed 1000 * (case index + 1) + i (``recorder_no_runway`` uses
+the ``recorder`` seeds).
 """
 
 from __future__ import annotations
@@ -42,12 +45,17 @@ from flightrecon.sim import simulate
 from flightrecon.types import Flight
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = ("recorder", "gnss", "radar", "corrupt_gnss", "corrupt_radar")
+CASES = ("recorder", "gnss", "radar", "corrupt_gnss", "corrupt_radar", "recorder_no_runway")
 
 
 def make_flight(case: str, seed: int):
     if case == "recorder":
         return simulate("circuit", seed=seed, gnss_hz=0.0)
+    if case == "recorder_no_runway":
+        r = simulate("circuit", seed=seed, gnss_hz=0.0)
+        meta = replace(r.meta, departure=replace(r.meta.departure, runway_true_deg=None),
+                       arrival=replace(r.meta.arrival, runway_true_deg=None))
+        return replace(r, meta=meta)
     if case in ("gnss", "corrupt_gnss"):
         return simulate("circuit", seed=seed, gnss_dropouts=((400.0, 120.0),))
     if case == "radar":
@@ -135,15 +143,16 @@ def one_run(case: str, seed: int) -> dict:
     res["joint_sources"] = {k: {a: v[a] for a in ("count", "beyond_5_sigma", "flagged_inconsistent")}
                             for k, v in j.summary["sources"].items()}
     res["joint_clock"] = j.summary["clock_offsets_s"]
-    others = {"recorder": ("sabziev",), "gnss": ("sns",), "radar": ("arms", "azimuth"),
-              "corrupt_gnss": ("sns",), "corrupt_radar": ("arms",)}[case]
+    others = {"recorder": ("sabziev",), "recorder_no_runway": ("sabziev",), "gnss": ("sns",),
+              "radar": ("arms", "azimuth"), "corrupt_gnss": ("sns",),
+              "corrupt_radar": ("arms",)}[case]
     for m in others:
         try:
             mr = run_method(m, clean, ReconstructSettings())
             res[m] = errors(mr.track, f"{m}_", truth, airborne)
         except Exception as exc:  # noqa: BLE001 - a comparison method failing is a result
             res[m] = {"error": f"{type(exc).__name__}: {exc}"}
-    if case == "recorder":
+    if case.startswith("recorder"):
         res["dr"] = errors(dead_reckoning(clean, corrected=False), "", truth, airborne)
         res["dr_linear"] = errors(dead_reckoning(clean, corrected=True), "", truth, airborne)
     return res
@@ -207,8 +216,10 @@ def main() -> None:
     for ci, case in enumerate(CASES):
         if case not in a.cases.split(","):
             continue
+        # the no-runway variant flies the recorder case's flights (a paired comparison)
+        base = 1000 * ((CASES.index("recorder") if case == "recorder_no_runway" else ci) + 1)
         for i in range(a.runs):
-            rows.append(one_run(case, 1000 * (ci + 1) + i))
+            rows.append(one_run(case, base + i))
             print(case, i, json.dumps({k: v for k, v in rows[-1].items()
                                        if k in ("joint", "sabziev", "sns", "arms", "dr_linear")},
                                       default=str)[:300], file=sys.stderr)

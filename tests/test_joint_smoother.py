@@ -105,3 +105,29 @@ def test_roll_and_pitch_biases_are_estimated():
         assert abs(c[name]["value"] - truth) < 3 * c[name]["sd"] + 0.02, (name, c[name])
     assert c["pitch_bias_deg"]["sd"] < 0.2   # observable: prior 0.5 deg, measured 0.08 deg
     assert abs(c["accel_bias_x_g"]["value"] - 0.003) < 0.004
+
+
+def test_runway_direction_gives_the_heading_bias_on_recorder_data():
+    """Recorder only (circuit, heading reference biased 0.8 deg): with the runway's true
+    direction in the metadata the heading bias is estimated (within 3 sd, sd well below the
+    2 deg prior); without it the bias has no absolute reference and keeps a wide sd (and the
+    recorded heading is NOT taken as the runway's direction, which would claim a bias of 0)."""
+    from dataclasses import replace
+
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.filters.joint import JointSettings
+    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.types import Flight
+
+    r = mc.make_flight("recorder", 1001)
+    assert r.meta.departure.runway_true_deg is not None
+    settings = JointSettings(noise=mc.noise_from_sensors(r.sensor_truth))
+    with_rw = run_joint(clean_flight(Flight(data=r.log, meta=r.meta)), settings=settings)
+    c = with_rw.summary["corrections"]["heading_bias_deg"]
+    assert abs(c["value"] - 0.8) < 3 * c["sd"] and c["sd"] < 0.4
+    meta = replace(r.meta, departure=replace(r.meta.departure, runway_true_deg=None),
+                   arrival=replace(r.meta.arrival, runway_true_deg=None))
+    without = run_joint(clean_flight(Flight(data=r.log, meta=meta)), settings=settings)
+    c0 = without.summary["corrections"]["heading_bias_deg"]
+    # a circuit returns to its airfield: the end points do not fix a rotation of the track
+    assert c0["sd"] > 1.0

@@ -80,9 +80,23 @@ def test_sidecar_format(tmp_path):
                       "geoid_undulation_m", "gnss_lever_arm_m", "qnh_departure_hpa",
                       "qnh_arrival_hpa"}
     assert f["epoch_utc"].endswith("Z") and len(f["gnss_lever_arm_m"]) == 3
+    # this record starts airborne and ends without a landing: no runway directions
     for t in ("departure", "arrival", "station"):
         assert set(doc[t]) == {"lat_deg", "lon_deg", "elev_m"}
     assert doc["station"]["lat_deg"] == pytest.approx(r.meta.station.lat_deg, abs=1e-12)
+    # airfields of a take-off and a landing carry the runway's true direction (as a runway
+    # database would), read back by the ingest side unchanged
+    from flightrecon.ingest.sidecar import load_sidecar
+
+    c = simulate("circuit", seed=0, duration_s=900.0)
+    write_simulation(c, tmp_path / "c.csv")
+    doc = tomllib.loads((tmp_path / "c.meta.toml").read_text())
+    back = load_sidecar(tmp_path / "c.meta.toml").meta
+    for t in ("departure", "arrival"):
+        assert set(doc[t]) == {"lat_deg", "lon_deg", "elev_m", "runway_true_deg"}
+        assert getattr(back, t).runway_true_deg == pytest.approx(
+            getattr(c.meta, t).runway_true_deg, abs=1e-12)
+    assert c.meta.departure.runway_true_deg == pytest.approx(160.0)
     sensors = json.loads((tmp_path / "s.sensors.json").read_text())
     assert sensors["airdata_error_gm"]["tau_s"] == 360.0
     import pandas as pd
@@ -167,3 +181,26 @@ def test_foreign_export_round_trip():
     assert doc["channels"]["n_lat_g"]["sign"] == -1
     assert doc["channels"]["heading_deg"]["reference"] == "magnetic"
     assert doc["channels"]["tas_mps"] == {"from": "ias"}
+
+
+@pytest.mark.parametrize("value, words", [("400.0", "[0, 360)"), ('"north"', "number"),
+                                          ("-1", "[0, 360)"), ("nan", "number")])
+def test_bad_runway_direction_is_a_metadata_error(tmp_path, value, words):
+    from flightrecon.errors import MetadataError
+    from flightrecon.ingest.sidecar import load_sidecar
+
+    p = tmp_path / "x.meta.toml"
+    p.write_text(f"[departure]\nlat_deg = 40.0\nlon_deg = 50.0\nrunway_true_deg = {value}\n")
+    with pytest.raises(MetadataError) as exc:
+        load_sidecar(p)
+    assert words in str(exc.value) and "runway_true_deg" in str(exc.value)
+
+
+def test_a_station_has_no_runway(tmp_path):
+    from flightrecon.errors import MetadataError
+    from flightrecon.ingest.sidecar import load_sidecar
+
+    p = tmp_path / "x.meta.toml"
+    p.write_text("[station]\nlat_deg = 40.0\nlon_deg = 50.0\nrunway_true_deg = 10.0\n")
+    with pytest.raises(MetadataError, match="no runway"):
+        load_sidecar(p)

@@ -90,7 +90,7 @@ class JointSettings:
     wind_rate_hz: float = 1.0 / 1800.0       # recorded wind: errors correlated over ~15 min
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
-    iterations: int = 4
+    iterations: int = 8                      # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
     huber_c: float = 3.0
@@ -173,6 +173,8 @@ class JointInputs:
     wind_ne : recorded wind (Ni, 2) where the air moves to, or None
     doppler_gs, drift_rad : Doppler ground speed [m/s] and drift angle [rad] (Ni,), or None
     f_body_g : measured specific force in body FRD axes [n_long, n_lat, -n_norm] (Ni, 3) [g]
+    runway_rad : true directions of the departure and arrival runways [rad], ``None`` each
+        where unknown
     """
 
     t_in: np.ndarray
@@ -194,6 +196,7 @@ class JointInputs:
     doppler_gs: np.ndarray | None = None
     drift_rad: np.ndarray | None = None
     f_body_g: np.ndarray | None = None
+    runway_rad: tuple[float | None, float | None] = (None, None)
 
 
 def _state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -396,6 +399,71 @@ class _MeasBuilder:
                             start=start.astype(np.int64))
 
 
+def _on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
+    """Input samples used for the ground constraints: before lift-off and after touchdown (2 s
+    margins), at the ground-constraint rate, with a heading."""
+    t_in = inp.t_in
+    on_ground = np.zeros(len(t_in), bool)
+    if np.isfinite(inp.liftoff_t):
+        on_ground |= t_in < inp.liftoff_t - 2.0
+    if np.isfinite(inp.touchdown_t):
+        on_ground |= t_in > inp.touchdown_t + 2.0
+    return on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
+
+
+def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
+                         step_of, pnom: np.ndarray, vnom: np.ndarray) -> None:
+    """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
+    centreline through the airfield reference point.
+
+    The runway's direction is the airfield's ``runway_true_deg`` where the metadata give it
+    (then the ground roll ties the heading reference: the recorded heading minus the heading
+    bias must follow the runway). Otherwise it is the true heading, psi_rec - dpsi (the recorded
+    heading carries the heading bias): c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi
+    a(psi_rec) . v_nom, with c and a the cross- and along-runway unit vectors, linearised at
+    dpsi = 0 and the nominal (the neglected term is dpsi^2 / 2 of the along-track value: 3 mm/s
+    at 1 deg and 70 m/s). Taking the recorded heading as the runway's direction would tell the
+    smoother that the heading bias is zero.
+    """
+    nz = settings.noise
+    n = jk.N_STATE
+    t_in = inp.t_in
+    keep = _on_ground_mask(inp, settings)
+    if not keep.any():
+        return
+    for pos, side, rw in ((inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t)
+                                                   else -np.inf), inp.runway_rad[0]),
+                          (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t)
+                                                else np.inf), inp.runway_rad[1])):
+        sel = keep & side
+        if not sel.any():
+            continue
+        known = rw is not None
+        # the direction of the runway (only its line matters: a reversed direction is the same)
+        psi = np.full(int(sel.sum()), rw) if known else inp.heading_rad[sel]
+        tt = t_in[sel]
+        k = step_of(tt)
+        H = np.zeros((len(tt), n))
+        H[:, jk.IV] = -np.sin(psi)
+        H[:, jk.IV + 1] = np.cos(psi)
+        if not known:
+            H[:, jk.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
+        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+        if pos is None:
+            continue
+        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+        arp = np.array([float(ex), float(ey), float(ez)])
+        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
+        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
+        along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
+        H = np.zeros((len(tt), n))
+        H[:, jk.IP:jk.IP + 3] = cross
+        if not known:
+            H[:, jk.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
+        b.add("runway", jk.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
+              -cross @ arp)
+
+
 def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
     """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
     recorded wind, pressure altitude, ground and runway constraints (built once)."""
@@ -428,51 +496,26 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # pressure altitude
     okb = np.isfinite(inp.baro_rel_m) & _decimate_mask(t_in, settings.baro_rate_hz)
     b.add("baro", jk.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
-    # on the ground: zero vertical velocity and zero cross-track velocity (rolling on a runway)
-    on_ground = np.zeros(len(t_in), bool)
-    if np.isfinite(inp.liftoff_t):
-        on_ground |= t_in < inp.liftoff_t - 2.0
-    if np.isfinite(inp.touchdown_t):
-        on_ground |= t_in > inp.touchdown_t + 2.0
-    keep = on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
-    # on the runway: the cross-track offset from the line through the airfield reference point
-    # along the runway heading is zero (the reference point lies on the runway centreline)
-    for pos, side in ((inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t)
-                                               else -np.inf)),
-                      (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t)
-                                            else np.inf))):
-        sel = keep & side
-        if pos is None or not sel.any():
-            continue
-        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-        arp = np.array([float(ex), float(ey), float(ez)])
-        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
-        psi = inp.heading_rad[sel]
-        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
-        H = np.zeros((len(psi), n))
-        H[:, jk.IP:jk.IP + 3] = cross
-        b.add("runway", jk.LINEAR, t_in[sel], np.zeros(len(psi)), nz.runway_halfwidth_m ** 2, H,
-              -cross @ arp)
+    # on the ground: zero vertical velocity (the cross-track constraints depend on the heading
+    # bias and the nominal, see build_measurements)
+    keep = _on_ground_mask(inp, settings)
     if keep.any():
         tt = t_in[keep]
         H = np.zeros((len(tt), n))
         H[:, jk.IV + 2] = 1.0
-        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
-        H = np.zeros((len(tt), n))
-        psi = inp.heading_rad[keep]
-        H[:, jk.IV] = -np.sin(psi)
-        H[:, jk.IV + 1] = np.cos(psi)
         b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
     return b
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
                        Cnb_T: np.ndarray, clock: dict[str, float],
-                       static: _MeasBuilder | None = None) -> Measurements:
+                       static: _MeasBuilder | None = None, pnom: np.ndarray | None = None,
+                       vnom: np.ndarray | None = None) -> Measurements:
     """Every source as scalar measurements at its own time (recorder time base).
 
-    ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar
-    and end-point measurements depend on the linearisation (``Cen``) and on the clock offsets
+    ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
+    end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
+    positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
     and are rebuilt on each call.
     """
     nz = settings.noise
@@ -527,6 +570,8 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             linear_ned("gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
                                         g["ve_mps"].to_numpy() - v_arm[:, 1]),
                        (nz.gnss_vel_mps, nz.gnss_vel_mps), "vel")
+    if pnom is not None and vnom is not None:
+        _runway_measurements(b, inp, settings, step_of, pnom, vnom)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -712,6 +757,11 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         pst = np.array([float(sx), float(sy), float(sz)])
     x0 = P0 = None
     static = static_measurements(inp, settings, T)
+    # nominal velocity (for the runway constraints' linearisation): air data at first, then
+    # the smoothed velocity
+    tas0 = np.nan_to_num(inp.tas[idx])
+    psi0 = np.nan_to_num(inp.heading_rad[idx])
+    vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(idx))]
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
         n_iter = max(n_iter, settings.noise_iterations)
@@ -721,7 +771,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
         hnom = h - inp.field_h
         climb = np.abs(np.diff(h, prepend=h[0]))
-        meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static)
+        meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom)
         groups = _noise_groups(meas)
         r = meas.r * np.where(groups >= 0, scale[np.maximum(groups, 0)], 1.0)
         if weights is None or len(weights) != len(meas.z):
@@ -794,6 +844,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                                    if np.any(groups == i)}
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
+        vnom = xs[:, jk.IV:jk.IV + 3]
         # converged: the linearisation point, the weights, the clock offsets and (with
         # estimate_noise) the noise variances stand still
         # (a nominal within converge_m = 2 m changes a measurement's linearisation by about

@@ -97,7 +97,10 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         field_h=field_h, lever_arm=tuple(meta.gnss_lever_arm_m), wind_ne=wind,
         doppler_gs=col("doppler_gs_mps") if "doppler_gs_mps" in g.columns else None,
         drift_rad=np.radians(col("drift_deg")) if "drift_deg" in g.columns else None,
-        f_body_g=np.c_[col("n_long_g"), col("n_lat_g"), -col("n_norm_g")])
+        f_body_g=np.c_[col("n_long_g"), col("n_lat_g"), -col("n_norm_g")],
+        runway_rad=tuple(None if p is None or p.runway_true_deg is None
+                         else float(np.radians(p.runway_true_deg))
+                         for p in (meta.departure, meta.arrival)))
 
 
 @nb.njit(cache=True, nogil=True)

@@ -16,6 +16,7 @@ Format (docs/schema.md, "Metadata"; the simulator writes the same)::
     lat_deg = 40.46
     lon_deg = 50.05
     elev_m = 3.0
+    runway_true_deg = 160.0             # optional: true direction of the runway used
     [arrival]                           # same keys
     [station]                           # same keys (ground radar)
     [files]                             # optional companions, relative to the sidecar's folder
@@ -55,7 +56,7 @@ __all__ = [
 LOG_SUFFIXES = (".csv", ".txt", ".tsv", ".parquet", ".pq", ".parq")
 FLIGHT_KEYS = {"aircraft_id", "flight_id", "epoch_utc", "gnss_alt_datum", "baro_datum",
                "geoid_undulation_m", "gnss_lever_arm_m", "qnh_departure_hpa", "qnh_arrival_hpa"}
-POSITION_KEYS = ("lat_deg", "lon_deg", "elev_m")
+POSITION_KEYS = ("lat_deg", "lon_deg", "elev_m", "runway_true_deg")
 FILE_KEYS = ("gnss", "radar", "mapping")
 GNSS_DATUMS = ("ellipsoid", "msl")
 BARO_DATUMS = ("pressure", "qnh", "qfe")
@@ -216,8 +217,18 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
             for k in t:
                 if k not in POSITION_KEYS:
                     warns.append(f"{file}: unknown key [{name}] {k} (ignored)")
-            kw[name] = _position(t["lat_deg"], t["lon_deg"], t.get("elev_m", 0.0), f"[{name}]",
-                                 file)
+            pos = _position(t["lat_deg"], t["lon_deg"], t.get("elev_m", 0.0), f"[{name}]", file)
+            if "runway_true_deg" in t:
+                if name == "station":
+                    raise MetadataError("[station] runway_true_deg: a radar station has no "
+                                        "runway", file=file)
+                rw = t["runway_true_deg"]
+                if isinstance(rw, bool) or not isinstance(rw, (int, float)) \
+                        or not math.isfinite(rw) or not 0.0 <= rw < 360.0:
+                    raise MetadataError(f"[{name}] runway_true_deg must be a number in [0, 360) "
+                                        f"deg, got {rw!r}", file=file)
+                pos = dataclasses.replace(pos, runway_true_deg=float(rw))
+            kw[name] = pos
     files: dict[str, Path] = {}
     if "files" in doc:
         ft = doc["files"]

@@ -67,6 +67,8 @@ def meta_toml(meta: FlightMeta) -> str:
             continue
         lines += ["", f"[{name}]", f"lat_deg = {_toml_value(p.lat_deg)}",
                   f"lon_deg = {_toml_value(p.lon_deg)}", f"elev_m = {_toml_value(p.elev_m)}"]
+        if p.runway_true_deg is not None:
+            lines.append(f"runway_true_deg = {_toml_value(p.runway_true_deg)}")
     return "\n".join(lines) + "\n"
 
 

@@ -442,9 +442,11 @@ def _json(x: Any) -> Any:
 def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     sc = SCENARIOS[name]
     plan, atm = build_plan(name, cfg)
-    # a record that starts airborne: departure = the ground point below its first sample
+    # a record that starts airborne: departure = the ground point below its first sample; an
+    # airfield departure carries the true direction of its runway (as a runway database would)
     departure = (Position(float(plan.lat0_deg), float(plan.lon0_deg), cfg.arrival_elev_m)
-                 if sc.airborne else cfg.airfield)
+                 if sc.airborne else replace(cfg.airfield,
+                                             runway_true_deg=float(cfg.runway_deg % 360.0)))
     pre_meta = FlightMeta(departure=departure, geoid_undulation_m=cfg.geoid_undulation_m)
     truth = simulate_truth(plan, cfg.truth_rate_hz, output_plane(pre_meta))
 
@@ -459,14 +461,16 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     # arrival airfield
     last = truth.iloc[-1]
     if name == "circuit":
-        arrival = cfg.airfield
+        arrival = replace(cfg.airfield, runway_true_deg=float(cfg.runway_deg % 360.0))
     elif np.isfinite(plan.touchdown_s):
         i = int(np.searchsorted(t, plan.touchdown_s))
         trk = np.radians(truth["track_deg"].iloc[i])
         lat, lon = _offset(Position(float(truth["lat_deg"].iloc[i]),
                                     float(truth["lon_deg"].iloc[i])),
                            ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
-        arrival = Position(lat, lon, cfg.arrival_elev_m)
+        # the landing runway's direction: the track at touchdown (on the centre line)
+        arrival = Position(lat, lon, cfg.arrival_elev_m,
+                           runway_true_deg=float(np.degrees(trk) % 360.0))
     else:
         arrival = Position(float(last["lat_deg"]), float(last["lon_deg"]),
                            float(cfg.arrival_elev_m))
