@@ -38,6 +38,10 @@ def _child(hours: float, workdir: str) -> dict:
     """Run the stages on a ``hours``-long flight; return timings (s) and peak RSS (MB)."""
     import numpy as np
 
+    from flightrecon.cli.main import _keep_freed_memory
+
+    _keep_freed_memory()  # the allocator setting the CLI uses, so the stages are comparable
+
     from flightrecon.cleaning import clean_flight
     from flightrecon.export.writers import write_summary, write_track
     from flightrecon.geo.kinematics import kinematic_acceleration_ned
@@ -68,7 +72,7 @@ def _child(hours: float, workdir: str) -> dict:
     settings = ReconstructSettings()
     avail = available_methods(clean, settings)
     results = {}
-    for m in ALL_METHODS:
+    for m in ALL_METHODS:  # one after the other here (the CLI runs them on two threads)
         if avail[m] is None:
             results[m] = timed(m, run_method, m, clean, settings)
     track = timed("combine", combine, clean, results)

@@ -218,3 +218,42 @@ def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
     inside = (t >= 0) & (t <= 4)
     np.testing.assert_allclose(got[inside], path(t[inside]), atol=1e-12)
     np.testing.assert_allclose(got[t < 0], np.repeat(path(T[:1]), (t < 0).sum(), 0), atol=1e-12)
+
+
+def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypatch):
+    """The backward passes recompute P_p[k+1] from P_f[k] (not stored): with the stored ones
+    the smoothed states, covariances and residuals must be bit for bit the same."""
+    from pathlib import Path
+
+    import flightrecon.filters.joint as J
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.filters.joint_method import joint_inputs
+    from flightrecon.ingest import load_flight
+
+    log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
+    inp = joint_inputs(clean_flight(load_flight(log)))
+    cap = {}
+    orig_fw, orig_bw = jk.forward, jk.backward
+
+    def fw(*a):
+        cap["fw"] = a
+        return orig_fw(*a)
+
+    def bw(*a):
+        cap["bw"] = a
+        return orig_bw(*a)
+
+    monkeypatch.setattr(jk, "forward", fw)
+    monkeypatch.setattr(jk, "backward", bw)
+    J.smooth_joint(inp, J.JointSettings(iterations=1))
+    a = list(cap["fw"])
+    n = jk.N_STATE
+    a[3] = np.empty((len(a[0]), n, n))           # store P_p this time
+    orig_fw(*a)
+    b = list(cap["bw"])
+    with_pp = orig_bw(a[0], a[1], a[2], a[3], *b[4:])
+    without = orig_bw(a[0], a[1], a[2], np.empty((0, n, n)), *b[4:])
+    for x, y in zip(with_pp, without):
+        np.testing.assert_array_equal(x, y)
+    mean = jk.backward_mean(a[0], a[1], a[2], np.empty((0, n, n)), *b[4:])
+    np.testing.assert_array_equal(mean[0], jk.backward_mean(a[0], a[1], a[2], a[3], *b[4:])[0])

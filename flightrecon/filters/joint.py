@@ -782,7 +782,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if it == 0:  # filter outputs, reused by every pass (allocated and paged in once)
             n = jk.N_STATE
             xf, xp = np.empty((len(T), n)), np.empty((len(T), n))
-            Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
+            # the predicted covariances are recomputed in the backward passes, not stored
+            Pf, Pp = np.empty((len(T), n, n)), np.empty((0, n, n))
         innov, innov_var, infl = jk.forward(
             xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
@@ -790,7 +791,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
         kern_args = (dt, Cen, Cnb, Csf, Jatt, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
-                     meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst)
+                     meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, climb, qv_extra)
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
         with_cov = settings.estimate_noise or it > 0

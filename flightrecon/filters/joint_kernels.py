@@ -391,7 +391,9 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
     whose normalised innovation exceeds ``gate`` (0: off) has its variance inflated so that it
     equals ``gate`` (a Huber-type robust update: a jump is followed only slowly, never trusted).
     Fills the filtered and predicted states/covariances ``xf``, ``Pf`` (N, n[, n]), ``xp``,
-    ``Pp`` (given, so that the Gauss-Newton iterations reuse them) and returns, per
+    ``Pp`` (given, so that the Gauss-Newton iterations reuse them; an empty ``Pp`` is not
+    filled: the backward passes then recompute each predicted covariance from ``Pf``, bit for
+    bit the same, which saves its memory) and returns, per
     measurement, the innovation, its variance (before inflation) and the inflation factor.
 
     Allocation-free per step: the prediction uses the row-compressed F_k (P <- F P F^T + Q in
@@ -431,7 +433,8 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
                 for m in range(n):
                     P[i, m] += Q[i, m]
         xp[k] = x
-        Pp[k] = P
+        if Pp.shape[0] > 0:
+            Pp[k] = P
         for j in range(mstart[k], mstart[k + 1]):
             if mw[j] <= 0.0:
                 continue
@@ -479,6 +482,26 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
 
 
 @nb.njit(cache=True, nogil=True)
+def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, out):
+    """P_p[k] into ``out``: the stored one, or F_k P_f[k-1] F_k^T + Q_k recomputed with the
+    same operations as :func:`forward` (``cols``/``vals``/``cnt``: F_k row-compressed)."""
+    n = out.shape[0]
+    if Pp.shape[0] > 0:
+        for i in range(n):
+            for j in range(n):
+                out[i, j] = Pp[k, i, j]
+        return
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = Pf[k - 1, i, j]
+    _predict_cov(out, cols, vals, cnt, B)
+    Q = process_noise(k, dt, Cen, climb, qv_extra, q)
+    for i in range(n):
+        for j in range(n):
+            out[i, j] += Q[i, j]
+
+
+@nb.njit(cache=True, nogil=True)
 def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst,
                   H, res, res_n, rate, P, hph):
     """Residuals z - h(x) of step k's measurements at the smoothed state ``x``: raw, in units of
@@ -516,7 +539,7 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
 
 @nb.njit(cache=True, nogil=True)
 def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH,
-                  mrow, md, pnom, hnom, pst, Cst):
+                  mrow, md, pnom, hnom, pst, Cst, climb, qv_extra):
     """RTS backward pass for the smoothed states only (no covariances), and the residuals.
 
     x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
@@ -541,16 +564,19 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     y = np.empty(n)
     z = np.empty(n)
     H = np.empty(n)
+    B = np.empty((n, n))
+    Pk1 = np.empty((n, n))
     no_P = np.empty((0, 0))
     no_hph = np.empty(0)
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             transition_into(F, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
             _sparse_rows(F, cols, vals, cnt)
+            _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, Pk1)
             for i in range(n):
                 d[i] = xs[k + 1, i] - xp[k + 1, i]
-            if not _cholesky_solve(Pp[k + 1], d, L, y):
-                y[:] = np.linalg.solve(Pp[k + 1], d)
+            if not _cholesky_solve(Pk1, d, L, y):
+                y[:] = np.linalg.solve(Pk1, d)
             _sparse_rmatvec(cols, vals, cnt, y, z)
             for a in range(n):
                 v = xf[k, a]
@@ -564,7 +590,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
 
 @nb.njit(cache=True, nogil=True)
 def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
-             md, pnom, hnom, pst, Cst):
+             md, pnom, hnom, pst, Cst, climb, qv_extra):
     """RTS backward pass with covariances; also the smoothed residuals (see
     :func:`backward_mean`, which gives the same states without the covariances).
 
@@ -586,6 +612,8 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
     vals = np.empty((n, n))
     cnt = np.empty(n, dtype=np.int64)
     A = np.empty((n, n))
+    B = np.empty((n, n))
+    Pk1 = np.empty((n, n))
     G = np.empty((n, n))
     GT = np.empty((n, n))
     L = np.empty((n, n))
@@ -605,10 +633,11 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
                     for c in range(cnt[i]):
                         v += vals[i, c] * Pf[k, cols[i, c], b]
                     A[i, b] = v
-            if _cholesky_factor(Pp[k + 1], L):
+            _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, Pk1)
+            if _cholesky_factor(Pk1, L):
                 _cholesky_solve_columns(L, A, GT)     # GT = P_p^-1 A = G^T
             else:
-                GT[:, :] = np.linalg.solve(Pp[k + 1], A)
+                GT[:, :] = np.linalg.solve(Pk1, A)
             for i in range(n):
                 for j in range(n):
                     G[i, j] = GT[j, i]
@@ -623,7 +652,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
             # P_s[k] = P_f[k] + G (P_s[k+1] - P_p[k+1]) G^T (BLAS products into buffers)
             for i in range(n):
                 for j in range(n):
-                    D[i, j] = Ps[i, j] - Pp[k + 1, i, j]
+                    D[i, j] = Ps[i, j] - Pk1[i, j]
             np.dot(G, D, E)
             np.dot(E, GT, Ps)
             for i in range(n):
