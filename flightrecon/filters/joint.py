@@ -782,8 +782,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if it == 0:  # filter outputs, reused by every pass (allocated and paged in once)
             n = jk.N_STATE
             xf, xp = np.empty((len(T), n)), np.empty((len(T), n))
-            # the predicted covariances are recomputed in the backward passes, not stored
-            Pf, Pp = np.empty((len(T), n, n)), np.empty((0, n, n))
+            # (an empty Pp would have the backward passes recompute the predicted covariances,
+            # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
+            Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
         innov, innov_var, infl = jk.forward(
             xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,

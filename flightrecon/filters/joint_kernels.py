@@ -236,29 +236,36 @@ def _cholesky_solve(A, b, L, y):
 
 
 @nb.njit(cache=True, nogil=True)
-def process_noise(k, dt, Cen, climb, qv_extra, q):
-    """Process-noise covariance Q_k.  q = [q_acc, q_wind_t, q_wind_h, var_ba, tau_ba,
-    q_psi, q_bh] (see JointNoise); ``climb[k]`` is |height change| over the step (wind varies
-    with altitude), ``qv_extra[k]`` extra acceleration PSD where the load factors are missing."""
-    n = N_STATE
-    Q = np.zeros((n, n))
+def add_process_noise(P, k, dt, Cen, climb, qv_extra, q):
+    """P += Q_k in place, touching only the nonzero entries of Q_k.  q = [q_acc, q_wind_t,
+    q_wind_h, var_ba, tau_ba, q_psi, q_bh] (see JointNoise); ``climb[k]`` is |height change|
+    over the step (wind varies with altitude), ``qv_extra[k]`` extra acceleration PSD where the
+    load factors are missing.  Position-velocity block: white acceleration of PSD q_a
+    (Q_pp = q_a h^3/3, Q_vv = q_a h, Q_pv = q_a h^2/2 C_en)."""
     h = dt[k]
     qa = q[0] + qv_extra[k]
-    C = Cen[k - 1]
     for i in range(3):
-        Q[IP + i, IP + i] = qa * h ** 3 / 3.0
-        Q[IV + i, IV + i] = qa * h
+        P[IP + i, IP + i] += qa * h ** 3 / 3.0
+        P[IV + i, IV + i] += qa * h
         for j in range(3):
-            Q[IP + i, IV + j] = qa * h * h / 2.0 * C[i, j]
-            Q[IV + j, IP + i] = Q[IP + i, IV + j]
+            v = qa * h * h / 2.0 * Cen[k - 1, i, j]
+            P[IP + i, IV + j] += v
+            P[IV + j, IP + i] += v
     qw = q[1] * h + q[2] * climb[k]
-    Q[IW, IW] = qw
-    Q[IW + 1, IW + 1] = qw
+    P[IW, IW] += qw
+    P[IW + 1, IW + 1] += qw
     gm = q[3] * (1.0 - np.exp(-2.0 * h / q[4]))
     for j in range(3):
-        Q[IBA + j, IBA + j] = gm
-    Q[IPSI, IPSI] = q[5] * h
-    Q[IBH, IBH] = q[6] * h
+        P[IBA + j, IBA + j] += gm
+    P[IPSI, IPSI] += q[5] * h
+    P[IBH, IBH] += q[6] * h
+
+
+@nb.njit(cache=True, nogil=True)
+def process_noise(k, dt, Cen, climb, qv_extra, q):
+    """Process-noise covariance Q_k (see :func:`add_process_noise`)."""
+    Q = np.zeros((N_STATE, N_STATE))
+    add_process_noise(Q, k, dt, Cen, climb, qv_extra, q)
     return Q
 
 
@@ -428,10 +435,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
                     x[IP + i] += Cen[k - 1, i, m] * dP[k, m]
                 x[IV + i] += dV[k, i]
             _predict_cov(P, cols, vals, cnt, B)
-            Q = process_noise(k, dt, Cen, climb, qv_extra, q)
-            for i in range(n):
-                for m in range(n):
-                    P[i, m] += Q[i, m]
+            add_process_noise(P, k, dt, Cen, climb, qv_extra, q)
         xp[k] = x
         if Pp.shape[0] > 0:
             Pp[k] = P
@@ -483,22 +487,15 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
 
 @nb.njit(cache=True, nogil=True)
 def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, out):
-    """P_p[k] into ``out``: the stored one, or F_k P_f[k-1] F_k^T + Q_k recomputed with the
-    same operations as :func:`forward` (``cols``/``vals``/``cnt``: F_k row-compressed)."""
+    """P_p[k] = F_k P_f[k-1] F_k^T + Q_k into ``out``, recomputed with the same operations as
+    :func:`forward` (``cols``/``vals``/``cnt``: F_k row-compressed), for a forward pass that
+    did not store it."""
     n = out.shape[0]
-    if Pp.shape[0] > 0:
-        for i in range(n):
-            for j in range(n):
-                out[i, j] = Pp[k, i, j]
-        return
     for i in range(n):
         for j in range(n):
             out[i, j] = Pf[k - 1, i, j]
     _predict_cov(out, cols, vals, cnt, B)
-    Q = process_noise(k, dt, Cen, climb, qv_extra, q)
-    for i in range(n):
-        for j in range(n):
-            out[i, j] += Q[i, j]
+    add_process_noise(out, k, dt, Cen, climb, qv_extra, q)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -565,14 +562,19 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     z = np.empty(n)
     H = np.empty(n)
     B = np.empty((n, n))
-    Pk1 = np.empty((n, n))
+    Pbuf = np.empty((n, n))
     no_P = np.empty((0, 0))
     no_hph = np.empty(0)
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             transition_into(F, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
             _sparse_rows(F, cols, vals, cnt)
-            _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, Pk1)
+            if Pp.shape[0] > 0:
+                Pk1 = Pp[k + 1]
+            else:
+                _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
+                               Pbuf)
+                Pk1 = Pbuf
             for i in range(n):
                 d[i] = xs[k + 1, i] - xp[k + 1, i]
             if not _cholesky_solve(Pk1, d, L, y):
@@ -613,7 +615,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
     cnt = np.empty(n, dtype=np.int64)
     A = np.empty((n, n))
     B = np.empty((n, n))
-    Pk1 = np.empty((n, n))
+    Pbuf = np.empty((n, n))
     G = np.empty((n, n))
     GT = np.empty((n, n))
     L = np.empty((n, n))
@@ -633,7 +635,12 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
                     for c in range(cnt[i]):
                         v += vals[i, c] * Pf[k, cols[i, c], b]
                     A[i, b] = v
-            _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, Pk1)
+            if Pp.shape[0] > 0:
+                Pk1 = Pp[k + 1]
+            else:
+                _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
+                               Pbuf)
+                Pk1 = Pbuf
             if _cholesky_factor(Pk1, L):
                 _cholesky_solve_columns(L, A, GT)     # GT = P_p^-1 A = G^T
             else:
