@@ -38,9 +38,9 @@ def _child(hours: float, workdir: str) -> dict:
     """Run the stages on a ``hours``-long flight; return timings (s) and peak RSS (MB)."""
     import numpy as np
 
-    from flightrecon.cli.main import _keep_freed_memory
+    from flightrecon.cli.main import _tune_memory
 
-    _keep_freed_memory()  # the allocator setting the CLI uses, so the stages are comparable
+    _tune_memory()  # the memory settings the CLI uses, so the stages are comparable
 
     from flightrecon.cleaning import clean_flight
     from flightrecon.export.writers import write_summary, write_track

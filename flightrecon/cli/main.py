@@ -50,16 +50,34 @@ for _name in COMMAND_MODULES:
     cli.add_command(_mod.command)
 
 
-def _keep_freed_memory() -> None:
-    """Let glibc's allocator keep and reuse freed memory instead of returning it to the OS.
+def _thp_stalls_on_madvise() -> bool:
+    """True where the kernel compacts memory synchronously for regions that asked for
+    transparent huge pages (THP ``defrag`` mode ``always`` or ``madvise``)."""
+    try:
+        text = open("/sys/kernel/mm/transparent_hugepage/defrag", encoding="ascii").read()
+    except OSError:
+        return False
+    chosen = text[text.find("[") + 1:text.find("]")] if "[" in text else ""
+    return chosen in ("always", "madvise")
 
-    A reconstruction allocates and frees arrays of tens to hundreds of megabytes stage after
-    stage; by default glibc maps each large block fresh and unmaps it when freed, so every
-    stage pays the kernel's page faults again (about 240,000 minor faults, 1.5-2.5 s of system
-    time for the 10-hour benchmark flight on our 2-core machines). Blocks up to 32 MB (glibc's
-    ceiling for this setting) then come from the heap, and the heap is not trimmed: 180,000
-    faults, about 1 s less system time, peak memory 1.43 -> 1.49 GB. No effect elsewhere than
-    glibc (the call is skipped) and on the results.
+
+def _tune_memory() -> None:
+    """Process-level memory settings for a reconstruction (the library never changes them).
+
+    * glibc keeps and reuses freed memory instead of returning it to the OS: a
+      reconstruction allocates and frees arrays of tens to hundreds of megabytes stage after
+      stage, and by default each large block is mapped fresh and unmapped when freed, so every
+      stage pays the kernel's page faults again. Blocks up to 32 MB (glibc's ceiling for this
+      setting) then come from the heap, and the heap is not trimmed. Measured on the 10-hour
+      benchmark flight: minor faults 240-260k -> 178k, about 1 s less system time, peak memory
+      1.43 -> 1.49 GB.
+    * numpy asks for transparent huge pages for arrays of 4 MB and more; where the kernel then
+      compacts memory synchronously on first touch (THP defrag ``always``/``madvise``, as on
+      our 2-core VMs) that costs far more than it saves: the estimators on the 10-hour flight
+      spent 2.3-2.6 s in the kernel with it and 0.4-0.5 s without, ingest and cleaning
+      1.7-1.9 s against 1.1-1.2 s (same process, warm kernels). It is turned off there.
+
+    Neither changes a result. Skipped where not Linux/glibc or where numpy lacks the switch.
     """
     if not sys.platform.startswith("linux"):
         return
@@ -71,12 +89,21 @@ def _keep_freed_memory() -> None:
         libc.mallopt(m_mmap_threshold, 32 * 1024 * 1024)
         libc.mallopt(m_trim_threshold, 1 << 30)
     except (OSError, AttributeError):  # not glibc
-        return
+        pass
+    if _thp_stalls_on_madvise():
+        try:
+            from numpy._core.multiarray import _set_madvise_hugepage
+        except ImportError:  # numpy < 2
+            try:
+                from numpy.core.multiarray import _set_madvise_hugepage
+            except ImportError:
+                return
+        _set_madvise_hugepage(False)
 
 
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: run the CLI and map project errors to exit codes."""
-    _keep_freed_memory()
+    _tune_memory()
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
     try:
         # with standalone_mode=False click returns a ctx.exit(code) as the code
