@@ -255,5 +255,10 @@ def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypat
     without = orig_bw(a[0], a[1], a[2], np.empty((0, n, n)), *b[4:])
     for x, y in zip(with_pp, without):
         np.testing.assert_array_equal(x, y)
-    mean = jk.backward_mean(a[0], a[1], a[2], np.empty((0, n, n)), *b[4:])
-    np.testing.assert_array_equal(mean[0], jk.backward_mean(a[0], a[1], a[2], a[3], *b[4:])[0])
+    b_mean = b[4:-1]                               # backward_mean has no residuals flag
+    mean = jk.backward_mean(a[0], a[1], a[2], np.empty((0, n, n)), *b_mean)
+    np.testing.assert_array_equal(mean[0], jk.backward_mean(a[0], a[1], a[2], a[3], *b_mean)[0])
+    # the covariance pass with and without residuals: the same covariances
+    with_res = orig_bw(a[0], a[1], a[2], a[3], *b[4:-1], True)
+    np.testing.assert_array_equal(with_res[1], with_pp[1])
+    np.testing.assert_array_equal(with_res[2], with_pp[2])

@@ -21,6 +21,7 @@ position: valid on flights of any length; outputs converted to the departure tan
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -796,8 +797,26 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
         with_cov = settings.estimate_noise or it > 0
-        if with_cov:
-            xs, Pblk, var, _, res, rate, hph = jk.backward(xf, Pf, xp, Pp, *kern_args)
+        if settings.estimate_noise:
+            xs, Pblk, var, _, res, rate, hph = jk.backward(xf, Pf, xp, Pp, *kern_args, True)
+        elif with_cov:
+            # the covariance recursion does not need the smoothed states: it runs on a second
+            # thread beside the mean pass (the kernels release the GIL)
+            cov: dict[str, Any] = {}
+
+            def covariances() -> None:
+                try:
+                    cov["out"] = jk.backward(xf, Pf, xp, Pp, *kern_args, False)
+                except BaseException as exc:  # re-raised on the calling thread
+                    cov["error"] = exc
+
+            worker = threading.Thread(target=covariances, name="joint-covariances")
+            worker.start()
+            xs, _, res, rate = jk.backward_mean(xf, Pf, xp, Pp, *kern_args)
+            worker.join()
+            if "error" in cov:
+                raise cov["error"]
+            _, Pblk, var, *_ = cov["out"]
         else:
             xs, _, res, rate = jk.backward_mean(xf, Pf, xp, Pp, *kern_args)
         # residual in units of the measurement's own (nominal, not inflated) standard deviation
@@ -859,7 +878,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     if not with_cov:
         # smoothed covariances of the last pass (its states equal those of the mean-only pass
         # to round-off: same gains, same linearisation)
-        xs, Pblk, var, *_ = jk.backward(xf, Pf, xp, Pp, *kern_args)
+        xs, Pblk, var, *_ = jk.backward(xf, Pf, xp, Pp, *kern_args, False)
     del Pf, Pp
     return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,

@@ -592,13 +592,15 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
 
 @nb.njit(cache=True, nogil=True)
 def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
-             md, pnom, hnom, pst, Cst, climb, qv_extra):
+             md, pnom, hnom, pst, Cst, climb, qv_extra, residuals):
     """RTS backward pass with covariances; also the smoothed residuals (see
     :func:`backward_mean`, which gives the same states without the covariances).
 
     Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
     smoothed state variances (N, n), normalised residuals, raw residuals, rates and, per
-    measurement, H P_s H^T (the smoothed variance of the predicted measurement).
+    measurement, H P_s H^T (the smoothed variance of the predicted measurement).  With
+    ``residuals`` False the residual outputs stay NaN (the covariances do not need them: this
+    pass can then run beside :func:`backward_mean` on another thread).
     """
     N, n = xf.shape
     M = mtype.shape[0]
@@ -673,6 +675,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
                 Pblk[k, i, j] = Ps[i, j]
         for i in range(n):
             var[k, i] = Ps[i, i]
-        _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
-                      Cst, H, res, res_n, rate, Ps, hph)
+        if residuals:
+            _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom,
+                          pst, Cst, H, res, res_n, rate, Ps, hph)
     return xs, Pblk, var, res_n, res, rate, hph
