@@ -121,3 +121,13 @@ def test_never_overwrites_input(tmp_path):
 
 def test_missing_file_exit_code(tmp_path):
     assert run_cli(["reconstruct", str(tmp_path / "nope.parquet")]) == 3
+
+
+def test_workers_option_gives_the_same_file(tmp_path):
+    """--workers 1 and --workers 2 write the same track (threads change only the timing)."""
+    log = SAMPLES / "circuit.parquet"
+    a, b = tmp_path / "a.parquet", tmp_path / "b.parquet"
+    assert run_cli(["reconstruct", str(log), "-o", str(a), "--workers", "1"]) == 0
+    assert run_cli(["reconstruct", str(log), "-o", str(b), "--workers", "2"]) == 0
+    pd.testing.assert_frame_equal(pd.read_parquet(a), pd.read_parquet(b), check_exact=True)
+    assert run_cli(["reconstruct", str(log), "-o", str(a), "--workers", "0"]) == 2
