@@ -804,13 +804,14 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # thread beside the mean pass (the kernels release the GIL)
             cov: dict[str, Any] = {}
 
-            def covariances() -> None:
+            def covariances(*args: Any) -> None:
                 try:
-                    cov["out"] = jk.backward(xf, Pf, xp, Pp, *kern_args, False)
+                    cov["out"] = jk.backward(*args, False)
                 except BaseException as exc:  # re-raised on the calling thread
                     cov["error"] = exc
 
-            worker = threading.Thread(target=covariances, name="joint-covariances")
+            worker = threading.Thread(target=covariances, name="joint-covariances",
+                                      args=(xf, Pf, xp, Pp, *kern_args))
             worker.start()
             xs, _, res, rate = jk.backward_mean(xf, Pf, xp, Pp, *kern_args)
             worker.join()
