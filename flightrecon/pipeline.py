@@ -24,7 +24,7 @@ import platform
 import os
 import warnings
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -440,21 +440,16 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
                               for m in ALL_METHODS if m not in chosen}
     results: dict[str, MethodResult] = {}
     workers = default_workers() if workers is None else max(1, int(workers))
-    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 and len(chosen) > 1 else None
+
     def run(name: str) -> MethodResult:
         if progress:
             progress(name)
         return run_method(name, clean, settings)
 
-    futures: dict[str, Future] = {}
-    if pool is None:
-        for m in chosen:
-            futures[m] = _completed(run, m)
-    else:
-        # the joint smoother is the longest: started first, it runs beside all the others
-        with pool:
-            for m in sorted(chosen, key=lambda name: name != "joint"):
-                futures[m] = pool.submit(run, m)
+    # with two threads the joint smoother, the longest, starts first and runs beside the others
+    order = sorted(chosen, key=lambda name: name != "joint") if workers > 1 else chosen
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        futures = {m: pool.submit(run, m) for m in order}
     for m in chosen:
         try:
             res = futures[m].result()
@@ -472,16 +467,6 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
             f"{m}: {s.get('reason')}" for m, s in status.items()))
     track = combine(clean, results)
     return track, results, status
-
-
-def _completed(fn: Callable[..., Any], *args: Any) -> Future:
-    """``fn(*args)`` run now, as a finished future (its exception kept for ``result()``)."""
-    fut: Future = Future()
-    try:
-        fut.set_result(fn(*args))
-    except Exception as exc:  # re-raised by result(), as from a pool
-        fut.set_exception(exc)
-    return fut
 
 
 def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,

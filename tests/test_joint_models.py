@@ -182,9 +182,25 @@ def test_transition_applies_attitude_biases_with_the_right_sign():
     np.testing.assert_allclose((F @ y)[3:6], [jk.G0 * 1e-3, 0.0, 0.0], atol=1e-15)
 
 
+def _step_mean(x, idx, t_in):
+    """Reference: sample-weighted mean over each state step (samples idx[k-1] <= i < idx[k]),
+    non-finite values as zero, the sample itself for a step that holds none (the first)."""
+    Ni, N = len(t_in), len(idx)
+    step_of = np.searchsorted(idx, np.arange(Ni), side="right")
+    valid = step_of < N
+    cnt = np.bincount(step_of[valid], minlength=N)[:N].astype(float)
+    flat = x.reshape(Ni, -1)
+    out = np.zeros((N, flat.shape[1]))
+    for j in range(flat.shape[1]):
+        v = np.where(np.isfinite(flat[:, j]), flat[:, j], 0.0)
+        out[:, j] = np.bincount(step_of[valid], weights=v[valid], minlength=N)[:N]
+    out /= np.maximum(cnt, 1.0)[:, None]
+    out[cnt == 0] = flat[np.minimum(idx[cnt == 0], Ni - 1)]
+    return out.reshape((N,) + x.shape[1:])
+
+
 def test_fused_attitude_step_means_equal_the_per_sample_route():
-    from flightrecon.filters.joint import (_attitude_step_means, _state_grid, _step_mean,
-                                           attitude_jacobian)
+    from flightrecon.filters.joint import _attitude_step_means, _state_grid, attitude_jacobian
     from flightrecon.geo.kinematics import body_to_ned_matrix
 
     rng = np.random.default_rng(9)

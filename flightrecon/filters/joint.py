@@ -256,8 +256,9 @@ def attitude_jacobian(Cnb: np.ndarray, f_body: np.ndarray) -> np.ndarray:
 
 @nb.njit(cache=True, nogil=True)
 def _attitude_step_means(Cnb, fb, idx):
-    """Step means (as :func:`_step_mean`) of C_nb, C_nb diag(f) and :func:`attitude_jacobian`
-    in one pass over the input samples, without the per-sample intermediate arrays."""
+    """Step means of C_nb, C_nb diag(f) and :func:`attitude_jacobian` in one pass over the
+    input samples, without the per-sample intermediate arrays: over the samples i with
+    idx[k-1] <= i < idx[k] (held over step k), the sample idx[0] itself for the first step."""
     N = idx.shape[0]
     Ni = Cnb.shape[0]
     C_m = np.zeros((N, 3, 3))
@@ -291,44 +292,12 @@ def _attitude_step_means(Cnb, fb, idx):
     return C_m, S_m, J_m
 
 
-def _step_mean(x, idx, t_in):
-    """Mean of an input-grid quantity over each state step (the samples i with
-    idx[k-1] <= i < idx[k], held over step k; non-finite values count as zero); the sample
-    itself where a step holds none (the first)."""
-    Ni = len(t_in)
-    flat = np.ascontiguousarray(x.reshape(Ni, -1), dtype=float)
-    return _step_mean_kernel(flat, np.asarray(idx, np.int64)).reshape((len(idx),) + x.shape[1:])
-
-
-@nb.njit(cache=True, nogil=True)
-def _step_mean_kernel(flat, idx):
-    N = idx.shape[0]
-    m = flat.shape[1]
-    out = np.empty((N, m))
-    for j in range(m):
-        out[0, j] = flat[min(idx[0], flat.shape[0] - 1), j]
-    acc = np.empty(m)
-    for k in range(1, N):
-        a, b = idx[k - 1], idx[k]
-        if b <= a:
-            out[k] = flat[min(b, flat.shape[0] - 1)]
-            continue
-        acc[:] = 0.0
-        for i in range(a, b):
-            for j in range(m):
-                v = flat[i, j]
-                if np.isfinite(v):
-                    acc[j] += v
-        for j in range(m):
-            out[k, j] = acc[j] / (b - a)
-    return out
-
-
 def _nearest(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
-    """Index of the sample of sorted ``t`` nearest to each of ``tq``."""
-    j = np.clip(np.searchsorted(t, tq), 1, max(len(t) - 1, 1))
-    return np.where(np.abs(t[j - 1] - tq) <= np.abs(t[np.minimum(j, len(t) - 1)] - tq),
-                    j - 1, np.minimum(j, len(t) - 1))
+    """Index of the sample of sorted ``t`` nearest to each of ``tq`` (a tie goes to the later
+    sample); the state step of a measurement, the input sample of a fix."""
+    j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)
+    p = np.clip(j - 1, 0, len(t) - 1)
+    return np.where(np.abs(tq - t[p]) < np.abs(tq - t[j]), p, j)
 
 
 def _decimate_mask(t: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -385,10 +354,7 @@ class _MeasBuilder:
         ok = cat["ok"].astype(bool) & (cat["t"] >= T[0] - 0.5 * (T[1] - T[0] if N > 1 else 1)) & (
             cat["t"] <= T[-1] + 0.5 * (T[-1] - T[-2] if N > 1 else 1))
         t = cat["t"][ok]
-        step = np.clip(np.searchsorted(T, t), 0, N - 1)
-        prev = np.clip(step - 1, 0, N - 1)
-        closer = np.abs(t - T[prev]) < np.abs(t - T[step])
-        step = np.where(closer, prev, step)
+        step = _nearest(T, t)
         order = np.flatnonzero(ok)[np.lexsort((t, step))]
         step = np.sort(step, kind="stable")
         start = np.searchsorted(step, np.arange(N + 1), side="left")
@@ -525,9 +491,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     t_in = inp.t_in
 
     def step_of(t):
-        s = np.clip(np.searchsorted(T, t), 0, len(T) - 1)
-        p = np.clip(s - 1, 0, len(T) - 1)
-        return np.where(np.abs(t - T[p]) < np.abs(t - T[s]), p, s)
+        return _nearest(T, t)
 
     def linear_ned(source, t, comp_vals, sd, kind="pos", ecef=None):
         """NED components of a position (given in ECEF) or a velocity, with tau terms."""

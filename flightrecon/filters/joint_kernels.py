@@ -262,14 +262,6 @@ def add_process_noise(P, k, dt, Cen, climb, qv_extra, q):
 
 
 @nb.njit(cache=True, nogil=True)
-def process_noise(k, dt, Cen, climb, qv_extra, q):
-    """Process-noise covariance Q_k (see :func:`add_process_noise`)."""
-    Q = np.zeros((N_STATE, N_STATE))
-    add_process_noise(Q, k, dt, Cen, climb, qv_extra, q)
-    return Q
-
-
-@nb.njit(cache=True, nogil=True)
 def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
     """h(x) and its gradient for scalar measurement j at step k (state x at the step).
 
@@ -425,8 +417,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
     hnz = np.empty(n, dtype=np.int64)
     for k in range(N):
         if k > 0:
-            transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
-            _sparse_rows(F, cols, vals, cnt)
+            _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
             _sparse_matvec(cols, vals, cnt, x, xn)
             for i in range(n):
                 x[i] = xn[i]
@@ -486,6 +477,22 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
 
 
 @nb.njit(cache=True, nogil=True)
+def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
+    """F_k into ``F`` and its row-compressed copy (:func:`transition_into`, :func:`_sparse_rows`)."""
+    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba)
+    _sparse_rows(F, cols, vals, cnt)
+
+
+@nb.njit(cache=True, nogil=True)
+def _predicted_at(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, buf):
+    """P_p[k]: the stored one if the forward pass kept them, else recomputed into ``buf``."""
+    if Pp.shape[0] > 0:
+        return Pp[k]
+    _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, buf)
+    return buf
+
+
+@nb.njit(cache=True, nogil=True)
 def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, out):
     """P_p[k] = F_k P_f[k-1] F_k^T + Q_k into ``out``, recomputed with the same operations as
     :func:`forward` (``cols``/``vals``/``cnt``: F_k row-compressed), for a forward pass that
@@ -524,12 +531,11 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
         if t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
             rate[j] = 0.0
             continue
-        rd = 0.0
+        rd = 0.0  # H holds the gradient (for LINEAR, the measurement's row of mH)
         for m in range(3):
             s = 0.0
             for i in range(3):
-                g = mH[mrow[j], IP + i] if t == LINEAR else H[IP + i]
-                s += g * Cen[k, i, m]
+                s += H[IP + i] * Cen[k, i, m]
             rd += s * x[IV + m]
         rate[j] = rd
 
@@ -567,14 +573,9 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     no_hph = np.empty(0)
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            transition_into(F, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
-            _sparse_rows(F, cols, vals, cnt)
-            if Pp.shape[0] > 0:
-                Pk1 = Pp[k + 1]
-            else:
-                _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
-                               Pbuf)
-                Pk1 = Pbuf
+            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
+            Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
+                                Pbuf)
             for i in range(n):
                 d[i] = xs[k + 1, i] - xp[k + 1, i]
             if not _cholesky_solve(Pk1, d, L, y):
@@ -628,8 +629,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
     Ps = Pf[N - 1].copy()
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            transition_into(F, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
-            _sparse_rows(F, cols, vals, cnt)
+            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
             # A = F P_f[k] (row-compressed F); the gain G = P_f F^T P_p^-1, i.e. G^T = P_p^-1 A
             for i in range(n):
                 for b in range(n):
@@ -637,12 +637,8 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
                     for c in range(cnt[i]):
                         v += vals[i, c] * Pf[k, cols[i, c], b]
                     A[i, b] = v
-            if Pp.shape[0] > 0:
-                Pk1 = Pp[k + 1]
-            else:
-                _predicted_cov(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
-                               Pbuf)
-                Pk1 = Pbuf
+            Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
+                                Pbuf)
             if _cholesky_factor(Pk1, L):
                 _cholesky_solve_columns(L, A, GT)     # GT = P_p^-1 A = G^T
             else:
