@@ -48,6 +48,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flightrecon.filters.smallmat import cholesky_factor, cholesky_solve_columns
+
 N_STATE = 22
 IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT = 0, 3, 6, 8, 11, 12, 13, 14, 15, 16, 17, 20
 G0 = 9.80665
@@ -177,61 +179,14 @@ def _sparse_rmatvec(cols, vals, cnt, y, out):
 
 
 @nb.njit(cache=True, nogil=True)
-def _cholesky_factor(A, L):
-    """Lower Cholesky factor of a symmetric positive-definite A into L; False if A is not
-    numerically positive definite."""
-    n = A.shape[0]
-    for j in range(n):
-        s = A[j, j]
-        for m in range(j):
-            s -= L[j, m] * L[j, m]
-        if not s > 0.0:
-            return False
-        dj = np.sqrt(s)
-        L[j, j] = dj
-        for i in range(j + 1, n):
-            s = A[i, j]
-            for m in range(j):
-                s -= L[i, m] * L[j, m]
-            L[i, j] = s / dj
-    return True
-
-
-@nb.njit(cache=True, nogil=True)
-def _cholesky_solve_columns(L, B, X):
-    """X = (L L^T)^{-1} B: forward then back substitution, all columns of B at once (the row
-    operations run along contiguous rows, so they vectorise)."""
-    n = L.shape[0]
-    nc = B.shape[1]
-    for i in range(n):
-        for c in range(nc):
-            X[i, c] = B[i, c]
-        for m in range(i):
-            lim = L[i, m]
-            for c in range(nc):
-                X[i, c] -= lim * X[m, c]
-        inv = 1.0 / L[i, i]
-        for c in range(nc):
-            X[i, c] *= inv
-    for i in range(n - 1, -1, -1):
-        for m in range(i + 1, n):
-            lmi = L[m, i]
-            for c in range(nc):
-                X[i, c] -= lmi * X[m, c]
-        inv = 1.0 / L[i, i]
-        for c in range(nc):
-            X[i, c] *= inv
-
-
-@nb.njit(cache=True, nogil=True)
 def _cholesky_solve(A, b, L, y):
     """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
 
     Returns False (and leaves y undefined) if A is not numerically positive definite.
     """
-    if not _cholesky_factor(A, L):
+    if not cholesky_factor(A, L, 0.0):
         return False
-    _cholesky_solve_columns(L, b.reshape((-1, 1)), y.reshape((-1, 1)))
+    cholesky_solve_columns(L, b.reshape((-1, 1)), y.reshape((-1, 1)))
     return True
 
 
@@ -639,8 +594,8 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
                     A[i, b] = v
             Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
                                 Pbuf)
-            if _cholesky_factor(Pk1, L):
-                _cholesky_solve_columns(L, A, GT)     # GT = P_p^-1 A = G^T
+            if cholesky_factor(Pk1, L, 0.0):
+                cholesky_solve_columns(L, A, GT)      # GT = P_p^-1 A = G^T
             else:
                 GT[:, :] = np.linalg.solve(Pk1, A)
             for i in range(n):

@@ -105,6 +105,7 @@ import numba as nb
 import numpy as np
 
 from flightrecon.constants import WGS84_A, WGS84_E2
+from flightrecon.filters.smallmat import cholesky_factor
 
 MODEL_AIRSPEED = 0
 MODEL_DOPPLER = 1
@@ -1087,18 +1088,8 @@ def _chol_solve_rows(P, Cr, L, out) -> bool:
     that reports singularity.
     """
     n = P.shape[0]
-    for j in range(n):
-        s = P[j, j]
-        for l in range(j):
-            s -= L[j, l] * L[j, l]
-        if not s > 1e-14 * abs(P[j, j]) or not s > 0.0:
-            return False
-        L[j, j] = np.sqrt(s)
-        for i in range(j + 1, n):
-            s = P[i, j]
-            for l in range(j):
-                s -= L[i, l] * L[j, l]
-            L[i, j] = s / L[j, j]
+    if not cholesky_factor(P, L, 1e-14):
+        return False
     for r in range(Cr.shape[0]):  # P z = Cr[r]^T (P symmetric), out[r] = z^T
         for i in range(n):  # L y = b
             s = Cr[r, i]
