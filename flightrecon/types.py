@@ -20,13 +20,26 @@ class Position:
     are published); code that needs ellipsoidal height says so.  ``runway_true_deg`` is, for an
     airfield, the true direction of the runway used (the take-off or landing direction, from the
     runway designator or a database; ``None`` when unknown): it fixes the heading reference
-    on the ground roll (docs/joint.md).
+    on the ground roll (docs/joint.md).  ``threshold_lat_deg`` / ``threshold_lon_deg`` locate
+    the threshold of that runway (where the take-off roll begins and the landing runway
+    starts; from the aeronautical information publication or a runway database); given with
+    ``runway_true_deg``, they place the start of the take-off roll and the touchdown along
+    the runway (docs/joint.md).
     """
 
     lat_deg: float
     lon_deg: float
     elev_m: float = 0.0
     runway_true_deg: float | None = None
+    threshold_lat_deg: float | None = None
+    threshold_lon_deg: float | None = None
+
+    @property
+    def threshold(self) -> tuple[float, float] | None:
+        """(lat, lon) of the runway threshold, or ``None`` when not given."""
+        if self.threshold_lat_deg is None or self.threshold_lon_deg is None:
+            return None
+        return (self.threshold_lat_deg, self.threshold_lon_deg)
 
     def as_tuple(self) -> tuple[float, float, float]:
         return (self.lat_deg, self.lon_deg, self.elev_m)

@@ -84,8 +84,8 @@ def test_sidecar_format(tmp_path):
     for t in ("departure", "arrival", "station"):
         assert set(doc[t]) == {"lat_deg", "lon_deg", "elev_m"}
     assert doc["station"]["lat_deg"] == pytest.approx(r.meta.station.lat_deg, abs=1e-12)
-    # airfields of a take-off and a landing carry the runway's true direction (as a runway
-    # database would), read back by the ingest side unchanged
+    # airfields of a take-off and a landing carry the runway's true direction and threshold
+    # (as a runway database would), read back by the ingest side unchanged
     from flightrecon.ingest.sidecar import load_sidecar
 
     c = simulate("circuit", seed=0, duration_s=900.0)
@@ -93,10 +93,21 @@ def test_sidecar_format(tmp_path):
     doc = tomllib.loads((tmp_path / "c.meta.toml").read_text())
     back = load_sidecar(tmp_path / "c.meta.toml").meta
     for t in ("departure", "arrival"):
-        assert set(doc[t]) == {"lat_deg", "lon_deg", "elev_m", "runway_true_deg"}
-        assert getattr(back, t).runway_true_deg == pytest.approx(
-            getattr(c.meta, t).runway_true_deg, abs=1e-12)
+        assert set(doc[t]) == {"lat_deg", "lon_deg", "elev_m", "runway_true_deg",
+                               "threshold_lat_deg", "threshold_lon_deg"}
+        for k in ("runway_true_deg", "threshold_lat_deg", "threshold_lon_deg"):
+            assert getattr(getattr(back, t), k) == pytest.approx(getattr(getattr(c.meta, t), k),
+                                                                 abs=1e-12)
     assert c.meta.departure.runway_true_deg == pytest.approx(160.0)
+    # the circuit's take-off roll starts at the threshold, ARP_OFFSET_M before the reference
+    from flightrecon.geo.frames import TangentPlane
+    from flightrecon.sim.scenarios import ARP_OFFSET_M
+
+    d = c.meta.departure
+    e, n, _ = TangentPlane(d.lat_deg, d.lon_deg).forward(d.threshold_lat_deg,
+                                                         d.threshold_lon_deg, 0.0)
+    assert float(np.hypot(e, n)) == pytest.approx(ARP_OFFSET_M, abs=0.01)
+    assert np.degrees(np.arctan2(-e, -n)) % 360 == pytest.approx(160.0, abs=1e-6)
     sensors = json.loads((tmp_path / "s.sensors.json").read_text())
     assert sensors["airdata_error_gm"]["tau_s"] == 360.0
     import pandas as pd
@@ -203,4 +214,37 @@ def test_a_station_has_no_runway(tmp_path):
     p = tmp_path / "x.meta.toml"
     p.write_text("[station]\nlat_deg = 40.0\nlon_deg = 50.0\nrunway_true_deg = 10.0\n")
     with pytest.raises(MetadataError, match="no runway"):
+        load_sidecar(p)
+
+
+@pytest.mark.parametrize("body, words", [
+    ("runway_true_deg = 160.0\nthreshold_lat_deg = 40.005\n", "threshold_lon_deg is missing"),
+    ("threshold_lat_deg = 40.005\nthreshold_lon_deg = 50.0\n", "needs the runway's direction"),
+    ("runway_true_deg = 160.0\nthreshold_lat_deg = 40.5\nthreshold_lon_deg = 50.0\n",
+     "55.5 km from the airfield reference point"),
+    ("runway_true_deg = 160.0\nthreshold_lat_deg = 95.0\nthreshold_lon_deg = 50.0\n",
+     "outside [-90, 90]"),
+])
+def test_bad_runway_threshold_is_a_metadata_error(tmp_path, body, words):
+    from flightrecon.errors import MetadataError
+    from flightrecon.ingest.sidecar import load_sidecar
+
+    p = tmp_path / "x.meta.toml"
+    p.write_text("[arrival]\nlat_deg = 40.0\nlon_deg = 50.0\n" + body)
+    with pytest.raises(MetadataError) as exc:
+        load_sidecar(p)
+    assert words in str(exc.value) and "[arrival]" in str(exc.value)
+
+
+def test_runway_threshold_is_read(tmp_path):
+    from flightrecon.ingest.sidecar import load_sidecar
+
+    p = tmp_path / "x.meta.toml"
+    p.write_text("[departure]\nlat_deg = 40.0\nlon_deg = 50.0\nrunway_true_deg = 0.0\n"
+                 "threshold_lat_deg = 39.993\nthreshold_lon_deg = 50.0\n")
+    sc = load_sidecar(p)
+    assert sc.meta.departure.threshold == (39.993, 50.0) and not sc.warnings
+    p.write_text("[station]\nlat_deg = 40.0\nlon_deg = 50.0\n"
+                 "threshold_lat_deg = 39.993\nthreshold_lon_deg = 50.0\n")
+    with pytest.raises(Exception, match="no runway"):
         load_sidecar(p)

@@ -69,6 +69,9 @@ class JointNoise:
     radar_elevation_deg: float = 0.3
     endpoint_h_m: float = 1500.0             # lift-off / touchdown point vs airfield reference
     endpoint_v_m: float = 30.0
+    touchdown_m: float = 400.0               # touchdown distance past the runway threshold
+    touchdown_sd_m: float = 150.0            # its dispersion
+    roll_start_sd_m: float = 100.0           # start of the take-off roll vs the threshold
     ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
     runway_halfwidth_m: float = 25.0         # cross-track offset from the runway centreline
     doppler_gs_mps: float = 0.5              # Doppler ground-speed noise (used at airdata rate)
@@ -145,12 +148,29 @@ class JointRun:
     clock_offsets_s: dict[str, tuple[float, float]]
     noise_scale: dict[str, float]
     iterations: list[dict[str, Any]]
+    end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
+    roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
 
 
 def enu_to_ecef_matrix(lat_deg: float, lon_deg: float) -> np.ndarray:
     """(3, 3) rotation whose columns are the east, north, up unit vectors in ECEF."""
     C = ned_to_ecef_matrix(lat_deg, lon_deg)[0]
     return np.column_stack([C[:, 1], C[:, 0], -C[:, 2]])
+
+
+@dataclass(frozen=True)
+class TakeoffRoll:
+    """The take-off roll found in the recorded data (:func:`takeoff_roll`).
+
+    Attributes
+    ----------
+    start_t : start of the roll [s], NaN where not found
+    rest_t : (first, last) time [s] of the rest before it (the aircraft lined up), NaN each where
+        the aircraft was not seen at rest
+    """
+
+    start_t: float = np.nan
+    rest_t: tuple[float, float] = (np.nan, np.nan)
 
 
 @dataclass(frozen=True)
@@ -176,6 +196,9 @@ class JointInputs:
     f_body_g : measured specific force in body FRD axes [n_long, n_lat, -n_norm] (Ni, 3) [g]
     runway_rad : true directions of the departure and arrival runways [rad], ``None`` each
         where unknown
+    thresholds : (lat, lon, h_ellipsoidal) of the departure and arrival runway thresholds,
+        ``None`` each where unknown (used only with the runway's direction)
+    roll : the take-off roll and the rest before it (:func:`takeoff_roll`)
     """
 
     t_in: np.ndarray
@@ -198,6 +221,134 @@ class JointInputs:
     drift_rad: np.ndarray | None = None
     f_body_g: np.ndarray | None = None
     runway_rad: tuple[float | None, float | None] = (None, None)
+    thresholds: tuple[tuple[float, float, float] | None,
+                      tuple[float, float, float] | None] = (None, None)
+    roll: TakeoffRoll = field(default_factory=TakeoffRoll)
+
+
+def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
+                 tas: np.ndarray, liftoff_t: float, wind_ne: np.ndarray | None = None,
+                 rest_mps: float = 3.0, max_rolling_mps: float = 10.0,
+                 settle_s: float = 10.0, v_lo_mps: float | None = None) -> TakeoffRoll:
+    """Start of the take-off roll, and the rest before it, from the recorded data alone.
+
+    The ground speed is integrated backwards from lift-off, v(t) = v_lo - int_t^t_lo a dt,
+    with a the measured kinematic acceleration along the recorded heading and v_lo the
+    along-track ground speed at lift-off: ``v_lo_mps`` where given (the smoother passes its
+    smoothed velocity), else the recorded airspeed minus the recorded head wind (where
+    given).  The roll starts
+    at the last sample with v <= ``rest_mps``; a record whose aircraft never slows that much
+    (a rolling take-off from the taxiway) starts it at the end of the slowest stretch, if that
+    is below ``max_rolling_mps``.  A speed error dv moves the time by dv / a but the position only by
+    about v dv / a (metres: the aircraft is slow there).  The rest is the stretch of v <=
+    ``rest_mps`` that ends at the roll start, less its last ``settle_s`` (the first metres of
+    the roll, where the detection lags).
+
+    Returns
+    -------
+    TakeoffRoll
+        NaN times where the record has no ground roll or no rest is found.
+    """
+    if not np.isfinite(liftoff_t):
+        return TakeoffRoll()
+    i_lo = int(np.searchsorted(t_in, liftoff_t)) - 1
+    if i_lo < 1 or not np.isfinite(tas[i_lo]):
+        return TakeoffRoll()
+    psi = np.where(np.isfinite(heading_rad[:i_lo + 1]), heading_rad[:i_lo + 1], 0.0)
+    a = acc_ned[:i_lo + 1, 0] * np.cos(psi) + acc_ned[:i_lo + 1, 1] * np.sin(psi)
+    a = np.where(np.isfinite(a), a, 0.0)
+    if v_lo_mps is not None:
+        v_lo = float(v_lo_mps)
+    else:
+        v_lo = float(tas[i_lo])
+        if wind_ne is not None and np.all(np.isfinite(wind_ne[i_lo])):
+            v_lo += float(wind_ne[i_lo, 0] * np.cos(psi[i_lo])
+                          + wind_ne[i_lo, 1] * np.sin(psi[i_lo]))
+    dv = 0.5 * (a[1:] + a[:-1]) * np.diff(t_in[:i_lo + 1])   # speed gained over each interval
+    v = v_lo - np.r_[np.cumsum(dv[::-1])[::-1], 0.0]
+    slow = v <= rest_mps
+    if not slow.any():
+        # the end of the slowest stretch (within 0.5 m/s of the minimum)
+        i_min = int(np.flatnonzero(v <= v.min() + 0.5)[-1])
+        return TakeoffRoll(float(t_in[i_min]) if v.min() <= max_rolling_mps else np.nan)
+    i_start = int(np.flatnonzero(slow)[-1])
+    fast = np.flatnonzero(~slow[:i_start + 1])
+    i_rest = int(fast[-1]) + 1 if len(fast) else 0
+    t_end = t_in[i_start] - settle_s
+    rest = (float(t_in[i_rest]), float(t_end)) if t_end > t_in[i_rest] else (np.nan, np.nan)
+    return TakeoffRoll(float(t_in[i_start]), rest)
+
+
+def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None) -> TakeoffRoll:
+    """:func:`takeoff_roll` with the along-track component of the nominal (smoothed) ground
+    velocity ``vnom`` (N, 3) at lift-off on the state grid ``T`` as the lift-off speed;
+    ``inp.roll`` without a nominal or without a roll."""
+    roll = inp.roll
+    if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):
+        return roll
+    t_in = inp.t_in
+    k_lo = int(_nearest(T, np.array([inp.liftoff_t]))[0])
+    psi_lo = inp.heading_rad[max(int(np.searchsorted(t_in, inp.liftoff_t)) - 1, 0)]
+    if not np.isfinite(psi_lo):
+        return roll
+    return takeoff_roll(t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
+                        v_lo_mps=float(vnom[k_lo, 0] * np.cos(psi_lo)
+                                       + vnom[k_lo, 1] * np.sin(psi_lo)))
+
+
+def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
+                        dist_m: float) -> tuple[float, float, float]:
+    """(lat, lon, h) ``dist_m`` down the runway from its threshold ``thr``."""
+    from flightrecon.geo.frames import TangentPlane
+
+    lat, lon, _ = TangentPlane(float(thr[0]), float(thr[1]), 0.0).inverse(
+        dist_m * np.sin(runway_rad), dist_m * np.cos(runway_rad), 0.0)
+    return float(lat), float(lon), float(thr[2])
+
+
+def end_points(inp: JointInputs, nz: JointNoise,
+               roll: TakeoffRoll | None = None) -> list[dict[str, Any]]:
+    """The end-point constraints: where and when the record is tied to its airfields.
+
+    With a runway's threshold and direction known: the take-off roll starts at the departure
+    threshold (along-runway sd ``roll_start_sd_m``) at the roll's start (:func:`takeoff_roll`),
+    and the
+    touchdown is ``touchdown_m`` past the arrival threshold (sd ``touchdown_sd_m``); across
+    the runway the centreline holds (``runway_halfwidth_m``). Otherwise the airfield reference
+    point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every
+    horizontal direction. Vertically the airfield elevation, ``endpoint_v_m``.  ``roll``
+    replaces ``inp.roll`` (the smoother refines it with its smoothed lift-off speed).
+
+    Returns
+    -------
+    list of dict
+        Keys ``which`` ("departure" / "arrival"), ``model`` ("runway" / "reference"),
+        ``t_s``, ``point`` (lat, lon, h_ellipsoidal: the constrained point's mean), ``runway_rad``
+        and ``sd_m`` (along, cross, vertical) for the runway model, (h, h, v) otherwise.
+    """
+    out = []
+    t_in = inp.t_in
+    for which, pos, thr, rw in (("departure", inp.departure, inp.thresholds[0], inp.runway_rad[0]),
+                                ("arrival", inp.arrival, inp.thresholds[1], inp.runway_rad[1])):
+        if pos is None:
+            continue
+        t_run = (inp.roll if roll is None else roll).start_t if which == "departure" \
+            else inp.touchdown_t
+        if thr is not None and rw is not None and np.isfinite(t_run):
+            dist, sd = ((0.0, nz.roll_start_sd_m) if which == "departure"
+                        else (nz.touchdown_m, nz.touchdown_sd_m))
+            out.append({"which": which, "model": "runway", "t_s": float(t_run),
+                        "point": _along_runway_point(thr, rw, dist), "runway_rad": float(rw),
+                        "sd_m": (sd, nz.runway_halfwidth_m, nz.endpoint_v_m)})
+            continue
+        if which == "departure":
+            tt = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]
+        else:
+            tt = inp.touchdown_t if np.isfinite(inp.touchdown_t) else t_in[-1]
+        out.append({"which": which, "model": "reference", "t_s": float(tt), "point": tuple(pos),
+                    "runway_rad": None,
+                    "sd_m": (nz.endpoint_h_m, nz.endpoint_h_m, nz.endpoint_v_m)})
+    return out
 
 
 def _state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -477,13 +628,15 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
                        Cnb_T: np.ndarray, clock: dict[str, float],
                        static: _MeasBuilder | None = None, pnom: np.ndarray | None = None,
-                       vnom: np.ndarray | None = None) -> Measurements:
+                       vnom: np.ndarray | None = None,
+                       roll: TakeoffRoll | None = None) -> Measurements:
     """Every source as scalar measurements at its own time (recorder time base).
 
     ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
     end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
     positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
-    and are rebuilt on each call.
+    and are rebuilt on each call.  ``roll`` is :func:`refined_roll` (computed here if not
+    given).
     """
     nz = settings.noise
     b = (static if static is not None else static_measurements(inp, settings, T)).copy()
@@ -547,15 +700,37 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         if "elevation_rad" in rd.columns:
             b.add("radar", jk.ELEVATION, tr, rd["elevation_rad"].to_numpy(),
                   np.radians(nz.radar_elevation_deg) ** 2)
-    # end points: departure at lift-off (or first sample), arrival at touchdown (or last)
-    sd_end = (nz.endpoint_h_m, nz.endpoint_h_m, nz.endpoint_v_m)
-    for pos, tt in ((inp.departure, inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]),
-                    (inp.arrival, inp.touchdown_t if np.isfinite(inp.touchdown_t) else t_in[-1])):
-        if pos is None:
+    # the take-off roll, with the smoothed lift-off speed once there is one (the recorded
+    # airspeed carries the head wind); at rest before it (lined up): zero north and east velocity
+    if roll is None:
+        roll = refined_roll(inp, T, vnom)
+    r0, r1 = roll.rest_t
+    if np.isfinite(r0):
+        tt = t_in[_on_ground_mask(inp, settings) & (t_in >= r0) & (t_in <= r1)]
+        for i in range(2):
+            H = np.zeros((len(tt), n))
+            H[:, jk.IV + i] = 1.0
+            b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+    # end points (end_points): the runway model along / across the runway and vertically,
+    # the reference model in north, east, down
+    for ep in end_points(inp, nz, roll):
+        lat, lon, h = ep["point"]
+        pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
+        tt = np.array([ep["t_s"]])
+        if ep["model"] == "reference":
+            linear_ned("endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
             continue
-        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-        linear_ned("endpoint", np.array([tt]), None, sd_end, "pos",
-                   np.array([[float(ex), float(ey), float(ez)]]))
+        k = step_of(tt)[0]
+        tau = tt[0] - T[k]
+        psi = ep["runway_rad"]
+        Ca = ned_to_ecef_matrix(lat, lon)[0]
+        for u, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
+                          [0.0, 0.0, 1.0]), ep["sd_m"]):
+            u = np.asarray(u)
+            H = np.zeros((1, n))
+            H[0, jk.IP:jk.IP + 3] = Ca @ u
+            H[0, jk.IV:jk.IV + 3] = u * tau
+            b.add("endpoint", jk.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe)
     return b.build()
 
 
@@ -598,8 +773,9 @@ def _nominal_trajectory(inp: JointInputs, idx: np.ndarray):
     ellipsoid (:func:`flightrecon.geo.navframe.integrate_local_level`, valid on flights of any
     length), heights from pressure altitude; then tied to the data that fix position: to the
     GNSS fixes where there are any (the differences at the fixes, interpolated linearly in time;
-    the track between fixes keeps the shape of the dead reckoning), otherwise to the arrival
-    point at touchdown (a correction growing linearly from lift-off, as the DR+linear baseline).
+    the track between fixes keeps the shape of the dead reckoning), otherwise to the end points
+    of :func:`end_points` (started at the departure one; a correction growing linearly from it
+    to the arrival one, as the DR+linear baseline).
     Only the starting point of the Gauss-Newton iterations: it decides how many are needed,
     not where they converge.
     """
@@ -617,8 +793,10 @@ def _nominal_trajectory(inp: JointInputs, idx: np.ndarray):
     if len(g):
         gok = (np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
                & np.isfinite(g["t_s"].to_numpy(float)))
-    ref = inp.departure
-    t_ref = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t[0]
+    ends = {ep["which"]: ep for ep in end_points(inp, JointNoise())}
+    ref, t_ref = None, t[0]
+    if "departure" in ends:
+        ref, t_ref = ends["departure"]["point"], ends["departure"]["t_s"]
     if ref is None and gok.any():
         i0 = int(np.flatnonzero(gok)[0])
         ref = (float(g["lat_deg"].iloc[i0]), float(g["lon_deg"].iloc[i0]),
@@ -649,11 +827,11 @@ def _nominal_trajectory(inp: JointInputs, idx: np.ndarray):
         okh = np.isfinite(hg)
         if okh.any():
             h = h + np.interp(T, tg[okh], hg[okh] - np.interp(tg[okh], T, h))
-    elif inp.arrival is not None and np.isfinite(inp.touchdown_t):
-        t_end = inp.touchdown_t
+    elif "arrival" in ends and np.isfinite(inp.touchdown_t):
+        t_end, (lat_end, lon_end, _) = ends["arrival"]["t_s"], ends["arrival"]["point"]
         k_end = int(np.clip(np.searchsorted(T, t_end), 0, len(T) - 1))
-        dlat = inp.arrival[0] - lat[k_end]
-        dlon = (inp.arrival[1] - lon[k_end] + 180.0) % 360.0 - 180.0
+        dlat = lat_end - lat[k_end]
+        dlon = (lon_end - lon[k_end] + 180.0) % 360.0 - 180.0
         frac = np.clip((T - t_ref) / max(t_end - t_ref, 1e-9), 0.0, 1.0)
         lat = lat + frac * dlat
         lon = lon + frac * dlon
@@ -736,7 +914,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
         hnom = h - inp.field_h
         climb = np.abs(np.diff(h, prepend=h[0]))
-        meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom)
+        roll = refined_roll(inp, T, vnom)
+        meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom, roll)
         groups = _noise_groups(meas)
         r = meas.r * np.where(groups >= 0, scale[np.maximum(groups, 0)], 1.0)
         if weights is None or len(weights) != len(meas.z):
@@ -851,7 +1030,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     clock_offsets_s={k: (clock[k], clock_sd[k]) for k in clock},
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
-                    iterations=history)
+                    iterations=history, end_points=end_points(inp, nz, roll), roll=roll)
 
 
 def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:

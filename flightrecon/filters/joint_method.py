@@ -9,7 +9,7 @@ per-source innovation statistics.
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any
 
 import numba as nb
@@ -18,7 +18,7 @@ import pandas as pd
 
 from flightrecon.filters import joint_kernels as jk
 from flightrecon.filters.joint import (SOURCES, JointInputs, JointRun, JointSettings,
-                                       smooth_joint, source_report)
+                                       smooth_joint, source_report, takeoff_roll)
 from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
@@ -87,7 +87,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         return None if p is None else (p.lat_deg, p.lon_deg, float(msl_to_ellipsoid(p.elev_m, N_und)))
 
     ph = clean.phases
-    return JointInputs(
+    inp = JointInputs(
         t_in=g["t_s"].to_numpy(float), acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
         heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
         gnss=gnss, radar=radar, station=pos(meta.station), departure=pos(meta.departure),
@@ -100,7 +100,14 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         f_body_g=np.c_[col("n_long_g"), col("n_lat_g"), -col("n_norm_g")],
         runway_rad=tuple(None if p is None or p.runway_true_deg is None
                          else float(np.radians(p.runway_true_deg))
+                         for p in (meta.departure, meta.arrival)),
+        thresholds=tuple(None if p is None or p.threshold is None
+                         else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
                          for p in (meta.departure, meta.arrival)))
+    if not (ph is not None and ph.starts_airborne):
+        inp = replace(inp, roll=takeoff_roll(
+            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne))
+    return inp
 
 
 @nb.njit(cache=True, nogil=True)
@@ -264,6 +271,12 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "corrections": _corrections(run),
         "clock_offsets_s": {k: {"value": o, "sd": sd} for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
+        "end_points": [{"which": e["which"], "model": e["model"], "t_s": e["t_s"],
+                        "lat_deg": e["point"][0], "lon_deg": e["point"][1],
+                        "runway_true_deg": (None if e["runway_rad"] is None
+                                            else float(np.degrees(e["runway_rad"]) % 360.0)),
+                        "sd_m": list(e["sd_m"])} for e in run.end_points],
+        "takeoff_roll": {"start_t_s": run.roll.start_t, "rest_t_s": list(run.roll.rest_t)},
         "sources": sources,
         "settings": asdict(settings),
         "warnings": warnings,

@@ -17,6 +17,8 @@ Format (docs/schema.md, "Metadata"; the simulator writes the same)::
     lon_deg = 50.05
     elev_m = 3.0
     runway_true_deg = 160.0             # optional: true direction of the runway used
+    threshold_lat_deg = 40.47           # optional, with runway_true_deg: that runway's
+    threshold_lon_deg = 50.04           #   threshold (start of the roll, landing threshold)
     [arrival]                           # same keys
     [station]                           # same keys (ground radar)
     [files]                             # optional companions, relative to the sidecar's folder
@@ -40,6 +42,8 @@ from datetime import UTC, datetime
 from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import Any
 
+import numpy as np
+
 from flightrecon.errors import MetadataError
 from flightrecon.types import FlightMeta, Position
 
@@ -56,7 +60,10 @@ __all__ = [
 LOG_SUFFIXES = (".csv", ".txt", ".tsv", ".parquet", ".pq", ".parq")
 FLIGHT_KEYS = {"aircraft_id", "flight_id", "epoch_utc", "gnss_alt_datum", "baro_datum",
                "geoid_undulation_m", "gnss_lever_arm_m", "qnh_departure_hpa", "qnh_arrival_hpa"}
-POSITION_KEYS = ("lat_deg", "lon_deg", "elev_m", "runway_true_deg")
+POSITION_KEYS = ("lat_deg", "lon_deg", "elev_m", "runway_true_deg", "threshold_lat_deg",
+                 "threshold_lon_deg")
+THRESHOLD_MAX_M = 10_000.0
+"""Largest distance of a runway threshold from its airfield reference point (a typo guard)."""
 FILE_KEYS = ("gnss", "radar", "mapping")
 GNSS_DATUMS = ("ellipsoid", "msl")
 BARO_DATUMS = ("pressure", "qnh", "qfe")
@@ -228,6 +235,7 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
                     raise MetadataError(f"[{name}] runway_true_deg must be a number in [0, 360) "
                                         f"deg, got {rw!r}", file=file)
                 pos = dataclasses.replace(pos, runway_true_deg=float(rw))
+            pos = _threshold(t, pos, name, file)
             kw[name] = pos
     files: dict[str, Path] = {}
     if "files" in doc:
@@ -244,6 +252,35 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
             extra[k] = v
     meta = FlightMeta(**kw, extra=extra)
     return Sidecar(path=file, meta=meta, files=files, warnings=tuple(warns))
+
+
+def _threshold(t: dict[str, Any], pos: Position, name: str, file: str) -> Position:
+    """``pos`` with the runway threshold of table ``[name]`` (both coordinates or neither; the
+    runway's direction must be given too; within :data:`THRESHOLD_MAX_M` of the reference)."""
+    keys = ("threshold_lat_deg", "threshold_lon_deg")
+    given = [k in t for k in keys]
+    if not any(given):
+        return pos
+    if name == "station":
+        raise MetadataError("[station] threshold_lat_deg/threshold_lon_deg: a radar station has "
+                            "no runway", file=file)
+    if not all(given):
+        missing = keys[given.index(False)]
+        raise MetadataError(f"[{name}] a runway threshold needs both threshold_lat_deg and "
+                            f"threshold_lon_deg ({missing} is missing)", file=file)
+    if pos.runway_true_deg is None:
+        raise MetadataError(f"[{name}] a runway threshold needs the runway's direction "
+                            "(runway_true_deg)", file=file)
+    thr = _position(t[keys[0]], t[keys[1]], pos.elev_m, f"[{name}] threshold", file)
+    from flightrecon.geo.frames import TangentPlane
+
+    e, n, _ = TangentPlane(pos.lat_deg, pos.lon_deg).forward(thr.lat_deg, thr.lon_deg, 0.0)
+    d = float(np.hypot(e, n))
+    if d > THRESHOLD_MAX_M:
+        raise MetadataError(f"[{name}] the runway threshold is {d / 1000:.1f} km from the "
+                            f"airfield reference point (more than {THRESHOLD_MAX_M / 1000:.0f} km: "
+                            "a wrong coordinate?)", file=file)
+    return dataclasses.replace(pos, threshold_lat_deg=thr.lat_deg, threshold_lon_deg=thr.lon_deg)
 
 
 def _flight_value(k: str, v: Any, file: str) -> Any:

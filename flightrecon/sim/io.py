@@ -69,6 +69,9 @@ def meta_toml(meta: FlightMeta) -> str:
                   f"lon_deg = {_toml_value(p.lon_deg)}", f"elev_m = {_toml_value(p.elev_m)}"]
         if p.runway_true_deg is not None:
             lines.append(f"runway_true_deg = {_toml_value(p.runway_true_deg)}")
+        if p.threshold is not None:
+            lines += [f"threshold_lat_deg = {_toml_value(p.threshold_lat_deg)}",
+                      f"threshold_lon_deg = {_toml_value(p.threshold_lon_deg)}"]
     return "\n".join(lines) + "\n"
 
 

@@ -65,6 +65,11 @@ class ScenarioConfig:
 
     Rates are in Hz and must divide ``truth_rate_hz``; 0 disables a channel.  Positions: MSL
     elevations.  ``leg_scale`` stretches the route's straight legs (fleet variation).
+    ``touchdown_m`` is the touchdown's distance past the landing threshold (the circuit flies
+    to it; a landing places the threshold that far before its touchdown); with
+    ``touchdown_sd_m`` > 0 each seed draws it from N(touchdown_m, touchdown_sd_m^2),
+    clipped to [100, 1000] m (a pilot's touchdown dispersion).  The take-off roll starts at the
+    departure threshold, :data:`ARP_OFFSET_M` before the airfield reference point.
     """
 
     aircraft: Aircraft = LIGHT
@@ -100,6 +105,8 @@ class ScenarioConfig:
     leg_scale: float = 1.0
     faults: Faults = NO_FAULTS
     ideal_sensors: bool = False
+    touchdown_m: float = 300.0
+    touchdown_sd_m: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,9 +155,11 @@ def _takeoff_start(cfg: ScenarioConfig) -> tuple[float, float, float]:
     return lat, lon, cfg.airfield.elev_m
 
 
-CIRCUIT_TOUCHDOWN_M = -500.0
-"""Circuit touchdown point: this far along the runway from the airfield reference point
-(300 m past the start of the take-off roll), on the centre line."""
+def circuit_touchdown_m(cfg: ScenarioConfig) -> float:
+    """Circuit touchdown point: this far along the runway from the airfield reference point
+    (``cfg.touchdown_m`` past the threshold, where the take-off roll started), on the centre
+    line."""
+    return cfg.touchdown_m - ARP_OFFSET_M
 
 
 def _route_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float,
@@ -159,7 +168,7 @@ def _route_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float,
 
     ``legs`` = (downwind, base) times [s]; :func:`_close_circuit` adjusts them so that the
     final approach lies on the runway centre line and touches down at
-    :data:`CIRCUIT_TOUCHDOWN_M`.
+    :func:`circuit_touchdown_m`.
     """
     a, s = cfg.aircraft, cfg.leg_scale
     b = _builder(cfg, atm, _takeoff_start(cfg), cfg.runway_deg, None)
@@ -193,16 +202,17 @@ def _touchdown_offset(cfg: ScenarioConfig, b: PlanBuilder) -> tuple[float, float
 
 def _close_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> tuple[float, float]:
     """Downwind and base leg times that put the touchdown on the centre line at
-    :data:`CIRCUIT_TOUCHDOWN_M` (fixed-point iteration; the downwind leg moves the touchdown
+    :func:`circuit_touchdown_m` (fixed-point iteration; the downwind leg moves the touchdown
     along the runway, the base leg across it)."""
     legs = np.array([215.0, 60.0])
+    target = circuit_touchdown_m(cfg)
     for _ in range(6):
         b = _route_circuit(cfg, atm, extra_s, tuple(legs))
         along, cross = _touchdown_offset(cfg, b)
         g = cfg.aircraft.cruise_tas_mps
-        legs = legs + np.array([(along - CIRCUIT_TOUCHDOWN_M) / (g * cfg.leg_scale),
+        legs = legs + np.array([(along - target) / (g * cfg.leg_scale),
                                 -cross / cfg.aircraft.approach_tas_mps])
-        if abs(along - CIRCUIT_TOUCHDOWN_M) < 1.0 and abs(cross) < 1.0:
+        if abs(along - target) < 1.0 and abs(cross) < 1.0:
             break
     if legs.min() <= 20.0:
         raise ValidationError("the circuit cannot be closed in this wind (a leg would vanish)")
@@ -441,17 +451,24 @@ def _json(x: Any) -> Any:
 
 def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     sc = SCENARIOS[name]
+    if cfg.touchdown_sd_m > 0.0:
+        d = stream(seed, "touchdown").normal(cfg.touchdown_m, cfg.touchdown_sd_m)
+        cfg = replace(cfg, touchdown_m=float(np.clip(d, 100.0, 1000.0)), touchdown_sd_m=0.0)
     plan, atm = build_plan(name, cfg)
     # a record that starts airborne: departure = the ground point below its first sample; an
-    # airfield departure carries the true direction of its runway (as a runway database would)
+    # airfield departure carries the true direction of its runway and its threshold, where the
+    # take-off roll starts (as a runway database would)
+    thr_lat, thr_lon, _ = _takeoff_start(cfg)
+    field = replace(cfg.airfield, runway_true_deg=float(cfg.runway_deg % 360.0),
+                    threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
     departure = (Position(float(plan.lat0_deg), float(plan.lon0_deg), cfg.arrival_elev_m)
-                 if sc.airborne else replace(cfg.airfield,
-                                             runway_true_deg=float(cfg.runway_deg % 360.0)))
+                 if sc.airborne else field)
     pre_meta = FlightMeta(departure=departure, geoid_undulation_m=cfg.geoid_undulation_m)
     truth = simulate_truth(plan, cfg.truth_rate_hz, output_plane(pre_meta))
 
     t = truth["t_s"].to_numpy()
-    events: dict[str, Any] = {"liftoff_t_s": None, "touchdown_t_s": None}
+    events: dict[str, Any] = {"liftoff_t_s": None, "touchdown_t_s": None,
+                              "touchdown_past_threshold_m": cfg.touchdown_m}
     for key, t_ev in (("liftoff", plan.liftoff_s), ("touchdown", plan.touchdown_s)):
         if np.isfinite(t_ev):
             i = int(np.searchsorted(t, t_ev))
@@ -461,16 +478,18 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     # arrival airfield
     last = truth.iloc[-1]
     if name == "circuit":
-        arrival = replace(cfg.airfield, runway_true_deg=float(cfg.runway_deg % 360.0))
+        arrival = field  # landing on the runway it took off from, in the same direction
     elif np.isfinite(plan.touchdown_s):
         i = int(np.searchsorted(t, plan.touchdown_s))
         trk = np.radians(truth["track_deg"].iloc[i])
-        lat, lon = _offset(Position(float(truth["lat_deg"].iloc[i]),
-                                    float(truth["lon_deg"].iloc[i])),
-                           ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
+        td = Position(float(truth["lat_deg"].iloc[i]), float(truth["lon_deg"].iloc[i]))
+        lat, lon = _offset(td, ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
+        thr_lat, thr_lon = _offset(td, -cfg.touchdown_m * np.cos(trk),
+                                   -cfg.touchdown_m * np.sin(trk))
         # the landing runway's direction: the track at touchdown (on the centre line)
         arrival = Position(lat, lon, cfg.arrival_elev_m,
-                           runway_true_deg=float(np.degrees(trk) % 360.0))
+                           runway_true_deg=float(np.degrees(trk) % 360.0),
+                           threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
     else:
         arrival = Position(float(last["lat_deg"]), float(last["lon_deg"]),
                            float(cfg.arrival_elev_m))
