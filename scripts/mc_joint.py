@@ -9,6 +9,8 @@ Cases (simulated flights, every run a new seed of the scenario: new noise, new w
 * ``recorder_no_runway``: the same flights (same seeds) without the runway direction in the
   metadata (neither direction nor threshold: the heading bias then has no absolute reference
   but the end points, which are the reference point with the generic 1500 m prior).
+* ``recorder_em``: the same flights with ``estimate_noise``: sensor variances by EM, the wind's
+  process noise by maximum likelihood.
 * ``gnss``: the same circuits with 1 Hz GNSS and a 2-minute GNSS dropout; joint vs SNS smoother.
   Consistency: run-averaged NEES of the joint smoother's north and east positions.
 * ``radar``: the ``landing`` scenario, radar only (no GNSS); joint vs ADS/ARMS and azimuth channel.
@@ -19,9 +21,10 @@ Usage::
 
     python scripts/mc_joint.py --runs 30            # full size; writes docs/tables/joint_mc.md
     python scripts/mc_joint.py --runs 3 --no-write  # quick look
+    python scripts/mc_joint.py --summarise docs/tables/joint_mc_runs.json  # tables only
 
-Seeds: run i of case c uses seed 1000 * (case index + 1) + i (``recorder_no_runway`` uses
-the ``recorder`` seeds).
+Seeds: run i of case c uses seed 1000 * (case index + 1) + i (``recorder_no_runway`` and
+``recorder_em`` use the ``recorder`` seeds).
 """
 
 from __future__ import annotations
@@ -46,7 +49,10 @@ from flightrecon.sim import simulate
 from flightrecon.types import Flight
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = ("recorder", "gnss", "radar", "corrupt_gnss", "corrupt_radar", "recorder_no_runway")
+CASES = ("recorder", "gnss", "radar", "corrupt_gnss", "corrupt_radar", "recorder_no_runway",
+         "recorder_em")
+SAME_FLIGHTS = {"recorder_no_runway": "recorder", "recorder_em": "recorder"}
+"""Cases that fly another case's flights (same seeds: a paired comparison)."""
 
 
 # the recorder circuits touch down dispersed about the arrival threshold as the smoother's
@@ -55,7 +61,7 @@ TOUCHDOWN = {"touchdown_m": JointNoise().touchdown_m, "touchdown_sd_m": JointNoi
 
 
 def make_flight(case: str, seed: int):
-    if case == "recorder":
+    if case in ("recorder", "recorder_em"):
         return simulate("circuit", seed=seed, gnss_hz=0.0, **TOUCHDOWN)
     if case == "recorder_no_runway":
         r = simulate("circuit", seed=seed, gnss_hz=0.0, **TOUCHDOWN)
@@ -144,13 +150,16 @@ def one_run(case: str, seed: int) -> dict:
     airborne = ~truth["on_ground"].to_numpy(bool)
     res = {"case": case, "seed": seed}
     t0 = time.perf_counter()
-    j = run_joint(clean, settings=JointSettings(noise=noise_from_sensors(r.sensor_truth)))
+    j = run_joint(clean, settings=JointSettings(noise=noise_from_sensors(r.sensor_truth),
+                                                estimate_noise=case == "recorder_em"))
     res["joint_time_s"] = time.perf_counter() - t0
     res["joint"] = errors(j.track, "joint_", truth, airborne)
     res["joint_sources"] = {k: {a: v[a] for a in ("count", "beyond_5_sigma", "flagged_inconsistent")}
                             for k, v in j.summary["sources"].items()}
     res["joint_clock"] = j.summary["clock_offsets_s"]
-    others = {"recorder": ("sabziev",), "recorder_no_runway": ("sabziev",), "gnss": ("sns",),
+    res["joint_noise_scale"] = j.summary["noise_scale"]
+    others = {"recorder": ("sabziev",), "recorder_no_runway": ("sabziev",),
+              "recorder_em": ("sabziev",), "gnss": ("sns",),
               "radar": ("arms", "azimuth"), "corrupt_gnss": ("sns",),
               "corrupt_radar": ("arms",)}[case]
     for m in others:
@@ -180,7 +189,10 @@ def summarise(rows: list[dict]) -> str:
         for m in methods:
             v = np.array([r[m].get("rms_h_m", np.nan) for r in rs])
             mx = np.array([r[m].get("max_h_m", np.nan) for r in rs])
-            better = "" if m == "joint" else f"{int(np.sum(jr < v))}/{M}"
+            fin = np.isfinite(v)
+            better = "" if m == "joint" else f"{int(np.sum(jr[fin] < v[fin]))}/{int(fin.sum())}"
+            if m != "joint" and not fin.all():
+                better += f" ({M - int(fin.sum())} run(s) without a track: not converged)"
             lines.append(f"| {m} | {np.nanmean(v):.1f} | {np.nanmedian(v):.1f} | "
                          f"{np.nanmean(mx):.1f} | {better} |")
         for m in methods:
@@ -200,6 +212,10 @@ def summarise(rows: list[dict]) -> str:
             lines.append(f"\njoint run-averaged NEES (1 dof each): north {nn.mean():.2f}, "
                          f"east {ne.mean():.2f}; 95 % band for {M} runs [{lo:.2f}, {hi:.2f}] "
                          "(time-averaged within each run)")
+        if case == "recorder_em":
+            f = np.array([r["joint_noise_scale"]["process_wind"] for r in rs])
+            lines.append(f"\nwind process-noise factor (maximum likelihood): median {np.median(f):.3f}, "
+                         f"range {f.min():.3f}-{f.max():.3f}")
         if case.startswith("corrupt"):
             src = "gnss_pos" if case == "corrupt_gnss" else "radar"
             flagged = sum(bool(r["joint_sources"].get(src, {}).get("flagged_inconsistent"))
@@ -218,13 +234,25 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=30)
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--summarise", metavar="RUNS_JSON",
+                    help="only rebuild the tables from a runs file (docs/tables/joint_mc_runs.json)")
     a = ap.parse_args()
+    if a.summarise:
+        rows = json.loads(Path(a.summarise).read_text())
+        text = summarise(rows)
+        print(text)
+        if not a.no_write:
+            n = max(sum(r["case"] == c for r in rows) for c in CASES)
+            (ROOT / "docs" / "tables" / "joint_mc.md").write_text(
+                f"<!-- generated by scripts/mc_joint.py --runs {n} (tables rebuilt from "
+                "joint_mc_runs.json with --summarise) -->\n\n" + text + "\n")
+        return
     rows = []
     for ci, case in enumerate(CASES):
         if case not in a.cases.split(","):
             continue
         # the no-runway variant flies the recorder case's flights (a paired comparison)
-        base = 1000 * ((CASES.index("recorder") if case == "recorder_no_runway" else ci) + 1)
+        base = 1000 * (CASES.index(SAME_FLIGHTS.get(case, case)) + 1)
         for i in range(a.runs):
             rows.append(one_run(case, base + i))
             print(case, i, json.dumps({k: v for k, v in rows[-1].items()

@@ -848,6 +848,40 @@ NOISE_GROUPS = {("air", jk.TAS): "air_tas", ("air", jk.HEADING): "air_heading",
 ground and runway constraints and the sparse recorded wind are priors, not estimated)."""
 
 
+PROCESS_GROUPS = {"process_wind": (1, 2)}
+"""Process noise that ``estimate_noise`` scales, one factor per group: entries of
+:func:`_q_vector` (the wind's change with time and with altitude, one factor for both).  The
+white kinematic-acceleration noise is not among them: on recorder data its likelihood has no
+interior maximum (it trades against the wind and the accelerometer biases; the factor ran to
+zero by 4x per iteration on circuits 1002 and 1004), and the load-factor and attitude noise
+is known from the recorder's data sheet."""
+PROCESS_SCALE_RANGE = (1e-3, 1e3)
+"""Bounds of a process-noise factor (a factor at a bound is reported as such)."""
+
+
+def _q_scaled(q: np.ndarray, qscale: np.ndarray) -> np.ndarray:
+    """The process-noise vector with the PROCESS_GROUPS factors ``qscale`` applied."""
+    out = q.copy()
+    for f, idx in zip(qscale, PROCESS_GROUPS.values()):
+        for i in idx:
+            out[i] *= f
+    return out
+
+
+def _ml_process_scale(loglik, current: float, tol: float, span: float = 4.0) -> float:
+    """The factor in [current / span, current * span] (within PROCESS_SCALE_RANGE) that
+    maximises ``loglik(factor)`` (Brent's bounded search on its logarithm, to ``tol``
+    relative)."""
+    from scipy.optimize import minimize_scalar
+
+    c = np.log(current)
+    lo = max(c - np.log(span), np.log(PROCESS_SCALE_RANGE[0]))
+    hi = min(c + np.log(span), np.log(PROCESS_SCALE_RANGE[1]))
+    res = minimize_scalar(lambda u: -loglik(float(np.exp(u))), bounds=(lo, hi),
+                          method="bounded", options={"xatol": tol})
+    return float(np.exp(res.x))
+
+
 def _noise_groups(meas: Measurements) -> np.ndarray:
     """Index into NOISE_GROUPS of each measurement, -1 where its variance is not estimated."""
     g = np.full(len(meas.z), -1, dtype=np.int64)
@@ -890,6 +924,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     clock = {"gnss": 0.0, "radar": 0.0}
     clock_sd = {"gnss": np.nan, "radar": np.nan}
     scale = np.ones(len(NOISE_GROUPS))       # variance factor per noise group (EM)
+    qscale = np.ones(len(PROCESS_GROUPS))    # process-noise factor per group (ML)
     weights = None
     history = []
     Cst = np.eye(3)
@@ -929,13 +964,14 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # (an empty Pp would have the backward passes recompute the predicted covariances,
             # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
+        qk = _q_scaled(q, qscale)
         innov, innov_var, infl = jk.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
+            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, qk, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
             settings.innovation_gate if settings.robust else 0.0)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
-        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
+        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc, qk, meas.start, meas.mtype, meas.z, r_used, tau,
                      meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, climb, qv_extra)
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
@@ -1004,9 +1040,35 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                 new_scale[gi] = c
             noise_moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
             scale = new_scale
+            # process noise: maximum likelihood of the forward filter's innovations at this
+            # linearisation, with the new measurement variances and the robust weights (the
+            # gate off; measurements at full weight), one group at a time
+            if it == 0:
+                xf2, Pf2, xp2 = np.empty_like(xf), np.empty_like(Pf), np.empty_like(xp)
+            r_new = meas.r * np.where(groups >= 0, scale[np.maximum(groups, 0)], 1.0)
+            full = weights >= 1.0
+
+            def loglik(qv: np.ndarray) -> float:
+                nu, S, _ = jk.forward(xf2, Pf2, xp2, np.empty((0, 1, 1)), x0, P0, dt, Cen, Cnb,
+                                      Csf, Jatt, acc, dP, dV, climb, qv_extra, qv, meas.start,
+                                      meas.mtype, meas.z, r_new, weights, tau, meas.H, meas.hrow,
+                                      meas.d, pnom, hnom, pst, Cst, 0.0)
+                ok = full & np.isfinite(nu) & (S > 0)
+                return float(-0.5 * np.sum(np.log(S[ok]) + nu[ok] ** 2 / S[ok]))
+
+            new_q = qscale.copy()
+            for gi in range(len(new_q)):
+                def ll_g(f: float, gi: int = gi) -> float:
+                    trial = new_q.copy()
+                    trial[gi] = f
+                    return loglik(_q_scaled(q, trial))
+                new_q[gi] = _ml_process_scale(ll_g, new_q[gi], settings.noise_tol)
+            noise_moved |= bool(np.any(np.abs(new_q / qscale - 1.0) > 2 * settings.noise_tol))
+            qscale = new_q
             info["noise_scale"] = {name: float(scale[i])
                                    for i, name in enumerate(NOISE_GROUPS.values())
                                    if np.any(groups == i)}
+            info["noise_scale"].update(zip(PROCESS_GROUPS, map(float, qscale)))
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
         vnom = xs[:, jk.IV:jk.IV + 3]
@@ -1028,8 +1090,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
                     innov_var=innov_var,
                     clock_offsets_s={k: (clock[k], clock_sd[k]) for k in clock},
-                    noise_scale={name: float(scale[i]) for i, name in
-                                 enumerate(NOISE_GROUPS.values())},
+                    noise_scale={**{name: float(scale[i]) for i, name in
+                                    enumerate(NOISE_GROUPS.values())},
+                                 **dict(zip(PROCESS_GROUPS, map(float, qscale)))},
                     iterations=history, end_points=end_points(inp, nz, roll), roll=roll)
 
 
