@@ -37,7 +37,8 @@ from flightrecon.cli.common import (default_output, input_options, parse_k,
               help="TOML file overriding the joint smoother's sensor error budget "
                    "([joint] table, see docs/joint.md).")
 @click.option("--estimate-noise", is_flag=True,
-              help="Joint smoother: scale each source's noise from the flight's own residuals.")
+              help="Joint smoother: estimate each source's noise variance (EM) and the "
+                   "wind's variability (maximum likelihood) from the flight itself.")
 @click.option("--store", "store_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Coefficient store (SQLite): a fitted flight's k1..k3 are recorded there "
                    "under its aircraft id.")
