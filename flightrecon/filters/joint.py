@@ -236,13 +236,12 @@ def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
     with a the measured kinematic acceleration along the recorded heading and v_lo the
     along-track ground speed at lift-off: ``v_lo_mps`` where given (the smoother passes its
     smoothed velocity), else the recorded airspeed minus the recorded head wind (where
-    given).  The roll starts
-    at the last sample with v <= ``rest_mps``; a record whose aircraft never slows that much
-    (a rolling take-off from the taxiway) starts it at the end of the slowest stretch, if that
-    is below ``max_rolling_mps``.  A speed error dv moves the time by dv / a but the position only by
-    about v dv / a (metres: the aircraft is slow there).  The rest is the stretch of v <=
-    ``rest_mps`` that ends at the roll start, less its last ``settle_s`` (the first metres of
-    the roll, where the detection lags).
+    given).  The roll starts at the last sample with v <= ``rest_mps``; a record whose aircraft
+    never slows that much (a rolling take-off from the taxiway) starts it at the end of the
+    slowest stretch, if that is below ``max_rolling_mps``.  A speed error dv moves the time by
+    dv / a but the position only by about v dv / a (metres: the aircraft is slow there).  The
+    rest is the stretch of v <= ``rest_mps`` that ends at the roll start, less its last
+    ``settle_s`` (the first metres of the roll, where the detection lags).
 
     Returns
     -------
@@ -311,9 +310,8 @@ def end_points(inp: JointInputs, nz: JointNoise,
     """The end-point constraints: where and when the record is tied to its airfields.
 
     With a runway's threshold and direction known: the take-off roll starts at the departure
-    threshold (along-runway sd ``roll_start_sd_m``) at the roll's start (:func:`takeoff_roll`),
-    and the
-    touchdown is ``touchdown_m`` past the arrival threshold (sd ``touchdown_sd_m``); across
+    threshold (along-runway sd ``roll_start_sd_m``; the time from :func:`takeoff_roll`), and
+    the touchdown is ``touchdown_m`` past the arrival threshold (sd ``touchdown_sd_m``); across
     the runway the centreline holds (``runway_halfwidth_m``). Otherwise the airfield reference
     point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every
     horizontal direction. Vertically the airfield elevation, ``endpoint_v_m``.  ``roll``
@@ -766,7 +764,7 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     return x0, P0
 
 
-def _nominal_trajectory(inp: JointInputs, idx: np.ndarray):
+def _nominal_trajectory(inp: JointInputs, idx: np.ndarray, nz: JointNoise):
     """Iteration-0 linearisation trajectory on the state grid.
 
     Air-data dead reckoning (airspeed and heading, plus the recorded wind) integrated on the
@@ -793,7 +791,7 @@ def _nominal_trajectory(inp: JointInputs, idx: np.ndarray):
     if len(g):
         gok = (np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
                & np.isfinite(g["t_s"].to_numpy(float)))
-    ends = {ep["which"]: ep for ep in end_points(inp, JointNoise())}
+    ends = {ep["which"]: ep for ep in end_points(inp, nz)}
     ref, t_ref = None, t[0]
     if "departure" in ends:
         ref, t_ref = ends["departure"]["point"], ends["departure"]["t_s"]
@@ -856,7 +854,7 @@ interior maximum (it trades against the wind and the accelerometer biases; the f
 zero by 4x per iteration on circuits 1002 and 1004), and the load-factor and attitude noise
 is known from the recorder's data sheet."""
 PROCESS_SCALE_RANGE = (1e-3, 1e3)
-"""Bounds of a process-noise factor (a factor at a bound is reported as such)."""
+"""Bounds of a process-noise factor (a factor at a bound is a warning of the joint method)."""
 
 
 def _q_scaled(q: np.ndarray, qscale: np.ndarray) -> np.ndarray:
@@ -920,7 +918,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                                           np.ascontiguousarray(fb), idx.astype(np.int64))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
     q = _q_vector(nz)
-    lat, lon, h = _nominal_trajectory(inp, idx)
+    lat, lon, h = _nominal_trajectory(inp, idx, nz)
     clock = {"gnss": 0.0, "radar": 0.0}
     clock_sd = {"gnss": np.nan, "radar": np.nan}
     scale = np.ones(len(NOISE_GROUPS))       # variance factor per noise group (EM)
