@@ -2,8 +2,8 @@
 
 Cases (simulated flights, every run a new seed of the scenario: new noise, new weather draw):
 
-* ``recorder``: 15-minute circuits, recorder only (no GNSS, no radar), wind varying with
-  altitude; end points = departure and arrival airfield reference points with the runway's
+* ``recorder``: 20-minute circuits (legs stretched), recorder only (no GNSS, no radar), wind
+  varying with altitude; end points = departure and arrival airfield reference points with the runway's
   true direction and threshold; the touchdown dispersed N(400 m, 150 m) past the threshold.  Joint smoother vs the Sabziev fusion vs dead reckoning from airspeed and
   heading with and without a linear end-point correction.
 * ``recorder_no_runway``: the same flights (same seeds) without the runway direction in the
@@ -58,13 +58,17 @@ SAME_FLIGHTS = {"recorder_no_runway": "recorder", "recorder_em": "recorder"}
 # the recorder circuits touch down dispersed about the arrival threshold as the smoother's
 # end-point model assumes (docs/joint.md, "End points"): the premise of its consistency check
 TOUCHDOWN = {"touchdown_m": JointNoise().touchdown_m, "touchdown_sd_m": JointNoise().touchdown_sd_m}
+RECORDER = {"leg_scale": 2.4, "duration_s": 1320.0, "gnss_hz": 0.0, **TOUCHDOWN}
+"""The recorder cases' circuits: legs stretched to 20 minutes from lift-off to touchdown, in a
+22-minute record (lined up for about 35 s before the take-off roll, 60 s on the runway after
+touchdown)."""
 
 
 def make_flight(case: str, seed: int):
     if case in ("recorder", "recorder_em"):
-        return simulate("circuit", seed=seed, gnss_hz=0.0, **TOUCHDOWN)
+        return simulate("circuit", seed=seed, **RECORDER)
     if case == "recorder_no_runway":
-        r = simulate("circuit", seed=seed, gnss_hz=0.0, **TOUCHDOWN)
+        r = simulate("circuit", seed=seed, **RECORDER)
         bare = {"runway_true_deg": None, "threshold_lat_deg": None, "threshold_lon_deg": None}
         meta = replace(r.meta, departure=replace(r.meta.departure, **bare),
                        arrival=replace(r.meta.arrival, **bare))
@@ -234,6 +238,9 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=30)
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--merge", action="store_true",
+                    help="keep the other cases' runs of docs/tables/joint_mc_runs.json (re-run "
+                         "some cases only)")
     ap.add_argument("--summarise", metavar="RUNS_JSON",
                     help="only rebuild the tables from a runs file (docs/tables/joint_mc_runs.json)")
     a = ap.parse_args()
@@ -258,6 +265,10 @@ def main() -> None:
             print(case, i, json.dumps({k: v for k, v in rows[-1].items()
                                        if k in ("joint", "sabziev", "sns", "arms", "dr_linear")},
                                       default=str)[:300], file=sys.stderr)
+    runs_file = ROOT / "docs" / "tables" / "joint_mc_runs.json"
+    if a.merge and runs_file.exists():
+        done = {r["case"] for r in rows}
+        rows = [r for r in json.loads(runs_file.read_text()) if r["case"] not in done] + rows
     text = summarise(rows)
     print(text)
     if not a.no_write:

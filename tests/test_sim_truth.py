@@ -312,3 +312,34 @@ def test_truth_columns_and_events(circuit):
     assert np.allclose(ground.alt_msl_m, 3.0, atol=0.2)
     assert ev["liftoff_t_s"] < ev["touchdown_t_s"]
     assert tr.t_s.iloc[-1] == pytest.approx(900.0)
+
+
+def test_circuit_length_and_touchdown_dispersion():
+    """duration_s lengthens the circuit's record by the lined-up wait; touchdown_sd_m draws the
+    touchdown's distance past the threshold per seed (the same seed, the same draw), and the
+    simulated touchdown lands there: on the centre line, that far from the threshold."""
+    import numpy as np
+
+    from flightrecon.geo.frames import TangentPlane
+    from flightrecon.sim import simulate
+
+    base = simulate("circuit", seed=3, gnss_hz=0.0)
+    longer = simulate("circuit", seed=3, gnss_hz=0.0, duration_s=1000.0)
+    assert longer.truth["t_s"].iloc[-1] == pytest.approx(1000.0, abs=1.0 / 16.0)  # its grid
+    ev0, ev1 = base.sensor_truth["events"], longer.sensor_truth["events"]
+    assert ev1["liftoff_t_s"] - ev0["liftoff_t_s"] == pytest.approx(100.0, abs=0.5)
+    draws = [simulate("circuit", seed=s, gnss_hz=0.0, touchdown_m=400.0, touchdown_sd_m=150.0)
+             for s in (3, 3, 4)]
+    d = [r.sensor_truth["events"]["touchdown_past_threshold_m"] for r in draws]
+    assert d[0] == d[1] != d[2] and all(100.0 <= x <= 1000.0 for x in d)
+    for r, dist in zip(draws[1:], d[1:]):
+        a = r.meta.arrival
+        ev = r.sensor_truth["events"]
+        e, n, _ = TangentPlane(a.threshold_lat_deg, a.threshold_lon_deg).forward(
+            ev["touchdown_lat_deg"], ev["touchdown_lon_deg"], 0.0)
+        rw = np.radians(a.runway_true_deg)
+        along = float(n * np.cos(rw) + e * np.sin(rw))
+        cross = float(-n * np.sin(rw) + e * np.cos(rw))
+        # the circuit is closed to 1 m by planning on a 0.25 s grid; the touchdown event is
+        # the truth sample at or after it (at 16 Hz and 57 m/s: up to 3.6 m)
+        assert along == pytest.approx(dist, abs=6.0) and abs(cross) < 3.0

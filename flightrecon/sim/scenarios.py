@@ -65,6 +65,8 @@ class ScenarioConfig:
 
     Rates are in Hz and must divide ``truth_rate_hz``; 0 disables a channel.  Positions: MSL
     elevations.  ``leg_scale`` stretches the route's straight legs (fleet variation).
+    ``duration_s`` sets the record's length of the ``longhaul`` (its cruise absorbs it) and of
+    the ``circuit`` (it waits lined up the longer; a circuit longer than that keeps its own).
     ``touchdown_m`` is the touchdown's distance past the landing threshold (the circuit flies
     to it; a landing places the threshold that far before its touchdown); with
     ``touchdown_sd_m`` > 0 each seed draws it from N(touchdown_m, touchdown_sd_m^2),
@@ -373,6 +375,8 @@ def build_plan(name: str, cfg: ScenarioConfig) -> tuple[FlightPlan, Atmosphere]:
     target_s = sc.target_s
     if name == "longhaul" and cfg.duration_s > 0.0:
         target_s = cfg.duration_s - 1.0 / cfg.truth_rate_hz
+    if name == "circuit" and cfg.duration_s > 0.0:
+        target_s = cfg.duration_s  # the record's length: the circuit waits lined up the longer
 
     def absorb(t_natural: float) -> float:
         # the circuit waits lined up, the others fly a longer cruise leg; a circuit stretched
