@@ -327,7 +327,9 @@ def test_circuit_length_and_touchdown_dispersion():
     longer = simulate("circuit", seed=3, gnss_hz=0.0, duration_s=1000.0)
     assert longer.truth["t_s"].iloc[-1] == pytest.approx(1000.0, abs=1.0 / 16.0)  # its grid
     ev0, ev1 = base.sensor_truth["events"], longer.sensor_truth["events"]
-    assert ev1["liftoff_t_s"] - ev0["liftoff_t_s"] == pytest.approx(100.0, abs=0.5)
+    # the wait grows by the 100 s (the legs are closed again in the wind of a later time:
+    # the pattern itself changes by a second or two)
+    assert ev1["liftoff_t_s"] - ev0["liftoff_t_s"] == pytest.approx(100.0, abs=3.0)
     draws = [simulate("circuit", seed=s, gnss_hz=0.0, touchdown_m=400.0, touchdown_sd_m=150.0)
              for s in (3, 3, 4)]
     d = [r.sensor_truth["events"]["touchdown_past_threshold_m"] for r in draws]
