@@ -9,8 +9,6 @@ Cases (simulated flights, every run a new seed of the scenario: new noise, new w
 * ``recorder_no_runway``: the same flights (same seeds) without the runway direction in the
   metadata (neither direction nor threshold: the heading bias then has no absolute reference
   but the end points, which are the reference point with the generic 1500 m prior).
-* ``recorder_em``: the same flights with ``estimate_noise``: sensor variances by EM, the wind's
-  process noise by maximum likelihood.
 * ``gnss``: the same circuits with 1 Hz GNSS and a 2-minute GNSS dropout; joint vs SNS smoother.
   Consistency: run-averaged NEES of the joint smoother's north and east positions.
 * ``radar``: the ``landing`` scenario, radar only (no GNSS); joint vs ADS/ARMS and azimuth channel.
@@ -23,8 +21,8 @@ Usage::
     python scripts/mc_joint.py --runs 3 --no-write  # quick look
     python scripts/mc_joint.py --summarise docs/tables/joint_mc_runs.json  # tables only
 
-Seeds: run i of case c uses seed 1000 * (case index + 1) + i (``recorder_no_runway`` and
-``recorder_em`` use the ``recorder`` seeds).
+Seeds: run i of case c uses seed 1000 * (case index + 1) + i (``recorder_no_runway`` uses
+the ``recorder`` seeds).
 """
 
 from __future__ import annotations
@@ -46,29 +44,43 @@ from flightrecon.filters.joint import JointNoise, JointSettings
 from flightrecon.filters.joint_method import run_joint
 from flightrecon.pipeline import ReconstructSettings, run_method
 from flightrecon.sim import simulate
+from flightrecon.sim.scenarios import scenario_config
+from flightrecon.sim.weather import WindField
 from flightrecon.types import Flight
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = ("recorder", "gnss", "radar", "corrupt_gnss", "corrupt_radar", "recorder_no_runway",
-         "recorder_em")
-SAME_FLIGHTS = {"recorder_no_runway": "recorder", "recorder_em": "recorder"}
+         "recorder_smooth_wind")
+SAME_FLIGHTS = {"recorder_no_runway": "recorder", "recorder_smooth_wind": "recorder"}
 """Cases that fly another case's flights (same seeds: a paired comparison)."""
 
 
-# the recorder circuits touch down dispersed about the arrival threshold as the smoother's
+# the recorder circuits line up and touch down dispersed about the thresholds as the smoother's
 # end-point model assumes (docs/joint.md, "End points"): the premise of its consistency check
-TOUCHDOWN = {"touchdown_m": JointNoise().touchdown_m, "touchdown_sd_m": JointNoise().touchdown_sd_m}
+TOUCHDOWN = {"touchdown_m": JointNoise().touchdown_m, "touchdown_sd_m": JointNoise().touchdown_sd_m,
+             "lineup_sd_m": JointNoise().roll_start_sd_m}
 RECORDER = {"leg_scale": 2.4, "duration_s": 1320.0, "gnss_hz": 0.0, **TOUCHDOWN}
 """The recorder cases' circuits: legs stretched to 20 minutes from lift-off to touchdown, in a
 22-minute record (lined up for about 35 s before the take-off roll, 60 s on the runway after
 touchdown)."""
 
 
+def random_wind(seed: int) -> WindField:
+    """The circuit's wind plus random walks in time and height of the joint smoother's default
+    intensity (``wind_rw_mps_sqrt_s``, ``wind_shear_mps_per_sqrt_m``): the wind the smoother's
+    model describes, drawn anew for each seed."""
+    nz = JointNoise()
+    return replace(scenario_config("circuit").wind, rw_time_mps_sqrt_s=nz.wind_rw_mps_sqrt_s,
+                   rw_alt_mps_sqrt_m=nz.wind_shear_mps_per_sqrt_m, rw_seed=seed)
+
+
 def make_flight(case: str, seed: int):
-    if case in ("recorder", "recorder_em"):
+    if case == "recorder":
+        return simulate("circuit", seed=seed, wind=random_wind(seed), **RECORDER)
+    if case == "recorder_smooth_wind":
         return simulate("circuit", seed=seed, **RECORDER)
     if case == "recorder_no_runway":
-        r = simulate("circuit", seed=seed, **RECORDER)
+        r = simulate("circuit", seed=seed, wind=random_wind(seed), **RECORDER)
         bare = {"runway_true_deg": None, "threshold_lat_deg": None, "threshold_lon_deg": None}
         meta = replace(r.meta, departure=replace(r.meta.departure, **bare),
                        arrival=replace(r.meta.arrival, **bare))
@@ -110,6 +122,7 @@ def noise_from_sensors(sensor_truth: dict) -> JointNoise:
         kw["heading_deg"] = float(att["heading_noise_sd_deg"])
     if s.get("airspeed"):
         kw["tas_mps"] = float(s["airspeed"]["noise_sd_mps"])
+        kw["airspeed_lag_s"] = float(s["airspeed"].get("lag_s", 0.0))
     if s.get("baro"):
         b = s["baro"]
         kw["baro_m"] = float(np.hypot(b["noise_sd_m"], b.get("quantum_m", 0.0) / np.sqrt(12)))
@@ -154,8 +167,7 @@ def one_run(case: str, seed: int) -> dict:
     airborne = ~truth["on_ground"].to_numpy(bool)
     res = {"case": case, "seed": seed}
     t0 = time.perf_counter()
-    j = run_joint(clean, settings=JointSettings(noise=noise_from_sensors(r.sensor_truth),
-                                                estimate_noise=case == "recorder_em"))
+    j = run_joint(clean, settings=JointSettings(noise=noise_from_sensors(r.sensor_truth)))
     res["joint_time_s"] = time.perf_counter() - t0
     res["joint"] = errors(j.track, "joint_", truth, airborne)
     res["joint_sources"] = {k: {a: v[a] for a in ("count", "beyond_5_sigma", "flagged_inconsistent")}
@@ -163,7 +175,7 @@ def one_run(case: str, seed: int) -> dict:
     res["joint_clock"] = j.summary["clock_offsets_s"]
     res["joint_noise_scale"] = j.summary["noise_scale"]
     others = {"recorder": ("sabziev",), "recorder_no_runway": ("sabziev",),
-              "recorder_em": ("sabziev",), "gnss": ("sns",),
+              "recorder_smooth_wind": ("sabziev",), "gnss": ("sns",),
               "radar": ("arms", "azimuth"), "corrupt_gnss": ("sns",),
               "corrupt_radar": ("arms",)}[case]
     for m in others:
@@ -216,10 +228,6 @@ def summarise(rows: list[dict]) -> str:
             lines.append(f"\njoint run-averaged NEES (1 dof each): north {nn.mean():.2f}, "
                          f"east {ne.mean():.2f}; 95 % band for {M} runs [{lo:.2f}, {hi:.2f}] "
                          "(time-averaged within each run)")
-        if case == "recorder_em":
-            f = np.array([r["joint_noise_scale"]["process_wind"] for r in rs])
-            lines.append(f"\nwind process-noise factor (maximum likelihood): median {np.median(f):.3f}, "
-                         f"range {f.min():.3f}-{f.max():.3f}")
         if case.startswith("corrupt"):
             src = "gnss_pos" if case == "corrupt_gnss" else "radar"
             flagged = sum(bool(r["joint_sources"].get(src, {}).get("flagged_inconsistent"))

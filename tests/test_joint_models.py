@@ -59,17 +59,23 @@ def test_transition_propagates_held_acceleration():
     rng = np.random.default_rng(3)
     x, p, Cen, *_ = _setup(rng)
     x[jk.IBA:] = 0.0
+    x[jk.IG:jk.IG + 2] = [0.004, -0.002]   # wind gradient with height [(m/s)/m]
     N = 2
     dt = np.array([0.0, 0.25])
     Cen2 = np.repeat(Cen, N, axis=0)
     Cnb = np.repeat(np.eye(3)[None], N, axis=0)
     acc = np.array([[0, 0, 0], [0.4, -0.2, 0.1]])
     Csf = np.zeros((N, 3, 3))
-    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0)
+    dz = np.array([0.0, 30.0])        # the nominal climbs 30 m over the step
+    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0, dz)
     xn = F @ x
     np.testing.assert_allclose(xn[jk.IP:jk.IP + 3], x[jk.IP:jk.IP + 3] + Cen[0] @ x[3:6] * 0.25,
                                atol=1e-9)
     np.testing.assert_allclose(xn[3:6], x[3:6], atol=1e-12)
+    # the wind moves along its gradient with height: w+ = w + g dz
+    np.testing.assert_allclose(xn[jk.IW:jk.IW + 2],
+                               x[jk.IW:jk.IW + 2] + 30.0 * x[jk.IG:jk.IG + 2], atol=1e-12)
+    np.testing.assert_array_equal(xn[jk.IG:jk.IG + 2], x[jk.IG:jk.IG + 2])
     # heading bias of +1 mrad rotates the measured acceleration: true a_N = a_N + a_E dpsi
     y = np.zeros(jk.N_STATE)
     y[jk.IPSI] = 1e-3
@@ -92,7 +98,8 @@ def test_sparse_prediction_equals_dense_products():
     Cnb = np.repeat(ned_to_ecef_matrix(np.array([10.0]), np.array([20.0])), N, axis=0)
     Csf = rng.normal(size=(N, 3, 3))
     acc = rng.normal(size=(N, 3))
-    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0)
+    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0,
+                      rng.normal(size=N) * 20.0)
     n = jk.N_STATE
     cols = np.empty((n, n), np.int64)
     vals = np.empty((n, n))
@@ -174,7 +181,8 @@ def test_transition_applies_attitude_biases_with_the_right_sign():
     Cnb = np.repeat(np.eye(3)[None], N, axis=0)
     Jatt = np.zeros((N, 3, 2))
     Jatt[1, :, 1] = [-1.0, 0.0, 0.0]  # level, f = (0, 0, -1) g: dC/dtheta f = (-1, 0, 0)
-    F = jk.transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0)
+    F = jk.transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0,
+                      np.zeros(N))
     y = np.zeros(jk.N_STATE)
     y[jk.IATT + 1] = 1e-3
     # measured pitch too high by 1 mrad tilts the measured specific force backward: the true

@@ -50,7 +50,10 @@ class JointNoise:
     accel_scale: float = 0.005               # accelerometer scale errors, prior per axis
     wind_prior_mps: float = 15.0
     wind_rw_mps_sqrt_s: float = 0.05         # wind change with time
-    wind_shear_mps_per_sqrt_m: float = 0.15  # wind change with altitude: sd over 1 m of climb
+    wind_shear_mps_per_sqrt_m: float = 0.05  # wind change with altitude beyond the gradient:
+    #                                          sd over 1 m of climb
+    wind_gradient_per_km: float = 5.0        # prior of the wind's gradient with height [(m/s)/km]
+    wind_gradient_rw_per_km_sqrt_s: float = 0.005  # its change with time
     heading_bias_deg: float = 2.0
     attitude_bias_deg: float = 0.5           # roll and pitch biases (attitude reference), each
     heading_bias_rw_deg_sqrt_s: float = 1e-4
@@ -59,6 +62,7 @@ class JointNoise:
     baro_offset_rw_m_sqrt_s: float = 0.05
     baro_scale: float = 0.05
     tas_mps: float = 1.5                     # airspeed noise (used at airdata_rate_hz)
+    airspeed_lag_s: float = 0.0              # pitot-static lag (first order), from the data sheet
     heading_deg: float = 0.5
     baro_m: float = 8.0
     gnss_h_m: float = 5.0
@@ -94,6 +98,7 @@ class JointSettings:
     wind_rate_hz: float = 1.0 / 1800.0       # recorded wind: errors correlated over ~15 min
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
+    crab_s: float = 10.0                     # no air-data heading this close to the runway
     iterations: int = 8                      # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
@@ -449,11 +454,12 @@ def _nearest(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
     return np.where(np.abs(tq - t[p]) < np.abs(tq - t[j]), p, j)
 
 
-def _decimate_mask(t: np.ndarray, rate_hz: float) -> np.ndarray:
-    """True for the first sample of each 1/rate_hz bin (keeps each measurement used once)."""
+def _decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -> np.ndarray:
+    """True for the first sample of each 1/rate_hz bin, bins counted from ``origin`` (default
+    the first sample) (keeps each measurement used once)."""
     if rate_hz <= 0:
         return np.zeros(len(t), bool)
-    b = np.floor((t - t[0]) * rate_hz + 1e-9).astype(np.int64)
+    b = np.floor((t - (t[0] if origin is None else origin)) * rate_hz + 1e-9).astype(np.int64)
     keep = np.ones(len(t), bool)
     keep[1:] = b[1:] != b[:-1]
     return keep
@@ -591,8 +597,20 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # air data: airspeed and heading, decimated, airborne speeds only
     ok = np.isfinite(inp.tas) & np.isfinite(inp.heading_rad) & (inp.tas >= settings.min_airspeed_mps)
     keep = ok & _decimate_mask(t_in, settings.airdata_rate_hz)
-    b.add("air", jk.TAS, t_in[keep], inp.tas[keep], nz.tas_mps ** 2)
-    b.add("air", jk.HEADING, t_in[keep], inp.heading_rad[keep], np.radians(nz.heading_deg) ** 2)
+    # a first-order lag delays a ramp by its time constant: the airspeed recorded at t is the
+    # airspeed at t - lag; sampled at the state steps plus the lag, so that it is used at a step
+    lag = nz.airspeed_lag_s
+    keep_tas = ok & _decimate_mask(t_in, settings.airdata_rate_hz, t_in[0] + lag) if lag else keep
+    b.add("air", jk.TAS, t_in[keep_tas] - lag, inp.tas[keep_tas], nz.tas_mps ** 2)
+    # the heading is the air velocity's direction only in the air: on the runway the nose
+    # follows the runway (a crosswind of 5 m/s at 40 m/s is 7 deg), and the crab is taken up
+    # within seconds after lift-off and taken out in the flare; none within crab_s of them
+    air = keep.copy()
+    if np.isfinite(inp.liftoff_t):
+        air &= t_in > inp.liftoff_t + settings.crab_s
+    if np.isfinite(inp.touchdown_t):
+        air &= t_in < inp.touchdown_t - settings.crab_s
+    b.add("air", jk.HEADING, t_in[air], inp.heading_rad[air], np.radians(nz.heading_deg) ** 2)
     # Doppler ground speed and drift (track = heading + drift), at the air-data rate
     if inp.doppler_gs is not None:
         okd = np.isfinite(inp.doppler_gs) & (inp.doppler_gs >= settings.min_airspeed_mps)
@@ -736,7 +754,8 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
     return np.array([nz.accel_noise_mps2_sqrt_hz ** 2, nz.wind_rw_mps_sqrt_s ** 2,
                      nz.wind_shear_mps_per_sqrt_m ** 2, nz.accel_bias_g ** 2, nz.accel_bias_tau_s,
                      np.radians(nz.heading_bias_rw_deg_sqrt_s) ** 2,
-                     nz.baro_offset_rw_m_sqrt_s ** 2])
+                     nz.baro_offset_rw_m_sqrt_s ** 2,
+                     (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2])
 
 
 def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
@@ -761,6 +780,7 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     P0[jk.IDC, jk.IDC] = np.radians(nz.drift_bias_deg) ** 2
     P0[jk.IKS:jk.IKS + 3, jk.IKS:jk.IKS + 3] = np.eye(3) * nz.accel_scale ** 2
     P0[jk.IATT:jk.IATT + 2, jk.IATT:jk.IATT + 2] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
+    P0[jk.IG:jk.IG + 2, jk.IG:jk.IG + 2] = np.eye(2) * (nz.wind_gradient_per_km / 1000.0) ** 2
     return x0, P0
 
 
@@ -846,40 +866,6 @@ NOISE_GROUPS = {("air", jk.TAS): "air_tas", ("air", jk.HEADING): "air_heading",
 ground and runway constraints and the sparse recorded wind are priors, not estimated)."""
 
 
-PROCESS_GROUPS = {"process_wind": (1, 2)}
-"""Process noise that ``estimate_noise`` scales, one factor per group: entries of
-:func:`_q_vector` (the wind's change with time and with altitude, one factor for both).  The
-white kinematic-acceleration noise is not among them: on recorder data its likelihood has no
-interior maximum (it trades against the wind and the accelerometer biases; the factor ran to
-zero by 4x per iteration on circuits 1002 and 1004), and the load-factor and attitude noise
-is known from the recorder's data sheet."""
-PROCESS_SCALE_RANGE = (1e-3, 1e3)
-"""Bounds of a process-noise factor (a factor at a bound is a warning of the joint method)."""
-
-
-def _q_scaled(q: np.ndarray, qscale: np.ndarray) -> np.ndarray:
-    """The process-noise vector with the PROCESS_GROUPS factors ``qscale`` applied."""
-    out = q.copy()
-    for f, idx in zip(qscale, PROCESS_GROUPS.values()):
-        for i in idx:
-            out[i] *= f
-    return out
-
-
-def _ml_process_scale(loglik, current: float, tol: float, span: float = 4.0) -> float:
-    """The factor in [current / span, current * span] (within PROCESS_SCALE_RANGE) that
-    maximises ``loglik(factor)`` (Brent's bounded search on its logarithm, to ``tol``
-    relative)."""
-    from scipy.optimize import minimize_scalar
-
-    c = np.log(current)
-    lo = max(c - np.log(span), np.log(PROCESS_SCALE_RANGE[0]))
-    hi = min(c + np.log(span), np.log(PROCESS_SCALE_RANGE[1]))
-    res = minimize_scalar(lambda u: -loglik(float(np.exp(u))), bounds=(lo, hi),
-                          method="bounded", options={"xatol": tol})
-    return float(np.exp(res.x))
-
-
 def _noise_groups(meas: Measurements) -> np.ndarray:
     """Index into NOISE_GROUPS of each measurement, -1 where its variance is not estimated."""
     g = np.full(len(meas.z), -1, dtype=np.int64)
@@ -922,7 +908,6 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     clock = {"gnss": 0.0, "radar": 0.0}
     clock_sd = {"gnss": np.nan, "radar": np.nan}
     scale = np.ones(len(NOISE_GROUPS))       # variance factor per noise group (EM)
-    qscale = np.ones(len(PROCESS_GROUPS))    # process-noise factor per group (ML)
     weights = None
     history = []
     Cst = np.eye(3)
@@ -946,7 +931,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
         Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
         hnom = h - inp.field_h
-        climb = np.abs(np.diff(h, prepend=h[0]))
+        climb = np.diff(h, prepend=h[0])   # signed: the wind moves along its gradient
         roll = refined_roll(inp, T, vnom)
         meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom, roll)
         groups = _noise_groups(meas)
@@ -962,14 +947,13 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # (an empty Pp would have the backward passes recompute the predicted covariances,
             # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
-        qk = _q_scaled(q, qscale)
         innov, innov_var, infl = jk.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, qk, meas.start, meas.mtype,
+            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
             settings.innovation_gate if settings.robust else 0.0)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
-        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc, qk, meas.start, meas.mtype, meas.z, r_used, tau,
+        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
                      meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, climb, qv_extra)
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
@@ -1002,7 +986,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         # new nominal: the smoothed trajectory
         lat_new, lon_new, h_new = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
         shift = float(np.max(np.abs(np.c_[xs[:, 0:3] - pnom])))
-        info = {"iteration": it, "max_position_change_m": shift}
+        info = {"iteration": it, "max_position_change_m": shift, "roll_start_t_s": roll.start_t}
         # robust weights from the smoothed residuals
         w_before = weights.copy()
         clock_before = dict(clock)
@@ -1038,35 +1022,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                 new_scale[gi] = c
             noise_moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
             scale = new_scale
-            # process noise: maximum likelihood of the forward filter's innovations at this
-            # linearisation, with the new measurement variances and the robust weights (the
-            # gate off; measurements at full weight), one group at a time
-            if it == 0:
-                xf2, Pf2, xp2 = np.empty_like(xf), np.empty_like(Pf), np.empty_like(xp)
-            r_new = meas.r * np.where(groups >= 0, scale[np.maximum(groups, 0)], 1.0)
-            full = weights >= 1.0
-
-            def loglik(qv: np.ndarray) -> float:
-                nu, S, _ = jk.forward(xf2, Pf2, xp2, np.empty((0, 1, 1)), x0, P0, dt, Cen, Cnb,
-                                      Csf, Jatt, acc, dP, dV, climb, qv_extra, qv, meas.start,
-                                      meas.mtype, meas.z, r_new, weights, tau, meas.H, meas.hrow,
-                                      meas.d, pnom, hnom, pst, Cst, 0.0)
-                ok = full & np.isfinite(nu) & (S > 0)
-                return float(-0.5 * np.sum(np.log(S[ok]) + nu[ok] ** 2 / S[ok]))
-
-            new_q = qscale.copy()
-            for gi in range(len(new_q)):
-                def ll_g(f: float, gi: int = gi) -> float:
-                    trial = new_q.copy()
-                    trial[gi] = f
-                    return loglik(_q_scaled(q, trial))
-                new_q[gi] = _ml_process_scale(ll_g, new_q[gi], settings.noise_tol)
-            noise_moved |= bool(np.any(np.abs(new_q / qscale - 1.0) > 2 * settings.noise_tol))
-            qscale = new_q
             info["noise_scale"] = {name: float(scale[i])
                                    for i, name in enumerate(NOISE_GROUPS.values())
                                    if np.any(groups == i)}
-            info["noise_scale"].update(zip(PROCESS_GROUPS, map(float, qscale)))
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
         vnom = xs[:, jk.IV:jk.IV + 3]
@@ -1088,9 +1046,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
                     innov_var=innov_var,
                     clock_offsets_s={k: (clock[k], clock_sd[k]) for k in clock},
-                    noise_scale={**{name: float(scale[i]) for i, name in
-                                    enumerate(NOISE_GROUPS.values())},
-                                 **dict(zip(PROCESS_GROUPS, map(float, qscale)))},
+                    noise_scale={name: float(scale[i]) for i, name in
+                                 enumerate(NOISE_GROUPS.values())},
                     iterations=history, end_points=end_points(inp, nz, roll), roll=roll)
 
 

@@ -1,6 +1,6 @@
 """Compiled kernels of the joint post-flight smoother (see :mod:`flightrecon.filters.joint`).
 
-State (n = 15), SI units::
+State (n = 24), SI units::
 
     0:3   p      position, ECEF [m]
     3:6   v      ground velocity, local north-east-down at the nominal position [m/s]
@@ -15,12 +15,14 @@ State (n = 15), SI units::
     17:20 s_a    accelerometer scale errors, body axes: f_measured = (1 + s_a) f_true + b_a
     20    dphi   roll bias [rad] (measured - true)
     21    dtheta pitch bias [rad] (measured - true)
+    22:24 g      wind gradient with height, north, east [(m/s)/m]
 
 Propagation over one state step of length dt (inputs held between input samples)::
 
     p+ = p + C_en (v dt + dP_meas + J_p [dpsi, b_a])        dP_meas, dV_meas: increments of the
     v+ = v + dV_meas + J_v [dpsi, b_a]                       measured kinematic acceleration
-    w+ = w + noise (random walk in time and in altitude)     over the step (exact for held inputs)
+    w+ = w + g dz + noise (random walk in time and in altitude)  over the step (exact for held
+    g+ = g + noise (random walk in time)                     inputs; dz: the nominal's climb)
     b_a+ = exp(-dt/tau) b_a + noise
 
 with J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt, -g0 C_nb diag(f) dt, -g0 dC/dphi f dt,
@@ -50,8 +52,9 @@ import numpy as np
 
 from flightrecon.filters.smallmat import cholesky_factor, cholesky_solve_columns
 
-N_STATE = 22
-IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT = 0, 3, 6, 8, 11, 12, 13, 14, 15, 16, 17, 20
+N_STATE = 24
+IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT, IG = (0, 3, 6, 8, 11, 12, 13, 14, 15, 16,
+                                                                17, 20, 22)
 G0 = 9.80665
 
 LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO, DOPPLER, TRACK = 0, 1, 2, 3, 4, 5, 6, 7, 8
@@ -64,13 +67,14 @@ def _wrap(a):
 
 
 @nb.njit(cache=True, nogil=True)
-def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
+def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
     """Fill ``F`` (n, n) with the transition matrix F_k from step k-1 to step k (k >= 1).
 
     ``Csf[k]`` is the step mean of C_nb diag(f_body) (the Jacobian of the acceleration in the
     accelerometer scale errors), ``Jatt[k]`` (3, 2) that of dC/dphi f and dC/dtheta f (roll and
-    pitch biases).  Only the position, velocity and accelerometer-bias rows differ from the
-    identity (see the module docstring).
+    pitch biases), ``dz[k]`` the nominal's height change over the step (the wind moves along
+    its gradient with height).  Only the position, velocity, wind and accelerometer-bias rows
+    differ from the identity (see the module docstring).
     """
     n = N_STATE
     for i in range(n):
@@ -107,13 +111,15 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
     e = np.exp(-h / tau_ba)
     for j in range(3):
         F[IBA + j, IBA + j] = e
+    F[IW, IG] = dz[k]
+    F[IW + 1, IG + 1] = dz[k]
 
 
 @nb.njit(cache=True, nogil=True)
-def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
+def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
     """Transition matrix F_k from step k-1 to step k (k >= 1); see :func:`transition_into`."""
     F = np.empty((N_STATE, N_STATE))
-    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba)
+    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
     return F
 
 
@@ -191,11 +197,11 @@ def _cholesky_solve(A, b, L, y):
 
 
 @nb.njit(cache=True, nogil=True)
-def add_process_noise(P, k, dt, Cen, climb, qv_extra, q):
+def add_process_noise(P, k, dt, Cen, dz, qv_extra, q):
     """P += Q_k in place, touching only the nonzero entries of Q_k.  q = [q_acc, q_wind_t,
-    q_wind_h, var_ba, tau_ba, q_psi, q_bh] (see JointNoise); ``climb[k]`` is |height change|
-    over the step (wind varies with altitude), ``qv_extra[k]`` extra acceleration PSD where the
-    load factors are missing.  Position-velocity block: white acceleration of PSD q_a
+    q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad] (see JointNoise); ``|dz[k]|`` is the height
+    change over the step (wind varies with altitude), ``qv_extra[k]`` extra acceleration PSD
+    where the load factors are missing.  Position-velocity block: white acceleration of PSD q_a
     (Q_pp = q_a h^3/3, Q_vv = q_a h, Q_pv = q_a h^2/2 C_en)."""
     h = dt[k]
     qa = q[0] + qv_extra[k]
@@ -206,7 +212,7 @@ def add_process_noise(P, k, dt, Cen, climb, qv_extra, q):
             v = qa * h * h / 2.0 * Cen[k - 1, i, j]
             P[IP + i, IV + j] += v
             P[IV + j, IP + i] += v
-    qw = q[1] * h + q[2] * climb[k]
+    qw = q[1] * h + q[2] * abs(dz[k])
     P[IW, IW] += qw
     P[IW + 1, IW + 1] += qw
     gm = q[3] * (1.0 - np.exp(-2.0 * h / q[4]))
@@ -214,6 +220,8 @@ def add_process_noise(P, k, dt, Cen, climb, qv_extra, q):
         P[IBA + j, IBA + j] += gm
     P[IPSI, IPSI] += q[5] * h
     P[IBH, IBH] += q[6] * h
+    P[IG, IG] += q[7] * h
+    P[IG + 1, IG + 1] += q[7] * h
 
 
 @nb.njit(cache=True, nogil=True)
@@ -337,7 +345,7 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
 
 
 @nb.njit(cache=True, nogil=True)
-def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, mstart, mtype, mz, mr, mw,
+def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, mstart, mtype, mz, mr, mw,
             mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate):
     """Forward extended Kalman filter with sequential scalar updates.
 
@@ -372,7 +380,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
     hnz = np.empty(n, dtype=np.int64)
     for k in range(N):
         if k > 0:
-            _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
+            _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
             _sparse_matvec(cols, vals, cnt, x, xn)
             for i in range(n):
                 x[i] = xn[i]
@@ -381,7 +389,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
                     x[IP + i] += Cen[k - 1, i, m] * dP[k, m]
                 x[IV + i] += dV[k, i]
             _predict_cov(P, cols, vals, cnt, B)
-            add_process_noise(P, k, dt, Cen, climb, qv_extra, q)
+            add_process_noise(P, k, dt, Cen, dz, qv_extra, q)
         xp[k] = x
         if Pp.shape[0] > 0:
             Pp[k] = P
@@ -432,23 +440,23 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb,
 
 
 @nb.njit(cache=True, nogil=True)
-def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba):
+def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
     """F_k into ``F`` and its row-compressed copy (:func:`transition_into`, :func:`_sparse_rows`)."""
-    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba)
+    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
     _sparse_rows(F, cols, vals, cnt)
 
 
 @nb.njit(cache=True, nogil=True)
-def _predicted_at(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, buf):
+def _predicted_at(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, buf):
     """P_p[k]: the stored one if the forward pass kept them, else recomputed into ``buf``."""
     if Pp.shape[0] > 0:
         return Pp[k]
-    _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, buf)
+    _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, buf)
     return buf
 
 
 @nb.njit(cache=True, nogil=True)
-def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, out):
+def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, out):
     """P_p[k] = F_k P_f[k-1] F_k^T + Q_k into ``out``, recomputed with the same operations as
     :func:`forward` (``cols``/``vals``/``cnt``: F_k row-compressed), for a forward pass that
     did not store it."""
@@ -457,7 +465,7 @@ def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q, o
         for j in range(n):
             out[i, j] = Pf[k - 1, i, j]
     _predict_cov(out, cols, vals, cnt, B)
-    add_process_noise(out, k, dt, Cen, climb, qv_extra, q)
+    add_process_noise(out, k, dt, Cen, dz, qv_extra, q)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -497,7 +505,7 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
 
 @nb.njit(cache=True, nogil=True)
 def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH,
-                  mrow, md, pnom, hnom, pst, Cst, climb, qv_extra):
+                  mrow, md, pnom, hnom, pst, Cst, dz, qv_extra):
     """RTS backward pass for the smoothed states only (no covariances), and the residuals.
 
     x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
@@ -528,8 +536,8 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     no_hph = np.empty(0)
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
-            Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
+            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
+            Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q,
                                 Pbuf)
             for i in range(n):
                 d[i] = xs[k + 1, i] - xp[k + 1, i]
@@ -548,7 +556,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
 
 @nb.njit(cache=True, nogil=True)
 def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
-             md, pnom, hnom, pst, Cst, climb, qv_extra, residuals):
+             md, pnom, hnom, pst, Cst, dz, qv_extra, residuals):
     """RTS backward pass with covariances; also the smoothed residuals (see
     :func:`backward_mean`, which gives the same states without the covariances).
 
@@ -584,7 +592,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
     Ps = Pf[N - 1].copy()
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4])
+            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
             # A = F P_f[k] (row-compressed F); the gain G = P_f F^T P_p^-1, i.e. G^T = P_p^-1 A
             for i in range(n):
                 for b in range(n):
@@ -592,7 +600,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
                     for c in range(cnt[i]):
                         v += vals[i, c] * Pf[k, cols[i, c], b]
                     A[i, b] = v
-            Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, climb, qv_extra, q,
+            Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q,
                                 Pbuf)
             if cholesky_factor(Pk1, L, 0.0):
                 cholesky_solve_columns(L, A, GT)      # GT = P_p^-1 A = G^T

@@ -17,9 +17,8 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.filters import joint_kernels as jk
-from flightrecon.filters.joint import (PROCESS_GROUPS, PROCESS_SCALE_RANGE, SOURCES,
-                                       JointInputs, JointRun, JointSettings, smooth_joint,
-                                       source_report, takeoff_roll)
+from flightrecon.filters.joint import (SOURCES, JointInputs, JointRun, JointSettings,
+                                       smooth_joint, source_report, takeoff_roll)
 from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
@@ -240,6 +239,9 @@ def _corrections(run: JointRun) -> dict[str, Any]:
         "drift_bias_deg": item(jk.IDC, np.degrees(1.0), "deg (measured - true)"),
         "roll_bias_deg": item(jk.IATT, np.degrees(1.0), "deg (measured - true)"),
         "pitch_bias_deg": item(jk.IATT + 1, np.degrees(1.0), "deg (measured - true)"),
+        "wind_gradient_n_per_km": item(jk.IG, 1000.0, "(m/s)/km: change of the north wind "
+                                       "with height (at the middle of the record)"),
+        "wind_gradient_e_per_km": item(jk.IG + 1, 1000.0, "(m/s)/km, east"),
     }
 
 
@@ -260,11 +262,6 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     if settings.estimate_noise and not run.iterations[-1].get("converged"):
         warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
                         "iterations; the last factors are used")
-    for name in PROCESS_GROUPS:
-        f = run.noise_scale.get(name, 1.0)
-        if not PROCESS_SCALE_RANGE[0] * 1.01 < f < PROCESS_SCALE_RANGE[1] / 1.01:
-            warnings.append(f"joint: {name} factor {f:.3g} at the bound of its search: the "
-                            "flight's likelihood does not determine it")
     for name, (o, sd) in run.clock_offsets_s.items():
         if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
             warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "

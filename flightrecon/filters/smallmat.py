@@ -1,6 +1,6 @@
 """Small dense linear algebra for the compiled filter and smoother kernels.
 
-Allocation-free, in plain loops (no BLAS call overhead at these sizes, 5 to 22 states), shared
+Allocation-free, in plain loops (no BLAS call overhead at these sizes, 5 to 24 states), shared
 by the SNS and joint-smoother kernels.
 """
 

@@ -23,7 +23,7 @@ __all__ = ["STREAM_KEYS", "Recording", "record_log", "sample_rows", "stream"]
 
 STREAM_KEYS = {"loads": 1, "attitude": 2, "airspeed": 3, "baro": 4, "gnss": 5, "radar": 6,
                "doppler": 7, "wind": 8, "faults": 20, "airdata": 21, "wind_gm": 22,
-               "touchdown": 23}
+               "touchdown": 23, "lineup": 24}
 """Fixed spawn key per random stream."""
 
 

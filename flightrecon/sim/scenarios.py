@@ -70,8 +70,10 @@ class ScenarioConfig:
     ``touchdown_m`` is the touchdown's distance past the landing threshold (the circuit flies
     to it; a landing places the threshold that far before its touchdown); with
     ``touchdown_sd_m`` > 0 each seed draws it from N(touchdown_m, touchdown_sd_m^2),
-    clipped to [100, 1000] m (a pilot's touchdown dispersion).  The take-off roll starts at the
-    departure threshold, :data:`ARP_OFFSET_M` before the airfield reference point.
+    clipped to [100, 1000] m (a pilot's touchdown dispersion).  The take-off roll starts
+    :data:`ARP_OFFSET_M` before the airfield reference point, ``lineup_m`` past the departure
+    threshold (with ``lineup_sd_m`` > 0 drawn per seed from N(lineup_m, lineup_sd_m^2): where the
+    crew lines up).
     """
 
     aircraft: Aircraft = LIGHT
@@ -109,6 +111,8 @@ class ScenarioConfig:
     ideal_sensors: bool = False
     touchdown_m: float = 300.0
     touchdown_sd_m: float = 0.0
+    lineup_m: float = 0.0
+    lineup_sd_m: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,9 +163,16 @@ def _takeoff_start(cfg: ScenarioConfig) -> tuple[float, float, float]:
 
 def circuit_touchdown_m(cfg: ScenarioConfig) -> float:
     """Circuit touchdown point: this far along the runway from the airfield reference point
-    (``cfg.touchdown_m`` past the threshold, where the take-off roll started), on the centre
-    line."""
-    return cfg.touchdown_m - ARP_OFFSET_M
+    (``cfg.touchdown_m`` past the threshold, which is ``cfg.lineup_m`` before the start of the
+    take-off roll), on the centre line."""
+    return cfg.touchdown_m - ARP_OFFSET_M - cfg.lineup_m
+
+
+def _threshold(cfg: ScenarioConfig) -> tuple[float, float]:
+    """Lat/lon of the departure runway's threshold: ``lineup_m`` before the roll's start."""
+    r = np.radians(cfg.runway_deg)
+    d = ARP_OFFSET_M + cfg.lineup_m
+    return _offset(cfg.airfield, -d * np.cos(r), -d * np.sin(r))
 
 
 def _route_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float,
@@ -458,11 +469,14 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     if cfg.touchdown_sd_m > 0.0:
         d = stream(seed, "touchdown").normal(cfg.touchdown_m, cfg.touchdown_sd_m)
         cfg = replace(cfg, touchdown_m=float(np.clip(d, 100.0, 1000.0)), touchdown_sd_m=0.0)
+    if cfg.lineup_sd_m > 0.0:
+        d = stream(seed, "lineup").normal(cfg.lineup_m, cfg.lineup_sd_m)
+        cfg = replace(cfg, lineup_m=float(d), lineup_sd_m=0.0)
     plan, atm = build_plan(name, cfg)
     # a record that starts airborne: departure = the ground point below its first sample; an
     # airfield departure carries the true direction of its runway and its threshold, where the
     # take-off roll starts (as a runway database would)
-    thr_lat, thr_lon, _ = _takeoff_start(cfg)
+    thr_lat, thr_lon = _threshold(cfg)
     field = replace(cfg.airfield, runway_true_deg=float(cfg.runway_deg % 360.0),
                     threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
     departure = (Position(float(plan.lat0_deg), float(plan.lon0_deg), cfg.arrival_elev_m)
@@ -472,7 +486,8 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
 
     t = truth["t_s"].to_numpy()
     events: dict[str, Any] = {"liftoff_t_s": None, "touchdown_t_s": None,
-                              "touchdown_past_threshold_m": cfg.touchdown_m}
+                              "touchdown_past_threshold_m": cfg.touchdown_m,
+                              "lineup_past_threshold_m": cfg.lineup_m}
     for key, t_ev in (("liftoff", plan.liftoff_s), ("touchdown", plan.touchdown_s)):
         if np.isfinite(t_ev):
             i = int(np.searchsorted(t, t_ev))

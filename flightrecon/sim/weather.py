@@ -10,11 +10,16 @@ exact solution ``p = p_sl (T(H) / (T0 + dT))^(-g0 / (L R))``.  Pressure altitude
 
 Wind (where the air moves TO, north/east components): speed and meteorological direction vary
 linearly with height and sinusoidally with time; smooth in both, so the truth stays C2.
+Optionally a random part: per component a random walk in time plus one in height, each drawn
+at knots (every ``rw_knot_s`` seconds, ``rw_knot_m`` metres) and joined by cubic splines, so
+that the wind stays C2 while it varies as the joint smoother's wind model assumes at scales
+beyond the knots.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -106,6 +111,11 @@ class WindField:
     from0_deg : direction the wind blows FROM at MSL [deg]
     veer_deg_per_m : clockwise turn of the direction with height [deg/m]
     speed_amp_mps, dir_amp_deg, period_s : slow time variation
+    rw_time_mps_sqrt_s, rw_alt_mps_sqrt_m : intensity of the random part, per component: the
+        standard deviation of its change over 1 s of time and over 1 m of height; 0: none
+    rw_seed : the random part's draw (the same seed, the same wind)
+    rw_knot_s, rw_knot_m : knot spacing of the random part in time [s] (over 0-48 h) and height
+        [m] (over -1000 to 20000 m)
     """
 
     speed0_mps: float = 0.0
@@ -115,6 +125,11 @@ class WindField:
     speed_amp_mps: float = 0.0
     dir_amp_deg: float = 0.0
     period_s: float = 3600.0
+    rw_time_mps_sqrt_s: float = 0.0
+    rw_alt_mps_sqrt_m: float = 0.0
+    rw_seed: int = 0
+    rw_knot_s: float = 60.0
+    rw_knot_m: float = 30.0
 
     def speed_from(self, z_msl_m, t_s):
         """Wind speed [m/s] and meteorological direction [deg, unwrapped]."""
@@ -129,4 +144,27 @@ class WindField:
         """Wind velocity (north, east) [m/s]: where the air moves TO (= from + 180 deg)."""
         speed, frm = self.speed_from(z_msl_m, t_s)
         r = np.radians(frm)
-        return -speed * np.cos(r), -speed * np.sin(r)
+        wn, we = -speed * np.cos(r), -speed * np.sin(r)
+        if self.rw_time_mps_sqrt_s > 0.0 or self.rw_alt_mps_sqrt_m > 0.0:
+            ft, fz = _random_walks(self.rw_seed, self.rw_time_mps_sqrt_s, self.rw_alt_mps_sqrt_m,
+                                   self.rw_knot_s, self.rw_knot_m)
+            d = ft(np.asarray(t_s, float)) + fz(np.asarray(z_msl_m, float))
+            wn, we = wn + d[..., 0], we + d[..., 1]
+        return wn, we
+
+
+@lru_cache(maxsize=8)
+def _random_walks(seed: int, q_t: float, q_z: float, knot_s: float, knot_m: float):
+    """Cubic splines (north, east) through random walks at knots: in time from 0 (value 0) to
+    48 h, in height from -1000 m to 20000 m (value 0 at MSL); increments N(0, q^2 spacing)."""
+    from scipy.interpolate import CubicSpline
+
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(seed), 7919])))
+    tk = np.arange(0.0, 48 * 3600.0 + knot_s, knot_s)
+    bt = np.vstack([np.zeros((1, 2)), np.cumsum(
+        rng.normal(0.0, q_t * np.sqrt(knot_s), (len(tk) - 1, 2)), axis=0)])
+    zk = np.arange(-1000.0, 20000.0 + knot_m, knot_m)
+    bz = np.vstack([np.zeros((1, 2)), np.cumsum(
+        rng.normal(0.0, q_z * np.sqrt(knot_m), (len(zk) - 1, 2)), axis=0)])
+    bz -= CubicSpline(zk, bz)(0.0)
+    return CubicSpline(tk, bt), CubicSpline(zk, bz)
