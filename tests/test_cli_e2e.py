@@ -131,3 +131,30 @@ def test_workers_option_gives_the_same_file(tmp_path):
     assert run_cli(["reconstruct", str(log), "-o", str(b), "--workers", "2"]) == 0
     pd.testing.assert_frame_equal(pd.read_parquet(a), pd.read_parquet(b), check_exact=True)
     assert run_cli(["reconstruct", str(log), "-o", str(a), "--workers", "0"]) == 2
+
+
+def test_noise_file_overrides_the_joint_budget(tmp_path):
+    """--noise FILE: its [joint] values reach the smoother (the summary echoes them); an unknown
+    key, a zero standard deviation or a non-number is a metadata error (exit 7) naming the file."""
+    noise = tmp_path / "n.toml"
+    noise.write_text("[joint]\ntas_mps = 0.4\nairspeed_lag_s = 0.5\ntouchdown_m = 350\n")
+    out = tmp_path / "c.csv"
+    code = run_cli(["reconstruct", str(SAMPLES / "circuit.parquet"), "-o", str(out),
+                    "--methods", "joint", "--noise", str(noise)])
+    assert code == 0
+    summ = json.loads((tmp_path / "c.summary.json").read_text())
+    used = summ["methods"]["joint"]["settings"]["noise"]
+    assert (used["tas_mps"], used["airspeed_lag_s"], used["touchdown_m"]) == (0.4, 0.5, 350.0)
+    for body in ("tas_mps = 0\n", "tas_mps = \"fast\"\n", "no_such_setting = 1.0\n"):
+        noise.write_text("[joint]\n" + body)
+        assert run_cli(["reconstruct", str(SAMPLES / "circuit.parquet"), "-o",
+                        str(tmp_path / "d.csv"), "--noise", str(noise)]) == 7
+        assert not (tmp_path / "d.csv").exists()
+
+
+def test_a_zero_noise_setting_is_refused_by_the_library():
+    from flightrecon.filters.joint import JointNoise
+
+    with pytest.raises(ValueError, match="'gnss_h_m' must be a positive number"):
+        JointNoise(gnss_h_m=0.0)
+    assert JointNoise(airspeed_lag_s=0.0).airspeed_lag_s == 0.0   # a lag may be zero

@@ -78,7 +78,7 @@ def read_noise_file(path: Path) -> dict[str, float]:
     import tomllib
     from dataclasses import fields
 
-    from flightrecon.filters.joint import JointNoise
+    from flightrecon.filters.joint import POSITIVE_NOISE, JointNoise
 
     try:
         with open(path, "rb") as fh:
@@ -99,5 +99,8 @@ def read_noise_file(path: Path) -> dict[str, float]:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
             raise MetadataError(f"noise setting '{k}' must be a non-negative number",
                                 file=str(path))
+        if k in POSITIVE_NOISE and v == 0:
+            raise MetadataError(f"noise setting '{k}' must be positive (a standard deviation of "
+                                "zero would make its measurements exact)", file=str(path))
         out[k] = float(v)
     return out

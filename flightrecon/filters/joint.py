@@ -86,6 +86,22 @@ class JointNoise:
     init_pos_m: float = 3000.0
     init_vel_mps: float = 30.0
 
+    def __post_init__(self) -> None:
+        for name in POSITIVE_NOISE:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise ValueError(f"joint noise setting '{name}' must be a positive number "
+                                 f"(it is a measurement's standard deviation or a time "
+                                 f"constant), got {v!r}")
+
+
+POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_h_m", "gnss_v_m",
+                  "gnss_vel_mps", "radar_range_m", "radar_azimuth_deg", "radar_elevation_deg",
+                  "endpoint_h_m", "endpoint_v_m", "touchdown_sd_m", "roll_start_sd_m",
+                  "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
+                  "wind_sensor_mps")
+"""JointNoise fields that must be positive (a zero would be a measurement without noise)."""
+
 
 @dataclass(frozen=True)
 class JointSettings:
@@ -99,7 +115,7 @@ class JointSettings:
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
     crab_s: float = 10.0                     # no air-data heading this close to the runway
-    iterations: int = 8                      # cap on the Gauss-Newton passes
+    iterations: int = 12                     # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
     huber_c: float = 3.0
@@ -534,7 +550,8 @@ def _on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
 
 
 def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
-                         step_of, pnom: np.ndarray, vnom: np.ndarray) -> None:
+                         step_of, pnom: np.ndarray, vnom: np.ndarray,
+                         psi_hat: np.ndarray | None = None) -> None:
     """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
     centreline through the airfield reference point.
 
@@ -545,7 +562,10 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
     a(psi_rec) . v_nom, with c and a the cross- and along-runway unit vectors, linearised at
     dpsi = 0 and the nominal (the neglected term is dpsi^2 / 2 of the along-track value: 3 mm/s
     at 1 deg and 70 m/s). Taking the recorded heading as the runway's direction would tell the
-    smoother that the heading bias is zero.
+    smoother that the heading bias is zero. ``psi_hat`` (per state step) is the heading bias
+    of the last pass: the linearisation is about it, c(psi_rec - dpsi) . v ~ c(psi') . v +
+    (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec - psi_hat (exact at the solution
+    however large the bias).
     """
     nz = settings.noise
     n = jk.N_STATE
@@ -562,15 +582,17 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
             continue
         known = rw is not None
         # the direction of the runway (only its line matters: a reversed direction is the same)
-        psi = np.full(int(sel.sum()), rw) if known else inp.heading_rad[sel]
         tt = t_in[sel]
         k = step_of(tt)
+        ph = np.zeros(len(tt)) if known or psi_hat is None else psi_hat[k]
+        psi = np.full(int(sel.sum()), rw) if known else inp.heading_rad[sel] - ph
         H = np.zeros((len(tt), n))
         H[:, jk.IV] = -np.sin(psi)
         H[:, jk.IV + 1] = np.cos(psi)
         if not known:
             H[:, jk.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
-        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+        b.add("ground", jk.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H,
+              -H[:, jk.IPSI] * ph)
         if pos is None:
             continue
         ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
@@ -583,7 +605,7 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
         if not known:
             H[:, jk.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
         b.add("runway", jk.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
-              -cross @ arp)
+              -cross @ arp - H[:, jk.IPSI] * ph)
 
 
 def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
@@ -645,14 +667,16 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
                        Cnb_T: np.ndarray, clock: dict[str, float],
                        static: _MeasBuilder | None = None, pnom: np.ndarray | None = None,
                        vnom: np.ndarray | None = None,
-                       roll: TakeoffRoll | None = None) -> Measurements:
+                       roll: TakeoffRoll | None = None,
+                       psi_hat: np.ndarray | None = None) -> Measurements:
     """Every source as scalar measurements at its own time (recorder time base).
 
     ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
     end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
     positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
     and are rebuilt on each call.  ``roll`` is :func:`refined_roll` (computed here if not
-    given).
+    given); ``psi_hat`` the heading bias of the last pass (per state step), about which the
+    ground constraints are linearised.
     """
     nz = settings.noise
     b = (static if static is not None else static_measurements(inp, settings, T)).copy()
@@ -705,7 +729,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
                                         g["ve_mps"].to_numpy() - v_arm[:, 1]),
                        (nz.gnss_vel_mps, nz.gnss_vel_mps), "vel")
     if pnom is not None and vnom is not None:
-        _runway_measurements(b, inp, settings, step_of, pnom, vnom)
+        _runway_measurements(b, inp, settings, step_of, pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -866,6 +890,32 @@ NOISE_GROUPS = {("air", jk.TAS): "air_tas", ("air", jk.HEADING): "air_heading",
 ground and runway constraints and the sparse recorded wind are priors, not estimated)."""
 
 
+def relinearised_increments(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
+                            psi_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The step accelerations and increments for a transition linearised about the heading
+    bias ``psi_hat`` (per step) instead of zero.
+
+    The true increment is R(-dpsi) dV (the bias rotates the measured horizontal acceleration
+    about the vertical); about psi_hat it is R(-psi_hat) dV + (dpsi - psi_hat) J R(-psi_hat) dV
+    with J u = (u_E, -u_N, 0). The kernels build F[v, dpsi] = J a h (and J a h^2/2 for the
+    position) from the acceleration they are given and add the increments, so they are given
+    a' = R(-psi_hat) a, dV' = R(-psi_hat) dV - J a' h psi_hat and dP' likewise with h^2/2: the
+    state keeps the whole bias, and the transition is exact at the solution, not only for a
+    small bias (on recorder data without the runway's direction the bias is nearly
+    unobservable and a first-order rotation let it wander by several degrees).
+    """
+    c, s = np.cos(psi_hat), np.sin(psi_hat)
+
+    def rot(u: np.ndarray) -> np.ndarray:
+        return np.c_[u[:, 0] * c + u[:, 1] * s, -u[:, 0] * s + u[:, 1] * c, u[:, 2]]
+
+    a_r = rot(acc)
+    ja = np.c_[a_r[:, 1], -a_r[:, 0], np.zeros(len(a_r))]
+    dV_r = rot(dV) - ja * (dt * psi_hat)[:, None]
+    dP_r = rot(dP) - ja * (0.5 * dt * dt * psi_hat)[:, None]
+    return np.ascontiguousarray(a_r), np.ascontiguousarray(dV_r), np.ascontiguousarray(dP_r)
+
+
 def _noise_groups(meas: Measurements) -> np.ndarray:
     """Index into NOISE_GROUPS of each measurement, -1 where its variance is not estimated."""
     g = np.full(len(meas.z), -1, dtype=np.int64)
@@ -923,6 +973,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     tas0 = np.nan_to_num(inp.tas[idx])
     psi0 = np.nan_to_num(inp.heading_rad[idx])
     vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(idx))]
+    psi_hat = None   # heading bias of the last pass: the linearisation point of its rotation
+    xlin = np.zeros((0, jk.N_STATE))   # smoothed states of the last pass (measurements' linearisation)
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
         n_iter = max(n_iter, settings.noise_iterations)
@@ -933,7 +985,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         hnom = h - inp.field_h
         climb = np.diff(h, prepend=h[0])   # signed: the wind moves along its gradient
         roll = refined_roll(inp, T, vnom)
-        meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom, roll)
+        meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom, roll,
+                                  psi_hat)
+        if psi_hat is None:
+            acc_k, dV_k, dP_k = acc, dV, dP
+        else:
+            acc_k, dV_k, dP_k = relinearised_increments(acc, dV, dP, dt, psi_hat)
         groups = _noise_groups(meas)
         r = meas.r * np.where(groups >= 0, scale[np.maximum(groups, 0)], 1.0)
         if weights is None or len(weights) != len(meas.z):
@@ -948,12 +1005,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
         innov, innov_var, infl = jk.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, climb, qv_extra, q, meas.start, meas.mtype,
+            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, climb, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
-            settings.innovation_gate if settings.robust else 0.0)
+            settings.innovation_gate if settings.robust else 0.0, xlin)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
-        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc, q, meas.start, meas.mtype, meas.z, r_used, tau,
+        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z, r_used, tau,
                      meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, climb, qv_extra)
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
@@ -1028,12 +1085,19 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
         vnom = xs[:, jk.IV:jk.IV + 3]
+        psi_new = np.ascontiguousarray(xs[:, jk.IPSI])
+        psi_moved = float(np.max(np.abs(psi_new - (0.0 if psi_hat is None else psi_hat))))
+        info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
+        psi_hat = psi_new
+        xlin = xs
         # converged: the linearisation point, the weights, the clock offsets and (with
         # estimate_noise) the noise variances stand still
         # (a nominal within converge_m = 2 m changes a measurement's linearisation by about
         # shift^2 / (2 range), 0.4 mm for a radar 5 km away, and turns the local-level frame by
         # 3e-7 rad, 0.1 mm/s at 250 m/s: far below any sensor's noise)
+        # (and the heading bias within 1e-4 rad of its linearisation point: 1 m at 10 km)
         if (it > 0 and shift < settings.converge_m and clock == clock_before and not noise_moved
+                and psi_moved < 1e-4
                 and np.all(np.abs(weights - w_before) <= settings.converge_weight)):
             info["converged"] = True
             break

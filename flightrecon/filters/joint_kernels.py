@@ -346,8 +346,13 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
 
 @nb.njit(cache=True, nogil=True)
 def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, mstart, mtype, mz, mr, mw,
-            mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate):
+            mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate, xlin):
     """Forward extended Kalman filter with sequential scalar updates.
+
+    With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
+    last pass: h(x) ~ h(xlin_k) + H(xlin_k)(x - xlin_k), which makes the iterations Gauss-Newton
+    on the whole record, an iterated extended Kalman smoother); with an empty ``xlin`` (0, n)
+    about the filter's own prediction (an extended Kalman filter: the first pass).
 
     ``mstart`` (N+1,) indexes the measurements of each step (sorted by step).  A measurement
     whose normalised innovation exceeds ``gate`` (0: off) has its variance inflated so that it
@@ -396,12 +401,22 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
         for j in range(mstart[k], mstart[k + 1]):
             if mw[j] <= 0.0:
                 continue
-            hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
-                              Cst)
-            nu = mz[j] - hx
             t = mtype[j]
-            if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
-                nu = _wrap(nu)
+            if xlin.shape[0] > 0:
+                hx = measure_into(H, j, k, xlin[k], mtype, mz, mtau, mH, mrow, md, Cen, pnom,
+                                  hnom, pst, Cst)
+                nu = mz[j] - hx
+                if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
+                    nu = _wrap(nu)
+                for i in range(n):
+                    if H[i] != 0.0:
+                        nu -= H[i] * (x[i] - xlin[k, i])
+            else:
+                hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom,
+                                  pst, Cst)
+                nu = mz[j] - hx
+                if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
+                    nu = _wrap(nu)
             nh = 0
             for i in range(n):
                 if H[i] != 0.0:
