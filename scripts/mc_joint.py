@@ -2,14 +2,18 @@
 
 Cases (simulated flights, every run a new seed of the scenario: new noise, new weather draw):
 
-* ``recorder``: 20-minute circuits (legs stretched), recorder only (no GNSS, no radar), wind
-  varying with altitude; end points = departure and arrival airfield reference points with the runway's
-  true direction and threshold; the touchdown dispersed N(400 m, 150 m) past the threshold.  Joint smoother vs the Sabziev fusion vs dead reckoning from airspeed and
-  heading with and without a linear end-point correction.
-* ``recorder_no_runway``: the same flights (same seeds) without the runway direction in the
-  metadata (neither direction nor threshold: the heading bias then has no absolute reference
-  but the end points, which are the reference point with the generic 1500 m prior).
-* ``gnss``: the same circuits with 1 Hz GNSS and a 2-minute GNSS dropout; joint vs SNS smoother.
+* ``recorder``: 20-minute circuits (legs stretched), recorder only (no GNSS, no radar); end
+  points = departure and arrival airfield reference points with the runway's true direction
+  and threshold; line-up N(0, 100 m) and touchdown N(400 m, 150 m) past the threshold; the
+  scenario's wind plus random walks in time and height (``random_wind``). Joint smoother vs
+  the Sabziev fusion vs dead reckoning from airspeed and heading with and without a linear
+  end-point correction.
+* ``recorder_no_runway``: the same flights (same seeds) without the runway in the metadata
+  (neither direction nor threshold: the heading bias then has no absolute reference, and the
+  end points are the reference point with the generic 1500 m prior).
+* ``recorder_smooth_wind``: the same circuits in the scenario's smooth wind only.
+* ``gnss``: 15-minute circuits with 1 Hz GNSS and a 2-minute GNSS dropout; joint vs SNS
+  smoother.
   Consistency: run-averaged NEES of the joint smoother's north and east positions.
 * ``radar``: the ``landing`` scenario, radar only (no GNSS); joint vs ADS/ARMS and azimuth channel.
 * ``corrupt_gnss``: circuits with GNSS offset by 500 m north for 60 s; ``corrupt_radar``:
@@ -17,12 +21,12 @@ Cases (simulated flights, every run a new seed of the scenario: new noise, new w
 
 Usage::
 
-    python scripts/mc_joint.py --runs 30            # full size; writes docs/tables/joint_mc.md
+    python scripts/mc_joint.py --runs 20            # full size; writes docs/tables/joint_mc.md
     python scripts/mc_joint.py --runs 3 --no-write  # quick look
     python scripts/mc_joint.py --summarise docs/tables/joint_mc_runs.json  # tables only
 
-Seeds: run i of case c uses seed 1000 * (case index + 1) + i (``recorder_no_runway`` uses
-the ``recorder`` seeds).
+Seeds: run i of case c uses seed 1000 * (case index + 1) + i (``recorder_no_runway`` and
+``recorder_smooth_wind`` use the ``recorder`` seeds).
 """
 
 from __future__ import annotations
