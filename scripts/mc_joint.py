@@ -21,7 +21,7 @@ Cases (simulated flights, every run a new seed of the scenario: new noise, new w
 
 Usage::
 
-    python scripts/mc_joint.py --runs 20            # full size; writes docs/tables/joint_mc.md
+    python scripts/mc_joint.py --runs 40            # full size; writes docs/tables/joint_mc.md
     python scripts/mc_joint.py --runs 3 --no-write  # quick look
     python scripts/mc_joint.py --summarise docs/tables/joint_mc_runs.json  # tables only
 
@@ -294,7 +294,7 @@ def summarise(rows: list[dict]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--runs", type=int, default=30)
+    ap.add_argument("--runs", type=int, default=40)
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--merge", action="store_true",

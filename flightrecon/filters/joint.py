@@ -983,7 +983,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
         Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
         hnom = h - inp.field_h
-        climb = np.diff(h, prepend=h[0])   # signed: the wind moves along its gradient
+        dz = np.diff(h, prepend=h[0])   # signed height change: the wind moves along its gradient
         roll = refined_roll(inp, T, vnom)
         meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom, roll,
                                   psi_hat)
@@ -1005,13 +1005,13 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
         innov, innov_var, infl = jk.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, climb, qv_extra, q, meas.start, meas.mtype,
+            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra, q, meas.start, meas.mtype,
             meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
             settings.innovation_gate if settings.robust else 0.0, xlin)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
         kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z, r_used, tau,
-                     meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, climb, qv_extra)
+                     meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz, qv_extra)
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
         with_cov = settings.estimate_noise or it > 0
