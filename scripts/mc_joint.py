@@ -5,7 +5,8 @@ Cases (simulated flights, every run a new seed of the scenario: new noise, new w
 * ``recorder``: 20-minute circuits (legs stretched), recorder only (no GNSS, no radar); end
   points = departure and arrival airfield reference points with the runway's true direction
   and threshold; line-up N(0, 100 m) and touchdown N(400 m, 150 m) past the threshold; the
-  scenario's wind plus random walks in time and height (``random_wind``). Joint smoother vs
+  scenario's wind plus random walks in time and height (``random_wind``); the persistent
+  sensor errors drawn from the smoother's priors (``prior_aircraft``). Joint smoother vs
   the Sabziev fusion vs dead reckoning from airspeed and heading with and without a linear
   end-point correction.
 * ``recorder_no_runway``: the same flights (same seeds) without the runway in the metadata
@@ -79,13 +80,31 @@ def random_wind(seed: int) -> WindField:
                    rw_alt_mps_sqrt_m=nz.wind_shear_mps_per_sqrt_m, rw_seed=seed)
 
 
+def prior_aircraft(seed: int):
+    """The circuit's aircraft with its persistent sensor errors drawn from the joint smoother's
+    default priors (accelerometer bias and scale, heading, roll and pitch biases, airspeed
+    scale), anew for each seed: with the line-up, the touchdown and the wind, every quantity
+    the model treats as random is drawn as it assumes."""
+    nz = JointNoise()
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(seed), 4242])))
+    return replace(scenario_config("circuit").aircraft,
+                   accel_bias_g=tuple(float(v) for v in rng.normal(0.0, nz.accel_bias_g, 3)),
+                   accel_scale=tuple(float(v) for v in rng.normal(0.0, nz.accel_scale, 3)),
+                   heading_bias_deg=float(rng.normal(0.0, nz.heading_bias_deg)),
+                   roll_bias_deg=float(rng.normal(0.0, nz.attitude_bias_deg)),
+                   pitch_bias_deg=float(rng.normal(0.0, nz.attitude_bias_deg)),
+                   airspeed_scale=float(rng.normal(0.0, nz.tas_scale)))
+
+
 def make_flight(case: str, seed: int):
     if case == "recorder":
-        return simulate("circuit", seed=seed, wind=random_wind(seed), **RECORDER)
+        return simulate("circuit", seed=seed, wind=random_wind(seed), aircraft=prior_aircraft(seed),
+                        **RECORDER)
     if case == "recorder_smooth_wind":
-        return simulate("circuit", seed=seed, **RECORDER)
+        return simulate("circuit", seed=seed, aircraft=prior_aircraft(seed), **RECORDER)
     if case == "recorder_no_runway":
-        r = simulate("circuit", seed=seed, wind=random_wind(seed), **RECORDER)
+        r = simulate("circuit", seed=seed, wind=random_wind(seed), aircraft=prior_aircraft(seed),
+                     **RECORDER)
         bare = {"runway_true_deg": None, "threshold_lat_deg": None, "threshold_lon_deg": None}
         meta = replace(r.meta, departure=replace(r.meta.departure, **bare),
                        arrival=replace(r.meta.arrival, **bare))

@@ -112,10 +112,11 @@ def test_roll_and_pitch_biases_are_estimated():
 
 
 def test_runway_direction_gives_the_heading_bias_on_recorder_data():
-    """Recorder only (circuit, heading reference biased 0.8 deg): with the runway's true
-    direction in the metadata the heading bias is estimated (within 3 sd, sd well below the
-    2 deg prior); without it the bias has no absolute reference and keeps a wide sd (and the
-    recorded heading is NOT taken as the runway's direction, which would claim a bias of 0)."""
+    """Recorder only (circuit 1001, heading-reference bias drawn from the prior): with the
+    runway's true direction in the metadata the heading bias is estimated (within 3 sd, sd well
+    below the 2 deg prior); without it the bias has no absolute reference and keeps a wide sd
+    (and the recorded heading is NOT taken as the runway's direction, which would claim a bias
+    of 0)."""
     from dataclasses import replace
 
     from flightrecon.cleaning import clean_flight
@@ -128,7 +129,9 @@ def test_runway_direction_gives_the_heading_bias_on_recorder_data():
     settings = JointSettings(noise=mc.noise_from_sensors(r.sensor_truth))
     with_rw = run_joint(clean_flight(Flight(data=r.log, meta=r.meta)), settings=settings)
     c = with_rw.summary["corrections"]["heading_bias_deg"]
-    assert abs(c["value"] - 0.8) < 3 * c["sd"] and c["sd"] < 0.4
+    truth = r.sensor_truth["sensors"]["attitude"]["heading_bias_deg"]
+    assert abs(truth) > 0.5           # the draw is worth estimating (seed 1001: -1.94 deg)
+    assert abs(c["value"] - truth) < 3 * c["sd"] and c["sd"] < 0.4
     meta = replace(r.meta, departure=replace(r.meta.departure, runway_true_deg=None),
                    arrival=replace(r.meta.arrival, runway_true_deg=None))
     without = run_joint(clean_flight(Flight(data=r.log, meta=meta)), settings=settings)
@@ -193,7 +196,7 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
     from flightrecon.filters.joint_method import joint_inputs, run_joint
     from flightrecon.types import Flight
 
-    ratios = []
+    ratios, rests = [], 0
     for seed in range(1000, 1004):
         r = mc.make_flight("recorder", seed)
         clean = clean_flight(Flight(data=r.log, meta=r.meta))
@@ -216,7 +219,11 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
         run_m = np.trapezoid(gs[(tr["t_s"] >= t_start) & (tr["t_s"] <= roll["start_t_s"])],
                              dx=1.0 / 16.0)
         assert t_start < roll["start_t_s"] and run_m < 25.0, (roll, t_start, run_m)
-        assert roll["rest_t_s"][1] < t_start, (roll, t_start)
+        # a rest is claimed only where the integrated speed stayed below 3 m/s (an
+        # accelerometer bias drawn large can hide it: no zero-velocity then), and then it
+        # ends before the roll
+        rests += np.isfinite(roll["rest_t_s"][0])
+        assert not roll["rest_t_s"][1] >= t_start, (roll, t_start)
         assert [e["model"] for e in j.summary["end_points"]] == ["runway", "runway"]
         bare = {"threshold_lat_deg": None, "threshold_lon_deg": None}
         meta = replace(r.meta, departure=replace(r.meta.departure, **bare),
@@ -234,4 +241,5 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
                 err = m[f"joint_{c}_m"].iloc[i] - r.truth[f"{c}_m"].iloc[i]
                 assert abs(err) < 3 * m[f"joint_{c}_sd_m"].iloc[i], (seed, t_end, c, err)
     assert np.exp(np.mean(np.log(ratios))) < 0.6, ratios
+    assert rests >= 3
 

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.filters import joint_kernels as jk
+from flightrecon.filters.joint_kernels import G0 as G0_MPS2
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
@@ -250,7 +251,8 @@ class JointInputs:
 def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
                  tas: np.ndarray, liftoff_t: float, wind_ne: np.ndarray | None = None,
                  rest_mps: float = 3.0, max_rolling_mps: float = 10.0,
-                 settle_s: float = 10.0, v_lo_mps: float | None = None) -> TakeoffRoll:
+                 settle_s: float = 10.0, v_lo_mps: float | None = None,
+                 accel_bias_mps2: float = 0.0) -> TakeoffRoll:
     """Start of the take-off roll, and the rest before it, from the recorded data alone.
 
     The ground speed is integrated backwards from lift-off, v(t) = v_lo - int_t^t_lo a dt,
@@ -263,6 +265,8 @@ def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
     dv / a but the position only by about v dv / a (metres: the aircraft is slow there).  The
     rest is the stretch of v <= ``rest_mps`` that ends at the roll start, less its last
     ``settle_s`` (the first metres of the roll, where the detection lags).
+    ``accel_bias_mps2`` is subtracted from the along-track acceleration (the accelerometer's
+    forward bias, once the smoother has estimated it: 0.003 g is 1.8 m/s over a minute's rest).
 
     Returns
     -------
@@ -276,7 +280,7 @@ def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
         return TakeoffRoll()
     psi = np.where(np.isfinite(heading_rad[:i_lo + 1]), heading_rad[:i_lo + 1], 0.0)
     a = acc_ned[:i_lo + 1, 0] * np.cos(psi) + acc_ned[:i_lo + 1, 1] * np.sin(psi)
-    a = np.where(np.isfinite(a), a, 0.0)
+    a = np.where(np.isfinite(a), a, 0.0) - accel_bias_mps2
     if v_lo_mps is not None:
         v_lo = float(v_lo_mps)
     else:
@@ -299,10 +303,12 @@ def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
     return TakeoffRoll(float(t_in[i_start]), rest)
 
 
-def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None) -> TakeoffRoll:
+def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
+                 accel_bias_g: np.ndarray | None = None) -> TakeoffRoll:
     """:func:`takeoff_roll` with the along-track component of the nominal (smoothed) ground
-    velocity ``vnom`` (N, 3) at lift-off on the state grid ``T`` as the lift-off speed;
-    ``inp.roll`` without a nominal or without a roll."""
+    velocity ``vnom`` (N, 3) at lift-off on the state grid ``T`` as the lift-off speed, and the
+    smoothed forward accelerometer bias ``accel_bias_g`` (N, 3) [g] at lift-off removed from
+    the acceleration; ``inp.roll`` without a nominal or without a roll."""
     roll = inp.roll
     if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):
         return roll
@@ -311,9 +317,11 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None) -> Ta
     psi_lo = inp.heading_rad[max(int(np.searchsorted(t_in, inp.liftoff_t)) - 1, 0)]
     if not np.isfinite(psi_lo):
         return roll
+    bias = 0.0 if accel_bias_g is None else G0_MPS2 * float(accel_bias_g[k_lo, 0])
     return takeoff_roll(t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
                         v_lo_mps=float(vnom[k_lo, 0] * np.cos(psi_lo)
-                                       + vnom[k_lo, 1] * np.sin(psi_lo)))
+                                       + vnom[k_lo, 1] * np.sin(psi_lo)),
+                        accel_bias_mps2=bias)
 
 
 def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
@@ -974,6 +982,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     psi0 = np.nan_to_num(inp.heading_rad[idx])
     vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(idx))]
     psi_hat = None   # heading bias of the last pass: the linearisation point of its rotation
+    ba_hat = None    # accelerometer biases of the last pass (for the take-off roll)
     xlin = np.zeros((0, jk.N_STATE))   # smoothed states of the last pass (measurements' linearisation)
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
@@ -984,7 +993,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
         hnom = h - inp.field_h
         dz = np.diff(h, prepend=h[0])   # signed height change: the wind moves along its gradient
-        roll = refined_roll(inp, T, vnom)
+        roll = refined_roll(inp, T, vnom, ba_hat)
         meas = build_measurements(inp, settings, T, Cen, Cnb, clock, static, pnom, vnom, roll,
                                   psi_hat)
         if psi_hat is None:
@@ -1089,6 +1098,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         psi_moved = float(np.max(np.abs(psi_new - (0.0 if psi_hat is None else psi_hat))))
         info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
         psi_hat = psi_new
+        ba_hat = xs[:, jk.IBA:jk.IBA + 3]
         xlin = xs
         # converged: the linearisation point, the weights, the clock offsets and (with
         # estimate_noise) the noise variances stand still
