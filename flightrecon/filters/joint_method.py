@@ -263,7 +263,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
                         "iterations; the last factors are used")
     # converged: the strict test of smooth_joint, or a last pass that moved the track by less
-    # than 5 % of its median horizontal standard deviation (the linearisation then no longer
+    # than 5 % of its median position standard deviation (the linearisation then no longer
     # matters at the precision claimed); otherwise reported as not converged
     last = run.iterations[-1]
     sd_h = np.sqrt(np.nanmedian(run.var[:, 0] + run.var[:, 1] + run.var[:, 2]))
