@@ -5,16 +5,12 @@ seeds per case, with bounds set well outside what those seeds give so that the t
 real regression (a sign or frame error moves the errors by orders of magnitude) and not on noise.
 """
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
+from _scripts import load_script
 
-ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("mc_joint", ROOT / "scripts" / "mc_joint.py")
-mc = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(mc)
+mc = load_script("mc_joint")
 
 
 @pytest.fixture(scope="module")

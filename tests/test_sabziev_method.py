@@ -235,13 +235,9 @@ def test_accuracy_study_on_one_simulated_flight():
     341/684 vs 1085/1257 m, so the ordering is not marginal).  The vertical stays within 30 m of
     the truth (measured RMS 7.7 m: baro noise plus the pressure-vs-geometric difference of the
     simulated +6 K atmosphere over ~450 m of height)."""
-    import importlib.util
-    from pathlib import Path
+    from _scripts import load_script
 
-    path = Path(__file__).resolve().parents[1] / "scripts" / "sabziev_accuracy.py"
-    spec = importlib.util.spec_from_file_location("sabziev_accuracy", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = load_script("sabziev_accuracy")
     f = mod.one_flight("circuit", {"wind_hz": 1.0}, 1)
     s = f["summary_a"]
     assert s["converged"]

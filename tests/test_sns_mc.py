@@ -6,28 +6,13 @@ the acceptance bands widened accordingly; each band says why.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+from _scripts import load_script
 
 from flightrecon.filters import sns as core
 
-
-def _load_mc():
-    if "mc_sns" in sys.modules:
-        return sys.modules["mc_sns"]
-    path = Path(__file__).resolve().parents[1] / "scripts" / "mc_sns.py"
-    spec = importlib.util.spec_from_file_location("mc_sns", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["mc_sns"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-mc = _load_mc()
+mc = load_script("mc_sns")
 RUNS = 40
 DURATION_S = 1200.0
 

@@ -2,30 +2,18 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
+from _scripts import load_script
 
 from flightrecon.errors import MetadataError, SchemaError, ValidationError
 from flightrecon.filters import sns as core
 from flightrecon.filters.sns_method import run_sns, solve_sns
 from flightrecon.geo.frames import output_plane
 
-
-def _load_mc():
-    path = Path(__file__).resolve().parents[1] / "scripts" / "mc_sns.py"
-    spec = importlib.util.spec_from_file_location("mc_sns", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["mc_sns"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-mc = _load_mc()
+mc = load_script("mc_sns")
 
 
 def _noiseless(model):

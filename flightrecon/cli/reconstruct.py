@@ -6,8 +6,14 @@ from pathlib import Path
 
 import click
 
-from flightrecon.cli.common import (default_output, input_options, parse_k,
-                                    position_option_values, progress_bar, read_noise_file)
+from flightrecon.cli.common import (
+    default_output,
+    input_options,
+    parse_k,
+    position_option_values,
+    progress_bar,
+    read_noise_file,
+)
 
 
 @click.command("reconstruct")

@@ -17,8 +17,15 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.filters import joint_kernels as jk
-from flightrecon.filters.joint import (SOURCES, JointInputs, JointRun, JointSettings,
-                                       smooth_joint, source_report, takeoff_roll)
+from flightrecon.filters.joint import (
+    SOURCES,
+    JointInputs,
+    JointRun,
+    JointSettings,
+    smooth_joint,
+    source_report,
+    takeoff_roll,
+)
 from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned

@@ -18,7 +18,14 @@ import pandas as pd
 
 from flightrecon.errors import ValidationError
 from flightrecon.geo.frames import TangentPlane, output_plane
-from flightrecon.sim.aircraft import JET, LIGHT, TURBOPROP, Aircraft, aircraft_seed, draw_aircraft
+from flightrecon.sim.aircraft import (
+    JET,
+    LIGHT,
+    TURBOPROP,
+    Aircraft,
+    aircraft_seed,
+    draw_aircraft,
+)
 from flightrecon.sim.recorder import record_log, stream
 from flightrecon.sim.sensors import (
     AirspeedSensor,
