@@ -31,7 +31,7 @@ import pandas as pd
 
 from flightrecon.filters import joint_kernels as jk
 from flightrecon.filters.joint_kernels import G0 as G0_MPS2
-from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
+from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef, offset_latlon
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
 SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway",
@@ -327,11 +327,9 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
 def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
                         dist_m: float) -> tuple[float, float, float]:
     """(lat, lon, h) ``dist_m`` down the runway from its threshold ``thr``."""
-    from flightrecon.geo.frames import TangentPlane
-
-    lat, lon, _ = TangentPlane(float(thr[0]), float(thr[1]), 0.0).inverse(
-        dist_m * np.sin(runway_rad), dist_m * np.cos(runway_rad), 0.0)
-    return float(lat), float(lon), float(thr[2])
+    lat, lon = offset_latlon(thr[0], thr[1], dist_m * np.cos(runway_rad),
+                             dist_m * np.sin(runway_rad))
+    return lat, lon, float(thr[2])
 
 
 def end_points(inp: JointInputs, nz: JointNoise,

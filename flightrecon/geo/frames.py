@@ -13,7 +13,7 @@ from functools import lru_cache
 import numpy as np
 from pyproj import Transformer
 
-__all__ = ["TangentPlane", "geodetic_to_ecef", "ecef_to_geodetic"]
+__all__ = ["TangentPlane", "ecef_to_geodetic", "geodetic_to_ecef", "offset_latlon"]
 
 
 @lru_cache(maxsize=1)
@@ -69,6 +69,16 @@ class TangentPlane:
                                                     np.asarray(up_m, float),
                                                     direction="INVERSE")
         return np.asarray(lat), np.asarray(lon), np.asarray(h)
+
+
+def offset_latlon(lat_deg: float, lon_deg: float, north_m: float,
+                  east_m: float) -> tuple[float, float]:
+    """Lat/lon [deg] of the point ``north_m``, ``east_m`` from ``(lat_deg, lon_deg)`` in its
+    tangent plane, at the ground (runway thresholds, touchdown points, airfield offsets)."""
+    # plain floats: the PROJ string is built from repr() (an np.float64 would not parse)
+    lat, lon, _ = TangentPlane(float(lat_deg), float(lon_deg), 0.0).inverse(
+        float(east_m), float(north_m), 0.0)
+    return float(lat), float(lon)
 
 
 @lru_cache(maxsize=64)

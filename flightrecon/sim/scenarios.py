@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import ValidationError
-from flightrecon.geo.frames import TangentPlane, output_plane
+from flightrecon.geo.frames import offset_latlon, output_plane
 from flightrecon.sim.aircraft import (
     JET,
     LIGHT,
@@ -146,10 +146,7 @@ class SimResult:
 
 def _offset(p: Position, north_m: float, east_m: float) -> tuple[float, float]:
     """Lat/lon of a point ``north_m, east_m`` from ``p`` in its tangent plane (at ground)."""
-    # plain floats: geo.frames builds a PROJ string from repr() (np.float64 would not parse)
-    lat, lon, _ = TangentPlane(float(p.lat_deg), float(p.lon_deg), 0.0).inverse(
-        float(east_m), float(north_m), 0.0)
-    return float(lat), float(lon)
+    return offset_latlon(p.lat_deg, p.lon_deg, north_m, east_m)
 
 
 def _builder(cfg: ScenarioConfig, atmosphere: Atmosphere, start: tuple[float, float, float],
