@@ -32,8 +32,8 @@ from flightrecon.cli.common import parse_k
 @click.option("--k", "k_text", metavar="K1,K2,K3",
               help="Sabziev coefficients: initial-value mode, no arrival point needed.")
 @click.option("--estimate-noise", is_flag=True,
-              help="Joint smoother: estimate each source's noise variance (EM) and the "
-                   "wind's variability (maximum likelihood) from the flight itself.")
+              help="Joint smoother: estimate each source's noise variance from the flight "
+                   "itself (expectation-maximisation; docs/joint.md).")
 @click.option("--format", "fmt", type=click.Choice(["parquet", "csv", "geojson", "kml"]),
               default="parquet", show_default=True, help="Result format.")
 @click.pass_context

@@ -43,8 +43,8 @@ from flightrecon.cli.common import (
               help="TOML file overriding the joint smoother's sensor error budget "
                    "([joint] table, see docs/joint.md).")
 @click.option("--estimate-noise", is_flag=True,
-              help="Joint smoother: estimate each source's noise variance (EM) and the "
-                   "wind's variability (maximum likelihood) from the flight itself.")
+              help="Joint smoother: estimate each source's noise variance from the flight "
+                   "itself (expectation-maximisation; docs/joint.md).")
 @click.option("--store", "store_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Coefficient store (SQLite): a fitted flight's k1..k3 are recorded there "
                    "under its aircraft id.")
