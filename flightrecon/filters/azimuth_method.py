@@ -12,7 +12,9 @@ inside radar coverage; measurements are used once, at their own time):
 4. azimuth filter and RTS smoother, ``model = "aided"`` or ``"singer"``;
 5. output on the grid times inside radar coverage (NaN outside): azimuth, rate, acceleration and
    the implied position (station tangent plane -> geodetic -> output tangent plane at the
-   departure airfield) with standard deviations.
+   departure airfield) with standard deviations in the output plane's axes, and the ground
+   velocity in the local level at the aircraft (rotated from the station plane's axes by
+   :func:`flightrecon.geo.navframe.horizontal_rotation`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from flightrecon.filters.azimuth import (
     track_range,
 )
 from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
+from flightrecon.geo.navframe import horizontal_rotation
 from flightrecon.types import CleanFlight, MethodResult
 
 __all__ = ["AzimuthSettings", "run_azimuth"]
@@ -249,10 +252,12 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     # station-plane position and velocity; range and azimuth channels are independent
     n_st, e_st = r * ce, r * se
     var_r = Pr[:, 0, 0]
-    var_n = ce**2 * var_r + (r * se) ** 2 * P[:, 0, 0]
-    var_e = se**2 * var_r + (r * ce) ** 2 * P[:, 0, 0]
-    vn = rd * ce - r * om * se
-    ve = rd * se + r * om * ce
+    # position covariance in the station plane's (north, east) axes, from (r, eps)
+    Jp = np.stack([np.stack([ce, -r * se], -1), np.stack([se, r * ce], -1)], -2)
+    Cp = Jp @ np.stack([np.stack([var_r, np.zeros_like(var_r)], -1),
+                        np.stack([np.zeros_like(var_r), P[:, 0, 0]], -1)], -2) @ Jp.transpose(0, 2, 1)
+    vn_st = rd * ce - r * om * se
+    ve_st = rd * se + r * om * ce
     # first-order: d(vn, ve)/d(r, r_dot) and /d(eps, omega)
     Jr = np.stack([np.stack([-om * se, ce], -1), np.stack([om * ce, se], -1)], -2)
     Je = np.stack([np.stack([-rd * se - r * om * ce, -r * se], -1),
@@ -263,6 +268,15 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     stp = TangentPlane(st.lat_deg, st.lon_deg, h_station)
     lat, lon, h = stp.inverse(e_st, n_st, up_st)
     e_out, n_out, _ = plane_out.forward(lat, lon, h)
+    # into the output's axes: positions' covariance into the output plane's (north, east),
+    # velocities and theirs into the local level at the aircraft (true north there)
+    Mp = horizontal_rotation(st.lat_deg, st.lon_deg, plane_out.lat0_deg, plane_out.lon0_deg)[0]
+    Cp = Mp @ Cp @ Mp.T
+    var_n, var_e = Cp[:, 0, 0], Cp[:, 1, 1]
+    Mv = horizontal_rotation(st.lat_deg, st.lon_deg, lat, lon)
+    v_loc = np.einsum("kij,kj->ki", Mv, np.c_[vn_st, ve_st])
+    vn, ve = v_loc[:, 0], v_loc[:, 1]
+    Cv = Mv @ Cv @ Mv.transpose(0, 2, 1)
 
     N = tg.size
     cols: dict[str, np.ndarray] = {}
