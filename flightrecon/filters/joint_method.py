@@ -284,10 +284,16 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     for name, (o, sd) in run.clock_offsets_s.items():
         if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
             warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "
-                            "and corrected")
+                            f"and corrected (seconds added to the {name} times, as "
+                            f"`clean --{name}-clock-offset` takes it)")
+    if run.cholesky_fallbacks:
+        warnings.append(f"joint: on {run.cholesky_fallbacks} steps the predicted covariance was "
+                        "not positive definite to rounding (Cholesky failed); the smoother gain "
+                        "there came from a general solve")
     summary = {
         "healthy": bool(finite),
         "converged": bool(finite) and converged,
+        "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,
         "corrections": _corrections(run),

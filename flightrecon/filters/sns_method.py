@@ -370,6 +370,10 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         np.asarray(noise.sensor_sd, float))
     if n_drop:
         notes.append(f"{n_drop} GNSS fixes outside the recorder grid not used")
+    if sm.cholesky_fallbacks:
+        notes.append(f"on {sm.cholesky_fallbacks} steps the predicted covariance was not positive "
+                     "definite to rounding (Cholesky failed); the smoother gain there came from "
+                     "a general solve")
     return SnsSolution(m, fm, noise, inputs, run, sm, idx, tf, n_drop, lat, lon, h_grid, P_ne,
                        v_ne, P_v, tuple(notes))
 
@@ -487,6 +491,7 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
         "n_fixes_dropped": sol.n_fix_dropped,
         "gaps": _gaps(sol.fix_t, float(t[0]), float(t[-1]), min_gap),
         "nis_per_dof": nis_ratio,
+        "cholesky_fallbacks": sol.smoothed.cholesky_fallbacks,
         "converged": finite,
         # a mean NIS per degree of freedom far above 1 means the noise settings do not fit
         "healthy": finite and bool(np.isfinite(nis_ratio) and nis_ratio < 10.0),
