@@ -1,6 +1,6 @@
 """ADS/ARMS adapter: a cleaned flight in, the ``arms_`` columns and summary out.
 
-METHODS.md section 2; the estimators are in :mod:`flightrecon.filters.arms`.
+docs/arms.md; the estimators are in :mod:`flightrecon.filters.arms`.
 
 Frames.  The filters work in the east-north-up tangent plane at the radar station (x east,
 y north).  The aircraft's height above that plane, ``u = dh - r^2 / (2 R_e)``, comes from the
@@ -248,7 +248,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
              settings: ArmsSettings = ArmsSettings()) -> MethodResult:
     """Ground track, ground velocity and air-data error from radar plots and air data.
 
-    METHODS.md section 2.  ``form="joint"`` runs the joint model
+    docs/arms.md.  ``form="joint"`` runs the joint model
     (:func:`flightrecon.filters.arms.run_joint`), ``"cascade"`` the paper's two stages
     (:func:`flightrecon.filters.arms.run_cascade`); ``linearisation`` is ``"ekf"`` or
     ``"converted"``.
@@ -424,7 +424,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
         warnings.append("non-finite ARMS estimates")
     dvo = rot(dv)
     summary = {
-        "method": "ADS/ARMS (METHODS.md section 2)",
+        "method": "ADS/ARMS (docs/arms.md)",
         "form": form,
         "linearisation": linearisation,
         "converted_at": settings.converted_at if linearisation == "converted" else None,

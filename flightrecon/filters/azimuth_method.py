@@ -1,4 +1,4 @@
-"""Adapter: the azimuth channel (METHODS.md section 3) on a cleaned flight -> ``MethodResult``.
+"""Adapter: the azimuth channel (docs/azimuth.md) on a cleaned flight -> ``MethodResult``.
 
 Pipeline, all on one event timeline (the union of the radar plots' own times and the grid times
 inside radar coverage; measurements are used once, at their own time):
@@ -144,7 +144,7 @@ def _horizontal_range(plots: pd.DataFrame, clean: CleanFlight, s: AzimuthSetting
 
 def run_azimuth(clean: CleanFlight, *, model: str = "aided",
                 settings: AzimuthSettings | None = None) -> MethodResult:
-    """Azimuth channel of the approach radar, Singer or load-factor aided (METHODS.md s. 3).
+    """Azimuth channel of the approach radar, Singer or load-factor aided (docs/azimuth.md).
 
     Parameters
     ----------

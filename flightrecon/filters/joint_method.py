@@ -16,7 +16,7 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
-from flightrecon.filters.joint import layout as jl
+from flightrecon.errors import MetadataError, ValidationError
 from flightrecon.filters.joint import (
     SOURCES,
     JointInputs,
@@ -26,6 +26,8 @@ from flightrecon.filters.joint import (
     source_report,
     takeoff_roll,
 )
+from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
@@ -44,6 +46,33 @@ def field_pressure_altitude_m(elev_msl_m: float, qnh_hpa: float | None) -> float
     return float(pressure_altitude_m(isa_pressure_pa(elev_msl_m) * q / 1013.25))
 
 
+def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
+    """Roll, pitch, heading with each missing sample replaced by the nearest recorded one.
+
+    The acceleration stays NaN there (the smoother then adds process noise instead of the
+    measured acceleration); the rotation of the accelerometer biases and of the ground
+    constraints needs an attitude and takes the nearest recorded one.  Returns the angles and
+    a note for the summary when any was missing.  An angle never recorded is an error.
+    """
+    names = ("roll_deg", "pitch_deg", "heading_deg")
+    out, notes = [], []
+    for name, a in zip(names, angles_deg):
+        ok = np.isfinite(a)
+        if not ok.any():
+            raise ValidationError(f"the joint smoother needs {name}: it has no finite sample",
+                                  column=name)
+        if ok.all():
+            out.append(a)
+            continue
+        held = a.copy()
+        held[~ok] = a[ok][_nearest(t[ok], t[~ok])]
+        out.append(held)
+        notes.append(f"joint: {name} missing on {int((~ok).sum())} samples; the acceleration "
+                     "there is replaced by process noise and the bias rotation holds the "
+                     "nearest recorded attitude")
+    return out, notes
+
+
 def joint_inputs(clean: CleanFlight) -> JointInputs:
     """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base)."""
     g = clean.grid
@@ -53,12 +82,17 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     def col(name):
         return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
 
-    lat0 = meta.departure.lat_deg if meta.departure is not None else 45.0
-    Cnb = body_to_ned_matrix(np.nan_to_num(col("roll_deg")), np.nan_to_num(col("pitch_deg")),
-                             np.nan_to_num(col("heading_deg")))
+    if meta.departure is None:
+        raise MetadataError("the joint smoother needs the departure position (--departure): it "
+                            "anchors the output plane and the latitude of normal gravity")
+    t_in = g["t_s"].to_numpy(float)
+    att, notes = _held_attitude(t_in, col("roll_deg"), col("pitch_deg"), col("heading_deg"))
+    Cnb = body_to_ned_matrix(*att)
+    # gravity at the departure latitude (normal gravity changes by 5e-6 m/s^2 per km north)
     acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
                                      col("roll_deg"), col("pitch_deg"), col("heading_deg"),
-                                     lat_deg=lat0, h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
+                                     lat_deg=meta.departure.lat_deg,
+                                     h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
     dep = meta.departure
     if dep is not None:
         h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
@@ -95,7 +129,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
 
     ph = clean.phases
     inp = JointInputs(
-        t_in=g["t_s"].to_numpy(float), acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
+        t_in=t_in, acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
         heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
         gnss=gnss, radar=radar, station=pos(meta.station), departure=pos(meta.departure),
         arrival=pos(meta.arrival),
@@ -110,7 +144,8 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                          for p in (meta.departure, meta.arrival)),
         thresholds=tuple(None if p is None or p.threshold is None
                          else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
-                         for p in (meta.departure, meta.arrival)))
+                         for p in (meta.departure, meta.arrival)),
+        notes=tuple(notes))
     if not (ph is not None and ph.starts_airborne):
         inp = replace(inp, roll=takeoff_roll(
             inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne))
@@ -260,7 +295,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, :6] > 0)
     sources = source_report(run)
-    warnings = []
+    warnings = list(inp.notes)
     for name, st in sources.items():
         if st["flagged_inconsistent"]:
             warnings.append(f"joint: source '{name}' inconsistent with the others in "

@@ -1,4 +1,4 @@
-"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (METHODS.md 4).
+"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (docs/sns.md).
 
 :func:`run_sns` takes a :class:`flightrecon.types.CleanFlight` and returns a
 :class:`flightrecon.types.MethodResult` with the smoothed track on the recorder grid;
@@ -451,7 +451,7 @@ def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
 
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
             filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None) -> MethodResult:
-    """Dead reckoning fused with SNS, smoothed, on the recorder grid (METHODS.md section 4).
+    """Dead reckoning fused with SNS, smoothed, on the recorder grid (docs/sns.md).
 
     Parameters are those of :func:`solve_sns`.
 

@@ -1,6 +1,6 @@
 """Moving local-level (north-east-down) frame for estimators on long flights.
 
-METHODS.md, "Frames": a tangent plane at the departure airfield fails over long flights, so
+docs/schema.md, "Frames": a tangent plane at the departure airfield fails over long flights, so
 estimators propagate latitude, longitude and ellipsoidal height with north/east/up velocity in a
 frame that moves with the aircraft; the tangent plane is only an output convenience.
 

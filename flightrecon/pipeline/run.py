@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from flightrecon.errors import FlightReconError, FlightReconWarning, MetadataError
@@ -26,6 +27,14 @@ from flightrecon.pipeline.registry import (
 )
 from flightrecon.pipeline.summary import build_summary
 from flightrecon.types import CleanFlight, Flight, MethodResult
+
+
+NUMERICAL_FAILURES: tuple[type[BaseException], ...] = (
+    FlightReconError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+"""What a method may raise and still leave the others' results standing: the project's own
+errors, and numerical breakdowns (``LinAlgError`` is a ``ValueError``; ``FloatingPointError``,
+``ZeroDivisionError`` and ``OverflowError`` are ``ArithmeticError``).  Anything else is a bug
+and stops the run."""
 
 
 def default_workers() -> int:
@@ -75,10 +84,14 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     for m in chosen:
         try:
             res = futures[m].result()
-        except FlightReconError as exc:
+        except NUMERICAL_FAILURES as exc:
+            # one method's failure (bad data it cannot use, or a numerical breakdown: a
+            # singular matrix, an overflow) is that method's error, not the whole run's
             if settings.strict:
                 raise
-            status[m] = {"status": "failed", "reason": str(exc)}
+            reason = str(exc) if isinstance(exc, FlightReconError) else (
+                f"numerical failure ({type(exc).__name__}): {exc}")
+            status[m] = {"status": "failed", "reason": reason}
             continue
         results[m] = res
         health = method_health(res)

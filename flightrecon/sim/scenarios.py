@@ -274,7 +274,7 @@ def _route_landing(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> Plan
 
 
 def _route_seed_ads_arms(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
-    """Straight and level at 100 m/s, 1000 m, passing the station (METHODS.md section 2)."""
+    """Straight and level at 100 m/s, 1000 m, passing the station (docs/arms.md)."""
     lat, lon = _offset(cfg.airfield, 15e3, -60e3)
     b = _builder(cfg, atm, (lat, lon, 1000.0), 90.0, 100.0)
     b.hold(cfg.duration_s or 1200.0)
@@ -429,7 +429,7 @@ def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
                          roll_bias_deg=a.roll_bias_deg, pitch_bias_deg=a.pitch_bias_deg)
     aspd = AirspeedSensor(cfg.airspeed_hz, scale=a.airspeed_scale)
     baro = BaroSensor(cfg.baro_hz, bias_m=a.baro_bias_m)
-    if air_gm:  # air data = ground velocity + Gauss-Markov error, nothing else (METHODS.md 2)
+    if air_gm:  # air data = ground velocity + Gauss-Markov error, nothing else (docs/arms.md)
         att = replace(att, heading_noise_sd_deg=0.0, heading_bias_deg=0.0)
         aspd = replace(aspd, scale=0.0, noise_sd_mps=0.0, lag_s=0.0)
     if ideal:

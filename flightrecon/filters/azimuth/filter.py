@@ -190,7 +190,7 @@ def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, 
                    sigma_m_mps2: float = 2.0, q_jerk_m2ps5: float = 0.2,
                    correlation_time_s: float = 0.0, v_max_mps: float = 150.0,
                    a_max_mps2: float = 5.0) -> AzimuthRun:
-    """Filter and smooth the azimuth channel on the event times (METHODS.md s. 3).
+    """Filter and smooth the azimuth channel on the event times (docs/azimuth.md).
 
     Parameters
     ----------

@@ -33,7 +33,7 @@ class RangeTrack:
 def track_range(t_s, r_meas_m, r_var_m2, *, q_range_m2ps3: float) -> RangeTrack:
     """Constant-velocity Kalman filter and RTS smoother on the horizontal range.
 
-    Exact CV discretisation (METHODS.md s. 2): ``F = [[1, T], [0, 1]]``,
+    Exact CV discretisation (docs/arms.md): ``F = [[1, T], [0, 1]]``,
     ``Q = q [[T^3/3, T^2/2], [T^2/2, T]]``; the generic kernels
     :func:`flightrecon.filters.kalman.kalman_filter` and :func:`rts_smooth_run`.
 

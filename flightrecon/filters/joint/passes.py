@@ -5,6 +5,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation.updates import scalar_update_short
 from flightrecon.filters.joint.dynamics import (
     _cholesky_solve,
     _predict_cov,
@@ -125,16 +126,9 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
                 infl[j] = r_new / r
                 r = r_new
                 S = HPH + r
-            # scalar update with K = PH / S, in place, O(n^2): the Joseph form
-            # (I - K H) P (I - K H)^T + K r K^T expanded for the optimal gain is
-            # P - K PH^T - PH K^T + S K K^T = P - PH PH^T / S; (PH_a PH_b) / S is bitwise
-            # symmetric, so P stays exactly symmetric
-            inv_s = 1.0 / S
-            for a in range(n):
-                pa = PH[a]
-                for b in range(n):
-                    P[a, b] -= (pa * PH[b]) * inv_s
-                x[a] += pa * inv_s * nu
+            # scalar update with K = PH / S, in place, O(n^2): the short form P - PH PH^T / S
+            # (not the Joseph form, which it equals only at this optimal gain, to rounding)
+            scalar_update_short(x, P, PH, nu, S)
         xf[k] = x
         Pf[k] = P
     return nu_out, s_out, infl

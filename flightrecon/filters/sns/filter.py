@@ -292,7 +292,7 @@ def _c(a, dtype=np.float64) -> np.ndarray:
 
 def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoise, *,
                model: int, form: int = FORM_CONSISTENT) -> SnsRun:
-    """Run the nonlinear SNS filter forward (module docstring; METHODS.md section 4).
+    """Run the nonlinear SNS filter forward (module docstring; docs/sns.md).
 
     Parameters
     ----------
