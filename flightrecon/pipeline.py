@@ -33,7 +33,13 @@ import numpy as np
 import pandas as pd
 
 from flightrecon import __version__
-from flightrecon.errors import FlightReconError, FlightReconWarning, MetadataError
+from flightrecon.errors import (
+    ConvergenceError,
+    FlightReconError,
+    FlightReconWarning,
+    MetadataError,
+    NoResultError,
+)
 from flightrecon.types import CleanFlight, Flight, MethodResult
 
 SUMMARY_SCHEMA_VERSION = 1
@@ -70,7 +76,10 @@ class ReconstructSettings:
     joint_noise : overrides of the joint smoother's error budget
         (:class:`flightrecon.filters.joint.JointNoise` field -> value)
     joint_estimate_noise : scale each source's noise from the flight's own residuals
-    strict : raise on the first method that fails or does not converge
+    strict : raise on the first method that fails, does not converge or is unhealthy
+    keep_unhealthy : when no method is healthy, return (and let the CLI write) the unhealthy
+        tracks under their prefixes for inspection instead of raising
+        :class:`~flightrecon.errors.NoResultError`
     """
 
     methods: tuple[str, ...] | None = None
@@ -85,6 +94,7 @@ class ReconstructSettings:
     joint_noise: dict[str, float] | None = None
     joint_estimate_noise: bool = False
     strict: bool = False
+    keep_unhealthy: bool = False
 
 
 @dataclass(frozen=True)
@@ -175,12 +185,17 @@ def _spans(t: np.ndarray, bad: np.ndarray, gap_s: float = 5.0) -> list[list[floa
     return [[float(a), float(b)] for a, b in zip(starts, ends)]
 
 
-def method_health(res: MethodResult) -> dict[str, Any]:
-    """Generic health of a method's track: where its position turns non-finite inside its own
-    coverage, or its standard deviation is missing or not positive where it gives a position
-    (a covariance that lost positive definiteness), with the time spans.  The method's own
-    verdicts (``converged``, ``healthy``) are kept; any of these makes the method unhealthy,
-    so the default result falls back to the healthy sources."""
+def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[str, Any]:
+    """Health of a method's track, with the time spans of each problem.
+
+    A method is unhealthy where its position turns non-finite inside its own coverage, where
+    its standard deviation is missing or not positive where it gives a position (a covariance
+    that lost positive definiteness), where it says so itself (``converged`` or ``healthy``
+    false), or, given the cleaned flight, where its track is not physically possible
+    (:func:`flightrecon.envelope.envelope_problems`: speeds, vertical speeds, accelerations
+    beyond the envelope, a height far from the recorded pressure altitude).  Any problem makes
+    it unhealthy: the default result then falls back to the healthy sources, and its
+    coefficients are not stored."""
     tr = res.track
     p = res.name + "_"
     t = tr["t_s"].to_numpy(float)
@@ -208,12 +223,24 @@ def method_health(res: MethodResult) -> dict[str, Any]:
         out["problems"].append({"what": "did not converge", "spans_s": []})
     if s.get("healthy") is False:
         out["problems"].append({"what": "reports itself unhealthy", "spans_s": []})
+    if clean is not None:
+        from flightrecon.envelope import envelope_problems
+
+        for prob in envelope_problems(res, clean):
+            out["problems"].append({"what": prob["what"], "check": prob["check"],
+                                    "spans_s": prob["spans_s"]})
     out["healthy"] = not out["problems"]
     return out
 
 
-def _method_healthy(res: MethodResult) -> bool:
-    return method_health(res)["healthy"]
+def has_finite_track(res: MethodResult) -> bool:
+    """Whether a method produced at least one finite horizontal position."""
+    p = res.name + "_"
+    tr = res.track
+    if f"{p}north_m" not in tr.columns or not len(tr):
+        return False
+    return bool((np.isfinite(tr[f"{p}north_m"].to_numpy(float))
+                 & np.isfinite(tr[f"{p}east_m"].to_numpy(float))).any())
 
 
 def _text_column(codes: np.ndarray, names: Sequence[str], na_value: Any = pd.NA) -> Any:
@@ -237,7 +264,8 @@ def _on_grid(tr: pd.DataFrame, t: np.ndarray) -> pd.DataFrame:
 
 
 def combine(clean: CleanFlight, results: dict[str, MethodResult],
-            priority: Sequence[str] = DEFAULT_PRIORITY) -> pd.DataFrame:
+            priority: Sequence[str] = DEFAULT_PRIORITY,
+            healthy: dict[str, bool] | None = None) -> pd.DataFrame:
     """Assemble the output table: the unprefixed default result plus every method's columns.
 
     Horizontal position, velocity and their standard deviations come, sample by sample, from
@@ -257,7 +285,8 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
 
     t = clean.grid["t_s"].to_numpy()
     n = len(t)
-    healthy = {name: _method_healthy(res) for name, res in results.items()}
+    if healthy is None:
+        healthy = {name: method_health(res)["healthy"] for name, res in results.items()}
     aligned: dict[str, pd.DataFrame] = {}
 
     def grid_track(name: str) -> pd.DataFrame:
@@ -354,7 +383,7 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
     names = set(out)
     for name in ALL_METHODS:
         res = results.get(name)
-        if res is None or name == "joint":
+        if res is None:
             continue
         own = [c for c in res.track.columns if c != "t_s"]
         if names.intersection(own) or len(set(own)) < len(own):  # not expected: prefixed names
@@ -370,7 +399,7 @@ def _combine_table(out: dict[str, Any], results: dict[str, MethodResult], t: np.
     one of the same name in its place."""
     for name in ALL_METHODS:
         res = results.get(name)
-        if res is None or name == "joint":
+        if res is None:
             continue
         tr = _on_grid(res.track, t)
         for c in res.track.columns:
@@ -459,14 +488,64 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
             status[m] = {"status": "failed", "reason": str(exc)}
             continue
         results[m] = res
-        health = method_health(res)
-        status[m] = {"status": "ok" if health["healthy"] else "unhealthy", **res.summary,
+        health = method_health(res, clean)
+        status[m] = {**res.summary, "status": "ok" if health["healthy"] else "unhealthy",
                      "health": health}
+        if not health["healthy"]:
+            status[m]["reason"] = "; ".join(pr["what"] for pr in health["problems"])
+            if settings.strict:
+                raise ConvergenceError(f"method '{m}' is unhealthy: {status[m]['reason']} "
+                                       "(--strict)")
     if not results:
         raise MetadataError("no estimator could run on this flight: " + "; ".join(
             f"{m}: {s.get('reason')}" for m, s in status.items()))
-    track = combine(clean, results)
+    healthy = {m: status[m]["status"] == "ok" for m in results}
+    if not any(has_finite_track(r) for r in results.values()):
+        raise NoResultError("no method produced a finite track, nothing was written: "
+                            + _reasons(status))
+    track = combine(clean, results, healthy=healthy)
     return track, results, status
+
+
+def _reasons(status: dict[str, Any]) -> str:
+    return "; ".join(f"{m} {s.get('status')}" + (f" ({s['reason']})" if s.get("reason") else "")
+                     for m, s in status.items())
+
+
+def result_choice(track: pd.DataFrame, status: dict[str, Any],
+                  priority: Sequence[str] = DEFAULT_PRIORITY) -> dict[str, Any]:
+    """Which method the default (unprefixed) result comes from, and why, for the summary.
+
+    Returns
+    -------
+    dict
+        ``method``: the source of most samples (``None`` when no healthy method covers any);
+        ``fractions``: fraction of the grid samples from each source; ``why``: a sentence;
+        ``not_used``: for each method ahead of it in the priority, why it is not the source.
+    """
+    n = len(track)
+    src = track["source"].astype("string").fillna("").to_numpy(dtype=object)
+    names, counts = np.unique(src, return_counts=True)
+    fractions = {str(k): float(c) / n for k, c in zip(names, counts) if k and n}
+    method = max(fractions, key=lambda k: fractions[k]) if fractions else None
+    not_used = {}
+    for m in priority:
+        if m == method:
+            break
+        st = status.get(m, {})
+        not_used[m] = f"{st.get('status', 'not run')}" + (
+            f": {st['reason']}" if st.get("reason") else "")
+    if method is None:
+        why = ("no healthy method covers any sample: the default columns are empty; "
+               + "; ".join(f"{m} {r}" for m, r in not_used.items()))
+    else:
+        share = fractions[method]
+        why = (f"{method} is the first healthy method in the priority "
+               f"{' > '.join(priority)}" + (f" and gives {100 * share:.0f} % of the samples"
+                                            if share < 0.999 else ""))
+        if not_used:
+            why += "; ahead of it: " + "; ".join(f"{m} {r}" for m, r in not_used.items())
+    return {"method": method, "fractions": fractions, "why": why, "not_used": not_used}
 
 
 def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
@@ -498,6 +577,10 @@ def record_coefficients(store_path: str | Path | None, rec: Reconstruction) -> d
     meta = rec.clean.meta
     if sab is None:
         raise MetadataError("nothing to record: the Sabziev fusion did not run on this flight")
+    st = rec.summary["methods"].get("sabziev", {})
+    if st.get("status") != "ok":
+        return {"store": str(store_path), "recorded": False,
+                "reason": f"sabziev {st.get('status')}: {st.get('reason')}"}
     if not meta.aircraft_id:
         raise MetadataError("recording coefficients needs the aircraft id (--aircraft)")
     flight_id = meta.flight_id or (rec.summary["inputs"][0]["sha256"][:16]
@@ -508,8 +591,9 @@ def record_coefficients(store_path: str | Path | None, rec: Reconstruction) -> d
         input_hashes={i["path"]: i["sha256"] for i in rec.summary["inputs"]})
     with CoefficientStore(store_path) as store:
         store.record(fit)
-    return {"store": str(store_path), "aircraft_id": fit.aircraft_id, "flight_id": fit.flight_id,
-            "k": [fit.k1, fit.k2, fit.k3], "converged": fit.converged}
+    return {"store": str(store_path), "recorded": True, "aircraft_id": fit.aircraft_id,
+            "flight_id": fit.flight_id, "k": [fit.k1, fit.k2, fit.k3],
+            "converged": fit.converged}
 
 
 def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str | Path | None = None,
@@ -573,6 +657,13 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
+    summary["result"] = result_choice(track, status)
+    if summary["result"]["method"] is None:
+        msg = ("no method produced a physically possible track: " + _reasons(status))
+        if not settings.keep_unhealthy:
+            raise NoResultError(msg + "; nothing was written (--keep-unhealthy writes the "
+                                "unhealthy tracks for inspection)")
+        summary["warnings"].append(msg)
     if fleet is not None:
         summary["fleet_coefficients"] = fleet
     rec = Reconstruction(track=track, summary=summary, clean=clean, results=results)
