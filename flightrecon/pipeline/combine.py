@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from flightrecon.pipeline.health import _method_healthy
+from flightrecon.pipeline.health import method_health
 from flightrecon.pipeline.registry import ALL_METHODS, DEFAULT_PRIORITY
 from flightrecon.types import CleanFlight, MethodResult
 
@@ -35,7 +35,8 @@ def _on_grid(tr: pd.DataFrame, t: np.ndarray) -> pd.DataFrame:
 
 
 def combine(clean: CleanFlight, results: dict[str, MethodResult],
-            priority: Sequence[str] = DEFAULT_PRIORITY) -> pd.DataFrame:
+            priority: Sequence[str] = DEFAULT_PRIORITY,
+            healthy: dict[str, bool] | None = None) -> pd.DataFrame:
     """Assemble the output table: the unprefixed default result plus every method's columns.
 
     Horizontal position, velocity and their standard deviations come, sample by sample, from
@@ -55,7 +56,8 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
 
     t = clean.grid["t_s"].to_numpy()
     n = len(t)
-    healthy = {name: _method_healthy(res) for name, res in results.items()}
+    if healthy is None:  # the pipeline passes its verdicts (with the envelope checks)
+        healthy = {name: method_health(res)["healthy"] for name, res in results.items()}
     aligned: dict[str, pd.DataFrame] = {}
 
     def grid_track(name: str) -> pd.DataFrame:
@@ -152,7 +154,7 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
     names = set(out)
     for name in ALL_METHODS:
         res = results.get(name)
-        if res is None or name == "joint":
+        if res is None:
             continue
         own = [c for c in res.track.columns if c != "t_s"]
         if names.intersection(own) or len(set(own)) < len(own):  # not expected: prefixed names
@@ -168,7 +170,7 @@ def _combine_table(out: dict[str, Any], results: dict[str, MethodResult], t: np.
     one of the same name in its place."""
     for name in ALL_METHODS:
         res = results.get(name)
-        if res is None or name == "joint":
+        if res is None:
             continue
         tr = _on_grid(res.track, t)
         for c in res.track.columns:

@@ -1,4 +1,5 @@
-"""Generic health of a method's track (non-finite positions, missing or non-positive sd)."""
+"""Health of a method's track: non-finite positions, missing or non-positive sd, its own
+verdicts, and the physical envelope (:mod:`flightrecon.envelope`)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from flightrecon.types import MethodResult
+from flightrecon.types import CleanFlight, MethodResult
 
 
 def _spans(t: np.ndarray, bad: np.ndarray, gap_s: float = 5.0) -> list[list[float]]:
@@ -20,12 +21,17 @@ def _spans(t: np.ndarray, bad: np.ndarray, gap_s: float = 5.0) -> list[list[floa
     return [[float(a), float(b)] for a, b in zip(starts, ends)]
 
 
-def method_health(res: MethodResult) -> dict[str, Any]:
-    """Generic health of a method's track: where its position turns non-finite inside its own
-    coverage, or its standard deviation is missing or not positive where it gives a position
-    (a covariance that lost positive definiteness), with the time spans.  The method's own
-    verdicts (``converged``, ``healthy``) are kept; any of these makes the method unhealthy,
-    so the default result falls back to the healthy sources."""
+def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[str, Any]:
+    """Health of a method's track, with the time spans of each problem.
+
+    A method is unhealthy where its position turns non-finite inside its own coverage, where
+    its standard deviation is missing or not positive where it gives a position (a covariance
+    that lost positive definiteness), where it says so itself (``converged`` or ``healthy``
+    false), or, given the cleaned flight, where its track is not physically possible
+    (:func:`flightrecon.envelope.envelope_problems`: speeds, vertical speeds, accelerations
+    beyond the envelope, a height far from the recorded pressure altitude).  Any problem makes
+    it unhealthy: the default result then falls back to the healthy sources, and its
+    coefficients are not stored."""
     tr = res.track
     p = res.name + "_"
     t = tr["t_s"].to_numpy(float)
@@ -53,9 +59,21 @@ def method_health(res: MethodResult) -> dict[str, Any]:
         out["problems"].append({"what": "did not converge", "spans_s": []})
     if s.get("healthy") is False:
         out["problems"].append({"what": "reports itself unhealthy", "spans_s": []})
+    if clean is not None:
+        from flightrecon.envelope import envelope_problems
+
+        for prob in envelope_problems(res, clean):
+            out["problems"].append({"what": prob["what"], "check": prob["check"],
+                                    "spans_s": prob["spans_s"]})
     out["healthy"] = not out["problems"]
     return out
 
 
-def _method_healthy(res: MethodResult) -> bool:
-    return method_health(res)["healthy"]
+def has_finite_track(res: MethodResult) -> bool:
+    """Whether a method produced at least one finite horizontal position."""
+    p = res.name + "_"
+    tr = res.track
+    if f"{p}north_m" not in tr.columns or not len(tr):
+        return False
+    return bool((np.isfinite(tr[f"{p}north_m"].to_numpy(float))
+                 & np.isfinite(tr[f"{p}east_m"].to_numpy(float))).any())

@@ -48,7 +48,10 @@ class ReconstructSettings:
     joint_noise : overrides of the joint smoother's error budget
         (:class:`flightrecon.filters.joint.JointNoise` field -> value)
     joint_estimate_noise : scale each source's noise from the flight's own residuals
-    strict : raise on the first method that fails or does not converge
+    strict : raise on the first method that fails, does not converge or is unhealthy
+    keep_unhealthy : when no method is healthy, return (and let the CLI write) the unhealthy
+        tracks under their prefixes for inspection instead of raising
+        :class:`~flightrecon.errors.NoResultError`
     """
 
     methods: tuple[str, ...] | None = None
@@ -63,6 +66,7 @@ class ReconstructSettings:
     joint_noise: dict[str, float] | None = None
     joint_estimate_noise: bool = False
     strict: bool = False
+    keep_unhealthy: bool = False
 
 
 @dataclass(frozen=True)

@@ -14,9 +14,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from flightrecon.errors import FlightReconError, FlightReconWarning, MetadataError
+from flightrecon.errors import (
+    ConvergenceError,
+    FlightReconError,
+    FlightReconWarning,
+    MetadataError,
+    NoResultError,
+)
 from flightrecon.pipeline.combine import combine
-from flightrecon.pipeline.health import method_health
+from flightrecon.pipeline.health import has_finite_track, method_health
 from flightrecon.pipeline.registry import (
     ALL_METHODS,
     METHOD_FUNCTIONS,
@@ -25,7 +31,7 @@ from flightrecon.pipeline.registry import (
     available_methods,
     run_method,
 )
-from flightrecon.pipeline.summary import build_summary
+from flightrecon.pipeline.summary import build_summary, result_choice
 from flightrecon.types import CleanFlight, Flight, MethodResult
 
 
@@ -94,14 +100,28 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
             status[m] = {"status": "failed", "reason": reason}
             continue
         results[m] = res
-        health = method_health(res)
-        status[m] = {"status": "ok" if health["healthy"] else "unhealthy", **res.summary,
+        health = method_health(res, clean)
+        status[m] = {**res.summary, "status": "ok" if health["healthy"] else "unhealthy",
                      "health": health}
+        if not health["healthy"]:
+            status[m]["reason"] = "; ".join(pr["what"] for pr in health["problems"])
+            if settings.strict:
+                raise ConvergenceError(f"method '{m}' is unhealthy: {status[m]['reason']} "
+                                       "(--strict)")
     if not results:
         raise MetadataError("no estimator could run on this flight: " + "; ".join(
             f"{m}: {s.get('reason')}" for m, s in status.items()))
-    track = combine(clean, results)
+    healthy = {m: status[m]["status"] == "ok" for m in results}
+    if not any(has_finite_track(r) for r in results.values()):
+        raise NoResultError("no method produced a finite track, nothing was written: "
+                            + _reasons(status))
+    track = combine(clean, results, healthy=healthy)
     return track, results, status
+
+
+def _reasons(status: dict[str, Any]) -> str:
+    return "; ".join(f"{m} {s.get('status')}" + (f" ({s['reason']})" if s.get("reason") else "")
+                     for m, s in status.items())
 
 
 def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
@@ -133,6 +153,10 @@ def record_coefficients(store_path: str | Path | None, rec: Reconstruction) -> d
     meta = rec.clean.meta
     if sab is None:
         raise MetadataError("nothing to record: the Sabziev fusion did not run on this flight")
+    st = rec.summary["methods"].get("sabziev", {})
+    if st.get("status") != "ok":
+        return {"store": str(store_path), "recorded": False,
+                "reason": f"sabziev {st.get('status')}: {st.get('reason')}"}
     if not meta.aircraft_id:
         raise MetadataError("recording coefficients needs the aircraft id (--aircraft)")
     flight_id = meta.flight_id or (rec.summary["inputs"][0]["sha256"][:16]
@@ -143,8 +167,9 @@ def record_coefficients(store_path: str | Path | None, rec: Reconstruction) -> d
         input_hashes={i["path"]: i["sha256"] for i in rec.summary["inputs"]})
     with CoefficientStore(store_path) as store:
         store.record(fit)
-    return {"store": str(store_path), "aircraft_id": fit.aircraft_id, "flight_id": fit.flight_id,
-            "k": [fit.k1, fit.k2, fit.k3], "converged": fit.converged}
+    return {"store": str(store_path), "recorded": True, "aircraft_id": fit.aircraft_id,
+            "flight_id": fit.flight_id, "k": [fit.k1, fit.k2, fit.k3],
+            "converged": fit.converged}
 
 
 def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str | Path | None = None,
@@ -208,6 +233,13 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
+    summary["result"] = result_choice(track, status)
+    if summary["result"]["method"] is None:
+        msg = ("no method produced a physically possible track: " + _reasons(status))
+        if not settings.keep_unhealthy:
+            raise NoResultError(msg + "; nothing was written (--keep-unhealthy writes the "
+                                "unhealthy tracks for inspection)")
+        summary["warnings"].append(msg)
     if fleet is not None:
         summary["fleet_coefficients"] = fleet
     rec = Reconstruction(track=track, summary=summary, clean=clean, results=results)

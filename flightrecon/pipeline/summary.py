@@ -9,6 +9,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from flightrecon import __version__
 from flightrecon.pipeline.registry import DEFAULT_PRIORITY, ReconstructSettings
 from flightrecon.types import CleanFlight
@@ -59,3 +61,38 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
         "methods": status,
         "warnings": list(warnings_),
     }
+
+
+def result_choice(track: pd.DataFrame, status: dict[str, Any],
+                  priority: Sequence[str] = DEFAULT_PRIORITY) -> dict[str, Any]:
+    """Which method the default (unprefixed) result comes from, and why, for the summary.
+
+    Returns
+    -------
+    dict
+        ``method``: the source of most samples (``None`` when no healthy method covers any);
+        ``fractions``: fraction of the grid samples from each source; ``why``: a sentence;
+        ``not_used``: for each method ahead of it in the priority, why it is not the source.
+    """
+    n = len(track)
+    counts = track["source"].value_counts(dropna=True)  # Arrow strings: no Python loop
+    fractions = {str(k): float(c) / n for k, c in counts.items() if k and n}
+    method = max(fractions, key=lambda k: fractions[k]) if fractions else None
+    not_used = {}
+    for m in priority:
+        if m == method:
+            break
+        st = status.get(m, {})
+        not_used[m] = f"{st.get('status', 'not run')}" + (
+            f": {st['reason']}" if st.get("reason") else "")
+    if method is None:
+        why = ("no healthy method covers any sample: the default columns are empty; "
+               + "; ".join(f"{m} {r}" for m, r in not_used.items()))
+    else:
+        share = fractions[method]
+        why = (f"{method} is the first healthy method in the priority "
+               f"{' > '.join(priority)}" + (f" and gives {100 * share:.1f} % of the samples"
+                                            if share < 0.999 else ""))
+        if not_used:
+            why += "; ahead of it: " + "; ".join(f"{m} {r}" for m, r in not_used.items())
+    return {"method": method, "fractions": fractions, "why": why, "not_used": not_used}
