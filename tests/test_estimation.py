@@ -33,3 +33,23 @@ def test_scalar_update_is_the_short_form_and_equals_joseph_at_the_optimal_gain()
     np.testing.assert_allclose(xs, xj, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(Ps, Pj, rtol=0, atol=1e-12 * np.abs(P).max())
     np.testing.assert_array_equal(Ps, Ps.T)
+
+
+def test_chi_square_verdict_band_and_gross_factor():
+    """The one health verdict: the mean NIS per dof against the chi-square band (consistency)
+    and the gross factor (health); NaN entries ignored, per-entry dof honoured."""
+    from scipy import stats
+
+    from flightrecon.estimation.consistency import chi_square_verdict
+
+    rng = np.random.default_rng(3)
+    nis = rng.chisquare(2, 5000)
+    v = chi_square_verdict(np.r_[nis, np.nan], 2.0)
+    assert v.count == 5000 and v.dof == 10000.0
+    lo, hi = stats.chi2.ppf([0.025, 0.975], 10000) / 10000
+    assert v.band == (lo, hi) and v.consistent and not v.gross
+    assert chi_square_verdict(6.0 * nis, 2.0).gross
+    assert not chi_square_verdict(0.2 * nis, 2.0).consistent      # conservative: not gross
+    assert not chi_square_verdict(0.2 * nis, 2.0).gross
+    empty = chi_square_verdict([np.nan])
+    assert empty.count == 0 and not empty.gross and not empty.consistent

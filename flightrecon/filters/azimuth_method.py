@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.azimuth import (
     azimuth_filter,
     horizontal_acceleration,
@@ -307,6 +308,8 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     nis_e = run.nis_eps[np.isfinite(run.nis_eps)]
     nis_z = run.nis_z[np.isfinite(run.nis_z)]
     finite = bool(np.all(np.isfinite(run.xs)) and np.all(np.isfinite(run.Ps)))
+    # every scalar innovation of the three filters (azimuth, transverse acceleration, range)
+    verdict = chi_square_verdict(np.r_[nis_e, nis_z, rt.nis])
     gaps = np.diff(tp)
     summary = {
         "model": model,
@@ -321,8 +324,12 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
         "nis_transverse_mean": float(nis_z.mean()) if nis_z.size else None,
         "nis_range_mean": float(np.nanmean(rt.nis)),
         "correlated_error_inflation": float(run.n_corr),
-        "healthy": finite,
+        "consistency": verdict.as_dict(),
+        "healthy": finite and not verdict.gross,
     }
     if not finite:
         summary["warning"] = "non-finite estimates: the filter diverged"
+    elif verdict.gross:
+        summary["warning"] = (f"mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
+                              "noise settings or the motion model do not fit this flight")
     return MethodResult(name="azimuth", track=track, summary=summary)

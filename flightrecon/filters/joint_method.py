@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.joint import (
     SOURCES,
     JointInputs,
@@ -325,8 +326,18 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         warnings.append(f"joint: on {run.cholesky_fallbacks} steps the predicted covariance was "
                         "not positive definite to rounding (Cholesky failed); the smoother gain "
                         "there came from a general solve")
+    # the forward innovations of the measurements the smoother kept at full weight (the
+    # robustly down-weighted ones are reported per source above, not held against the noise
+    # model)
+    full = (run.weights >= 1.0) & (run.innov_var > 0)
+    verdict = chi_square_verdict(np.where(full, run.innov ** 2 / np.where(full, run.innov_var,
+                                                                          1.0), np.nan))
+    if verdict.gross:
+        warnings.append(f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
+                        "noise settings do not fit this flight")
     summary = {
-        "healthy": bool(finite),
+        "healthy": bool(finite) and not verdict.gross,
+        "consistency": verdict.as_dict(),
         "converged": bool(finite) and converged,
         "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,

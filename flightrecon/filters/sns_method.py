@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import sns as core
 from flightrecon.filters.sns import model as sns_model
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
@@ -475,10 +476,9 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     np.sqrt(sol.P_v[:, 0, 0], out=block[7])
     np.sqrt(sol.P_v[:, 1, 1], out=block[8])
     track = pd.DataFrame(block.T, columns=list(TRACK_COLUMNS), copy=False)
-    nis = sol.run.nis
-    ok = np.isfinite(nis)
-    dof = float(sol.run.rank[ok].sum())
-    nis_ratio = float(nis[ok].sum() / dof) if dof > 0 else float("nan")
+    # NIS per fix with the rank of its innovation covariance as degrees of freedom
+    verdict = chi_square_verdict(sol.run.nis, sol.run.rank)
+    nis_ratio = verdict.mean
     finite = bool(np.isfinite(block).all())
     dt_fix = np.diff(sol.fix_t)
     min_gap = 3.0 * float(np.median(dt_fix)) if len(dt_fix) else 0.0
@@ -491,10 +491,11 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
         "n_fixes_dropped": sol.n_fix_dropped,
         "gaps": _gaps(sol.fix_t, float(t[0]), float(t[-1]), min_gap),
         "nis_per_dof": nis_ratio,
+        "consistency": verdict.as_dict(),
         "cholesky_fallbacks": sol.smoothed.cholesky_fallbacks,
         "converged": finite,
         # a mean NIS per degree of freedom far above 1 means the noise settings do not fit
-        "healthy": finite and bool(np.isfinite(nis_ratio) and nis_ratio < 10.0),
+        "healthy": finite and verdict.count > 0 and not verdict.gross,
         "notes": list(sol.notes),
     }
     return MethodResult(name="sns", track=track, summary=summary)
