@@ -3,9 +3,10 @@
 Pipeline, all on one event timeline (the union of the radar plots' own times and the grid times
 inside radar coverage; measurements are used once, at their own time):
 
-1. horizontal range of each plot, in the station's tangent plane: ``r = rho cos(elevation)``
-   when the plot has an elevation, else ``r = sqrt(rho^2 - dh^2)`` with ``dh`` the pressure
-   altitude above the station less the earth-curvature drop ``r^2 / (2 R)``;
+1. horizontal range of each plot, in the station's tangent plane
+   (:func:`flightrecon.geo.radar.horizontal_range`): ``r = rho cos(elevation)`` when the plot
+   has an elevation, else from ``rho`` and the height above the station (pressure altitude to
+   MSL with the departure QNH, minus the station elevation) less the plane's drop ``r^2 / (2 R)``;
 2. range tracker (:func:`flightrecon.filters.azimuth.track_range`, CV filter + RTS smoother);
 3. on-board observation at the downlink rate: (a_N, a_E) from the body load factors and attitude
    with its propagated covariance;
@@ -32,13 +33,14 @@ from flightrecon.filters.azimuth import (
     horizontal_acceleration_covariance,
     track_range,
 )
+from flightrecon.geo.atmosphere import pressure_to_msl_m
 from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
 from flightrecon.geo.navframe import horizontal_rotation
+from flightrecon.geo.radar import horizontal_range, plane_drop_m
 from flightrecon.types import CleanFlight, MethodResult
 
 __all__ = ["AzimuthSettings", "run_azimuth"]
 
-_EARTH_RADIUS_M = 6371000.0  # mean radius; only for the r^2/(2R) drop (31 m at 20 km)
 _LOADS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg")
 
 
@@ -129,18 +131,20 @@ def _horizontal_range(plots: pd.DataFrame, clean: CleanFlight, s: AzimuthSetting
         raise ValidationError("radar plots without elevation need baro_alt_m for the height "
                               "above the station", column="arms_elevation_deg")
     tg = grid["t_s"].to_numpy(float)
-    hb = grid["baro_alt_m"].to_numpy(float)
+    # pressure altitude to MSL with the departure QNH (as ADS/ARMS does), minus the station's
+    # MSL elevation: the height above the station
+    hb = pressure_to_msl_m(grid["baro_alt_m"].to_numpy(float), clean.meta.qnh_departure_hpa)
     good = np.isfinite(hb)
     dh = np.interp(plots["t_s"].to_numpy(float), tg[good], hb[good]) - h_station_m
-    dh = dh - rho**2 / (2 * _EARTH_RADIUS_M)  # height above the station's tangent plane
-    r2 = rho**2 - dh**2
-    if np.any(r2 <= 0):
+    if np.any(rho ** 2 - dh ** 2 <= 0):
         raise ValidationError("radar slant range shorter than the altitude difference to the "
                               "station (check the station elevation and baro datum)",
                               column="arms_range_m")
-    r = np.sqrt(r2)
-    var = (rho / r) ** 2 * s.sigma_range_m**2 + (dh / r) ** 2 * s.sigma_altitude_m**2
-    return r, var, dh, "pressure altitude"
+    lat_st = clean.meta.station.lat_deg
+    r = horizontal_range(rho, lat_deg=lat_st, dh_m=dh)
+    up = dh - plane_drop_m(r, lat_st)  # height above the station's tangent plane
+    var = (rho / r) ** 2 * s.sigma_range_m**2 + (up / r) ** 2 * s.sigma_altitude_m**2
+    return r, var, up, "pressure altitude"
 
 
 def run_azimuth(clean: CleanFlight, *, model: str = "aided",

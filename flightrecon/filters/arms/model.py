@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightrecon.errors import ValidationError
+from flightrecon.geo.radar import horizontal_range  # noqa: F401  (public here too)
 
 LINEARISATIONS = ("ekf", "converted")
 """Stage-1 / joint radar linearisations: EKF on (range, azimuth) or converted x/y measurements."""
@@ -21,10 +22,6 @@ and its own covariance that ``measured`` introduces (Bar-Shalom, Li & Kirubaraja
 
 _LIN_CODE = {("ekf", "predicted"): 0, ("ekf", "measured"): 0,
              ("converted", "measured"): 1, ("converted", "predicted"): 2}
-
-
-EARTH_RADIUS_M = 6371008.8
-"""Mean Earth radius [m], for the drop of the station's tangent plane below the aircraft."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -160,40 +157,6 @@ class AirData:
 # --------------------------------------------------------------------------------------------
 # measurement models
 # --------------------------------------------------------------------------------------------
-
-def horizontal_range(slant_m, *, elevation_deg=None, dh_m=None,
-                     earth_radius_m: float = EARTH_RADIUS_M) -> np.ndarray:
-    """Horizontal range in the station's tangent plane from the radar's slant range.
-
-    With the elevation angle: ``r = rho cos(el)`` (docs/arms.md).  With the altitude
-    difference ``dh`` (aircraft minus station, metres above the same datum): the aircraft's
-    height above the station's tangent plane is ``u = dh - r^2 / (2 R_e)`` (the plane drops
-    away from the sphere), and ``r`` solves ``r^2 + u^2 = rho^2``; two fixed-point steps from
-    ``r0 = sqrt(rho^2 - dh^2)`` converge to well under a metre for ranges below 500 km.
-    Refraction is ignored.  Without either, the slant range is returned unchanged.
-
-    Raises
-    ------
-    ValidationError
-        If the altitude difference exceeds the slant range (inconsistent data).
-    """
-    rho = np.asarray(slant_m, dtype=np.float64)
-    if elevation_deg is not None:
-        return rho * np.cos(np.deg2rad(np.asarray(elevation_deg, dtype=np.float64)))
-    if dh_m is None:
-        return rho.copy()
-    dh = np.asarray(dh_m, dtype=np.float64)
-    r2 = rho ** 2 - dh ** 2
-    if np.any(r2 < 0):
-        raise ValidationError("radar plots: altitude difference to the station exceeds the slant "
-                              "range; check the station elevation and the altitude datum",
-                              rows=np.flatnonzero(r2 < 0)[:20] + 1)
-    r = np.sqrt(r2)
-    for _ in range(2):
-        u = dh - r ** 2 / (2.0 * earth_radius_m)
-        r = np.sqrt(np.maximum(rho ** 2 - u ** 2, 0.0))
-    return r
-
 
 def range_azimuth(X: np.ndarray) -> np.ndarray:
     """Measurement function h(X) = [sqrt(x^2 + y^2), atan2(x, y)] (paper eq. 10).
