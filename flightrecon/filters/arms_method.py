@@ -44,6 +44,7 @@ from flightrecon.geo.atmosphere import pressure_to_msl_m
 from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
 from flightrecon.geo.navframe import north_azimuth_in_plane
 from flightrecon.geo.radar import horizontal_range, plane_drop_m
+from flightrecon.tracks import TrackColumns
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult
 
 __all__ = ["FORMS", "ArmsSettings", "run_arms"]
@@ -362,36 +363,15 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     def rot(v, M=Rl):
         return np.einsum("kij,kj->ki", M, v)
 
-    def rot_cov(C, M=Rl):
-        return M @ C @ np.swapaxes(M, 1, 2)
-
-    n = len(tg)
-    cols: dict[str, np.ndarray] = {"t_s": tg}
-
-    def put(name_e, name_n, v, C, unit):
-        ve, vn = rot(v).T
-        Ce = rot_cov(C)
-        for name, val in ((name_n, vn), (name_e, ve),
-                          (name_n.replace(f"_{unit}", f"_sd_{unit}"), np.sqrt(Ce[:, 1, 1])),
-                          (name_e.replace(f"_{unit}", f"_sd_{unit}"), np.sqrt(Ce[:, 0, 0]))):
-            col = np.full(n, np.nan)
-            col[inside] = val
-            cols[name] = col
-
-    for name, val in (("arms_north_m", north), ("arms_east_m", east)):
-        col = np.full(n, np.nan)
-        col[inside] = val
-        cols[name] = col
-    Cpo = rot_cov(Cp, J)
-    for name, val in (("arms_north_sd_m", np.sqrt(Cpo[:, 1, 1])),
-                      ("arms_east_sd_m", np.sqrt(Cpo[:, 0, 0]))):
-        col = np.full(n, np.nan)
-        col[inside] = val
-        cols[name] = col
-    put("arms_ve_mps", "arms_vn_mps", vel, Cv, "mps")
-    put("arms_dve_mps", "arms_dvn_mps", dv, Cd, "mps")
-    put("arms_air_ve_mps", "arms_air_vn_mps", airv, Ca, "mps")
-    track = pd.DataFrame(cols)
+    # station-plane (east, north) vectors: positions through the map to the output plane
+    # (its Jacobian J rotates their covariance), velocities into the local level (Rl)
+    out = TrackColumns("arms", tg, inside)
+    out.add_horizontal("north", "east", "m", np.c_[east, north], Cp, J, order="en",
+                       value_is_output=True)
+    out.add_horizontal("vn", "ve", "mps", vel, Cv, Rl, order="en")
+    out.add_horizontal("dvn", "dve", "mps", dv, Cd, Rl, order="en")
+    out.add_horizontal("air_vn", "air_ve", "mps", airv, Ca, Rl, order="en")
+    track = out.frame()
 
     # ---- summary
     nis_r = _nis_block(nu[:, :2], S[:, :2, :2])
