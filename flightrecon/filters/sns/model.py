@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 import numba as nb
 import numpy as np
 
-from flightrecon.filters.sns.linalg import _chol2_into
+from flightrecon.estimation.linalg import _chol2_into
 from flightrecon.geo.ellipsoid import WGS84_A, WGS84_E2, radii_from_sin
 
 MODEL_AIRSPEED = 0
