@@ -98,7 +98,8 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     gn = clean.gnss
     gnss = pd.DataFrame()
     if len(gn) and {"gnss_lat_deg", "gnss_lon_deg"} <= set(gn.columns):
-        alt = gn["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in gn.columns else np.full(len(gn), np.nan)
+        alt = (gn["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in gn.columns
+               else np.full(len(gn), np.nan))
         if meta.gnss_alt_datum.lower() == "msl":
             alt = alt + N_und
         gnss = pd.DataFrame({"t_s": gn["t_s"].to_numpy(float), "lat_deg": gn["gnss_lat_deg"],
@@ -116,7 +117,9 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
             radar["elevation_rad"] = np.radians(rd["arms_elevation_deg"].to_numpy(float))
 
     def pos(p):
-        return None if p is None else (p.lat_deg, p.lon_deg, float(msl_to_ellipsoid(p.elev_m, N_und)))
+        if p is None:
+            return None
+        return (p.lat_deg, p.lon_deg, float(msl_to_ellipsoid(p.elev_m, N_und)))
 
     ph = clean.phases
     inp = JointInputs(
@@ -290,7 +293,8 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     for name, st in sources.items():
         if st["flagged_inconsistent"]:
             warnings.append(f"joint: source '{name}' inconsistent with the others in "
-                            f"{st['beyond_5_sigma']} measurements (spans {st['flagged_spans_s'][:5]}"
+                            f"{st['beyond_5_sigma']} measurements "
+                            f"(spans {st['flagged_spans_s'][:5]}"
                             " s); down-weighted")
     if settings.estimate_noise and not run.iterations[-1].get("converged"):
         warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
@@ -333,7 +337,8 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,
         "corrections": _corrections(run),
-        "clock_offsets_s": {k: {"value": o, "sd": sd} for k, (o, sd) in run.clock_offsets_s.items()},
+        "clock_offsets_s": {k: {"value": o, "sd": sd}
+                            for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
         "end_points": [{"which": e["which"], "model": e["model"], "t_s": e["t_s"],
                         "lat_deg": e["point"][0], "lon_deg": e["point"][1],

@@ -373,9 +373,8 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
     if n_drop:
         notes.append(f"{n_drop} GNSS fixes outside the recorder grid not used")
     if sm.cholesky_fallbacks:
-        notes.append(f"on {sm.cholesky_fallbacks} steps the predicted covariance was not positive "
-                     "definite to rounding (Cholesky failed); the smoother gain there came from "
-                     "a general solve")
+        notes.append(f"{sm.cholesky_fallbacks} steps' predicted covariance failed its Cholesky "
+                     "factorisation; their smoother gain came from a general solve")
     return SnsSolution(m, fm, noise, inputs, run, sm, idx, tf, n_drop, lat, lon, h_grid, P_ne,
                        v_ne, P_v, tuple(notes))
 
@@ -393,15 +392,16 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
                 ) -> dict[str, np.ndarray]:
     """Positions and their standard deviations in the output tangent plane's axes.
 
-    The local north/east covariance is rotated by the angle ``gamma`` between local north and
-    the plane's north (meridian convergence, exact:
-    :func:`flightrecon.geo.navframe.north_azimuth_in_plane`).  ``gamma`` is a smooth function of position (its second derivative along the
-    track is of order ``1 / R_earth^2``), so it is evaluated every ``GAMMA_STRIDE`` recorder
-    samples (and at the last) and interpolated linearly: over 16 samples (one second at 16 Hz,
-    about 250 m) the interpolation error is below ``250^2 / 8 / R^2``, 2e-10 rad, which changes a
-    standard deviation by less than 1e-9 of itself.  The rotated variances are written in closed
-    form: ``north = cg^2 Pnn - 2 cg sg Pne + sg^2 Pee``, ``east = sg^2 Pnn + 2 cg sg Pne +
-    cg^2 Pee``.  ``out`` (4, M), if given, receives ``north_m, east_m, north_sd_m, east_sd_m``.
+    The local north/east covariance is rotated by the angle ``gamma`` between local north and the
+    plane's north (meridian convergence, exact:
+    :func:`flightrecon.geo.navframe.north_azimuth_in_plane`).  ``gamma`` is a smooth function of
+    position (its second derivative along the track is of order ``1 / R_earth^2``), so it is
+    evaluated every ``GAMMA_STRIDE`` recorder samples (and at the last) and interpolated linearly:
+    over 16 samples (one second at 16 Hz, about 250 m) the interpolation error is below ``250^2 / 8
+    / R^2``, 2e-10 rad, which changes a standard deviation by less than 1e-9 of itself.  The rotated
+    variances are written in closed form: ``north = cg^2 Pnn - 2 cg sg Pne + sg^2 Pee``, ``east =
+    sg^2 Pnn + 2 cg sg Pne + cg^2 Pee``.  ``out`` (4, M), if given, receives ``north_m, east_m,
+    north_sd_m, east_sd_m``.
     """
     latd, lond = np.rad2deg(sol.lat), np.rad2deg(sol.lon)
     M = len(latd)

@@ -37,7 +37,8 @@ def _meta_dict(meta) -> dict[str, Any]:
 
 
 def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dict[str, Any], *,
-                  inputs: Sequence[str | Path] = (), warnings_: Sequence[str] = ()) -> dict[str, Any]:
+                  inputs: Sequence[str | Path] = (), warnings_: Sequence[str] = ()
+                  ) -> dict[str, Any]:
     """The summary document (JSON-serialisable) with its schema version."""
     ph = clean.phases
     return {

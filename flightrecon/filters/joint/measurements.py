@@ -21,7 +21,7 @@ from flightrecon.geo.navframe import ned_to_ecef_matrix
 
 @dataclass(frozen=True)
 class Measurements:
-    """Scalar measurements sorted by state step (see :mod:`~flightrecon.filters.joint.layout` for the types).
+    """Scalar measurements sorted by state step (types: :mod:`~flightrecon.filters.joint.layout`).
 
     Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]`` (``hrow`` is -1 for the
     others), so the table stays small when most measurements are nonlinear scalars.
@@ -186,7 +186,8 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     t_in = inp.t_in
 
     # air data: airspeed and heading, decimated, airborne speeds only
-    ok = np.isfinite(inp.tas) & np.isfinite(inp.heading_rad) & (inp.tas >= settings.min_airspeed_mps)
+    ok = (np.isfinite(inp.tas) & np.isfinite(inp.heading_rad)
+          & (inp.tas >= settings.min_airspeed_mps))
     keep = ok & _decimate_mask(t_in, settings.airdata_rate_hz)
     # a first-order lag delays a ramp by its time constant: the airspeed recorded at t is the
     # airspeed at t - lag; sampled at the state steps plus the lag, so that it is used at a step
@@ -244,9 +245,9 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
     positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
     ``clock`` (seconds *added* to each group's time stamps, the convention of
-    ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is :func:`refined_roll` (computed here if not
-    given); ``psi_hat`` the heading bias of the last pass (per state step), about which the
-    ground constraints are linearised.
+    ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is
+    :func:`refined_roll` (computed here if not given); ``psi_hat`` the heading bias of the last
+    pass (per state step), about which the ground constraints are linearised.
     """
     nz = settings.noise
     b = (static if static is not None else static_measurements(inp, settings, T)).copy()

@@ -35,8 +35,8 @@ from flightrecon.filters.joint.observation import measure_into
 
 
 @nb.njit(cache=True, nogil=True)
-def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, mstart, mtype, mz, mr, mw,
-            mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate, xlin):
+def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, mstart,
+            mtype, mz, mr, mw, mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate, xlin):
     """Forward extended Kalman filter with sequential scalar updates.
 
     With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
@@ -139,7 +139,8 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
 
 @nb.njit(cache=True, nogil=True)
 def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
-    """F_k into ``F`` and its row-compressed copy (:func:`transition_into`, :func:`_sparse_rows`)."""
+    """F_k into ``F`` and its row-compressed copy (:func:`transition_into`,
+    :func:`_sparse_rows`)."""
     transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
     _sparse_rows(F, cols, vals, cnt)
 

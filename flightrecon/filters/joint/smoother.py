@@ -104,7 +104,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(idx))]
     psi_hat = None   # heading bias of the last pass: the linearisation point of its rotation
     ba_hat = None    # accelerometer biases of the last pass (for the take-off roll)
-    xlin = np.zeros((0, jl.N_STATE))   # smoothed states of the last pass (measurements' linearisation)
+    # smoothed states of the last pass (the measurements' linearisation)
+    xlin = np.zeros((0, jl.N_STATE))
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
         n_iter = max(n_iter, settings.noise_iterations)
@@ -135,8 +136,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
         innov, innov_var, infl = jp.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra, q, meas.start, meas.mtype,
-            meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
+            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra, q,
+            meas.start, meas.mtype, meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom,
+            pst, Cst,
             settings.innovation_gate if settings.robust else 0.0, xlin)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
@@ -153,7 +155,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # thread beside the mean pass (the kernels release the GIL)
             cov: dict[str, Any] = {}
 
-            def covariances(*args: Any) -> None:
+            def covariances(*args: Any, cov: dict[str, Any] = cov) -> None:
                 try:
                     cov["out"] = jp.backward(*args, False)
                 except BaseException as exc:  # re-raised on the calling thread

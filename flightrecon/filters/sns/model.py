@@ -420,8 +420,8 @@ class SnsNoise:
 
     Attributes
     ----------
-    sensor_sd : (4,) sensor noise per recorder sample (white): airspeed model ``[TAS m/s, heading rad,
-        wind north m/s, wind east m/s]``; Doppler model ``[ground speed m/s, drift rad,
+    sensor_sd : (4,) sensor noise per recorder sample (white): airspeed model ``[TAS m/s,
+        heading rad, wind north m/s, wind east m/s]``; Doppler model ``[ground speed m/s, drift rad,
         heading rad, unused]``
     rw_q : (3,) random-walk intensities of the corrections [unit^2/s]
     pos_sd_m, vel_sd_mps : SNS position / velocity noise per component (``D``)
@@ -440,10 +440,10 @@ class SnsNoise:
 def default_noise(model: int) -> SnsNoise:
     """Default noise settings, typical of a transport aircraft's recorder and a GNSS receiver.
 
-    Airspeed: TAS 0.5 m/s, heading 0.2 deg, wind reading 1 m/s white per recorder sample; heading bias prior
-    2 deg, wind-correction prior 10 m/s.  Doppler: ground speed 0.5 m/s, drift 0.2 deg, heading
-    0.2 deg; scale prior 0.03, drift and heading bias priors 1 and 2 deg.  Random walks let the
-    corrections drift by about 0.1 deg/h, 1 m/s per hour and 0.1 %/h.  GNSS 3 m, 0.1 m/s.
+    Airspeed: TAS 0.5 m/s, heading 0.2 deg, wind reading 1 m/s white per recorder sample; heading
+    bias prior 2 deg, wind-correction prior 10 m/s.  Doppler: ground speed 0.5 m/s, drift 0.2 deg,
+    heading 0.2 deg; scale prior 0.03, drift and heading bias priors 1 and 2 deg.  Random walks let
+    the corrections drift by about 0.1 deg/h, 1 m/s per hour and 0.1 %/h.  GNSS 3 m, 0.1 m/s.
     """
     d = np.deg2rad
     hour = 3600.0
