@@ -135,15 +135,16 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # (an empty Pp would have the backward passes recompute the predicted covariances,
             # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
+        dyn = jl.Dynamics(dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra, q)
+        geo = jl.Geometry(pnom, hnom, pst, Cst)
+        scalars = jl.Scalars(meas.start, meas.mtype, meas.z, r, weights, tau, meas.H, meas.hrow,
+                             meas.d)
         innov, innov_var, infl = jp.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra, q,
-            meas.start, meas.mtype, meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom,
-            pst, Cst,
+            xf, Pf, xp, Pp, x0, P0, dyn, scalars, geo,
             settings.innovation_gate if settings.robust else 0.0, xlin)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
-        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z, r_used, tau,
-                     meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz, qv_extra)
+        kern_args = (dyn, scalars._replace(r=r_used), geo)
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
         with_cov = settings.estimate_noise or it > 0
