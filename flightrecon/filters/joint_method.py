@@ -225,26 +225,28 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     def interp(v):
         return np.interp(t_out, T, v)
 
-    ecef = _hermite_positions(t_out, T, x[:, 0:3], np.einsum("kij,kj->ki", run.Cen, x[:, 3:6]))
+    ecef = _hermite_positions(t_out, T, x[:, jl.S_POS],
+                              np.einsum("kij,kj->ki", run.Cen, x[:, jl.S_VEL]))
     lat, lon, h = ecef_to_geodetic(ecef[:, 0], ecef[:, 1], ecef[:, 2])
     plane = output_plane(clean.meta)
     e, n, u = plane.forward(lat, lon, h)
     C = run.Cen
-    Pp = np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)  # ECEF -> local NED
+    # ECEF -> local NED (P_pv holds the position and velocity blocks, in that order)
+    Pp = np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)
     sd_pos = np.sqrt(np.maximum(np.einsum("kii->ki", Pp), 0.0))
-    sd_vel = np.sqrt(np.maximum(run.var[:, 3:6], 0.0))
-    sd_w = np.sqrt(np.maximum(run.var[:, 6:8], 0.0))
+    sd_vel = np.sqrt(np.maximum(run.var[:, jl.S_VEL], 0.0))
+    sd_w = np.sqrt(np.maximum(run.var[:, jl.S_WIND], 0.0))
     p = PREFIX
     cols = {"t_s": t_out,
             p + "north_m": n, p + "east_m": e, p + "up_m": u,
             p + "north_sd_m": interp(sd_pos[:, 0]), p + "east_sd_m": interp(sd_pos[:, 1]),
             p + "up_sd_m": interp(sd_pos[:, 2]),
-            p + "vn_mps": interp(x[:, 3]), p + "ve_mps": interp(x[:, 4]),
-            p + "vu_mps": -interp(x[:, 5]),
+            p + "vn_mps": interp(x[:, jl.IV]), p + "ve_mps": interp(x[:, jl.IV + 1]),
+            p + "vu_mps": -interp(x[:, jl.IV + 2]),
             p + "vn_sd_mps": interp(sd_vel[:, 0]), p + "ve_sd_mps": interp(sd_vel[:, 1]),
             p + "vu_sd_mps": interp(sd_vel[:, 2]),
             p + "lat_deg": lat, p + "lon_deg": lon, p + "alt_m": h,
-            p + "wind_n_mps": interp(x[:, 6]), p + "wind_e_mps": interp(x[:, 7]),
+            p + "wind_n_mps": interp(x[:, jl.IW]), p + "wind_e_mps": interp(x[:, jl.IW + 1]),
             p + "wind_n_sd_mps": interp(sd_w[:, 0]), p + "wind_e_sd_mps": interp(sd_w[:, 1])}
     out = pd.DataFrame(cols, copy=False)
     out[p + "sources"] = pd.array(_provenance(run, t_out), dtype="string")
@@ -287,7 +289,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     inp = joint_inputs(clean)
     run = smooth_joint(inp, settings)
     track = joint_track(clean, run)
-    finite = np.isfinite(run.x).all() and np.all(run.var[:, :6] > 0)
+    finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
     warnings = list(inp.notes)
     for name, st in sources.items():
@@ -303,7 +305,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     # than 5 % of its median position standard deviation (the linearisation then no longer
     # matters at the precision claimed); otherwise reported as not converged
     last = run.iterations[-1]
-    sd_h = np.sqrt(np.nanmedian(run.var[:, 0] + run.var[:, 1] + run.var[:, 2]))
+    sd_h = np.sqrt(np.nanmedian(run.var[:, jl.S_POS].sum(axis=1)))
     converged = bool(last.get("converged")) or bool(
         last["max_position_change_m"] < 0.05 * sd_h)
     if not last.get("converged"):

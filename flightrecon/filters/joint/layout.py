@@ -63,6 +63,15 @@ IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT, IG = (0, 3, 6, 8, 11, 1
                                                                 17, 20, 22)
 
 
+# the state's blocks as slices, named once (the indices above are their first elements)
+S_POS = slice(IP, IP + 3)      # ECEF position [m]
+S_VEL = slice(IV, IV + 3)      # NED velocity [m/s]
+S_WIND = slice(IW, IW + 2)     # horizontal wind, north/east [m/s]
+S_ACC_BIAS = slice(IBA, IBA + 3)
+S_ACC_SCALE = slice(IKS, IKS + 3)
+S_ATT_BIAS = slice(IATT, IATT + 2)
+S_WIND_GRAD = slice(IG, IG + 2)
+
 G0 = 9.80665
 
 

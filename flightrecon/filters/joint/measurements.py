@@ -170,7 +170,7 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
         cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
         along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
         H = np.zeros((len(tt), n))
-        H[:, jl.IP:jl.IP + 3] = cross
+        H[:, jl.S_POS] = cross
         if not known:
             H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
         b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
@@ -265,7 +265,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             H = np.zeros((len(t), n))
             if kind == "pos":
                 c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
-                H[:, jl.IP:jl.IP + 3] = c
+                H[:, jl.S_POS] = c
                 H[:, jl.IV + i] = tau
                 z = np.einsum("mj,mj->m", c, ecef)
             else:
@@ -339,7 +339,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
                           [0.0, 0.0, 1.0]), ep["sd_m"]):
             u = np.asarray(u)
             H = np.zeros((1, n))
-            H[0, jl.IP:jl.IP + 3] = Ca @ u
-            H[0, jl.IV:jl.IV + 3] = u * tau
+            H[0, jl.S_POS] = Ca @ u
+            H[0, jl.S_VEL] = u * tau
             b.add("endpoint", jl.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe)
     return b.build()

@@ -114,26 +114,26 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
 def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     n = jl.N_STATE
     x0 = np.zeros(n)
-    x0[jl.IP:jl.IP + 3] = nom_ecef[0]
+    x0[jl.S_POS] = nom_ecef[0]
     i0 = 0
     v0 = np.zeros(3)
     if np.isfinite(inp.tas[i0]) and inp.tas[i0] >= min_speed:
         v0[:2] = inp.tas[i0] * np.array([np.cos(inp.heading_rad[i0]), np.sin(inp.heading_rad[i0])])
-    x0[jl.IV:jl.IV + 3] = v0
+    x0[jl.S_VEL] = v0
     P0 = np.zeros((n, n))
-    P0[0:3, 0:3] = np.eye(3) * nz.init_pos_m ** 2
-    P0[3:6, 3:6] = np.eye(3) * nz.init_vel_mps ** 2
-    P0[6:8, 6:8] = np.eye(2) * nz.wind_prior_mps ** 2
-    P0[8:11, 8:11] = np.eye(3) * nz.accel_bias_g ** 2
+    P0[jl.S_POS, jl.S_POS] = np.eye(3) * nz.init_pos_m ** 2
+    P0[jl.S_VEL, jl.S_VEL] = np.eye(3) * nz.init_vel_mps ** 2
+    P0[jl.S_WIND, jl.S_WIND] = np.eye(2) * nz.wind_prior_mps ** 2
+    P0[jl.S_ACC_BIAS, jl.S_ACC_BIAS] = np.eye(3) * nz.accel_bias_g ** 2
     P0[jl.IPSI, jl.IPSI] = np.radians(nz.heading_bias_deg) ** 2
     P0[jl.IS, jl.IS] = nz.tas_scale ** 2
     P0[jl.IBH, jl.IBH] = nz.baro_offset_m ** 2
     P0[jl.IC, jl.IC] = nz.baro_scale ** 2
     P0[jl.IDW, jl.IDW] = nz.doppler_scale ** 2
     P0[jl.IDC, jl.IDC] = np.radians(nz.drift_bias_deg) ** 2
-    P0[jl.IKS:jl.IKS + 3, jl.IKS:jl.IKS + 3] = np.eye(3) * nz.accel_scale ** 2
-    P0[jl.IATT:jl.IATT + 2, jl.IATT:jl.IATT + 2] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
-    P0[jl.IG:jl.IG + 2, jl.IG:jl.IG + 2] = np.eye(2) * (nz.wind_gradient_per_km / 1000.0) ** 2
+    P0[jl.S_ACC_SCALE, jl.S_ACC_SCALE] = np.eye(3) * nz.accel_scale ** 2
+    P0[jl.S_ATT_BIAS, jl.S_ATT_BIAS] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
+    P0[jl.S_WIND_GRAD, jl.S_WIND_GRAD] = np.eye(2) * (nz.wind_gradient_per_km / 1000.0) ** 2
     return x0, P0
 
 

@@ -177,7 +177,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         res_n = res / np.sqrt(r)
         # new nominal: the smoothed trajectory
         lat_new, lon_new, h_new = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
-        shift = float(np.max(np.abs(np.c_[xs[:, 0:3] - pnom])))
+        shift = float(np.max(np.abs(np.c_[xs[:, jl.S_POS] - pnom])))
         info = {"iteration": it, "max_position_change_m": shift, "roll_start_t_s": roll.start_t,
                 "cholesky_fallbacks": int(n_fallback)}
         # robust weights from the smoothed residuals
@@ -222,12 +222,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                                    if np.any(groups == i)}
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
-        vnom = xs[:, jl.IV:jl.IV + 3]
+        vnom = xs[:, jl.S_VEL]
         psi_new = np.ascontiguousarray(xs[:, jl.IPSI])
         psi_moved = float(np.max(np.abs(psi_new - (0.0 if psi_hat is None else psi_hat))))
         info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
         psi_hat = psi_new
-        ba_hat = xs[:, jl.IBA:jl.IBA + 3]
+        ba_hat = xs[:, jl.S_ACC_BIAS]
         xlin = xs
         # converged: the linearisation point, the weights, the clock offsets and (with
         # estimate_noise) the noise variances stand still
