@@ -573,6 +573,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
+    from flightrecon.events import detect_events, events_table
+
+    summary["events"] = events_table(detect_events(clean, track, status), clean.meta.epoch_utc)
     if fleet is not None:
         summary["fleet_coefficients"] = fleet
     rec = Reconstruction(track=track, summary=summary, clean=clean, results=results)
