@@ -191,9 +191,10 @@ def mark_events(ax, ctx: ReportContext, label: bool = True) -> None:
 
 
 def _events_note(ctx: ReportContext) -> str:
-    return ("numbered lines and shading: events table (green lift-off, blue touchdown, "
-            "red exceedance/impact, grey sensor outage, purple measurement gap, orange strip "
-            "at the bottom: a source down-weighted by the joint smoother)") if ctx.events else ""
+    return ("events (numbers: events table): lines green lift-off, blue touchdown, red impact, "
+            "brown source change; shading red exceedance, grey sensor outage, purple "
+            "measurement gap;\norange strip at the bottom: a source down-weighted by the joint "
+            "smoother") if ctx.events else ""
 
 
 def _finish_time_figure(fig, axes, ctx: ReportContext, title: str) -> None:
@@ -204,8 +205,8 @@ def _finish_time_figure(fig, axes, ctx: ReportContext, title: str) -> None:
     fig.suptitle(title, fontsize=11)
     note = _events_note(ctx)
     if note:
-        fig.text(0.01, 0.005, note, fontsize=7, color="0.35")
-    fig.tight_layout(rect=(0, 0.02, 1, 1))
+        fig.text(0.01, 0.004, note, fontsize=6.5, color="0.35", va="bottom")
+    fig.tight_layout(rect=(0, 0.035 * 4.5 / fig.get_figheight(), 1, 1))
 
 
 # ----------------------------------------------------------------------------------- map ----
@@ -299,9 +300,16 @@ def ground_track(ctx: ReportContext) -> Figure | None:
     ax.plot(lon[first], lat[first], "o", color="tab:green", ms=8, zorder=6, label="start of record")
     ax.plot(lon[last], lat[last], "s", color="tab:red", ms=8, zorder=6, label="end of record")
     # airfields, runways and the radar station from the metadata
-    for key, mark, lab in (("departure", "^", "departure"), ("arrival", "v", "arrival")):
+    dep, arr = ctx.flight.get("departure"), ctx.flight.get("arrival")
+    same = (isinstance(dep, Mapping) and isinstance(arr, Mapping)
+            and dep.get("lat_deg") == arr.get("lat_deg")
+            and dep.get("lon_deg") == arr.get("lon_deg"))
+    for key, mark, lab in (("departure", "^", "departure" + (" and arrival" if same else "")),
+                           ("arrival", "v", "arrival")):
         pos = ctx.flight.get(key)
         if not isinstance(pos, Mapping) or pos.get("lat_deg") is None:
+            continue
+        if same and key == "arrival":
             continue
         ax.plot(pos["lon_deg"], pos["lat_deg"], mark, ms=11, mfc="white", mec="navy", mew=1.8,
                 zorder=7, label=f"{lab} airfield ({pos.get('elev_m', 0):.0f} m MSL)")
@@ -320,7 +328,7 @@ def ground_track(ctx: ReportContext) -> Figure | None:
             ax.annotate(label, (tlo, tla), xytext=(-40, 6),
                         textcoords="offset points", fontsize=7, color="navy")
     ax.plot([], [], color="navy", lw=4, alpha=0.7,
-            label="runway (threshold and true direction; length not known, drawn 2.5 km)")
+            label="runway: threshold, true direction (drawn 2.5 km)")
     st = ctx.flight.get("station")
     if isinstance(st, Mapping) and st.get("lat_deg") is not None:
         ax.plot(st["lon_deg"], st["lat_deg"], "D", ms=9, color="tab:purple", zorder=7,
@@ -772,7 +780,8 @@ def innovation_statistics(ctx: ReportContext) -> Figure | None:
     fig, ax = plt.subplots(figsize=(9, 0.35 * len(rows) + 1.5))
     ax.barh(range(len(rows)), [v for _, v in rows], color="tab:blue")
     ax.axvline(1.0, color="k", lw=0.8, ls="--")
-    ax.text(1.0, -0.9, " 1 = consistent", fontsize=7, va="bottom")
+    ax.text(1.0, 0.01, " 1 = consistent", fontsize=7, va="bottom",
+            transform=ax.get_xaxis_transform())
     ax.set_yticks(range(len(rows)), [k for k, _ in rows], fontsize=8)
     ax.invert_yaxis()
     ax.set_xlabel("mean normalised innovation squared per component")
