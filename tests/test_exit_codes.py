@@ -172,3 +172,14 @@ def test_10_store_error(tmp_path, capsys):
     bad.write_text("garbage")
     code, err = run(["coeffs", "list", "--store", str(bad)], capsys)
     assert code == 10 and "not a flightrecon coefficient store" in err
+
+
+def test_130_interrupted(monkeypatch, capsys):
+    import flightrecon.ingest
+
+    def ctrl_c(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(flightrecon.ingest, "describe_flight", ctrl_c)
+    code, err = run(["info", str(SAMPLES / "landing.parquet")], capsys)
+    assert code == 130 and "interrupted" in err

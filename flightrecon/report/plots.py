@@ -635,13 +635,35 @@ def method_differences(ctx: ReportContext) -> Figure | None:
                 sd = _col(track, c)
                 if sd is not None:
                     ax.fill_between(x, -2 * sd, 2 * sd, color="k", alpha=0.12, lw=0)
+    diffs = {}
     for p in PREFIXES:
         pn, pe = _col(track, f"{p}_north_m"), _col(track, f"{p}_east_m")
-        if pn is None or pe is None:
-            continue
+        if pn is not None and pe is not None:
+            diffs[p] = (pn - rn, pe - re_)
+    # the scale: the well-determined methods (a method kilometres off would flatten the rest
+    # to a line); one whose error leaves it is drawn clipped and named "off scale"
+    sizes = {p: float(np.nanpercentile(np.abs(np.r_[d[0], d[1]]), 95))
+             for p, d in diffs.items() if np.isfinite(np.r_[d[0], d[1]]).any()}
+    dn_, de_ = _col(track, "north_m"), _col(track, "east_m")
+    if truth is not None and dn_ is not None and de_ is not None:
+        sizes["default"] = float(np.nanpercentile(np.abs(np.r_[dn_ - rn, de_ - re_]), 95))
+    small = sorted(v for v in sizes.values() if np.isfinite(v))
+    limit = None
+    if len(small) >= 2 and small[-1] > 5 * small[0]:
+        limit = max(4.0 * small[0], 20.0)
+        for v in small:
+            if v <= 3 * limit / 4.0:
+                limit = max(limit, 1.3 * v)
+    for p, (en, ee) in diffs.items():
         drawn = True
-        axes[0].plot(x, pn - rn, color=COLOURS[p], lw=1, label=METHOD_NAMES[p])
-        axes[1].plot(x, pe - re_, color=COLOURS[p], lw=1, label=METHOD_NAMES[p])
+        worst = float(np.nanmax(np.abs(np.r_[en, ee]))) if np.isfinite(np.r_[en, ee]).any() \
+            else 0.0
+        lab = METHOD_NAMES[p]
+        if limit is not None and worst > limit:
+            lab += f" (off scale: up to {worst / 1000:.1f} km)" if worst >= 1000 else \
+                f" (off scale: up to {worst:.0f} m)"
+        axes[0].plot(x, en, color=COLOURS[p], lw=1, label=lab)
+        axes[1].plot(x, ee, color=COLOURS[p], lw=1, label=lab)
         for ax, c in ((axes[0], f"{p}_north_sd_m"), (axes[1], f"{p}_east_sd_m")):
             sd = _col(track, c)
             if sd is not None:
@@ -649,6 +671,9 @@ def method_differences(ctx: ReportContext) -> Figure | None:
     if not drawn:
         plt.close(fig)
         return None
+    if limit is not None:
+        for ax in axes:
+            ax.set_ylim(-limit, limit)
     axes[0].set_ylabel(f"north - {ref_name} [m]")
     axes[1].set_ylabel(f"east - {ref_name} [m]")
     axes[0].legend(fontsize=7, loc="upper right")
