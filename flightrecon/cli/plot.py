@@ -63,12 +63,12 @@ def check_truth_matches(track, truth, truth_path: Path, max_median_m: float = 20
 
 
 def recorder_data(summary: dict[str, Any], result: Path, log: Path | None
-                  ) -> tuple[Any, Any, str | None]:
+                  ) -> tuple[Any, Any, Any, str | None]:
     """The cleaned recorder grid and GNSS fixes of the reconstructed log, for the report.
 
     The log is ``log`` if given, else the first input the summary names (as given, or beside
     the result); it is used only if its SHA-256 matches the summary's.  Returns ``(grid, gnss,
-    note)``; ``(None, None, why)`` when the log is not available.
+    radar, note)``; ``(None, None, None, why)`` when the log is not available.
     """
     import warnings
 
@@ -80,13 +80,13 @@ def recorder_data(summary: dict[str, Any], result: Path, log: Path | None
     want = inputs[0] if inputs else None
     if log is None:
         if want is None:
-            return None, None, "the summary names no input log"
+            return None, None, None, "the summary names no input log"
         cands = [Path(str(want.get("path"))), result.parent / Path(str(want.get("path"))).name]
         log = next((c for c in cands if c.is_file()), None)
         if log is None:
-            return None, None, f"the log {want.get('path')} was not found"
+            return None, None, None, f"the log {want.get('path')} was not found"
     if want is not None and want.get("sha256") and sha256_file(log) != want.get("sha256"):
-        return None, None, (f"{log} differs from the log that was reconstructed (SHA-256): "
+        return None, None, None, (f"{log} differs from the log that was reconstructed (SHA-256): "
                             "not used")
     try:
         with warnings.catch_warnings():
@@ -97,8 +97,8 @@ def recorder_data(summary: dict[str, Any], result: Path, log: Path | None
             rate = (summary.get("settings") or {}).get("rate_hz")
             clean = clean_flight(flight, rate_hz=rate)
     except FlightReconError as exc:
-        return None, None, f"the log could not be read again: {exc}"
-    return clean.grid, clean.gnss, None
+        return None, None, None, f"the log could not be read again: {exc}"
+    return clean.grid, clean.gnss, clean.radar, None
 
 
 @click.command("plot")
@@ -158,11 +158,11 @@ def command(ctx: click.Context, result: Path, folder: Path | None, truth: Path |
             if sp.is_file():
                 sens = json.loads(sp.read_text(encoding="utf-8"))
         stage("recorder")
-        grid, gnss, note = recorder_data(summary, result, log) if summary else (
-            None, None, "no summary")
+        grid, gnss, radar, note = recorder_data(summary, result, log) if summary else (
+            None, None, None, "no summary")
         stage("figures")
         page = write_report(folder, track, summary, tr, title=f"flightrecon: {result.name}",
-                            grid=grid, gnss=gnss, sensor_truth=sens,
+                            grid=grid, gnss=gnss, radar=radar, sensor_truth=sens,
                             notes=[f"Recorder channels not drawn: {note}."] if note else None)
     if note and not quiet:
         click.echo(f"  note: recorder channels not drawn: {note}", err=True)

@@ -147,7 +147,7 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
             stage("report")
             page = write_report(report_dir, rec.track, rec.summary,
                                 title=f"flightrecon: {log.name}", grid=rec.clean.grid,
-                                gnss=rec.clean.gnss)
+                                gnss=rec.clean.gnss, radar=rec.clean.radar)
     if not quiet:
         fc = rec.summary.get("fleet_coefficients")
         if fc:

@@ -326,7 +326,7 @@ def write_report(folder: str | Path, track: pd.DataFrame, summary: Mapping[str, 
                  truth: pd.DataFrame | None = None, title: str = "flightrecon report", *,
                  grid: pd.DataFrame | None = None, gnss: pd.DataFrame | None = None,
                  sensor_truth: Mapping[str, Any] | None = None,
-                 notes: list[str] | None = None) -> Path:
+                 notes: list[str] | None = None, radar: pd.DataFrame | None = None) -> Path:
     """Write ``report.html`` and one PNG per figure into ``folder`` (created if needed).
 
     Parameters
@@ -336,6 +336,7 @@ def write_report(folder: str | Path, track: pd.DataFrame, summary: Mapping[str, 
     grid : the recorder's channels (attitude, load factors, airspeed, pressure altitude);
         without it those figures are left out and the page says so
     gnss : GNSS fixes (``t_s``, ``lat_deg``, ``lon_deg``) drawn on the map
+    radar : radar plots (range, azimuth, elevation from the station) drawn on the map
     sensor_truth : the simulated sensor errors, overlaid on the corrections
     notes : sentences added under the opening paragraph
 
@@ -343,7 +344,7 @@ def write_report(folder: str | Path, track: pd.DataFrame, summary: Mapping[str, 
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    ctx = ReportContext(track, summary, truth, grid, gnss, sensor_truth)
+    ctx = ReportContext(track, summary, truth, grid, gnss, sensor_truth, radar)
     figs = make_figures_ctx(ctx)
     parts = []
     for name, fig in figs.items():

@@ -89,6 +89,8 @@ class ReportContext:
     grid : the recorder's channels (``t_s``, ``roll_deg``, ``n_norm_g``, ``baro_alt_m`` ...),
         or ``None`` when the log was not available
     gnss : GNSS fixes (``t_s``, ``lat_deg``, ``lon_deg``), or ``None``
+    radar : radar plots (``t_s``, ``arms_range_m``, ``arms_azimuth_deg``,
+        ``arms_elevation_deg``), drawn on the map from the station, or ``None``
     sensor_truth : the simulated aircraft's sensor errors (``<stem>.sensors.json``), or ``None``
     """
 
@@ -98,6 +100,7 @@ class ReportContext:
     grid: pd.DataFrame | None = None
     gnss: pd.DataFrame | None = None
     sensor_truth: Mapping[str, Any] | None = None
+    radar: pd.DataFrame | None = None
     events: list[Event] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -240,6 +243,30 @@ def _method_latlon(ctx: ReportContext, prefix: str) -> tuple[np.ndarray, np.ndar
     return lat, lon
 
 
+def _radar_latlon(ctx: ReportContext) -> tuple[np.ndarray, np.ndarray] | None:
+    """Positions of the radar plots: slant range, azimuth (clockwise from true north) and
+    elevation from the station (docs/schema.md), through the station's tangent plane; the
+    elevation taken as 0 where not measured."""
+    rd, st = ctx.radar, ctx.flight.get("station")
+    if rd is None or len(rd) == 0 or not isinstance(st, Mapping) or st.get("lat_deg") is None:
+        return None
+    r, az = _col(rd, "arms_range_m"), _col(rd, "arms_azimuth_deg")
+    if r is None or az is None:
+        return None
+    el = _col(rd, "arms_elevation_deg")
+    el = np.zeros(len(r)) if el is None else np.nan_to_num(el)
+    from flightrecon.geo.frames import TangentPlane
+
+    hr = r * np.cos(np.radians(el))
+    ok = np.isfinite(hr) & np.isfinite(az)
+    h0 = float(st.get("elev_m") or 0.0) + float(ctx.geoid_m or 0.0)
+    plane = TangentPlane(float(st["lat_deg"]), float(st["lon_deg"]), h0)
+    a = np.radians(az[ok])
+    lat, lon, _ = plane.inverse(hr[ok] * np.sin(a), hr[ok] * np.cos(a),
+                                r[ok] * np.sin(np.radians(el[ok])))
+    return np.asarray(lat), np.asarray(lon)
+
+
 def _fmt_lat(v: float, _pos: Any = None) -> str:
     return f"{abs(v):.2f}°{'N' if v >= 0 else 'S'}"
 
@@ -265,6 +292,11 @@ def ground_track(ctx: ReportContext) -> Figure | None:
         g = ctx.gnss.iloc[:: max(1, len(ctx.gnss) // 1500)]
         ax.plot(g["lon_deg"], g["lat_deg"], ".", ms=2, color="tab:cyan", alpha=0.6,
                 label=f"GNSS fixes ({len(ctx.gnss)})", zorder=2)
+    rll = _radar_latlon(ctx)
+    if rll is not None and len(rll[0]):
+        step = max(1, len(rll[0]) // 1500)
+        ax.plot(rll[1][::step], rll[0][::step], "+", ms=3, color="tab:purple", alpha=0.5,
+                label=f"radar plots ({len(rll[0])}, from the station)", zorder=2)
     for p in PREFIXES:
         ll = _method_latlon(ctx, p)
         if ll is not None:
@@ -350,6 +382,7 @@ def ground_track(ctx: ReportContext) -> Figure | None:
         ax.annotate(str(num), (lo, la), xytext=(4, 4), textcoords="offset points", fontsize=7,
                     color=colour, zorder=8,
                     bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.7})
+    ax.margins(0.08)
     ax.set_aspect(1.0 / coslat, adjustable="datalim")
     ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(_fmt_lon))
     ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(_fmt_lat))
@@ -866,9 +899,10 @@ FIGURES: dict[str, tuple[Callable[[ReportContext], Figure | None], str]] = {
 def make_figures(track: pd.DataFrame, summary: Mapping[str, Any],
                  truth: pd.DataFrame | None = None, *, grid: pd.DataFrame | None = None,
                  gnss: pd.DataFrame | None = None,
-                 sensor_truth: Mapping[str, Any] | None = None) -> dict[str, Figure]:
+                 sensor_truth: Mapping[str, Any] | None = None,
+                 radar: pd.DataFrame | None = None) -> dict[str, Figure]:
     """Every figure the result supports, by name (see :data:`FIGURES`)."""
-    ctx = ReportContext(track, summary, truth, grid, gnss, sensor_truth)
+    ctx = ReportContext(track, summary, truth, grid, gnss, sensor_truth, radar)
     return make_figures_ctx(ctx)
 
 
