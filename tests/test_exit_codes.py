@@ -145,8 +145,16 @@ def test_7_kml_of_a_csv_without_summary(tmp_path, capsys):
     assert code == 0 and (tmp_path / "b.kml").exists()
 
 
+def test_8_no_physically_possible_result(tmp_path, capsys):
+    # the Sabziev fusion alone on the landing sample is unhealthy (docs/output.md)
+    code, err = run(["reconstruct", str(SAMPLES / "landing.parquet"), "--methods", "sabziev",
+                     "-o", str(tmp_path / "r.parquet")], capsys)
+    assert code == 8 and "no method produced a physically possible track" in err
+    assert not (tmp_path / "r.parquet").exists()
+
+
 def test_8_no_convergence_with_strict(monkeypatch, tmp_path, capsys):
-    import flightrecon.pipeline as pl
+    import flightrecon.pipeline.run as pl
     from flightrecon.errors import ConvergenceError
 
     def no_root(name, clean, settings):

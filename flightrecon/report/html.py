@@ -116,6 +116,9 @@ def opening_paragraph(track: pd.DataFrame, summary: Mapping[str, Any]) -> str:
         parts.append(f"The joint smoother, the usual default, {why}; the track is therefore "
                      "taken sample by sample from the first <i>healthy</i> method of the "
                      "priority joint, SNS, ADS/ARMS, Sabziev, azimuth that covers the sample.")
+        res = summary.get("result") if isinstance(summary.get("result"), Mapping) else {}
+        if res.get("why"):
+            parts.append(f"In the summary's words: {_e(res['why'])}.")
     if share:
         parts.append("Share of the samples by source: " + ", ".join(
             f"{_e(METHOD_NAMES.get(k, k))} {v:.1f} %" for k, v in
