@@ -234,6 +234,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
     summary["result"] = result_choice(track, status)
+    from flightrecon.events import detect_events, events_table
+
+    summary["events"] = events_table(detect_events(clean, track, status), clean.meta.epoch_utc)
     if summary["result"]["method"] is None:
         msg = ("no method produced a physically possible track: " + _reasons(status))
         if not settings.keep_unhealthy:
