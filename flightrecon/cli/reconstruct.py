@@ -9,6 +9,7 @@ import click
 from flightrecon.cli.common import (
     default_output,
     input_options,
+    NonEmptyPath,
     parse_k,
     position_option_values,
     progress_bar,
@@ -45,7 +46,7 @@ from flightrecon.cli.common import (
 @click.option("--estimate-noise", is_flag=True,
               help="Joint smoother: estimate each source's noise variance from the flight "
                    "itself (expectation-maximisation; docs/joint.md).")
-@click.option("--store", "store_path", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--store", "store_path", type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Coefficient store (SQLite): a fitted flight's k1..k3 are recorded there "
                    "under its aircraft id.")
 @click.option("--use-fleet-coefficients", is_flag=True,
@@ -55,14 +56,15 @@ from flightrecon.cli.common import (
 @click.option("--workers", type=click.IntRange(min=1),
               help="Threads for the estimators (default: 2 on a machine with 2 cores or more; "
                    "the result does not depend on it).")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("-o", "--output", type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Result file (.parquet, .csv, .geojson, .kml). Default: <log stem>.recon.parquet "
                    "beside the log.")
 @click.option("--format", "fmt", type=click.Choice(["csv", "parquet", "geojson", "kml"]),
               help="Output format (default: from the suffix of -o).")
-@click.option("--summary", "summary_path", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--summary", "summary_path",
+              type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Summary JSON (default: <output stem>.summary.json).")
-@click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--report", "report_dir", type=NonEmptyPath(file_okay=False, path_type=Path),
               help="Also write figures and a self-contained report.html into this folder.")
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
@@ -71,8 +73,7 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
             use_fleet_coefficients, strict, workers, output, fmt, summary_path,
             report_dir) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
-    from flightrecon.export.atomic import check_not_input, sweep_leftovers
-    from flightrecon.export.writers import write_summary, write_track
+    from flightrecon.cli.common import check_run_outputs, publish_reconstruction
     from flightrecon.pipeline import ReconstructSettings, reconstruct
 
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
@@ -91,25 +92,21 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
 
         store_path = default_store_path()
     out = output or default_output(log, ".recon.parquet")
-    inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
-    check_not_input(out, inputs)
     summ = summary_path or out.with_name(out.stem + ".summary.json")
-    check_not_input(summ, inputs)
-    sweep_leftovers(out.parent)
+    # every output against every input and the other outputs, before any work (exit 9)
+    check_run_outputs(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                      noise_file=noise_file, result=out, summary=summ, report=report_dir,
+                      store=store_path, store_is_input=use_fleet_coefficients, fmt=fmt)
     with progress_bar(quiet) as stage:
+        # the store is written with the outputs (publish_reconstruction), not before them
         rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                           meta_overrides=overrides, settings=settings, progress=stage,
                           store=store_path, use_fleet_coefficients=use_fleet_coefficients,
-                          workers=workers)
+                          workers=workers, record=False)
         stage("export")
-        write_track(out, rec.track, rec.summary, fmt)
-        write_summary(summ, rec.summary)
-        if report_dir:
-            from flightrecon.report import write_report
-
-            stage("report")
-            page = write_report(report_dir, rec.track, rec.summary,
-                                title=f"flightrecon: {log.name}")
+        page = publish_reconstruction(rec, out, summ, fmt, report_dir, store_path,
+                                      title=f"flightrecon: {log.name}",
+                                      record=not use_fleet_coefficients, stage=stage)
     if not quiet:
         fc = rec.summary.get("fleet_coefficients")
         if fc:
