@@ -18,7 +18,9 @@ Exit codes
 8     estimation did not converge or diverged (strict mode)
 9     output error: would overwrite an input, cannot write
 10    coefficient store error
-130   interrupted (Ctrl-C)
+130   interrupted (Ctrl-C, SIGINT)
+143   terminated (SIGTERM, what ``timeout`` and batch systems send); other catchable
+      signals 128 + their number (SIGHUP 129); handled like Ctrl-C: nothing half-written
 ====  ==============================================================
 """
 

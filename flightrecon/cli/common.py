@@ -219,3 +219,27 @@ def publish_reconstruction(rec, out: Path, summary_path: Path, fmt: str | None,
 
         pub.commit(before=record_then_summary)
     return page
+
+
+@contextlib.contextmanager
+def errors_name_file(log: Path, sidecar: Path | None = None) -> Iterator[None]:
+    """Every error of the project that does not name a file is about the run's log: name it.
+
+    A metadata error on a log with no sidecar also says where the sidecar was looked for
+    (the usual cause: departure/arrival airfields missing)."""
+    from flightrecon.errors import FlightReconError
+
+    try:
+        yield
+    except FlightReconError as exc:
+        if not exc.file:
+            exc.file = str(log)
+        if isinstance(exc, MetadataError) and sidecar is None:
+            from flightrecon.ingest.sidecar import discover_sidecar
+
+            if discover_sidecar(log) is None and "sidecar" not in exc.message:
+                expected = default_output(log, ".meta.toml")
+                exc.message += (f" (no sidecar: flight metadata is read from {expected} "
+                                "beside the log, or give it on the command line)")
+        exc.args = (str(exc),)
+        raise

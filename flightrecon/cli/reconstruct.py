@@ -8,6 +8,7 @@ import click
 
 from flightrecon.cli.common import (
     default_output,
+    errors_name_file,
     input_options,
     NonEmptyPath,
     parse_k,
@@ -64,7 +65,7 @@ from flightrecon.cli.common import (
 @click.option("--summary", "summary_path",
               type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Summary JSON (default: <output stem>.summary.json).")
-@click.option("--report", "report_dir", type=NonEmptyPath(file_okay=False, path_type=Path),
+@click.option("--report", "report_dir", type=NonEmptyPath(path_type=Path),
               help="Also write figures and a self-contained report.html into this folder.")
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
@@ -97,7 +98,7 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
     check_run_outputs(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                       noise_file=noise_file, result=out, summary=summ, report=report_dir,
                       store=store_path, store_is_input=use_fleet_coefficients, fmt=fmt)
-    with progress_bar(quiet) as stage:
+    with errors_name_file(log, sidecar), progress_bar(quiet) as stage:
         # the store is written with the outputs (publish_reconstruction), not before them
         rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                           meta_overrides=overrides, settings=settings, progress=stage,
