@@ -368,7 +368,7 @@ SIGNAL_DELAYS_S = (0.3, 2.0, 3.5, 5.0)
 
 
 def _reconstruct_process(log: Path, out: Path, report: Path | None = None):
-    cmd = [sys.executable, "-m", "flightrecon.cli.main", "--quiet", "reconstruct", str(log),
+    cmd = [sys.executable, "-m", "flightrecon", "--quiet", "reconstruct", str(log),
            "-o", str(out), "--summary", str(out.with_suffix(".json"))]
     if report is not None:
         cmd += ["--report", str(report)]

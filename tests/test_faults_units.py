@@ -242,3 +242,14 @@ def test_complementary_rows_sharing_a_time_stamp_are_kept(tmp_path):
     p = write(tmp_path, "comp", d)
     fl, _ = load_quiet(p)
     assert len(fl.data) == len(d)
+
+
+def test_airspeed_in_knots_in_a_metre_per_second_column_is_refused(tmp_path):
+    """TAS in knots in tas_mps: 1.94 times the GNSS ground speed (the shipped logs: 1.00 to
+    1.16 with their winds)."""
+    d = HANDMADE.copy()
+    d["tas_mps"] = d["tas_mps"] * 3600 / 1852
+    p = write(tmp_path, "kt", d)
+    with pytest.raises(ValidationError, match="likely unit kt") as ex:
+        load_quiet(p)
+    assert "kt.csv" in str(ex.value) and "tas_mps" in str(ex.value)

@@ -135,12 +135,13 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
                 raise OutputError(f"the {a} and the {b} would be written to the same file",
                                   file=str(outs[a]))
     for label, d in dirs.items():
-        if d.exists() and not d.is_dir():
-            raise OutputError(f"the {label} folder is an existing file", file=str(d))
         for ilabel, ip in ins.items():
             if _same(ip, d):
                 raise OutputError(f"the {label} folder is the {ilabel} (an input of this run)",
                                   file=str(d))
+        if d.exists() and not d.is_dir():
+            raise OutputError(f"the {label} folder is an existing file", file=str(d))
+        for ilabel, ip in ins.items():
             if folder_names is not None and _same(_folder_of(ip), d) and folder_names(ip.name):
                 raise OutputError(f"the {label} would replace the {ilabel} {ip} (an input of this "
                                   "run)", file=str(d))

@@ -21,6 +21,8 @@ that a unit mix-up explains (docs/ingest.md, "Repaired, warned, refused"):
   ``a_up = g0 (n_long sin(theta) - n_lat sin(phi) cos(theta) + n_norm cos(phi) cos(theta)) - g0``
   (METHODS.md: ``a_NED = C_nb g0 [n_long, n_lat, -n_norm] + [0, 0, g]``); a factor near 3.28 is
   a feet column declared in metres, near 0.305 the reverse;
+* **airspeed unit**: the true airspeed against the GNSS ground speed (a ratio near 1.94 is
+  knots in a m/s column, near 3.6 km/h);
 * **GNSS height against pressure altitude**: over the climbs and descents of a flight the two
   change together (within the temperature's +-20 %); a factor near 3.28 (or 0.305) is one of
   them in feet, and the vertical-acceleration check above says which.
@@ -198,6 +200,7 @@ def check_physics(data: pd.DataFrame, prov) -> list[str]:
     _check_time_unit(data, prov, tg, ch, rad)
     baro_factor = _check_baro_against_acceleration(prov, tg, ch, rad, warns)
     _check_gnss_height(data, prov, baro_factor)
+    _check_airspeed_unit(prov, ch)
     return warns
 
 
@@ -408,6 +411,30 @@ def _check_gnss_height(data, prov, baro_factor: float | None) -> None:
         f"flight (expected about 1; the pressure altitude agrees with the vertical "
         f"acceleration): {who} is in {real} (likely unit {real.split()[0]}; set it in a mapping "
         "file)", file=_file(prov, who), column=_col(prov, who))
+
+
+# ------------------------------------------------------------------ airspeed
+
+
+def _check_airspeed_unit(prov, ch) -> None:
+    """True airspeed against the GNSS ground speed: over a flight the wind changes their
+    ratio by tens of per cent at most; a ratio near 1.94 is knots in a m/s column, 3.6 km/h."""
+    if ch["tas_mps"] is None or ch["gnss_vn_mps"] is None or ch["gnss_ve_mps"] is None:
+        return
+    gs = np.hypot(ch["gnss_vn_mps"], ch["gnss_ve_mps"])
+    tas = ch["tas_mps"]
+    ok = np.isfinite(gs) & np.isfinite(tas) & (gs > 30.0)
+    if ok.sum() < 32:
+        return
+    ratio = float(np.median(tas[ok]) / np.median(gs[ok]))
+    table = {"kt": 3600 / 1852, "km/h": 3.6}
+    unit = _nearest(ratio, table, tol=0.2)
+    if unit is not None:
+        raise ValidationError(
+            f"the true airspeed is {ratio:.2f} times the GNSS ground speed over the flight "
+            f"(wind changes that ratio by tens of per cent at most): it is in {unit}, not m/s "
+            f"(likely unit {unit}; set it in a mapping file)",
+            file=_file(prov, "tas_mps"), column=_col(prov, "tas_mps"))
 
 
 # ------------------------------------------------------------------ length of the record
