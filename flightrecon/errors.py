@@ -12,7 +12,8 @@ Exit codes
 2     command-line usage error (click)
 3     input file unreadable: missing, empty, not text, corrupt or truncated
 4     schema error: missing required column, unknown unit or channel
-5     validation error: non-numeric, impossible values, bad timestamps, polarity
+5     validation error: non-numeric, impossible values, bad timestamps, polarity, a unit
+      the physics shows to be wrong, a log too short to reconstruct
 6     mapping file error
 7     metadata / sidecar error (airfields, station, aircraft)
 8     estimation did not converge or diverged (strict mode)
