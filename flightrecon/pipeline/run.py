@@ -203,6 +203,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     from flightrecon.cleaning import clean_flight
     from flightrecon.cleaning.plausibility import plausibility_checks
     from flightrecon.ingest import load_flight
+    from flightrecon.ingest.physics import check_reconstructable
 
     def stage(name: str) -> None:
         if progress:
@@ -213,6 +214,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         warnings.simplefilter("always")
         flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                                      meta_overrides=meta_overrides)
+        check_reconstructable(flight)   # a log too short: refused with the minimum
         fleet = None
         if use_fleet_coefficients:
             settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id)
