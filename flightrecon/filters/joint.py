@@ -127,6 +127,51 @@ class JointSettings:
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
     noise_tol: float = 0.01                  # EM stops when no variance moves by more
+    priors: tuple[tuple[str, float, float], ...] = ()  # (error, mean, sd) replacing the
+    #                                          default prior N(0, budget^2): PRIOR_STATES names
+
+    def __post_init__(self) -> None:
+        for item in self.priors:
+            name, mean, sd = item
+            if name not in PRIOR_STATES:
+                raise ValueError(f"joint prior '{name}': not a sensor-error state (choose from "
+                                 f"{', '.join(PRIOR_STATES)})")
+            if not (np.isfinite(mean) and np.isfinite(sd) and sd > 0):
+                raise ValueError(f"joint prior '{name}': mean {mean!r}, sd {sd!r}: need finite "
+                                 "numbers and sd > 0")
+
+
+#: sensor-error states that take a prior (names as in the summary's ``corrections``):
+#: name -> (state index, factor from the reported unit to the state's, JointNoise field of the
+#: default prior sd in the reported unit).  The accelerometer biases are first-order
+#: Gauss-Markov: a prior mean decays towards zero with their time constant.
+PRIOR_STATES: dict[str, tuple[int, float, str]] = {
+    "heading_bias_deg": (jk.IPSI, float(np.radians(1.0)), "heading_bias_deg"),
+    "tas_scale": (jk.IS, 1.0, "tas_scale"),
+    "baro_offset_m": (jk.IBH, 1.0, "baro_offset_m"),
+    "baro_scale": (jk.IC, 1.0, "baro_scale"),
+    "accel_bias_x_g": (jk.IBA, 1.0, "accel_bias_g"),
+    "accel_bias_y_g": (jk.IBA + 1, 1.0, "accel_bias_g"),
+    "accel_bias_z_g": (jk.IBA + 2, 1.0, "accel_bias_g"),
+    "doppler_scale": (jk.IDW, 1.0, "doppler_scale"),
+    "accel_scale_x": (jk.IKS, 1.0, "accel_scale"),
+    "accel_scale_y": (jk.IKS + 1, 1.0, "accel_scale"),
+    "accel_scale_z": (jk.IKS + 2, 1.0, "accel_scale"),
+    "drift_bias_deg": (jk.IDC, float(np.radians(1.0)), "drift_bias_deg"),
+    "roll_bias_deg": (jk.IATT, float(np.radians(1.0)), "attitude_bias_deg"),
+    "pitch_bias_deg": (jk.IATT + 1, float(np.radians(1.0)), "attitude_bias_deg"),
+    "wind_gradient_n_per_km": (jk.IG, 1e-3, "wind_gradient_per_km"),
+    "wind_gradient_e_per_km": (jk.IG + 1, 1e-3, "wind_gradient_per_km"),
+}
+
+
+def prior_of(name: str, settings: JointSettings) -> tuple[float, float]:
+    """(mean, sd) of the prior of the sensor-error state ``name``, in its reported unit: the
+    one given in ``settings.priors``, else N(0, the noise budget's sd)."""
+    for n, mean, sd in settings.priors:
+        if n == name:
+            return float(mean), float(sd)
+    return 0.0, float(getattr(settings.noise, PRIOR_STATES[name][2]))
 
 
 @dataclass(frozen=True)
@@ -788,7 +833,8 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
                      (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2])
 
 
-def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
+def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
+             priors: tuple[tuple[str, float, float], ...] = ()):
     n = jk.N_STATE
     x0 = np.zeros(n)
     x0[jk.IP:jk.IP + 3] = nom_ecef[0]
@@ -811,6 +857,9 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     P0[jk.IKS:jk.IKS + 3, jk.IKS:jk.IKS + 3] = np.eye(3) * nz.accel_scale ** 2
     P0[jk.IATT:jk.IATT + 2, jk.IATT:jk.IATT + 2] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
     P0[jk.IG:jk.IG + 2, jk.IG:jk.IG + 2] = np.eye(2) * (nz.wind_gradient_per_km / 1000.0) ** 2
+    for name, mean, sd in priors:  # e.g. an aircraft's fleet calibration
+        i, f, _ = PRIOR_STATES[name]
+        x0[i], P0[i, i] = mean * f, (sd * f) ** 2
     return x0, P0
 
 
@@ -1003,7 +1052,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if weights is None or len(weights) != len(meas.z):
             weights = np.ones(len(meas.z))
         if x0 is None:
-            x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps)
+            x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps, settings.priors)
         tau = meas.t - T[meas.step]
         if it == 0:  # filter outputs, reused by every pass (allocated and paged in once)
             n = jk.N_STATE
