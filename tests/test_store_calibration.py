@@ -7,16 +7,20 @@ from __future__ import annotations
 import math
 import multiprocessing as mp
 import shutil
-from dataclasses import replace
 import sqlite3
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from flightrecon.errors import StoreError
-from flightrecon.store import (CoefficientStore, FlightCalibration, FlightCoefficients,
-                               SensorEstimate)
+from flightrecon.store import (
+    CoefficientStore,
+    FlightCalibration,
+    FlightCoefficients,
+    SensorEstimate,
+)
 from flightrecon.store import calibration as cal
 from flightrecon.store.db import SCHEMA_VERSION
 

@@ -218,8 +218,8 @@ class CoefficientStore:
                     "aircraft_id = ? AND flight_id = ?", (aircraft_id, flight_id))
                 for table in ("flights", "calibration_flights"):
                     ids.update(r[0] for r in con.execute(
-                        f"SELECT flight_id FROM {table} WHERE {where}", args))  # noqa: S608
-                    con.execute(f"DELETE FROM {table} WHERE {where}", args)  # noqa: S608
+                        f"SELECT flight_id FROM {table} WHERE {where}", args))
+                    con.execute(f"DELETE FROM {table} WHERE {where}", args)
                 return len(ids)
         return self._run(work)
 

@@ -55,7 +55,7 @@ def _rows(con: sqlite3.Connection, aircraft_id: str) -> list[tuple[str, str | No
     out = []
     for table in ("flights", "calibration_flights"):
         for fid, h, hashes in con.execute(
-                f"SELECT flight_id, log_sha256, input_hashes_json FROM {table} "  # noqa: S608
+                f"SELECT flight_id, log_sha256, input_hashes_json FROM {table} "
                 "WHERE aircraft_id = ?", (aircraft_id,)):
             try:
                 hv = json.loads(hashes)
