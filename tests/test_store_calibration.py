@@ -271,3 +271,82 @@ def test_fleet_settings_carry_the_calibration(tmp_path):
     assert info["calibration"]["n_flights"] == 3 and info["calibration"]["applied"] == [name]
     with pytest.raises(StoreError, match="neither"):
         fleet_settings(ReconstructSettings(), path, "OTHER")
+
+
+def test_reconstruct_with_fleet_calibration_end_to_end(tmp_path, capsys):
+    """Two routine circuits with GNSS of one simulated aircraft recorded (joint smoother's
+    estimates); a recorder-only flight of it without arrival reconstructed with
+    ``--use-fleet-coefficients``: the summary and the report say which calibration was used,
+    from how many flights, and the joint smoother ran with those priors; then the store
+    commands show, average and export it."""
+    import json
+
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.cli.main import main
+    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.sim import simulate
+    from flightrecon.sim.io import write_simulation
+    from flightrecon.store import from_joint_summary
+    from flightrecon.store.adapt import flight_conditions
+    from flightrecon.types import Flight
+
+    store = tmp_path / "s.sqlite"
+    with CoefficientStore(store) as st:
+        for i in range(2):
+            sim = simulate("circuit", seed=40 + i, flight_id=f"R{i}",
+                           epoch_utc=f"2026-02-0{i + 1}T09:00:00Z")
+            clean = clean_flight(Flight(data=sim.log, meta=sim.meta))
+            st.record_calibration(from_joint_summary(
+                run_joint(clean).summary, aircraft_id=sim.meta.aircraft_id, flight_id=f"R{i}",
+                flight_date_utc=sim.meta.epoch_utc, conditions=flight_conditions(clean)))
+        ac = sim.meta.aircraft_id
+    acc = simulate("circuit", seed=49, gnss_hz=0.0, flight_id="ACC",
+                   epoch_utc="2026-02-05T09:00:00Z")
+    paths = write_simulation(acc, tmp_path / "acc.parquet")
+    side = paths["meta"].read_text()
+    paths["meta"].write_text(side[:side.index("[arrival]")])   # no arrival point
+    def cli(args):
+        with pytest.raises(SystemExit) as ei:
+            main(args)
+        out, err = capsys.readouterr()
+        return ei.value.code, out + err
+
+    code, output = cli([
+        "reconstruct", str(paths["log"]), "--store", str(store), "--use-fleet-coefficients",
+        "--methods", "joint", "--report", str(tmp_path / "rep"), "-o",
+        str(tmp_path / "out.parquet")])
+    assert code == 0, output
+    summary = json.loads((tmp_path / "out.summary.json").read_text())
+    fc = summary["fleet_coefficients"]
+    assert fc["aircraft_id"] == ac and fc["k"] is None and "k_missing" in fc
+    cal = fc["calibration"]
+    assert cal["n_flights"] == 2 and cal["flights"] == ["R0", "R1"]
+    assert "tas_scale" in cal["applied"] and "heading_bias_deg" in cal["applied"]
+    used = {p[0]: p[1:] for p in summary["methods"]["joint"]["settings"]["priors"]}
+    assert set(used) == set(cal["applied"])
+    corr = summary["methods"]["joint"]["corrections"]
+    assert corr["tas_scale"]["prior_sd"] == pytest.approx(cal["errors"]["tas_scale"]["sd"])
+    assert corr["tas_scale"]["prior_sd"] < 0.1 * 0.03   # GNSS flights pinned it down
+    page = (tmp_path / "rep" / "report.html").read_text()
+    assert "Fleet calibration" in page and "from <b>2</b> flight(s)" in page
+    assert "fleet calibration of" in output
+    # a flight reconstructed with the fleet's priors is not recorded into the fleet
+    with CoefficientStore(store) as st:
+        assert [c.flight_id for c in st.list_calibrations()] == ["R0", "R1"]
+    code, output = cli(["coeffs", "average", ac, "--store", str(store), "--json"])
+    d = json.loads(output)
+    assert code == 0 and d["sabziev"] is None
+    assert d["calibration"]["flights_used"] == ["R0", "R1"]
+    code, output = cli(["coeffs", "show", ac, "--store", str(store)])
+    assert code == 0 and "sensor calibration of" in output and "R1" in output
+    code, output = cli(["coeffs", "export", "--calibration", "-o", str(tmp_path / "cal.csv"),
+                        "--store", str(store)])
+    assert code == 0 and "sensor estimate(s)" in output
+    assert len((tmp_path / "cal.csv").read_text().splitlines()) == 1 + 2 * 16
+    code, _ = cli(["coeffs", "sensor-change", ac, "2026-02-02", "--error", "tas_scale",
+                   "--note", "pitot", "--store", str(store)])
+    assert code == 0
+    with CoefficientStore(store) as st:
+        assert st.calibration(ac, "2026-02-05").quantity("tas_scale").flights == ("R1",)
+    code, _ = cli(["coeffs", "drift", ac, "tas_scale", "1e-4", "--store", str(store)])
+    assert code == 0

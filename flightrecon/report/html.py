@@ -35,6 +35,34 @@ def _method_table(summary: dict[str, Any]) -> str:
     return "<table>" + "".join(rows) + "</table>"
 
 
+def _fleet_section(summary: dict[str, Any]) -> str:
+    """Which fleet calibration and coefficients the reconstruction used (``--use-fleet-
+    coefficients``), from how many flights; empty when none was used."""
+    fc = summary.get("fleet_coefficients")
+    if not fc:
+        return ""
+    e = html.escape
+    cal = fc.get("calibration")
+    out = ["<h2>Fleet calibration</h2>"]
+    if cal:
+        rows = "".join(
+            f"<tr><td>{e(n)}</td><td>{q['mean']:.4g}</td><td>{q['sd']:.3g}</td><td>{q['n']}</td>"
+            f"<td>{'yes' if q['applied'] else 'no'}</td></tr>"
+            for n, q in cal["errors"].items())
+        out.append(f"<p>Sensor calibration of aircraft <b>{e(str(fc['aircraft_id']))}</b> at "
+                   f"{e(str(cal['at_utc']))} from <b>{cal['n_flights']}</b> flight(s) "
+                   f"({e(', '.join(cal['flights']))}) of store <code>{e(str(fc['store']))}</code>"
+                   "; the errors marked applied were the joint smoother's priors.</p>"
+                   "<table><tr><th>error</th><th>mean</th><th>sd</th><th>flights</th>"
+                   f"<th>applied</th></tr>{rows}</table>")
+    else:
+        out.append(f"<p>No sensor calibration: {e(str(fc.get('calibration_missing')))}</p>")
+    if fc.get("k") is not None:
+        out.append(f"<p>Sabziev fleet-mean k = {e(str(fc['k']))} (fits per axis "
+                   f"{e(str(fc['flights']))}).</p>")
+    return "".join(out)
+
+
 def write_report(folder: str | Path, track: pd.DataFrame, summary: dict[str, Any],
                  truth: pd.DataFrame | None = None, title: str = "flightrecon report") -> Path:
     """Write ``report.html`` and one PNG per figure into ``folder`` (created if needed).
@@ -68,6 +96,7 @@ text-align:left;vertical-align:top}} code{{font-size:85%}}</style></head><body>
 software {html.escape(str((summary.get('software') or {}).get('version')))}.</p>
 <h2>Inputs</h2><ul>{inputs}</ul>
 <h2>Methods</h2>{_method_table(summary)}
+{_fleet_section(summary)}
 <h2>Warnings</h2><ul>{warn or '<li>none</li>'}</ul>
 <h2>Figures</h2>{''.join(parts)}
 </body></html>

@@ -248,7 +248,8 @@ class CoefficientStore:
 
         def work() -> Identity:
             with write_transaction(self.con) as con:
-                ident = resolve_flight_id(con, aircraft_id, flight_id, log_sha256)
+                date = (fit or calibration).flight_date_utc  # type: ignore[union-attr]
+                ident = resolve_flight_id(con, aircraft_id, flight_id, log_sha256, date)
                 stamp = now_utc_text()
                 if fit is not None:
                     f = replace(fit, flight_id=ident.flight_id, log_sha256=log_sha256)

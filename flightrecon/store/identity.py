@@ -51,17 +51,18 @@ class Identity:
     requested: str | None
 
 
-def _rows(con: sqlite3.Connection, aircraft_id: str) -> list[tuple[str, str | None, dict]]:
+def _rows(con: sqlite3.Connection, aircraft_id: str, with_date: bool = False) -> list[tuple]:
     out = []
     for table in ("flights", "calibration_flights"):
-        for fid, h, hashes in con.execute(
-                f"SELECT flight_id, log_sha256, input_hashes_json FROM {table} "
+        for fid, h, hashes, date in con.execute(
+                f"SELECT flight_id, log_sha256, input_hashes_json, flight_date_utc FROM {table} "
                 "WHERE aircraft_id = ?", (aircraft_id,)):
             try:
                 hv = json.loads(hashes)
             except ValueError:
                 hv = {}
-            out.append((fid, h, hv if isinstance(hv, dict) else {}))
+            row = (fid, h, hv if isinstance(hv, dict) else {})
+            out.append(row + (date,) if with_date else row)
     return out
 
 
@@ -72,10 +73,13 @@ def _same(h: str | None, hashes: dict, log_sha256: str) -> bool:
 
 
 def resolve_flight_id(con: sqlite3.Connection, aircraft_id: str, flight_id: str | None,
-                      log_sha256: str) -> Identity:
+                      log_sha256: str, flight_date_utc: str | None = None) -> Identity:
     """The record of the log with SHA-256 ``log_sha256`` (rule: module docstring).  Call it
-    inside the write transaction that records the flight."""
-    rows = _rows(con, aircraft_id)
+    inside the write transaction that records the flight.  With ``flight_date_utc``, a
+    disambiguated flight whose take-off time equals the other record's is noted as a possible
+    duplicate (the same flight in another file format counts twice in the averages)."""
+    dated = _rows(con, aircraft_id, with_date=True)
+    rows = [r[:3] for r in dated]
     for fid, h, hashes in rows:
         if _same(h, hashes, log_sha256):
             note = "" if fid == flight_id else (
@@ -93,6 +97,11 @@ def resolve_flight_id(con: sqlite3.Connection, aircraft_id: str, flight_id: str 
         fid = f"{flight_id}{SUFFIX_SEP}{log_sha256[:n]}"
         if fid not in taken:
             break
-    return Identity(fid, "disambiguated",
-                    f"flight id '{flight_id}' of aircraft '{aircraft_id}' is already recorded for "
-                    f"another log; this log is recorded as '{fid}'", flight_id)
+    note = (f"flight id '{flight_id}' of aircraft '{aircraft_id}' is already recorded for "
+            f"another log; this log is recorded as '{fid}'")
+    if flight_date_utc is not None and any(r[0] == flight_id and r[3] == flight_date_utc
+                                           for r in dated):
+        note += (f" (same take-off time {flight_date_utc} as '{flight_id}': if it is the same "
+                 "flight in another file, remove one with flightrecon coeffs remove, or it "
+                 "counts twice in the averages)")
+    return Identity(fid, "disambiguated", note, flight_id)
