@@ -121,7 +121,8 @@ def _records(out: dict[str, Any]):
                   input_hashes={i["path"]: i["sha256"] for i in inputs})
     fit = cal = None
     sab = out.get("sabziev")
-    if sab is not None and sab.get("mode") == "boundary-value":
+    # an unhealthy (impossible) Sabziev track is not the aircraft's: its fit is not recorded
+    if sab is not None and sab.get("mode") == "boundary-value" and sab.get("status") == "ok":
         fit = from_sabziev_summary(sab, **common)
     if out.get("joint") is not None:
         cal = from_joint_summary(out["joint"], conditions=out.get("conditions"), log_sha256=h,
@@ -235,7 +236,21 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     fits = {}  # (aircraft, log SHA-256) -> FlightCoefficients, for the averages
     local_ids: dict = {}  # (aircraft, flight id) -> log SHA-256, identity without a store
 
+    # flights are recorded in input order, whatever order they finish in, so that which of two
+    # logs claiming the same flight id keeps the plain id does not depend on the workers'
+    # timing (docs/store.md, "Flight identity"); a finished flight waits for the earlier ones
+    pending: dict[int, tuple[dict[str, Any], dict[str, str]]] = {}
+    next_i = [0]
+
     def finish(i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
+        pending[i] = (out, hashes)
+        while next_i[0] < len(entries) and (next_i[0] in pending or next_i[0] in outcomes):
+            j = next_i[0]
+            if j in pending:
+                _finish(j, *pending.pop(j))
+            next_i[0] += 1
+
+    def _finish(i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
         e = entries[i]
         stored = ""
         paths = output_paths(out_dir, e.name, fmt)
@@ -289,6 +304,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
                 todo.append((i, e, paths, hashes))
         if todo:
             _run(todo, client, settings, fmt, finish)
+        for j in sorted(pending):  # not expected: every submitted flight reports back
+            _finish(j, *pending.pop(j))
         ordered = tuple(outcomes[i] for i in range(len(entries)))
         aircraft = sorted({str(o.row["aircraft_id"]) for o in ordered
                            if o.status != "failed" and o.row.get("aircraft_id")})

@@ -115,25 +115,35 @@ def record_flight(store_path: str | Path | None, rec: Reconstruction,
                   flight_date_utc=date, settings=rec.summary["settings"],
                   input_hashes={i["path"]: i["sha256"] for i in rec.summary["inputs"]})
     sab, joint = rec.results.get("sabziev"), rec.results.get("joint")
+    status = rec.summary["methods"]
     fit = cal = None
+    reasons = []
+    # an unhealthy (physically impossible) track is not the aircraft's: nothing of it recorded
     if sab is not None and sab.summary.get("mode") == "boundary-value":
-        fit = from_sabziev_summary(sab.summary, **common)
-    from flightrecon.pipeline import method_health
-
-    if joint is not None and method_health(joint)["healthy"]:
+        if status.get("sabziev", {}).get("status") == "ok":
+            fit = from_sabziev_summary(sab.summary, **common)
+        else:
+            st = status.get("sabziev", {})
+            reasons.append(f"sabziev {st.get('status')}: {st.get('reason')}")
+    if joint is not None and status.get("joint", {}).get("status") != "ok":
+        st = status.get("joint", {})
+        reasons.append(f"joint {st.get('status')}: {st.get('reason')}")
+    elif joint is not None:
         cal = from_joint_summary(joint.summary, conditions=flight_conditions(rec.clean),
                                  log_sha256=h, **common)
     if fit is None and cal is None:
+        why = "; ".join(reasons) or ("neither a boundary-value Sabziev fit nor a healthy joint "
+                                     "smoother on this flight")
         return {"store": str(store_path), "aircraft_id": meta.aircraft_id, "flight_id": None,
-                "recorded": False, "note": "nothing to record: neither a boundary-value Sabziev "
-                "fit nor a healthy joint smoother on this flight", "k": None, "converged": None,
+                "recorded": False, "reason": why, "note": "", "k": None, "converged": None,
                 "calibration": False}
     with CoefficientStore(store_path) as store:
         ident = store.record_flight(meta.aircraft_id, meta.flight_id, h, fit=fit,
                                     calibration=cal)
+    note = "; ".join([ident.note] * bool(ident.note) + [f"not recorded: {r}" for r in reasons])
     return {"store": str(store_path), "aircraft_id": meta.aircraft_id,
             "flight_id": ident.flight_id, "recorded": True, "identity": ident.action,
-            "note": ident.note,
+            "note": note,
             "k": None if fit is None else [fit.k1, fit.k2, fit.k3],
             "converged": None if fit is None else fit.converged,
             "calibration": cal is not None}
