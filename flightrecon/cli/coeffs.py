@@ -165,17 +165,28 @@ def list_cmd(store_path: Path | None, aircraft_id: str | None, as_json: bool) ->
         return
     with _open(store_path) as store:
         fits = store.list_flights(aircraft_id)
-    if as_json:
+        cals = store.list_calibrations(aircraft_id)
+    if as_json:  # the Sabziev fits (sensor estimates: coeffs show AIRCRAFT --json)
         _echo_json([f.as_dict() for f in fits])
         return
     click.echo(f"store: {path}")
-    if not fits:
+    fitted = {(f.aircraft_id, f.flight_id) for f in fits}
+    only = [c for c in cals if (c.aircraft_id, c.flight_id) not in fitted]
+    if not fits and not only:
         suffix = f" for aircraft '{aircraft_id}'" if aircraft_id else ""
         click.echo("no flights recorded" + suffix)
         return
-    click.echo(_flights_table(fits))
-    n_air = len({f.aircraft_id for f in fits})
-    click.echo(f"{len(fits)} flight(s), {n_air} aircraft")
+    if fits:
+        click.echo(_flights_table(fits))
+    if only:
+        click.echo("flights with sensor estimates and no Sabziev fit:")
+        click.echo(_table(["aircraft", "flight", "date_utc", "sources"],
+                          [[c.aircraft_id, c.flight_id, c.flight_date_utc, c.sources or "-"]
+                           for c in only]))
+    n_cal = len({(c.aircraft_id, c.flight_id) for c in cals})
+    n_air = len({f.aircraft_id for f in fits} | {c.aircraft_id for c in cals})
+    click.echo(f"{len(fitted) + len(only)} flight(s), {n_air} aircraft; {len(fits)} Sabziev "
+               f"fit(s), {n_cal} with sensor estimates")
 
 
 @command.command("show")
