@@ -30,22 +30,13 @@ from flightrecon.filters.joint import (
 )
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.inputs import _nearest
-from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult
 
 PREFIX = "joint_"
-
-
-def field_pressure_altitude_m(elev_msl_m: float, qnh_hpa: float | None) -> float:
-    """Pressure altitude of an airfield: the ISA altitude of its station pressure.
-
-    Station pressure = ISA pressure at the field elevation scaled by QNH / 1013.25 hPa
-    (about 8.3 m of pressure altitude per hPa near sea level).
-    """
-    q = 1013.25 if qnh_hpa is None else float(qnh_hpa)
-    return float(pressure_altitude_m(isa_pressure_pa(elev_msl_m) * q / 1013.25))
 
 
 def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
@@ -104,8 +95,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         field_h = 0.0
     wind = None
     if "wind_speed_mps" in g.columns and "wind_from_deg" in g.columns:
-        to = np.radians(col("wind_from_deg") + 180.0)
-        wind = np.c_[col("wind_speed_mps") * np.cos(to), col("wind_speed_mps") * np.sin(to)]
+        wind = wind_toward_ne(col("wind_speed_mps"), col("wind_from_deg"))
     gn = clean.gnss
     gnss = pd.DataFrame()
     if len(gn) and {"gnss_lat_deg", "gnss_lon_deg"} <= set(gn.columns):

@@ -34,7 +34,6 @@ from flightrecon.pipeline.registry import (
 from flightrecon.pipeline.summary import build_summary, result_choice
 from flightrecon.types import CleanFlight, Flight, MethodResult
 
-
 NUMERICAL_FAILURES: tuple[type[BaseException], ...] = (
     FlightReconError, ValueError, ArithmeticError, np.linalg.LinAlgError)
 """What a method may raise and still leave the others' results standing: the project's own
