@@ -97,7 +97,7 @@ def _set_cache_dir(path: Path) -> None:
     if "numba" in sys.modules:  # numba read its configuration already
         from numba.core import config
 
-        config.CACHE_DIR = str(path)
+        setattr(config, "CACHE_DIR", str(path))  # noqa: B010 - numba's config module
 
 
 def _disable_cache() -> None:

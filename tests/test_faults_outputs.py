@@ -202,10 +202,10 @@ def test_permission_error_while_writing_is_exit_9(tmp_path, monkeypatch):
     from flightrecon.errors import OutputError
     from flightrecon.export.atomic import atomic_path
 
-    with pytest.raises(OutputError, match="cannot write") as ex:
-        with atomic_path(tmp_path / "x.json") as tmp:
-            tmp.write_text("{}")
-            raise PermissionError(13, "Permission denied")
+    with pytest.raises(OutputError, match="cannot write") as ex, \
+            atomic_path(tmp_path / "x.json") as tmp:
+        tmp.write_text("{}")
+        raise PermissionError(13, "Permission denied")
     assert "x.json" in str(ex.value)
     assert not leftovers(tmp_path)
 
@@ -244,7 +244,7 @@ def _prior(d: Path) -> tuple[Path, Path, dict]:
 def test_interrupt_before_publication_leaves_every_old_output(handmade, capsys, monkeypatch):
     """Ctrl-C after the result was written but before the summary: the result is only
     staged, so the old result and the old summary stay, and nothing is left behind."""
-    import flightrecon.report as report
+    from flightrecon import report
 
     d = handmade.parent
     out, summ, before = _prior(d)
@@ -264,7 +264,7 @@ def test_publication_renames_all_or_none_with_signals_deferred(tmp_path):
     """A signal arriving between the renames waits until the last one is done (all new)."""
     import signal
 
-    import flightrecon.export.atomic as atomic
+    from flightrecon.export import atomic
 
     a, b = tmp_path / "a.txt", tmp_path / "b.txt"
     a.write_text("old a")
@@ -316,7 +316,7 @@ def test_kill_during_publication_is_rolled_forward(tmp_path):
             pub.commit()
     """)
     p = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
-                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120, check=False)
     assert p.returncode == -9, p.stderr.decode()
     assert a.read_text() == "new a" and b.read_text() == "old b"   # half done
     removed = sweep_leftovers(tmp_path)
@@ -342,7 +342,7 @@ def test_sweep_keeps_the_staging_of_a_running_process(tmp_path):
 def test_store_is_written_with_the_outputs_not_before(handmade, capsys, monkeypatch):
     """The coefficient store is recorded in the same deferred block as the renames: an
     interrupt while staging leaves no record and no output."""
-    import flightrecon.export.writers as writers
+    from flightrecon.export import writers
 
     d = handmade.parent
     text = (d / "handmade.meta.toml").read_text()

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from flightrecon.cli.main import main
-from flightrecon.errors import FlightReconWarning, ValidationError
+from flightrecon.errors import ValidationError
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.physics import MIN_DURATION_S, MIN_INPUT_SAMPLES
 
@@ -253,3 +253,15 @@ def test_airspeed_in_knots_in_a_metre_per_second_column_is_refused(tmp_path):
     with pytest.raises(ValidationError, match="likely unit kt") as ex:
         load_quiet(p)
     assert "kt.csv" in str(ex.value) and "tas_mps" in str(ex.value)
+
+
+def test_gnss_height_in_feet_is_named_when_the_pressure_altitude_is_confirmed(tmp_path):
+    """On the circuit the pressure altitude agrees with the vertical acceleration (factor
+    0.89), so the message says which of the two heights is in feet."""
+    d = pd.read_parquet(SAMPLES / "circuit.parquet")
+    d["gnss_alt_m"] = d["gnss_alt_m"] / 0.3048
+    d.to_parquet(tmp_path / "cg.parquet")
+    shutil.copy(SAMPLES / "circuit.meta.toml", tmp_path / "cg.meta.toml")
+    with pytest.raises(ValidationError, match="gnss_alt_m is in ft") as ex:
+        load_quiet(tmp_path / "cg.parquet")
+    assert ex.value.column == "gnss_alt_m" and "cg.parquet" in str(ex.value)

@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 import threading
+from typing import Any
 
 import click
 
@@ -120,7 +121,7 @@ class Interrupted(KeyboardInterrupt):
 _first_signal: list[int] = []
 
 
-def _on_signal(signum: int, frame) -> None:  # noqa: ARG001 - signal handler signature
+def _on_signal(signum: int, frame) -> None:
     """Raise :class:`Interrupted` in the main thread; while outputs are being published the
     signal waits (:func:`flightrecon.export.atomic.deferred_signals`); a second signal while
     the first one's clean-up runs is ignored, so the clean-up is not cut short."""
@@ -130,13 +131,13 @@ def _on_signal(signum: int, frame) -> None:  # noqa: ARG001 - signal handler sig
     raise Interrupted(signum)
 
 
-def install_signal_handlers() -> dict[int, object]:
+def install_signal_handlers() -> dict[int, Any]:
     """Handle every catchable terminating signal like SIGINT (:data:`CATCHABLE_SIGNALS`);
     signals the caller chose to ignore (``nohup``: SIGHUP) stay ignored.  Returns the
     previous handlers."""
     from flightrecon.export.atomic import CATCHABLE_SIGNALS
 
-    previous: dict[int, object] = {}
+    previous: dict[int, Any] = {}
     if threading.current_thread() is not threading.main_thread():
         return previous
     for s in CATCHABLE_SIGNALS:
@@ -215,7 +216,7 @@ def _run(argv: list[str] | None, debug: bool) -> None:
         sys.exit(exc.exit_code)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except Exception as exc:  # noqa: BLE001 - last resort: no traceback without --debug
+    except Exception as exc:
         if debug:
             raise
         click.echo(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", err=True)
