@@ -407,3 +407,47 @@ def test_sigterm_is_handled_like_sigint(handmade, delay_s, signame):
     assert changed in (set(), {"r.parquet", "r.json"}), (changed, p.returncode)
     if p.returncode == 0:
         assert (d / "rep" / "report.html").exists()
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+@pytest.mark.parametrize("delay_s", (2.0, 5.0, 8.0))
+def test_sigterm_keeps_the_store_and_the_outputs_together(tmp_path, delay_s):
+    """The store keeps its transactional guarantees and goes with the outputs: after a
+    SIGTERM at any moment the store is intact, and it holds the flight's record exactly when
+    the new result and summary were published."""
+    import signal
+    import sqlite3
+    import time
+
+    for f in ("circuit.parquet", "circuit.meta.toml"):
+        shutil.copy(SAMPLES / f, tmp_path / f)
+    out, store = tmp_path / "r.parquet", tmp_path / "s.sqlite"
+    cmd = [sys.executable, "-m", "flightrecon", "--quiet", "reconstruct",
+           str(tmp_path / "circuit.parquet"), "-o", str(out), "--store", str(store)]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    time.sleep(delay_s)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=600)
+    assert p.returncode in (0, 143, -signal.SIGTERM), err.decode()
+    assert not leftovers(tmp_path)
+    published = out.exists()
+    assert published == (tmp_path / "r.summary.json").exists()
+    rows = 0
+    if store.exists():
+        con = sqlite3.connect(store)
+        try:
+            assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+            tables = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE "
+                                                "type='table'")]
+            for t in tables:
+                if t.startswith("flights"):   # one row per recorded flight
+                    rows += con.execute(f"SELECT COUNT(*) FROM {t}").fetchone()[0]
+        finally:
+            con.close()
+    if published:
+        summary = json.loads((tmp_path / "r.summary.json").read_text())
+        assert summary["stored_coefficients"]["recorded"] is True
+        assert rows >= 1
+    else:
+        assert rows == 0
