@@ -451,3 +451,22 @@ def test_sigterm_keeps_the_store_and_the_outputs_together(tmp_path, delay_s):
         assert rows >= 1
     else:
         assert rows == 0
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX pipes")
+def test_closed_output_pipe_is_not_an_internal_error():
+    """`flightrecon info LOG | head -1` ended with exit 1, the internal-error code (click's
+    broken-pipe path); now SIGPIPE's 141 (or 0 when the output fitted in the pipe), silent."""
+    codes = set()
+    for _ in range(4):
+        p = subprocess.Popen([sys.executable, "-m", "flightrecon", "info",
+                              str(SAMPLES / "circuit.parquet")], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, cwd=ROOT,
+                             env={**os.environ, "PYTHONPATH": str(ROOT)})
+        p.stdout.readline()
+        p.stdout.close()
+        err = p.stderr.read().decode()
+        p.wait(timeout=120)
+        assert p.returncode in (0, 141), err
+        assert "Traceback" not in err and "internal error" not in err
+        codes.add(p.returncode)

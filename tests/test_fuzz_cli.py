@@ -16,7 +16,8 @@ the signals).  Every case must give:
   most of the record, speeds between samples below 400 m/s, heights within -1 to 20 km.
 
 The list is fixed by ``SEED`` (reproducible in CI); ``FLIGHTRECON_FUZZ_SEED`` gives another
-list of the same size for exploration.  Measured: see the commit message.
+list of the same size for exploration.  163 in-process cases and 6 signal cases; measured
+56-61 s with ``-n 2`` on a shared 2-core machine (load average 13), warm kernel cache.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ hierarchy are printed as ``error: ...`` with their exit code; ``--debug`` shows 
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -190,12 +191,30 @@ def main(argv: list[str] | None = None) -> None:
     if previous:
         _handlers_installed.append(1)
     try:
-        _run(argv, debug)
+        try:
+            _run(argv, debug)
+        except SystemExit:
+            _flush_stdout()
+            raise
     finally:
         for s, h in previous.items():
             with contextlib.suppress(OSError, ValueError, TypeError):
                 signal.signal(s, h)
         _handlers_installed.clear()
+
+
+def _flush_stdout() -> None:
+    """Flush the output now: a reader that closed the pipe early (``| head``) ends the run
+    with SIGPIPE's code, 128 + 13, as a shell reports it, instead of an error at exit."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        with contextlib.suppress(OSError, ValueError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        sys.exit(128 + 13)
+    except (OSError, ValueError):
+        pass
 
 
 def _run(argv: list[str] | None, debug: bool) -> None:
@@ -216,6 +235,15 @@ def _run(argv: list[str] | None, debug: bool) -> None:
         sys.exit(exc.exit_code)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
+    except SystemExit as exc:
+        # click ends a run whose output pipe was closed (``| head``) with exit 1, the code of
+        # an internal error: it is SIGPIPE's, 128 + 13, as a shell reports it
+        # (click marks that case by wrapping sys.stdout to silence the final flush)
+        ctx = exc.__context__
+        epipe = isinstance(ctx, OSError) and ctx.errno == errno.EPIPE
+        if exc.code == 1 and (epipe or type(sys.stdout).__name__ == "_PacifyFlushWrapper"):
+            sys.exit(128 + 13)
+        raise
     except Exception as exc:
         if debug:
             raise
