@@ -470,3 +470,17 @@ def test_closed_output_pipe_is_not_an_internal_error():
         assert p.returncode in (0, 141), err
         assert "Traceback" not in err and "internal error" not in err
         codes.add(p.returncode)
+
+
+def test_plot_report_folder_is_checked_against_the_truth_and_the_result(tmp_path, capsys):
+    """`plot` reads a result, its summary and a truth file: a report folder whose figures
+    would replace one of them is refused before any work (exit 9)."""
+    shutil.copy(SAMPLES / "circuit.truth.parquet", tmp_path / "wind.png")
+    pd.DataFrame({"t_s": [0.0, 1.0], "north_m": [0.0, 1.0],
+                  "east_m": [0.0, 1.0]}).to_parquet(tmp_path / "r.parquet")
+    before = digest(tmp_path)
+    code, err = run(["plot", tmp_path / "r.parquet", "-o", tmp_path,
+                     "--truth", tmp_path / "wind.png"], capsys)
+    assert code == 9, err
+    assert "wind.png" in err and "truth" in err
+    assert digest(tmp_path) == before

@@ -20,8 +20,16 @@ def command(result: Path, folder: Path | None, truth: Path | None) -> None:
     from flightrecon.export.writers import read_track
     from flightrecon.report import write_report
 
-    track, meta = read_track(result)
+    from flightrecon.cli.common import report_file_name
+    from flightrecon.export.atomic import check_outputs
+
     summ_path = result.with_name(result.stem + ".summary.json")
+    # the report folder must not replace the result, its summary or the truth (exit 9)
+    check_outputs({}, {"result": result, "summary": summ_path if summ_path.is_file() else None,
+                       "truth file": truth},
+                  folders={"report": folder or result.with_name(result.stem + ".report")},
+                  folder_names=report_file_name)
+    track, meta = read_track(result)
     if not meta and summ_path.is_file():
         import json
 
