@@ -19,7 +19,7 @@ from flightrecon import __version__
 from flightrecon.errors import StoreError
 from flightrecon.store.records import AXES, FlightCoefficients
 
-#: Sabziev-frame axis of each coefficient (METHODS.md section 1: x north, y up, z east)
+#: Sabziev-frame axis of each coefficient (docs/sabziev.md: x north, y up, z east)
 SUMMARY_AXES: tuple[str, str, str] = ("x", "y", "z")
 
 
