@@ -64,7 +64,16 @@ def test_reconstruct_every_scenario(scenario, overrides, tmp_path):
     df = pd.read_csv(out)
     assert len(df) > 0, "exit 0 with an empty result"
     cols = [c for c in df.columns if POSITION.search(c)]
-    assert {"north_m", "east_m", "lat_deg", "lon_deg"} <= set(cols)
-    bad = {c: int((~np.isfinite(df[c].to_numpy(float))).sum()) for c in cols}
+    default = ["north_m", "east_m", "up_m", "lat_deg", "lon_deg", "alt_m"]
+    assert set(default) <= set(cols)
+    # the default result: finite on every row
+    bad = {c: int((~np.isfinite(df[c].to_numpy(float))).sum()) for c in default}
     bad = {c: n for c, n in bad.items() if n}
-    assert not bad, f"non-finite positions written (column: rows): {bad}"
+    assert not bad, f"non-finite default positions written (column: rows): {bad}"
+    # a method's own columns cover its interval (Sabziev: lift-off to touchdown) and are
+    # empty outside it (docs/output.md); inside it, never a hole
+    for c in set(cols) - set(default):
+        fin = np.isfinite(df[c].to_numpy(float))
+        if fin.any():
+            i0, i1 = np.flatnonzero(fin)[[0, -1]]
+            assert fin[i0:i1 + 1].all(), f"{c}: non-finite positions inside its coverage"
