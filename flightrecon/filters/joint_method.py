@@ -23,6 +23,7 @@ from flightrecon.filters.joint import (
     JointInputs,
     JointRun,
     JointSettings,
+    prior_of,
     smooth_joint,
     source_report,
     takeoff_roll,
@@ -253,8 +254,9 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     return out
 
 
-def _corrections(run: JointRun) -> dict[str, Any]:
-    """Estimated sensor errors (value and sd at the middle of the record)."""
+def _corrections(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
+    """Estimated sensor errors (value and sd at the middle of the record) with the prior each
+    was given (``prior_mean``, ``prior_sd``, same unit)."""
     k = len(run.t) // 2
     x, v = run.x[k], run.var[k]
 
@@ -262,6 +264,13 @@ def _corrections(run: JointRun) -> dict[str, Any]:
         return {"value": float(x[i] * scale), "sd": float(np.sqrt(max(v[i], 0.0)) * scale),
                 "unit": unit}
 
+    out = _correction_items(item)
+    for name, it in out.items():
+        it["prior_mean"], it["prior_sd"] = prior_of(name, settings or JointSettings())
+    return out
+
+
+def _correction_items(item) -> dict[str, Any]:
     return {
         "heading_bias_deg": item(jl.IPSI, np.degrees(1.0), "deg (measured - true)"),
         "tas_scale": item(jl.IS, 1.0, "TAS_measured = (1 + s) TAS_true"),
@@ -338,7 +347,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,
-        "corrections": _corrections(run),
+        "corrections": _corrections(run, settings),
         "clock_offsets_s": {k: {"value": o, "sd": sd}
                             for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,

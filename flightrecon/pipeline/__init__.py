@@ -35,6 +35,7 @@ from flightrecon.pipeline.run import (
     reconstruct,
     reconstruct_clean,
     record_coefficients,
+    record_flight,
 )
 from flightrecon.pipeline.summary import (
     SUMMARY_SCHEMA_VERSION,
@@ -46,5 +47,6 @@ __all__ = [
     "METHOD_FUNCTIONS", "ALL_METHODS", "DEFAULT_PRIORITY", "ReconstructSettings",
     "Reconstruction", "available_methods", "run_method", "method_health", "combine",
     "SUMMARY_SCHEMA_VERSION", "sha256_file", "build_summary", "default_workers",
-    "reconstruct_clean", "fleet_settings", "record_coefficients", "reconstruct",
+    "reconstruct_clean", "fleet_settings", "record_coefficients", "record_flight",
+    "reconstruct",
 ]
