@@ -200,14 +200,15 @@ def publish_reconstruction(rec, out: Path, summary_path: Path, fmt: str | None,
     page = None
     fmt = format_from_path(out, fmt)
     with Publication() as pub:
-        write_track(pub.file(out), rec.track, rec.summary, fmt)
+        write_track(pub.file(out), rec.track, rec.summary, fmt, attitude=rec.clean.grid)
         if report_dir is not None:
             from flightrecon.report import write_report
 
             if stage:
                 stage("report")
             staged_page = write_report(pub.folder(report_dir), rec.track, rec.summary,
-                                       title=title)
+                                       title=title, grid=rec.clean.grid, gnss=rec.clean.gnss,
+                                       radar=rec.clean.radar)
             page = Path(report_dir) / staged_page.name
         staged_summary = pub.file(summary_path)
 
