@@ -31,9 +31,9 @@ from flightrecon.report.plots import (
 
 STATUS_MEANING = {
     "ok": "ran, converged, and its track is physically possible: it may feed the default result",
-    "unhealthy": "ran, but failed a health check (no convergence, a non-finite position or a "
-                 "lost covariance): kept in the file for comparison, never used for the default "
-                 "result",
+    "unhealthy": "ran, but failed a health check (no convergence, a non-finite position, a "
+                 "lost covariance, or a track outside the physical envelope of the flight): kept "
+                 "in the file for comparison, never used for the default result",
     "failed": "stopped with an error (reason given): no track",
     "skipped": "not run: the data do not allow it (reason given) or it was not asked for",
 }
