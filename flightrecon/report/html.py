@@ -268,8 +268,9 @@ def _flight_html(track: pd.DataFrame, summary: Mapping[str, Any]) -> str:
     epoch = fl.get("epoch_utc")
     t = track["t_s"].to_numpy(float) if "t_s" in track.columns and len(track) else np.array([])
     rows = [("aircraft", fl.get("aircraft_id")), ("flight", fl.get("flight_id")),
-            ("record", f"{utc_text(epoch, t[0]) or _num(t[0])} to "
-                       f"{utc_text(epoch, t[-1]) or _num(t[-1])} ({t[-1] - t[0]:.0f} s)"
+            ("record", f"{_short_utc(utc_text(epoch, t[0])) or _num(t[0])} to "
+                       f"{_short_utc(utc_text(epoch, t[-1])) or _num(t[-1])} UTC "
+                       f"({t[-1] - t[0]:.0f} s)"
              if len(t) else "–")]
     for key in ("departure", "arrival", "station"):
         p = fl.get(key)
