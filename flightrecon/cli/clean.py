@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from flightrecon.cli.common import input_options
+from flightrecon.cli.common import NonEmptyPath, input_options
 
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
 
@@ -42,7 +42,7 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
     rate, phases and settings to ``<stem>.cleaning.json``.  No path may be an input file.
     Returns the paths written.
     """
-    from flightrecon.export.atomic import check_not_input, write_text_atomic
+    from flightrecon.export.atomic import Publication, check_not_input, write_text_atomic
     from flightrecon.export.writers import to_json, write_csv, write_parquet
 
     paths = output_paths(out)
@@ -61,24 +61,26 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
     fmt = _SUFFIXES[out.suffix.lower()]
     written = []
     tables = {"grid": clean.grid, "gnss": clean.gnss, "radar": clean.radar}
-    for key, df in tables.items():
-        if key != "grid" and len(df) == 0:
-            continue
-        if fmt == "parquet":
-            write_parquet(paths[key], df, {"cleaning": {k: v for k, v in doc.items()
-                                                        if k != "report"}, "table": key})
-        else:
-            write_csv(paths[key], df)
-        written.append(paths[key])
-    write_text_atomic(paths["report"], to_json(doc) + "\n")
-    written.append(paths["report"])
+    with Publication() as pub:   # the grid, its measurements and its report: one unit
+        for key, df in tables.items():
+            if key != "grid" and len(df) == 0:
+                continue
+            if fmt == "parquet":
+                write_parquet(pub.file(paths[key]), df, {"cleaning": {
+                    k: v for k, v in doc.items() if k != "report"}, "table": key})
+            else:
+                write_csv(pub.file(paths[key]), df)
+            written.append(paths[key])
+        write_text_atomic(pub.file(paths["report"]), to_json(doc) + "\n")
+        written.append(paths["report"])
+        pub.commit()
     return written
 
 
 @click.command("clean")
 @click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
 @input_options
-@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False,
+@click.option("-o", "--output", "out", required=True, type=NonEmptyPath(dir_okay=False,
               path_type=Path), help="Cleaned grid (.parquet or .csv); the measurements and the "
               "report go beside it as <stem>.gnss.<ext>, <stem>.radar.<ext>, <stem>.cleaning.json.")
 @click.option("--rate", "rate_hz", type=float, help="Grid rate [Hz] (default: the fastest input "
@@ -103,23 +105,24 @@ def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gns
     has them) and <stem>.cleaning.json; every path is checked before any work.
     """
     from flightrecon.cleaning import CleaningSettings, clean_flight
-    from flightrecon.cli.progress import check_folder, stage_progress
-    from flightrecon.export.atomic import check_not_input, sweep_leftovers
+    from flightrecon.cli.common import errors_name_file, run_inputs
+    from flightrecon.cli.progress import stage_progress
+    from flightrecon.export.atomic import check_outputs, sweep_leftovers
     from flightrecon.ingest import load_flight
 
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
-    for p in output_paths(out).values():
-        check_not_input(p, inputs)
-        check_folder(p)
+    check_outputs(output_paths(out), run_inputs(log, gnss=gnss, radar=radar, mapping=mapping,
+                                                sidecar=sidecar))
     settings = CleaningSettings(max_gap_s=max_gap_s,
                                 clock_offsets_s={"gnss": gnss_clock_offset,
                                                  "radar": radar_clock_offset})
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
     with stage_progress(quiet, ["ingest", "cleaning", "write"], "clean") as stage:
-        stage("ingest")
-        flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
-        stage("cleaning")
-        clean = clean_flight(flight, rate_hz=rate_hz, settings=settings)
+        with errors_name_file(log, sidecar):
+            stage("ingest")
+            flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
+            stage("cleaning")
+            clean = clean_flight(flight, rate_hz=rate_hz, settings=settings)
         stage("write")
         sweep_leftovers(out.parent)
         written = write_clean_outputs(clean, out, inputs, {

@@ -8,7 +8,9 @@ import click
 
 from flightrecon.cli.common import (
     default_output,
+    errors_name_file,
     input_options,
+    NonEmptyPath,
     parse_k,
     position_option_values,
     read_noise_file,
@@ -54,11 +56,12 @@ from flightrecon.cli.common import (
 @click.option("--estimate-noise", is_flag=True,
               help="Joint smoother: estimate each source's noise variance from the flight "
                    "itself (expectation-maximisation; docs/joint.md).")
-@click.option("--store", "store_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Coefficient store (SQLite): a fitted flight's k1..k3 are recorded there "
-                   "under its aircraft id.")
+@click.option("--store", "store_path", type=NonEmptyPath(dir_okay=False, path_type=Path),
+              help="Coefficient store (SQLite): the flight's fitted k1..k3 and the joint "
+                   "smoother's sensor-error estimates are recorded there under its aircraft id.")
 @click.option("--use-fleet-coefficients", is_flag=True,
-              help="Reconstruct with the aircraft's mean k1..k3 from --store (no arrival "
+              help="Use what the aircraft's routine flights in --store taught: its sensor "
+                   "calibration as the joint smoother's priors and its mean k1..k3 (no arrival "
                    "point needed).")
 @click.option("--strict", is_flag=True,
               help="Fail (exit 8) on the first method that fails, does not converge or is "
@@ -69,15 +72,16 @@ from flightrecon.cli.common import (
 @click.option("--workers", type=click.IntRange(min=1),
               help="Threads for the estimators (default: 2 on a machine with 2 cores or more; "
                    "the result does not depend on it).")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("-o", "--output", type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Result file (.parquet, .csv, .geojson, .kml, .czml). Default: "
                    "<log stem>.recon.parquet beside the log.")
 @click.option("--format", "fmt", type=click.Choice(["csv", "parquet", "geojson", "kml", "czml"]),
               help="Output format (default: from the suffix of -o; a suffix naming another "
                    "format is refused).")
-@click.option("--summary", "summary_path", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--summary", "summary_path",
+              type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Summary JSON (default: <output stem>.summary.json).")
-@click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--report", "report_dir", type=NonEmptyPath(path_type=Path),
               help="Also write figures and a self-contained report.html into this folder.")
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
@@ -89,18 +93,11 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
 
     Writes the result (-o, default <log stem>.recon.parquet beside the log), the summary
     JSON (--summary, default <output stem>.summary.json beside the result) and, with
-    --report, a folder with report.html and its figures.  Every output path is checked
-    before any work.
+    --report, a folder with report.html and its figures, as one unit (all new or all old).
+    Every output path is checked before any work.
     """
-    from flightrecon.cli.progress import (
-        check_folder,
-        check_format,
-        check_report_folder,
-        compile_notice,
-        stage_progress,
-    )
-    from flightrecon.export.atomic import check_not_input, sweep_leftovers
-    from flightrecon.export.writers import write_summary, write_track
+    from flightrecon.cli.common import check_run_outputs, publish_reconstruction
+    from flightrecon.cli.progress import check_format, compile_notice, stage_progress
     from flightrecon.pipeline import ALL_METHODS, ReconstructSettings, reconstruct
 
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
@@ -115,15 +112,6 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
     overrides = position_option_values(departure=departure, arrival=arrival, station=station)
     if aircraft_id:
         overrides["aircraft_id"] = aircraft_id
-    out = output or default_output(log, ".recon.parquet")
-    out_fmt = check_format(out, fmt)
-    summ = summary_path or out.with_name(out.stem + ".summary.json")
-    inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
-    for p in (out, summ):
-        check_not_input(p, inputs)
-        check_folder(p)
-    if report_dir:
-        check_report_folder(report_dir)
     settings = ReconstructSettings(
         methods=method_list, rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
         arms_form=arms_form, arms_linearisation=arms_linearisation, azimuth_model=azimuth_model,
@@ -134,40 +122,54 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
         from flightrecon.store import default_store_path
 
         store_path = default_store_path()
-    sweep_leftovers(out.parent)
+    out = output or default_output(log, ".recon.parquet")
+    out_fmt = check_format(out, fmt)
+    summ = summary_path or out.with_name(out.stem + ".summary.json")
+    # every output against every input and the other outputs, before any work (exit 9)
+    check_run_outputs(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                      noise_file=noise_file, result=out, summary=summ, report=report_dir,
+                      store=store_path, store_is_input=use_fleet_coefficients, fmt=out_fmt)
     stages = ["ingest", "cleaning", "plausibility", *(method_list or ALL_METHODS), "export"]
     if report_dir:
         stages.append("report")
-    with compile_notice(quiet), stage_progress(quiet, stages, "reconstruct") as stage:
+    with (errors_name_file(log, sidecar), compile_notice(quiet),
+          stage_progress(quiet, stages, "reconstruct") as stage):
+        # the store is written with the outputs (publish_reconstruction), not before them
         rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                           meta_overrides=overrides, settings=settings, progress=stage,
                           store=store_path, use_fleet_coefficients=use_fleet_coefficients,
-                          workers=workers)
+                          workers=workers, record=False)
         stage("export")
-        write_track(out, rec.track, rec.summary, out_fmt, attitude=rec.clean.grid)
-        write_summary(summ, rec.summary)
-        if report_dir:
-            from flightrecon.report import write_report
-
-            stage("report")
-            page = write_report(report_dir, rec.track, rec.summary,
-                                title=f"flightrecon: {log.name}", grid=rec.clean.grid,
-                                gnss=rec.clean.gnss, radar=rec.clean.radar)
+        page = publish_reconstruction(rec, out, summ, out_fmt, report_dir, store_path,
+                                      title=f"flightrecon: {log.name}",
+                                      record=not use_fleet_coefficients, stage=stage)
     if not quiet:
         fc = rec.summary.get("fleet_coefficients")
         if fc:
-            click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
-                       f"(flights per axis {fc['flights']})", err=True)
+            cal = fc.get("calibration")
+            if cal:
+                click.echo(f"  fleet calibration of {fc['aircraft_id']} at {cal['at_utc']}: "
+                           f"{len(cal['applied'])} sensor errors as priors, from "
+                           f"{cal['n_flights']} flight(s)", err=True)
+            else:
+                click.echo(f"  no fleet calibration: {fc.get('calibration_missing')}", err=True)
+            if fc.get("k") is not None:
+                click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
+                           f"(flights per axis {fc['flights']})", err=True)
         sc = rec.summary.get("stored_coefficients")
-        if sc and sc.get("recorded"):
-            click.echo(f"  recorded k = {sc['k']} for {sc['aircraft_id']}/{sc['flight_id']} "
-                       f"in {sc['store']}", err=True)
+        if sc and sc.get("recorded", True):
+            what = ([f"k = {sc['k']}"] if sc.get("k") else []) + (
+                ["sensor calibration"] if sc.get("calibration") else [])
+            click.echo(f"  recorded {' and '.join(what)} for {sc['aircraft_id']}/"
+                       f"{sc['flight_id']} in {sc['store']}", err=True)
         elif sc:
-            click.echo(f"  coefficients not recorded in {sc['store']}: {sc['reason']}", err=True)
+            click.echo(f"  nothing recorded in {sc['store']}: "
+                       f"{sc.get('reason') or sc.get('note')}", err=True)
         for name, st in rec.summary["methods"].items():
             line = f"  {name:8s} {st.get('status')}"
-            why = [str(st["reason"])] if st.get("reason") else []
-            why += [str(p.get("what")) for p in (st.get("health") or {}).get("problems", [])]
+            # the reason of an unhealthy method already names its health problems
+            why = [str(st["reason"])] if st.get("reason") else [
+                str(p.get("what")) for p in (st.get("health") or {}).get("problems", [])]
             if why:
                 line += ": " + "; ".join(why)
             click.echo(line, err=True)

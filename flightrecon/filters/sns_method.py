@@ -1,4 +1,4 @@
-"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (METHODS.md 4).
+"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (docs/sns.md).
 
 :func:`run_sns` takes a :class:`flightrecon.types.CleanFlight` and returns a
 :class:`flightrecon.types.MethodResult` with the smoothed track on the recorder grid;
@@ -33,9 +33,12 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import sns as core
-from flightrecon.filters.sns import model as sns_model
+from flightrecon.geo.ellipsoid import radii_from_sin
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+from flightrecon.geo.navframe import north_azimuth_in_plane
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult
 
 MODELS = {"airspeed": core.MODEL_AIRSPEED, "doppler": core.MODEL_DOPPLER}
@@ -122,9 +125,8 @@ def _readings(grid: pd.DataFrame, model: int, notes: list[str]):
     tas = _channel(grid, "tas_mps", notes)
     u = np.column_stack([np.cos(psi), np.sin(psi)])
     if "wind_speed_mps" in grid.columns and "wind_from_deg" in grid.columns:
-        ws = _channel(grid, "wind_speed_mps", notes, fill=0.0)
-        wf = np.deg2rad(_channel(grid, "wind_from_deg", notes, fill=0.0))
-        w = -ws[:, None] * np.column_stack([np.cos(wf), np.sin(wf)])
+        w = wind_toward_ne(_channel(grid, "wind_speed_mps", notes, fill=0.0),
+                           _channel(grid, "wind_from_deg", notes, fill=0.0))
     else:
         notes.append("no wind channel: zero forecast wind, the wind correction is the whole wind")
         w = np.zeros_like(u)
@@ -370,16 +372,18 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         np.asarray(noise.sensor_sd, float))
     if n_drop:
         notes.append(f"{n_drop} GNSS fixes outside the recorder grid not used")
+    if sm.cholesky_fallbacks:
+        notes.append(f"on {sm.cholesky_fallbacks} steps the predicted covariance was not positive "
+                     "definite to rounding (Cholesky failed); the smoother gain there came from "
+                     "a general solve")
     return SnsSolution(m, fm, noise, inputs, run, sm, idx, tf, n_drop, lat, lon, h_grid, P_ne,
                        v_ne, P_v, tuple(notes))
 
 
 def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised twin of :func:`flightrecon.filters.sns.radii`."""
-    s = np.sin(lat)
-    wq = 1.0 - sns_model._E2 * s * s
-    n = sns_model._A / np.sqrt(wq)
-    return n * (1.0 - sns_model._E2) / wq + h, n + h
+    """:func:`flightrecon.filters.sns.radii` on arrays: ``(M + h, N + h)`` [m]."""
+    m, n = radii_from_sin(np.sin(lat))
+    return m + h, n + h
 
 
 GAMMA_STRIDE = 16  # recorder samples between pyproj evaluations of the meridian convergence
@@ -390,8 +394,8 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
     """Positions and their standard deviations in the output tangent plane's axes.
 
     The local north/east covariance is rotated by the angle ``gamma`` between local north and
-    the plane's north (meridian convergence), found through pyproj as the direction of a 1e-4 deg
-    step north.  ``gamma`` is a smooth function of position (its second derivative along the
+    the plane's north (meridian convergence, exact:
+    :func:`flightrecon.geo.navframe.north_azimuth_in_plane`).  ``gamma`` is a smooth function of position (its second derivative along the
     track is of order ``1 / R_earth^2``), so it is evaluated every ``GAMMA_STRIDE`` recorder
     samples (and at the last) and interpolated linearly: over 16 samples (one second at 16 Hz,
     about 250 m) the interpolation error is below ``250^2 / 8 / R^2``, 2e-10 rad, which changes a
@@ -405,8 +409,7 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
     sub = np.arange(0, M, GAMMA_STRIDE)
     if sub[-1] != M - 1:
         sub = np.append(sub, M - 1)
-    e1, n1, _ = plane.forward(latd[sub] + 1e-4, lond[sub], sol.h[sub])
-    gam_sub = np.arctan2(e1 - e[sub], n1 - n[sub])
+    gam_sub = north_azimuth_in_plane(plane.lat0_deg, plane.lon0_deg, latd[sub], lond[sub])
     # cos and sin interpolated directly: the chord of the unit circle over one interval
     # (gamma changes by < 1e-5 rad) is shorter than the arc by < 1e-11 relative
     pos = np.arange(M, dtype=float)
@@ -447,7 +450,7 @@ def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
 
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
             filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None) -> MethodResult:
-    """Dead reckoning fused with SNS, smoothed, on the recorder grid (METHODS.md section 4).
+    """Dead reckoning fused with SNS, smoothed, on the recorder grid (docs/sns.md).
 
     Parameters are those of :func:`solve_sns`.
 
@@ -471,10 +474,9 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     np.sqrt(sol.P_v[:, 0, 0], out=block[7])
     np.sqrt(sol.P_v[:, 1, 1], out=block[8])
     track = pd.DataFrame(block.T, columns=list(TRACK_COLUMNS), copy=False)
-    nis = sol.run.nis
-    ok = np.isfinite(nis)
-    dof = float(sol.run.rank[ok].sum())
-    nis_ratio = float(nis[ok].sum() / dof) if dof > 0 else float("nan")
+    # NIS per fix with the rank of its innovation covariance as degrees of freedom
+    verdict = chi_square_verdict(sol.run.nis, sol.run.rank)
+    nis_ratio = verdict.mean
     finite = bool(np.isfinite(block).all())
     dt_fix = np.diff(sol.fix_t)
     min_gap = 3.0 * float(np.median(dt_fix)) if len(dt_fix) else 0.0
@@ -487,9 +489,11 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
         "n_fixes_dropped": sol.n_fix_dropped,
         "gaps": _gaps(sol.fix_t, float(t[0]), float(t[-1]), min_gap),
         "nis_per_dof": nis_ratio,
+        "consistency": verdict.as_dict(),
+        "cholesky_fallbacks": sol.smoothed.cholesky_fallbacks,
         "converged": finite,
         # a mean NIS per degree of freedom far above 1 means the noise settings do not fit
-        "healthy": finite and bool(np.isfinite(nis_ratio) and nis_ratio < 10.0),
+        "healthy": finite and verdict.count > 0 and not verdict.gross,
         "notes": list(sol.notes),
     }
     return MethodResult(name="sns", track=track, summary=summary)

@@ -116,7 +116,7 @@ GAINS = {
     "jet": Gains(track_to_bank=1.0, bank_max_deg=25.0, bank=(0.04, 0.005, 0.02),
                  beta_to_rudder=0.08, ground_heading=(0.08, 0.08),
                  pitch=(0.10, 0.05, 0.08), vs_to_pitch=(0.3, 0.05), alt_to_vs=0.03,
-                 speed_to_pitch=(0.5, 0.04), speed_to_throttle=(0.04, 0.006),
+                 speed_to_pitch=(0.5, 0.01), speed_to_throttle=(0.04, 0.006),
                  level_change_band_m=300.0, pitch_limits_deg=(-10.0, 18.0),
                  pitch_rate_dps=2.0),
 }
@@ -189,6 +189,9 @@ class Autopilot:
                 self._spd_pitch.preset(self.pitch_cmd)
                 self.mode = "level_change"
             pitch = self._spd_pitch(-(cas_mps - s["vc"]), 0.0, dt)
+            if s["vc"] < 0.85 * cas_mps:  # stall protection: the nose comes down at 1 deg/s
+                pitch = min(pitch, self.pitch_cmd - 1.0 * dt)
+                self._spd_pitch.preset(pitch)
             thr = self.climb_throttle if alt_m > s["h"] else self.idle_throttle
             self._thr.preset(thr)
             return self.elevator(s, dt, pitch), thr

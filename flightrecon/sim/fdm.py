@@ -128,11 +128,12 @@ class Fdm:
     lat_deg, lon_deg, elev_msl_m, heading_deg : start point (ground elevation) and heading
     dt_s : JSBSim's integration step
     airborne : ``(height_agl_m, cas_mps)`` to start trimmed in level flight, else ``None``
+    full_tanks : fill every fuel tank (else the model's default load)
     """
 
     def __init__(self, airframe: AirframeModel, weather: FdmWeather, lat_deg: float,
                  lon_deg: float, elev_msl_m: float, heading_deg: float, dt_s: float,
-                 airborne: tuple[float, float] | None = None) -> None:
+                 airborne: tuple[float, float] | None = None, full_tanks: bool = False) -> None:
         jsbsim = import_jsbsim()
         self.airframe = airframe
         self.weather = weather
@@ -165,6 +166,14 @@ class Fdm:
         else:
             f["ic/h-agl-ft"] = airborne[0] / FT
             f["ic/vc-kts"] = airborne[1] / KT
+        # full tanks on request (the packaged 737 starts with its centre tank a quarter full:
+        # not enough for a three-hour flight)
+        i = 0
+        while full_tanks and pm.hasNode(f"propulsion/tank[{i}]/contents-lbs"):
+            tank = f"propulsion/tank[{i}]/"
+            if f[tank + "pct-full"] > 0.0:
+                f[tank + "contents-lbs"] = f[tank + "contents-lbs"] * 100.0 / f[tank + "pct-full"]
+            i += 1
         f.run_ic()
         f["atmosphere/turb-type"] = 3
         f["atmosphere/turbulence/milspec/severity"] = weather.turbulence_severity

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flightrecon.constants import WGS84_A, WGS84_E2
 from flightrecon.errors import ValidationError
 from flightrecon.geo.frames import offset_latlon
 from flightrecon.sim.autopilot import GAINS, Autopilot, leg_geometry, wrap180
@@ -43,9 +44,12 @@ class Runway:
                              along_m * math.sin(r) + cross_m * math.cos(r))
 
     def coords(self, lat: float, lon: float) -> tuple[float, float]:
-        """(along, cross) of a point near the runway [m] (local flat Earth)."""
-        n = math.radians(lat - self.lat_deg) * 6371000.0
-        e = math.radians(lon - self.lon_deg) * 6371000.0 * math.cos(math.radians(self.lat_deg))
+        """(along, cross) of a point near the runway [m] (local flat Earth with the WGS-84
+        meridian and prime-vertical radii at the threshold)."""
+        s2 = math.sin(math.radians(self.lat_deg)) ** 2
+        w = math.sqrt(1.0 - WGS84_E2 * s2)
+        n = math.radians(lat - self.lat_deg) * WGS84_A * (1.0 - WGS84_E2) / w**3
+        e = math.radians(lon - self.lon_deg) * WGS84_A / w * math.cos(math.radians(self.lat_deg))
         r = math.radians(self.heading_deg)
         return n * math.cos(r) + e * math.sin(r), -n * math.sin(r) + e * math.cos(r)
 

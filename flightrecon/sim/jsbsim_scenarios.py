@@ -56,8 +56,8 @@ AIRFRAMES = {
     "737": AirframeModel(model="737", engines=2, rest_agl_ft=3.69, vr_mps=78.0,
                          climb_mps=150.0, cruise_mps=135.0, approach_mps=75.0,
                          rotate_pitch_deg=8.0, takeoff_flaps=0.2, landing_flaps=0.6,
-                         flare_ft=35.0, climb_throttle=0.95, idle_throttle=0.0,
-                         gains="jet", brake=0.5, flare_pitch_deg=4.0),
+                         flare_ft=60.0, climb_throttle=0.95, idle_throttle=0.0,
+                         gains="jet", brake=0.5, flare_pitch_deg=8.0),
 }
 """The two JSBSim aircraft; ``rest_agl_ft`` measured (where each settles on its gear)."""
 
@@ -73,7 +73,9 @@ class JsbsimConfig:
     ``weather`` = ``None`` draws it from the seed (:func:`draw_weather`); ``scale`` shortens
     the en-route legs; rates in Hz divide ``truth_rate_hz``; ``loads_range_g`` is the
     recorder's range per load factor (long, lat, norm): readings beyond it are clipped
-    (saturation); ``tas_range_mps`` likewise for the airspeed.
+    (saturation); ``tas_range_mps`` likewise for the airspeed.  ``full_tanks`` fills the
+    fuel tanks for a full-length flight (``scale`` >= 0.5; short versions keep the model's
+    default load).
     """
 
     airframe: str = "c172p"
@@ -101,6 +103,7 @@ class JsbsimConfig:
     attitude_quantum_deg: float = 0.05
     spikes: int = 2
     ideal_sensors: bool = False
+    full_tanks: bool = False
 
 
 def _runway(cfg: JsbsimConfig, field: Position, heading: float) -> Runway:
@@ -146,15 +149,18 @@ def _destination(rw: Runway, north_m: float, east_m: float, heading: float,
     return Runway(lat, lon, heading, elev_m)
 
 
-def _arrival_legs(dest: Runway, cas: float, far_m: float, glide_m: float) -> list:
-    """Onto the extended centre line ``far_m`` out, then along it to ``glide_m`` out on the
-    glide path, then the approach."""
+def _arrival_legs(dest: Runway, a: AirframeModel, far_m: float, glide_m: float) -> list:
+    """Onto the extended centre line ``far_m`` out (approach speed + 35 %, part flaps), then
+    along it to ``glide_m`` out on the glide path (approach speed + 15 %, more flaps), then the
+    approach."""
     t3 = np.tan(np.radians(3.0))
-    return [Leg(*dest.point(-far_m), dest.elev_m + far_m * t3 + 150.0, cas,
-                anticipate_m=1500.0 if cas > 60 else 600.0),
-            Leg(*dest.point(-glide_m), dest.elev_m + glide_m * t3, cas, vs_min=-6.0,
-                anticipate_m=300.0, cross_scale_m=600.0),
-            Approach(dest, 300.0 if cas > 60 else 250.0)]
+    jet = a.gains == "jet"
+    return [Leg(*dest.point(-far_m), dest.elev_m + far_m * t3 + 150.0, 1.35 * a.approach_mps,
+                anticipate_m=1500.0 if jet else 600.0, flaps=0.5 * a.landing_flaps),
+            Leg(*dest.point(-glide_m), dest.elev_m + glide_m * t3, 1.15 * a.approach_mps,
+                vs_min=-6.0, anticipate_m=300.0, cross_scale_m=600.0,
+                flaps=0.75 * a.landing_flaps),
+            Approach(dest, 300.0 if jet else 250.0)]
 
 
 def _terrain(rw: Runway, dest: Runway, near_m: float):
@@ -178,7 +184,7 @@ def _xc(cfg: JsbsimConfig, rw: Runway):
               Leg(*wp(10, 70), rw.elev_m + 2500.0 * min(1.0, 2 * s), cr),
               Leg(*wp(45, 95), rw.elev_m + 2500.0 * min(1.0, 2 * s), cr),
               Leg(*wp(40, 130), dest.elev_m + 1800.0 * min(1.0, 2 * s), cr, vs_min=-3.0),
-              *_arrival_legs(dest, 40.0, 9000.0, 4000.0), Rest(cfg.rest_s)]
+              *_arrival_legs(dest, a, 9000.0, 4000.0), Rest(cfg.rest_s)]
     return phases, dest, 3 * 3600.0, _terrain(rw, dest, 30e3 * s)
 
 
@@ -198,9 +204,9 @@ def _jet(cfg: JsbsimConfig, rw: Runway):
               Leg(*wp(500, 1150), cruise, a.cruise_mps, anticipate_m=3000.0),
               Leg(*wp(750, 1400), rw.elev_m + 3000.0, a.cruise_mps, vs_min=-15.0,
                   anticipate_m=3000.0),
-              Leg(*dest.point(-60e3 * min(1.0, 2 * s)), dest.elev_m + 3000.0, 110.0,
+              Leg(*dest.point(-60e3 * min(1.0, 2 * s)), dest.elev_m + 3000.0, 115.0,
                   vs_min=-12.0, anticipate_m=2500.0),
-              *_arrival_legs(dest, a.approach_mps + 15.0, 20000.0, 9000.0), Rest(cfg.rest_s)]
+              *_arrival_legs(dest, a, 20000.0, 9000.0), Rest(cfg.rest_s)]
     return phases, dest, 8 * 3600.0, _terrain(rw, dest, 100e3 * s)
 
 
@@ -234,7 +240,8 @@ JSBSIM_SCENARIOS: dict[str, _JsbScenario] = {
     "jsbsim-jet": _JsbScenario(JsbsimConfig(airframe="737", runway_deg=230.0,
                                             runway_length_m=3000.0, truth_rate_hz=8.0,
                                             loads_hz=8.0, attitude_hz=4.0, airspeed_hz=2.0,
-                                            baro_hz=2.0, tas_range_mps=(30.0, 320.0)), _jet),
+                                            baro_hz=2.0, tas_range_mps=(30.0, 320.0),
+                                            full_tanks=True), _jet),
     "jsbsim-spiral": _JsbScenario(JsbsimConfig(), _spiral),
     "jsbsim-spin": _JsbScenario(JsbsimConfig(), _spin),
 }

@@ -159,7 +159,8 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
     airframe = AIRFRAMES[cfg.airframe]
     phases, dest, max_s, terrain = schedule(name, cfg)
     rw = phases[1].runway
-    fdm = Fdm(airframe, weather, *rw.point(10.0), rw.elev_m, rw.heading_deg, cfg.dt_s)
+    fdm = Fdm(airframe, weather, *rw.point(10.0), rw.elev_m, rw.heading_deg, cfg.dt_s,
+              full_tanks=cfg.full_tanks and cfg.scale >= 0.5)
     fdm.f["fcs/left-brake-cmd-norm"] = fdm.f["fcs/right-brake-cmd-norm"] = 1.0
     fdm.run(round(SETTLE_S / cfg.dt_s))
     fdm.t0_s = fdm.f.get_sim_time()

@@ -61,6 +61,7 @@ class JointInputs:
     thresholds : (lat, lon, h_ellipsoidal) of the departure and arrival runway thresholds,
         ``None`` each where unknown (used only with the runway's direction)
     roll : the take-off roll and the rest before it (:func:`takeoff_roll`)
+    notes : what the input builder had to assume (missing attitude held, ...), for the summary
     """
 
     t_in: np.ndarray
@@ -86,6 +87,7 @@ class JointInputs:
     thresholds: tuple[tuple[float, float, float] | None,
                       tuple[float, float, float] | None] = (None, None)
     roll: TakeoffRoll = field(default_factory=TakeoffRoll)
+    notes: tuple[str, ...] = ()
 
 
 def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
