@@ -20,7 +20,7 @@ Usage::
 
     python scripts/mc_jsbsim.py --runs 8                  # per scenario; writes docs/tables/
     python scripts/mc_jsbsim.py --runs 2 --no-write       # quick look
-    python scripts/mc_jsbsim.py --summarise docs/tables/jsbsim_mc_runs.json
+    python scripts/mc_jsbsim.py --summarise docs/tables/jsbsim_mc_runs*.json
 
 Seeds: run i of scenario k uses seed 5000 + 100 k + i.
 """
@@ -232,13 +232,17 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=8, help="runs per scenario")
     ap.add_argument("--scenarios", default=",".join(SCENARIOS))
     ap.add_argument("--no-write", action="store_true")
-    ap.add_argument("--summarise", metavar="RUNS_JSON")
+    ap.add_argument("--summarise", metavar="RUNS_JSON", nargs="+",
+                    help="only rebuild the tables and the figure from runs files")
+    ap.add_argument("--runs-file", default="jsbsim_mc_runs.json",
+                    help="name of the runs file under docs/tables/ (parallel studies of "
+                         "different scenarios each write their own; --summarise merges them)")
     a = ap.parse_args()
     if a.summarise:
-        rows = json.loads(Path(a.summarise).read_text())
+        rows = [r for f in a.summarise for r in json.loads(Path(f).read_text())]
     else:
         rows = []
-        runs_file = TABLES / "jsbsim_mc_runs.json"
+        runs_file = TABLES / a.runs_file
         chosen = [sc for sc in SCENARIOS if sc in a.scenarios.split(",")]
         # round-robin over the scenarios (every scenario has runs early), the runs file
         # rewritten after each run (an interrupted study keeps what it measured)

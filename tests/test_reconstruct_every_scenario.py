@@ -1,6 +1,8 @@
 """Every ``flightrecon simulate`` scenario of both truth sources through ``flightrecon
-reconstruct`` (issue #21's acceptance): no written result has a non-finite position, and an
-exit status 0 always comes with a track (a non-zero exit writes no result).
+reconstruct`` (issue #21's acceptance): no written result has a non-finite position (the
+default result on every row; a method's track, under its prefix, over its whole span: never all
+NaN, no holes), and an exit status 0 always comes with a track (a non-zero exit writes no
+result).
 
 The JSBSim scenarios run as short versions (``scale``), with their default GNSS and recorder
 only (no GNSS: the departure and the arrival airfield, or the wreckage, are the only absolute
@@ -64,7 +66,17 @@ def test_reconstruct_every_scenario(scenario, overrides, tmp_path):
     df = pd.read_csv(out)
     assert len(df) > 0, "exit 0 with an empty result"
     cols = [c for c in df.columns if POSITION.search(c)]
-    assert {"north_m", "east_m", "lat_deg", "lon_deg"} <= set(cols)
-    bad = {c: int((~np.isfinite(df[c].to_numpy(float))).sum()) for c in cols}
+    default = ["north_m", "east_m", "up_m", "lat_deg", "lon_deg", "alt_m"]
+    assert set(default) <= set(cols)
+    # the default result: a finite position on every row
+    bad = {c: int((~np.isfinite(df[c].to_numpy(float))).sum()) for c in default}
     bad = {c: n for c, n in bad.items() if n}
-    assert not bad, f"non-finite positions written (column: rows): {bad}"
+    assert not bad, f"non-finite default positions written (column: rows): {bad}"
+    # a method's track (its prefix) may cover less than the record (Sabziev and dead
+    # reckoning start at lift-off), but is never all NaN and has no NaN inside its span
+    for c in sorted(set(cols) - set(default)):
+        ok = np.isfinite(df[c].to_numpy(float))
+        assert ok.any(), f"{c}: a written track with every position non-finite"
+        first, last = np.flatnonzero(ok)[[0, -1]]
+        holes = int((~ok[first:last + 1]).sum())
+        assert holes == 0, f"{c}: {holes} non-finite positions inside its span"
