@@ -25,21 +25,30 @@ POSITION = re.compile(r"(^|_)((north|east|up)_m|lat_deg|lon_deg|alt_m)$")
 """Position columns of a result, with or without a method prefix (not their ``_sd_m``)."""
 
 SLOW = pytest.mark.slow
+ALL_NAN_SABZIEV = pytest.mark.xfail(
+    reason="known (measured 2026-12-01 on main with the method-health rule): exit 0 and a "
+           "finite default result, but the unhealthy Sabziev fit's track is written under its "
+           "prefix with every position NaN (issue 21 item 3: only finite tracks are written)",
+    strict=False)
+"""The cases that failed this way when the test was written; the others passed."""
 CASES = [
     pytest.param("circuit", {}, id="circuit"),
-    pytest.param("regional", {}, id="regional", marks=SLOW),
+    pytest.param("regional", {}, id="regional", marks=[SLOW, ALL_NAN_SABZIEV]),
     pytest.param("seed-ads-arms", {}, id="seed-ads-arms"),
     pytest.param("landing", {}, id="landing"),
-    pytest.param("longhaul", {"duration_s": 4000.0}, id="longhaul-4000s", marks=SLOW),
+    pytest.param("longhaul", {"duration_s": 4000.0}, id="longhaul-4000s",
+                 marks=[SLOW, ALL_NAN_SABZIEV]),
 ]
+_KNOWN = {"jsbsim-circuit-gnss", "jsbsim-circuit-recorder-only", "jsbsim-spiral-gnss",
+          "jsbsim-spiral-recorder-only", "jsbsim-spin-gnss"}
 for _name, _scale, _slow in (("jsbsim-circuit", 1.0, False), ("jsbsim-xc", 0.12, True),
                              ("jsbsim-jet", 0.05, True), ("jsbsim-spiral", 0.1, False),
                              ("jsbsim-spin", 0.1, False)):
     for _gnss in (1.0, 0.0):
+        _id = f"{_name}-{'gnss' if _gnss else 'recorder-only'}"
         CASES.append(pytest.param(
-            _name, {"scale": _scale, "gnss_hz": _gnss},
-            id=f"{_name}-{'gnss' if _gnss else 'recorder-only'}",
-            marks=[SLOW] if _slow else []))
+            _name, {"scale": _scale, "gnss_hz": _gnss}, id=_id,
+            marks=([SLOW] if _slow else []) + ([ALL_NAN_SABZIEV] if _id in _KNOWN else [])))
 
 
 def run_cli(args: list[str]) -> int:
