@@ -66,12 +66,17 @@ def _writable_dir(path: Path) -> bool:
 
 
 def _tree_writable(pkg: Path) -> bool:
-    """True when numba can cache next to the sources (it writes ``<dir>/__pycache__``); probed
-    by creating a file there, as numba itself does."""
+    """True when numba can cache next to the sources: it writes ``<dir>/__pycache__`` beside
+    each module with a cached kernel; probed by creating a file there, as numba itself does,
+    in every package folder under the kernel folders."""
     for sub in _KERNEL_DIRS:
-        d = pkg / sub
-        if d.is_dir() and not _writable_dir(d / "__pycache__"):
-            return False
+        top = pkg / sub
+        if not top.is_dir():
+            continue
+        for d in [top, *sorted(p for p in top.rglob("*") if p.is_dir()
+                               and p.name != "__pycache__" and (p / "__init__.py").exists())]:
+            if not _writable_dir(d / "__pycache__"):
+                return False
     return True
 
 
@@ -97,7 +102,7 @@ def _set_cache_dir(path: Path) -> None:
     if "numba" in sys.modules:  # numba read its configuration already
         from numba.core import config
 
-        config.CACHE_DIR = str(path)
+        setattr(config, "CACHE_DIR", str(path))  # noqa: B010 - numba's config module
 
 
 def _disable_cache() -> None:

@@ -53,3 +53,32 @@ def test_chi_square_verdict_band_and_gross_factor():
     assert not chi_square_verdict(0.2 * nis, 2.0).gross
     empty = chi_square_verdict([np.nan])
     assert empty.count == 0 and not empty.gross and not empty.consistent
+
+
+def test_track_columns_rotate_vectors_and_covariances_in_either_order():
+    """The one track builder: a horizontal vector and its covariance given east-first and
+    rotated by M into the output axes equal the north-first form; NaN outside the rows."""
+    from flightrecon.tracks import TrackColumns
+
+    rng = np.random.default_rng(2)
+    K = 5
+    v_ne = rng.standard_normal((K, 2))
+    A = rng.standard_normal((K, 2, 2))
+    C_ne = A @ A.transpose(0, 2, 1)
+    g = 0.02
+    M_ne = np.array([[np.cos(g), -np.sin(g)], [np.sin(g), np.cos(g)]])
+    rows = np.arange(1, K + 1)
+    a = TrackColumns("x", np.arange(K + 2.0), rows)
+    a.add_horizontal("vn", "ve", "mps", v_ne, C_ne, M_ne)
+    b = TrackColumns("x", np.arange(K + 2.0), rows)
+    swap = np.array([[0.0, 1.0], [1.0, 0.0]])
+    b.add_horizontal("vn", "ve", "mps", v_ne[:, ::-1], C_ne[:, ::-1, ::-1], swap @ M_ne @ swap,
+                     order="en")
+    fa, fb = a.frame(), b.frame()
+    np.testing.assert_allclose(fa.to_numpy(), fb.to_numpy(), rtol=1e-14, atol=1e-14)
+    want = v_ne @ M_ne.T
+    np.testing.assert_allclose(fa["x_vn_mps"].to_numpy()[rows], want[:, 0], rtol=1e-14)
+    sd_e = np.sqrt((M_ne @ C_ne @ M_ne.T)[:, 1, 1])
+    np.testing.assert_allclose(fa["x_ve_sd_mps"].to_numpy()[rows], sd_e, rtol=1e-14)
+    assert np.isnan(fa["x_vn_mps"].to_numpy()[[0, K + 1]]).all()
+    assert list(fa.columns) == ["t_s", "x_vn_mps", "x_vn_sd_mps", "x_ve_mps", "x_ve_sd_mps"]

@@ -72,7 +72,7 @@ def _run(install: Path, env_extra: dict[str, str], tempdir: str | None = None
     env.update(env_extra)
     args = [str(install / "kernels")] + ([tempdir] if tempdir else [])
     return subprocess.run([sys.executable, "-c", PROBE, *args],
-                          capture_output=True, text=True, env=env, timeout=600,
+                          capture_output=True, text=True, env=env, timeout=600, check=False,
                           cwd=install)
 
 

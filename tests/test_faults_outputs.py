@@ -202,10 +202,10 @@ def test_permission_error_while_writing_is_exit_9(tmp_path, monkeypatch):
     from flightrecon.errors import OutputError
     from flightrecon.export.atomic import atomic_path
 
-    with pytest.raises(OutputError, match="cannot write") as ex:
-        with atomic_path(tmp_path / "x.json") as tmp:
-            tmp.write_text("{}")
-            raise PermissionError(13, "Permission denied")
+    with pytest.raises(OutputError, match="cannot write") as ex, \
+            atomic_path(tmp_path / "x.json") as tmp:
+        tmp.write_text("{}")
+        raise PermissionError(13, "Permission denied")
     assert "x.json" in str(ex.value)
     assert not leftovers(tmp_path)
 
@@ -244,7 +244,7 @@ def _prior(d: Path) -> tuple[Path, Path, dict]:
 def test_interrupt_before_publication_leaves_every_old_output(handmade, capsys, monkeypatch):
     """Ctrl-C after the result was written but before the summary: the result is only
     staged, so the old result and the old summary stay, and nothing is left behind."""
-    import flightrecon.report as report
+    from flightrecon import report
 
     d = handmade.parent
     out, summ, before = _prior(d)
@@ -264,7 +264,7 @@ def test_publication_renames_all_or_none_with_signals_deferred(tmp_path):
     """A signal arriving between the renames waits until the last one is done (all new)."""
     import signal
 
-    import flightrecon.export.atomic as atomic
+    from flightrecon.export import atomic
 
     a, b = tmp_path / "a.txt", tmp_path / "b.txt"
     a.write_text("old a")
@@ -316,7 +316,7 @@ def test_kill_during_publication_is_rolled_forward(tmp_path):
             pub.commit()
     """)
     p = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
-                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120, check=False)
     assert p.returncode == -9, p.stderr.decode()
     assert a.read_text() == "new a" and b.read_text() == "old b"   # half done
     removed = sweep_leftovers(tmp_path)
@@ -342,7 +342,7 @@ def test_sweep_keeps_the_staging_of_a_running_process(tmp_path):
 def test_store_is_written_with_the_outputs_not_before(handmade, capsys, monkeypatch):
     """The coefficient store is recorded in the same deferred block as the renames: an
     interrupt while staging leaves no record and no output."""
-    import flightrecon.export.writers as writers
+    from flightrecon.export import writers
 
     d = handmade.parent
     text = (d / "handmade.meta.toml").read_text()
@@ -407,3 +407,80 @@ def test_sigterm_is_handled_like_sigint(handmade, delay_s, signame):
     assert changed in (set(), {"r.parquet", "r.json"}), (changed, p.returncode)
     if p.returncode == 0:
         assert (d / "rep" / "report.html").exists()
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+@pytest.mark.parametrize("delay_s", (2.0, 5.0, 8.0))
+def test_sigterm_keeps_the_store_and_the_outputs_together(tmp_path, delay_s):
+    """The store keeps its transactional guarantees and goes with the outputs: after a
+    SIGTERM at any moment the store is intact, and it holds the flight's record exactly when
+    the new result and summary were published."""
+    import signal
+    import sqlite3
+    import time
+
+    for f in ("circuit.parquet", "circuit.meta.toml"):
+        shutil.copy(SAMPLES / f, tmp_path / f)
+    out, store = tmp_path / "r.parquet", tmp_path / "s.sqlite"
+    cmd = [sys.executable, "-m", "flightrecon", "--quiet", "reconstruct",
+           str(tmp_path / "circuit.parquet"), "-o", str(out), "--store", str(store)]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    time.sleep(delay_s)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=600)
+    assert p.returncode in (0, 143, -signal.SIGTERM), err.decode()
+    assert not leftovers(tmp_path)
+    published = out.exists()
+    assert published == (tmp_path / "r.summary.json").exists()
+    rows = 0
+    if store.exists():
+        con = sqlite3.connect(store)
+        try:
+            assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+            tables = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE "
+                                                "type='table'")]
+            for t in tables:
+                if t.startswith("flights"):   # one row per recorded flight
+                    rows += con.execute(f"SELECT COUNT(*) FROM {t}").fetchone()[0]
+        finally:
+            con.close()
+    if published:
+        summary = json.loads((tmp_path / "r.summary.json").read_text())
+        assert summary["stored_coefficients"]["recorded"] is True
+        assert rows >= 1
+    else:
+        assert rows == 0
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX pipes")
+def test_closed_output_pipe_is_not_an_internal_error():
+    """`flightrecon info LOG | head -1` ended with exit 1, the internal-error code (click's
+    broken-pipe path); now SIGPIPE's 141 (or 0 when the output fitted in the pipe), silent."""
+    codes = set()
+    for _ in range(4):
+        p = subprocess.Popen([sys.executable, "-m", "flightrecon", "info",
+                              str(SAMPLES / "circuit.parquet")], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, cwd=ROOT,
+                             env={**os.environ, "PYTHONPATH": str(ROOT)})
+        p.stdout.readline()
+        p.stdout.close()
+        err = p.stderr.read().decode()
+        p.wait(timeout=120)
+        assert p.returncode in (0, 141), err
+        assert "Traceback" not in err and "internal error" not in err
+        codes.add(p.returncode)
+
+
+def test_plot_report_folder_is_checked_against_the_truth_and_the_result(tmp_path, capsys):
+    """`plot` reads a result, its summary and a truth file: a report folder whose figures
+    would replace one of them is refused before any work (exit 9)."""
+    shutil.copy(SAMPLES / "circuit.truth.parquet", tmp_path / "wind.png")
+    pd.DataFrame({"t_s": [0.0, 1.0], "north_m": [0.0, 1.0],
+                  "east_m": [0.0, 1.0]}).to_parquet(tmp_path / "r.parquet")
+    before = digest(tmp_path)
+    code, err = run(["plot", tmp_path / "r.parquet", "-o", tmp_path,
+                     "--truth", tmp_path / "wind.png"], capsys)
+    assert code == 9, err
+    assert "wind.png" in err and "truth" in err
+    assert digest(tmp_path) == before

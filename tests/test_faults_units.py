@@ -11,9 +11,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from flightrecon.cli.main import main
-from flightrecon.errors import FlightReconWarning, ValidationError
+from flightrecon.errors import ValidationError
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.physics import MIN_DURATION_S, MIN_INPUT_SAMPLES
 
@@ -253,3 +255,45 @@ def test_airspeed_in_knots_in_a_metre_per_second_column_is_refused(tmp_path):
     with pytest.raises(ValidationError, match="likely unit kt") as ex:
         load_quiet(p)
     assert "kt.csv" in str(ex.value) and "tas_mps" in str(ex.value)
+
+
+def test_gnss_height_in_feet_is_named_when_the_pressure_altitude_is_confirmed(tmp_path):
+    """On the circuit the pressure altitude agrees with the vertical acceleration (factor
+    0.89), so the message says which of the two heights is in feet."""
+    d = pd.read_parquet(SAMPLES / "circuit.parquet")
+    d["gnss_alt_m"] = d["gnss_alt_m"] / 0.3048
+    d.to_parquet(tmp_path / "cg.parquet")
+    shutil.copy(SAMPLES / "circuit.meta.toml", tmp_path / "cg.meta.toml")
+    with pytest.raises(ValidationError, match="gnss_alt_m is in ft") as ex:
+        load_quiet(tmp_path / "cg.parquet")
+    assert ex.value.column == "gnss_alt_m" and "cg.parquet" in str(ex.value)
+
+_ORIGINAL = None
+
+
+def _original():
+    global _ORIGINAL
+    if _ORIGINAL is None:
+        _ORIGINAL = load_quiet(SAMPLES / "handmade.csv")[0].data.drop(columns=["row"])
+    return _ORIGINAL
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(swaps=st.sets(st.integers(min_value=1, max_value=950), max_size=12),
+       repeats=st.sets(st.integers(min_value=0, max_value=1920), max_size=8))
+def test_swaps_and_repeats_are_repaired_to_the_original(tmp_path_factory, swaps, repeats):
+    """Property: any set of disjoint adjacent swaps and exact repeats of rows loads as the
+    original log (same times, same values), with each repair reported."""
+    d = HANDMADE.copy()
+    for k in swaps:                       # rows 2k and 2k+1: disjoint pairs
+        i = 2 * k
+        d.iloc[[i, i + 1]] = d.iloc[[i + 1, i]].to_numpy()
+    if repeats:
+        d = pd.concat([d, d.iloc[sorted(repeats)]]).sort_index(kind="stable")
+    p = write(tmp_path_factory.mktemp("prop"), "p", d.reset_index(drop=True))
+    fl, warns = load_quiet(p)
+    pd.testing.assert_frame_equal(fl.data.drop(columns=["row"]).reset_index(drop=True),
+                                  _original().reset_index(drop=True))
+    assert bool(swaps) == any("local swap" in w for w in warns)
+    assert bool(repeats) == any("exact duplicate" in w for w in warns)

@@ -16,7 +16,8 @@ the signals).  Every case must give:
   most of the record, speeds between samples below 400 m/s, heights within -1 to 20 km.
 
 The list is fixed by ``SEED`` (reproducible in CI); ``FLIGHTRECON_FUZZ_SEED`` gives another
-list of the same size for exploration.  Measured: see the commit message.
+list of the same size for exploration.  163 in-process cases and 6 signal cases; measured
+56-61 s with ``-n 2`` on a shared 2-core machine (load average 13), warm kernel cache.
 """
 
 from __future__ import annotations
@@ -553,7 +554,6 @@ def _physically_possible(track: pd.DataFrame) -> None:
 
 def _check_outputs(case: Case, d: Path, args: list) -> None:
     if case.command == "reconstruct":
-        _xfail_without_the_empty_result_guard(d)
         out = None
         if "-o" in args:
             out = Path(args[args.index("-o") + 1])
@@ -578,18 +578,6 @@ def _check_outputs(case: Case, d: Path, args: list) -> None:
         grid = pd.read_parquet(out) if out.suffix == ".parquet" else pd.read_csv(out)
         t = grid["t_s"].to_numpy(float)
         assert len(t) > 1 and np.all(np.diff(t) > 0)
-
-
-def _xfail_without_the_empty_result_guard(d: Path) -> None:
-    """A run whose every method is unhealthy must not exit 0 (#21 item 3, method health, the
-    lead's): until that guard is in this branch such a case is an expected failure, named;
-    with it the run exits 8 and the case passes as refused."""
-    for summ in d.glob("*.summary.json"):
-        doc = json.loads(summ.read_text())
-        methods = doc.get("methods", {})
-        if methods and not any(m.get("status") == "ok" for m in methods.values()):
-            pytest.xfail("exit 0 with no healthy method (empty default result): the guard of "
-                         "#21 item 3 is not merged into this branch yet")
 
 
 def _names_a_file(err: str, d: Path, args: list) -> bool:

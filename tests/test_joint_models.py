@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
+from flightrecon.estimation import linalg as est_linalg
 from flightrecon.filters.joint import dynamics as jd
+from flightrecon.filters.joint import enu_to_ecef_matrix
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint import observation as jo
 from flightrecon.filters.joint import passes as jp
-from flightrecon.filters.joint import enu_to_ecef_matrix
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
@@ -130,11 +131,11 @@ def test_cholesky_solve_and_its_refusal():
     A = _random_spd(rng, n)
     b = rng.normal(size=n)
     y = np.empty(n)
-    assert jd._cholesky_solve(A, b, np.empty((n, n)), y)
+    assert est_linalg._cholesky_solve(A, b, np.empty((n, n)), y)
     # condition number of A is O(10): 1e-12 is far above round-off, far below any real error
     np.testing.assert_allclose(A @ y, b, atol=1e-12)
     A[3, 3] = -1.0
-    assert not jd._cholesky_solve(A, b, np.empty((n, n)), y)
+    assert not est_linalg._cholesky_solve(A, b, np.empty((n, n)), y)
 
 
 def test_mean_only_backward_pass_gives_the_covariance_pass_states():

@@ -31,7 +31,7 @@ class NonEmptyPath(click.Path):
     """A click path that refuses an empty string (``-o ''``) as a usage error (exit code 2)
     instead of taking it for the current folder."""
 
-    def convert(self, value, param, ctx):  # noqa: D102
+    def convert(self, value, param, ctx):
         if isinstance(value, str) and value.strip() == "":
             self.fail("the path is empty", param, ctx)
         if isinstance(value, str) and self.file_okay and not self.dir_okay \
@@ -177,7 +177,8 @@ def check_run_outputs(log: Path, *, gnss=None, radar=None, mapping=None, sidecar
         outputs["coefficient store"] = store
     check_outputs(outputs, inputs, folders={"report": report}, folder_names=report_file_name,
                   created_folders=("coefficient store",))
-    for folder in {result.parent, summary.parent} | ({report.parent} if report else set()):
+    for folder in {result.parent, summary.parent} | ({report, report.parent} if report
+                                                      else set()):
         sweep_leftovers(folder if str(folder) else Path("."))
 
 

@@ -14,7 +14,7 @@ import os
 import signal
 
 
-def _quiet_exit(signum: int, frame) -> None:  # noqa: ARG001 - signal handler signature
+def _quiet_exit(signum: int, frame) -> None:
     os._exit(128 + signum)
 
 

@@ -8,11 +8,13 @@ hierarchy are printed as ``error: ...`` with their exit code; ``--debug`` shows 
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
 import os
 import signal
 import sys
 import threading
+from typing import Any
 
 import click
 
@@ -132,7 +134,7 @@ class Interrupted(KeyboardInterrupt):
 _first_signal: list[int] = []
 
 
-def _on_signal(signum: int, frame) -> None:  # noqa: ARG001 - signal handler signature
+def _on_signal(signum: int, frame) -> None:
     """Raise :class:`Interrupted` in the main thread; while outputs are being published the
     signal waits (:func:`flightrecon.export.atomic.deferred_signals`); a second signal while
     the first one's clean-up runs is ignored, so the clean-up is not cut short."""
@@ -142,13 +144,13 @@ def _on_signal(signum: int, frame) -> None:  # noqa: ARG001 - signal handler sig
     raise Interrupted(signum)
 
 
-def install_signal_handlers() -> dict[int, object]:
+def install_signal_handlers() -> dict[int, Any]:
     """Handle every catchable terminating signal like SIGINT (:data:`CATCHABLE_SIGNALS`);
     signals the caller chose to ignore (``nohup``: SIGHUP) stay ignored.  Returns the
     previous handlers."""
     from flightrecon.export.atomic import CATCHABLE_SIGNALS
 
-    previous: dict[int, object] = {}
+    previous: dict[int, Any] = {}
     if threading.current_thread() is not threading.main_thread():
         return previous
     for s in CATCHABLE_SIGNALS:
@@ -201,12 +203,30 @@ def main(argv: list[str] | None = None) -> None:
     if previous:
         _handlers_installed.append(1)
     try:
-        _run(argv, debug)
+        try:
+            _run(argv, debug)
+        except SystemExit:
+            _flush_stdout()
+            raise
     finally:
         for s, h in previous.items():
             with contextlib.suppress(OSError, ValueError, TypeError):
                 signal.signal(s, h)
         _handlers_installed.clear()
+
+
+def _flush_stdout() -> None:
+    """Flush the output now: a reader that closed the pipe early (``| head``) ends the run
+    with SIGPIPE's code, 128 + 13, as a shell reports it, instead of an error at exit."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        with contextlib.suppress(OSError, ValueError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        sys.exit(128 + 13)
+    except (OSError, ValueError):
+        pass
 
 
 def _run(argv: list[str] | None, debug: bool) -> None:
@@ -233,7 +253,16 @@ def _run(argv: list[str] | None, debug: bool) -> None:
         sys.exit(exc.exit_code)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except Exception as exc:  # noqa: BLE001 - last resort: no traceback without --debug
+    except SystemExit as exc:
+        # click ends a run whose output pipe was closed (``| head``) with exit 1, the code of
+        # an internal error: it is SIGPIPE's, 128 + 13, as a shell reports it
+        # (click marks that case by wrapping sys.stdout to silence the final flush)
+        ctx = exc.__context__
+        epipe = isinstance(ctx, OSError) and ctx.errno == errno.EPIPE
+        if exc.code == 1 and (epipe or type(sys.stdout).__name__ == "_PacifyFlushWrapper"):
+            sys.exit(128 + 13)
+        raise
+    except Exception as exc:
         if debug:
             raise
         click.echo(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", err=True)

@@ -129,7 +129,16 @@ def command(ctx: click.Context, result: Path, folder: Path | None, truth: Path |
     from flightrecon.export.writers import read_track
     from flightrecon.report import write_report
 
+    from flightrecon.cli.common import report_file_name
+    from flightrecon.export.atomic import check_outputs
+
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    summ_path = summary_path or result.with_name(result.stem + ".summary.json")
+    # the report folder must not replace the result, its summary or the truth (exit 9)
+    check_outputs({}, {"result": result, "summary": summ_path if summ_path.is_file() else None,
+                       "truth file": truth},
+                  folders={"report": folder or result.with_name(result.stem + ".report")},
+                  folder_names=report_file_name)
     folder = folder or result.with_name(result.stem + ".report")
     check_report_folder(folder)
     with stage_progress(quiet, ["read", "recorder", "figures"], "plot") as stage:

@@ -62,10 +62,11 @@ from flightrecon.cli.common import (
               help="Joint smoother: estimate each source's noise variance from the flight "
                    "itself (expectation-maximisation; docs/joint.md).")
 @click.option("--store", "store_path", type=NonEmptyPath(dir_okay=False, path_type=Path),
-              help="Coefficient store (SQLite): a fitted flight's k1..k3 are recorded there "
-                   "under its aircraft id.")
+              help="Coefficient store (SQLite): the flight's fitted k1..k3 and the joint "
+                   "smoother's sensor-error estimates are recorded there under its aircraft id.")
 @click.option("--use-fleet-coefficients", is_flag=True,
-              help="Reconstruct with the aircraft's mean k1..k3 from --store (no arrival "
+              help="Use what the aircraft's routine flights in --store taught: its sensor "
+                   "calibration as the joint smoother's priors and its mean k1..k3 (no arrival "
                    "point needed).")
 @click.option("--strict", is_flag=True,
               help="Fail (exit 8) on the first method that fails, does not converge or is "
@@ -154,14 +155,25 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
     if not quiet:
         fc = rec.summary.get("fleet_coefficients")
         if fc:
-            click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
-                       f"(flights per axis {fc['flights']})", err=True)
+            cal = fc.get("calibration")
+            if cal:
+                click.echo(f"  fleet calibration of {fc['aircraft_id']} at {cal['at_utc']}: "
+                           f"{len(cal['applied'])} sensor errors as priors, from "
+                           f"{cal['n_flights']} flight(s)", err=True)
+            else:
+                click.echo(f"  no fleet calibration: {fc.get('calibration_missing')}", err=True)
+            if fc.get("k") is not None:
+                click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
+                           f"(flights per axis {fc['flights']})", err=True)
         sc = rec.summary.get("stored_coefficients")
-        if sc and sc.get("recorded"):
-            click.echo(f"  recorded k = {sc['k']} for {sc['aircraft_id']}/{sc['flight_id']} "
-                       f"in {sc['store']}", err=True)
+        if sc and sc.get("recorded", True):
+            what = ([f"k = {sc['k']}"] if sc.get("k") else []) + (
+                ["sensor calibration"] if sc.get("calibration") else [])
+            click.echo(f"  recorded {' and '.join(what)} for {sc['aircraft_id']}/"
+                       f"{sc['flight_id']} in {sc['store']}", err=True)
         elif sc:
-            click.echo(f"  coefficients not recorded in {sc['store']}: {sc['reason']}", err=True)
+            click.echo(f"  nothing recorded in {sc['store']}: "
+                       f"{sc.get('reason') or sc.get('note')}", err=True)
         for name, st in rec.summary["methods"].items():
             line = f"  {name:8s} {st.get('status')}"
             # the reason of an unhealthy method already names its health problems

@@ -29,6 +29,7 @@ import signal
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
+from typing import Self
 
 from flightrecon.errors import OutputError
 
@@ -292,7 +293,7 @@ def deferred_signals() -> Iterator[None]:
         return
     previous = {}
 
-    def record(signum, frame):  # noqa: ARG001 - signal handler signature
+    def record(signum, frame):
         defer_signal(signum)
 
     for s in CATCHABLE_SIGNALS:
@@ -431,7 +432,7 @@ class Publication:
                 shutil.rmtree(d)
         self._stages.clear()
 
-    def __enter__(self) -> Publication:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -23,28 +23,20 @@ from flightrecon.filters.joint import (
     JointInputs,
     JointRun,
     JointSettings,
+    prior_of,
     smooth_joint,
     source_report,
     takeoff_roll,
 )
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.inputs import _nearest
-from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult
 
 PREFIX = "joint_"
-
-
-def field_pressure_altitude_m(elev_msl_m: float, qnh_hpa: float | None) -> float:
-    """Pressure altitude of an airfield: the ISA altitude of its station pressure.
-
-    Station pressure = ISA pressure at the field elevation scaled by QNH / 1013.25 hPa
-    (about 8.3 m of pressure altitude per hPa near sea level).
-    """
-    q = 1013.25 if qnh_hpa is None else float(qnh_hpa)
-    return float(pressure_altitude_m(isa_pressure_pa(elev_msl_m) * q / 1013.25))
 
 
 def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
@@ -103,8 +95,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         field_h = 0.0
     wind = None
     if "wind_speed_mps" in g.columns and "wind_from_deg" in g.columns:
-        to = np.radians(col("wind_from_deg") + 180.0)
-        wind = np.c_[col("wind_speed_mps") * np.cos(to), col("wind_speed_mps") * np.sin(to)]
+        wind = wind_toward_ne(col("wind_speed_mps"), col("wind_from_deg"))
     gn = clean.gnss
     gnss = pd.DataFrame()
     if len(gn) and {"gnss_lat_deg", "gnss_lon_deg"} <= set(gn.columns):
@@ -258,8 +249,9 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     return out
 
 
-def _corrections(run: JointRun) -> dict[str, Any]:
-    """Estimated sensor errors (value and sd at the middle of the record)."""
+def _corrections(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
+    """Estimated sensor errors (value and sd at the middle of the record) with the prior each
+    was given (``prior_mean``, ``prior_sd``, same unit)."""
     k = len(run.t) // 2
     x, v = run.x[k], run.var[k]
 
@@ -267,6 +259,13 @@ def _corrections(run: JointRun) -> dict[str, Any]:
         return {"value": float(x[i] * scale), "sd": float(np.sqrt(max(v[i], 0.0)) * scale),
                 "unit": unit}
 
+    out = _correction_items(item)
+    for name, it in out.items():
+        it["prior_mean"], it["prior_sd"] = prior_of(name, settings or JointSettings())
+    return out
+
+
+def _correction_items(item) -> dict[str, Any]:
     return {
         "heading_bias_deg": item(jl.IPSI, np.degrees(1.0), "deg (measured - true)"),
         "tas_scale": item(jl.IS, 1.0, "TAS_measured = (1 + s) TAS_true"),
@@ -342,7 +341,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,
-        "corrections": _corrections(run),
+        "corrections": _corrections(run, settings),
         "clock_offsets_s": {k: {"value": o, "sd": sd} for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
         "end_points": [{"which": e["which"], "model": e["model"], "t_s": e["t_s"],

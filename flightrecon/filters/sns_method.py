@@ -35,8 +35,10 @@ import pandas as pd
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
 from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import sns as core
-from flightrecon.filters.sns import model as sns_model
+from flightrecon.geo.ellipsoid import radii_from_sin
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+from flightrecon.geo.navframe import north_azimuth_in_plane
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult
 
 MODELS = {"airspeed": core.MODEL_AIRSPEED, "doppler": core.MODEL_DOPPLER}
@@ -123,9 +125,8 @@ def _readings(grid: pd.DataFrame, model: int, notes: list[str]):
     tas = _channel(grid, "tas_mps", notes)
     u = np.column_stack([np.cos(psi), np.sin(psi)])
     if "wind_speed_mps" in grid.columns and "wind_from_deg" in grid.columns:
-        ws = _channel(grid, "wind_speed_mps", notes, fill=0.0)
-        wf = np.deg2rad(_channel(grid, "wind_from_deg", notes, fill=0.0))
-        w = -ws[:, None] * np.column_stack([np.cos(wf), np.sin(wf)])
+        w = wind_toward_ne(_channel(grid, "wind_speed_mps", notes, fill=0.0),
+                           _channel(grid, "wind_from_deg", notes, fill=0.0))
     else:
         notes.append("no wind channel: zero forecast wind, the wind correction is the whole wind")
         w = np.zeros_like(u)
@@ -380,11 +381,9 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
 
 
 def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised twin of :func:`flightrecon.filters.sns.radii`."""
-    s = np.sin(lat)
-    wq = 1.0 - sns_model._E2 * s * s
-    n = sns_model._A / np.sqrt(wq)
-    return n * (1.0 - sns_model._E2) / wq + h, n + h
+    """:func:`flightrecon.filters.sns.radii` on arrays: ``(M + h, N + h)`` [m]."""
+    m, n = radii_from_sin(np.sin(lat))
+    return m + h, n + h
 
 
 GAMMA_STRIDE = 16  # recorder samples between pyproj evaluations of the meridian convergence
@@ -395,8 +394,8 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
     """Positions and their standard deviations in the output tangent plane's axes.
 
     The local north/east covariance is rotated by the angle ``gamma`` between local north and
-    the plane's north (meridian convergence), found through pyproj as the direction of a 1e-4 deg
-    step north.  ``gamma`` is a smooth function of position (its second derivative along the
+    the plane's north (meridian convergence, exact:
+    :func:`flightrecon.geo.navframe.north_azimuth_in_plane`).  ``gamma`` is a smooth function of position (its second derivative along the
     track is of order ``1 / R_earth^2``), so it is evaluated every ``GAMMA_STRIDE`` recorder
     samples (and at the last) and interpolated linearly: over 16 samples (one second at 16 Hz,
     about 250 m) the interpolation error is below ``250^2 / 8 / R^2``, 2e-10 rad, which changes a
@@ -410,8 +409,7 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
     sub = np.arange(0, M, GAMMA_STRIDE)
     if sub[-1] != M - 1:
         sub = np.append(sub, M - 1)
-    e1, n1, _ = plane.forward(latd[sub] + 1e-4, lond[sub], sol.h[sub])
-    gam_sub = np.arctan2(e1 - e[sub], n1 - n[sub])
+    gam_sub = north_azimuth_in_plane(plane.lat0_deg, plane.lon0_deg, latd[sub], lond[sub])
     # cos and sin interpolated directly: the chord of the unit circle over one interval
     # (gamma changes by < 1e-5 rad) is shorter than the arc by < 1e-11 relative
     pos = np.arange(M, dtype=float)

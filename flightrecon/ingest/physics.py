@@ -104,7 +104,7 @@ def _window_factor(t: np.ndarray, y: np.ndarray, a: np.ndarray, min_dx: float,
     dt = np.diff(t)
     ai = np.where(np.isfinite(a), a, 0.0)
     X = np.concatenate([[0.0], np.cumsum(0.5 * (ai[1:] + ai[:-1]) * dt)])
-    step = max(1, int(round(WINDOW_S / np.median(dt))))
+    step = max(1, round(WINDOW_S / float(np.median(dt))))
     i0 = np.arange(0, t.size - step, max(1, step // 4))
     i1 = i0 + step
     good = ok[i0] & ok[i1]
@@ -146,7 +146,7 @@ def _nearest(factor: float, table: dict[str, float], tol: float = 0.25) -> str |
 def _smooth_velocity(t: np.ndarray, h: np.ndarray, half_s: float = 5.0) -> np.ndarray:
     """Velocity of ``h`` by a centred difference over +-``half_s`` seconds (grid ``t``)."""
     dt = float(np.median(np.diff(t)))
-    k = max(1, int(round(half_s / dt)))
+    k = max(1, round(half_s / dt))
     v = np.full(h.size, np.nan)
     if h.size > 2 * k:
         v[k:-k] = (h[2 * k:] - h[:-2 * k]) / (t[2 * k:] - t[:-2 * k])
@@ -392,25 +392,24 @@ def _check_gnss_height(data, prov, baro_factor: float | None) -> None:
     if unit is None:
         return
     baro_ok = baro_factor is not None and 0.7 < baro_factor < 1.4
-    if unit.startswith("ft") and baro_ok:
-        who, real = "gnss_alt_m", "ft"
-    elif unit.startswith("m") and baro_ok:
-        who, real = "gnss_alt_m", "m (declared ft)"
-    elif baro_factor is not None and _nearest(baro_factor, _LENGTH_FACTORS, 0.3):
-        who, real = "baro_alt_m", "ft" if unit.startswith("m") else "m"
+    baro_bad = baro_factor is not None and _nearest(baro_factor, _LENGTH_FACTORS, 0.3)
+    if baro_ok:
+        who, real = "gnss_alt_m", ("ft" if unit.startswith("ft") else "m (declared ft)")
+        why = "the pressure altitude agrees with the vertical acceleration"
+    elif baro_bad:
+        who, real = "baro_alt_m", ("ft" if unit.startswith("m") else "m (declared ft)")
+        why = "the pressure altitude disagrees with the vertical acceleration"
     else:
-        who, real = None, None
-    if who is None:
         raise ValidationError(
-            f"GNSS height and pressure altitude change by a factor of {slope:.2f} over the "
-            "flight (expected about 1): one of them is in feet (likely unit ft); the log has no "
-            "vertical acceleration to tell which", file=_file(prov, "gnss_alt_m"),
-            column=_col(prov, "gnss_alt_m"))
+            f"GNSS height (gnss_alt_m) and pressure altitude (baro_alt_m) change by a factor of "
+            f"{slope:.2f} over the flight (expected about 1): one of them is in feet (likely "
+            "unit ft); the vertical acceleration could not tell which (too few climbs and "
+            "descents)", file=_file(prov, "gnss_alt_m"), column=_col(prov, "gnss_alt_m"))
     raise ValidationError(
         f"GNSS height changes {slope:.2f} times as fast as the pressure altitude over the "
-        f"flight (expected about 1; the pressure altitude agrees with the vertical "
-        f"acceleration): {who} is in {real} (likely unit {real.split()[0]}; set it in a mapping "
-        "file)", file=_file(prov, who), column=_col(prov, who))
+        f"flight (expected about 1; {why}): {who} is in {real} (likely unit "
+        f"{real.split()[0]}; set it in a mapping file)", file=_file(prov, who),
+        column=_col(prov, who))
 
 
 # ------------------------------------------------------------------ airspeed

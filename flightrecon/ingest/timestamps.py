@@ -226,7 +226,7 @@ def _raise_jump(t: np.ndarray, rows: np.ndarray, jumps: np.ndarray, file: str, c
 
 
 def _rows_text(r: np.ndarray, limit: int = 8) -> str:
-    r = [int(x) for x in r]
-    word = "row" if len(r) == 1 else "rows"
-    more = f" and {len(r) - limit} more" if len(r) > limit else ""
-    return f"{word} {', '.join(map(str, r[:limit]))}{more}"
+    rows = [int(x) for x in r]
+    word = "row" if len(rows) == 1 else "rows"
+    more = f" and {len(rows) - limit} more" if len(rows) > limit else ""
+    return f"{word} {', '.join(map(str, rows[:limit]))}{more}"

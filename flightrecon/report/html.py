@@ -325,6 +325,33 @@ window.addEventListener('load', function () {
 </script>"""
 
 
+def _fleet_section(summary: Mapping[str, Any]) -> str:
+    """Which fleet calibration and coefficients the reconstruction used (``--use-fleet-
+    coefficients``), from how many flights; empty when none was used."""
+    fc = summary.get("fleet_coefficients")
+    if not fc:
+        return ""
+    cal = fc.get("calibration")
+    out = ['<h2 id="fleet">Fleet calibration</h2>']
+    if cal:
+        rows = "".join(
+            f"<tr><td>{_e(n)}</td><td>{q['mean']:.4g}</td><td>{q['sd']:.3g}</td><td>{q['n']}</td>"
+            f"<td>{'yes' if q['applied'] else 'no'}</td></tr>"
+            for n, q in cal["errors"].items())
+        out.append(f"<p>Sensor calibration of aircraft <b>{_e(str(fc['aircraft_id']))}</b> at "
+                   f"{_e(str(cal['at_utc']))} from <b>{cal['n_flights']}</b> flight(s) "
+                   f"({_e(', '.join(cal['flights']))}) of store <code>{_e(str(fc['store']))}"
+                   "</code>; the errors marked applied were the joint smoother's priors.</p>"
+                   "<table><tr><th>error</th><th>mean</th><th>sd</th><th>flights</th>"
+                   f"<th>applied</th></tr>{rows}</table>")
+    else:
+        out.append(f"<p>No sensor calibration: {_e(str(fc.get('calibration_missing')))}</p>")
+    if fc.get("k") is not None:
+        out.append(f"<p>Sabziev fleet-mean k = {_e(str(fc['k']))} (fits per axis "
+                   f"{_e(str(fc['flights']))}).</p>")
+    return "".join(out)
+
+
 def write_report(folder: str | Path, track: pd.DataFrame, summary: Mapping[str, Any],
                  truth: pd.DataFrame | None = None, title: str = "flightrecon report", *,
                  grid: pd.DataFrame | None = None, gnss: pd.DataFrame | None = None,
@@ -377,6 +404,7 @@ def write_report(folder: str | Path, track: pd.DataFrame, summary: Mapping[str, 
 <h2 id="figures">Figures</h2>{''.join(parts)}
 <h2 id="methods">Methods compared</h2>{methods_html(track, summary)}
 <h2 id="corrections">Sensor corrections</h2>{corrections_html(summary, sensor_truth)}
+{_fleet_section(summary)}
 <h2 id="warnings">Warnings</h2>
 {'<table><thead><tr><th>warning</th><th>what it means</th></tr></thead><tbody>' + warn
  + '</tbody></table>' if warn else '<p>none</p>'}

@@ -32,12 +32,12 @@ backward by the generic Rauch-Tung-Striebel pass :func:`flightrecon.smoothing.rt
 
 from __future__ import annotations
 
-from flightrecon.filters.azimuth.filter import AzimuthRun, azimuth_filter
-from flightrecon.filters.azimuth.models import (
+from flightrecon.estimation.discretise import (
     random_walk_matrices,
     singer_process_noise,
     singer_transition,
 )
+from flightrecon.filters.azimuth.filter import AzimuthRun, azimuth_filter
 from flightrecon.filters.azimuth.observation import (
     horizontal_acceleration,
     horizontal_acceleration_covariance,

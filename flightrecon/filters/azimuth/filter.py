@@ -8,7 +8,7 @@ import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters.azimuth.models import (
+from flightrecon.estimation.discretise import (
     random_walk_matrices,
     singer_process_noise,
     singer_transition,

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightrecon.errors import ValidationError
+from flightrecon.estimation.discretise import constant_velocity
 from flightrecon.filters.kalman import kalman_filter
 from flightrecon.smoothing.rts import rts_smooth_run
 
@@ -51,14 +52,7 @@ def track_range(t_s, r_meas_m, r_var_m2, *, q_range_m2ps3: float) -> RangeTrack:
         raise ValidationError("the range tracker must start at a radar plot")
     if not q_range_m2ps3 > 0:
         raise ValidationError(f"q_range_m2ps3 must be > 0, got {q_range_m2ps3}")
-    T = np.diff(t, prepend=t[0])
-    F = np.zeros((t.size, 2, 2))
-    F[:, 0, 0] = F[:, 1, 1] = 1.0
-    F[:, 0, 1] = T
-    Q = np.empty((t.size, 2, 2))
-    Q[:, 0, 0] = q_range_m2ps3 * T**3 / 3
-    Q[:, 0, 1] = Q[:, 1, 0] = q_range_m2ps3 * T**2 / 2
-    Q[:, 1, 1] = q_range_m2ps3 * T
+    F, Q = constant_velocity(np.diff(t, prepend=t[0]), q_range_m2ps3)
     # the first plot is the prior (range and its variance; initial velocity sd 300 m/s bounds
     # any aircraft's range rate in a terminal area); it is not used again as a measurement
     P0 = np.diag([float(r_var_m2[0]), 300.0**2])

@@ -41,10 +41,12 @@ from flightrecon.filters.joint.noise import NOISE_GROUPS
 from flightrecon.filters.joint.nominal import attitude_jacobian, relinearised_increments
 from flightrecon.filters.joint.settings import (
     POSITIVE_NOISE,
+    PRIOR_STATES,
     SOURCES,
     JointNoise,
     JointSettings,
+    prior_of,
 )
 from flightrecon.filters.joint.smoother import JointRun, smooth_joint
 
-__all__ = ['SOURCES', 'JointNoise', 'POSITIVE_NOISE', 'JointSettings', 'enu_to_ecef_matrix', 'TakeoffRoll', 'JointInputs', 'takeoff_roll', 'refined_roll', 'end_points', 'attitude_jacobian', 'relinearised_increments', 'Measurements', 'static_measurements', 'build_measurements', 'NOISE_GROUPS', 'JointRun', 'smooth_joint', 'source_report']
+__all__ = ['SOURCES', 'JointNoise', 'POSITIVE_NOISE', 'JointSettings', 'PRIOR_STATES', 'prior_of', 'enu_to_ecef_matrix', 'TakeoffRoll', 'JointInputs', 'takeoff_roll', 'refined_roll', 'end_points', 'attitude_jacobian', 'relinearised_increments', 'Measurements', 'static_measurements', 'build_measurements', 'NOISE_GROUPS', 'JointRun', 'smooth_joint', 'source_report']

@@ -5,9 +5,13 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation.linalg import (
+    _cholesky_solve,
+    cholesky_factor,
+    cholesky_solve_columns,
+)
 from flightrecon.estimation.updates import scalar_update_short
 from flightrecon.filters.joint.dynamics import (
-    _cholesky_solve,
     _predict_cov,
     _sparse_matvec,
     _sparse_rmatvec,
@@ -28,7 +32,6 @@ from flightrecon.filters.joint.layout import (
     TRACK,
 )
 from flightrecon.filters.joint.observation import measure_into
-from flightrecon.filters.smallmat import cholesky_factor, cholesky_solve_columns
 
 
 @nb.njit(cache=True, nogil=True)

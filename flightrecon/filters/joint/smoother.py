@@ -126,7 +126,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if weights is None or len(weights) != len(meas.z):
             weights = np.ones(len(meas.z))
         if x0 is None:
-            x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps)
+            x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps, settings.priors)
         tau = meas.t - T[meas.step]
         if it == 0:  # filter outputs, reused by every pass (allocated and paged in once)
             n = jl.N_STATE

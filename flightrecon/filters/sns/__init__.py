@@ -101,8 +101,8 @@ results equal the straightforward matrix expressions to round-off
 
 from __future__ import annotations
 
+from flightrecon.estimation.linalg import pinv_sym
 from flightrecon.filters.sns.filter import SnsRun, SnsSmoothed, sns_filter, sns_smooth
-from flightrecon.filters.sns.linalg import pinv_sym
 from flightrecon.filters.sns.model import (
     FORM_CONSISTENT,
     FORM_SEED,

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from flightrecon.filters.sns.linalg import (
+from flightrecon.estimation.linalg import (
     _chol_solve_rows,
     _mdmt_acc,
     _mm,

@@ -8,8 +8,8 @@ from dataclasses import dataclass, replace
 import numba as nb
 import numpy as np
 
-from flightrecon.constants import WGS84_A, WGS84_E2
-from flightrecon.filters.sns.linalg import _chol2_into
+from flightrecon.estimation.linalg import _chol2_into
+from flightrecon.geo.ellipsoid import WGS84_A, WGS84_E2, radii_from_sin
 
 MODEL_AIRSPEED = 0
 
@@ -45,12 +45,9 @@ _E2 = WGS84_E2
 def radii(lat_rad: float, h_m: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature plus height, ``(M + h, N + h)`` [m].
 
-    WGS-84: ``M = a (1 - e^2) / (1 - e^2 sin^2 lat)^1.5``, ``N = a / sqrt(1 - e^2 sin^2 lat)``.
+    WGS-84 (:func:`flightrecon.geo.ellipsoid.radii_from_sin`).
     """
-    s = np.sin(lat_rad)
-    w = 1.0 - _E2 * s * s
-    n = _A / np.sqrt(w)
-    m = n * (1.0 - _E2) / w
+    m, n = radii_from_sin(np.sin(lat_rad))
     return m + h_m, n + h_m
 
 
