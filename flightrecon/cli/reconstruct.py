@@ -23,6 +23,11 @@ from flightrecon.cli.common import (
 @click.option("--departure", metavar="LAT,LON,ELEV_M", help="Departure airfield (MSL elevation).")
 @click.option("--arrival", metavar="LAT,LON,ELEV_M", help="Arrival airfield / touchdown point.")
 @click.option("--station", metavar="LAT,LON,ELEV_M", help="Ground radar position.")
+@click.option("--fix", "fixes", metavar="T_S,LAT,LON[,ALT_M[,SD_M]]", multiple=True,
+              help="A known position at a time of the record (radar return, waypoint report, "
+                   "witness; ALT_M MSL, SD_M per axis, default 100 m); repeatable.")
+@click.option("--wind", "wind_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Winds-aloft prior: CSV alt_msl_m,from_deg,speed_mps[,sd_mps].")
 @click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
 @click.option("--methods", metavar="LIST",
               help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "
@@ -85,7 +90,7 @@ from flightrecon.cli.common import (
               help="Also write figures and a self-contained report.html into this folder.")
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
-            station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
+            station, fixes, wind_file, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
             azimuth_model, sns_model, sns_form, noise_file, estimate_noise, store_path,
             use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt, summary_path,
             report_dir) -> None:
@@ -110,6 +115,10 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
                 f"unknown method(s) {', '.join(unknown) or '(none given)'}; choose from "
                 f"{', '.join(ALL_METHODS)}", param_hint="--methods")
     overrides = position_option_values(departure=departure, arrival=arrival, station=station)
+    if fixes:
+        overrides["fixes"] = list(fixes)  # parsed and validated in ingest (priors.py)
+    if wind_file is not None:
+        overrides["wind_aloft"] = str(wind_file)
     if aircraft_id:
         overrides["aircraft_id"] = aircraft_id
     settings = ReconstructSettings(

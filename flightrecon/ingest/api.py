@@ -190,6 +190,10 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     cols["row"] = np.array(rows.row, copy=True)
     cols["src_file"] = rows.src_file.astype(np.int8)
     data = pd.DataFrame(cols, copy=False)
+    if meta.fixes and len(data):  # known positions must fall inside the record
+        from flightrecon.ingest.priors import check_fix_times
+
+        check_fix_times(meta.fixes, float(data["t_s"].iloc[0]), float(data["t_s"].iloc[-1]))
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "mapping": None if mp is None else mp.file,
                                             "sidecar": None if sc is None else sc.path})
