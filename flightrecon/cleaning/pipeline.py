@@ -51,6 +51,20 @@ class CleaningSettings:
     phases: PhaseSettings | None = field(default_factory=PhaseSettings)
 
 
+def _repair_entry(r: dict) -> dict:
+    """A cleaning-report entry for one validation repair (``flightrecon.ingest.validate.Repair``):
+    ``range_clip`` / ``range_mask`` with the file, its source column and 1-based data rows."""
+    action = "range_clip" if r["action"] == "clipped" else "range_mask"
+    lo, hi = r["range"]
+    why = (f"outside the physical range [{lo:g}, {hi:g}] (first {r['first_value']:g}); "
+           + ("within the clip margin: clipped to the bound" if action == "range_clip" else
+              "isolated (at most 1 % of the channel's samples): masked as missing samples"))
+    e = report_entry(r["channel"], action, why, count=r["count"], t_s=r.get("t_s") or None,
+                     file=r["file"], column=r["column"])
+    e["file_rows"] = list(r["rows"])
+    return e
+
+
 def clean_flight(flight: Flight, *, rate_hz: float | None = None,
                  settings: CleaningSettings = CleaningSettings()) -> CleanFlight:
     """Clean a flight and bring its input channels onto one grid.
@@ -95,6 +109,9 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         raise ValidationError(f"cannot clean the log: {exc}") from exc
     grid, rate, rep = resample_inputs(work, rate_hz, settings.max_gap_s)
     report.extend(rep)
+    # repairs made at validation (values outside the physical range), first in the report
+    ingest = [_repair_entry(r) for r in flight.meta.extra.get("ingest_repairs", ())]
+    report[:0] = ingest
     tables = {}
     for g in GROUPS:
         off = offsets.get(g, 0.0)

@@ -171,7 +171,10 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     data = pd.DataFrame(cols, copy=False)
     prov = Provenance(files=tuple(files), src_file=rows.src_file, row=rows.row,
                       source_column=tuple(source_cols))
-    warns += check_values(data, prov, rows.nan_text)
+    w, repairs = check_values(data, prov, rows.nan_text)
+    warns += w
+    for r in {r.channel for r in repairs}:
+        cols[r] = data[r].to_numpy()
     warns += check_polarity(data, prov)
     for name in list(cols):
         ch = BY_NAME.get(name)
@@ -188,6 +191,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     cols["src_file"] = rows.src_file.astype(np.int8)
     data = pd.DataFrame(cols, copy=False)
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
+                                            "ingest_repairs": [r.as_dict() for r in repairs],
                                             "mapping": None if mp is None else mp.file,
                                             "sidecar": None if sc is None else sc.path})
     for w in warns:
