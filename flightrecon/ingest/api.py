@@ -39,7 +39,7 @@ from flightrecon.ingest.validate import (
 from flightrecon.schema import BY_NAME, CHANNELS, GROUPS
 from flightrecon.types import Flight, FlightMeta
 
-__all__ = ["load_flight"]
+__all__ = ["load_flight", "mapping_beside"]
 
 PathLike = str | os.PathLike
 
@@ -96,7 +96,14 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
                      f"{raw.blank_rows[0]})")
-    mt = apply_mapping(raw, mp)
+    try:
+        mt = apply_mapping(raw, mp)
+    except SchemaError as exc:          # no time column: point at a mapping beside the log
+        hint = _mapping_hint(log) if mp is None else ""
+        if not hint:
+            raise
+        raise SchemaError(f"{exc.message}; {hint}", file=exc.file, column=exc.column,
+                          rows=exc.rows) from None
     if raw.nan_is_missing:
         notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
     used = set(mt.source_column.values()) | {_time_column(mt, mp, raw.columns)}
@@ -110,7 +117,8 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
         present.add("tas_mps")
         mt = dataclasses.replace(mt, derived={**mt.derived, "tas_mps": "cas" if "cas_mps"
                                               in present else "ias"})
-    check_required(present, str(log), ignored)
+    check_required(present, str(log), ignored,
+                   mapping_hint="" if mp is not None else _mapping_hint(log))
     notes += list(mt.notes)
     t, meta, epoch_ns, epoch_note = _log_seconds(mt, meta)
     if epoch_note:
@@ -197,6 +205,29 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
     return Flight(data=data, meta=meta, sources=tuple(files), warnings=tuple(warns))
+
+
+def mapping_beside(log: PathLike) -> list[Path]:
+    """Mapping files beside ``log``: ``<stem>.mapping.toml`` first, then any other
+    ``*.mapping.toml`` / ``*mapping*.toml`` in its folder (sorted)."""
+    log = Path(log)
+    stem = log.name.split(".")[0]
+    own = log.with_name(f"{stem}.mapping.toml")
+    found = [own] if own.is_file() else []
+    try:
+        others = sorted(p for p in log.parent.glob("*mapping*.toml") if p.is_file())
+    except OSError:
+        others = []
+    return found + [p for p in others if p != own]
+
+
+def _mapping_hint(log: Path) -> str:
+    found = mapping_beside(log)
+    if not found:
+        return ""
+    names = ", ".join(str(p) for p in found[:3])
+    return (f"a mapping file lies beside the log ({names}): give it with --mapping "
+            f"{found[0]} (or mapping = \"{found[0].name}\" in the sidecar's [files])")
 
 
 def _own_columns(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -116,9 +116,10 @@ def check_time(t: np.ndarray, rows: np.ndarray, file: str, column: str, *,
     return None, warns
 
 
-def check_required(channels, file: str, other_columns=()) -> None:
+def check_required(channels, file: str, other_columns=(), mapping_hint: str = "") -> None:
     """Raise :class:`SchemaError` naming the required channels missing from ``channels``
-    (with the closest of ``other_columns``, the file's unused columns, as a hint)."""
+    (with the closest of ``other_columns``, the file's unused columns, as a hint, and
+    ``mapping_hint``: the mapping files found beside the log)."""
     import difflib
 
     missing = [c for c in REQUIRED if c != "t_s" and c not in channels]
@@ -130,9 +131,9 @@ def check_required(channels, file: str, other_columns=()) -> None:
             if close:
                 hints.append(f"'{close[0]}' -> {m}?")
         hint = f" (similar columns: {', '.join(hints)})" if hints else ""
-        raise SchemaError(f"missing required channel(s): {', '.join(missing)}{hint}; map foreign "
-                          "names with a mapping file (docs/ingest.md)", file=file,
-                          column=missing[0])
+        how = mapping_hint or "map foreign names with a mapping file (docs/ingest.md)"
+        raise SchemaError(f"missing required channel(s): {', '.join(missing)}{hint}; {how}",
+                          file=file, column=missing[0])
 
 
 #: how far beyond a channel's physical range a value may lie and still be *clipped* to the bound
