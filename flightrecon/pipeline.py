@@ -71,6 +71,8 @@ class ReconstructSettings:
         (:class:`flightrecon.filters.joint.JointNoise` field -> value)
     joint_estimate_noise : scale each source's noise from the flight's own residuals
     strict : raise on the first method that fails or does not converge
+    start, end : trim the record to ``start <= t_s <= end`` before cleaning (seconds from the
+        epoch or UTC timestamps; :func:`flightrecon.cleaning.trim.trim_flight`)
     """
 
     methods: tuple[str, ...] | None = None
@@ -85,6 +87,8 @@ class ReconstructSettings:
     joint_noise: dict[str, float] | None = None
     joint_estimate_noise: bool = False
     strict: bool = False
+    start: float | str | None = None
+    end: float | str | None = None
 
 
 @dataclass(frozen=True)
@@ -540,7 +544,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     -------
     Reconstruction
     """
-    from flightrecon.cleaning import clean_flight
+    from flightrecon.cleaning import CleaningSettings, clean_flight
     from flightrecon.cleaning.plausibility import plausibility_checks
     from flightrecon.ingest import load_flight
 
@@ -557,7 +561,8 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         if use_fleet_coefficients:
             settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id)
         stage("cleaning")
-        clean = clean_flight(flight, rate_hz=settings.rate_hz)
+        clean = clean_flight(flight, rate_hz=settings.rate_hz,
+                             settings=CleaningSettings(start=settings.start, end=settings.end))
         stage("plausibility")
         findings = plausibility_checks(clean)
         for f in findings:

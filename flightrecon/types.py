@@ -98,6 +98,9 @@ class FlightPhases:
 
     ``starts_airborne`` / ``ends_airborne`` say that the record is cut in the air.
     ``liftoff_velocity_ned_mps`` is the ground velocity at lift-off estimated from the ground roll.
+    ``lineup_t_s`` is when the aircraft turned onto the take-off runway heading (the end of the
+    taxi; the record's start when it starts lined up), ``roll_start_t_s`` when the take-off roll
+    began (NaN where there is no ground roll in the record).
     """
 
     liftoff_t_s: float
@@ -105,6 +108,8 @@ class FlightPhases:
     starts_airborne: bool
     ends_airborne: bool
     liftoff_velocity_ned_mps: tuple[float, float, float]
+    lineup_t_s: float = float("nan")
+    roll_start_t_s: float = float("nan")
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from flightrecon.cleaning.steps import (
     run_steps,
 )
 from flightrecon.cleaning.timebase import check_clock_offsets, measurement_table
+from flightrecon.cleaning.trim import trim_flight
 from flightrecon.errors import FlightReconError, ValidationError
 from flightrecon.schema import GROUPS
 from flightrecon.types import CleanFlight, Flight
@@ -43,12 +44,16 @@ class CleaningSettings:
     clock_offsets_s : seconds added to the sample times of a measurement group
         (``{"gnss": 0.0, "radar": 0.0}``)
     phases : phase-detector thresholds (``None`` skips phase detection)
+    start, end : keep only ``start <= t_s <= end`` (seconds from the epoch, or UTC timestamps;
+        :func:`flightrecon.cleaning.trim.trim_flight`); ``None``: the whole record
     """
 
     max_gap_s: float = 2.0
     despike: DespikeSettings | None = field(default_factory=DespikeSettings)
     clock_offsets_s: dict[str, float] = field(default_factory=lambda: {"gnss": 0.0, "radar": 0.0})
     phases: PhaseSettings | None = field(default_factory=PhaseSettings)
+    start: float | str | None = None
+    end: float | str | None = None
 
 
 def _repair_entry(r: dict) -> dict:
@@ -97,6 +102,9 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     if not (np.isfinite(settings.max_gap_s) and settings.max_gap_s >= 0.0):
         raise ValidationError(f"max_gap_s must be a non-negative number, got {settings.max_gap_s}")
     offsets = check_clock_offsets(settings.clock_offsets_s)
+    if not isinstance(flight.data, pd.DataFrame):
+        raise ValidationError("flight.data must be a pandas DataFrame")
+    flight, trim_rep = trim_flight(flight, settings.start, settings.end)
     data = flight.data
     if not isinstance(data, pd.DataFrame):
         raise ValidationError("flight.data must be a pandas DataFrame")
@@ -111,7 +119,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     report.extend(rep)
     # repairs made at validation (values outside the physical range), first in the report
     ingest = [_repair_entry(r) for r in flight.meta.extra.get("ingest_repairs", ())]
-    report[:0] = ingest
+    report[:0] = ingest + trim_rep
     tables = {}
     for g in GROUPS:
         off = offsets.get(g, 0.0)

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from flightrecon.cli.common import parse_k
+from flightrecon.cli.trim import trim_options
 
 
 @click.command("batch")
@@ -39,11 +40,13 @@ from flightrecon.cli.common import parse_k
                    "sidecar's [files] mapping wins, as for reconstruct).")
 @click.option("--format", "fmt", type=click.Choice(["parquet", "csv", "geojson", "kml"]),
               default="parquet", show_default=True, help="Result format.")
+@trim_options
 @click.pass_context
 def command(ctx: click.Context, inputs: tuple[str, ...], out_dir: Path, scheduler: str | None,
             workers: int | None, store_path: Path | None, force: bool, methods: str | None,
             rate_hz: float | None, k_text: str | None, estimate_noise: bool,
-            mapping: Path | None, fmt: str) -> None:
+            mapping: Path | None, fmt: str, start: str | None = None,
+            end: str | None = None) -> None:
     """Reconstruct every log among INPUTS (files, folders, globs) into --out, one Dask task per
     flight; a failed flight is reported and the batch goes on; a re-run skips finished flights."""
     from flightrecon.batch import batch, open_client
@@ -53,7 +56,7 @@ def command(ctx: click.Context, inputs: tuple[str, ...], out_dir: Path, schedule
     settings = ReconstructSettings(
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
         rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
-        joint_estimate_noise=estimate_noise)
+        joint_estimate_noise=estimate_noise, start=start, end=end)
     bar = None
     if not quiet:
         from tqdm import tqdm

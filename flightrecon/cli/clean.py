@@ -10,6 +10,7 @@ from typing import Any
 import click
 
 from flightrecon.cli.common import input_options
+from flightrecon.cli.trim import trim_options
 
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
 
@@ -89,10 +90,12 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
               help="Seconds added to the GNSS times.")
 @click.option("--radar-clock-offset", type=float, default=0.0, show_default=True,
               help="Seconds added to the radar times.")
+@trim_options
 @click.pass_context
 def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gnss: Path | None,
             radar: Path | None, mapping: Path | None, sidecar: Path | None, max_gap_s: float,
-            gnss_clock_offset: float, radar_clock_offset: float) -> None:
+            gnss_clock_offset: float, radar_clock_offset: float, start: str | None = None,
+            end: str | None = None) -> None:
     """Clean LOG: despike, unwrap, resample the input channels onto one grid, keep the GNSS fixes
     and radar plots at their own times, detect lift-off and touchdown."""
     from flightrecon.cleaning import CleaningSettings, clean_flight
@@ -104,14 +107,15 @@ def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gns
         check_not_input(p, inputs)
     settings = CleaningSettings(max_gap_s=max_gap_s,
                                 clock_offsets_s={"gnss": gnss_clock_offset,
-                                                 "radar": radar_clock_offset})
+                                                 "radar": radar_clock_offset},
+                                start=start, end=end)
     flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
     clean = clean_flight(flight, rate_hz=rate_hz, settings=settings)
     sweep_leftovers(out.parent)
     written = write_clean_outputs(clean, out, inputs, {
         "rate_hz": rate_hz, "max_gap_s": max_gap_s,
         "clock_offsets_s": dict(settings.clock_offsets_s), "despike": asdict(settings.despike),
-        "phases": asdict(settings.phases)})
+        "phases": asdict(settings.phases), "start": start, "end": end})
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
     if not quiet:
         ph = clean.phases

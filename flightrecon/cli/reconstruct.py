@@ -14,6 +14,7 @@ from flightrecon.cli.common import (
     progress_bar,
     read_noise_file,
 )
+from flightrecon.cli.trim import trim_options
 
 
 @click.command("reconstruct")
@@ -64,12 +65,13 @@ from flightrecon.cli.common import (
               help="Summary JSON (default: <output stem>.summary.json).")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Also write figures and a self-contained report.html into this folder.")
+@trim_options
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
             station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
             azimuth_model, sns_model, sns_form, noise_file, estimate_noise, store_path,
             use_fleet_coefficients, strict, workers, output, fmt, summary_path,
-            report_dir) -> None:
+            report_dir, start=None, end=None) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
     from flightrecon.export.atomic import check_not_input, sweep_leftovers
     from flightrecon.export.writers import write_summary, write_track
@@ -85,7 +87,7 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
         arms_linearisation=arms_linearisation, azimuth_model=azimuth_model, sns_model=sns_model,
         sns_form=sns_form, strict=strict,
         joint_noise=read_noise_file(noise_file) if noise_file else None,
-        joint_estimate_noise=estimate_noise)
+        joint_estimate_noise=estimate_noise, start=start, end=end)
     if use_fleet_coefficients and not store_path:
         from flightrecon.store import default_store_path
 

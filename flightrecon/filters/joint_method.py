@@ -110,10 +110,12 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                          for p in (meta.departure, meta.arrival)),
         thresholds=tuple(None if p is None or p.threshold is None
                          else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
-                         for p in (meta.departure, meta.arrival)))
+                         for p in (meta.departure, meta.arrival)),
+        lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan)
     if not (ph is not None and ph.starts_airborne):
         inp = replace(inp, roll=takeoff_roll(
-            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne))
+            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
+            not_before_t=inp.lineup_t))
     return inp
 
 
