@@ -136,8 +136,12 @@ def available_methods(clean: CleanFlight, settings: ReconstructSettings) -> dict
     has_gnss = len(clean.gnss) > 0 and "gnss_lat_deg" in clean.gnss.columns
     out["sns"] = None if has_gnss else "no GNSS fixes in the data"
     if meta.departure is None:
-        for m in out:
-            out[m] = out[m] or "no departure position (give --departure)"
+        out["sabziev"] = out["sabziev"] or ("no departure airfield (the fusion integrates from "
+                                            "the lift-off point; give --departure)")
+        if meta.origin is None:
+            for m in out:
+                out[m] = out[m] or ("no departure position and no GNSS or radar fix to place "
+                                    "the frame (give --departure)")
     return out
 
 
@@ -611,7 +615,10 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
         "phases": None if ph is None else asdict(ph),
         "cleaning": {"actions": len(clean.report), "report": list(clean.report)[:200]},
         "output": {
-            "frame": "east-north-up tangent plane at the departure airfield (metres)",
+            "frame": ("east-north-up tangent plane at the departure airfield (metres)"
+                      if clean.meta.departure is not None else
+                      "east-north-up tangent plane at the first position fix (meta origin; "
+                      "no departure airfield given) (metres)"),
             "alt_datum": "WGS-84 ellipsoidal height (alt_m)",
             "default_source_priority": list(DEFAULT_PRIORITY),
         },

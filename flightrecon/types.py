@@ -60,6 +60,8 @@ class FlightMeta:
     qnh_departure_hpa, qnh_arrival_hpa : sea-level pressure at the airfields, where known
     geoid_undulation_m : ellipsoidal height minus MSL height in the area of the flight (one value
         per flight; no geoid grid is shipped, so 0 unless given)
+    origin : origin of the output frame when no departure is given: the first GNSS fix (or radar
+        plot) of the record, set by the cleaning layer (MSL elevation); never an airfield
     """
 
     aircraft_id: str | None = None
@@ -75,6 +77,7 @@ class FlightMeta:
     qnh_arrival_hpa: float | None = None
     geoid_undulation_m: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+    origin: Position | None = None
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning.despike import DespikeSettings
+from flightrecon.cleaning.origin import with_origin
 from flightrecon.cleaning.phases import PhaseSettings, detect_phases_with_report
 from flightrecon.cleaning.report import report_entry
 from flightrecon.cleaning.resample import resample_inputs
@@ -127,13 +128,16 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         if off != 0.0 and len(tables[g]):
             report.append(report_entry(g, "clock_offset", f"{off:+g} s added to the {g} times",
                                        count=len(tables[g]), offset_s=off))
+    meta, rep = with_origin(flight.meta, grid, tables["gnss"], tables["radar"])
+    report.extend(rep)
     phases = None
     if settings.phases is not None:
-        lat = flight.meta.departure.lat_deg if flight.meta.departure is not None else 45.0
+        p0 = meta.departure if meta.departure is not None else meta.origin
+        lat = p0.lat_deg if p0 is not None else 45.0
         try:
             phases, rep = detect_phases_with_report(grid, settings.phases, lat_deg=lat)
         except FlightReconError as exc:
             rep = [report_entry("phases", "not_detected", str(exc), count=0)]
         report.extend(rep)
     return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
-                       meta=flight.meta, report=tuple(report), phases=phases)
+                       meta=meta, report=tuple(report), phases=phases)
