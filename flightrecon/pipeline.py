@@ -71,6 +71,7 @@ class ReconstructSettings:
         (:class:`flightrecon.filters.joint.JointNoise` field -> value)
     joint_estimate_noise : scale each source's noise from the flight's own residuals
     strict : raise on the first method that fails or does not converge
+    sns_noise : overrides of the SNS noise (:func:`flightrecon.filters.sns_method.sns_noise_with`)
     start, end : trim the record to ``start <= t_s <= end`` before cleaning (seconds from the
         epoch or UTC timestamps; :func:`flightrecon.cleaning.trim.trim_flight`)
     """
@@ -89,6 +90,7 @@ class ReconstructSettings:
     strict: bool = False
     start: float | str | None = None
     end: float | str | None = None
+    sns_noise: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -161,7 +163,7 @@ def _method_kwargs(name: str, s: ReconstructSettings) -> dict[str, Any]:
     if name == "azimuth":
         return {"model": s.azimuth_model}
     if name == "sns":
-        return {"model": s.sns_model, "form": s.sns_form}
+        return {"model": s.sns_model, "form": s.sns_form, "noise_overrides": s.sns_noise}
     raise KeyError(name)
 
 

@@ -65,6 +65,8 @@ def _repair_entry(r: dict) -> dict:
     why = (f"outside the physical range [{lo:g}, {hi:g}] (first {r['first_value']:g}); "
            + ("within the clip margin: clipped to the bound" if action == "range_clip" else
               "isolated (at most 1 % of the channel's samples): masked as missing samples"))
+    if r.get("why"):
+        action, why = "gnss_quality_mask", r["why"]
     e = report_entry(r["channel"], action, why, count=r["count"], t_s=r.get("t_s") or None,
                      file=r["file"], column=r["column"])
     e["file_rows"] = list(r["rows"])

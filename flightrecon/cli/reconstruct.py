@@ -13,6 +13,7 @@ from flightrecon.cli.common import (
     position_option_values,
     progress_bar,
     read_noise_file,
+    read_sns_noise_file,
 )
 from flightrecon.cli.trim import trim_options
 
@@ -86,7 +87,8 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
         rate_hz=rate_hz, k=parse_k(k_text) if k_text else None, arms_form=arms_form,
         arms_linearisation=arms_linearisation, azimuth_model=azimuth_model, sns_model=sns_model,
         sns_form=sns_form, strict=strict,
-        joint_noise=read_noise_file(noise_file) if noise_file else None,
+        joint_noise=(read_noise_file(noise_file) or None) if noise_file else None,
+        sns_noise=read_sns_noise_file(noise_file) if noise_file else None,
         joint_estimate_noise=estimate_noise, start=start, end=end)
     if use_fleet_coefficients and not store_path:
         from flightrecon.store import default_store_path

@@ -81,6 +81,11 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         if {"gnss_vn_mps", "gnss_ve_mps"} <= set(gn.columns):
             gnss["vn_mps"] = gn["gnss_vn_mps"].to_numpy(float)
             gnss["ve_mps"] = gn["gnss_ve_mps"].to_numpy(float)
+        # the receiver's per-fix accuracy (docs/ingest.md, "GNSS as receivers write it")
+        for src, dst in (("gnss_h_sd_m", "h_sd_m"), ("gnss_v_sd_m", "v_sd_m"),
+                         ("gnss_vel_sd_mps", "vel_sd_mps")):
+            if src in gn.columns:
+                gnss[dst] = gn[src].to_numpy(float)
     rd = clean.radar
     radar = pd.DataFrame()
     if len(rd) and {"arms_range_m", "arms_azimuth_deg"} <= set(rd.columns):

@@ -643,6 +643,8 @@ class StepInputs:
         after that sample (steps without fixes: all samples in ``Qb``)
     fix_tau_in : (F,) time from the start of the fix's recorder sample to the fix [s]
 
+    fix_pos_sd, fix_vel_sd : (F,) per-fix sd of the position / velocity components (the
+        receiver's accuracy figures); ``None`` or NaN: ``SnsNoise.pos_sd_m`` / ``vel_sd_mps``
     ``star``, ``dt_star``, ``Qb``, ``Qa``, ``fix_tau_in`` may be left ``None`` when every filter
     step is one recorder sample (then ``star = A / tau`` etc., as :func:`fill_single_sample`).
     """
@@ -669,6 +671,16 @@ class StepInputs:
     Qb: np.ndarray | None = None
     Qa: np.ndarray | None = None
     fix_tau_in: np.ndarray | None = None
+    fix_pos_sd: np.ndarray | None = None
+    fix_vel_sd: np.ndarray | None = None
+
+
+def _per_fix_sd(v: np.ndarray | None, default: float, n: int) -> np.ndarray:
+    """(n,) per-fix standard deviations: ``v`` where finite and positive, else ``default``."""
+    if v is None:
+        return np.full(n, float(default))
+    v = np.asarray(v, float).reshape(-1)
+    return np.ascontiguousarray(np.where(np.isfinite(v) & (v > 0), v, float(default)))
 
 
 def fill_single_sample(inp: StepInputs) -> StepInputs:
@@ -826,6 +838,7 @@ def _sym_into(M, out):
 def _filter_kernel(model, form, x0, P0, t, hgt, A, U, W, fs, fe, flat, flon, fv, ftau,
                    fPA, fPU, fPW, fa, fu, fw, star, dt_star, Qb, Qa, ftau_in, sig, q, pos_sd,
                    vel_sd, rcond):
+    # pos_sd, vel_sd: (F,) per-fix standard deviations of the SNS position / velocity (D)
     # All small-matrix algebra runs in preallocated buffers with loop products (_mm, _mmt):
     # the same operations as the matrix expressions in the module docstring, without the
     # per-step heap allocations and BLAS calls that dominated the run time.
@@ -922,13 +935,13 @@ def _filter_kernel(model, form, x0, P0, t, hgt, A, U, W, fs, fe, flat, flon, fv,
                         Gs[r, l] = Gi[j, l]
                     if j == 0:
                         nu[r] = dn - hh[0]
-                        Rd[r] = pos_sd * pos_sd
+                        Rd[r] = pos_sd[i] * pos_sd[i]
                     elif j == 1:
                         nu[r] = de - hh[1]
-                        Rd[r] = pos_sd * pos_sd
+                        Rd[r] = pos_sd[i] * pos_sd[i]
                     else:
                         nu[r] = fv[i, j - 2] - hh[j]
-                        Rd[r] = vel_sd * vel_sd
+                        Rd[r] = vel_sd[i] * vel_sd[i]
                     r += 1
             _mmt(Gs, Gs, Rt)  # Rt = D D^T + G G^T
             for r in range(m):
@@ -1073,7 +1086,9 @@ def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoi
         _c(inputs.fix_u).reshape(-1, 2), _c(inputs.fix_w).reshape(-1, 2),
         _c(inputs.star).reshape(-1, 3, 2), _c(inputs.dt_star), _c(inputs.Qb).reshape(-1, 7),
         _c(inputs.Qa).reshape(-1, 7), _c(inputs.fix_tau_in), _c(noise.sensor_sd),
-        _c(noise.rw_q), float(noise.pos_sd_m), float(noise.vel_sd_mps), float(noise.rcond))
+        _c(noise.rw_q), _per_fix_sd(inputs.fix_pos_sd, noise.pos_sd_m, len(inputs.fix_lat)),
+        _per_fix_sd(inputs.fix_vel_sd, noise.vel_sd_mps, len(inputs.fix_lat)),
+        float(noise.rcond))
     xp, xs, Pp, Ps, cross, nis, rank = out
     return SnsRun(xp, xs, Pp, Ps, cross, nis, rank, _c(inputs.h).copy(), int(model),
                   int(form))

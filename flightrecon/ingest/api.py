@@ -20,6 +20,7 @@ import pandas as pd
 
 from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
 from flightrecon.ingest.derive import derive_tas, true_from_magnetic
+from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
@@ -184,6 +185,10 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     for r in {r.channel for r in repairs}:
         cols[r] = data[r].to_numpy()
     warns += check_polarity(data, prov)
+    w, rq, nq = apply_gnss_quality(cols, rows.t, prov)
+    warns += w
+    repairs += rq
+    notes += nq
     for name in list(cols):
         ch = BY_NAME.get(name)
         if ch is not None and ch.angle:

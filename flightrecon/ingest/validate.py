@@ -169,10 +169,14 @@ class Repair:
     first_value: float
     bound: tuple[float, float]
     t_s: tuple[float, ...] = ()
+    why: str = ""
 
     def message(self) -> str:
         shown = ", ".join(str(r) for r in self.rows[:10]) + (" ..." if len(self.rows) > 10
                                                               else "")
+        if self.why:
+            return (f"{self.file}: column '{self.column}': {self.count} fix(es) {self.action} "
+                    f"(row(s) {shown}): {self.why}")
         what = ("clipped to the range" if self.action == "clipped"
                 else "masked (treated as missing samples; the cleaning layer fills them)")
         return (f"{self.file}: column '{self.column}': {self.count} value(s) outside the "
@@ -183,7 +187,7 @@ class Repair:
         return {"file": self.file, "column": self.column, "channel": self.channel,
                 "rows": [int(r) for r in self.rows], "count": self.count, "action": self.action,
                 "first_value": float(self.first_value), "range": list(self.bound),
-                "t_s": [float(x) for x in self.t_s]}
+                "t_s": [float(x) for x in self.t_s], "why": self.why}
 
 
 def _suggest_fix(ch, v: np.ndarray) -> str:
