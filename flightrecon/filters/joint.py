@@ -127,6 +127,7 @@ class JointSettings:
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
     noise_tol: float = 0.01                  # EM stops when no variance moves by more
+    noise_factor_bounds: tuple[float, float] = (0.01, 100.0)  # EM variance factors kept inside
 
 
 @dataclass(frozen=True)
@@ -172,6 +173,7 @@ class JointRun:
     iterations: list[dict[str, Any]]
     end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
     roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
+    noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
 
 
 def enu_to_ecef_matrix(lat_deg: float, lon_deg: float) -> np.ndarray:
@@ -966,6 +968,18 @@ def _noise_groups(meas: Measurements) -> np.ndarray:
     return g
 
 
+def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray) -> float:
+    """Log-likelihood of the data by the prediction-error decomposition,
+    ``-1/2 sum_j (nu_j^2 / S_j + ln(2 pi S_j))`` over the selected scalar innovations ``nu``
+    with their variances ``S`` (the exact likelihood of the linearised model for the given
+    noise; Harvey 1989, section 3.4)."""
+    ok = sel & np.isfinite(innov) & np.isfinite(innov_var) & (innov_var > 0)
+    if not ok.any():
+        return float("nan")
+    s = innov_var[ok]
+    return float(-0.5 * np.sum(innov[ok] ** 2 / s + np.log(2.0 * np.pi * s)))
+
+
 def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int, float]:
     """M-step of expectation-maximisation for one variance factor c per group.
 
@@ -1118,8 +1132,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # measurements taken at face value in this pass: full weight, not gated
             use = (weights >= 1.0) & (w_before >= 1.0) & (infl <= 1.0)
             new_scale = scale.copy()
+            lo_b, hi_b = settings.noise_factor_bounds
             for gi, c in _em_noise_scales(groups, res, hph, meas.r, use).items():
-                new_scale[gi] = c
+                new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
             noise_moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
             scale = new_scale
             info["noise_scale"] = {name: float(scale[i])
@@ -1149,6 +1164,41 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         # smoothed covariances of the last pass (its states equal those of the mean-only pass
         # to round-off: same gains, same linearisation)
         xs, Pblk, var, *_ = jk.backward(xf, Pf, xp, Pp, *kern_args, False)
+    noise_check = None
+    if settings.estimate_noise:
+        # the estimated noise must raise the likelihood of the data: the innovations'
+        # log-likelihood (prediction-error decomposition) of the last pass against a forward
+        # pass with the default variances at the same linearisation, weights and clock
+        # offsets; otherwise the defaults are kept (docs/joint.md, "Noise estimation")
+        lo_b, hi_b = settings.noise_factor_bounds
+        xf1, xp1 = np.empty_like(xf), np.empty_like(xp)
+        Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
+        r1 = meas.r.copy()
+        innov1, innov_var1, infl1 = jk.forward(
+            xf1, Pf1, xp1, Pp1, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra,
+            q, meas.start, meas.mtype, meas.z, r1, w_before, tau, meas.H, meas.hrow, meas.d,
+            pnom, hnom, pst, Cst, settings.innovation_gate if settings.robust else 0.0, xlin)
+        # (w_before: the weights the last forward pass ran with)
+        sel = (w_before >= 1.0) & (infl <= 1.0) & (infl1 <= 1.0)
+        ll_est = innovation_loglik(innov, innov_var, sel)
+        ll_def = innovation_loglik(innov1, innov_var1, sel)
+        at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
+                    if np.any(groups == i) and (scale[i] <= lo_b or scale[i] >= hi_b)]
+        accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
+        noise_check = {"loglik_estimated": ll_est, "loglik_default": ll_def,
+                       "measurements": int(sel.sum()), "accepted": accepted,
+                       "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
+        if not accepted:
+            scale = np.ones(len(NOISE_GROUPS))
+            r_used = r1 * infl1
+            kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z,
+                         r_used, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz,
+                         qv_extra)
+            xs, Pblk, var, _, res, rate, hph = jk.backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
+            res_n = res / np.sqrt(r1)
+            xf, innov, innov_var = xf1, innov1, innov_var1
+            lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+        del Pf1, Pp1
     del Pf, Pp
     return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
@@ -1156,7 +1206,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     clock_offsets_s={k: (clock[k], clock_sd[k]) for k in clock},
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
-                    iterations=history, end_points=end_points(inp, nz, roll), roll=roll)
+                    iterations=history, end_points=end_points(inp, nz, roll), roll=roll,
+                    noise_check=noise_check)
 
 
 def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:

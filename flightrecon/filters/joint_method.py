@@ -273,6 +273,16 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
             warnings.append(f"joint: source '{name}' inconsistent with the others in "
                             f"{st['beyond_5_sigma']} measurements (spans {st['flagged_spans_s'][:5]}"
                             " s); down-weighted")
+    nc = run.noise_check
+    if nc is not None and not nc["accepted"]:
+        warnings.append("joint: the estimated noise did not raise the likelihood of the data "
+                        f"(log-likelihood {nc['loglik_estimated']:.1f} vs "
+                        f"{nc['loglik_default']:.1f} with the defaults): the default noise is "
+                        "kept")
+    elif nc is not None and nc["factors_at_bound"]:
+        warnings.append(f"joint: noise factors at their bound {nc['bounds']}: "
+                        f"{', '.join(nc['factors_at_bound'])} (the noise settings or the data "
+                        "of these sources are far off)")
     if settings.estimate_noise and not run.iterations[-1].get("converged"):
         warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
                         "iterations; the last factors are used")
@@ -300,6 +310,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "corrections": _corrections(run),
         "clock_offsets_s": {k: {"value": o, "sd": sd} for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
+        "noise_check": run.noise_check,
         "end_points": [{"which": e["which"], "model": e["model"], "t_s": e["t_s"],
                         "lat_deg": e["point"][0], "lon_deg": e["point"][1],
                         "runway_true_deg": (None if e["runway_rad"] is None
