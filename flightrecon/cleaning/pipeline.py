@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning.despike import DespikeSettings
+from flightrecon.cleaning.attitude import heading_from_rates, heading_needed, provisional_heading
 from flightrecon.cleaning.origin import with_origin
 from flightrecon.cleaning.phases import PhaseSettings, detect_phases_with_report
 from flightrecon.cleaning.report import report_entry
@@ -132,6 +133,22 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
                                        count=len(tables[g]), offset_s=off))
     meta, rep = with_origin(flight.meta, grid, tables["gnss"], tables["radar"])
     report.extend(rep)
+    why = heading_needed(grid)
+    if why is not None:
+        # heading from the body rates: a provisional heading (from 0 deg) lets the phase
+        # detector find the take-off and landing rolls (its lift-off rule needs the vertical
+        # only), then the anchored heading replaces it (cleaning/attitude.py)
+        p0 = meta.departure if meta.departure is not None else meta.origin
+        g0 = grid.copy()
+        g0["heading_deg"] = provisional_heading(grid)
+        g0["heading_valid"] = True
+        try:
+            ph0 = detect_phases_with_report(g0, settings.phases or PhaseSettings(),
+                                            lat_deg=p0.lat_deg if p0 is not None else 45.0)[0]
+        except FlightReconError:
+            ph0 = None
+        grid, rep = heading_from_rates(grid, tables["gnss"], meta, ph0, why)
+        report.extend(rep)
     phases = None
     if settings.phases is not None:
         p0 = meta.departure if meta.departure is not None else meta.origin

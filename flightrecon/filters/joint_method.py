@@ -259,9 +259,29 @@ def _corrections(run: JointRun) -> dict[str, Any]:
     }
 
 
+def _derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """A heading propagated from the body rates (``heading_sd_deg`` on the grid, cleaning's
+    ``heading_from_rates``) has a slowly varying error (anchor offset, gyro-bias drift): the
+    heading-bias state's prior is widened to its largest sd and its random walk to what lets
+    the bias follow that sd's growth over the record (both never below the settings)."""
+    g = clean.grid
+    if "heading_sd_deg" not in g.columns:
+        return settings
+    sd = g["heading_sd_deg"].to_numpy(float)
+    if not np.isfinite(sd).any():
+        return settings
+    nz = settings.noise
+    span = max(float(g["t_s"].iloc[-1] - g["t_s"].iloc[0]), 1.0)
+    prior = max(nz.heading_bias_deg, float(np.nanmax(sd)))
+    rw = max(nz.heading_bias_rw_deg_sqrt_s, float(np.nanmax(sd)) / np.sqrt(span))
+    return replace(settings, noise=replace(nz, heading_bias_deg=prior,
+                                           heading_bias_rw_deg_sqrt_s=rw))
+
+
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
     """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
     settings = settings or JointSettings()
+    settings = _derived_heading_noise(clean, settings)
     inp = joint_inputs(clean)
     run = smooth_joint(inp, settings)
     track = joint_track(clean, run)

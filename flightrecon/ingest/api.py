@@ -118,6 +118,10 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
         present.add("tas_mps")
         mt = dataclasses.replace(mt, derived={**mt.derived, "tas_mps": "cas" if "cas_mps"
                                               in present else "ias"})
+    if "heading_deg" not in present and {"q_dps", "r_dps"} <= present:
+        present.add("heading_deg")
+        notes.append("no heading channel: the heading is propagated from the body rates at "
+                     "cleaning (docs/signals.md, 'Heading from the body rates')")
     check_required(present, str(log), ignored,
                    mapping_hint="" if mp is not None else _mapping_hint(log))
     notes += list(mt.notes)

@@ -436,6 +436,8 @@ def _check_turn_polarity(sampled: _Sampled, prov: Provenance) -> None:
     ``g0 tan(roll) / V`` (METHODS.md conventions: roll + right wing down, heading clockwise), so
     a right bank turns the heading clockwise.  If at least 32 clearly turning samples mostly
     (> 80 %) turn against the bank, roll or heading has the wrong sign."""
+    if "heading_deg" not in sampled.data.columns:
+        return
     _, _, hdg, th = sampled("heading_deg")
     if len(hdg) < 3:
         return
