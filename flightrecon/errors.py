@@ -15,7 +15,8 @@ Exit codes
 5     validation error: non-numeric, impossible values, bad timestamps, polarity
 6     mapping file error
 7     metadata / sidecar error (airfields, station, aircraft)
-8     estimation did not converge or diverged (strict mode)
+8     no physically possible result (every method failed or is unhealthy); with
+      ``--strict``, any method that did not converge or is unhealthy
 9     output error: would overwrite an input, cannot write
 10    coefficient store error
 130   interrupted (Ctrl-C)
@@ -113,6 +114,10 @@ class ConvergenceError(FlightReconError):
     """An estimator did not converge or diverged, in strict mode."""
 
     exit_code = 8
+
+
+class NoResultError(ConvergenceError):
+    """No method produced a finite, physically possible track: there is no result to write."""
 
 
 class OutputError(FlightReconError):

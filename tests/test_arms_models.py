@@ -7,6 +7,7 @@ from scipy.linalg import expm
 
 from flightrecon.errors import ValidationError
 from flightrecon.filters import arms as A
+from flightrecon.filters.arms import filter as arms_filter
 from flightrecon.geo.frames import TangentPlane
 
 
@@ -128,16 +129,16 @@ def test_kernel_update_matches_numpy_reference(lin, conv_at):
     """One predict + update of the numba kernel against a textbook numpy EKF step."""
     m = A.ArmsModel(q_m2ps3=0.3, sigma_air_mps=0.4)
     t = np.array([0.0, 2.5])
-    F = A.joint_transition(A._dt(t), m.alpha_ps)
-    Q = A.joint_process_noise(A._dt(t), m.q_m2ps3, m.alpha_ps, m.gm_sigma_mps)
+    F = A.joint_transition(arms_filter._dt(t), m.alpha_ps)
+    Q = A.joint_process_noise(arms_filter._dt(t), m.q_m2ps3, m.alpha_ps, m.gm_sigma_mps)
     x0 = np.array([20e3, 80.0, -35e3, -40.0, 3.0, -2.0])
     P0 = np.diag([300.0, 5.0, 250.0, 4.0, 10.0, 12.0]) ** 2
     radar = np.array([[np.nan, np.nan], [40.4e3, np.deg2rad(150.1)]])
     sd = np.array([[1.0, 1.0], [m.sigma_range_m, m.sigma_azimuth_rad]])
     air = np.array([[np.nan, np.nan], [83.0, -43.5]])
     Rv = m.sigma_air_mps**2 * np.eye(2)
-    code = A._lin_code(lin, conv_at)
-    out = A._arms_kernel(x0, P0, F, Q, radar, sd, air, Rv, code)
+    code = arms_filter._lin_code(lin, conv_at)
+    out = arms_filter._arms_kernel(x0, P0, F, Q, radar, sd, air, Rv, code)
     xp = F[1] @ x0
     Pp = F[1] @ P0 @ F[1].T + Q[1]
     Hv = np.zeros((2, 6))

@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import flightrecon.filters.joint as joint
 from flightrecon.cleaning import clean_flight
+from flightrecon.filters.joint import noise as joint_noise
+from flightrecon.filters.joint import smoother as joint_smoother
 from flightrecon.filters.joint import JointSettings, innovation_loglik
 from flightrecon.filters.joint_method import run_joint
 from flightrecon.ingest import load_flight
@@ -52,14 +53,14 @@ def test_bounds_hold(clean):
 def test_worse_estimate_rejected(clean, monkeypatch):
     """An M-step that inflates the GNSS variances 50 times (a wrong estimate) lowers the
     likelihood: the defaults are kept, with a warning, and the track is the default one."""
-    real = joint._em_noise_scales
+    real = joint_noise._em_noise_scales
 
     def bad(groups, res, hph, r0, use, min_count=30):
         out = real(groups, res, hph, r0, use, min_count)
-        gi = list(joint.NOISE_GROUPS.values()).index("gnss_pos")
+        gi = list(joint_noise.NOISE_GROUPS.values()).index("gnss_pos")
         return {**{k: 1.0 for k in out}, gi: 50.0}
 
-    monkeypatch.setattr(joint, "_em_noise_scales", bad)
+    monkeypatch.setattr(joint_smoother, "_em_noise_scales", bad)
     r = run_joint(clean, settings=JointSettings(estimate_noise=True))
     nc = r.summary["noise_check"]
     assert not nc["accepted"] and nc["loglik_estimated"] < nc["loglik_default"]

@@ -3,7 +3,10 @@
 import numpy as np
 import pytest
 
-from flightrecon.filters import joint_kernels as jk
+from flightrecon.filters.joint import dynamics as jd
+from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint import observation as jo
+from flightrecon.filters.joint import passes as jp
 from flightrecon.filters.joint import enu_to_ecef_matrix
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
@@ -14,16 +17,16 @@ def _setup(rng):
     ex, ey, ez = geodetic_to_ecef(lat, lon, h)
     p = np.array([float(ex), float(ey), float(ez)])
     Cen = ned_to_ecef_matrix(np.array([lat]), np.array([lon]))
-    x = np.zeros(jk.N_STATE)
-    x[jk.IP:jk.IP + 3] = p + rng.normal(0, 50, 3)
-    x[jk.IV:jk.IV + 3] = [150.0, -80.0, -5.0]
-    x[jk.IW:jk.IW + 2] = [10.0, -7.0]
-    x[jk.IPSI] = np.radians(1.2)
-    x[jk.IS] = 0.02
-    x[jk.IBH] = 12.0
-    x[jk.IC] = 0.03
-    x[jk.IDW] = 0.01
-    x[jk.IDC] = np.radians(0.4)
+    x = np.zeros(jl.N_STATE)
+    x[jl.IP:jl.IP + 3] = p + rng.normal(0, 50, 3)
+    x[jl.IV:jl.IV + 3] = [150.0, -80.0, -5.0]
+    x[jl.IW:jl.IW + 2] = [10.0, -7.0]
+    x[jl.IPSI] = np.radians(1.2)
+    x[jl.IS] = 0.02
+    x[jl.IBH] = 12.0
+    x[jl.IC] = 0.03
+    x[jl.IDW] = 0.01
+    x[jl.IDC] = np.radians(0.4)
     st = (40.3, 49.7, 20.0)
     sx, sy, sz = geodetic_to_ecef(*st)
     pst = np.array([float(sx), float(sy), float(sz)])
@@ -31,23 +34,23 @@ def _setup(rng):
     return x, p, Cen, pst, Cst, h
 
 
-@pytest.mark.parametrize("mtype", [jk.LINEAR, jk.RANGE, jk.AZIMUTH, jk.ELEVATION, jk.TAS,
-                                   jk.HEADING, jk.BARO, jk.DOPPLER, jk.TRACK])
+@pytest.mark.parametrize("mtype", [jl.LINEAR, jl.RANGE, jl.AZIMUTH, jl.ELEVATION, jl.TAS,
+                                   jl.HEADING, jl.BARO, jl.DOPPLER, jl.TRACK])
 def test_measurement_jacobian_vs_central_differences(mtype):
     rng = np.random.default_rng(mtype)
     x, p, Cen, pst, Cst, h = _setup(rng)
-    mH = rng.normal(size=(1, jk.N_STATE))
+    mH = rng.normal(size=(1, jl.N_STATE))
     args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.zeros(1, np.int64),
             np.array([1.5]), Cen,
             p[None, :], np.array([h - 10.0]), pst, Cst)
-    hx, H = jk.measure(0, 0, x, *args)
-    num = np.empty(jk.N_STATE)
-    for i in range(jk.N_STATE):
+    hx, H = jo.measure(0, 0, x, *args)
+    num = np.empty(jl.N_STATE)
+    for i in range(jl.N_STATE):
         step = 1e-3 * max(1.0, abs(x[i])) if i >= 3 else 1e-2
         xp, xm = x.copy(), x.copy()
         xp[i] += step
         xm[i] -= step
-        num[i] = (jk.measure(0, 0, xp, *args)[0] - jk.measure(0, 0, xm, *args)[0]) / (2 * step)
+        num[i] = (jo.measure(0, 0, xp, *args)[0] - jo.measure(0, 0, xm, *args)[0]) / (2 * step)
     scale = np.max(np.abs(H)) + 1e-30
     # central differences: truncation O(step^2) on smooth functions; 1e-6 of the largest
     # gradient component is far above rounding (ECEF coordinates ~6e6 m, eps 1e-16)
@@ -58,8 +61,8 @@ def test_transition_propagates_held_acceleration():
     """With no biases, one step moves p by C(v dt + dP) and v by dV (the input increments)."""
     rng = np.random.default_rng(3)
     x, p, Cen, *_ = _setup(rng)
-    x[jk.IBA:] = 0.0
-    x[jk.IG:jk.IG + 2] = [0.004, -0.002]   # wind gradient with height [(m/s)/m]
+    x[jl.IBA:] = 0.0
+    x[jl.IG:jl.IG + 2] = [0.004, -0.002]   # wind gradient with height [(m/s)/m]
     N = 2
     dt = np.array([0.0, 0.25])
     Cen2 = np.repeat(Cen, N, axis=0)
@@ -67,18 +70,18 @@ def test_transition_propagates_held_acceleration():
     acc = np.array([[0, 0, 0], [0.4, -0.2, 0.1]])
     Csf = np.zeros((N, 3, 3))
     dz = np.array([0.0, 30.0])        # the nominal climbs 30 m over the step
-    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0, dz)
+    F = jd.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0, dz)
     xn = F @ x
-    np.testing.assert_allclose(xn[jk.IP:jk.IP + 3], x[jk.IP:jk.IP + 3] + Cen[0] @ x[3:6] * 0.25,
+    np.testing.assert_allclose(xn[jl.IP:jl.IP + 3], x[jl.IP:jl.IP + 3] + Cen[0] @ x[3:6] * 0.25,
                                atol=1e-9)
     np.testing.assert_allclose(xn[3:6], x[3:6], atol=1e-12)
     # the wind moves along its gradient with height: w+ = w + g dz
-    np.testing.assert_allclose(xn[jk.IW:jk.IW + 2],
-                               x[jk.IW:jk.IW + 2] + 30.0 * x[jk.IG:jk.IG + 2], atol=1e-12)
-    np.testing.assert_array_equal(xn[jk.IG:jk.IG + 2], x[jk.IG:jk.IG + 2])
+    np.testing.assert_allclose(xn[jl.IW:jl.IW + 2],
+                               x[jl.IW:jl.IW + 2] + 30.0 * x[jl.IG:jl.IG + 2], atol=1e-12)
+    np.testing.assert_array_equal(xn[jl.IG:jl.IG + 2], x[jl.IG:jl.IG + 2])
     # heading bias of +1 mrad rotates the measured acceleration: true a_N = a_N + a_E dpsi
-    y = np.zeros(jk.N_STATE)
-    y[jk.IPSI] = 1e-3
+    y = np.zeros(jl.N_STATE)
+    y[jl.IPSI] = 1e-3
     dv = (F @ y)[3:6]
     np.testing.assert_allclose(dv, [acc[1, 1] * 1e-3 * 0.25, -acc[1, 0] * 1e-3 * 0.25, 0.0])
 
@@ -98,40 +101,40 @@ def test_sparse_prediction_equals_dense_products():
     Cnb = np.repeat(ned_to_ecef_matrix(np.array([10.0]), np.array([20.0])), N, axis=0)
     Csf = rng.normal(size=(N, 3, 3))
     acc = rng.normal(size=(N, 3))
-    F = jk.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0,
+    F = jd.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0,
                       rng.normal(size=N) * 20.0)
-    n = jk.N_STATE
+    n = jl.N_STATE
     cols = np.empty((n, n), np.int64)
     vals = np.empty((n, n))
     cnt = np.empty(n, np.int64)
-    jk._sparse_rows(F, cols, vals, cnt)
+    jd._sparse_rows(F, cols, vals, cnt)
     assert cnt.sum() == np.count_nonzero(F)
     P = _random_spd(rng, n)
     want = F @ P @ F.T
     got = P.copy()
-    jk._predict_cov(got, cols, vals, cnt, np.empty((n, n)))
+    jd._predict_cov(got, cols, vals, cnt, np.empty((n, n)))
     # entries up to ~1e2 * 1e2; 1e-12 relative is a few ulps of the largest term summed
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
     assert np.array_equal(got, got.T)
     y = rng.normal(size=n)
     out = np.empty(n)
-    jk._sparse_matvec(cols, vals, cnt, y, out)
+    jd._sparse_matvec(cols, vals, cnt, y, out)
     np.testing.assert_allclose(out, F @ y, rtol=1e-13, atol=1e-13 * np.abs(F @ y).max())
-    jk._sparse_rmatvec(cols, vals, cnt, y, out)
+    jd._sparse_rmatvec(cols, vals, cnt, y, out)
     np.testing.assert_allclose(out, F.T @ y, rtol=1e-13, atol=1e-13 * np.abs(F.T @ y).max())
 
 
 def test_cholesky_solve_and_its_refusal():
     rng = np.random.default_rng(5)
-    n = jk.N_STATE
+    n = jl.N_STATE
     A = _random_spd(rng, n)
     b = rng.normal(size=n)
     y = np.empty(n)
-    assert jk._cholesky_solve(A, b, np.empty((n, n)), y)
+    assert jd._cholesky_solve(A, b, np.empty((n, n)), y)
     # condition number of A is O(10): 1e-12 is far above round-off, far below any real error
     np.testing.assert_allclose(A @ y, b, atol=1e-12)
     A[3, 3] = -1.0
-    assert not jk._cholesky_solve(A, b, np.empty((n, n)), y)
+    assert not jd._cholesky_solve(A, b, np.empty((n, n)), y)
 
 
 def test_mean_only_backward_pass_gives_the_covariance_pass_states():
@@ -181,13 +184,13 @@ def test_transition_applies_attitude_biases_with_the_right_sign():
     Cnb = np.repeat(np.eye(3)[None], N, axis=0)
     Jatt = np.zeros((N, 3, 2))
     Jatt[1, :, 1] = [-1.0, 0.0, 0.0]  # level, f = (0, 0, -1) g: dC/dtheta f = (-1, 0, 0)
-    F = jk.transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0,
+    F = jd.transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0,
                       np.zeros(N))
-    y = np.zeros(jk.N_STATE)
-    y[jk.IATT + 1] = 1e-3
+    y = np.zeros(jl.N_STATE)
+    y[jl.IATT + 1] = 1e-3
     # measured pitch too high by 1 mrad tilts the measured specific force backward: the true
     # acceleration is g0 * 1e-3 further north than measured
-    np.testing.assert_allclose((F @ y)[3:6], [jk.G0 * 1e-3, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose((F @ y)[3:6], [jl.G0 * 1e-3, 0.0, 0.0], atol=1e-15)
 
 
 def _step_mean(x, idx, t_in):
@@ -208,7 +211,11 @@ def _step_mean(x, idx, t_in):
 
 
 def test_fused_attitude_step_means_equal_the_per_sample_route():
-    from flightrecon.filters.joint import _attitude_step_means, _state_grid, attitude_jacobian
+    from flightrecon.filters.joint.nominal import (
+        _attitude_step_means,
+        _state_grid,
+        attitude_jacobian,
+    )
     from flightrecon.geo.kinematics import body_to_ned_matrix
 
     rng = np.random.default_rng(9)
@@ -257,7 +264,7 @@ def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypat
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
     inp = joint_inputs(clean_flight(load_flight(log)))
     cap = {}
-    orig_fw, orig_bw = jk.forward, jk.backward
+    orig_fw, orig_bw = jp.forward, jp.backward
 
     def fw(*a):
         cap["fw"] = a
@@ -267,11 +274,11 @@ def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypat
         cap["bw"] = a
         return orig_bw(*a)
 
-    monkeypatch.setattr(jk, "forward", fw)
-    monkeypatch.setattr(jk, "backward", bw)
+    monkeypatch.setattr(jp, "forward", fw)
+    monkeypatch.setattr(jp, "backward", bw)
     J.smooth_joint(inp, J.JointSettings(iterations=1))
     a = list(cap["fw"])
-    n = jk.N_STATE
+    n = jl.N_STATE
     a[3] = np.empty((len(a[0]), n, n))           # store P_p this time
     orig_fw(*a)
     b = list(cap["bw"])
@@ -280,8 +287,8 @@ def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypat
     for x, y in zip(with_pp, without):
         np.testing.assert_array_equal(x, y)
     b_mean = b[4:-1]                               # backward_mean has no residuals flag
-    mean = jk.backward_mean(a[0], a[1], a[2], np.empty((0, n, n)), *b_mean)
-    np.testing.assert_array_equal(mean[0], jk.backward_mean(a[0], a[1], a[2], a[3], *b_mean)[0])
+    mean = jp.backward_mean(a[0], a[1], a[2], np.empty((0, n, n)), *b_mean)
+    np.testing.assert_array_equal(mean[0], jp.backward_mean(a[0], a[1], a[2], a[3], *b_mean)[0])
     # the covariance pass with and without residuals: the same covariances
     with_res = orig_bw(a[0], a[1], a[2], a[3], *b[4:-1], True)
     np.testing.assert_array_equal(with_res[1], with_pp[1])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import sabziev_reference as sab_ref
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
@@ -123,13 +124,13 @@ def test_discrete_equals_closed_form_for_constant_inputs():
     for k in (-0.05, 0.01):
         a, v = np.full(n, 0.2), np.full(n, 80.0)
         Q, _ = sz.propagate_path(sz.horizontal_step(k, dt), (0.0, 75.0), a, v, k)
-        x, xd = sz.closed_form_horizontal(T, k, 75.0, lambda s: 0.2, lambda s: 80.0)
+        x, xd = sab_ref.closed_form_horizontal(T, k, 75.0, lambda s: 0.2, lambda s: 80.0)
         assert Q[-1, 0] == pytest.approx(x, rel=1e-9)
         assert Q[-1, 1] == pytest.approx(xd, rel=1e-9)
     for k2 in (-0.01, 1e-4, 0.0):
         a, h = np.full(n, 0.05), np.full(n, 30.0)
         Q, _ = sz.propagate_path(sz.vertical_step(k2, dt), (0.0, 3.0), a, h, k2)
-        y, yd = sz.closed_form_vertical(T, k2, 3.0, lambda s: 0.05, lambda s: 30.0)
+        y, yd = sab_ref.closed_form_vertical(T, k2, 3.0, lambda s: 0.05, lambda s: 30.0)
         assert Q[-1, 0] == pytest.approx(y, rel=1e-9)
         assert Q[-1, 1] == pytest.approx(yd, rel=1e-9)
 
@@ -139,9 +140,9 @@ def _sin_errors(kind: str, k: float, hold: str, dts) -> np.ndarray:
     a_fun = lambda s: 0.5 * np.sin(0.7 * s)
     w_fun = lambda s: 50.0 + 10.0 * np.cos(0.4 * s)
     if kind == "horizontal":
-        ref = sz.closed_form_horizontal(T, k, 40.0, a_fun, w_fun)[0]
+        ref = sab_ref.closed_form_horizontal(T, k, 40.0, a_fun, w_fun)[0]
     else:
-        ref = sz.closed_form_vertical(T, k, 1.0, a_fun, w_fun)[0]
+        ref = sab_ref.closed_form_vertical(T, k, 1.0, a_fun, w_fun)[0]
     errs = []
     for dt in dts:
         t = np.arange(round(T / dt) + 1) * dt
@@ -176,8 +177,8 @@ def test_paper_vertical_closed_form_with_restored_half_matches_the_ode():
     al, T, y0 = 0.02, 100.0, 2.0
     a_fun = lambda s: 0.1 * np.cos(0.3 * s)
     h_fun = lambda s: 5.0 + 0.5 * s
-    F = sz.paper_vertical_residual_alpha(al, T, y0, a_fun, h_fun, y_T=0.0)
-    y, _ = sz.closed_form_vertical(T, al * al, y0, a_fun, h_fun)
+    F = sab_ref.paper_vertical_residual_alpha(al, T, y0, a_fun, h_fun, y_T=0.0)
+    y, _ = sab_ref.closed_form_vertical(T, al * al, y0, a_fun, h_fun)
     assert F == pytest.approx(y, rel=1e-10)
     printed = F + y0 * np.sinh(al * T) / (2 * al)
     assert abs(printed - y) > 100.0
@@ -192,15 +193,15 @@ def test_paper_derivatives_match_discrete_sensitivities():
     a_fun = lambda s: 0.2 * np.sin(0.5 * s)
     h_fun = lambda s: 10.0 + 3.0 * np.cos(0.2 * s)
     al = 0.03
-    dFa = sz.paper_vertical_dresidual_dalpha(al, T, 1.5, a_fun, h_fun)
+    dFa = sab_ref.paper_vertical_dresidual_dalpha(al, T, 1.5, a_fun, h_fun)
     _, dk = sz.vertical_end_point(al * al, dt, a_fun(t), h_fun(t), 1.5)
     assert 2 * al * dk == pytest.approx(dFa, rel=1e-4)
     v_fun = lambda s: 60.0 + 5.0 * np.sin(0.1 * s)
     for k in (-0.03, 0.02):
-        dF = sz.paper_horizontal_dresidual_dk(k, T, 58.0, a_fun, v_fun)
+        dF = sab_ref.paper_horizontal_dresidual_dk(k, T, 58.0, a_fun, v_fun)
         _, dk = sz.horizontal_end_point(k, dt, a_fun(t), v_fun(t), 58.0)
         assert dk == pytest.approx(dF, rel=1e-4)
-        F = sz.paper_horizontal_residual(k, T, 58.0, a_fun, v_fun, x_T=0.0)
+        F = sab_ref.paper_horizontal_residual(k, T, 58.0, a_fun, v_fun, x_T=0.0)
         x, _ = sz.horizontal_end_point(k, dt, a_fun(t), v_fun(t), 58.0)
         assert x == pytest.approx(F, rel=1e-6)
 

@@ -17,6 +17,7 @@ from test_sabziev_flights import synthetic_flight
 from flightrecon.errors import ValidationError
 from flightrecon.fusion import sabziev as sz
 from flightrecon.fusion.newton import find_coefficient
+from flightrecon.fusion.sabziev import discrete as sz_discrete
 
 DT = 0.125
 
@@ -27,7 +28,7 @@ def test_compiled_step_rows_equal_the_step_coefficients(vertical, hold):
     """``_step_rows`` against :func:`horizontal_step` / :func:`vertical_step`, both branches,
     the series region (|k h| < 1) and the closed-form region, and k = 0: exactly equal."""
     ks = np.array([-40.0, -3.0, -0.5, -1e-3, -1e-9, 0.0, 1e-9, 1e-3, 0.5, 3.0, 40.0])
-    rows = sz._step_rows(vertical, ks, DT, hold == "linear")
+    rows = sz_discrete._step_rows(vertical, ks, DT, hold == "linear")
     step = sz.vertical_step if vertical else sz.horizontal_step
     for j, k in enumerate(ks):
         c = step(k, DT, hold)

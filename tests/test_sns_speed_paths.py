@@ -12,6 +12,8 @@ import pytest
 from _scripts import load_script
 
 from flightrecon.filters import sns as core
+from flightrecon.filters.sns import linalg as sns_linalg
+from flightrecon.filters.sns import output as sns_output
 from flightrecon.filters import sns_method
 from flightrecon.filters.sns_method import run_sns, solve_sns
 from flightrecon.geo.frames import output_plane
@@ -35,13 +37,13 @@ def test_small_matrix_products_equal_numpy():
     dg = RNG.normal(size=11)
     big = np.zeros((6, 6))
     out = big[:5, :4]  # a strided view, as the kernel uses
-    core._mmt(A, Bm, out)
+    sns_linalg._mmt(A, Bm, out)
     np.testing.assert_allclose(out, A @ Bm.T, rtol=1e-13, atol=1e-13)
     out2 = np.zeros((5, 3))
-    core._mm(A, C, out2)
+    sns_linalg._mm(A, C, out2)
     np.testing.assert_allclose(out2, A @ C, rtol=1e-13, atol=1e-13)
     acc = np.ones((5, 4))
-    core._mdmt_acc(A, dg, Bm, acc)
+    sns_linalg._mdmt_acc(A, dg, Bm, acc)
     np.testing.assert_allclose(acc, 1.0 + A @ np.diag(dg) @ Bm.T, rtol=1e-13, atol=1e-13)
 
 
@@ -79,7 +81,7 @@ def test_jacobi_eigenvalues_match_lapack():
     S = X + X.T
     A = S.copy()
     V = np.empty((6, 6))
-    core._jacobi_eigh(A, V)
+    sns_linalg._jacobi_eigh(A, V)
     lam = np.sort(np.diag(A))
     scale = np.abs(lam).max()
     np.testing.assert_allclose(lam, np.linalg.eigvalsh(S), atol=1e-13 * scale)
@@ -97,10 +99,10 @@ def test_boxplus_with_precomputed_trig_equals_boxplus():
         h = RNG.uniform(-100.0, 12000.0)
         dn, de = RNG.uniform(-2000.0, 2000.0, 2)
         mr, nr = core.radii(lat, 0.0)
-        a = core._boxplus_pre(lat, lon, np.sin(lat), np.cos(lat), mr, nr, dn, de, h)
+        a = sns_output._boxplus_pre(lat, lon, np.sin(lat), np.cos(lat), mr, nr, dn, de, h)
         b = core.boxplus(lat, lon, dn, de, h)
         assert abs(a[0] - b[0]) < 1e-15 and abs(a[1] - b[1]) < 1e-15
-    a = core._boxplus_pre(0.7, 0.1, np.sin(0.7), np.cos(0.7), *core.radii(0.7, 0.0), 5e4, 1e3,
+    a = sns_output._boxplus_pre(0.7, 0.1, np.sin(0.7), np.cos(0.7), *core.radii(0.7, 0.0), 5e4, 1e3,
                           0.0)
     assert a == core.boxplus(0.7, 0.1, 5e4, 1e3, 0.0)
 

@@ -102,7 +102,8 @@ def test_combine_assembles_the_result_table():
     method's track unchanged)."""
     from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
     from flightrecon.geo.frames import output_plane
-    from flightrecon.pipeline import _height_to_plane_up, combine
+    from flightrecon.pipeline import combine
+    from flightrecon.pipeline.combine import _height_to_plane_up
     from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position
 
     n = 400

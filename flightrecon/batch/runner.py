@@ -109,6 +109,9 @@ def _fit(out: dict[str, Any]):
 
     if out.get("sabziev") is None:
         raise MetadataError("the Sabziev fusion did not run on this flight")
+    if out["sabziev"].get("status") != "ok":  # an impossible track is not the aircraft's
+        raise MetadataError(f"the Sabziev fit is {out['sabziev'].get('status')} "
+                            f"({out['sabziev'].get('reason')}): not recorded")
     if not out.get("aircraft_id"):
         raise MetadataError("no aircraft id")
     inputs = out.get("inputs") or []

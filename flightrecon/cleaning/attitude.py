@@ -48,7 +48,7 @@ from flightrecon.cleaning.report import report_entry
 from flightrecon.errors import ValidationError
 from flightrecon.types import FlightMeta, FlightPhases
 
-__all__ = ["heading_needed", "heading_from_rates", "provisional_heading"]
+__all__ = ["heading_from_rates", "heading_needed", "provisional_heading"]
 
 RUNWAY_SD_DEG = 1.0
 #: prior sd of each gyro bias (a tactical-grade rate gyro: 0.02 deg/s = 72 deg/h)

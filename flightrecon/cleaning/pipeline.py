@@ -14,8 +14,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from flightrecon.cleaning.attitude import (
+    heading_from_rates,
+    heading_needed,
+    provisional_heading,
+)
 from flightrecon.cleaning.despike import DespikeSettings
-from flightrecon.cleaning.attitude import heading_from_rates, heading_needed, provisional_heading
 from flightrecon.cleaning.origin import with_origin
 from flightrecon.cleaning.phases import PhaseSettings, detect_phases_with_report
 from flightrecon.cleaning.report import report_entry

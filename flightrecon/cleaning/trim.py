@@ -20,7 +20,7 @@ from flightrecon.types import Flight
 __all__ = ["parse_time_bound", "trim_flight"]
 
 
-def parse_time_bound(value: float | int | str | None, epoch_utc: str | None,
+def parse_time_bound(value: float | str | None, epoch_utc: str | None,
                      what: str = "bound") -> float | None:
     """``value`` as seconds from ``epoch_utc``: a number (or numeric text) is taken as ``t_s``,
     other text as a UTC timestamp.

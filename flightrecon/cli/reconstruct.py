@@ -53,7 +53,12 @@ from flightrecon.cli.trim import trim_options
 @click.option("--use-fleet-coefficients", is_flag=True,
               help="Reconstruct with the aircraft's mean k1..k3 from --store (no arrival "
                    "point needed).")
-@click.option("--strict", is_flag=True, help="Fail on the first method that fails to converge.")
+@click.option("--strict", is_flag=True,
+              help="Fail (exit 8) on the first method that fails, does not converge or is "
+                   "unhealthy (its track not physically possible).")
+@click.option("--keep-unhealthy", is_flag=True,
+              help="When no method is healthy, still write the methods' tracks under their "
+                   "prefixes for inspection (the default columns stay empty; exit 8).")
 @click.option("--workers", type=click.IntRange(min=1),
               help="Threads for the estimators (default: 2 on a machine with 2 cores or more; "
                    "the result does not depend on it).")
@@ -71,7 +76,7 @@ from flightrecon.cli.trim import trim_options
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
             station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
             azimuth_model, sns_model, sns_form, noise_file, estimate_noise, store_path,
-            use_fleet_coefficients, strict, workers, output, fmt, summary_path,
+            use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt, summary_path,
             report_dir, start=None, end=None) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary."""
     from flightrecon.export.atomic import check_not_input, sweep_leftovers
@@ -86,7 +91,7 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
         rate_hz=rate_hz, k=parse_k(k_text) if k_text else None, arms_form=arms_form,
         arms_linearisation=arms_linearisation, azimuth_model=azimuth_model, sns_model=sns_model,
-        sns_form=sns_form, strict=strict,
+        sns_form=sns_form, strict=strict, keep_unhealthy=keep_unhealthy,
         joint_noise=(read_noise_file(noise_file) or None) if noise_file else None,
         sns_noise=read_sns_noise_file(noise_file) if noise_file else None,
         joint_estimate_noise=estimate_noise, start=start, end=end)
@@ -120,9 +125,11 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
             click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
                        f"(flights per axis {fc['flights']})", err=True)
         sc = rec.summary.get("stored_coefficients")
-        if sc:
+        if sc and sc.get("recorded"):
             click.echo(f"  recorded k = {sc['k']} for {sc['aircraft_id']}/{sc['flight_id']} "
                        f"in {sc['store']}", err=True)
+        elif sc:
+            click.echo(f"  coefficients not recorded in {sc['store']}: {sc['reason']}", err=True)
         for name, st in rec.summary["methods"].items():
             line = f"  {name:8s} {st.get('status')}"
             if st.get("reason"):
@@ -130,7 +137,15 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
             click.echo(line, err=True)
         for w in rec.summary["warnings"]:
             click.echo(f"  warning: {w}", err=True)
+        res = rec.summary.get("result") or {}
+        if res.get("method"):
+            click.echo(f"  result from {res['method']}: {res['why']}", err=True)
     click.echo(f"wrote {out}")
     click.echo(f"wrote {summ}")
     if report_dir:
         click.echo(f"wrote {page}")
+    if not (rec.summary.get("result") or {}).get("method"):
+        from flightrecon.errors import NoResultError
+
+        raise NoResultError("no method produced a physically possible track; the unhealthy "
+                            f"tracks were written for inspection to {out}")

@@ -16,7 +16,7 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
-from flightrecon.filters import joint_kernels as jk
+from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint import (
     SOURCES,
     JointInputs,
@@ -239,23 +239,23 @@ def _corrections(run: JointRun) -> dict[str, Any]:
                 "unit": unit}
 
     return {
-        "heading_bias_deg": item(jk.IPSI, np.degrees(1.0), "deg (measured - true)"),
-        "tas_scale": item(jk.IS, 1.0, "TAS_measured = (1 + s) TAS_true"),
-        "baro_offset_m": item(jk.IBH, 1.0, "m"),
-        "baro_scale": item(jk.IC, 1.0, "h_p - h_p,field = (1 + c)(h - h_field) + b_h"),
-        "accel_bias_x_g": item(jk.IBA, 1.0, "g (body forward, measured - true)"),
-        "accel_bias_y_g": item(jk.IBA + 1, 1.0, "g (body right)"),
-        "accel_bias_z_g": item(jk.IBA + 2, 1.0, "g (body down, of -n_norm)"),
-        "doppler_scale": item(jk.IDW, 1.0, "W_measured = (1 + k) W_true"),
-        "accel_scale_x": item(jk.IKS, 1.0, "f_measured = (1 + s) f_true + b, body forward"),
-        "accel_scale_y": item(jk.IKS + 1, 1.0, "body right"),
-        "accel_scale_z": item(jk.IKS + 2, 1.0, "body down"),
-        "drift_bias_deg": item(jk.IDC, np.degrees(1.0), "deg (measured - true)"),
-        "roll_bias_deg": item(jk.IATT, np.degrees(1.0), "deg (measured - true)"),
-        "pitch_bias_deg": item(jk.IATT + 1, np.degrees(1.0), "deg (measured - true)"),
-        "wind_gradient_n_per_km": item(jk.IG, 1000.0, "(m/s)/km: change of the north wind "
+        "heading_bias_deg": item(jl.IPSI, np.degrees(1.0), "deg (measured - true)"),
+        "tas_scale": item(jl.IS, 1.0, "TAS_measured = (1 + s) TAS_true"),
+        "baro_offset_m": item(jl.IBH, 1.0, "m"),
+        "baro_scale": item(jl.IC, 1.0, "h_p - h_p,field = (1 + c)(h - h_field) + b_h"),
+        "accel_bias_x_g": item(jl.IBA, 1.0, "g (body forward, measured - true)"),
+        "accel_bias_y_g": item(jl.IBA + 1, 1.0, "g (body right)"),
+        "accel_bias_z_g": item(jl.IBA + 2, 1.0, "g (body down, of -n_norm)"),
+        "doppler_scale": item(jl.IDW, 1.0, "W_measured = (1 + k) W_true"),
+        "accel_scale_x": item(jl.IKS, 1.0, "f_measured = (1 + s) f_true + b, body forward"),
+        "accel_scale_y": item(jl.IKS + 1, 1.0, "body right"),
+        "accel_scale_z": item(jl.IKS + 2, 1.0, "body down"),
+        "drift_bias_deg": item(jl.IDC, np.degrees(1.0), "deg (measured - true)"),
+        "roll_bias_deg": item(jl.IATT, np.degrees(1.0), "deg (measured - true)"),
+        "pitch_bias_deg": item(jl.IATT + 1, np.degrees(1.0), "deg (measured - true)"),
+        "wind_gradient_n_per_km": item(jl.IG, 1000.0, "(m/s)/km: change of the north wind "
                                        "with height (at the middle of the record)"),
-        "wind_gradient_e_per_km": item(jk.IG + 1, 1000.0, "(m/s)/km, east"),
+        "wind_gradient_e_per_km": item(jl.IG + 1, 1000.0, "(m/s)/km, east"),
     }
 
 

@@ -34,6 +34,7 @@ import pandas as pd
 
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
 from flightrecon.filters import sns as core
+from flightrecon.filters.sns import model as sns_model
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
 from flightrecon.types import CleanFlight, MethodResult
 
@@ -398,9 +399,9 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
 def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Vectorised twin of :func:`flightrecon.filters.sns.radii`."""
     s = np.sin(lat)
-    wq = 1.0 - core._E2 * s * s
-    n = core._A / np.sqrt(wq)
-    return n * (1.0 - core._E2) / wq + h, n + h
+    wq = 1.0 - sns_model._E2 * s * s
+    n = sns_model._A / np.sqrt(wq)
+    return n * (1.0 - sns_model._E2) / wq + h, n + h
 
 
 GAMMA_STRIDE = 16  # recorder samples between pyproj evaluations of the meridian convergence

@@ -1,0 +1,328 @@
+"""ADS/ARMS models: settings and inputs, the range/azimuth measurement (EKF and converted forms),
+horizontal range, and the exact constant-velocity and Gauss-Markov discretisations."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightrecon.errors import ValidationError
+
+LINEARISATIONS = ("ekf", "converted")
+"""Stage-1 / joint radar linearisations: EKF on (range, azimuth) or converted x/y measurements."""
+
+
+CONVERTED_AT = ("predicted", "measured")
+"""Where the converted-measurement covariance is evaluated (range and azimuth of the predicted
+state, or the measured ones).  ``predicted`` avoids the correlation between the measurement noise
+and its own covariance that ``measured`` introduces (Bar-Shalom, Li & Kirubarajan 2001, sec. 10.4)."""
+
+
+_LIN_CODE = {("ekf", "predicted"): 0, ("ekf", "measured"): 0,
+             ("converted", "measured"): 1, ("converted", "predicted"): 2}
+
+
+EARTH_RADIUS_M = 6371008.8
+"""Mean Earth radius [m], for the drop of the station's tangent plane below the aircraft."""
+
+
+# --------------------------------------------------------------------------------------------
+# data containers
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ArmsModel:
+    """Noise model of the ADS/ARMS estimators (SI units).
+
+    Attributes
+    ----------
+    sigma_range_m : standard deviation of the (horizontal) range error, sigma_rho (paper eq. 11)
+    sigma_azimuth_rad : standard deviation of the azimuth error, sigma_theta, in radians
+    q_m2ps3 : power spectral density of the CV model's acceleration noise [m^2/s^3]
+    gm_sigma_mps : stationary standard deviation of each air-data error axis, sigma (paper eq. 4)
+    gm_tau_s : its correlation time 1/alpha [s]
+    sigma_air_mps : white noise on each air-data velocity component V* (0 allowed: paper)
+    v0_sd_mps : prior standard deviation of each ground-velocity component at the first plot
+    """
+
+    sigma_range_m: float = 50.0
+    sigma_azimuth_rad: float = float(np.deg2rad(0.25))
+    q_m2ps3: float = 0.5
+    gm_sigma_mps: float = 20.0
+    gm_tau_s: float = 360.0
+    sigma_air_mps: float = 0.5
+    v0_sd_mps: float = 300.0
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_range_m", "sigma_azimuth_rad", "q_m2ps3", "gm_sigma_mps",
+                     "gm_tau_s", "v0_sd_mps"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValidationError(f"ARMS model: {name} must be positive and finite, got {v}")
+        if not (np.isfinite(self.sigma_air_mps) and self.sigma_air_mps >= 0):
+            raise ValidationError("ARMS model: sigma_air_mps must be >= 0 and finite, "
+                                  f"got {self.sigma_air_mps}")
+
+    @property
+    def alpha_ps(self) -> float:
+        """Inverse correlation time alpha = 1/tau [1/s]."""
+        return 1.0 / self.gm_tau_s
+
+
+@dataclass(frozen=True)
+class RadarPlots:
+    """Radar plots at their own times, one per row (station frame, SI).
+
+    Attributes
+    ----------
+    t_s : (N,) plot times, strictly increasing [s]
+    range_m : (N,) *horizontal* range r [m] (see :func:`horizontal_range`)
+    azimuth_rad : (N,) azimuth, clockwise from true north [rad]
+    sigma_range_m : (N,) standard deviation of ``range_m`` per plot [m]
+    sigma_azimuth_rad : (N,) standard deviation of the azimuth per plot [rad]
+    """
+
+    t_s: np.ndarray
+    range_m: np.ndarray
+    azimuth_rad: np.ndarray
+    sigma_range_m: np.ndarray
+    sigma_azimuth_rad: np.ndarray
+
+    @classmethod
+    def from_arrays(cls, t_s, range_m, azimuth_rad, model: ArmsModel,
+                    sigma_range_m=None) -> RadarPlots:
+        """Build and validate plots; the sigmas default to the model's constants."""
+        t = np.asarray(t_s, dtype=np.float64)
+        r = np.asarray(range_m, dtype=np.float64)
+        a = np.asarray(azimuth_rad, dtype=np.float64)
+        if t.ndim != 1 or r.shape != t.shape or a.shape != t.shape:
+            raise ValidationError("radar plots: t_s, range and azimuth must be 1-D of equal length")
+        if len(t) < 2:
+            raise ValidationError(f"radar plots: need at least 2 plots, got {len(t)}")
+        bad = ~(np.isfinite(t) & np.isfinite(r) & np.isfinite(a))
+        if bad.any():
+            raise ValidationError("radar plots: non-finite time, range or azimuth",
+                                  rows=np.flatnonzero(bad)[:20] + 1)
+        if np.any(r <= 0):
+            raise ValidationError("radar plots: range must be positive",
+                                  rows=np.flatnonzero(r <= 0)[:20] + 1)
+        if np.any(np.diff(t) <= 0):
+            raise ValidationError("radar plots: times must be strictly increasing",
+                                  rows=np.flatnonzero(np.diff(t) <= 0)[:20] + 2)
+        sr = (np.full(t.shape, model.sigma_range_m) if sigma_range_m is None
+              else np.asarray(sigma_range_m, dtype=np.float64))
+        st = np.full(t.shape, model.sigma_azimuth_rad)
+        return cls(t, r, a, sr, st)
+
+
+@dataclass(frozen=True)
+class AirData:
+    """Air-data velocity V* = (TAS sin heading, TAS cos heading) at its own times (SI).
+
+    Attributes
+    ----------
+    t_s : (M,) strictly increasing times [s]
+    vx_mps, vy_mps : (M,) east and north components [m/s]
+    """
+
+    t_s: np.ndarray
+    vx_mps: np.ndarray
+    vy_mps: np.ndarray
+
+    @classmethod
+    def from_tas_heading(cls, t_s, tas_mps, heading_deg) -> AirData:
+        """From true airspeed [m/s] and true heading [deg] (paper eq. 6: V* = V + dV)."""
+        t = np.asarray(t_s, dtype=np.float64)
+        v = np.asarray(tas_mps, dtype=np.float64)
+        h = np.deg2rad(np.asarray(heading_deg, dtype=np.float64))
+        return cls(t, v * np.sin(h), v * np.cos(h))
+
+    def at(self, t_s: np.ndarray, max_gap_s: float = np.inf) -> np.ndarray:
+        """(K, 2) components linearly interpolated to times ``t_s``.
+
+        Air data is an *input* channel on the recorder grid (METHODS.md, "Two kinds of
+        channel"), so taking it at a plot's time by interpolation between neighbouring grid
+        samples reuses no measurement.  NaN outside the samples and where the two bracketing
+        samples are more than ``max_gap_s`` apart (a gap in the air data is not bridged).
+        """
+        t = np.asarray(t_s, dtype=np.float64)
+        out = np.column_stack([np.interp(t, self.t_s, self.vx_mps, left=np.nan, right=np.nan),
+                               np.interp(t, self.t_s, self.vy_mps, left=np.nan, right=np.nan)])
+        if np.isfinite(max_gap_s) and len(self.t_s) > 1:
+            j = np.clip(np.searchsorted(self.t_s, t), 1, len(self.t_s) - 1)
+            gap = self.t_s[j] - self.t_s[j - 1]
+            exact = (self.t_s[j] == t) | (self.t_s[j - 1] == t)
+            out[(gap > max_gap_s) & ~exact] = np.nan
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+# measurement models
+# --------------------------------------------------------------------------------------------
+
+def horizontal_range(slant_m, *, elevation_deg=None, dh_m=None,
+                     earth_radius_m: float = EARTH_RADIUS_M) -> np.ndarray:
+    """Horizontal range in the station's tangent plane from the radar's slant range.
+
+    With the elevation angle: ``r = rho cos(el)`` (METHODS.md section 2).  With the altitude
+    difference ``dh`` (aircraft minus station, metres above the same datum): the aircraft's
+    height above the station's tangent plane is ``u = dh - r^2 / (2 R_e)`` (the plane drops
+    away from the sphere), and ``r`` solves ``r^2 + u^2 = rho^2``; two fixed-point steps from
+    ``r0 = sqrt(rho^2 - dh^2)`` converge to well under a metre for ranges below 500 km.
+    Refraction is ignored.  Without either, the slant range is returned unchanged.
+
+    Raises
+    ------
+    ValidationError
+        If the altitude difference exceeds the slant range (inconsistent data).
+    """
+    rho = np.asarray(slant_m, dtype=np.float64)
+    if elevation_deg is not None:
+        return rho * np.cos(np.deg2rad(np.asarray(elevation_deg, dtype=np.float64)))
+    if dh_m is None:
+        return rho.copy()
+    dh = np.asarray(dh_m, dtype=np.float64)
+    r2 = rho ** 2 - dh ** 2
+    if np.any(r2 < 0):
+        raise ValidationError("radar plots: altitude difference to the station exceeds the slant "
+                              "range; check the station elevation and the altitude datum",
+                              rows=np.flatnonzero(r2 < 0)[:20] + 1)
+    r = np.sqrt(r2)
+    for _ in range(2):
+        u = dh - r ** 2 / (2.0 * earth_radius_m)
+        r = np.sqrt(np.maximum(rho ** 2 - u ** 2, 0.0))
+    return r
+
+
+def range_azimuth(X: np.ndarray) -> np.ndarray:
+    """Measurement function h(X) = [sqrt(x^2 + y^2), atan2(x, y)] (paper eq. 10).
+
+    ``X`` is (..., n) with x at index 0 and y at index 2; returns (..., 2).
+    """
+    X = np.asarray(X, dtype=np.float64)
+    return np.stack([np.hypot(X[..., 0], X[..., 2]), np.arctan2(X[..., 0], X[..., 2])], axis=-1)
+
+
+def range_azimuth_jacobian(X: np.ndarray) -> np.ndarray:
+    """Jacobian H = dh/dX (paper eq. 12): ``[[x/r, 0, y/r, 0], [y/r^2, 0, -x/r^2, 0]]``.
+
+    ``X`` is (..., n), n >= 4 (extra states get zero columns); returns (..., 2, n).
+    """
+    X = np.asarray(X, dtype=np.float64)
+    x, y = X[..., 0], X[..., 2]
+    r2 = x * x + y * y
+    r = np.sqrt(r2)
+    H = np.zeros(X.shape[:-1] + (2, X.shape[-1]))
+    H[..., 0, 0] = x / r
+    H[..., 0, 2] = y / r
+    H[..., 1, 0] = y / r2
+    H[..., 1, 2] = -x / r2
+    return H
+
+
+def wrap_angle(a):
+    """Wrap angles [rad] to (-pi, pi] (used for the azimuth innovation)."""
+    a = np.asarray(a, dtype=np.float64)
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+
+
+def converted_measurement(range_m, azimuth_rad) -> np.ndarray:
+    """Converted measurement ``[x*, y*] = rho* [sin theta*, cos theta*]`` (paper eq. 13), (..., 2)."""
+    r = np.asarray(range_m, dtype=np.float64)
+    a = np.asarray(azimuth_rad, dtype=np.float64)
+    return np.stack([r * np.sin(a), r * np.cos(a)], axis=-1)
+
+
+def converted_covariance(range_m, azimuth_rad, sigma_range_m, sigma_azimuth_rad) -> np.ndarray:
+    """Covariance of the converted measurement error (paper eq. 15, first order), (..., 2, 2).
+
+    ``s_x^2 = s_r^2 sin^2 t + r^2 s_t^2 cos^2 t``, ``s_y^2 = s_r^2 cos^2 t + r^2 s_t^2 sin^2 t``,
+    ``s_xy = sin t cos t (s_r^2 - r^2 s_t^2)`` (METHODS.md section 2), evaluated at the range and
+    azimuth given (measured or predicted: see :data:`CONVERTED_AT`).
+    """
+    r = np.asarray(range_m, dtype=np.float64)
+    t = np.asarray(azimuth_rad, dtype=np.float64)
+    sr2 = np.asarray(sigma_range_m, dtype=np.float64) ** 2
+    ct2 = r ** 2 * np.asarray(sigma_azimuth_rad, dtype=np.float64) ** 2
+    s, c = np.sin(t), np.cos(t)
+    shape = np.broadcast(r, t, sr2, ct2).shape
+    R = np.empty(shape + (2, 2))
+    R[..., 0, 0] = sr2 * s * s + ct2 * c * c
+    R[..., 1, 1] = sr2 * c * c + ct2 * s * s
+    R[..., 0, 1] = R[..., 1, 0] = s * c * (sr2 - ct2)
+    return R
+
+
+# --------------------------------------------------------------------------------------------
+# transition models (exact discretisation, stacked over steps)
+# --------------------------------------------------------------------------------------------
+
+def _check_dt(dt) -> np.ndarray:
+    dt = np.asarray(dt, dtype=np.float64)
+    if dt.ndim != 1:
+        raise ValidationError("time steps must be a 1-D array")
+    if np.any(~np.isfinite(dt)) or np.any(dt[1:] <= 0):
+        raise ValidationError("time steps must be finite and positive (times strictly increasing)")
+    return dt
+
+
+def cv_transition(dt) -> np.ndarray:
+    """CV transition of ``[x, Vx, y, Vy]`` for steps ``dt`` (N,): (N, 4, 4), ``[[1, T], [0, 1]]``
+    per axis (``dt[0]``, the step into the first epoch, is not used by the filter)."""
+    dt = _check_dt(dt)
+    F = np.zeros((len(dt), 4, 4))
+    for i in (0, 2):
+        F[:, i, i] = 1.0
+        F[:, i + 1, i + 1] = 1.0
+        F[:, i, i + 1] = dt
+    return F
+
+
+def cv_process_noise(dt, q_m2ps3: float) -> np.ndarray:
+    """Exact CV process noise (N, 4, 4): ``q [[T^3/3, T^2/2], [T^2/2, T]]`` per axis
+    (white-acceleration model, Bar-Shalom et al. 2001, eq. 6.2.2-12)."""
+    dt = _check_dt(dt)
+    Q = np.zeros((len(dt), 4, 4))
+    for i in (0, 2):
+        Q[:, i, i] = q_m2ps3 * dt ** 3 / 3.0
+        Q[:, i, i + 1] = Q[:, i + 1, i] = q_m2ps3 * dt ** 2 / 2.0
+        Q[:, i + 1, i + 1] = q_m2ps3 * dt
+    return Q
+
+
+def gm_transition(dt, alpha_ps: float) -> np.ndarray:
+    """Gauss-Markov transition of ``[dVx, dVy]`` (N, 2, 2): ``e^{-alpha T} I`` (paper eq. 9)."""
+    dt = _check_dt(dt)
+    return np.exp(-alpha_ps * dt)[:, None, None] * np.eye(2)
+
+
+def gm_process_noise(dt, alpha_ps: float, sigma_mps: float) -> np.ndarray:
+    """Exact Gauss-Markov process noise (N, 2, 2): ``sigma^2 (1 - e^{-2 alpha T}) I``
+    (METHODS.md section 2; ``-expm1`` keeps it accurate for small ``alpha T``)."""
+    dt = _check_dt(dt)
+    return (sigma_mps ** 2 * -np.expm1(-2.0 * alpha_ps * dt))[:, None, None] * np.eye(2)
+
+
+def joint_transition(dt, alpha_ps: float) -> np.ndarray:
+    """Joint transition of ``[x, Vx, y, Vy, dVx, dVy]``: block-diag(CV, GM), (N, 6, 6)."""
+    dt = _check_dt(dt)
+    F = np.zeros((len(dt), 6, 6))
+    for i in range(4):
+        F[:, i, i] = 1.0
+    F[:, 0, 1] = F[:, 2, 3] = dt
+    F[:, 4, 4] = F[:, 5, 5] = np.exp(-alpha_ps * dt)
+    return F
+
+
+def joint_process_noise(dt, q_m2ps3: float, alpha_ps: float, sigma_mps: float) -> np.ndarray:
+    """Joint process noise: block-diag(CV, GM), (N, 6, 6)."""
+    dt = _check_dt(dt)
+    Q = np.zeros((len(dt), 6, 6))
+    for i in (0, 2):
+        Q[:, i, i] = q_m2ps3 * dt ** 3 / 3.0
+        Q[:, i, i + 1] = Q[:, i + 1, i] = q_m2ps3 * dt ** 2 / 2.0
+        Q[:, i + 1, i + 1] = q_m2ps3 * dt
+    g = sigma_mps ** 2 * -np.expm1(-2.0 * alpha_ps * dt)
+    Q[:, 4, 4] = Q[:, 5, 5] = g
+    return Q

@@ -1,0 +1,185 @@
+"""Compiled state transition, sparse covariance prediction and process noise of the joint
+smoother (state layout in :mod:`flightrecon.filters.joint.layout`)."""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from flightrecon.filters.joint.layout import (
+    G0,
+    IATT,
+    IBA,
+    IBH,
+    IG,
+    IKS,
+    IP,
+    IPSI,
+    IV,
+    IW,
+    N_STATE,
+)
+from flightrecon.filters.smallmat import cholesky_factor, cholesky_solve_columns
+
+
+@nb.njit(cache=True, nogil=True)
+def _wrap(a):
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@nb.njit(cache=True, nogil=True)
+def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
+    """Fill ``F`` (n, n) with the transition matrix F_k from step k-1 to step k (k >= 1).
+
+    ``Csf[k]`` is the step mean of C_nb diag(f_body) (the Jacobian of the acceleration in the
+    accelerometer scale errors), ``Jatt[k]`` (3, 2) that of dC/dphi f and dC/dtheta f (roll and
+    pitch biases), ``dz[k]`` the nominal's height change over the step (the wind moves along
+    its gradient with height).  Only the position, velocity, wind and accelerometer-bias rows
+    differ from the identity (see the module docstring).
+    """
+    n = N_STATE
+    for i in range(n):
+        for j in range(n):
+            F[i, j] = 0.0
+        F[i, i] = 1.0
+    h = dt[k]
+    for i in range(3):
+        for j in range(3):
+            F[IP + i, IV + j] = Cen[k - 1, i, j] * h
+    g0 = acc[k, 1]
+    g1 = -acc[k, 0]
+    F[IV, IPSI] = g0 * h
+    F[IV + 1, IPSI] = g1 * h
+    for i in range(3):
+        for j in range(3):
+            F[IV + i, IBA + j] = -G0 * Cnb[k, i, j] * h
+            F[IV + i, IKS + j] = -G0 * Csf[k, i, j] * h
+        for j in range(2):
+            F[IV + i, IATT + j] = -G0 * Jatt[k, i, j] * h
+    # position: C_en times the velocity terms times dt/2
+    hh = h * h / 2.0
+    for i in range(3):
+        c0, c1, c2 = Cen[k - 1, i, 0], Cen[k - 1, i, 1], Cen[k - 1, i, 2]
+        F[IP + i, IPSI] = (c0 * g0 + c1 * g1) * hh
+        for j in range(3):
+            F[IP + i, IKS + j] = -G0 * (c0 * Csf[k, 0, j] + c1 * Csf[k, 1, j]
+                                        + c2 * Csf[k, 2, j]) * hh
+            F[IP + i, IBA + j] = -G0 * (c0 * Cnb[k, 0, j] + c1 * Cnb[k, 1, j]
+                                        + c2 * Cnb[k, 2, j]) * hh
+        for j in range(2):
+            F[IP + i, IATT + j] = -G0 * (c0 * Jatt[k, 0, j] + c1 * Jatt[k, 1, j]
+                                         + c2 * Jatt[k, 2, j]) * hh
+    e = np.exp(-h / tau_ba)
+    for j in range(3):
+        F[IBA + j, IBA + j] = e
+    F[IW, IG] = dz[k]
+    F[IW + 1, IG + 1] = dz[k]
+
+
+@nb.njit(cache=True, nogil=True)
+def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
+    """Transition matrix F_k from step k-1 to step k (k >= 1); see :func:`transition_into`."""
+    F = np.empty((N_STATE, N_STATE))
+    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
+    return F
+
+
+@nb.njit(cache=True, nogil=True)
+def _sparse_rows(F, cols, vals, cnt):
+    """Row-compressed copy of ``F``: row i has ``cnt[i]`` nonzeros ``vals[i, :cnt[i]]`` in the
+    columns ``cols[i, :cnt[i]]`` (F_k is the identity plus a few blocks: 11 nonzeros at most
+    per row, so products with it cost O(n nnz) instead of O(n^3))."""
+    n = F.shape[0]
+    for i in range(n):
+        c = 0
+        for m in range(n):
+            if F[i, m] != 0.0:
+                cols[i, c] = m
+                vals[i, c] = F[i, m]
+                c += 1
+        cnt[i] = c
+
+
+@nb.njit(cache=True, nogil=True)
+def _predict_cov(P, cols, vals, cnt, B):
+    """P <- F P F^T in place with the row-compressed F (:func:`_sparse_rows`); B is scratch.
+
+    B = P F^T (B[a, i] = sum_m P[a, m] F[i, m]), then P = F B, symmetrised.
+    """
+    n = P.shape[0]
+    for i in range(n):
+        for a in range(n):
+            s = 0.0
+            for c in range(cnt[i]):
+                s += P[a, cols[i, c]] * vals[i, c]
+            B[a, i] = s
+    for i in range(n):
+        for j in range(i, n):
+            s = 0.0
+            for c in range(cnt[i]):
+                s += vals[i, c] * B[cols[i, c], j]
+            P[i, j] = s
+    for i in range(n):
+        for j in range(i):
+            P[i, j] = P[j, i]
+
+
+@nb.njit(cache=True, nogil=True)
+def _sparse_matvec(cols, vals, cnt, x, out):
+    """out = F x with the row-compressed F."""
+    for i in range(x.shape[0]):
+        s = 0.0
+        for c in range(cnt[i]):
+            s += vals[i, c] * x[cols[i, c]]
+        out[i] = s
+
+
+@nb.njit(cache=True, nogil=True)
+def _sparse_rmatvec(cols, vals, cnt, y, out):
+    """out = F^T y with the row-compressed F."""
+    n = y.shape[0]
+    for m in range(n):
+        out[m] = 0.0
+    for i in range(n):
+        for c in range(cnt[i]):
+            out[cols[i, c]] += vals[i, c] * y[i]
+
+
+@nb.njit(cache=True, nogil=True)
+def _cholesky_solve(A, b, L, y):
+    """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
+
+    Returns False (and leaves y undefined) if A is not numerically positive definite.
+    """
+    if not cholesky_factor(A, L, 0.0):
+        return False
+    cholesky_solve_columns(L, b.reshape((-1, 1)), y.reshape((-1, 1)))
+    return True
+
+
+@nb.njit(cache=True, nogil=True)
+def add_process_noise(P, k, dt, Cen, dz, qv_extra, q):
+    """P += Q_k in place, touching only the nonzero entries of Q_k.  q = [q_acc, q_wind_t,
+    q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad] (see JointNoise); ``|dz[k]|`` is the height
+    change over the step (wind varies with altitude), ``qv_extra[k]`` extra acceleration PSD
+    where the load factors are missing.  Position-velocity block: white acceleration of PSD q_a
+    (Q_pp = q_a h^3/3, Q_vv = q_a h, Q_pv = q_a h^2/2 C_en)."""
+    h = dt[k]
+    qa = q[0] + qv_extra[k]
+    for i in range(3):
+        P[IP + i, IP + i] += qa * h ** 3 / 3.0
+        P[IV + i, IV + i] += qa * h
+        for j in range(3):
+            v = qa * h * h / 2.0 * Cen[k - 1, i, j]
+            P[IP + i, IV + j] += v
+            P[IV + j, IP + i] += v
+    qw = q[1] * h + q[2] * abs(dz[k])
+    P[IW, IW] += qw
+    P[IW + 1, IW + 1] += qw
+    gm = q[3] * (1.0 - np.exp(-2.0 * h / q[4]))
+    for j in range(3):
+        P[IBA + j, IBA + j] += gm
+    P[IPSI, IPSI] += q[5] * h
+    P[IBH, IBH] += q[6] * h
+    P[IG, IG] += q[7] * h
+    P[IG + 1, IG + 1] += q[7] * h

@@ -1,0 +1,234 @@
+"""Inputs of the joint smoother: :class:`JointInputs`, the take-off roll and the end points."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.filters.joint.layout import G0 as G0_MPS2
+from flightrecon.filters.joint.settings import JointNoise
+from flightrecon.geo.frames import offset_latlon
+from flightrecon.geo.navframe import ned_to_ecef_matrix
+
+
+def enu_to_ecef_matrix(lat_deg: float, lon_deg: float) -> np.ndarray:
+    """(3, 3) rotation whose columns are the east, north, up unit vectors in ECEF."""
+    C = ned_to_ecef_matrix(lat_deg, lon_deg)[0]
+    return np.column_stack([C[:, 1], C[:, 0], -C[:, 2]])
+
+
+@dataclass(frozen=True)
+class TakeoffRoll:
+    """The take-off roll found in the recorded data (:func:`takeoff_roll`).
+
+    Attributes
+    ----------
+    start_t : start of the roll [s], NaN where not found
+    rest_t : (first, last) time [s] of the rest before it (the aircraft lined up), NaN each where
+        the aircraft was not seen at rest
+    """
+
+    start_t: float = np.nan
+    rest_t: tuple[float, float] = (np.nan, np.nan)
+
+
+@dataclass(frozen=True)
+class JointInputs:
+    """Everything the smoother needs, in SI, on the state grid / at measurement times.
+
+    Attributes
+    ----------
+    t_in : input grid times (Ni,)
+    acc_ned : measured kinematic acceleration on the input grid (Ni, 3), NaN where missing
+    Cnb : body-to-NED rotations on the input grid (Ni, 3, 3)
+    tas, heading_rad : airspeed and (unwrapped) true heading on the input grid
+    baro_rel_m : pressure altitude minus the departure field's pressure altitude (input grid)
+    gnss : DataFrame t_s, lat_deg, lon_deg, h_m (ellipsoidal; NaN: a horizontal-only fix),
+        vn_mps, ve_mps, optionally h_sd_m, v_sd_m, vel_sd_mps (per-fix sd) (may be empty)
+    radar : DataFrame t_s, range_m, azimuth_rad, elevation_rad (NaN if absent) (may be empty)
+    station : (lat, lon, h_ellipsoidal) or None
+    departure, arrival : (lat, lon, h_ellipsoidal) or None
+    liftoff_t, touchdown_t : NaN where not in the record
+    field_h : ellipsoidal height of the departure field (reference of baro_rel_m)
+    lever_arm : GNSS antenna in body FRD [m]
+    wind_ne : recorded wind (Ni, 2) where the air moves to, or None
+    doppler_gs, drift_rad : Doppler ground speed [m/s] and drift angle [rad] (Ni,), or None
+    f_body_g : measured specific force in body FRD axes [n_long, n_lat, -n_norm] (Ni, 3) [g]
+    runway_rad : true directions of the departure and arrival runways [rad], ``None`` each
+        where unknown
+    thresholds : (lat, lon, h_ellipsoidal) of the departure and arrival runway thresholds,
+        ``None`` each where unknown (used only with the runway's direction)
+    roll : the take-off roll and the rest before it (:func:`takeoff_roll`)
+    lineup_t : when the aircraft lined up on the take-off runway (cleaning phases); nothing
+        before it is taken as at rest on the runway (NaN: no limit)
+    """
+
+    t_in: np.ndarray
+    acc_ned: np.ndarray
+    Cnb: np.ndarray
+    tas: np.ndarray
+    heading_rad: np.ndarray
+    baro_rel_m: np.ndarray
+    gnss: pd.DataFrame
+    radar: pd.DataFrame
+    station: tuple[float, float, float] | None
+    departure: tuple[float, float, float] | None
+    arrival: tuple[float, float, float] | None
+    liftoff_t: float
+    touchdown_t: float
+    field_h: float
+    lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wind_ne: np.ndarray | None = None
+    doppler_gs: np.ndarray | None = None
+    drift_rad: np.ndarray | None = None
+    f_body_g: np.ndarray | None = None
+    runway_rad: tuple[float | None, float | None] = (None, None)
+    thresholds: tuple[tuple[float, float, float] | None,
+                      tuple[float, float, float] | None] = (None, None)
+    roll: TakeoffRoll = field(default_factory=TakeoffRoll)
+    lineup_t: float = np.nan
+
+
+def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
+                 tas: np.ndarray, liftoff_t: float, wind_ne: np.ndarray | None = None,
+                 rest_mps: float = 3.0, max_rolling_mps: float = 10.0,
+                 settle_s: float = 10.0, v_lo_mps: float | None = None,
+                 accel_bias_mps2: float = 0.0, not_before_t: float = np.nan) -> TakeoffRoll:
+    """Start of the take-off roll, and the rest before it, from the recorded data alone.
+
+    The ground speed is integrated backwards from lift-off, v(t) = v_lo - int_t^t_lo a dt,
+    with a the measured kinematic acceleration along the recorded heading and v_lo the
+    along-track ground speed at lift-off: ``v_lo_mps`` where given (the smoother passes its
+    smoothed velocity), else the recorded airspeed minus the recorded head wind (where
+    given).  The roll starts at the last sample with v <= ``rest_mps``; a record whose aircraft
+    never slows that much (a rolling take-off from the taxiway) starts it at the end of the
+    slowest stretch, if that is below ``max_rolling_mps``.  A speed error dv moves the time by
+    dv / a but the position only by about v dv / a (metres: the aircraft is slow there).  The
+    rest is the stretch of v <= ``rest_mps`` that ends at the roll start, less its last
+    ``settle_s`` (the first metres of the roll, where the detection lags).
+    ``accel_bias_mps2`` is subtracted from the along-track acceleration (the accelerometer's
+    forward bias, once the smoother has estimated it: 0.003 g is 1.8 m/s over a minute's rest).
+    ``not_before_t`` (the line-up on the runway, from the cleaning's phases): the search and the
+    rest stretch start there, so taxiing from the gate is never taken as the roll or the rest.
+
+    Returns
+    -------
+    TakeoffRoll
+        NaN times where the record has no ground roll or no rest is found.
+    """
+    if not np.isfinite(liftoff_t):
+        return TakeoffRoll()
+    i_lo = int(np.searchsorted(t_in, liftoff_t)) - 1
+    if i_lo < 1 or not np.isfinite(tas[i_lo]):
+        return TakeoffRoll()
+    psi = np.where(np.isfinite(heading_rad[:i_lo + 1]), heading_rad[:i_lo + 1], 0.0)
+    a = acc_ned[:i_lo + 1, 0] * np.cos(psi) + acc_ned[:i_lo + 1, 1] * np.sin(psi)
+    a = np.where(np.isfinite(a), a, 0.0) - accel_bias_mps2
+    if v_lo_mps is not None:
+        v_lo = float(v_lo_mps)
+    else:
+        v_lo = float(tas[i_lo])
+        if wind_ne is not None and np.all(np.isfinite(wind_ne[i_lo])):
+            v_lo += float(wind_ne[i_lo, 0] * np.cos(psi[i_lo])
+                          + wind_ne[i_lo, 1] * np.sin(psi[i_lo]))
+    dv = 0.5 * (a[1:] + a[:-1]) * np.diff(t_in[:i_lo + 1])   # speed gained over each interval
+    v = v_lo - np.r_[np.cumsum(dv[::-1])[::-1], 0.0]
+    if np.isfinite(not_before_t):
+        v = np.where(t_in[:i_lo + 1] >= not_before_t, v, np.inf)   # taxi: never at rest here
+    slow = v <= rest_mps
+    if not slow.any():
+        if not np.isfinite(v.min()):
+            return TakeoffRoll()
+        # the end of the slowest stretch (within 0.5 m/s of the minimum)
+        i_min = int(np.flatnonzero(v <= v.min() + 0.5)[-1])
+        return TakeoffRoll(float(t_in[i_min]) if v.min() <= max_rolling_mps else np.nan)
+    i_start = int(np.flatnonzero(slow)[-1])
+    fast = np.flatnonzero(~slow[:i_start + 1])
+    i_rest = int(fast[-1]) + 1 if len(fast) else 0
+    t_end = t_in[i_start] - settle_s
+    rest = (float(t_in[i_rest]), float(t_end)) if t_end > t_in[i_rest] else (np.nan, np.nan)
+    return TakeoffRoll(float(t_in[i_start]), rest)
+
+
+def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
+                 accel_bias_g: np.ndarray | None = None) -> TakeoffRoll:
+    """:func:`takeoff_roll` with the along-track component of the nominal (smoothed) ground
+    velocity ``vnom`` (N, 3) at lift-off on the state grid ``T`` as the lift-off speed, and the
+    smoothed forward accelerometer bias ``accel_bias_g`` (N, 3) [g] at lift-off removed from
+    the acceleration; ``inp.roll`` without a nominal or without a roll."""
+    roll = inp.roll
+    if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):
+        return roll
+    t_in = inp.t_in
+    k_lo = int(_nearest(T, np.array([inp.liftoff_t]))[0])
+    psi_lo = inp.heading_rad[max(int(np.searchsorted(t_in, inp.liftoff_t)) - 1, 0)]
+    if not np.isfinite(psi_lo):
+        return roll
+    bias = 0.0 if accel_bias_g is None else G0_MPS2 * float(accel_bias_g[k_lo, 0])
+    return takeoff_roll(t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
+                        v_lo_mps=float(vnom[k_lo, 0] * np.cos(psi_lo)
+                                       + vnom[k_lo, 1] * np.sin(psi_lo)),
+                        accel_bias_mps2=bias, not_before_t=inp.lineup_t)
+
+
+def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
+                        dist_m: float) -> tuple[float, float, float]:
+    """(lat, lon, h) ``dist_m`` down the runway from its threshold ``thr``."""
+    lat, lon = offset_latlon(thr[0], thr[1], dist_m * np.cos(runway_rad),
+                             dist_m * np.sin(runway_rad))
+    return lat, lon, float(thr[2])
+
+
+def end_points(inp: JointInputs, nz: JointNoise,
+               roll: TakeoffRoll | None = None) -> list[dict[str, Any]]:
+    """The end-point constraints: where and when the record is tied to its airfields.
+
+    With a runway's threshold and direction known: the take-off roll starts at the departure
+    threshold (along-runway sd ``roll_start_sd_m``; the time from :func:`takeoff_roll`), and
+    the touchdown is ``touchdown_m`` past the arrival threshold (sd ``touchdown_sd_m``); across
+    the runway the centreline holds (``runway_halfwidth_m``). Otherwise the airfield reference
+    point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every
+    horizontal direction. Vertically the airfield elevation, ``endpoint_v_m``.  ``roll``
+    replaces ``inp.roll`` (the smoother refines it with its smoothed lift-off speed).
+
+    Returns
+    -------
+    list of dict
+        Keys ``which`` ("departure" / "arrival"), ``model`` ("runway" / "reference"),
+        ``t_s``, ``point`` (lat, lon, h_ellipsoidal: the constrained point's mean), ``runway_rad``
+        and ``sd_m`` (along, cross, vertical) for the runway model, (h, h, v) otherwise.
+    """
+    out = []
+    t_in = inp.t_in
+    for which, pos, thr, rw in (("departure", inp.departure, inp.thresholds[0], inp.runway_rad[0]),
+                                ("arrival", inp.arrival, inp.thresholds[1], inp.runway_rad[1])):
+        if pos is None:
+            continue
+        t_run = (inp.roll if roll is None else roll).start_t if which == "departure" \
+            else inp.touchdown_t
+        if thr is not None and rw is not None and np.isfinite(t_run):
+            dist, sd = ((0.0, nz.roll_start_sd_m) if which == "departure"
+                        else (nz.touchdown_m, nz.touchdown_sd_m))
+            out.append({"which": which, "model": "runway", "t_s": float(t_run),
+                        "point": _along_runway_point(thr, rw, dist), "runway_rad": float(rw),
+                        "sd_m": (sd, nz.runway_halfwidth_m, nz.endpoint_v_m)})
+            continue
+        if which == "departure":
+            tt = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]
+        else:
+            tt = inp.touchdown_t if np.isfinite(inp.touchdown_t) else t_in[-1]
+        out.append({"which": which, "model": "reference", "t_s": float(tt), "point": tuple(pos),
+                    "runway_rad": None,
+                    "sd_m": (nz.endpoint_h_m, nz.endpoint_h_m, nz.endpoint_v_m)})
+    return out
+
+
+def _nearest(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
+    """Index of the sample of sorted ``t`` nearest to each of ``tq`` (a tie goes to the later
+    sample); the state step of a measurement, the input sample of a fix."""
+    j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)
+    p = np.clip(j - 1, 0, len(t) - 1)
+    return np.where(np.abs(tq - t[p]) < np.abs(tq - t[j]), p, j)

@@ -1,0 +1,369 @@
+"""Measurements of the joint smoother: every source's scalar measurements, each at its own time."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.inputs import (
+    JointInputs,
+    TakeoffRoll,
+    _nearest,
+    end_points,
+    refined_roll,
+)
+from flightrecon.filters.joint.settings import SOURCES, JointSettings
+from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
+from flightrecon.geo.navframe import ned_to_ecef_matrix
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Scalar measurements sorted by state step (see :mod:`~flightrecon.filters.joint.layout` for the types).
+
+    Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]`` (``hrow`` is -1 for the
+    others), so the table stays small when most measurements are nonlinear scalars.
+    """
+
+    step: np.ndarray
+    source: np.ndarray      # index into SOURCES
+    mtype: np.ndarray
+    z: np.ndarray
+    r: np.ndarray
+    t: np.ndarray           # measurement time, recorder time base
+    H: np.ndarray           # (M_linear, n)
+    hrow: np.ndarray        # (M,) row of H, -1 where the measurement has none
+    d: np.ndarray
+    start: np.ndarray       # (N+1,)
+
+
+def _decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -> np.ndarray:
+    """True for the first sample of each 1/rate_hz bin, bins counted from ``origin`` (default
+    the first sample) (keeps each measurement used once)."""
+    if rate_hz <= 0:
+        return np.zeros(len(t), bool)
+    b = np.floor((t - (t[0] if origin is None else origin)) * rate_hz + 1e-9).astype(np.int64)
+    keep = np.ones(len(t), bool)
+    keep[1:] = b[1:] != b[:-1]
+    return keep
+
+
+def _per_fix(g, column: str, default: float) -> np.ndarray:
+    """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own
+    accuracy figures), ``default`` where absent or not finite."""
+    if column not in g.columns:
+        return np.full(len(g), float(default))
+    v = g[column].to_numpy(float)
+    return np.where(np.isfinite(v) & (v > 0), v, float(default))
+
+
+class _MeasBuilder:
+    def __init__(self, T: np.ndarray, n: int = jl.N_STATE):
+        self.T = T
+        self.n = n
+        self.parts: list[dict[str, np.ndarray]] = []
+        self.H: list[np.ndarray] = []
+        self.n_rows = 0
+
+    def copy(self) -> _MeasBuilder:
+        b = _MeasBuilder(self.T, self.n)
+        b.parts = list(self.parts)
+        b.H = list(self.H)
+        b.n_rows = self.n_rows
+        return b
+
+    def add(self, source: str, mtype: int, t, z, r, H=None, d=None):
+        t = np.asarray(t, float)
+        z = np.asarray(z, float)
+        m = len(t)
+        if m == 0:
+            return
+        r = np.broadcast_to(np.asarray(r, float), (m,)).copy()
+        dm = np.zeros(m) if d is None else np.broadcast_to(np.asarray(d, float), (m,)).copy()
+        ok = np.isfinite(z) & np.isfinite(t) & np.isfinite(r) & np.isfinite(dm)
+        hrow = np.full(m, -1, dtype=np.int64)
+        if H is not None:
+            Hm = np.asarray(H, float)
+            ok &= np.isfinite(Hm).all(axis=1)
+            hrow = self.n_rows + np.arange(m)
+            self.H.append(Hm)
+            self.n_rows += m
+        self.parts.append({"source": np.full(m, SOURCES.index(source)), "mtype": np.full(m, mtype),
+                           "t": t, "z": z, "r": r, "hrow": hrow, "d": dm, "ok": ok})
+
+    def build(self) -> Measurements:
+        T = self.T
+        N = len(T)
+        keys = ("source", "mtype", "t", "z", "r", "hrow", "d", "ok")
+        cat = {k: np.concatenate([p[k] for p in self.parts]) if self.parts else np.zeros(0)
+               for k in keys}
+        H = np.concatenate(self.H) if self.H else np.zeros((0, self.n))
+        ok = cat["ok"].astype(bool) & (cat["t"] >= T[0] - 0.5 * (T[1] - T[0] if N > 1 else 1)) & (
+            cat["t"] <= T[-1] + 0.5 * (T[-1] - T[-2] if N > 1 else 1))
+        t = cat["t"][ok]
+        step = _nearest(T, t)
+        order = np.flatnonzero(ok)[np.lexsort((t, step))]
+        step = np.sort(step, kind="stable")
+        start = np.searchsorted(step, np.arange(N + 1), side="left")
+        return Measurements(step=step.astype(np.int64),
+                            source=cat["source"][order].astype(np.int64),
+                            mtype=cat["mtype"][order].astype(np.int64), z=cat["z"][order],
+                            r=cat["r"][order], t=cat["t"][order], H=np.ascontiguousarray(H),
+                            hrow=cat["hrow"][order].astype(np.int64), d=cat["d"][order],
+                            start=start.astype(np.int64))
+
+
+def _on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
+    """Input samples used for the ground constraints: before lift-off and after touchdown (2 s
+    margins), at the ground-constraint rate, with a heading."""
+    t_in = inp.t_in
+    on_ground = np.zeros(len(t_in), bool)
+    if np.isfinite(inp.liftoff_t):
+        on_ground |= t_in < inp.liftoff_t - 2.0
+    if np.isfinite(inp.touchdown_t):
+        on_ground |= t_in > inp.touchdown_t + 2.0
+    return on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
+
+
+def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
+                         step_of, pnom: np.ndarray, vnom: np.ndarray,
+                         psi_hat: np.ndarray | None = None) -> None:
+    """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
+    centreline through the airfield reference point.
+
+    The runway's direction is the airfield's ``runway_true_deg`` where the metadata give it
+    (then the ground roll ties the heading reference: the recorded heading minus the heading
+    bias must follow the runway). Otherwise it is the true heading, psi_rec - dpsi (the recorded
+    heading carries the heading bias): c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi
+    a(psi_rec) . v_nom, with c and a the cross- and along-runway unit vectors, linearised at
+    dpsi = 0 and the nominal (the neglected term is dpsi^2 / 2 of the along-track value: 3 mm/s
+    at 1 deg and 70 m/s). Taking the recorded heading as the runway's direction would tell the
+    smoother that the heading bias is zero. ``psi_hat`` (per state step) is the heading bias
+    of the last pass: the linearisation is about it, c(psi_rec - dpsi) . v ~ c(psi') . v +
+    (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec - psi_hat (exact at the solution
+    however large the bias).
+    """
+    nz = settings.noise
+    n = jl.N_STATE
+    t_in = inp.t_in
+    keep = _on_ground_mask(inp, settings)
+    if not keep.any():
+        return
+    for pos, side, rw in ((inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t)
+                                                   else -np.inf), inp.runway_rad[0]),
+                          (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t)
+                                                else np.inf), inp.runway_rad[1])):
+        sel = keep & side
+        if not sel.any():
+            continue
+        known = rw is not None
+        # the direction of the runway (only its line matters: a reversed direction is the same)
+        tt = t_in[sel]
+        k = step_of(tt)
+        ph = np.zeros(len(tt)) if known or psi_hat is None else psi_hat[k]
+        psi = np.full(int(sel.sum()), rw) if known else inp.heading_rad[sel] - ph
+        H = np.zeros((len(tt), n))
+        H[:, jl.IV] = -np.sin(psi)
+        H[:, jl.IV + 1] = np.cos(psi)
+        if not known:
+            H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
+        b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H,
+              -H[:, jl.IPSI] * ph)
+        if pos is None:
+            continue
+        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+        arp = np.array([float(ex), float(ey), float(ez)])
+        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
+        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
+        along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
+        H = np.zeros((len(tt), n))
+        H[:, jl.IP:jl.IP + 3] = cross
+        if not known:
+            H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
+        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
+              -cross @ arp - H[:, jl.IPSI] * ph)
+
+
+def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
+    """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
+    recorded wind, pressure altitude, ground and runway constraints (built once)."""
+    nz = settings.noise
+    b = _MeasBuilder(T)
+    n = jl.N_STATE
+    t_in = inp.t_in
+
+    # air data: airspeed and heading, decimated, airborne speeds only
+    ok = np.isfinite(inp.tas) & np.isfinite(inp.heading_rad) & (inp.tas >= settings.min_airspeed_mps)
+    keep = ok & _decimate_mask(t_in, settings.airdata_rate_hz)
+    # a first-order lag delays a ramp by its time constant: the airspeed recorded at t is the
+    # airspeed at t - lag; sampled at the state steps plus the lag, so that it is used at a step
+    lag = nz.airspeed_lag_s
+    keep_tas = ok & _decimate_mask(t_in, settings.airdata_rate_hz, t_in[0] + lag) if lag else keep
+    b.add("air", jl.TAS, t_in[keep_tas] - lag, inp.tas[keep_tas], nz.tas_mps ** 2)
+    # the heading is the air velocity's direction only in the air: on the runway the nose
+    # follows the runway (a crosswind of 5 m/s at 40 m/s is 7 deg), and the crab is taken up
+    # within seconds after lift-off and taken out in the flare; none within crab_s of them
+    air = keep.copy()
+    if np.isfinite(inp.liftoff_t):
+        air &= t_in > inp.liftoff_t + settings.crab_s
+    if np.isfinite(inp.touchdown_t):
+        air &= t_in < inp.touchdown_t - settings.crab_s
+    b.add("air", jl.HEADING, t_in[air], inp.heading_rad[air], np.radians(nz.heading_deg) ** 2)
+    # Doppler ground speed and drift (track = heading + drift), at the air-data rate
+    if inp.doppler_gs is not None:
+        okd = np.isfinite(inp.doppler_gs) & (inp.doppler_gs >= settings.min_airspeed_mps)
+        okd &= _decimate_mask(t_in, settings.airdata_rate_hz)
+        b.add("doppler", jl.DOPPLER, t_in[okd], inp.doppler_gs[okd], nz.doppler_gs_mps ** 2)
+        if inp.drift_rad is not None:
+            okc = okd & np.isfinite(inp.drift_rad) & np.isfinite(inp.heading_rad)
+            b.add("doppler", jl.TRACK, t_in[okc], inp.heading_rad[okc] + inp.drift_rad[okc],
+                  np.radians(nz.drift_deg) ** 2 + np.radians(nz.heading_deg) ** 2)
+    # recorded (or forecast) wind, sparsely: its errors are correlated over minutes
+    if inp.wind_ne is not None:
+        okw = np.isfinite(inp.wind_ne).all(axis=1) & _decimate_mask(t_in, settings.wind_rate_hz)
+        for i in range(2):
+            H = np.zeros((int(okw.sum()), n))
+            H[:, jl.IW + i] = 1.0
+            b.add("wind", jl.LINEAR, t_in[okw], inp.wind_ne[okw, i], nz.wind_sensor_mps ** 2, H)
+    # pressure altitude
+    okb = np.isfinite(inp.baro_rel_m) & _decimate_mask(t_in, settings.baro_rate_hz)
+    b.add("baro", jl.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
+    # on the ground: zero vertical velocity (the cross-track constraints depend on the heading
+    # bias and the nominal, see build_measurements)
+    keep = _on_ground_mask(inp, settings)
+    if keep.any():
+        tt = t_in[keep]
+        H = np.zeros((len(tt), n))
+        H[:, jl.IV + 2] = 1.0
+        b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+    return b
+
+
+def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
+                       Cnb_T: np.ndarray, clock: dict[str, float],
+                       static: _MeasBuilder | None = None, pnom: np.ndarray | None = None,
+                       vnom: np.ndarray | None = None,
+                       roll: TakeoffRoll | None = None,
+                       psi_hat: np.ndarray | None = None) -> Measurements:
+    """Every source as scalar measurements at its own time (recorder time base).
+
+    ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
+    end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
+    positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
+    and are rebuilt on each call.  ``roll`` is :func:`refined_roll` (computed here if not
+    given); ``psi_hat`` the heading bias of the last pass (per state step), about which the
+    ground constraints are linearised.
+    """
+    nz = settings.noise
+    b = (static if static is not None else static_measurements(inp, settings, T)).copy()
+    n = jl.N_STATE
+    t_in = inp.t_in
+
+    def step_of(t):
+        return _nearest(T, t)
+
+    def linear_ned(source, t, comp_vals, sd, kind="pos", ecef=None):
+        """NED components of a position (given in ECEF) or a velocity, with tau terms."""
+        k = step_of(t)
+        tau = t - T[k]
+        for i in range(3 if kind == "pos" else 2):
+            H = np.zeros((len(t), n))
+            if kind == "pos":
+                c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
+                H[:, jl.IP:jl.IP + 3] = c
+                H[:, jl.IV + i] = tau
+                z = np.einsum("mj,mj->m", c, ecef)
+            else:
+                H[:, jl.IV + i] = 1.0
+                z = comp_vals[i]
+            b.add(source, jl.LINEAR, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), H)
+
+    # GNSS
+    g = inp.gnss
+    if len(g):
+        tg = g["t_s"].to_numpy() - clock.get("gnss", 0.0)
+        k = step_of(tg)
+        hg = g["h_m"].to_numpy(float)
+        no_h = ~np.isfinite(hg)
+        if no_h.any():
+            # a fix without height is used horizontally: its north and east components only,
+            # computed at a substitute height (the nominal's, else the field's plus the pressure
+            # height); the north/east projection of the fix moves by (angle between the
+            # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
+            if pnom is not None:
+                h_sub = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+            else:
+                ii = _nearest(t_in, tg)
+                h_sub = inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
+            hg = np.where(no_h, h_sub, hg)
+        ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
+        ant = np.c_[ex, ey, ez]
+        L = np.asarray(inp.lever_arm, float)
+        v_arm = np.zeros((len(tg), 3))
+        if np.any(L != 0):
+            # attitude at the fix: nearest input sample
+            ii = _nearest(t_in, tg)
+            arm_ned = np.einsum("mij,j->mi", inp.Cnb[ii], L)
+            ant = ant - np.einsum("mij,mj->mi", Cen[k], arm_ned)
+            # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of
+            # yaw): a central difference over +-0.5 s of the recorded attitude (its noise,
+            # 0.05 deg at 8 Hz, then adds under 0.01 m/s)
+            ip, im = _nearest(t_in, tg + 0.5), _nearest(t_in, tg - 0.5)
+            span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
+            v_arm = np.einsum("mij,j->mi", inp.Cnb[ip] - inp.Cnb[im], L) / span
+        # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
+        # else the noise settings; no height: no vertical component
+        sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
+        sd_v = np.where(no_h, np.nan, _per_fix(g, "v_sd_m", nz.gnss_v_m))
+        linear_ned("gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
+        if {"vn_mps", "ve_mps"} <= set(g.columns):
+            sd_vel = _per_fix(g, "vel_sd_mps", nz.gnss_vel_mps)
+            linear_ned("gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
+                                        g["ve_mps"].to_numpy() - v_arm[:, 1]),
+                       (sd_vel, sd_vel), "vel")
+    if pnom is not None and vnom is not None:
+        _runway_measurements(b, inp, settings, step_of, pnom, vnom, psi_hat)
+    # radar
+    rd = inp.radar
+    if len(rd) and inp.station is not None:
+        tr = rd["t_s"].to_numpy() - clock.get("radar", 0.0)
+        b.add("radar", jl.RANGE, tr, rd["range_m"].to_numpy(), nz.radar_range_m ** 2)
+        b.add("radar", jl.AZIMUTH, tr, rd["azimuth_rad"].to_numpy(),
+              np.radians(nz.radar_azimuth_deg) ** 2)
+        if "elevation_rad" in rd.columns:
+            b.add("radar", jl.ELEVATION, tr, rd["elevation_rad"].to_numpy(),
+                  np.radians(nz.radar_elevation_deg) ** 2)
+    # the take-off roll, with the smoothed lift-off speed once there is one (the recorded
+    # airspeed carries the head wind); at rest before it (lined up): zero north and east velocity
+    if roll is None:
+        roll = refined_roll(inp, T, vnom)
+    r0, r1 = roll.rest_t
+    if np.isfinite(r0):
+        tt = t_in[_on_ground_mask(inp, settings) & (t_in >= r0) & (t_in <= r1)]
+        for i in range(2):
+            H = np.zeros((len(tt), n))
+            H[:, jl.IV + i] = 1.0
+            b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+    # end points (end_points): the runway model along / across the runway and vertically,
+    # the reference model in north, east, down
+    for ep in end_points(inp, nz, roll):
+        lat, lon, h = ep["point"]
+        pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
+        tt = np.array([ep["t_s"]])
+        if ep["model"] == "reference":
+            linear_ned("endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
+            continue
+        k = step_of(tt)[0]
+        tau = tt[0] - T[k]
+        psi = ep["runway_rad"]
+        Ca = ned_to_ecef_matrix(lat, lon)[0]
+        for u, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
+                          [0.0, 0.0, 1.0]), ep["sd_m"]):
+            u = np.asarray(u)
+            H = np.zeros((1, n))
+            H[0, jl.IP:jl.IP + 3] = Ca @ u
+            H[0, jl.IV:jl.IV + 3] = u * tau
+            b.add("endpoint", jl.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe)
+    return b.build()

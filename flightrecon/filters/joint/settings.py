@@ -1,0 +1,103 @@
+"""Settings of the joint smoother: the sources, their noise (:class:`JointNoise`) and the
+iteration options (:class:`JointSettings`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway",
+           "doppler", "wind")
+
+
+@dataclass(frozen=True)
+class JointNoise:
+    """Sensor error budget (one sigma unless stated) and process noise of the joint model.
+
+    Defaults are a stated budget for a transport aircraft's recorder data; see docs/joint.md.
+    """
+
+    accel_noise_mps2_sqrt_hz: float = 0.05   # velocity random walk from load-factor noise
+    accel_bias_g: float = 0.003              # accelerometer bias, Gauss-Markov sigma
+    accel_bias_tau_s: float = 3600.0
+    accel_scale: float = 0.005               # accelerometer scale errors, prior per axis
+    wind_prior_mps: float = 15.0
+    wind_rw_mps_sqrt_s: float = 0.05         # wind change with time
+    wind_shear_mps_per_sqrt_m: float = 0.05  # wind change with altitude beyond the gradient:
+    #                                          sd over 1 m of climb
+    wind_gradient_per_km: float = 5.0        # prior of the wind's gradient with height [(m/s)/km]
+    wind_gradient_rw_per_km_sqrt_s: float = 0.005  # its change with time
+    heading_bias_deg: float = 2.0
+    attitude_bias_deg: float = 0.5           # roll and pitch biases (attitude reference), each
+    heading_bias_rw_deg_sqrt_s: float = 1e-4
+    tas_scale: float = 0.03
+    baro_offset_m: float = 60.0
+    baro_offset_rw_m_sqrt_s: float = 0.05
+    baro_scale: float = 0.05
+    tas_mps: float = 1.5                     # airspeed noise (used at airdata_rate_hz)
+    airspeed_lag_s: float = 0.0              # pitot-static lag (first order), from the data sheet
+    heading_deg: float = 0.5
+    baro_m: float = 8.0
+    gnss_h_m: float = 5.0
+    gnss_v_m: float = 10.0
+    gnss_vel_mps: float = 0.3
+    radar_range_m: float = 50.0
+    radar_azimuth_deg: float = 0.25
+    radar_elevation_deg: float = 0.3
+    endpoint_h_m: float = 1500.0             # lift-off / touchdown point vs airfield reference
+    endpoint_v_m: float = 30.0
+    touchdown_m: float = 400.0               # touchdown distance past the runway threshold
+    touchdown_sd_m: float = 150.0            # its dispersion
+    roll_start_sd_m: float = 100.0           # start of the take-off roll vs the threshold
+    ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
+    runway_halfwidth_m: float = 25.0         # cross-track offset from the runway centreline
+    doppler_gs_mps: float = 0.5              # Doppler ground-speed noise (used at airdata rate)
+    drift_deg: float = 0.3                   # drift-angle noise
+    doppler_scale: float = 0.02              # prior of the Doppler scale error
+    drift_bias_deg: float = 1.0              # prior of the drift-angle bias
+    wind_sensor_mps: float = 4.0             # recorded / forecast wind, per component
+    init_pos_m: float = 3000.0
+    init_vel_mps: float = 30.0
+
+    def __post_init__(self) -> None:
+        for name in POSITIVE_NOISE:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise ValueError(f"joint noise setting '{name}' must be a positive number "
+                                 f"(it is a measurement's standard deviation or a time "
+                                 f"constant), got {v!r}")
+
+
+POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_h_m", "gnss_v_m",
+                  "gnss_vel_mps", "radar_range_m", "radar_azimuth_deg", "radar_elevation_deg",
+                  "endpoint_h_m", "endpoint_v_m", "touchdown_sd_m", "roll_start_sd_m",
+                  "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
+                  "wind_sensor_mps")
+"""JointNoise fields that must be positive (a zero would be a measurement without noise)."""
+
+
+@dataclass(frozen=True)
+class JointSettings:
+    """Settings of the joint smoother."""
+
+    noise: JointNoise = field(default_factory=JointNoise)
+    state_rate_hz: float = 1.0
+    airdata_rate_hz: float = 1.0
+    baro_rate_hz: float = 1.0
+    wind_rate_hz: float = 1.0 / 1800.0       # recorded wind: errors correlated over ~15 min
+    ground_rate_hz: float = 1.0
+    min_airspeed_mps: float = 30.0
+    crab_s: float = 10.0                     # no air-data heading this close to the runway
+    iterations: int = 12                     # cap on the Gauss-Newton passes
+    converge_m: float = 2.0                  # nominal shift below which the linearisation holds
+    converge_weight: float = 0.01            # largest weight change that counts as settled
+    huber_c: float = 3.0
+    innovation_gate: float = 5.0
+    reject_c: float = 8.0
+    robust: bool = True
+    estimate_clock: bool = True
+    estimate_noise: bool = False
+    noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
+    noise_tol: float = 0.01                  # EM stops when no variance moves by more
+    noise_factor_bounds: tuple[float, float] = (0.01, 100.0)  # EM variance factors kept inside

@@ -1,0 +1,378 @@
+"""SNS forward filter (compiled kernel and its wrapper) and RTS smoother."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from flightrecon.filters.sns.linalg import (
+    _chol_solve_rows,
+    _mdmt_acc,
+    _mm,
+    _mmt,
+    _pinv_sym_into,
+    _sym_into,
+)
+from flightrecon.filters.sns.model import (
+    FORM_CONSISTENT,
+    FORM_SEED,
+    MODEL_AIRSPEED,
+    MODEL_DOPPLER,
+    N_EPS1,
+    N_STATE,
+    SnsNoise,
+    StepInputs,
+    _observation_rows_into,
+    _step_matrices_into,
+    boxminus,
+    boxplus,
+    fill_single_sample,
+    per_fix_sd,
+)
+
+
+@dataclass(frozen=True)
+class SnsRun:
+    """A forward run of the SNS filter (time-major; position in lat/lon radians).
+
+    Attributes
+    ----------
+    x_pred, x : (N, 5) predicted / filtered states ``[lat_rad, lon_rad, c1, c2, c3]``
+    P_pred, P : (N, 5, 5) covariances in the local-level frame (north/east metres first)
+    cross : (N, 5, 5) ``Cov(x_k, x_{k+1} | Y_0..k)`` (smoother numerator; row ``N-1`` zero)
+    nis : (N,) normalised innovation squared (NaN without fixes), ``rank`` its degrees of freedom
+    h : (N,) heights used for the radii
+    model, form : as passed
+    """
+
+    x_pred: np.ndarray
+    x: np.ndarray
+    P_pred: np.ndarray
+    P: np.ndarray
+    cross: np.ndarray
+    nis: np.ndarray
+    rank: np.ndarray
+    h: np.ndarray
+    model: int
+    form: int
+
+
+@dataclass(frozen=True)
+class SnsSmoothed:
+    """Smoothed states ``x`` (N, 5) (lat/lon radians first) and covariances ``P`` (N, 5, 5)."""
+
+    x: np.ndarray
+    P: np.ndarray
+
+
+@nb.njit(cache=True, nogil=True)
+def _filter_kernel(model, form, x0, P0, t, hgt, A, U, W, fs, fe, flat, flon, fv, ftau,
+                   fPA, fPU, fPW, fa, fu, fw, star, dt_star, Qb, Qa, ftau_in, sig, q, pos_sd,
+                   vel_sd, rcond):
+    # pos_sd, vel_sd: (F,) per-fix standard deviations of the SNS position / velocity (D)
+    # All small-matrix algebra runs in preallocated buffers with loop products (_mm, _mmt):
+    # the same operations as the matrix expressions in the module docstring, without the
+    # per-step heap allocations and BLAS calls that dominated the run time.
+    N = t.shape[0]
+    n = N_STATE
+    ne = N_EPS1
+    xp = np.empty((N, n))
+    xs = np.empty((N, n))
+    Pp = np.empty((N, n, n))
+    Ps = np.empty((N, n, n))
+    cross = np.zeros((N, n, n))
+    nis = np.full(N, np.nan)
+    rank = np.zeros(N, dtype=np.int64)
+    mmax = 1
+    for k in range(N):
+        m = 0
+        for i in range(fs[k], fe[k]):
+            m += 2
+            for j in range(2):
+                if not np.isnan(fv[i, j]):
+                    m += 1
+        mmax = max(mmax, m)
+    # buffers
+    Hb = np.zeros((mmax, n))
+    Gb = np.zeros((mmax, ne))
+    Rd = np.zeros(mmax)
+    nub = np.zeros(mmax)
+    Rtb = np.zeros((mmax, mmax))
+    Sb = np.zeros((mmax, mmax))
+    Spb = np.zeros((mmax, mmax))
+    Ab = np.zeros((mmax, mmax))
+    Vb = np.zeros((mmax, mmax))
+    PHtb = np.zeros((n, mmax))
+    Kb = np.zeros((n, mmax))
+    T5m = np.zeros((n, mmax))
+    BGb = np.zeros((n, mmax))
+    BGSb = np.zeros((n, mmax))
+    Lgb = np.zeros((n, mmax))
+    Spnu = np.zeros(mmax)
+    hh = np.zeros(4)
+    Hi = np.zeros((4, n))
+    Gi = np.zeros((4, ne))
+    d = np.zeros(2)
+    d2 = np.zeros(2)
+    Jw = np.zeros((2, 3))
+    Gw = np.zeros((2, 4))
+    Lw = np.zeros((2, 2))
+    Phi = np.zeros((n, n))
+    B = np.zeros((n, ne))
+    KH = np.zeros((n, n))
+    T55 = np.zeros((n, n))
+    Pn = np.zeros((n, n))
+    Pplus = np.zeros((n, n))
+    T5e = np.zeros((n, ne))
+    ones_e = np.ones(ne)
+    minus_m = -np.ones(mmax)
+    x = x0.copy()
+    P = P0.copy()
+    xplus = np.zeros(n)
+    c = np.zeros(3)
+    for k in range(N):
+        xp[k] = x
+        Pp[k] = P
+        for j in range(3):
+            c[j] = x[2 + j]
+        # ---- fixes taken during step k: stacked observation
+        m = 0
+        for i in range(fs[k], fe[k]):
+            m += 2
+            for j in range(2):
+                if not np.isnan(fv[i, j]):
+                    m += 1
+        have = m > 0
+        Hs = Hb[:m]
+        Gs = Gb[:m]
+        nu = nub[:m]
+        K = Kb[:, :m]
+        Rt = Rtb[:m, :m]
+        S = Sb[:m, :m]
+        Sp = Spb[:m, :m]
+        PHt = PHtb[:, :m]
+        if have:
+            r = 0
+            for i in range(fs[k], fe[k]):
+                _observation_rows_into(model, c, fPA[i], fPU[i], fPW[i], ftau[i], fa[i], fu[i],
+                                       fw[i], sig, ftau_in[i], Qb[k], hh, Hi, Gi, d, Jw, Gw, Lw)
+                dn, de = boxminus(flat[i], flon[i], x[0], x[1], hgt[k])
+                for j in range(4):
+                    if j >= 2 and np.isnan(fv[i, j - 2]):
+                        continue
+                    for l in range(n):
+                        Hs[r, l] = Hi[j, l]
+                    for l in range(ne):
+                        Gs[r, l] = Gi[j, l]
+                    if j == 0:
+                        nu[r] = dn - hh[0]
+                        Rd[r] = pos_sd[i] * pos_sd[i]
+                    elif j == 1:
+                        nu[r] = de - hh[1]
+                        Rd[r] = pos_sd[i] * pos_sd[i]
+                    else:
+                        nu[r] = fv[i, j - 2] - hh[j]
+                        Rd[r] = vel_sd[i] * vel_sd[i]
+                    r += 1
+            _mmt(Gs, Gs, Rt)  # Rt = D D^T + G G^T
+            for r in range(m):
+                Rt[r, r] += Rd[r]
+            _mmt(P, Hs, PHt)  # P- H^T
+            _mm(Hs, PHt, S)
+            for i in range(m):
+                for j in range(m):
+                    S[i, j] += Rt[i, j]
+            rk = _pinv_sym_into(S, rcond, Sp, Ab[:m, :m], Vb[:m, :m])
+            _mm(PHt, Sp, K)  # K = P- H^T S^+
+            # Joseph form: (I - K H) P- (I - K H)^T + K Rt K^T
+            _mm(K, Hs, KH)
+            for i in range(n):
+                for j in range(n):
+                    KH[i, j] = (1.0 if i == j else 0.0) - KH[i, j]
+            _mm(KH, P, T55)
+            _mmt(T55, KH, Pn)
+            T = T5m[:, :m]
+            _mm(K, Rt, T)
+            _mmt(T, K, Pplus)
+            for i in range(n):
+                for j in range(n):
+                    Pplus[i, j] += Pn[i, j]
+            _sym_into(Pplus, Pplus)
+            nis_k = 0.0
+            for i in range(m):
+                s = 0.0
+                for j in range(m):
+                    s += Sp[i, j] * nu[j]
+                Spnu[i] = s
+                nis_k += nu[i] * s
+            nis[k] = nis_k
+            rank[k] = rk
+            dx0 = 0.0
+            dx1 = 0.0
+            for j in range(m):
+                dx0 += K[0, j] * nu[j]
+                dx1 += K[1, j] * nu[j]
+            lat, lon = boxplus(x[0], x[1], dx0, dx1, hgt[k])
+            xplus[0] = lat
+            xplus[1] = lon
+            for i in range(2, n):
+                s = 0.0
+                for j in range(m):
+                    s += K[i, j] * nu[j]
+                xplus[i] = x[i] + s
+        else:
+            for i in range(n):
+                xplus[i] = x[i]
+                for j in range(n):
+                    Pplus[i, j] = P[i, j]
+        xs[k] = xplus
+        Ps[k] = Pplus
+        if k == N - 1:
+            break
+        # ---- prediction to k+1 with the corrected readings of step k
+        for j in range(3):
+            c[j] = xplus[2 + j]
+        tau = t[k + 1] - t[k]
+        _step_matrices_into(model, c, A[k], U[k], W[k], tau, sig, q, star[k], dt_star[k],
+                            Qb[k], Qa[k], d, Phi, B, Jw, Gw, d2, Lw)
+        dn = d[0]
+        de = d[1]
+        ck = cross[k]
+        if have and form == FORM_CONSISTENT:
+            BG = BGb[:, :m]
+            BGS = BGSb[:, :m]
+            Lg = Lgb[:, :m]
+            _mmt(B, Gs, BG)  # B G^T
+            _mm(BG, Sp, BGS)  # B G^T S^+
+            for j in range(m):  # state correction B G^T S^+ nu (position rows only: the
+                dn += BGS[0, j] * nu[j]  # random-walk columns of B have no G counterpart)
+                de += BGS[1, j] * nu[j]
+            _mm(Phi, K, Lg)  # L = Phi K + B G^T S^+
+            for i in range(n):
+                for j in range(m):
+                    Lg[i, j] += BGS[i, j]
+            _mm(Lg, Hs, KH)  # Phi - L H
+            for i in range(n):
+                for j in range(n):
+                    KH[i, j] = Phi[i, j] - KH[i, j]
+            _mm(KH, P, T55)
+            _mmt(T55, KH, Pn)
+            _mm(Lg, Gs, T5e)  # B - L G
+            for i in range(n):
+                for j in range(ne):
+                    T5e[i, j] = B[i, j] - T5e[i, j]
+            _mdmt_acc(T5e, ones_e, T5e, Pn)  # + (B - L G)(B - L G)^T
+            _mdmt_acc(Lg, Rd, Lg, Pn)  # + L D D^T L^T
+            # smoother numerator P+ Phi^T - K G B^T
+            _mmt(Pplus, Phi, ck)
+            _mdmt_acc(K, minus_m, BG, ck)
+        else:
+            _mm(Phi, Pplus, T55)
+            _mmt(T55, Phi, Pn)
+            _mdmt_acc(B, ones_e, B, Pn)
+            _mmt(Pplus, Phi, ck)
+        lat, lon = boxplus(xplus[0], xplus[1], dn, de, hgt[k])
+        x[0] = lat
+        x[1] = lon
+        for i in range(2, n):
+            x[i] = xplus[i]
+        _sym_into(Pn, P)
+    return xp, xs, Pp, Ps, cross, nis, rank
+
+
+def _c(a, dtype=np.float64) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=dtype))
+
+
+def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoise, *,
+               model: int, form: int = FORM_CONSISTENT) -> SnsRun:
+    """Run the nonlinear SNS filter forward (module docstring; METHODS.md section 4).
+
+    Parameters
+    ----------
+    inputs : :class:`StepInputs`
+    x0 : (5,) initial state ``[lat_rad, lon_rad, c1, c2, c3]`` at ``inputs.t[0]``
+    P0 : (5, 5) its covariance (north/east metres, correction units)
+    noise : :class:`SnsNoise`
+    model : ``MODEL_AIRSPEED`` or ``MODEL_DOPPLER``
+    form : ``FORM_CONSISTENT`` (correlated-noise terms) or ``FORM_SEED`` (seed 003 as printed)
+    """
+    if model not in (MODEL_AIRSPEED, MODEL_DOPPLER):
+        raise ValueError(f"unknown model {model}")
+    if form not in (FORM_CONSISTENT, FORM_SEED):
+        raise ValueError(f"unknown form {form}")
+    t = _c(inputs.t)
+    if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
+        raise ValueError("filter times must be strictly increasing, at least two")
+    P0 = _c(P0)
+    if P0.shape != (N_STATE, N_STATE):
+        raise ValueError(f"P0 must be (5, 5), got {P0.shape}")
+    inputs = fill_single_sample(inputs)
+    out = _filter_kernel(
+        int(model), int(form), _c(x0), P0, t, _c(inputs.h), _c(inputs.A), _c(inputs.U),
+        _c(inputs.W), _c(inputs.fix_start, np.int64), _c(inputs.fix_end, np.int64),
+        _c(inputs.fix_lat), _c(inputs.fix_lon), _c(inputs.fix_v).reshape(-1, 2),
+        _c(inputs.fix_tau), _c(inputs.fix_PA).reshape(-1, 2), _c(inputs.fix_PU).reshape(-1, 2),
+        _c(inputs.fix_PW).reshape(-1, 2), _c(inputs.fix_a).reshape(-1, 2),
+        _c(inputs.fix_u).reshape(-1, 2), _c(inputs.fix_w).reshape(-1, 2),
+        _c(inputs.star).reshape(-1, 3, 2), _c(inputs.dt_star), _c(inputs.Qb).reshape(-1, 7),
+        _c(inputs.Qa).reshape(-1, 7), _c(inputs.fix_tau_in), _c(noise.sensor_sd),
+        _c(noise.rw_q), per_fix_sd(inputs.fix_pos_sd, noise.pos_sd_m, len(inputs.fix_lat)),
+        per_fix_sd(inputs.fix_vel_sd, noise.vel_sd_mps, len(inputs.fix_lat)),
+        float(noise.rcond))
+    xp, xs, Pp, Ps, cross, nis, rank = out
+    return SnsRun(xp, xs, Pp, Ps, cross, nis, rank, _c(inputs.h).copy(), int(model),
+                  int(form))
+
+
+@nb.njit(cache=True, nogil=True)
+def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
+    N, n = xf.shape
+    xs = xf.copy()
+    Ps = Pf.copy()
+    d = np.zeros(n)
+    dx = np.zeros(n)
+    C = np.zeros((n, n))
+    Lw = np.zeros((n, n))
+    Dd = np.zeros((n, n))
+    T = np.zeros((n, n))
+    Pk = np.zeros((n, n))
+    for k in range(N - 2, -1, -1):
+        # C = cross_k Pp_{k+1}^{-1}: Cholesky solve with the symmetric Pp; a general solve
+        # (which raises LinAlgError if Pp is singular) when it is not positive definite
+        if not _chol_solve_rows(Pp[k + 1], cross[k], Lw, C):
+            C[:, :] = np.linalg.solve(Pp[k + 1], cross[k].T).T
+        dn, de = boxminus(xs[k + 1, 0], xs[k + 1, 1], xp[k + 1, 0], xp[k + 1, 1], hgt[k + 1])
+        d[0] = dn
+        d[1] = de
+        for j in range(2, n):
+            d[j] = xs[k + 1, j] - xp[k + 1, j]
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += C[i, j] * d[j]
+            dx[i] = s
+        lat, lon = boxplus(xf[k, 0], xf[k, 1], dx[0], dx[1], hgt[k])
+        xs[k, 0] = lat
+        xs[k, 1] = lon
+        for j in range(2, n):
+            xs[k, j] = xf[k, j] + dx[j]
+        for i in range(n):
+            for j in range(n):
+                Dd[i, j] = Ps[k + 1, i, j] - Pp[k + 1, i, j]
+        _mm(C, Dd, T)
+        _mmt(T, C, Pk)
+        for i in range(n):
+            for j in range(n):
+                Pk[i, j] += Pf[k, i, j]
+        _sym_into(Pk, Ps[k])
+    return xs, Ps
+
+
+def sns_smooth(run: SnsRun) -> SnsSmoothed:
+    """Backward pass with the gain matching the filter's form (module docstring, "Smoother")."""
+    xs, Ps = _smoother_kernel(_c(run.x_pred), _c(run.x), _c(run.P_pred), _c(run.P),
+                              _c(run.cross), _c(run.h))
+    return SnsSmoothed(xs, Ps)

@@ -1,0 +1,279 @@
+"""Small dense linear algebra of the SNS filter (compiled): 2x2 Cholesky, symmetric
+eigen-decomposition, pseudo-inverse, products into preallocated buffers."""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from flightrecon.filters.smallmat import cholesky_factor
+
+
+@nb.njit(cache=True, nogil=True)
+def _chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
+    """Lower Cholesky factor of the PSD 2x2 [[a, b], [b, c]] into ``L`` (semi-definite allowed)."""
+    L[0, 1] = 0.0
+    if a > 0.0:
+        L[0, 0] = np.sqrt(a)
+        L[1, 0] = b / L[0, 0]
+        L[1, 1] = np.sqrt(max(c - b * b / a, 0.0))
+    else:
+        L[0, 0] = 0.0
+        L[1, 0] = 0.0
+        L[1, 1] = np.sqrt(max(c, 0.0))
+
+
+@nb.njit(cache=True, nogil=True)
+def _chol2(a: float, b: float, c: float) -> np.ndarray:
+    """Lower Cholesky factor of the PSD 2x2 matrix [[a, b], [b, c]] (semi-definite allowed)."""
+    L = np.empty((2, 2))
+    _chol2_into(a, b, c, L)
+    return L
+
+
+@nb.njit(cache=True, nogil=True)
+def _jacobi_eigh(A: np.ndarray, V: np.ndarray) -> None:
+    """Eigen-decomposition of a symmetric matrix by cyclic Jacobi rotations, in place.
+
+    On return the diagonal of ``A`` holds the eigenvalues and the columns of ``V`` the
+    eigenvectors (``A_in = V diag V^T``).  Each rotation zeroes one off-diagonal pair
+    (``t = tan phi`` the small root of ``t^2 + 2 theta t - 1 = 0``,
+    ``theta = (a_qq - a_pp) / (2 a_pq)``); sweeps stop when the off-diagonal Frobenius norm is
+    below 1e-17 of the whole norm (backward-stable: eigenvalues to round-off of ``||A||``), at
+    most 60 sweeps.  For the small (4..8) innovation covariances of the filter this is several
+    times cheaper than a LAPACK call with its workspace allocations.
+    """
+    m = A.shape[0]
+    for i in range(m):
+        for j in range(m):
+            V[i, j] = 1.0 if i == j else 0.0
+    for _sweep in range(60):
+        off = 0.0
+        tot = 0.0
+        for i in range(m):
+            tot += A[i, i] * A[i, i]
+            for j in range(i + 1, m):
+                off += A[i, j] * A[i, j]
+        tot += 2.0 * off
+        if off <= 1e-34 * tot:
+            return
+        for p in range(m - 1):
+            for q in range(p + 1, m):
+                apq = A[p, q]
+                if apq == 0.0:
+                    continue
+                theta = (A[q, q] - A[p, p]) / (2.0 * apq)
+                if abs(theta) > 1e150:
+                    t = 0.5 / theta
+                else:
+                    t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                    if theta < 0.0:
+                        t = -t
+                cs = 1.0 / np.sqrt(t * t + 1.0)
+                sn = t * cs
+                for r in range(m):  # columns: A J
+                    arp = A[r, p]
+                    arq = A[r, q]
+                    A[r, p] = cs * arp - sn * arq
+                    A[r, q] = sn * arp + cs * arq
+                for r in range(m):  # rows: J^T (A J)
+                    apr = A[p, r]
+                    aqr = A[q, r]
+                    A[p, r] = cs * apr - sn * aqr
+                    A[q, r] = sn * apr + cs * aqr
+                A[p, q] = 0.0
+                A[q, p] = 0.0
+                for r in range(m):
+                    vrp = V[r, p]
+                    vrq = V[r, q]
+                    V[r, p] = cs * vrp - sn * vrq
+                    V[r, q] = sn * vrp + cs * vrq
+
+
+@nb.njit(cache=True, nogil=True)
+def _inv_spd_into(S: np.ndarray, rcond: float, Sp: np.ndarray, L: np.ndarray) -> bool:
+    """``Sp = S^{-1}`` by Cholesky when that provably equals the pseudo-inverse of :func:`pinv_sym`.
+
+    With ``S = L L^T`` and ``X = S^{-1}`` (from the triangular factor), every eigenvalue of ``S``
+    lies in ``[1 / trace(X), trace(S)]``; if ``1 / trace(X) > rcond * trace(S)`` no eigenvalue
+    falls below ``rcond * max eigenvalue``, the rank is full and ``S^+ = S^{-1}``.  Returns False
+    (``Sp`` undefined) when the factorisation fails or that test does not pass (the caller then
+    uses the eigen-decomposition).  ``L`` is scratch of ``S``'s shape.
+    """
+    m = S.shape[0]
+    tr = 0.0
+    for j in range(m):
+        tr += S[j, j]
+        acc = S[j, j]
+        for k in range(j):
+            acc -= L[j, k] * L[j, k]
+        if not acc > 0.0:
+            return False
+        L[j, j] = np.sqrt(acc)
+        for i in range(j + 1, m):
+            acc = 0.5 * (S[i, j] + S[j, i])
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            L[i, j] = acc / L[j, j]
+    # W = L^{-1} (lower triangular) into the upper part of Sp's transpose workspace: use Sp
+    for j in range(m):
+        for i in range(m):
+            Sp[i, j] = 0.0
+        Sp[j, j] = 1.0 / L[j, j]
+        for i in range(j + 1, m):
+            acc = 0.0
+            for k in range(j, i):
+                acc -= L[i, k] * Sp[k, j]
+            Sp[i, j] = acc / L[i, i]
+    # X = W^T W (symmetric); W is stored in the lower triangle of Sp, so build X into L
+    trx = 0.0
+    for i in range(m):
+        for j in range(i, m):
+            acc = 0.0
+            for k in range(j, m):
+                acc += Sp[k, i] * Sp[k, j]
+            L[i, j] = acc
+        trx += L[i, i]
+    if not 1.0 / trx > rcond * tr:
+        return False
+    for i in range(m):
+        for j in range(i, m):
+            Sp[i, j] = L[i, j]
+            Sp[j, i] = L[i, j]
+    return True
+
+
+@nb.njit(cache=True, nogil=True)
+def _pinv_sym_into(S: np.ndarray, rcond: float, Sp: np.ndarray, A: np.ndarray,
+                   V: np.ndarray) -> int:
+    """:func:`pinv_sym` writing ``S^+`` into ``Sp``; ``A``, ``V`` scratch of ``S``'s shape.
+
+    Well-conditioned ``S`` (the usual innovation covariance) takes the Cholesky inverse
+    (:func:`_inv_spd_into`, full rank proven); otherwise the Jacobi eigen-decomposition.
+    """
+    m = S.shape[0]
+    for i in range(m):
+        for j in range(m):
+            if not np.isfinite(S[i, j]):
+                raise np.linalg.LinAlgError("innovation covariance is not finite")
+    if _inv_spd_into(S, rcond, Sp, A):
+        return m
+    for i in range(m):
+        for j in range(m):
+            A[i, j] = 0.5 * (S[i, j] + S[j, i])
+    _jacobi_eigh(A, V)
+    lmax = 0.0
+    for i in range(m):
+        lmax = max(lmax, abs(A[i, i]))
+    for i in range(m):
+        for j in range(m):
+            Sp[i, j] = 0.0
+    rank = 0
+    for e in range(m):
+        lam = A[e, e]
+        if lam > rcond * lmax and lam > 0.0:
+            rank += 1
+            inv = 1.0 / lam
+            for i in range(m):
+                vi = V[i, e] * inv
+                for j in range(m):
+                    Sp[i, j] += vi * V[j, e]
+    return rank
+
+
+@nb.njit(cache=True, nogil=True)
+def pinv_sym(S: np.ndarray, rcond: float):
+    """Moore-Penrose pseudo-inverse of a symmetric matrix and its numerical rank.
+
+    Eigen-decomposition ``S = V diag(l) V^T`` (cyclic Jacobi, :func:`_jacobi_eigh`);
+    eigenvalues ``l <= rcond * max |l|`` are treated as zero.  Returns ``(S^+, rank)``.  When a
+    Cholesky factorisation proves that no eigenvalue is below the threshold the result is the
+    inverse computed from that factor (same matrix, to round-off; :func:`_inv_spd_into`).
+    """
+    m = S.shape[0]
+    Sp = np.empty((m, m))
+    rank = _pinv_sym_into(S, rcond, Sp, np.empty((m, m)), np.empty((m, m)))
+    return Sp, rank
+
+
+@nb.njit(cache=True, nogil=True)
+def _mm(A, B, out):
+    """``out = A @ B`` for small matrices (plain loops: no allocation, no BLAS call overhead).
+
+    Row-update order (``out[i, :] += A[i, l] B[l, :]``): the inner loop carries no dependency
+    chain, which matters more than anything else at these sizes.
+    """
+    n, kk = A.shape
+    m = B.shape[1]
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
+        for l in range(kk):
+            a = A[i, l]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+
+
+@nb.njit(cache=True, nogil=True)
+def _mmt(A, B, out):
+    """``out = A @ B.T`` for small matrices (row-update order, as :func:`_mm`)."""
+    n, kk = A.shape
+    m = B.shape[0]
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
+        for l in range(kk):
+            a = A[i, l]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[j, l]
+
+
+@nb.njit(cache=True, nogil=True)
+def _mdmt_acc(A, dg, B, out):
+    """``out += A @ diag(dg) @ B.T`` for small matrices (row-update order, as :func:`_mm`)."""
+    n, kk = A.shape
+    m = B.shape[0]
+    for i in range(n):
+        for l in range(kk):
+            a = A[i, l] * dg[l]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[j, l]
+
+
+@nb.njit(cache=True, nogil=True)
+def _sym_into(M, out):
+    """``out = (M + M^T) / 2``."""
+    n = M.shape[0]
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * (M[i, j] + M[j, i])
+            out[i, j] = v
+            out[j, i] = v
+
+
+@nb.njit(cache=True, nogil=True)
+def _chol_solve_rows(P, Cr, L, out) -> bool:
+    """``out = Cr P^{-1}`` for a symmetric positive-definite ``P`` (n, n) by Cholesky.
+
+    ``L`` is an (n, n) scratch.  Returns False (``out`` undefined) if a pivot is not clearly
+    positive (``<= 1e-14`` of its diagonal entry), so the caller can fall back to a general solve
+    that reports singularity.
+    """
+    n = P.shape[0]
+    if not cholesky_factor(P, L, 1e-14):
+        return False
+    for r in range(Cr.shape[0]):  # P z = Cr[r]^T (P symmetric), out[r] = z^T
+        for i in range(n):  # L y = b
+            s = Cr[r, i]
+            for l in range(i):
+                s -= L[i, l] * out[r, l]
+            out[r, i] = s / L[i, i]
+        for i in range(n - 1, -1, -1):  # L^T z = y
+            s = out[r, i]
+            for l in range(i + 1, n):
+                s -= L[l, i] * out[r, l]
+            out[r, i] = s / L[i, i]
+    return True
