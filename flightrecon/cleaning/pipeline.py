@@ -18,6 +18,7 @@ from flightrecon.cleaning.attitude import (
     heading_from_rates,
     heading_needed,
     provisional_heading,
+    rate_aided_attitude,
 )
 from flightrecon.cleaning.despike import DespikeSettings
 from flightrecon.cleaning.origin import with_origin
@@ -136,6 +137,9 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
             report.append(report_entry(g, "clock_offset", f"{off:+g} s added to the {g} times",
                                        count=len(tables[g]), offset_s=off))
     meta, rep = with_origin(flight.meta, grid, tables["gnss"], tables["radar"])
+    report.extend(rep)
+    # roll, pitch and heading between their samples shaped by the body rates, where both exist
+    grid, rep = rate_aided_attitude(grid, work, settings.max_gap_s)
     report.extend(rep)
     why = heading_needed(grid)
     if why is not None:
