@@ -1,6 +1,6 @@
 """The canonical flight-log schema: channel names, units, kinds and physical limits.
 
-Conventions (METHODS.md, "Common ground"); documented in ``docs/schema.md``:
+Conventions (docs/schema.md, "Conventions"); documented in ``docs/schema.md``:
 
 * Body axes forward-right-down (FRD).  Load factor n = specific force / g0 (g0 = 9.80665 m/s^2).
   ``n_long_g`` positive forward, ``n_lat_g`` positive toward the right wing,
@@ -12,8 +12,8 @@ Conventions (METHODS.md, "Common ground"); documented in ``docs/schema.md``:
 * ``baro_alt_m`` is pressure altitude (1013.25 hPa datum) unless the metadata says otherwise.
 * A correction to a sensor reading is true minus measured.
 
-Two kinds of channel (METHODS.md, "Two kinds of channel"): *inputs* are cleaned and brought to one
-grid; *measurements* are kept once each, at their own time.
+Two kinds of channel (docs/schema.md, "Two kinds of channel"): *inputs* are cleaned and brought
+to one grid; *measurements* are kept once each, at their own time.
 """
 
 from __future__ import annotations

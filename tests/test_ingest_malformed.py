@@ -320,8 +320,9 @@ def _gnss_clash(tmp):
 def _gnss_backward(tmp):
     d = SAMPLE.drop(columns=[c for c in SAMPLE if c.startswith("gnss")])
     log = write_csv(tmp / "gb.csv", d)
-    (tmp / "gb_gnss.csv").write_text("t_s,gnss_lat_deg,gnss_lon_deg\n0.5,40.46,50.05\n"
-                                     "1.5,40.46,50.05\n1.0,40.46,50.05\n")
+    # a clock reset (back by 10 s at 1 s intervals): a local swap would be re-sorted
+    (tmp / "gb_gnss.csv").write_text("t_s,gnss_lat_deg,gnss_lon_deg\n10.5,40.46,50.05\n"
+                                     "11.5,40.46,50.05\n1.0,40.46,50.05\n")
     return [log, "--gnss", tmp / "gb_gnss.csv"]
 
 

@@ -251,6 +251,60 @@ def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
     np.testing.assert_allclose(got[t < 0], np.repeat(path(T[:1]), (t < 0).sum(), 0), atol=1e-12)
 
 
+@pytest.fixture(scope="module")
+def captured_passes():
+    """The forward and backward kernels' arguments of one joint pass on the circuit sample."""
+    from pathlib import Path
+
+    import flightrecon.filters.joint as J
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.filters.joint_method import joint_inputs
+    from flightrecon.ingest import load_flight
+
+    log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
+    inp = joint_inputs(clean_flight(load_flight(log)))
+    cap = {}
+    orig_fw, orig_bw = jp.forward, jp.backward
+
+    def fw(*a):
+        cap["fw"] = a
+        return orig_fw(*a)
+
+    def bw(*a):
+        cap["bw"] = a
+        return orig_bw(*a)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(jp, "forward", fw)
+    mp.setattr(jp, "backward", bw)
+    try:
+        J.smooth_joint(inp, J.JointSettings(iterations=1))
+    finally:
+        mp.undo()
+    return cap
+
+
+def test_backward_passes_count_cholesky_failures(captured_passes):
+    """Regression: where a predicted covariance was not positive definite the backward passes
+    fell back to a general solve without a word.  They now count those steps (reported in the
+    summary as ``cholesky_fallbacks``): zero on the circuit, one after making one P_p[k+1]
+    indefinite (one diagonal entry negated), in both the mean and the covariance pass."""
+    a = list(captured_passes["fw"])
+    n = jl.N_STATE
+    Pp = np.empty((len(a[0]), n, n))
+    a[3] = Pp
+    jp.forward(*a)
+    b = list(captured_passes["bw"])
+    b_mean = b[4:-1]
+    assert jp.backward_mean(a[0], a[1], a[2], Pp, *b_mean)[-1] == 0
+    assert jp.backward(a[0], a[1], a[2], Pp, *b[4:])[-1] == 0
+    bad = Pp.copy()
+    k = len(bad) // 2
+    bad[k, jl.IBH, jl.IBH] = -bad[k, jl.IBH, jl.IBH]
+    assert jp.backward_mean(a[0], a[1], a[2], bad, *b_mean)[-1] == 1
+    assert jp.backward(a[0], a[1], a[2], bad, *b[4:-1], False)[-1] == 1
+
+
 def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypatch):
     """The backward passes recompute P_p[k+1] from P_f[k] (not stored): with the stored ones
     the smoothed states, covariances and residuals must be bit for bit the same."""

@@ -57,7 +57,7 @@ def test_list_and_show(store_path, capsys):
     code, out, _ = run(["coeffs", "show", "4K-AZ01", "F2", "--store", str(store_path)], capsys)
     assert code == 0 and "-0.012" in out and '"rate_hz": 16' in out
     code, out, _ = run(["coeffs", "show", "4K-AZ01", "--store", str(store_path)], capsys)
-    assert code == 0 and "5 flight(s) of 4K-AZ01" in out
+    assert code == 0 and "5 Sabziev fit(s) of 4K-AZ01" in out
     code, _, err = run(["coeffs", "show", "NOPE", "--store", str(store_path)], capsys)
     assert code == 10 and "no flights of aircraft 'NOPE'" in err
 

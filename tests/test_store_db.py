@@ -33,7 +33,7 @@ def test_new_store_has_identity_schema_and_wal(tmp_path):
         assert store.count() == 0
     con = sqlite3.connect(path)
     assert con.execute("PRAGMA application_id").fetchone()[0] == db.APPLICATION_ID
-    assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
+    assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
     assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     cols = [r[1] for r in con.execute("PRAGMA table_info(flights)")]
     assert tuple(cols[1:]) == db.FLIGHT_COLUMNS
@@ -138,10 +138,11 @@ def test_upgrade_from_v1(tmp_path):
         store.record(fit(aircraft_id="A", flight_id="F3"))
         assert store.count() == 3
     con = sqlite3.connect(path)
-    assert con.execute("PRAGMA user_version").fetchone()[0] == 2
+    assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
     assert tuple(r[1] for r in con.execute("PRAGMA table_info(flights)"))[1:] == db.FLIGHT_COLUMNS
     assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
-    assert "migrated_to_v2_by" in dict(con.execute("SELECT key, value FROM store_meta"))
+    meta = dict(con.execute("SELECT key, value FROM store_meta"))
+    assert "migrated_to_v2_by" in meta and "migrated_to_v3_by" in meta  # v1 -> v2 -> v3
     con.close()
     with CoefficientStore(path) as store:   # opening again does not migrate again
         assert store.count() == 3
@@ -153,7 +154,7 @@ def test_newer_schema_refused_and_untouched(tmp_path):
         store.record(fit())
     con = sqlite3.connect(path, isolation_level=None)
     con.execute("PRAGMA journal_mode = DELETE")   # no -wal/-shm beside it: one file to compare
-    con.execute("PRAGMA user_version = 3")
+    con.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 1}")
     con.close()
     before = snapshot(tmp_path)
     with pytest.raises(StoreError, match="newer"):
@@ -245,6 +246,6 @@ def test_partial_fit_round_trip_and_sql_checks(tmp_path):
         cols = ", ".join(db.FLIGHT_COLUMNS)
         marks = ", ".join("?" for _ in db.FLIGHT_COLUMNS)
         bad = ("A", "X", "2024-01-01T00:00:00Z", 10.0, -0.1, None, -0.1, "negative", "negative",
-               "negative", 1, 1, 1, 1, 1.0, 3, "0", "{}", "{}", "2024-01-01T00:00:00Z")
+               "negative", 1, 1, 1, 1, 1.0, 3, "0", "{}", "{}", "2024-01-01T00:00:00Z", None)
         with pytest.raises(sqlite3.IntegrityError):
             store.con.execute(f"INSERT INTO flights ({cols}) VALUES ({marks})", bad)

@@ -15,7 +15,7 @@ import math
 import time
 import uuid
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -102,34 +102,60 @@ def _row(entry: LogEntry, out: dict[str, Any], stored: str) -> dict[str, Any]:
     return row
 
 
-def _fit(out: dict[str, Any]):
-    """The store record of a finished flight (StoreError / MetadataError when there is none)."""
+def _records(out: dict[str, Any]):
+    """The store records of a finished flight: ``(log_sha256, fit or None, calibration or
+    None)``; MetadataError when there is nothing to record."""
     from flightrecon.errors import MetadataError
-    from flightrecon.store import from_sabziev_summary
+    from flightrecon.store import from_joint_summary, from_sabziev_summary
 
-    if out.get("sabziev") is None:
-        raise MetadataError("the Sabziev fusion did not run on this flight")
-    if out["sabziev"].get("status") != "ok":  # an impossible track is not the aircraft's
-        raise MetadataError(f"the Sabziev fit is {out['sabziev'].get('status')} "
-                            f"({out['sabziev'].get('reason')}): not recorded")
     if not out.get("aircraft_id"):
         raise MetadataError("no aircraft id")
     inputs = out.get("inputs") or []
-    flight_id = out.get("flight_id") or (inputs[0]["sha256"][:16] if inputs else "unknown")
-    return from_sabziev_summary(
-        out["sabziev"], aircraft_id=str(out["aircraft_id"]), flight_id=str(flight_id),
-        flight_date_utc=out.get("epoch_utc") or "1970-01-01T00:00:00Z",
-        settings=out.get("settings"), input_hashes={i["path"]: i["sha256"] for i in inputs})
+    h = out.get("log_sha256") or (inputs[0]["sha256"] if inputs else None)
+    if h is None:
+        raise MetadataError("no log hash")
+    common = dict(aircraft_id=str(out["aircraft_id"]),
+                  flight_id=str(out.get("flight_id") or h[:16]),
+                  flight_date_utc=out.get("epoch_utc") or "1970-01-01T00:00:00Z",
+                  settings=out.get("settings"),
+                  input_hashes={i["path"]: i["sha256"] for i in inputs})
+    fit = cal = None
+    sab = out.get("sabziev")
+    # an unhealthy (impossible) Sabziev track is not the aircraft's: its fit is not recorded
+    if sab is not None and sab.get("mode") == "boundary-value" and sab.get("status") == "ok":
+        fit = from_sabziev_summary(sab, **common)
+    if out.get("joint") is not None:
+        cal = from_joint_summary(out["joint"], conditions=out.get("conditions"), log_sha256=h,
+                                 **common)
+    if fit is None and cal is None:
+        raise MetadataError("neither a boundary-value Sabziev fit nor a healthy joint smoother")
+    return h, fit, cal
 
 
-def _has_row(db, fit) -> bool:
-    from flightrecon.errors import StoreError
-
-    try:
-        db.get(fit.aircraft_id, fit.flight_id)
-    except StoreError:
-        return False
-    return True
+def _record(db, out: dict[str, Any], recs, fits: dict, local_ids: dict) -> str:
+    """Record a finished flight (in ``db`` if given, and in ``fits`` for the averages); return
+    the table's ``stored`` text.  Without a store the identity rule is applied to this batch's
+    flights alone (``local_ids``: (aircraft, flight id) -> log hash)."""
+    h, fit, cal = recs
+    aircraft = str(out["aircraft_id"])
+    if db is not None:
+        ident = db.record_flight(aircraft, out.get("flight_id"), h, fit=fit, calibration=cal)
+        fid, note = ident.flight_id, ident.note
+    else:
+        fid = (fit or cal).flight_id
+        note = ""
+        owner = local_ids.get((aircraft, fid))
+        if owner is not None and owner != h:
+            new = f"{fid}~{h[:8]}"
+            note = (f"flight id '{fid}' of aircraft '{aircraft}' is already used by another log; "
+                    f"this log is counted as '{new}'")
+            fid = new
+        local_ids[(aircraft, fid)] = h
+    if fit is not None:
+        fits[(aircraft, h)] = replace(fit, flight_id=fid)
+    what = "+".join(w for w, p in (("k", fit), ("calibration", cal)) if p is not None)
+    return ("yes" if db is not None else "not stored") + f" ({what})" + (
+        f": as {fid}, {note}" if note else "")
 
 
 def _fmt(v: Any) -> Any:
@@ -208,22 +234,35 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     key = settings_key(settings, fmt, store_path)
     db = CoefficientStore(store_path) if store_path is not None else None
     outcomes: dict[int, FlightOutcome] = {}
-    fits = {}  # (aircraft, flight) -> FlightCoefficients, for averages without a store
+    fits = {}  # (aircraft, log SHA-256) -> FlightCoefficients, for the averages
+    local_ids: dict = {}  # (aircraft, flight id) -> log SHA-256, identity without a store
+
+    # flights are recorded in input order, whatever order they finish in, so that which of two
+    # logs claiming the same flight id keeps the plain id does not depend on the workers'
+    # timing (docs/store.md, "Flight identity"); a finished flight waits for the earlier ones
+    pending: dict[int, tuple[dict[str, Any], dict[str, str]]] = {}
+    next_i = [0]
 
     def finish(i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
+        pending[i] = (out, hashes)
+        while next_i[0] < len(entries) and (next_i[0] in pending or next_i[0] in outcomes):
+            j = next_i[0]
+            if j in pending:
+                _finish(j, *pending.pop(j))
+            next_i[0] += 1
+
+    def _finish(i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
         e = entries[i]
         stored = ""
         paths = output_paths(out_dir, e.name, fmt)
         if out["status"] == "ok":
             try:
-                fit = _fit(out)
+                recs = _records(out)
             except FlightReconError as exc:  # nothing to record: said in the table
                 stored = f"no: {exc}"
             else:
-                fits[(fit.aircraft_id, fit.flight_id)] = fit
-                if db is not None:
-                    db.record(fit)  # one transaction; a StoreError stops the (resumable) batch
-                    stored = "yes"
+                # one transaction; a StoreError stops the (resumable) batch
+                stored = _record(db, out, recs, fits, local_ids)
             row = _row(e, out, stored)
             write_manifest(paths["manifest"], {
                 "status": "ok", "log": str(e.log), "inputs": hashes, "settings_key": key,
@@ -247,13 +286,16 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
                                            [paths["result"], paths["summary"]]):
                 prev = man["outcome"]
                 try:
-                    fit = _fit(prev)
+                    recs = _records(prev)
                 except FlightReconError:
-                    fit = None  # the flight had nothing to record
-                if fit is not None:
-                    fits[(fit.aircraft_id, fit.flight_id)] = fit
-                    if db is not None and not _has_row(db, fit):
-                        db.record(fit)  # the store was replaced since: restore the row
+                    recs = None  # the flight had nothing to record
+                if recs is not None:
+                    aircraft, h = str(prev["aircraft_id"]), recs[0]
+                    fid = db.flight_id_of(aircraft, h) if db is not None else None
+                    if fid is None:  # no store, or the store was replaced since: record again
+                        _record(db, prev, recs, fits, local_ids)
+                    elif recs[1] is not None:
+                        fits[(aircraft, h)] = replace(recs[1], flight_id=fid)
                 row = {**man["row"], "status": "skipped"}
                 oc = FlightOutcome(log=e.log, name=e.name, status="skipped", row=row)
                 outcomes[i] = oc
@@ -264,6 +306,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
         if todo:
             _run(todo, client, settings, fmt, finish,
                  None if mapping is None else str(Path(mapping).resolve()))
+        for j in sorted(pending):  # not expected: every submitted flight reports back
+            _finish(j, *pending.pop(j))
         ordered = tuple(outcomes[i] for i in range(len(entries)))
         aircraft = sorted({str(o.row["aircraft_id"]) for o in ordered
                            if o.status != "failed" and o.row.get("aircraft_id")})

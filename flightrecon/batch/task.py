@@ -75,6 +75,16 @@ def _mapping_for(sidecar: str | None, default: str | None) -> str | None:
     return None if own is not None else default
 
 
+def _joint_for_store(summary: dict[str, Any]) -> dict[str, Any] | None:
+    """What the store needs of the joint smoother's summary (None unless it ran healthy)."""
+    j = summary.get("methods", {}).get("joint")
+    if not j or j.get("status") != "ok" or "corrections" not in j:
+        return None
+    return {"corrections": j["corrections"], "converged": j.get("converged"),
+            "sources": {n: {"count": (s or {}).get("count")}
+                        for n, s in (j.get("sources") or {}).items()}}
+
+
 def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: str,
                settings: ReconstructSettings, fmt: str,
                mapping: str | None = None) -> dict[str, Any]:
@@ -99,12 +109,15 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
         task), and for a good flight: ``aircraft_id``, ``flight_id``, ``epoch_utc``,
         ``duration_s`` (the flight's grid span), ``k`` (Sabziev k1..k3 or ``None``),
         ``sources`` (samples per default-result source), the :func:`accuracy_indicators`,
-        ``sabziev`` (the method summary for the store, ``None`` if it did not run), ``inputs``
-        and ``settings`` (as in the summary).
+        ``sabziev`` (the method summary for the store, ``None`` if it did not run), ``joint``
+        (its sensor-error estimates for the store, ``None`` unless healthy), ``conditions``
+        (:func:`flightrecon.store.adapt.flight_conditions`), ``log_sha256``, ``inputs`` and
+        ``settings`` (as in the summary).
     """
     from flightrecon.errors import FlightReconError
     from flightrecon.export.writers import write_summary, write_track
     from flightrecon.pipeline import reconstruct
+    from flightrecon.store.adapt import flight_conditions
 
     t0 = time.perf_counter()
     try:
@@ -124,6 +137,7 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
     flight = s["flight"]
     grid = s["grid"]
     sab = _sabziev_for_store(s)
+    log_sha = next((i["sha256"] for i in s["inputs"] if i["path"] == str(log)), None)
     k = None
     if sab is not None and all(sab.get(n) is not None for n in ("k1", "k2", "k3")):
         k = [float(sab["k1"]), float(sab["k2"]), float(sab["k3"])]
@@ -137,7 +151,8 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
         "k": k, "sabziev_converged": None if sab is None else bool(sab.get("converged")),
         "sources": {str(n or "none"): int(c) for n, c in src.items()},
         **accuracy_indicators(rec.track, s),
-        "sabziev": sab, "inputs": s["inputs"], "settings": s["settings"],
+        "sabziev": sab, "joint": _joint_for_store(s), "conditions": flight_conditions(rec.clean),
+        "log_sha256": log_sha, "inputs": s["inputs"], "settings": s["settings"],
         "warnings": len(s["warnings"]),
         "result": str(Path(result_path).name), "summary": str(Path(summary_path).name),
     }

@@ -96,7 +96,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     CleanFlight
         ``grid`` (``t_s``, each input channel and ``<channel>_valid``; angles unwrapped),
         ``gnss`` / ``radar`` (one row per fix / plot at its own time, ``t_s`` first), the report
-        and the phases (METHODS.md, "Two kinds of channel").  ``phases`` is ``None`` when
+        and the phases (docs/schema.md, "Two kinds of channel").  ``phases`` is ``None`` when
         phase detection is switched off or impossible on this data (no airspeed, no pressure
         altitude, no loads or attitude); the report then says why (``not_detected``).
 

@@ -22,8 +22,9 @@ from flightrecon.cli.trim import trim_options
 @click.option("--workers", type=click.IntRange(min=1),
               help="Worker processes of the local cluster (default: the CPU count).")
 @click.option("--store", "store_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Coefficient store (SQLite): each fitted flight's k1..k3 is recorded there "
-                   "by this process (single writer).")
+              help="Coefficient store (SQLite): each flight's fitted k1..k3 and joint "
+                   "sensor-error estimates are recorded there by this process (single writer), "
+                   "one record per distinct log.")
 @click.option("--force", is_flag=True, help="Redo flights already done with the same inputs "
                                             "and settings.")
 @click.option("--methods", metavar="LIST",

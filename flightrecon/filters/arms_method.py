@@ -1,6 +1,6 @@
 """ADS/ARMS adapter: a cleaned flight in, the ``arms_`` columns and summary out.
 
-METHODS.md section 2; the estimators are in :mod:`flightrecon.filters.arms`.
+docs/arms.md; the estimators are in :mod:`flightrecon.filters.arms`.
 
 Frames.  The filters work in the east-north-up tangent plane at the radar station (x east,
 y north).  The aircraft's height above that plane, ``u = dh - r^2 / (2 R_e)``, comes from the
@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import MetadataError, SchemaError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import arms as A
 from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult
@@ -47,9 +48,6 @@ __all__ = ["FORMS", "ArmsSettings", "run_arms"]
 FORMS = ("joint", "cascade")
 """Estimator forms: the joint model (product default) or the paper's two-stage cascade."""
 
-NIS_ALARM = 5.0
-"""A forward mean NIS per measurement component above this (expected 1) marks the result
-unhealthy: the noise settings or the motion model grossly misfit the flight."""
 
 RANGE_MODES = ("auto", "elevation", "altitude", "slant")
 """Horizontal range from the slant range: with the elevation angle, with the altitude
@@ -248,7 +246,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
              settings: ArmsSettings = ArmsSettings()) -> MethodResult:
     """Ground track, ground velocity and air-data error from radar plots and air data.
 
-    METHODS.md section 2.  ``form="joint"`` runs the joint model
+    docs/arms.md.  ``form="joint"`` runs the joint model
     (:func:`flightrecon.filters.arms.run_joint`), ``"cascade"`` the paper's two stages
     (:func:`flightrecon.filters.arms.run_cascade`); ``linearisation`` is ``"ekf"`` or
     ``"converted"``.
@@ -407,7 +405,8 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     nis_r = _nis_block(nu[:, :2], S[:, :2, :2])
     nis_a = _nis_block(nu[:, 2:], S[:, 2:, 2:])
     n_r, n_a = int(np.isfinite(nis_r).sum()), int(np.isfinite(nis_a).sum())
-    nis_per_component = float((np.nansum(nis_r) + np.nansum(nis_a)) / max(2 * (n_r + n_a), 1))
+    verdict = chi_square_verdict(np.r_[nis_r, nis_a], 2.0)  # both blocks are 2-dimensional
+    nis_per_component = verdict.mean if verdict.count else 0.0
     outs = _outages(tp, settings.outage_factor)
     warnings: list[str] = []
     if not np.isfinite(dh_k).all():
@@ -416,7 +415,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
                         "conversion (horizontal error ~ height x tilt between the planes)")
     finite = bool(np.isfinite(track.loc[inside, "arms_north_m"]).all())
     healthy = finite
-    if nis_per_component > NIS_ALARM:
+    if verdict.gross:
         healthy = False
         warnings.append(f"mean NIS per measurement component {nis_per_component:.1f} (expected "
                         "1): the noise settings or the motion model do not fit this flight")
@@ -424,7 +423,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
         warnings.append("non-finite ARMS estimates")
     dvo = rot(dv)
     summary = {
-        "method": "ADS/ARMS (METHODS.md section 2)",
+        "method": "ADS/ARMS (docs/arms.md)",
         "form": form,
         "linearisation": linearisation,
         "converted_at": settings.converted_at if linearisation == "converted" else None,
@@ -443,6 +442,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
         "nis_note": "forward-filter NIS; radar and air-data blocks expect 2 each, "
                     "mean_nis_per_component expects 1",
         "mean_nis_per_component": nis_per_component,
+        "consistency": verdict.as_dict(),
         "dv_mean_mps": {"north": float(np.mean(dvo[:, 1])), "east": float(np.mean(dvo[:, 0]))},
         "healthy": healthy,
         "warnings": warnings,

@@ -1,4 +1,4 @@
-"""Adapter: the azimuth channel (METHODS.md section 3) on a cleaned flight -> ``MethodResult``.
+"""Adapter: the azimuth channel (docs/azimuth.md) on a cleaned flight -> ``MethodResult``.
 
 Pipeline, all on one event timeline (the union of the radar plots' own times and the grid times
 inside radar coverage; measurements are used once, at their own time):
@@ -12,7 +12,9 @@ inside radar coverage; measurements are used once, at their own time):
 4. azimuth filter and RTS smoother, ``model = "aided"`` or ``"singer"``;
 5. output on the grid times inside radar coverage (NaN outside): azimuth, rate, acceleration and
    the implied position (station tangent plane -> geodetic -> output tangent plane at the
-   departure airfield) with standard deviations.
+   departure airfield) with standard deviations in the output plane's axes, and the ground
+   velocity in the local level at the aircraft (rotated from the station plane's axes by
+   :func:`flightrecon.geo.navframe.horizontal_rotation`).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.azimuth import (
     azimuth_filter,
     horizontal_acceleration,
@@ -30,6 +33,7 @@ from flightrecon.filters.azimuth import (
     track_range,
 )
 from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
+from flightrecon.geo.navframe import horizontal_rotation
 from flightrecon.types import CleanFlight, MethodResult
 
 __all__ = ["AzimuthSettings", "run_azimuth"]
@@ -141,7 +145,7 @@ def _horizontal_range(plots: pd.DataFrame, clean: CleanFlight, s: AzimuthSetting
 
 def run_azimuth(clean: CleanFlight, *, model: str = "aided",
                 settings: AzimuthSettings | None = None) -> MethodResult:
-    """Azimuth channel of the approach radar, Singer or load-factor aided (METHODS.md s. 3).
+    """Azimuth channel of the approach radar, Singer or load-factor aided (docs/azimuth.md).
 
     Parameters
     ----------
@@ -249,10 +253,12 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     # station-plane position and velocity; range and azimuth channels are independent
     n_st, e_st = r * ce, r * se
     var_r = Pr[:, 0, 0]
-    var_n = ce**2 * var_r + (r * se) ** 2 * P[:, 0, 0]
-    var_e = se**2 * var_r + (r * ce) ** 2 * P[:, 0, 0]
-    vn = rd * ce - r * om * se
-    ve = rd * se + r * om * ce
+    # position covariance in the station plane's (north, east) axes, from (r, eps)
+    Jp = np.stack([np.stack([ce, -r * se], -1), np.stack([se, r * ce], -1)], -2)
+    Cp = Jp @ np.stack([np.stack([var_r, np.zeros_like(var_r)], -1),
+                        np.stack([np.zeros_like(var_r), P[:, 0, 0]], -1)], -2) @ Jp.transpose(0, 2, 1)
+    vn_st = rd * ce - r * om * se
+    ve_st = rd * se + r * om * ce
     # first-order: d(vn, ve)/d(r, r_dot) and /d(eps, omega)
     Jr = np.stack([np.stack([-om * se, ce], -1), np.stack([om * ce, se], -1)], -2)
     Je = np.stack([np.stack([-rd * se - r * om * ce, -r * se], -1),
@@ -263,6 +269,15 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     stp = TangentPlane(st.lat_deg, st.lon_deg, h_station)
     lat, lon, h = stp.inverse(e_st, n_st, up_st)
     e_out, n_out, _ = plane_out.forward(lat, lon, h)
+    # into the output's axes: positions' covariance into the output plane's (north, east),
+    # velocities and theirs into the local level at the aircraft (true north there)
+    Mp = horizontal_rotation(st.lat_deg, st.lon_deg, plane_out.lat0_deg, plane_out.lon0_deg)[0]
+    Cp = Mp @ Cp @ Mp.T
+    var_n, var_e = Cp[:, 0, 0], Cp[:, 1, 1]
+    Mv = horizontal_rotation(st.lat_deg, st.lon_deg, lat, lon)
+    v_loc = np.einsum("kij,kj->ki", Mv, np.c_[vn_st, ve_st])
+    vn, ve = v_loc[:, 0], v_loc[:, 1]
+    Cv = Mv @ Cv @ Mv.transpose(0, 2, 1)
 
     N = tg.size
     cols: dict[str, np.ndarray] = {}
@@ -293,6 +308,8 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     nis_e = run.nis_eps[np.isfinite(run.nis_eps)]
     nis_z = run.nis_z[np.isfinite(run.nis_z)]
     finite = bool(np.all(np.isfinite(run.xs)) and np.all(np.isfinite(run.Ps)))
+    # every scalar innovation of the three filters (azimuth, transverse acceleration, range)
+    verdict = chi_square_verdict(np.r_[nis_e, nis_z, rt.nis])
     gaps = np.diff(tp)
     summary = {
         "model": model,
@@ -307,8 +324,12 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
         "nis_transverse_mean": float(nis_z.mean()) if nis_z.size else None,
         "nis_range_mean": float(np.nanmean(rt.nis)),
         "correlated_error_inflation": float(run.n_corr),
-        "healthy": finite,
+        "consistency": verdict.as_dict(),
+        "healthy": finite and not verdict.gross,
     }
     if not finite:
         summary["warning"] = "non-finite estimates: the filter diverged"
+    elif verdict.gross:
+        summary["warning"] = (f"mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
+                              "noise settings or the motion model do not fit this flight")
     return MethodResult(name="azimuth", track=track, summary=summary)

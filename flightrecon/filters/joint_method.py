@@ -16,16 +16,20 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
-from flightrecon.filters.joint import layout as jl
+from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.joint import (
     SOURCES,
     JointInputs,
     JointRun,
     JointSettings,
+    prior_of,
     smooth_joint,
     source_report,
     takeoff_roll,
 )
+from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
@@ -44,6 +48,33 @@ def field_pressure_altitude_m(elev_msl_m: float, qnh_hpa: float | None) -> float
     return float(pressure_altitude_m(isa_pressure_pa(elev_msl_m) * q / 1013.25))
 
 
+def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
+    """Roll, pitch, heading with each missing sample replaced by the nearest recorded one.
+
+    The acceleration stays NaN there (the smoother then adds process noise instead of the
+    measured acceleration); the rotation of the accelerometer biases and of the ground
+    constraints needs an attitude and takes the nearest recorded one.  Returns the angles and
+    a note for the summary when any was missing.  An angle never recorded is an error.
+    """
+    names = ("roll_deg", "pitch_deg", "heading_deg")
+    out, notes = [], []
+    for name, a in zip(names, angles_deg):
+        ok = np.isfinite(a)
+        if not ok.any():
+            raise ValidationError(f"the joint smoother needs {name}: it has no finite sample",
+                                  column=name)
+        if ok.all():
+            out.append(a)
+            continue
+        held = a.copy()
+        held[~ok] = a[ok][_nearest(t[ok], t[~ok])]
+        out.append(held)
+        notes.append(f"joint: {name} missing on {int((~ok).sum())} samples; the acceleration "
+                     "there is replaced by process noise and the bias rotation holds the "
+                     "nearest recorded attitude")
+    return out, notes
+
+
 def joint_inputs(clean: CleanFlight) -> JointInputs:
     """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base)."""
     g = clean.grid
@@ -53,12 +84,20 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     def col(name):
         return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
 
-    lat0 = meta.departure.lat_deg if meta.departure is not None else 45.0
-    Cnb = body_to_ned_matrix(np.nan_to_num(col("roll_deg")), np.nan_to_num(col("pitch_deg")),
-                             np.nan_to_num(col("heading_deg")))
+    # the departure, or without one the frame origin from the first fix (cleaning/origin.py)
+    p0 = meta.departure if meta.departure is not None else getattr(meta, "origin", None)
+    if p0 is None:
+        raise MetadataError("the joint smoother needs the departure position (--departure) or a "
+                            "GNSS / radar fix: it anchors the output plane and the latitude of "
+                            "normal gravity")
+    t_in = g["t_s"].to_numpy(float)
+    att, notes = _held_attitude(t_in, col("roll_deg"), col("pitch_deg"), col("heading_deg"))
+    Cnb = body_to_ned_matrix(*att)
+    # gravity at the departure latitude (normal gravity changes by 5e-6 m/s^2 per km north)
     acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
                                      col("roll_deg"), col("pitch_deg"), col("heading_deg"),
-                                     lat_deg=lat0, h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
+                                     lat_deg=p0.lat_deg,
+                                     h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
     dep = meta.departure
     if dep is not None:
         h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
@@ -100,7 +139,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
 
     ph = clean.phases
     inp = JointInputs(
-        t_in=g["t_s"].to_numpy(float), acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
+        t_in=t_in, acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
         heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
         gnss=gnss, radar=radar, station=pos(meta.station), departure=pos(meta.departure),
         arrival=pos(meta.arrival),
@@ -116,7 +155,8 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         thresholds=tuple(None if p is None or p.threshold is None
                          else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
                          for p in (meta.departure, meta.arrival)),
-        lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan)
+        lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
+        notes=tuple(notes))
     if not (ph is not None and ph.starts_airborne):
         inp = replace(inp, roll=takeoff_roll(
             inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
@@ -229,8 +269,9 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     return out
 
 
-def _corrections(run: JointRun) -> dict[str, Any]:
-    """Estimated sensor errors (value and sd at the middle of the record)."""
+def _corrections(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
+    """Estimated sensor errors (value and sd at the middle of the record) with the prior each
+    was given (``prior_mean``, ``prior_sd``, same unit)."""
     k = len(run.t) // 2
     x, v = run.x[k], run.var[k]
 
@@ -238,6 +279,13 @@ def _corrections(run: JointRun) -> dict[str, Any]:
         return {"value": float(x[i] * scale), "sd": float(np.sqrt(max(v[i], 0.0)) * scale),
                 "unit": unit}
 
+    out = _correction_items(item)
+    for name, it in out.items():
+        it["prior_mean"], it["prior_sd"] = prior_of(name, settings or JointSettings())
+    return out
+
+
+def _correction_items(item) -> dict[str, Any]:
     return {
         "heading_bias_deg": item(jl.IPSI, np.degrees(1.0), "deg (measured - true)"),
         "tas_scale": item(jl.IS, 1.0, "TAS_measured = (1 + s) TAS_true"),
@@ -287,7 +335,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, :6] > 0)
     sources = source_report(run)
-    warnings = []
+    warnings = list(inp.notes)
     for name, st in sources.items():
         if st["flagged_inconsistent"]:
             warnings.append(f"joint: source '{name}' inconsistent with the others in "
@@ -321,13 +369,29 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     for name, (o, sd) in run.clock_offsets_s.items():
         if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
             warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "
-                            "and corrected")
+                            f"and corrected (seconds added to the {name} times, as "
+                            f"`clean --{name}-clock-offset` takes it)")
+    if run.cholesky_fallbacks:
+        warnings.append(f"joint: on {run.cholesky_fallbacks} steps the predicted covariance was "
+                        "not positive definite to rounding (Cholesky failed); the smoother gain "
+                        "there came from a general solve")
+    # the forward innovations of the measurements the smoother kept at full weight (the
+    # robustly down-weighted ones are reported per source above, not held against the noise
+    # model)
+    full = (run.weights >= 1.0) & (run.innov_var > 0)
+    verdict = chi_square_verdict(np.where(full, run.innov ** 2 / np.where(full, run.innov_var,
+                                                                          1.0), np.nan))
+    if verdict.gross:
+        warnings.append(f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
+                        "noise settings do not fit this flight")
     summary = {
-        "healthy": bool(finite),
+        "healthy": bool(finite) and not verdict.gross,
+        "consistency": verdict.as_dict(),
         "converged": bool(finite) and converged,
+        "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,
-        "corrections": _corrections(run),
+        "corrections": _corrections(run, settings),
         "clock_offsets_s": {k: {"value": o, "sd": sd} for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
         "noise_check": run.noise_check,

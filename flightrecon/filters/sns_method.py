@@ -1,4 +1,4 @@
-"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (METHODS.md 4).
+"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (docs/sns.md).
 
 :func:`run_sns` takes a :class:`flightrecon.types.CleanFlight` and returns a
 :class:`flightrecon.types.MethodResult` with the smoothed track on the recorder grid;
@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import sns as core
 from flightrecon.filters.sns import model as sns_model
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
@@ -392,6 +393,10 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         np.asarray(noise.sensor_sd, float))
     if n_drop:
         notes.append(f"{n_drop} GNSS fixes outside the recorder grid not used")
+    if sm.cholesky_fallbacks:
+        notes.append(f"on {sm.cholesky_fallbacks} steps the predicted covariance was not positive "
+                     "definite to rounding (Cholesky failed); the smoother gain there came from "
+                     "a general solve")
     return SnsSolution(m, fm, noise, inputs, run, sm, idx, tf, n_drop, lat, lon, h_grid, P_ne,
                        v_ne, P_v, tuple(notes))
 
@@ -518,7 +523,7 @@ def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNo
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
             filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None,
             noise_overrides: dict[str, float] | None = None) -> MethodResult:
-    """Dead reckoning fused with SNS, smoothed, on the recorder grid (METHODS.md section 4).
+    """Dead reckoning fused with SNS, smoothed, on the recorder grid (docs/sns.md).
 
     Parameters are those of :func:`solve_sns`; ``noise_overrides`` (:func:`sns_noise_with`)
     change the default noise of the chosen model where ``noise`` is not given.
@@ -545,10 +550,9 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     np.sqrt(sol.P_v[:, 0, 0], out=block[7])
     np.sqrt(sol.P_v[:, 1, 1], out=block[8])
     track = pd.DataFrame(block.T, columns=list(TRACK_COLUMNS), copy=False)
-    nis = sol.run.nis
-    ok = np.isfinite(nis)
-    dof = float(sol.run.rank[ok].sum())
-    nis_ratio = float(nis[ok].sum() / dof) if dof > 0 else float("nan")
+    # NIS per fix with the rank of its innovation covariance as degrees of freedom
+    verdict = chi_square_verdict(sol.run.nis, sol.run.rank)
+    nis_ratio = verdict.mean
     finite = bool(np.isfinite(block).all())
     dt_fix = np.diff(sol.fix_t)
     min_gap = 3.0 * float(np.median(dt_fix)) if len(dt_fix) else 0.0
@@ -561,9 +565,11 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
         "n_fixes_dropped": sol.n_fix_dropped,
         "gaps": _gaps(sol.fix_t, float(t[0]), float(t[-1]), min_gap),
         "nis_per_dof": nis_ratio,
+        "consistency": verdict.as_dict(),
+        "cholesky_fallbacks": sol.smoothed.cholesky_fallbacks,
         "converged": finite,
         # a mean NIS per degree of freedom far above 1 means the noise settings do not fit
-        "healthy": finite and bool(np.isfinite(nis_ratio) and nis_ratio < 10.0),
+        "healthy": finite and verdict.count > 0 and not verdict.gross,
         "notes": list(sol.notes),
     }
     return MethodResult(name="sns", track=track, summary=summary)

@@ -1,7 +1,7 @@
 """Method adapter: the Sabziev boundary-value fusion on a cleaned flight.
 
 :func:`run_sabziev` takes a :class:`flightrecon.types.CleanFlight`, builds the inputs of
-:func:`flightrecon.fusion.sabziev.fuse` (METHODS.md section 1) and returns a
+:func:`flightrecon.fusion.sabziev.fuse` (docs/sabziev.md) and returns a
 :class:`flightrecon.types.MethodResult` with ``sabziev_``-prefixed columns.  The practical
 choices the paper leaves open are documented in docs/sabziev.md, "The adapter":
 
@@ -110,7 +110,7 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
                 hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
                 vertical_rule: str = "baro", kt_max: float = KT_MAX, strict: bool = False,
                 acceleration_ned: np.ndarray | None = None) -> MethodResult:
-    """Run the Sabziev fusion on a cleaned flight (METHODS.md section 1; module docstring).
+    """Run the Sabziev fusion on a cleaned flight (docs/sabziev.md; module docstring).
 
     Parameters
     ----------

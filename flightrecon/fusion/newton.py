@@ -1,6 +1,6 @@
 """Safeguarded Newton-Raphson for one Sabziev coefficient, with a root-selection rule and a report.
 
-Solves ``F(k) = s_N(k) - s_T = 0`` (METHODS.md section 1; seed 001, equations (5)-(7)) where
+Solves ``F(k) = s_N(k) - s_T = 0`` (docs/sabziev.md; seed 001, equations (5)-(7)) where
 ``F`` and its exact derivative come from the discrete recursion of
 :mod:`flightrecon.fusion.sabziev`.  The paper iterates from ``k = 1``; over a flight of length
 ``T`` that weights lift-off data by ``e^T`` and overflows, so here (docs/sabziev.md,

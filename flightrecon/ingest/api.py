@@ -24,6 +24,8 @@ from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
+from flightrecon.ingest.physics import check_physics
+from flightrecon.ingest.timestamps import repair_time_order
 from flightrecon.ingest.sidecar import (
     apply_overrides,
     discover_sidecar,
@@ -128,8 +130,8 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     t, meta, epoch_ns, epoch_note = _log_seconds(mt, meta)
     if epoch_note:
         notes.append(epoch_note)
-    order, w = check_time(t, mt.rows, str(log), _time_column(mt, mp, raw.columns),
-                          allow_unsorted=allow_unsorted)
+    order, w = _time_order(t, mt.rows, mt.values, str(log), _time_column(mt, mp, raw.columns),
+                           allow_unsorted)
     warns += w
     sel = order if order is not None else slice(None)
     rows = Rows(t=t[sel], values={k: v[sel] for k, v in mt.values.items()},
@@ -155,7 +157,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
             raise SchemaError(f"the log already has {group} data in {', '.join(clash)} and a "
                               f"separate {group} file was given", file=str(path), column=clash[0])
         ct = _companion_seconds(cm, meta, epoch_ns)
-        corder, w = check_time(ct, cm.rows, str(path), "time", allow_unsorted=allow_unsorted)
+        corder, w = _time_order(ct, cm.rows, cm.values, str(path), "time", allow_unsorted)
         warns += w
         csel = corder if corder is not None else slice(None)
         k = len(files)
@@ -193,6 +195,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     warns += w
     repairs += rq
     notes += nq
+    warns += check_physics(data, prov)   # units and time base against physics
     for name in list(cols):
         ch = BY_NAME.get(name)
         if ch is not None and ch.angle:
@@ -237,6 +240,14 @@ def _mapping_hint(log: Path) -> str:
     names = ", ".join(str(p) for p in found[:3])
     return (f"a mapping file lies beside the log ({names}): give it with --mapping "
             f"{found[0]} (or mapping = \"{found[0].name}\" in the sidecar's [files])")
+
+
+def _time_order(t, rows, values, file: str, column: str, allow_unsorted: bool):
+    """Rows in time order: repaired and reported, or refused (:mod:`.timestamps`); with
+    ``allow_unsorted`` the old rule (sort everything, keep duplicates, with a warning)."""
+    if allow_unsorted:
+        return check_time(t, rows, file, column, allow_unsorted=True)
+    return repair_time_order(t, rows, values, file, column)
 
 
 def _own_columns(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

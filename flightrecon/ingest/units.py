@@ -3,7 +3,7 @@
 Every canonical channel has one unit (``flightrecon.schema.Channel.unit``).  A source column may
 be in any unit of the same *dimension*; :func:`to_canonical` converts it with an exact affine map
 ``value_canonical = scale * value + offset`` (docs/ingest.md, "Units").  Load factors given as an
-acceleration in m/s^2 are divided by g0 = 9.80665 m/s^2 (METHODS.md, "Common ground": g0 is a
+acceleration in m/s^2 are divided by g0 = 9.80665 m/s^2 (docs/schema.md, "Conventions": g0 is a
 unit, not the local gravity).
 """
 

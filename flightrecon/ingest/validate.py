@@ -10,7 +10,7 @@ Errors name the file, the source column and the 1-based data rows of that file
   range systematically (a wrong unit, a flipped sign) is refused with the likely fix named;
 * NaN storms: a channel whose recorded samples are mostly literal ``NaN`` (an error); a few
   literal NaN are a recoverable defect (a warning, the values stay missing);
-* polarity (METHODS.md, "Common ground"): ``n_norm_g`` is +1 at rest and about +1 on average in
+* polarity (docs/schema.md, "Conventions"): ``n_norm_g`` is +1 at rest and about +1 on average in
   flight, so a median near -1 means a flipped channel; at rest ``n_long_g = sin(pitch)`` (the
   specific force is g0 up; its forward body component is g0 sin(theta)), so ``n_long_g`` matching
   ``-sin(pitch)`` means a flipped channel.
@@ -433,7 +433,8 @@ TURN_FLIP_FRACTION = 0.8
 
 def _check_turn_polarity(sampled: _Sampled, prov: Provenance) -> None:
     """Bank and turn direction agree: in a coordinated turn the heading rate is
-    ``g0 tan(roll) / V`` (METHODS.md conventions: roll + right wing down, heading clockwise), so
+    ``g0 tan(roll) / V`` (docs/schema.md, "Conventions": roll + right wing down, heading
+    clockwise), so
     a right bank turns the heading clockwise.  If at least 32 clearly turning samples mostly
     (> 80 %) turn against the bank, roll or heading has the wrong sign."""
     if "heading_deg" not in sampled.data.columns:

@@ -48,6 +48,9 @@ class ReconstructSettings:
     joint_noise : overrides of the joint smoother's error budget
         (:class:`flightrecon.filters.joint.JointNoise` field -> value)
     joint_estimate_noise : scale each source's noise from the flight's own residuals
+    joint_priors : ``(error, mean, sd)`` priors of the joint smoother's sensor-error states
+        (names of :data:`flightrecon.filters.joint.PRIOR_STATES`), e.g. an aircraft's fleet
+        calibration (:func:`flightrecon.store.fleet.fleet_settings`)
     strict : raise on the first method that fails, does not converge or is unhealthy
     keep_unhealthy : when no method is healthy, return (and let the CLI write) the unhealthy
         tracks under their prefixes for inspection instead of raising
@@ -68,6 +71,7 @@ class ReconstructSettings:
     sns_form: str = "consistent"
     joint_noise: dict[str, float] | None = None
     joint_estimate_noise: bool = False
+    joint_priors: tuple[tuple[str, float, float], ...] | None = None
     strict: bool = False
     keep_unhealthy: bool = False
     start: float | str | None = None
@@ -125,7 +129,12 @@ def _method_kwargs(name: str, s: ReconstructSettings) -> dict[str, Any]:
             noise = replace(JointNoise(), **(s.joint_noise or {}))
         except TypeError as exc:
             raise MetadataError(f"unknown joint noise setting: {exc}") from exc
-        return {"settings": JointSettings(noise=noise, estimate_noise=s.joint_estimate_noise)}
+        try:
+            js = JointSettings(noise=noise, estimate_noise=s.joint_estimate_noise,
+                               priors=tuple(tuple(p) for p in s.joint_priors or ()))
+        except ValueError as exc:
+            raise MetadataError(str(exc)) from exc
+        return {"settings": js}
     if name == "sabziev":
         return {"k": s.k, "k_sd": s.k_sd, "strict": s.strict}
     if name == "arms":

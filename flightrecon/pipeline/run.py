@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from flightrecon.errors import (
@@ -32,6 +33,14 @@ from flightrecon.pipeline.registry import (
 )
 from flightrecon.pipeline.summary import build_summary, result_choice
 from flightrecon.types import CleanFlight, Flight, MethodResult
+
+
+NUMERICAL_FAILURES: tuple[type[BaseException], ...] = (
+    FlightReconError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+"""What a method may raise and still leave the others' results standing: the project's own
+errors, and numerical breakdowns (``LinAlgError`` is a ``ValueError``; ``FloatingPointError``,
+``ZeroDivisionError`` and ``OverflowError`` are ``ArithmeticError``).  Anything else is a bug
+and stops the run."""
 
 
 def default_workers() -> int:
@@ -81,10 +90,14 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     for m in chosen:
         try:
             res = futures[m].result()
-        except FlightReconError as exc:
+        except NUMERICAL_FAILURES as exc:
+            # one method's failure (bad data it cannot use, or a numerical breakdown: a
+            # singular matrix, an overflow) is that method's error, not the whole run's
             if settings.strict:
                 raise
-            status[m] = {"status": "failed", "reason": str(exc)}
+            reason = str(exc) if isinstance(exc, FlightReconError) else (
+                f"numerical failure ({type(exc).__name__}): {exc}")
+            status[m] = {"status": "failed", "reason": reason}
             continue
         results[m] = res
         health = method_health(res, clean)
@@ -112,51 +125,26 @@ def _reasons(status: dict[str, Any]) -> str:
 
 
 def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
-                   aircraft_id: str | None) -> tuple[ReconstructSettings, dict[str, Any]]:
-    """Settings with the aircraft's fleet-mean coefficients for the initial-value mode.
+                   aircraft_id: str | None, at_utc: str | None = None,
+                   configuration: str | None = None
+                   ) -> tuple[ReconstructSettings, dict[str, Any]]:
+    """Settings with the aircraft's fleet calibration (the joint smoother's priors) and its
+    fleet-mean Sabziev coefficients (:func:`flightrecon.store.fleet.fleet_settings`)."""
+    from flightrecon.store.fleet import fleet_settings as _fleet_settings
 
-    The mean is taken by :meth:`flightrecon.store.CoefficientStore.fleet_mean` (converged fits on
-    the majority branch per axis); its flight-to-flight spread is propagated into the Sabziev
-    track's standard deviations.  At least two fits per axis are required.
-    """
-    from flightrecon.store import CoefficientStore
-
-    if not aircraft_id:
-        raise MetadataError("fleet coefficients need the aircraft id (--aircraft or the "
-                            "sidecar's flight.aircraft_id)")
-    with CoefficientStore(store_path, create=False) as store:
-        fm = store.fleet_mean(aircraft_id, min_flights=2)
-    info = {"aircraft_id": aircraft_id, "k": list(fm.k), "sd": list(fm.sd), "flights": list(fm.n),
-            "branch": list(fm.branch), "store": str(store_path)}
-    return replace(settings, k=tuple(fm.k), k_sd=tuple(fm.sd)), info
+    return _fleet_settings(settings, store_path, aircraft_id, at_utc, configuration)
 
 
-def record_coefficients(store_path: str | Path | None, rec: Reconstruction) -> dict[str, Any]:
-    """Record the flight's fitted Sabziev coefficients in the store (one transaction; a re-run
-    of the same aircraft and flight replaces its row).  Returns what was recorded."""
-    from flightrecon.store import CoefficientStore, from_sabziev_summary
+def record_flight(store_path: str | Path | None, rec: Reconstruction,
+                  log: str | Path | None = None) -> dict[str, Any]:
+    """Record the flight's Sabziev fit and joint sensor calibration in the store
+    (:func:`flightrecon.store.fleet.record_flight`)."""
+    from flightrecon.store.fleet import record_flight as _record_flight
 
-    sab = rec.results.get("sabziev")
-    meta = rec.clean.meta
-    if sab is None:
-        raise MetadataError("nothing to record: the Sabziev fusion did not run on this flight")
-    st = rec.summary["methods"].get("sabziev", {})
-    if st.get("status") != "ok":
-        return {"store": str(store_path), "recorded": False,
-                "reason": f"sabziev {st.get('status')}: {st.get('reason')}"}
-    if not meta.aircraft_id:
-        raise MetadataError("recording coefficients needs the aircraft id (--aircraft)")
-    flight_id = meta.flight_id or (rec.summary["inputs"][0]["sha256"][:16]
-                                   if rec.summary["inputs"] else "unknown")
-    fit = from_sabziev_summary(
-        sab.summary, aircraft_id=meta.aircraft_id, flight_id=flight_id,
-        flight_date_utc=meta.epoch_utc or "1970-01-01T00:00:00Z", settings=rec.summary["settings"],
-        input_hashes={i["path"]: i["sha256"] for i in rec.summary["inputs"]})
-    with CoefficientStore(store_path) as store:
-        store.record(fit)
-    return {"store": str(store_path), "recorded": True, "aircraft_id": fit.aircraft_id,
-            "flight_id": fit.flight_id, "k": [fit.k1, fit.k2, fit.k3],
-            "converged": fit.converged}
+    return _record_flight(store_path, rec, log)
+
+
+record_coefficients = record_flight  # the earlier name
 
 
 def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str | Path | None = None,
@@ -176,10 +164,11 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     meta_overrides : metadata given on the command line (``departure``, ``arrival``, ...)
     settings : :class:`ReconstructSettings`
     progress : callback called with the name of each stage as it starts
-    store : coefficient store (SQLite file); with ``record`` a boundary-value Sabziev fit is
-        recorded there under the flight's aircraft id
-    use_fleet_coefficients : reconstruct with the aircraft's fleet-mean coefficients from
-        ``store`` (initial-value mode: no arrival point needed)
+    store : coefficient store (SQLite file); with ``record`` the flight's boundary-value Sabziev
+        fit and joint sensor calibration are recorded there under the flight's aircraft id
+    use_fleet_coefficients : reconstruct with what the aircraft's routine flights in ``store``
+        taught (:func:`fleet_settings`): its sensor calibration as the joint smoother's priors
+        and its fleet-mean Sabziev coefficients (initial-value mode: no arrival point needed)
     workers : threads for the estimators (default :func:`default_workers`; the result does
         not depend on it)
 
@@ -190,6 +179,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     from flightrecon.cleaning import CleaningSettings, clean_flight
     from flightrecon.cleaning.plausibility import plausibility_checks
     from flightrecon.ingest import load_flight
+    from flightrecon.ingest.physics import check_reconstructable
 
     def stage(name: str) -> None:
         if progress:
@@ -200,9 +190,12 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         warnings.simplefilter("always")
         flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                                      meta_overrides=meta_overrides)
+        check_reconstructable(flight)   # a log too short: refused with the minimum
         fleet = None
         if use_fleet_coefficients:
-            settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id)
+            settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id,
+                                             at_utc=flight.meta.epoch_utc,
+                                             configuration=flight.meta.extra.get("configuration"))
         stage("cleaning")
         clean = clean_flight(flight, rate_hz=settings.rate_hz,
                              settings=CleaningSettings(start=settings.start, end=settings.end))
@@ -222,6 +215,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
     summary["result"] = result_choice(track, status)
+    from flightrecon.events import detect_events, events_table
+
+    summary["events"] = events_table(detect_events(clean, track, status), clean.meta.epoch_utc)
     if summary["result"]["method"] is None:
         msg = ("no method produced a physically possible track: " + _reasons(status))
         if not settings.keep_unhealthy:
@@ -231,7 +227,10 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     if fleet is not None:
         summary["fleet_coefficients"] = fleet
     rec = Reconstruction(track=track, summary=summary, clean=clean, results=results)
-    if store is not None and record and not use_fleet_coefficients and "sabziev" in results:
+    if store is not None and record and not use_fleet_coefficients and (
+            "sabziev" in results or "joint" in results):
         stage("store")
-        summary["stored_coefficients"] = record_coefficients(store, rec)
+        summary["stored_coefficients"] = sc = record_flight(store, rec, log)
+        if sc.get("note"):
+            summary["warnings"].append(f"store: {sc['note']}")
     return rec

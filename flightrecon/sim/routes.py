@@ -153,7 +153,7 @@ def _route_landing(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> Plan
 
 
 def _route_seed_ads_arms(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
-    """Straight and level at 100 m/s, 1000 m, passing the station (METHODS.md section 2)."""
+    """Straight and level at 100 m/s, 1000 m, passing the station (docs/arms.md)."""
     lat, lon = _offset(cfg.airfield, 15e3, -60e3)
     b = _builder(cfg, atm, (lat, lon, 1000.0), 90.0, 100.0)
     b.hold(cfg.duration_s or 1200.0)

@@ -272,7 +272,7 @@ def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
                          roll_bias_deg=a.roll_bias_deg, pitch_bias_deg=a.pitch_bias_deg)
     aspd = AirspeedSensor(cfg.airspeed_hz, scale=a.airspeed_scale)
     baro = BaroSensor(cfg.baro_hz, bias_m=a.baro_bias_m)
-    if air_gm:  # air data = ground velocity + Gauss-Markov error, nothing else (METHODS.md 2)
+    if air_gm:  # air data = ground velocity + Gauss-Markov error, nothing else (docs/arms.md)
         att = replace(att, heading_noise_sd_deg=0.0, heading_bias_deg=0.0)
         aspd = replace(aspd, scale=0.0, noise_sd_mps=0.0, lag_s=0.0)
     if ideal:

@@ -7,7 +7,7 @@ recorder writes the readings at the channel's stamp rows.  Noise is white Gaussi
 otherwise; Gauss-Markov processes use the exact discretisation
 ``x_i = e^{-dt/tau} x_{i-1} + sigma sqrt(1 - e^{-2 dt/tau}) n_i`` started in its stationary law.
 Quantisation rounds to the nearest multiple of the quantum (0 = none).  Error conventions follow
-METHODS.md: measured = true + error, a *correction* is true minus measured.
+docs/schema.md, "Conventions": measured = true + error, a *correction* is true minus measured.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def gauss_markov(n: int, dt_s: float, sigma: float, tau_s: float,
                  rng: np.random.Generator) -> np.ndarray:
     """First-order Gauss-Markov samples (stationary start), exact discretisation (module doc).
 
-    ``dx/dt = -x / tau + sigma sqrt(2 / tau) w``; METHODS.md section 2.
+    ``dx/dt = -x / tau + sigma sqrt(2 / tau) w``; docs/arms.md.
     """
     if sigma == 0.0 or n == 0:
         return np.zeros(n)
@@ -316,7 +316,7 @@ class ArmsRadar:
 
 @dataclass(frozen=True)
 class DopplerSensor:
-    """Doppler ground speed and drift angle (METHODS.md section 4).
+    """Doppler ground speed and drift angle (docs/sns.md).
 
     W~ = W (1 + scale) + noise; c~ = c + drift_bias + noise, c = track - heading (wrapped to
     (-180, 180]).
@@ -344,7 +344,7 @@ class DopplerSensor:
 
 @dataclass(frozen=True)
 class WindSensor:
-    """Wind speed and direction (recorded or forecast), METHODS.md section 4:
+    """Wind speed and direction (recorded or forecast), docs/sns.md:
     U~ = U + bias + GM + noise, from~ = from + bias + GM + noise.
 
     The Gauss-Markov parts (``*_gm_sd``, ``*_gm_tau_s``) run on the truth grid; their series

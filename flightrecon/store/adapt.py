@@ -1,4 +1,5 @@
-"""Build a :class:`FlightCoefficients` record from the Sabziev method's summary.
+"""Build store records from method summaries: a :class:`FlightCoefficients` from the Sabziev
+method's, a :class:`FlightCalibration` from the joint smoother's (:func:`from_joint_summary`).
 
 The Sabziev method (:func:`flightrecon.fusion.method.run_sabziev`) reports, in its
 ``MethodResult.summary``: ``mode`` (``"boundary-value"`` when k was fitted), ``converged``,
@@ -17,9 +18,10 @@ from typing import Any
 
 from flightrecon import __version__
 from flightrecon.errors import StoreError
+from flightrecon.store.calibration import FlightCalibration, SensorEstimate
 from flightrecon.store.records import AXES, FlightCoefficients
 
-#: Sabziev-frame axis of each coefficient (METHODS.md section 1: x north, y up, z east)
+#: Sabziev-frame axis of each coefficient (docs/sabziev.md: x north, y up, z east)
 SUMMARY_AXES: tuple[str, str, str] = ("x", "y", "z")
 
 
@@ -83,3 +85,81 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
         converged=converged, residual_m=residual, iterations=iters,
         software_version=software_version, settings=dict(settings or {}),
         input_hashes=dict(input_hashes or {}), axis_converged=tuple(conv))  # type: ignore[arg-type]
+
+
+def flight_conditions(clean: Any) -> dict[str, Any]:
+    """The conditions that make a flight's sensor estimates comparable with another's, from a
+    :class:`flightrecon.types.CleanFlight`: ``configuration`` (the sidecar's ``[flight]
+    configuration``, kept in the metadata's ``extra``; ``""`` if not given), ``duration_s``
+    (the record), ``tas_range_mps`` and ``alt_range_m`` (5th and 95th percentiles of the
+    airborne true airspeed and pressure altitude; airborne = between lift-off and touchdown
+    where the phases are known, else TAS >= 30 m/s)."""
+    import numpy as np
+
+    g = clean.grid
+    t = g["t_s"].to_numpy(float)
+    ph = clean.phases
+    if ph is not None and math.isfinite(ph.liftoff_t_s) and math.isfinite(ph.touchdown_t_s):
+        air = (t >= ph.liftoff_t_s) & (t <= ph.touchdown_t_s)
+    elif "tas_mps" in g.columns:
+        air = g["tas_mps"].to_numpy(float) >= 30.0
+    else:
+        air = np.ones(len(t), bool)
+
+    def pct(col: str) -> tuple[float, float]:
+        if col not in g.columns:
+            return (math.nan, math.nan)
+        v = g[col].to_numpy(float)[air]
+        v = v[np.isfinite(v)]
+        if not len(v):
+            return (math.nan, math.nan)
+        lo, hi = np.percentile(v, [5, 95])
+        return (float(lo), float(hi))
+
+    cfg = clean.meta.extra.get("configuration", "") if clean.meta.extra else ""
+    return {"configuration": str(cfg), "duration_s": float(t[-1] - t[0]) if len(t) > 1 else 1.0,
+            "tas_range_mps": pct("tas_mps"), "alt_range_m": pct("baro_alt_m")}
+
+
+def from_joint_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight_id: str,
+                       flight_date_utc: str | datetime | date,
+                       conditions: Mapping[str, Any] | None = None,
+                       software_version: str = __version__,
+                       settings: dict[str, Any] | None = None,
+                       input_hashes: dict[str, Any] | None = None,
+                       log_sha256: str | None = None) -> FlightCalibration:
+    """The sensor-calibration record of one joint-smoother run.
+
+    Parameters
+    ----------
+    summary : ``MethodResult.summary`` of the joint smoother (or its status entry in the
+        reconstruction summary): ``corrections`` {name: {value, sd, unit, prior_mean,
+        prior_sd}}, ``converged``, ``sources`` {name: {count, ...}}
+    conditions : :func:`flight_conditions` of the flight
+
+    Raises
+    ------
+    StoreError
+        The summary has no corrections, or they lack their prior (a summary written before the
+        priors were reported).
+    """
+    corr = _get(summary, "corrections", "the joint summary")
+    est = []
+    for name, c in corr.items():
+        for key in ("value", "sd", "prior_mean", "prior_sd"):
+            _get(c, key, f"correction '{name}'")
+        est.append(SensorEstimate(quantity=name, value=c["value"], sd=c["sd"],
+                                  prior_mean=c["prior_mean"], prior_sd=c["prior_sd"],
+                                  unit=str(c.get("unit", ""))))
+    srcs = summary.get("sources") or {}
+    used = "+".join(n for n, s in srcs.items() if (s or {}).get("count"))
+    cond = dict(conditions or {})
+    return FlightCalibration(
+        aircraft_id=aircraft_id, flight_id=flight_id, flight_date_utc=flight_date_utc,
+        estimates=tuple(est), configuration=str(cond.get("configuration", "")), sources=used,
+        duration_s=float(cond.get("duration_s", 1.0)),
+        tas_range_mps=tuple(cond.get("tas_range_mps", (math.nan, math.nan))),  # type: ignore[arg-type]
+        alt_range_m=tuple(cond.get("alt_range_m", (math.nan, math.nan))),  # type: ignore[arg-type]
+        converged=bool(summary.get("converged", False)), software_version=software_version,
+        settings=dict(settings or {}), input_hashes=dict(input_hashes or {}),
+        log_sha256=log_sha256)

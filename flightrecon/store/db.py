@@ -38,7 +38,7 @@ APPLICATION_ID: int = int.from_bytes(b"FRCS", "big")
 #: value of ``store_meta.application``
 APPLICATION_NAME = "flightrecon-coefficients"
 #: current schema version (``PRAGMA user_version``)
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 #: environment variable that overrides the default location
 ENV_VAR = "FLIGHTRECON_STORE"
 #: seconds a connection waits for another process's lock before giving up
@@ -108,11 +108,83 @@ _FLIGHTS_V2_COLUMNS = """
     CHECK (converged = 0 OR residual_m IS NOT NULL)
 """
 
-#: schema v2 (current), for a new store
+#: schema v2, as shipped before the sensor-calibration tables (kept for the upgrade tests)
 SCHEMA_V2_DDL: tuple[str, ...] = (
     _META_DDL,
     f"CREATE TABLE flights ({_FLIGHTS_V2_COLUMNS})",
     "CREATE INDEX flights_by_aircraft ON flights (aircraft_id, flight_date_utc)",
+)
+
+#: tables added by schema v3: the joint smoother's estimates of the persistent sensor errors per
+#: flight with the conditions that make flights comparable, the sensor changes after which earlier
+#: flights no longer apply, and the per-aircraft drift settings (docs/store.md, "Sensor
+#: calibration")
+_V3_TABLES: tuple[str, ...] = (
+    """
+CREATE TABLE calibration_flights (
+    id                INTEGER PRIMARY KEY,
+    aircraft_id       TEXT NOT NULL CHECK (length(aircraft_id) > 0),
+    flight_id         TEXT NOT NULL CHECK (length(flight_id) > 0),
+    flight_date_utc   TEXT NOT NULL,
+    log_sha256        TEXT,
+    configuration     TEXT NOT NULL,
+    sources           TEXT NOT NULL,
+    duration_s        REAL NOT NULL CHECK (duration_s > 0),
+    tas_min_mps       REAL,
+    tas_max_mps       REAL,
+    alt_min_m         REAL,
+    alt_max_m         REAL,
+    converged         INTEGER NOT NULL CHECK (converged IN (0, 1)),
+    software_version  TEXT NOT NULL,
+    settings_json     TEXT NOT NULL,
+    input_hashes_json TEXT NOT NULL,
+    recorded_at_utc   TEXT NOT NULL,
+    UNIQUE (aircraft_id, flight_id)
+)""",
+    "CREATE INDEX calibration_by_aircraft ON calibration_flights (aircraft_id, flight_date_utc)",
+    """
+CREATE TABLE sensor_estimates (
+    flight_ref  INTEGER NOT NULL REFERENCES calibration_flights (id) ON DELETE CASCADE,
+    quantity    TEXT NOT NULL CHECK (length(quantity) > 0),
+    value       REAL NOT NULL,
+    sd          REAL NOT NULL CHECK (sd >= 0),
+    prior_mean  REAL NOT NULL,
+    prior_sd    REAL NOT NULL CHECK (prior_sd > 0),
+    unit        TEXT NOT NULL,
+    PRIMARY KEY (flight_ref, quantity)
+)""",
+    """
+CREATE TABLE sensor_changes (
+    id          INTEGER PRIMARY KEY,
+    aircraft_id TEXT NOT NULL CHECK (length(aircraft_id) > 0),
+    quantity    TEXT NOT NULL CHECK (length(quantity) > 0),
+    change_utc  TEXT NOT NULL,
+    note        TEXT NOT NULL,
+    UNIQUE (aircraft_id, quantity, change_utc)
+)""",
+    """
+CREATE TABLE calibration_drift (
+    aircraft_id       TEXT NOT NULL CHECK (length(aircraft_id) > 0),
+    quantity          TEXT NOT NULL CHECK (length(quantity) > 0),
+    sd_per_sqrt_day   REAL NOT NULL CHECK (sd_per_sqrt_day >= 0),
+    PRIMARY KEY (aircraft_id, quantity)
+)""",
+)
+
+#: schema v3 (current), for a new store
+SCHEMA_V3_DDL: tuple[str, ...] = (
+    _META_DDL,
+    f"CREATE TABLE flights ({_FLIGHTS_V2_COLUMNS})",
+    "ALTER TABLE flights ADD COLUMN log_sha256 TEXT",
+    "CREATE INDEX flights_by_aircraft ON flights (aircraft_id, flight_date_utc)",
+    *_V3_TABLES,
+)
+
+#: columns of ``calibration_flights``, in order, without ``id``
+CALIBRATION_COLUMNS: tuple[str, ...] = (
+    "aircraft_id", "flight_id", "flight_date_utc", "log_sha256", "configuration", "sources",
+    "duration_s", "tas_min_mps", "tas_max_mps", "alt_min_m", "alt_max_m", "converged",
+    "software_version", "settings_json", "input_hashes_json", "recorded_at_utc",
 )
 
 #: columns of the current ``flights`` table, in order, without ``id``
@@ -120,7 +192,7 @@ FLIGHT_COLUMNS: tuple[str, ...] = (
     "aircraft_id", "flight_id", "flight_date_utc", "duration_s", "k1", "k2", "k3",
     "branch_k1", "branch_k2", "branch_k3", "converged", "converged_k1", "converged_k2",
     "converged_k3", "residual_m", "iterations",
-    "software_version", "settings_json", "input_hashes_json", "recorded_at_utc",
+    "software_version", "settings_json", "input_hashes_json", "recorded_at_utc", "log_sha256",
 )
 
 
@@ -254,8 +326,8 @@ def migrate_v1_to_v2(con: sqlite3.Connection) -> None:
 
     v1 had neither the per-axis root branch and convergence nor the iteration count, and it
     required k on every row.  The branch of an old row is the sign of its coefficient
-    (``"positive"`` if k > 0, else ``"negative"``), which is what the branch means (METHODS.md
-    section 1); each axis gets the row's overall convergence flag (v1 knew no better); the
+    (``"positive"`` if k > 0, else ``"negative"``), which is what the branch means
+    (docs/sabziev.md); each axis gets the row's overall convergence flag (v1 knew no better); the
     iteration count is unknown and stays NULL.  The table is rebuilt (create new, copy, drop
     old, rename), the SQLite-documented way to add NOT NULL and CHECK-constrained columns.
     """
@@ -278,8 +350,26 @@ def migrate_v1_to_v2(con: sqlite3.Connection) -> None:
     con.execute("PRAGMA user_version = 2")
 
 
+def migrate_v2_to_v3(con: sqlite3.Connection) -> None:
+    """Upgrade a v2 store to v3 inside the caller's write transaction.
+
+    v3 adds the sensor-calibration tables (:data:`_V3_TABLES`, empty after the upgrade: a v2
+    store holds no sensor estimates) and the column ``flights.log_sha256``, the SHA-256 of the
+    flight's log that identifies the flight by its content.  An old row's log hash is not known
+    for certain (v2 kept ``{input path: SHA-256}`` for every input, the metadata files too), so
+    the column stays NULL and the identity rule falls back on the row's input hashes
+    (:func:`flightrecon.store.identity.resolve_flight_id`).  No existing row is changed.
+    """
+    con.execute("ALTER TABLE flights ADD COLUMN log_sha256 TEXT")
+    for stmt in _V3_TABLES:
+        con.execute(stmt)
+    con.execute("INSERT OR REPLACE INTO store_meta (key, value) VALUES (?, ?)",
+                ("migrated_to_v3_by", f"flightrecon {__version__}"))
+    con.execute("PRAGMA user_version = 3")
+
+
 #: from-version -> function that upgrades it by one version (inside a write transaction)
-MIGRATIONS = {1: migrate_v1_to_v2}
+MIGRATIONS = {1: migrate_v1_to_v2, 2: migrate_v2_to_v3}
 
 
 def connect(path: str | os.PathLike | None = None, *,
@@ -356,7 +446,7 @@ def _initialise(con: sqlite3.Connection, path: Path) -> None:
         app_id = con.execute("PRAGMA application_id").fetchone()[0]
         version = con.execute("PRAGMA user_version").fetchone()[0]
         if n_objects == 0 and app_id == 0 and version == 0:
-            create_schema(con, SCHEMA_V2_DDL, SCHEMA_VERSION)
+            create_schema(con, SCHEMA_V3_DDL, SCHEMA_VERSION)
             return
         marker = None
         if app_id == APPLICATION_ID and con.execute(

@@ -1,7 +1,7 @@
 """Records of the coefficient store: one flight's Sabziev coefficients and per-aircraft statistics.
 
 Units: ``k1`` and ``k3`` in 1/s (along-track complementary-filter coefficients of the x and z
-equations), ``k2`` in 1/s^2 (baro-inertial loop of the y equation); see METHODS.md section 1.
+equations), ``k2`` in 1/s^2 (baro-inertial loop of the y equation); see docs/sabziev.md.
 Times are UTC, written as ISO-8601 strings ``YYYY-MM-DDTHH:MM:SSZ`` (microseconds kept when given).
 """
 
@@ -20,7 +20,7 @@ from flightrecon.errors import StoreError
 AXES: tuple[str, str, str] = ("k1", "k2", "k3")
 
 #: root branches: ``negative`` is the physical one (stable filter / oscillating baro loop),
-#: ``positive`` grows like exp(k T) and is reported as unphysical (METHODS.md section 1)
+#: ``positive`` grows like exp(k T) and is reported as unphysical (docs/sabziev.md)
 BRANCHES: tuple[str, str] = ("negative", "positive")
 #: branch of an axis on which the solver found no root (only on a non-converged axis)
 NO_ROOT = "none"
@@ -104,6 +104,14 @@ def _flag(x: Any, what: str) -> bool:
     return bool(x)
 
 
+def check_sha256(h: Any) -> None:
+    """``None`` or 64 lower-case hex digits (a SHA-256), else StoreError."""
+    if h is None:
+        return
+    if not (isinstance(h, str) and len(h) == 64 and all(c in "0123456789abcdef" for c in h)):
+        raise StoreError(f"log_sha256: expected 64 lower-case hex digits, got {h!r}")
+
+
 def _nan_free(d: dict[str, Any]) -> dict[str, Any]:
     """Copy of an :meth:`FlightCoefficients.as_dict` with NaN floats as None (for equality)."""
     return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in d.items()}
@@ -137,6 +145,8 @@ class FlightCoefficients:
     input_hashes : JSON-serialisable {input name: SHA-256}
     axis_converged : convergence per axis for (k1, k2, k3); ``None`` means ``(converged,) * 3``
     recorded_at_utc : when the row was written (set by the store; ``None`` before recording)
+    log_sha256 : SHA-256 (hex) of the flight's log, its content identity (``None``: unknown, as
+        for rows upgraded from a v2 store)
     """
 
     aircraft_id: str
@@ -155,8 +165,10 @@ class FlightCoefficients:
     input_hashes: dict[str, Any] = field(default_factory=dict)
     axis_converged: tuple[bool, bool, bool] | None = None
     recorded_at_utc: str | None = None
+    log_sha256: str | None = None
 
     def __post_init__(self) -> None:
+        check_sha256(self.log_sha256)
         for name in ("aircraft_id", "flight_id", "software_version"):
             v = getattr(self, name)
             if not isinstance(v, str) or not v.strip():
@@ -231,6 +243,7 @@ class FlightCoefficients:
             "residual_m": self.residual_m, "iterations": self.iterations,
             "software_version": self.software_version, "settings": self.settings,
             "input_hashes": self.input_hashes, "recorded_at_utc": self.recorded_at_utc,
+            "log_sha256": self.log_sha256,
         }
 
 

@@ -1,6 +1,6 @@
 """ADS/ARMS estimators: ground velocity from range/azimuth plots and the air-data error.
 
-METHODS.md section 2; Vasyliev (2025), seed ``000_92b8f66acbd1b85b.txt``.
+docs/arms.md; Vasyliev (2025), seed ``000_92b8f66acbd1b85b.txt``.
 
 Frame: the station's east-north-up tangent plane, ``x`` east, ``y`` north, station at the origin.
 Azimuth ``theta`` clockwise from north, ``theta = atan2(x, y)``; ``r`` is the *horizontal* range
@@ -17,12 +17,12 @@ Three forms, each filtered forward and (optionally) smoothed backward with the R
   :func:`run_cascade` chains the two as in the paper's Fig. 1;
 * joint (:func:`run_joint`): one model ``[x, Vx, y, Vy, dVx, dVy]`` with range/azimuth and the
   air-data velocity ``V* = [Vx + dVx, Vy + dVy]`` as measurements, each at its own time: the
-  consistent form (METHODS.md section 2, "Two cautions") and the product default.
+  consistent form (docs/arms.md, "Two cautions" of the joint form) and the product default.
 
 Discretisations are exact for the step ``T`` taken from the data:
 CV per axis ``F = [[1, T], [0, 1]]``, ``Q = q [[T^3/3, T^2/2], [T^2/2, T]]`` (q: acceleration
 power spectral density, m^2/s^3); Gauss-Markov ``dV_i = e^{-a T} dV_{i-1} + w_i`` with
-``var(w_i) = sigma^2 (1 - e^{-2 a T})`` (METHODS.md section 2: the seed's eq. 9 noise factor is
+``var(w_i) = sigma^2 (1 - e^{-2 a T})`` (docs/arms.md: the seed's eq. 9 noise factor is
 dimensionally inconsistent and is not used).
 
 The nonlinear measurement update (EKF and converted-at-predicted forms) runs in a numba kernel

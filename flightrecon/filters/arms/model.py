@@ -141,7 +141,7 @@ class AirData:
     def at(self, t_s: np.ndarray, max_gap_s: float = np.inf) -> np.ndarray:
         """(K, 2) components linearly interpolated to times ``t_s``.
 
-        Air data is an *input* channel on the recorder grid (METHODS.md, "Two kinds of
+        Air data is an *input* channel on the recorder grid (docs/schema.md, "Two kinds of
         channel"), so taking it at a plot's time by interpolation between neighbouring grid
         samples reuses no measurement.  NaN outside the samples and where the two bracketing
         samples are more than ``max_gap_s`` apart (a gap in the air data is not bridged).
@@ -165,7 +165,7 @@ def horizontal_range(slant_m, *, elevation_deg=None, dh_m=None,
                      earth_radius_m: float = EARTH_RADIUS_M) -> np.ndarray:
     """Horizontal range in the station's tangent plane from the radar's slant range.
 
-    With the elevation angle: ``r = rho cos(el)`` (METHODS.md section 2).  With the altitude
+    With the elevation angle: ``r = rho cos(el)`` (docs/arms.md).  With the altitude
     difference ``dh`` (aircraft minus station, metres above the same datum): the aircraft's
     height above the station's tangent plane is ``u = dh - r^2 / (2 R_e)`` (the plane drops
     away from the sphere), and ``r`` solves ``r^2 + u^2 = rho^2``; two fixed-point steps from
@@ -238,7 +238,7 @@ def converted_covariance(range_m, azimuth_rad, sigma_range_m, sigma_azimuth_rad)
     """Covariance of the converted measurement error (paper eq. 15, first order), (..., 2, 2).
 
     ``s_x^2 = s_r^2 sin^2 t + r^2 s_t^2 cos^2 t``, ``s_y^2 = s_r^2 cos^2 t + r^2 s_t^2 sin^2 t``,
-    ``s_xy = sin t cos t (s_r^2 - r^2 s_t^2)`` (METHODS.md section 2), evaluated at the range and
+    ``s_xy = sin t cos t (s_r^2 - r^2 s_t^2)`` (docs/arms.md), evaluated at the range and
     azimuth given (measured or predicted: see :data:`CONVERTED_AT`).
     """
     r = np.asarray(range_m, dtype=np.float64)
@@ -299,7 +299,7 @@ def gm_transition(dt, alpha_ps: float) -> np.ndarray:
 
 def gm_process_noise(dt, alpha_ps: float, sigma_mps: float) -> np.ndarray:
     """Exact Gauss-Markov process noise (N, 2, 2): ``sigma^2 (1 - e^{-2 alpha T}) I``
-    (METHODS.md section 2; ``-expm1`` keeps it accurate for small ``alpha T``)."""
+    (docs/arms.md; ``-expm1`` keeps it accurate for small ``alpha T``)."""
     dt = _check_dt(dt)
     return (sigma_mps ** 2 * -np.expm1(-2.0 * alpha_ps * dt))[:, None, None] * np.eye(2)
 

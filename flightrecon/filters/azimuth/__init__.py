@@ -1,4 +1,4 @@
-"""Azimuth channel of an approach radar: Singer model and load-factor-aided model (METHODS.md s. 3).
+"""Azimuth channel of an approach radar: Singer model and load-factor-aided model (docs/azimuth.md).
 
 State ``x = [eps, omega, a]``: azimuth [rad, clockwise from true north at the station], azimuth
 rate [rad/s] and azimuth angular acceleration [rad/s^2].  Two process models:
@@ -9,7 +9,7 @@ rate [rad/s] and azimuth angular acceleration [rad/s^2].  Two process models:
 * **Aided** (seed 002 equations (5)-(7)): ``a`` is a random walk driven by white noise on ``a'``
   of spectral density ``q``; exact discretisation :func:`random_walk_matrices`.
 
-Observations (METHODS.md s. 3):
+Observations (docs/azimuth.md):
 
 * radar azimuth ``eps_meas = eps + v``, innovation wrapped to (-pi, pi] (seed eq. (4)/(8));
 * the *transverse acceleration* from the downlinked load factors and attitude (replacing the

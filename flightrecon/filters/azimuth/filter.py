@@ -190,11 +190,12 @@ def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, 
                    sigma_m_mps2: float = 2.0, q_jerk_m2ps5: float = 0.2,
                    correlation_time_s: float = 0.0, v_max_mps: float = 150.0,
                    a_max_mps2: float = 5.0) -> AzimuthRun:
-    """Filter and smooth the azimuth channel on the event times (METHODS.md s. 3).
+    """Filter and smooth the azimuth channel on the event times (docs/azimuth.md).
 
     Parameters
     ----------
     t_s : (N,) strictly increasing event times [s]; the first event must hold a radar plot
+        (it initialises the azimuth and is used once, as the prior: its innovation is NaN)
     eps_meas_rad : (N,) radar azimuth [rad], NaN where no plot at that event
     eps_var_rad2 : (N,) azimuth measurement variance [rad^2]
     range_track : :func:`track_range` on the same events
@@ -267,10 +268,13 @@ def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, 
     n_corr = 1.0
     if t_on.size > 1:
         n_corr = max(1.0, correlation_time_s / float(np.median(np.diff(t_on))))
+    # the first plot is the prior; it is not used again as a measurement at the first event
     x0 = np.array([eps[0], 0.0, 0.0])
     P0 = np.diag([eps_var[0], (v_max_mps / r[0]) ** 2, (a_max_mps2 / r[0]) ** 2])
-    out = _azimuth_kernel(x0, P0, np.ascontiguousarray(F), np.ascontiguousarray(Q), eps, eps_var,
-                          a_ne, a_ne_cov, a_ne_cov_corr, r,
+    eps_used = eps.copy()
+    eps_used[0] = np.nan
+    out = _azimuth_kernel(x0, P0, np.ascontiguousarray(F), np.ascontiguousarray(Q), eps_used,
+                          eps_var, a_ne, a_ne_cov, a_ne_cov_corr, r,
                           np.ascontiguousarray(range_track.r_dot),
                           np.ascontiguousarray(range_track.P), n_corr)
     xf, Pf, xp, Pp, nu_e, s_e, nu_z, s_z, r_z = out

@@ -91,7 +91,7 @@ def singer_transition(alpha_m: float, T) -> np.ndarray:
     """Exact Singer transition matrix over steps ``T``.
 
     ``Phi = [[1, T, (alpha T - 1 + e^{-alpha T})/alpha^2], [0, 1, (1 - e^{-alpha T})/alpha],
-    [0, 0, e^{-alpha T}]]`` (Singer 1970, eq. for Phi(T); METHODS.md s. 3), which seed 002's
+    [0, 0, e^{-alpha T}]]`` (Singer 1970, eq. for Phi(T); docs/azimuth.md), which seed 002's
     equations (1)-(3) approximate for small ``alpha T``.
 
     Parameters

@@ -64,6 +64,7 @@ class JointInputs:
     roll : the take-off roll and the rest before it (:func:`takeoff_roll`)
     lineup_t : when the aircraft lined up on the take-off runway (cleaning phases); nothing
         before it is taken as at rest on the runway (NaN: no limit)
+    notes : what the input builder had to assume (missing attitude held, ...), for the summary
     """
 
     t_in: np.ndarray
@@ -90,6 +91,7 @@ class JointInputs:
                       tuple[float, float, float] | None] = (None, None)
     roll: TakeoffRoll = field(default_factory=TakeoffRoll)
     lineup_t: float = np.nan
+    notes: tuple[str, ...] = ()
 
 
 def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,

@@ -252,7 +252,8 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
     end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
     positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
-    and are rebuilt on each call.  ``roll`` is :func:`refined_roll` (computed here if not
+    ``clock`` (seconds *added* to each group's time stamps, the convention of
+    ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is :func:`refined_roll` (computed here if not
     given); ``psi_hat`` the heading bias of the last pass (per state step), about which the
     ground constraints are linearised.
     """
@@ -283,7 +284,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     # GNSS
     g = inp.gnss
     if len(g):
-        tg = g["t_s"].to_numpy() - clock.get("gnss", 0.0)
+        tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
         k = step_of(tg)
         hg = g["h_m"].to_numpy(float)
         no_h = ~np.isfinite(hg)
@@ -328,7 +329,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
-        tr = rd["t_s"].to_numpy() - clock.get("radar", 0.0)
+        tr = rd["t_s"].to_numpy() + clock.get("radar", 0.0)
         b.add("radar", jl.RANGE, tr, rd["range_m"].to_numpy(), nz.radar_range_m ** 2)
         b.add("radar", jl.AZIMUTH, tr, rd["azimuth_rad"].to_numpy(),
               np.radians(nz.radar_azimuth_deg) ** 2)

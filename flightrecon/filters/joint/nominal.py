@@ -8,7 +8,7 @@ import numpy as np
 
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.inputs import JointInputs, end_points
-from flightrecon.filters.joint.settings import JointNoise
+from flightrecon.filters.joint.settings import PRIOR_STATES, JointNoise
 
 
 def _state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -111,7 +111,8 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
                      (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2])
 
 
-def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
+def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
+             priors: tuple[tuple[str, float, float], ...] = ()):
     n = jl.N_STATE
     x0 = np.zeros(n)
     x0[jl.IP:jl.IP + 3] = nom_ecef[0]
@@ -134,6 +135,9 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float):
     P0[jl.IKS:jl.IKS + 3, jl.IKS:jl.IKS + 3] = np.eye(3) * nz.accel_scale ** 2
     P0[jl.IATT:jl.IATT + 2, jl.IATT:jl.IATT + 2] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
     P0[jl.IG:jl.IG + 2, jl.IG:jl.IG + 2] = np.eye(2) * (nz.wind_gradient_per_km / 1000.0) ** 2
+    for name, mean, sd in priors:  # e.g. an aircraft's fleet calibration
+        i, f, _ = PRIOR_STATES[name]
+        x0[i], P0[i, i] = mean * f, (sd * f) ** 2
     return x0, P0
 
 

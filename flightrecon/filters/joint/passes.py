@@ -5,6 +5,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation.updates import scalar_update_short
 from flightrecon.filters.joint.dynamics import (
     _cholesky_solve,
     _predict_cov,
@@ -125,16 +126,9 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
                 infl[j] = r_new / r
                 r = r_new
                 S = HPH + r
-            # scalar update with K = PH / S, in place, O(n^2): the Joseph form
-            # (I - K H) P (I - K H)^T + K r K^T expanded for the optimal gain is
-            # P - K PH^T - PH K^T + S K K^T = P - PH PH^T / S; (PH_a PH_b) / S is bitwise
-            # symmetric, so P stays exactly symmetric
-            inv_s = 1.0 / S
-            for a in range(n):
-                pa = PH[a]
-                for b in range(n):
-                    P[a, b] -= (pa * PH[b]) * inv_s
-                x[a] += pa * inv_s * nu
+            # scalar update with K = PH / S, in place, O(n^2): the short form P - PH PH^T / S
+            # (not the Joseph form, which it equals only at this optimal gain, to rounding)
+            scalar_update_short(x, P, PH, nu, S)
         xf[k] = x
         Pf[k] = P
     return nu_out, s_out, infl
@@ -214,7 +208,10 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     solve with a vector) instead of O(n^3) products; used in the Gauss-Newton iterations, which
     need the trajectory and the residuals but not the smoothed covariances.
 
-    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`).
+    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`)
+    and the number of steps whose predicted covariance failed its Cholesky factorisation (not
+    positive definite to rounding: the gain then comes from a general solve, which raises
+    LinAlgError only if the matrix is singular; the caller reports the count).
     """
     N, n = xf.shape
     M = mtype.shape[0]
@@ -235,6 +232,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     Pbuf = np.empty((n, n))
     no_P = np.empty((0, 0))
     no_hph = np.empty(0)
+    n_fallback = 0
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
@@ -243,6 +241,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
             for i in range(n):
                 d[i] = xs[k + 1, i] - xp[k + 1, i]
             if not _cholesky_solve(Pk1, d, L, y):
+                n_fallback += 1
                 y[:] = np.linalg.solve(Pk1, d)
             _sparse_rmatvec(cols, vals, cnt, y, z)
             for a in range(n):
@@ -252,7 +251,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
                 xs[k, a] = v
         _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
                       Cst, H, res, res_n, rate, no_P, no_hph)
-    return xs, res_n, res, rate
+    return xs, res_n, res, rate, n_fallback
 
 
 @nb.njit(cache=True, nogil=True)
@@ -263,7 +262,8 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
 
     Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
     smoothed state variances (N, n), normalised residuals, raw residuals, rates and, per
-    measurement, H P_s H^T (the smoothed variance of the predicted measurement).  With
+    measurement, H P_s H^T (the smoothed variance of the predicted measurement), and the number
+    of Cholesky failures (as :func:`backward_mean`).  With
     ``residuals`` False the residual outputs stay NaN (the covariances do not need them: this
     pass can then run beside :func:`backward_mean` on another thread).
     """
@@ -291,6 +291,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
     d = np.empty(n)
     H = np.empty(n)
     Ps = Pf[N - 1].copy()
+    n_fallback = 0
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
@@ -306,6 +307,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
             if cholesky_factor(Pk1, L, 0.0):
                 cholesky_solve_columns(L, A, GT)      # GT = P_p^-1 A = G^T
             else:
+                n_fallback += 1
                 GT[:, :] = np.linalg.solve(Pk1, A)
             for i in range(n):
                 for j in range(n):
@@ -338,4 +340,4 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
         if residuals:
             _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom,
                           pst, Cst, H, res, res_n, rate, Ps, hph)
-    return xs, Pblk, var, res_n, res, rate, hph
+    return xs, Pblk, var, res_n, res, rate, hph, n_fallback

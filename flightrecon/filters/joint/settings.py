@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flightrecon.filters.joint import layout as jl
+
 SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway",
            "doppler", "wind")
 
@@ -101,3 +103,47 @@ class JointSettings:
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
     noise_tol: float = 0.01                  # EM stops when no variance moves by more
     noise_factor_bounds: tuple[float, float] = (0.01, 100.0)  # EM variance factors kept inside
+    priors: tuple[tuple[str, float, float], ...] = ()  # (error, mean, sd) replacing the
+    #                                          default prior N(0, budget^2): PRIOR_STATES names
+
+    def __post_init__(self) -> None:
+        for name, mean, sd in self.priors:
+            if name not in PRIOR_STATES:
+                raise ValueError(f"joint prior '{name}': not a sensor-error state (choose from "
+                                 f"{', '.join(PRIOR_STATES)})")
+            if not (np.isfinite(mean) and np.isfinite(sd) and sd > 0):
+                raise ValueError(f"joint prior '{name}': mean {mean!r}, sd {sd!r}: need finite "
+                                 "numbers and sd > 0")
+
+
+#: sensor-error states that take a prior (names as in the summary's ``corrections``):
+#: name -> (state index, factor from the reported unit to the state's, JointNoise field of the
+#: default prior sd in the reported unit).  The accelerometer biases are first-order
+#: Gauss-Markov: a prior mean decays towards zero with their time constant.
+PRIOR_STATES: dict[str, tuple[int, float, str]] = {
+    "heading_bias_deg": (jl.IPSI, float(np.radians(1.0)), "heading_bias_deg"),
+    "tas_scale": (jl.IS, 1.0, "tas_scale"),
+    "baro_offset_m": (jl.IBH, 1.0, "baro_offset_m"),
+    "baro_scale": (jl.IC, 1.0, "baro_scale"),
+    "accel_bias_x_g": (jl.IBA, 1.0, "accel_bias_g"),
+    "accel_bias_y_g": (jl.IBA + 1, 1.0, "accel_bias_g"),
+    "accel_bias_z_g": (jl.IBA + 2, 1.0, "accel_bias_g"),
+    "doppler_scale": (jl.IDW, 1.0, "doppler_scale"),
+    "accel_scale_x": (jl.IKS, 1.0, "accel_scale"),
+    "accel_scale_y": (jl.IKS + 1, 1.0, "accel_scale"),
+    "accel_scale_z": (jl.IKS + 2, 1.0, "accel_scale"),
+    "drift_bias_deg": (jl.IDC, float(np.radians(1.0)), "drift_bias_deg"),
+    "roll_bias_deg": (jl.IATT, float(np.radians(1.0)), "attitude_bias_deg"),
+    "pitch_bias_deg": (jl.IATT + 1, float(np.radians(1.0)), "attitude_bias_deg"),
+    "wind_gradient_n_per_km": (jl.IG, 1e-3, "wind_gradient_per_km"),
+    "wind_gradient_e_per_km": (jl.IG + 1, 1e-3, "wind_gradient_per_km"),
+}
+
+
+def prior_of(name: str, settings: JointSettings) -> tuple[float, float]:
+    """(mean, sd) of the prior of the sensor-error state ``name``, in its reported unit: the
+    one given in ``settings.priors``, else N(0, the noise budget's sd)."""
+    for n, mean, sd in settings.priors:
+        if n == name:
+            return float(mean), float(sd)
+    return 0.0, float(getattr(settings.noise, PRIOR_STATES[name][2]))

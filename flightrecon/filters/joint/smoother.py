@@ -61,12 +61,15 @@ class JointRun:
     resid_norm: np.ndarray
     innov: np.ndarray
     innov_var: np.ndarray
-    clock_offsets_s: dict[str, tuple[float, float]]
+    clock_offsets_s: dict[str, tuple[float, float]]  # (value, sd): seconds added to the stamps
     noise_scale: dict[str, float]
     iterations: list[dict[str, Any]]
     end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
     roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
     noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
+    # steps of the last pass whose predicted covariance failed its Cholesky factorisation (the
+    # smoother gain then came from a general solve): reported, never silent
+    cholesky_fallbacks: int = 0
 
 
 def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) -> JointRun:
@@ -125,7 +128,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if weights is None or len(weights) != len(meas.z):
             weights = np.ones(len(meas.z))
         if x0 is None:
-            x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps)
+            x0, P0 = _initial(inp, pnom, nz, settings.min_airspeed_mps, settings.priors)
         tau = meas.t - T[meas.step]
         if it == 0:  # filter outputs, reused by every pass (allocated and paged in once)
             n = jl.N_STATE
@@ -145,7 +148,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         # the solution) smooths the states only, the later ones (likely the last) everything
         with_cov = settings.estimate_noise or it > 0
         if settings.estimate_noise:
-            xs, Pblk, var, _, res, rate, hph = jp.backward(xf, Pf, xp, Pp, *kern_args, True)
+            xs, Pblk, var, _, res, rate, hph, n_fallback = jp.backward(xf, Pf, xp, Pp, *kern_args,
+                                                                       True)
         elif with_cov:
             # the covariance recursion does not need the smoothed states: it runs on a second
             # thread beside the mean pass (the kernels release the GIL)
@@ -160,19 +164,21 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             worker = threading.Thread(target=covariances, name="joint-covariances",
                                       args=(xf, Pf, xp, Pp, *kern_args))
             worker.start()
-            xs, _, res, rate = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+            xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
             worker.join()
             if "error" in cov:
                 raise cov["error"]
-            _, Pblk, var, *_ = cov["out"]
+            _, Pblk, var, *_, n_fallback_cov = cov["out"]
+            n_fallback = max(n_fallback, n_fallback_cov)
         else:
-            xs, _, res, rate = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+            xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
         # residual in units of the measurement's own (nominal, not inflated) standard deviation
         res_n = res / np.sqrt(r)
         # new nominal: the smoothed trajectory
         lat_new, lon_new, h_new = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
         shift = float(np.max(np.abs(np.c_[xs[:, 0:3] - pnom])))
-        info = {"iteration": it, "max_position_change_m": shift, "roll_start_t_s": roll.start_t}
+        info = {"iteration": it, "max_position_change_m": shift, "roll_start_t_s": roll.start_t,
+                "cholesky_fallbacks": int(n_fallback)}
         # robust weights from the smoothed residuals
         w_before = weights.copy()
         clock_before = dict(clock)
@@ -183,7 +189,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # redescending rule, so a jumped source cannot pull the track at all
             weights = np.where(a > settings.reject_c, 1e-8, weights)
             weights[~np.isfinite(weights)] = 1.0
-        # clock offsets: residual = -hdot * offset
+        # clock offsets, in seconds added to the source's time stamps (the convention of
+        # `clean --gnss-clock-offset / --radar-clock-offset`): a measurement stamped t_m and
+        # taken at t_m + c_true, used at t_m + c, has residual hdot * (c_true - c)
         if settings.estimate_clock:
             for name, src in (("gnss", ("gnss_pos",)), ("radar", ("radar",))):
                 sel = np.isin(meas.source, [SOURCES.index(s) for s in src]) & np.isfinite(rate)
@@ -193,7 +201,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                 den = np.sum(wv * rate[sel] ** 2)
                 if den <= 0:
                     continue
-                o = -np.sum(wv * rate[sel] * res[sel]) / den
+                o = np.sum(wv * rate[sel] * res[sel]) / den
                 sd = 1.0 / np.sqrt(den)
                 clock_sd[name] = sd
                 if abs(o) > 3 * sd:
@@ -235,7 +243,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     if not with_cov:
         # smoothed covariances of the last pass (its states equal those of the mean-only pass
         # to round-off: same gains, same linearisation)
-        xs, Pblk, var, *_ = jp.backward(xf, Pf, xp, Pp, *kern_args, False)
+        xs, Pblk, var, *_, n_fallback_cov = jp.backward(xf, Pf, xp, Pp, *kern_args, False)
+        n_fallback = max(n_fallback, n_fallback_cov)
     noise_check = None
     if settings.estimate_noise:
         # the estimated noise must raise the likelihood of the data: the innovations'
@@ -266,7 +275,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z,
                          r_used, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz,
                          qv_extra)
-            xs, Pblk, var, _, res, rate, hph = jp.backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
+            xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1,
+                                                                   *kern_args, True)
+            n_fallback = int(n_fb1)
             res_n = res / np.sqrt(r1)
             xf, innov, innov_var = xf1, innov1, innov_var1
             lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
@@ -279,4 +290,5 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
                     iterations=history, end_points=end_points(inp, nz, roll), roll=roll,
-                    noise_check=noise_check)
+                    noise_check=noise_check,
+                    cholesky_fallbacks=int(n_fallback))

@@ -61,10 +61,16 @@ class SnsRun:
 
 @dataclass(frozen=True)
 class SnsSmoothed:
-    """Smoothed states ``x`` (N, 5) (lat/lon radians first) and covariances ``P`` (N, 5, 5)."""
+    """Smoothed states ``x`` (N, 5) (lat/lon radians first) and covariances ``P`` (N, 5, 5).
+
+    ``cholesky_fallbacks``: steps whose predicted covariance failed its Cholesky factorisation
+    (not positive definite to rounding), where the gain came from a general solve; reported by
+    the adapter, never silent.
+    """
 
     x: np.ndarray
     P: np.ndarray
+    cholesky_fallbacks: int = 0
 
 
 @nb.njit(cache=True, nogil=True)
@@ -288,7 +294,7 @@ def _c(a, dtype=np.float64) -> np.ndarray:
 
 def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoise, *,
                model: int, form: int = FORM_CONSISTENT) -> SnsRun:
-    """Run the nonlinear SNS filter forward (module docstring; METHODS.md section 4).
+    """Run the nonlinear SNS filter forward (module docstring; docs/sns.md).
 
     Parameters
     ----------
@@ -339,10 +345,12 @@ def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
     Dd = np.zeros((n, n))
     T = np.zeros((n, n))
     Pk = np.zeros((n, n))
+    n_fallback = 0
     for k in range(N - 2, -1, -1):
         # C = cross_k Pp_{k+1}^{-1}: Cholesky solve with the symmetric Pp; a general solve
-        # (which raises LinAlgError if Pp is singular) when it is not positive definite
+        # (which raises LinAlgError if Pp is singular) when it is not positive definite, counted
         if not _chol_solve_rows(Pp[k + 1], cross[k], Lw, C):
+            n_fallback += 1
             C[:, :] = np.linalg.solve(Pp[k + 1], cross[k].T).T
         dn, de = boxminus(xs[k + 1, 0], xs[k + 1, 1], xp[k + 1, 0], xp[k + 1, 1], hgt[k + 1])
         d[0] = dn
@@ -368,11 +376,11 @@ def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
             for j in range(n):
                 Pk[i, j] += Pf[k, i, j]
         _sym_into(Pk, Ps[k])
-    return xs, Ps
+    return xs, Ps, n_fallback
 
 
 def sns_smooth(run: SnsRun) -> SnsSmoothed:
     """Backward pass with the gain matching the filter's form (module docstring, "Smoother")."""
-    xs, Ps = _smoother_kernel(_c(run.x_pred), _c(run.x), _c(run.P_pred), _c(run.P),
-                              _c(run.cross), _c(run.h))
-    return SnsSmoothed(xs, Ps)
+    xs, Ps, n_fallback = _smoother_kernel(_c(run.x_pred), _c(run.x), _c(run.P_pred), _c(run.P),
+                                          _c(run.cross), _c(run.h))
+    return SnsSmoothed(xs, Ps, int(n_fallback))

@@ -152,7 +152,7 @@ def increment(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: np.nd
 
     Returns
     -------
-    d : (2,) increment north/east [m] (METHODS.md eq. (1) / (4), exact for held readings)
+    d : (2,) increment north/east [m] (docs/sns.md, "Models", exact for held readings)
     J : (2, 3) ``dd/dc``
     Gs : (2, 4) ``dd/d eta`` times the noise standard deviations
 

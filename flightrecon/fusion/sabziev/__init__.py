@@ -1,7 +1,7 @@
 """Sabziev boundary-value fusion: the discrete analogue, its exact sensitivities, closed forms.
 
-Implements METHODS.md section 1 (seed 001, Sabziev 2020, section IV) on a uniform time grid.
-Frame (METHODS.md section 1): origin at the lift-off point, ``x`` north, ``y`` up, ``z`` east.
+Implements docs/sabziev.md (seed 001, Sabziev 2020, section IV) on a uniform time grid.
+Frame (docs/sabziev.md): origin at the lift-off point, ``x`` north, ``y`` up, ``z`` east.
 
 Model, one linear ODE per axis with one coefficient each::
 
