@@ -216,15 +216,16 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _flush_stdout() -> None:
-    """Flush the output now: a reader that closed the pipe early (``| head``) is not an error
-    (exit 0, as :class:`_PipeClosed`), instead of a failed flush at exit."""
+    """Flush the output now: a reader that closed the pipe early (``| head``) ends the run
+    silently with SIGPIPE's code, 128 + 13 (as :class:`_PipeClosed`), instead of a failed
+    flush at exit."""
     try:
         sys.stdout.flush()
     except BrokenPipeError:
         with contextlib.suppress(OSError, ValueError):
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
-        sys.exit(0)
+        sys.exit(128 + 13)
     except (OSError, ValueError):
         pass
 
@@ -256,11 +257,11 @@ def _run(argv: list[str] | None, debug: bool) -> None:
         sys.exit(exc.exit_code)
     except SystemExit as exc:
         # a pipe closed where click saw it first: click ends such a run with exit 1 (the code
-        # of an internal error) and marks it by wrapping sys.stdout; like _PipeClosed, exit 0
+        # of an internal error) and marks it by wrapping sys.stdout; like _PipeClosed, 141
         ctx = exc.__context__
         epipe = isinstance(ctx, OSError) and ctx.errno == errno.EPIPE
         if exc.code == 1 and (epipe or type(sys.stdout).__name__ == "_PacifyFlushWrapper"):
-            sys.exit(0)
+            sys.exit(128 + 13)
         raise
     except Exception as exc:
         if debug:
