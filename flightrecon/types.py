@@ -87,6 +87,8 @@ class FlightMeta:
         per flight; no geoid grid is shipped, so 0 unless given)
     fixes : known positions at given times (:class:`PositionFix`, ``--fix``), sorted by time
     wind_aloft : winds-aloft prior by altitude (:class:`WindLevel`, ``--wind``), sorted
+    origin : origin of the output frame when no departure is given: the first GNSS fix (or radar
+        plot) of the record, set by the cleaning layer (MSL elevation); never an airfield
     """
 
     aircraft_id: str | None = None
@@ -104,6 +106,7 @@ class FlightMeta:
     extra: dict[str, Any] = field(default_factory=dict)
     fixes: tuple[PositionFix, ...] = ()
     wind_aloft: tuple[WindLevel, ...] = ()
+    origin: Position | None = None
 
 
 @dataclass(frozen=True)
@@ -127,6 +130,9 @@ class FlightPhases:
 
     ``starts_airborne`` / ``ends_airborne`` say that the record is cut in the air.
     ``liftoff_velocity_ned_mps`` is the ground velocity at lift-off estimated from the ground roll.
+    ``lineup_t_s`` is when the aircraft turned onto the take-off runway heading (the end of the
+    taxi; the record's start when it starts lined up), ``roll_start_t_s`` when the take-off roll
+    began (NaN where there is no ground roll in the record).
     """
 
     liftoff_t_s: float
@@ -134,6 +140,8 @@ class FlightPhases:
     starts_airborne: bool
     ends_airborne: bool
     liftoff_velocity_ned_mps: tuple[float, float, float]
+    lineup_t_s: float = float("nan")
+    roll_start_t_s: float = float("nan")
 
 
 @dataclass(frozen=True)

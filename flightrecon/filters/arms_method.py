@@ -27,7 +27,8 @@ rough as the paper's, 1.5 m/s per second, the interpolated sd is then slightly o
 between steps).  The cascade steps at the plots only; its estimates
 are linearly interpolated to the grid times for output only (between plots its sd is then an
 interpolation too).  NaN outside the radar coverage (before the first plot, after the last).
-Inside a radar outage the estimate is the model's bridge, and its standard deviations say how good that is.
+Inside a radar outage the estimate is the model's bridge, and its standard deviations say how
+good that is.
 """
 
 from __future__ import annotations

@@ -237,9 +237,9 @@ def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray) -> pd.Data
             cols += [cname.replace("_m", "_sd_m"), vname.replace("_mps", "_sd_mps")]
     block = np.full((n, len(cols)), np.nan)
     block[:, 0] = t_all
-    for c, (cname, j) in enumerate(names, start=1):
+    for c, (_cname, j) in enumerate(names, start=1):
         block[sl, c] = sol.xyz_m[:, j] + offset[j]
-    for c, (vname, j) in enumerate(vnames, start=4):
+    for c, (_vname, j) in enumerate(vnames, start=4):
         block[sl, c] = sol.vxyz_mps[:, j]
     if k_sd is not None:
         psd = sol.position_sd_m(k_sd)

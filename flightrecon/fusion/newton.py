@@ -279,7 +279,8 @@ def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
         else:
             b = k
         if abs(b - a) <= 4e-16 * max(abs(a), abs(b)):
-            return k, F, it, "bracket collapsed before |F| <= tol: F not resolvable in floating point"
+            return k, F, it, ("bracket collapsed before |F| <= tol: F not resolvable in "
+                              "floating point")
         k_new = k - F / dF if dF != 0.0 and np.isfinite(dF) else np.nan
         if not (min(a, b) < k_new < max(a, b)):
             k_new = 0.5 * (a + b)

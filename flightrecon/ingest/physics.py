@@ -19,8 +19,8 @@ that a unit mix-up explains (docs/ingest.md, "Repaired, warned, refused"):
 * **pressure altitude**: the vertical velocity from ``baro_alt_m`` changes as the vertical
   acceleration from the load factors and attitude integrates,
   ``a_up = g0 (n_long sin(theta) - n_lat sin(phi) cos(theta) + n_norm cos(phi) cos(theta)) - g0``
-  (docs/schema.md, "Conventions": ``a_NED = C_nb g0 [n_long, n_lat, -n_norm] + [0, 0, g]``);
-  a factor near 3.28 is a feet column declared in metres, near 0.305 the reverse;
+  (docs/schema.md, "Conventions": ``a_NED = C_nb g0 [n_long, n_lat, -n_norm] + [0, 0, g]``); a factor near 3.28 is
+  a feet column declared in metres, near 0.305 the reverse;
 * **airspeed unit**: the true airspeed against the GNSS ground speed (a ratio near 1.94 is
   knots in a m/s column, near 3.6 km/h);
 * **GNSS height against pressure altitude**: over the climbs and descents of a flight the two

@@ -43,4 +43,10 @@ from flightrecon.pipeline.summary import (
     sha256_file,
 )
 
-__all__ = ['METHOD_FUNCTIONS', 'ALL_METHODS', 'DEFAULT_PRIORITY', 'ReconstructSettings', 'Reconstruction', 'available_methods', 'run_method', 'method_health', 'combine', 'SUMMARY_SCHEMA_VERSION', 'sha256_file', 'build_summary', 'default_workers', 'reconstruct_clean', 'fleet_settings', 'record_coefficients', 'record_flight', 'reconstruct']
+__all__ = [
+    "METHOD_FUNCTIONS", "ALL_METHODS", "DEFAULT_PRIORITY", "ReconstructSettings",
+    "Reconstruction", "available_methods", "run_method", "method_health", "combine",
+    "SUMMARY_SCHEMA_VERSION", "sha256_file", "build_summary", "default_workers",
+    "reconstruct_clean", "fleet_settings", "record_coefficients", "record_flight",
+    "reconstruct",
+]

@@ -65,4 +65,11 @@ from flightrecon.filters.arms.model import (
 )
 from flightrecon.filters.arms.paper import PaperScenario, simulate_paper_scenario
 
-__all__ = ['LINEARISATIONS', 'CONVERTED_AT', 'ArmsModel', 'RadarPlots', 'AirData', 'horizontal_range', 'range_azimuth', 'range_azimuth_jacobian', 'wrap_angle', 'converted_measurement', 'converted_covariance', 'cv_transition', 'cv_process_noise', 'gm_transition', 'gm_process_noise', 'joint_transition', 'joint_process_noise', 'ArmsEstimate', 'Stage1Run', 'Stage2Run', 'JointRun', 'CascadeResult', 'track_ground_velocity', 'compensate', 'run_cascade', 'run_joint', 'estimate_of', 'PaperScenario', 'simulate_paper_scenario']
+__all__ = [
+    "LINEARISATIONS", "CONVERTED_AT", "ArmsModel", "RadarPlots", "AirData", "horizontal_range",
+    "range_azimuth", "range_azimuth_jacobian", "wrap_angle", "converted_measurement",
+    "converted_covariance", "cv_transition", "cv_process_noise", "gm_transition",
+    "gm_process_noise", "joint_transition", "joint_process_noise", "ArmsEstimate", "Stage1Run",
+    "Stage2Run", "JointRun", "CascadeResult", "track_ground_velocity", "compensate",
+    "run_cascade", "run_joint", "estimate_of", "PaperScenario", "simulate_paper_scenario",
+]

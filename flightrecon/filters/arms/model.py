@@ -22,7 +22,8 @@ LINEARISATIONS = ("ekf", "converted")
 CONVERTED_AT = ("predicted", "measured")
 """Where the converted-measurement covariance is evaluated (range and azimuth of the predicted
 state, or the measured ones).  ``predicted`` avoids the correlation between the measurement noise
-and its own covariance that ``measured`` introduces (Bar-Shalom, Li & Kirubarajan 2001, sec. 10.4)."""
+and its own covariance that ``measured`` introduces (Bar-Shalom, Li & Kirubarajan 2001,
+sec. 10.4)."""
 
 
 _LIN_CODE = {("ekf", "predicted"): 0, ("ekf", "measured"): 0,
@@ -196,7 +197,8 @@ def wrap_angle(a):
 
 
 def converted_measurement(range_m, azimuth_rad) -> np.ndarray:
-    """Converted measurement ``[x*, y*] = rho* [sin theta*, cos theta*]`` (paper eq. 13), (..., 2)."""
+    """Converted measurement ``[x*, y*] = rho* [sin theta*, cos theta*]`` (paper eq. 13),
+    (..., 2)."""
     r = np.asarray(range_m, dtype=np.float64)
     a = np.asarray(azimuth_rad, dtype=np.float64)
     return np.stack([r * np.sin(a), r * np.cos(a)], axis=-1)

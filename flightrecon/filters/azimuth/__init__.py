@@ -47,4 +47,9 @@ from flightrecon.filters.azimuth.observation import (
 )
 from flightrecon.filters.azimuth.range_track import RangeTrack, track_range
 
-__all__ = ['singer_transition', 'singer_process_noise', 'random_walk_matrices', 'horizontal_acceleration', 'horizontal_acceleration_jacobian', 'horizontal_acceleration_covariance', 'transverse_acceleration', 'wrap_pi', 'RangeTrack', 'track_range', 'AzimuthRun', 'azimuth_filter']
+__all__ = [
+    "singer_transition", "singer_process_noise", "random_walk_matrices",
+    "horizontal_acceleration", "horizontal_acceleration_jacobian",
+    "horizontal_acceleration_covariance", "transverse_acceleration", "wrap_pi", "RangeTrack",
+    "track_range", "AzimuthRun", "azimuth_filter",
+]

@@ -2,8 +2,8 @@
 
 The state, its propagation by the kinematic accelerations from load factors and attitude, and
 the measurement models are in :mod:`flightrecon.filters.joint.layout` and the compiled kernels
-beside it.  This package builds their inputs from a cleaned flight, runs the forward filter and the RTS backward pass, and
-iterates (Gauss-Newton about the smoothed trajectory) with
+beside it.  This package builds their inputs from a cleaned flight, runs the forward filter
+and the RTS backward pass, and iterates (Gauss-Newton about the smoothed trajectory) with
 
 * the linearisation refreshed on the smoothed trajectory (nominal positions through pyproj);
 * robust re-weighting: each measurement's smoothed residual, normalised by its own standard
@@ -37,7 +37,7 @@ from flightrecon.filters.joint.measurements import (
     build_measurements,
     static_measurements,
 )
-from flightrecon.filters.joint.noise import NOISE_GROUPS
+from flightrecon.filters.joint.noise import NOISE_GROUPS, innovation_loglik
 from flightrecon.filters.joint.nominal import attitude_jacobian, relinearised_increments
 from flightrecon.filters.joint.settings import (
     POSITIVE_NOISE,
@@ -49,4 +49,10 @@ from flightrecon.filters.joint.settings import (
 )
 from flightrecon.filters.joint.smoother import JointRun, smooth_joint
 
-__all__ = ['SOURCES', 'JointNoise', 'POSITIVE_NOISE', 'JointSettings', 'PRIOR_STATES', 'prior_of', 'enu_to_ecef_matrix', 'TakeoffRoll', 'JointInputs', 'takeoff_roll', 'refined_roll', 'end_points', 'attitude_jacobian', 'relinearised_increments', 'Measurements', 'static_measurements', 'build_measurements', 'NOISE_GROUPS', 'JointRun', 'smooth_joint', 'source_report']
+__all__ = [
+    "SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
+    "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "takeoff_roll", "refined_roll",
+    "end_points", "attitude_jacobian", "relinearised_increments", "Measurements",
+    "static_measurements", "build_measurements", "NOISE_GROUPS", "innovation_loglik", "JointRun",
+    "smooth_joint", "source_report",
+]

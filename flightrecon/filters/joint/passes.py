@@ -35,9 +35,12 @@ from flightrecon.filters.joint.observation import measure_into
 
 
 @nb.njit(cache=True, nogil=True)
-def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, mstart, mtype, mz, mr, mw,
-            mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate, xlin):
+def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
     """Forward extended Kalman filter with sequential scalar updates.
+
+    ``dyn``, ``meas``, ``geo``: the :class:`~flightrecon.filters.joint.layout.Dynamics`,
+    :class:`~flightrecon.filters.joint.layout.Scalars` and
+    :class:`~flightrecon.filters.joint.layout.Geometry` layouts.
 
     With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
     last pass: h(x) ~ h(xlin_k) + H(xlin_k)(x - xlin_k), which makes the iterations Gauss-Newton
@@ -56,6 +59,9 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
     Allocation-free per step: the prediction uses the row-compressed F_k (P <- F P F^T + Q in
     O(n nnz)), the update the nonzero entries of each measurement's gradient.
     """
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
+    pnom, hnom, pst, Cst = geo
     N = dt.shape[0]
     n = N_STATE
     M = mtype.shape[0]
@@ -139,7 +145,8 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
 
 @nb.njit(cache=True, nogil=True)
 def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
-    """F_k into ``F`` and its row-compressed copy (:func:`transition_into`, :func:`_sparse_rows`)."""
+    """F_k into ``F`` and its row-compressed copy (:func:`transition_into`,
+    :func:`_sparse_rows`)."""
     transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
     _sparse_rows(F, cols, vals, cnt)
 
@@ -202,8 +209,7 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
 
 
 @nb.njit(cache=True, nogil=True)
-def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH,
-                  mrow, md, pnom, hnom, pst, Cst, dz, qv_extra):
+def backward_mean(xf, Pf, xp, Pp, dyn, meas, geo):
     """RTS backward pass for the smoothed states only (no covariances), and the residuals.
 
     x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
@@ -216,6 +222,9 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     positive definite to rounding: the gain then comes from a general solve, which raises
     LinAlgError only if the matrix is singular; the caller reports the count).
     """
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
+    pnom, hnom, pst, Cst = geo
     N, n = xf.shape
     M = mtype.shape[0]
     xs = xf.copy()
@@ -258,8 +267,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
 
 
 @nb.njit(cache=True, nogil=True)
-def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
-             md, pnom, hnom, pst, Cst, dz, qv_extra, residuals):
+def backward(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
     """RTS backward pass with covariances; also the smoothed residuals (see
     :func:`backward_mean`, which gives the same states without the covariances).
 
@@ -270,6 +278,9 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
     ``residuals`` False the residual outputs stay NaN (the covariances do not need them: this
     pass can then run beside :func:`backward_mean` on another thread).
     """
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
+    pnom, hnom, pst, Cst = geo
     N, n = xf.shape
     M = mtype.shape[0]
     xs = xf.copy()

@@ -125,4 +125,10 @@ from flightrecon.filters.sns.model import (
 )
 from flightrecon.filters.sns.output import densify, integrate_readings
 
-__all__ = ['pinv_sym', 'MODEL_AIRSPEED', 'MODEL_DOPPLER', 'FORM_CONSISTENT', 'FORM_SEED', 'N_STATE', 'N_EPS1', 'STATE_NAMES', 'radii', 'boxplus', 'boxminus', 'increment', 'segment_factor', 'step_matrices', 'observation_rows', 'StepInputs', 'fill_single_sample', 'SnsNoise', 'default_noise', 'SnsRun', 'SnsSmoothed', 'sns_filter', 'sns_smooth', 'densify', 'integrate_readings']
+__all__ = [
+    "pinv_sym", "MODEL_AIRSPEED", "MODEL_DOPPLER", "FORM_CONSISTENT", "FORM_SEED", "N_STATE",
+    "N_EPS1", "STATE_NAMES", "radii", "boxplus", "boxminus", "increment", "segment_factor",
+    "step_matrices", "observation_rows", "StepInputs", "fill_single_sample", "SnsNoise",
+    "default_noise", "SnsRun", "SnsSmoothed", "sns_filter", "sns_smooth", "densify",
+    "integrate_readings",
+]

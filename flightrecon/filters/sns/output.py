@@ -154,9 +154,9 @@ def densify(model: int, xs: np.ndarray, Ps: np.ndarray, kidx: np.ndarray, tq: np
     readings, corrections of step k) forward from ``x_k`` and backward from ``x_{k+1}`` and the
     two are blended linearly in time, in latitude/longitude (they differ only by the smoothed
     process noise of the step, millimetres, over which this equals a blend of the north/east
-    difference to 1e-9 relative); the position covariance is interpolated linearly.  The velocity is the corrected
-    reading, with covariance ``Jv P_c Jv^T + Gv Gv^T`` (corrections' covariance plus the
-    reading's own noise).
+    difference to 1e-9 relative); the position covariance is interpolated linearly.  The
+    velocity is the corrected reading, with covariance ``Jv P_c Jv^T + Gv Gv^T`` (corrections'
+    covariance plus the reading's own noise).
 
     Parameters
     ----------

@@ -73,4 +73,10 @@ from flightrecon.fusion.sabziev.solve import (
     solve_axis_y,
 )
 
-__all__ = ['HOLDS', 'phi_functions', 'psi_functions', 'StepCoefficients', 'horizontal_step', 'vertical_step', 'propagate_end', 'propagate_end_many', 'propagate_path', 'check_grid', 'vertical_end_point', 'horizontal_end_point', 'KT_MAX', 'POINTS_PER_DECADE', 'AxisSolution', 'solve_axis_y', 'solve_axis_horizontal', 'SabzievSolution', 'air_velocity', 'fuse']
+__all__ = [
+    "HOLDS", "phi_functions", "psi_functions", "StepCoefficients", "horizontal_step",
+    "vertical_step", "propagate_end", "propagate_end_many", "propagate_path", "check_grid",
+    "vertical_end_point", "horizontal_end_point", "KT_MAX", "POINTS_PER_DECADE",
+    "AxisSolution", "solve_axis_y", "solve_axis_horizontal", "SabzievSolution", "air_velocity",
+    "fuse",
+]

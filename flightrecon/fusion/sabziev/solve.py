@@ -337,7 +337,8 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
         targets = (None, None, None)
         end = None if end_ned is None else np.asarray(end_ned, dtype=np.float64)
     starts = (None, None, None) if k0 is None else tuple(k0)
-    common = {"hold": hold, "tol_m": tol_m, "max_iter": max_iter, "kt_max": kt_max, "strict": strict}
+    common = {"hold": hold, "tol_m": tol_m, "max_iter": max_iter, "kt_max": kt_max,
+              "strict": strict}
     ax_y = solve_axis_y(t, -a_ned[:, 2], h_rel, -v0[2], targets[1], k=ks[1], k0=starts[1],
                         parametrisation=parametrisation, rule=vertical_rule, **common)
     if np.all(np.isfinite(ax_y.velocity_mps)):
