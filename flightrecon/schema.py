@@ -67,12 +67,28 @@ CHANNELS: tuple[Channel, ...] = (
     Channel("wind_speed_mps", "m/s", "input", "wind speed (recorded or forecast)", 0, 150),
     Channel("wind_from_deg", "deg", "input", "wind direction, where it blows from", -360, 720,
             angle=True),
+    Channel("p_dps", "deg/s", "input", "body roll rate, + right wing going down", -500, 500),
+    Channel("q_dps", "deg/s", "input", "body pitch rate, + nose going up", -500, 500),
+    Channel("r_dps", "deg/s", "input", "body yaw rate, + nose going right", -500, 500),
     Channel("gnss_lat_deg", "deg", "measurement", "GNSS latitude", -90, 90, group="gnss"),
     Channel("gnss_lon_deg", "deg", "measurement", "GNSS longitude", -180, 360, group="gnss"),
     Channel("gnss_alt_m", "m", "measurement", "GNSS altitude (datum in metadata)", -1000, 25000,
             group="gnss"),
     Channel("gnss_vn_mps", "m/s", "measurement", "GNSS north velocity", -800, 800, group="gnss"),
     Channel("gnss_ve_mps", "m/s", "measurement", "GNSS east velocity", -800, 800, group="gnss"),
+    Channel("gnss_h_sd_m", "m", "measurement", "GNSS horizontal position sd per axis "
+            "(receiver's estimate)", 0, 1e5, group="gnss"),
+    Channel("gnss_v_sd_m", "m", "measurement", "GNSS vertical position sd (receiver's estimate)",
+            0, 1e5, group="gnss"),
+    Channel("gnss_vel_sd_mps", "m/s", "measurement", "GNSS velocity sd per axis (receiver's "
+            "estimate)", 0, 100, group="gnss"),
+    Channel("gnss_hdop", "1", "measurement", "GNSS horizontal dilution of precision", 0, 100,
+            group="gnss"),
+    Channel("gnss_nacp", "1", "measurement", "ADS-B navigation accuracy category for position "
+            "(NACp, 0-11)", 0, 11, group="gnss"),
+    Channel("gnss_quality", "1", "measurement", "GNSS fix quality (NMEA GGA: 0 invalid, 1 GPS, "
+            "2 DGPS, 4 RTK fixed, 5 RTK float, 6 estimated, 7 manual, 8 simulation)", 0, 9,
+            group="gnss"),
     Channel("arms_range_m", "m", "measurement", "radar slant range from the station", 0, 1e6,
             group="radar"),
     Channel("arms_azimuth_deg", "deg", "measurement", "radar azimuth, clockwise from true north",

@@ -152,6 +152,7 @@ def test_reconstruct_to_kml_end_to_end(tmp_path):
     assert run_cli(["reconstruct", str(SAMPLES / "circuit.parquet"), "-o", str(res),
                     "--methods", "sabziev"]) == 0
     df = pd.read_parquet(res)
+    summ = json.loads((tmp_path / "c.summary.json").read_text())
     n_geo = int(np.isfinite(df[["lat_deg", "lon_deg", "alt_m"]].to_numpy()).all(axis=1).sum())
     root = ET.parse(out).getroot()
     gx = root.find(f".//{GX}Track")
@@ -163,3 +164,6 @@ def test_reconstruct_to_kml_end_to_end(tmp_path):
     assert "recorded attitude" in root.find(f"{KML}Document/{KML}description").text
     names = [pm.find(f"{KML}name").text for pm in root.iter(f"{KML}Placemark")]
     assert any("lift-off" in s for s in names) and len(names) < 20
+    # the summary lists the events with their UTC time
+    lift = next(e for e in summ["events"] if e["kind"] == "liftoff")
+    assert lift["utc"] == "2026-01-01T10:01:13.750Z" and lift["t_s"] == 73.75

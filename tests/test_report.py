@@ -147,3 +147,15 @@ def test_report_is_self_contained_with_every_section(tmp_path):
     assert "2026-01-01 10:01:40.0" in text and "bank beyond 45 deg" in text
     assert "<td>skipped</td>" in text and '{"' not in text
     assert "Airspeed scale error" in text
+
+
+def test_long_results_are_thinned_for_drawing_only():
+    from flightrecon.report.plots import ReportContext
+
+    df, summary, grid = synthetic_result()
+    long = pd.concat([df] * 200, ignore_index=True)
+    long["t_s"] = np.arange(len(long)) * 0.0625
+    ctx = ReportContext(long, summary, grid=grid)
+    assert len(ctx.track) <= ctx.max_track_rows + 1  # every k-th sample and the last
+    assert ctx.track["t_s"].iloc[-1] == long["t_s"].iloc[-1]
+    assert ctx.grid is grid  # the recorder channels in full

@@ -10,6 +10,7 @@ from typing import Any
 import click
 
 from flightrecon.cli.common import NonEmptyPath, input_options
+from flightrecon.cli.trim import trim_options
 
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
 
@@ -94,10 +95,12 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
 @click.option("--json", "as_json", is_flag=True,
               help="Print the cleaning report (the <stem>.cleaning.json document) on stdout "
                    "instead of the summary lines.")
+@trim_options
 @click.pass_context
 def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gnss: Path | None,
             radar: Path | None, mapping: Path | None, sidecar: Path | None, max_gap_s: float,
-            gnss_clock_offset: float, radar_clock_offset: float, as_json: bool) -> None:
+            gnss_clock_offset: float, radar_clock_offset: float, as_json: bool,
+            start: str | None = None, end: str | None = None) -> None:
     """Clean LOG: despike, unwrap, resample the input channels onto one grid, keep the GNSS fixes
     and radar plots at their own times, detect lift-off and touchdown.
 
@@ -115,7 +118,8 @@ def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gns
                                                 sidecar=sidecar))
     settings = CleaningSettings(max_gap_s=max_gap_s,
                                 clock_offsets_s={"gnss": gnss_clock_offset,
-                                                 "radar": radar_clock_offset})
+                                                 "radar": radar_clock_offset},
+                                start=start, end=end)
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
     with stage_progress(quiet, ["ingest", "cleaning", "write"], "clean") as stage:
         with errors_name_file(log, sidecar):
@@ -128,7 +132,7 @@ def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gns
         written = write_clean_outputs(clean, out, inputs, {
             "rate_hz": rate_hz, "max_gap_s": max_gap_s,
             "clock_offsets_s": dict(settings.clock_offsets_s), "despike": asdict(settings.despike),
-            "phases": asdict(settings.phases)})
+            "phases": asdict(settings.phases), "start": start, "end": end})
     if as_json:
         click.echo(written[-1].read_text(encoding="utf-8").rstrip("\n"))
         return

@@ -116,6 +116,29 @@ def progress_bar(quiet: bool) -> Iterator[Callable[[str], None]]:
         bar.close()
 
 
+def read_sns_noise_file(path: Path) -> dict[str, float] | None:
+    """The ``[sns]`` table of a noise TOML file (checked by the SNS method), or ``None``."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return None   # read_noise_file reports it
+    t = doc.get("sns")
+    if t is not None and not isinstance(t, dict):
+        raise MetadataError("[sns] in the noise file must be a table", file=str(path))
+    if t:
+        from flightrecon.filters.sns_method import sns_noise_with
+        from flightrecon.filters.sns import MODEL_AIRSPEED
+
+        try:
+            sns_noise_with(MODEL_AIRSPEED, t)   # keys and values checked now
+        except MetadataError as exc:
+            raise MetadataError(exc.message, file=str(path)) from None
+    return dict(t) if t else None
+
+
 def read_noise_file(path: Path) -> dict[str, float]:
     """The ``[joint]`` table of a noise TOML file: field name -> number (safe parser)."""
     import tomllib
@@ -131,8 +154,10 @@ def read_noise_file(path: Path) -> dict[str, float]:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise MetadataError(f"not a valid TOML file: {exc}", file=str(path)) from exc
     table = doc.get("joint")
+    if table is None and isinstance(doc.get("sns"), dict):
+        return {}   # an SNS-only noise file (read_sns_noise_file)
     if not isinstance(table, dict):
-        raise MetadataError("the noise file needs a [joint] table", file=str(path))
+        raise MetadataError("the noise file needs a [joint] or an [sns] table", file=str(path))
     known = {f.name for f in fields(JointNoise)}
     out = {}
     for k, v in table.items():

@@ -216,15 +216,15 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _flush_stdout() -> None:
-    """Flush the output now: a reader that closed the pipe early (``| head``) ends the run
-    with SIGPIPE's code, 128 + 13, as a shell reports it, instead of an error at exit."""
+    """Flush the output now: a reader that closed the pipe early (``| head``) is not an error
+    (exit 0, as :class:`_PipeClosed`), instead of a failed flush at exit."""
     try:
         sys.stdout.flush()
     except BrokenPipeError:
         with contextlib.suppress(OSError, ValueError):
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
-        sys.exit(128 + 13)
+        sys.exit(0)
     except (OSError, ValueError):
         pass
 
@@ -239,11 +239,12 @@ def _run(argv: list[str] | None, debug: bool) -> None:
         click.echo(f"error: {exc}", err=True)
         sys.exit(exc.exit_code)
     except _PipeClosed:
-        # not an error: the reader stopped reading; what it read is complete up to there.
-        # Point stdout at /dev/null so the interpreter's final flush does not fail again.
+        # the reader stopped reading (``| head``): silently, with SIGPIPE's code as a shell
+        # reports it (128 + 13, as _flush_stdout). Point stdout at /dev/null so the
+        # interpreter's final flush does not fail again.
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
-        sys.exit(0)
+        sys.exit(128 + 13)
     except click.exceptions.Abort as exc:
         _exit_interrupted(exc)
     except KeyboardInterrupt as exc:
@@ -254,13 +255,12 @@ def _run(argv: list[str] | None, debug: bool) -> None:
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
     except SystemExit as exc:
-        # click ends a run whose output pipe was closed (``| head``) with exit 1, the code of
-        # an internal error: it is SIGPIPE's, 128 + 13, as a shell reports it
-        # (click marks that case by wrapping sys.stdout to silence the final flush)
+        # a pipe closed where click saw it first: click ends such a run with exit 1 (the code
+        # of an internal error) and marks it by wrapping sys.stdout; like _PipeClosed, exit 0
         ctx = exc.__context__
         epipe = isinstance(ctx, OSError) and ctx.errno == errno.EPIPE
         if exc.code == 1 and (epipe or type(sys.stdout).__name__ == "_PacifyFlushWrapper"):
-            sys.exit(128 + 13)
+            sys.exit(0)
         raise
     except Exception as exc:
         if debug:

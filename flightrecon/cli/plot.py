@@ -101,6 +101,19 @@ def recorder_data(summary: dict[str, Any], result: Path, log: Path | None
     return clean.grid, clean.gnss, clean.radar, None
 
 
+def _check_report_not_over_inputs(folder: Path, result: Path, summary_path: Path | None,
+                                  truth: Path | None, log: Path | None) -> None:
+    """The report folder must not replace the result, its summary, the truth or the log
+    (exit 9, before any work)."""
+    from flightrecon.cli.common import report_file_name
+    from flightrecon.export.atomic import check_outputs
+
+    summ = summary_path or result.with_name(result.stem + ".summary.json")
+    check_outputs({}, {"result": result, "summary": summ if summ.is_file() else None,
+                       "truth file": truth, "log": log},
+                  folders={"report": folder}, folder_names=report_file_name)
+
+
 @click.command("plot")
 @click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--out", "folder", type=click.Path(file_okay=False, path_type=Path),
@@ -129,17 +142,9 @@ def command(ctx: click.Context, result: Path, folder: Path | None, truth: Path |
     from flightrecon.export.writers import read_track
     from flightrecon.report import write_report
 
-    from flightrecon.cli.common import report_file_name
-    from flightrecon.export.atomic import check_outputs
-
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
-    summ_path = summary_path or result.with_name(result.stem + ".summary.json")
-    # the report folder must not replace the result, its summary or the truth (exit 9)
-    check_outputs({}, {"result": result, "summary": summ_path if summ_path.is_file() else None,
-                       "truth file": truth},
-                  folders={"report": folder or result.with_name(result.stem + ".report")},
-                  folder_names=report_file_name)
     folder = folder or result.with_name(result.stem + ".report")
+    _check_report_not_over_inputs(folder, result, summary_path, truth, log)
     check_report_folder(folder)
     with stage_progress(quiet, ["read", "recorder", "figures"], "plot") as stage:
         stage("read")

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import click
 
-COMPILE_NOTICE = ("flightrecon: compiling the numerical kernels (first run only, about 30 s; "
-                  "later runs load them from the cache)")
+COMPILE_NOTICE = ("flightrecon: compiling the numerical kernels (first run only, this can take "
+                  "a few minutes; later runs load them from the cache)")
 
 
 @contextlib.contextmanager

@@ -14,7 +14,9 @@ from flightrecon.cli.common import (
     parse_k,
     position_option_values,
     read_noise_file,
+    read_sns_noise_file,
 )
+from flightrecon.cli.trim import trim_options
 
 
 @click.command("reconstruct")
@@ -23,6 +25,11 @@ from flightrecon.cli.common import (
 @click.option("--departure", metavar="LAT,LON,ELEV_M", help="Departure airfield (MSL elevation).")
 @click.option("--arrival", metavar="LAT,LON,ELEV_M", help="Arrival airfield / touchdown point.")
 @click.option("--station", metavar="LAT,LON,ELEV_M", help="Ground radar position.")
+@click.option("--fix", "fixes", metavar="T_S,LAT,LON[,ALT_M[,SD_M]]", multiple=True,
+              help="A known position at a time of the record (radar return, waypoint report, "
+                   "witness; ALT_M MSL, SD_M per axis, default 100 m); repeatable.")
+@click.option("--wind", "wind_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Winds-aloft prior: CSV alt_msl_m,from_deg,speed_mps[,sd_mps].")
 @click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
 @click.option("--methods", metavar="LIST",
               help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "
@@ -83,12 +90,13 @@ from flightrecon.cli.common import (
               help="Summary JSON (default: <output stem>.summary.json).")
 @click.option("--report", "report_dir", type=NonEmptyPath(path_type=Path),
               help="Also write figures and a self-contained report.html into this folder.")
+@trim_options
 @click.pass_context
 def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
-            station, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
+            station, fixes, wind_file, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
             azimuth_model, sns_model, sns_form, noise_file, estimate_noise, store_path,
             use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt, summary_path,
-            report_dir) -> None:
+            report_dir, start=None, end=None) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary.
 
     Writes the result (-o, default <log stem>.recon.parquet beside the log), the summary
@@ -110,14 +118,19 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
                 f"unknown method(s) {', '.join(unknown) or '(none given)'}; choose from "
                 f"{', '.join(ALL_METHODS)}", param_hint="--methods")
     overrides = position_option_values(departure=departure, arrival=arrival, station=station)
+    if fixes:
+        overrides["fixes"] = list(fixes)  # parsed and validated in ingest (priors.py)
+    if wind_file is not None:
+        overrides["wind_aloft"] = str(wind_file)
     if aircraft_id:
         overrides["aircraft_id"] = aircraft_id
     settings = ReconstructSettings(
         methods=method_list, rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
         arms_form=arms_form, arms_linearisation=arms_linearisation, azimuth_model=azimuth_model,
         sns_model=sns_model, sns_form=sns_form, strict=strict, keep_unhealthy=keep_unhealthy,
-        joint_noise=read_noise_file(noise_file) if noise_file else None,
-        joint_estimate_noise=estimate_noise)
+        joint_noise=(read_noise_file(noise_file) or None) if noise_file else None,
+        sns_noise=read_sns_noise_file(noise_file) if noise_file else None,
+        joint_estimate_noise=estimate_noise, start=start, end=end)
     if use_fleet_coefficients and not store_path:
         from flightrecon.store import default_store_path
 

@@ -75,16 +75,19 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     def col(name):
         return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
 
-    if meta.departure is None:
-        raise MetadataError("the joint smoother needs the departure position (--departure): it "
-                            "anchors the output plane and the latitude of normal gravity")
+    # the departure, or without one the frame origin from the first fix (cleaning/origin.py)
+    p0 = meta.departure if meta.departure is not None else getattr(meta, "origin", None)
+    if p0 is None:
+        raise MetadataError("the joint smoother needs the departure position (--departure) or a "
+                            "GNSS / radar fix: it anchors the output plane and the latitude of "
+                            "normal gravity")
     t_in = g["t_s"].to_numpy(float)
     att, notes = _held_attitude(t_in, col("roll_deg"), col("pitch_deg"), col("heading_deg"))
     Cnb = body_to_ned_matrix(*att)
     # gravity at the departure latitude (normal gravity changes by 5e-6 m/s^2 per km north)
     acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
                                      col("roll_deg"), col("pitch_deg"), col("heading_deg"),
-                                     lat_deg=meta.departure.lat_deg,
+                                     lat_deg=p0.lat_deg,
                                      h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
     dep = meta.departure
     if dep is not None:
@@ -108,6 +111,11 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         if {"gnss_vn_mps", "gnss_ve_mps"} <= set(gn.columns):
             gnss["vn_mps"] = gn["gnss_vn_mps"].to_numpy(float)
             gnss["ve_mps"] = gn["gnss_ve_mps"].to_numpy(float)
+        # the receiver's per-fix accuracy (docs/ingest.md, "GNSS as receivers write it")
+        for src, dst in (("gnss_h_sd_m", "h_sd_m"), ("gnss_v_sd_m", "v_sd_m"),
+                         ("gnss_vel_sd_mps", "vel_sd_mps")):
+            if src in gn.columns:
+                gnss[dst] = gn[src].to_numpy(float)
     rd = clean.radar
     radar = pd.DataFrame()
     if len(rd) and {"arms_range_m", "arms_azimuth_deg"} <= set(rd.columns):
@@ -140,10 +148,12 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         thresholds=tuple(None if p is None or p.threshold is None
                          else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
                          for p in (meta.departure, meta.arrival)),
+        lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
         notes=tuple(notes))
     if not (ph is not None and ph.starts_airborne):
         inp = replace(inp, roll=takeoff_roll(
-            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne))
+            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
+            not_before_t=inp.lineup_t))
     return inp
 
 
@@ -292,9 +302,29 @@ def _correction_items(item) -> dict[str, Any]:
     }
 
 
+def _derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """A heading propagated from the body rates (``heading_sd_deg`` on the grid, cleaning's
+    ``heading_from_rates``) has a slowly varying error (anchor offset, gyro-bias drift): the
+    heading-bias state's prior is widened to its largest sd and its random walk to what lets
+    the bias follow that sd's growth over the record (both never below the settings)."""
+    g = clean.grid
+    if "heading_sd_deg" not in g.columns:
+        return settings
+    sd = g["heading_sd_deg"].to_numpy(float)
+    if not np.isfinite(sd).any():
+        return settings
+    nz = settings.noise
+    span = max(float(g["t_s"].iloc[-1] - g["t_s"].iloc[0]), 1.0)
+    prior = max(nz.heading_bias_deg, float(np.nanmax(sd)))
+    rw = max(nz.heading_bias_rw_deg_sqrt_s, float(np.nanmax(sd)) / np.sqrt(span))
+    return replace(settings, noise=replace(nz, heading_bias_deg=prior,
+                                           heading_bias_rw_deg_sqrt_s=rw))
+
+
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
     """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
     settings = settings or JointSettings()
+    settings = _derived_heading_noise(clean, settings)
     inp = joint_inputs(clean)
     run = smooth_joint(inp, settings)
     track = joint_track(clean, run)
@@ -307,6 +337,16 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
                             f"{st['beyond_5_sigma']} measurements "
                             f"(spans {st['flagged_spans_s'][:5]}"
                             " s); down-weighted")
+    nc = run.noise_check
+    if nc is not None and not nc["accepted"]:
+        warnings.append("joint: the estimated noise did not raise the likelihood of the data "
+                        f"(log-likelihood {nc['loglik_estimated']:.1f} vs "
+                        f"{nc['loglik_default']:.1f} with the defaults): the default noise is "
+                        "kept")
+    elif nc is not None and nc["factors_at_bound"]:
+        warnings.append(f"joint: noise factors at their bound {nc['bounds']}: "
+                        f"{', '.join(nc['factors_at_bound'])} (the noise settings or the data "
+                        "of these sources are far off)")
     if settings.estimate_noise and not run.iterations[-1].get("converged"):
         warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
                         "iterations; the last factors are used")
@@ -351,6 +391,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "clock_offsets_s": {k: {"value": o, "sd": sd}
                             for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
+        "noise_check": run.noise_check,
         "end_points": [{"which": e["which"], "model": e["model"], "t_s": e["t_s"],
                         "lat_deg": e["point"][0], "lon_deg": e["point"][1],
                         "runway_true_deg": (None if e["runway_rad"] is None

@@ -43,7 +43,7 @@ from flightrecon.types import CleanFlight, MethodResult
 
 MODELS = {"airspeed": core.MODEL_AIRSPEED, "doppler": core.MODEL_DOPPLER}
 FORMS = {"consistent": core.FORM_CONSISTENT, "seed": core.FORM_SEED}
-GNSS_COLUMNS = ("t_s", "gnss_lat_deg", "gnss_lon_deg", "gnss_alt_m")
+GNSS_COLUMNS = ("t_s", "gnss_lat_deg", "gnss_lon_deg")
 TRACK_COLUMNS = ("t_s", "sns_north_m", "sns_east_m", "sns_north_sd_m", "sns_east_sd_m",
                  "sns_vn_mps", "sns_ve_mps", "sns_vn_sd_mps", "sns_ve_sd_mps")
 
@@ -279,15 +279,34 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         if c not in g.columns:
             raise SchemaError("the SNS method needs GNSS fixes with this column", column=c)
     g = g[np.isfinite(g[list(GNSS_COLUMNS)].to_numpy(float)).all(axis=1)].sort_values("t_s")
+    if "gnss_quality" in g.columns:
+        g = g[g["gnss_quality"].isna() | (g["gnss_quality"] > 0)]
     inside = (g["t_s"] >= t[0]) & (g["t_s"] <= t[-1])
     n_drop = int((~inside).sum())
     g = g[inside]
     if len(g) < 2:
         raise ValidationError("fewer than two GNSS fixes inside the recorder grid")
     tf = g["t_s"].to_numpy(float)
-    h_fix = g["gnss_alt_m"].to_numpy(float)
+    h_fix = (g["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in g.columns
+             else np.full(len(g), np.nan))
     if clean.meta.gnss_alt_datum == "msl":
         h_fix = msl_to_ellipsoid(h_fix, clean.meta.geoid_undulation_m)
+    no_h = ~np.isfinite(h_fix)
+    if no_h.any():
+        # fixes without height are used horizontally (the filter is horizontal; the height
+        # only sets the earth radii and the lever arm): the pressure altitude stands in, as
+        # MSL height, at the fix time (a 300 m error changes the radii by 5e-5)
+        if "baro_alt_m" in grid.columns and np.isfinite(grid["baro_alt_m"].to_numpy(float)).any():
+            b = grid["baro_alt_m"].to_numpy(float)
+            okb = np.isfinite(b)
+            h_sub = msl_to_ellipsoid(np.interp(tf[no_h], t[okb], b[okb]),
+                                     clean.meta.geoid_undulation_m)
+        else:
+            h_sub = 0.0
+        h_fix = h_fix.copy()
+        h_fix[no_h] = h_sub
+        notes.append(f"{int(no_h.sum())} GNSS fixes without height used horizontally (height "
+                     "for the earth radii from the pressure altitude)")
     h_grid = np.interp(t, tf, h_fix)
 
     a, u, w = _readings(grid, m, notes)
@@ -349,7 +368,10 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         fix_PA=_at(t, IA, a, tf, jf) - IA[idx[kf]], fix_PU=_at(t, IU, u, tf, jf) - IU[idx[kf]],
         fix_PW=_at(t, IW, w, tf, jf) - IW[idx[kf]],
         fix_a=a[jf], fix_u=u[jf], fix_w=w[jf], star=star, dt_star=dt_star, Qb=Qb, Qa=Qa,
-        fix_tau_in=tf - t[jf])
+        fix_tau_in=tf - t[jf],
+        fix_pos_sd=(g["gnss_h_sd_m"].to_numpy(float) if "gnss_h_sd_m" in g.columns else None),
+        fix_vel_sd=(g["gnss_vel_sd_mps"].to_numpy(float) if "gnss_vel_sd_mps" in g.columns
+                    else None))
 
     # initial state: first fix moved back by the uncorrected dead reckoning
     back = (_at(t, IA, a, tf[:1]) + _at(t, IW, w, tf[:1]) - IA[:1] - IW[:1])[0]
@@ -448,11 +470,61 @@ def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
             "track_corr_deg": float(deg(x[3] + x[4])), "track_corr_sd_deg": float(deg(track_sd))}
 
 
+#: SNS noise settings a user can override (``[sns]`` table of ``--noise``), in natural units
+SNS_NOISE_KEYS = ("pos_sd_m", "vel_sd_mps", "speed_sd_mps", "heading_sd_deg", "wind_sd_mps",
+                  "drift_sd_deg", "heading_bias_prior_deg")
+
+
+def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNoise:
+    """:func:`~flightrecon.filters.sns.default_noise` of ``model`` with ``overrides`` applied
+    (keys :data:`SNS_NOISE_KEYS`: GNSS position / velocity sd per component, the speed reading's
+    sd (TAS or Doppler ground speed), heading sd, wind reading sd (airspeed model), drift sd
+    (Doppler model), the heading-bias prior).
+
+    Raises
+    ------
+    MetadataError
+        An unknown key, or a value that is not a positive number.
+    """
+    from dataclasses import replace
+
+    from flightrecon.errors import MetadataError
+
+    nz = core.default_noise(model)
+    if not overrides:
+        return nz
+    sens = list(nz.sensor_sd)
+    prior = list(nz.prior_sd)
+    kw: dict = {}
+    for k, v in overrides.items():
+        if k not in SNS_NOISE_KEYS:
+            raise MetadataError(f"unknown SNS noise setting '{k}' (known: "
+                                f"{', '.join(SNS_NOISE_KEYS)})")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
+            raise MetadataError(f"SNS noise setting '{k}' must be a positive number, got {v!r}")
+        v = float(v)
+        if k in ("pos_sd_m", "vel_sd_mps"):
+            kw[k] = v
+        elif k == "speed_sd_mps":
+            sens[0] = v
+        elif k == "heading_sd_deg":
+            sens[1 if model == core.MODEL_AIRSPEED else 2] = float(np.deg2rad(v))
+        elif k == "wind_sd_mps" and model == core.MODEL_AIRSPEED:
+            sens[2] = sens[3] = v
+        elif k == "drift_sd_deg" and model == core.MODEL_DOPPLER:
+            sens[1] = float(np.deg2rad(v))
+        elif k == "heading_bias_prior_deg":
+            prior[2] = float(np.deg2rad(v))
+    return replace(nz, sensor_sd=tuple(sens), prior_sd=tuple(prior), **kw)
+
+
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
-            filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None) -> MethodResult:
+            filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None,
+            noise_overrides: dict[str, float] | None = None) -> MethodResult:
     """Dead reckoning fused with SNS, smoothed, on the recorder grid (docs/sns.md).
 
-    Parameters are those of :func:`solve_sns`.
+    Parameters are those of :func:`solve_sns`; ``noise_overrides`` (:func:`sns_noise_with`)
+    change the default noise of the chosen model where ``noise`` is not given.
 
     Returns
     -------
@@ -462,6 +534,8 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
         north/east), ``sns_vn_sd_mps``, ``sns_ve_sd_mps``; summary with model, form, corrections
         and their standard deviations, fixes used, GNSS gaps, innovation statistics.
     """
+    if noise is None and noise_overrides:
+        noise = sns_noise_with(choose_model(clean.grid, model), noise_overrides)
     sol = solve_sns(clean, model=model, form=form, filter_rate_hz=filter_rate_hz, noise=noise)
     plane = output_plane(clean.meta)
     t = clean.grid["t_s"].to_numpy(float)

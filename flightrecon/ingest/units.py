@@ -48,6 +48,9 @@ UNITS: dict[str, Unit] = {u.name: u for u in (
     Unit("degC", "temperature", 1.0),
     Unit("K", "temperature", 1.0, -273.15),
     Unit("s", "time", 1.0),
+    Unit("deg/s", "angular rate", 1.0),
+    Unit("rad/s", "angular rate", 180.0 / np.pi),
+    Unit("1", "ratio", 1.0),
 )}
 
 #: other spellings seen in recorder exports -> canonical spelling
@@ -64,11 +67,14 @@ ALIASES: dict[str, str] = {
     "c": "degC", "degc": "degC", "celsius": "degC",
     "k": "K", "kelvin": "K",
     "sec": "s", "second": "s", "seconds": "s",
+    "dps": "deg/s", "deg/sec": "deg/s", "degrees/s": "deg/s", "rad/sec": "rad/s", "rps": "rad/s",
+    "-": "1", "none": "1", "": "1",
 }
 
 #: dimension of each canonical unit string used in ``flightrecon.schema``
 CANONICAL_DIMENSION: dict[str, str] = {
     "m": "length", "m/s": "speed", "g": "load", "deg": "angle", "degC": "temperature", "s": "time",
+    "deg/s": "angular rate", "1": "ratio",
 }
 
 

@@ -174,7 +174,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     -------
     Reconstruction
     """
-    from flightrecon.cleaning import clean_flight
+    from flightrecon.cleaning import CleaningSettings, clean_flight
     from flightrecon.cleaning.plausibility import plausibility_checks
     from flightrecon.ingest import load_flight
     from flightrecon.ingest.physics import check_reconstructable
@@ -195,7 +195,8 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                                              at_utc=flight.meta.epoch_utc,
                                              configuration=flight.meta.extra.get("configuration"))
         stage("cleaning")
-        clean = clean_flight(flight, rate_hz=settings.rate_hz)
+        clean = clean_flight(flight, rate_hz=settings.rate_hz,
+                             settings=CleaningSettings(start=settings.start, end=settings.end))
         stage("plausibility")
         findings = plausibility_checks(clean)
         for f in findings:

@@ -55,7 +55,10 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
         "phases": None if ph is None else asdict(ph),
         "cleaning": {"actions": len(clean.report), "report": list(clean.report)[:200]},
         "output": {
-            "frame": "east-north-up tangent plane at the departure airfield (metres)",
+            "frame": ("east-north-up tangent plane at the departure airfield (metres)"
+                      if clean.meta.departure is not None else
+                      "east-north-up tangent plane at the first position fix (meta origin; "
+                      "no departure airfield given) (metres)"),
             "alt_datum": "WGS-84 ellipsoidal height (alt_m)",
             "default_source_priority": list(DEFAULT_PRIORITY),
         },

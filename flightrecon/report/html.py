@@ -31,9 +31,9 @@ from flightrecon.report.plots import (
 
 STATUS_MEANING = {
     "ok": "ran, converged, and its track is physically possible: it may feed the default result",
-    "unhealthy": "ran, but failed a health check (no convergence, a non-finite position or a "
-                 "lost covariance): kept in the file for comparison, never used for the default "
-                 "result",
+    "unhealthy": "ran, but failed a health check (no convergence, a non-finite position, a "
+                 "lost covariance, or a track outside the physical envelope of the flight): kept "
+                 "in the file for comparison, never used for the default result",
     "failed": "stopped with an error (reason given): no track",
     "skipped": "not run: the data do not allow it (reason given) or it was not asked for",
 }
@@ -268,8 +268,9 @@ def _flight_html(track: pd.DataFrame, summary: Mapping[str, Any]) -> str:
     epoch = fl.get("epoch_utc")
     t = track["t_s"].to_numpy(float) if "t_s" in track.columns and len(track) else np.array([])
     rows = [("aircraft", fl.get("aircraft_id")), ("flight", fl.get("flight_id")),
-            ("record", f"{utc_text(epoch, t[0]) or _num(t[0])} to "
-                       f"{utc_text(epoch, t[-1]) or _num(t[-1])} ({t[-1] - t[0]:.0f} s)"
+            ("record", f"{_short_utc(utc_text(epoch, t[0])) or _num(t[0])} to "
+                       f"{_short_utc(utc_text(epoch, t[-1])) or _num(t[-1])} UTC "
+                       f"({t[-1] - t[0]:.0f} s)"
              if len(t) else "–")]
     for key in ("departure", "arrival", "station"):
         p = fl.get(key)

@@ -103,7 +103,18 @@ class ReportContext:
     radar: pd.DataFrame | None = None
     events: list[Event] = field(default_factory=list)
 
+    #: result rows drawn at most (a 10-hour 16 Hz flight has 576 000; the figures do not get
+    #: better beyond this, only slower); the recorder channels are drawn in full, so a load
+    #: spike stays visible
+    max_track_rows: int = 60_000
+
     def __post_init__(self) -> None:
+        if len(self.track) > self.max_track_rows:
+            step = int(np.ceil(len(self.track) / self.max_track_rows))
+            keep = np.zeros(len(self.track), bool)
+            keep[::step] = True
+            keep[-1] = True
+            self.track = self.track.loc[keep].reset_index(drop=True)
         if self.gnss is not None and "gnss_lat_deg" in self.gnss.columns:
             self.gnss = self.gnss.rename(columns={"gnss_lat_deg": "lat_deg",
                                                   "gnss_lon_deg": "lon_deg"})

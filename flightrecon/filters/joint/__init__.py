@@ -37,7 +37,7 @@ from flightrecon.filters.joint.measurements import (
     build_measurements,
     static_measurements,
 )
-from flightrecon.filters.joint.noise import NOISE_GROUPS
+from flightrecon.filters.joint.noise import NOISE_GROUPS, innovation_loglik
 from flightrecon.filters.joint.nominal import attitude_jacobian, relinearised_increments
 from flightrecon.filters.joint.settings import (
     POSITIVE_NOISE,
@@ -53,6 +53,6 @@ __all__ = [
     "SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
     "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "takeoff_roll", "refined_roll",
     "end_points", "attitude_jacobian", "relinearised_increments", "Measurements",
-    "static_measurements", "build_measurements", "NOISE_GROUPS", "JointRun", "smooth_joint",
-    "source_report",
+    "static_measurements", "build_measurements", "NOISE_GROUPS", "innovation_loglik", "JointRun",
+    "smooth_joint", "source_report",
 ]

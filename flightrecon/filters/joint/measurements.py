@@ -15,7 +15,7 @@ from flightrecon.filters.joint.inputs import (
     refined_roll,
 )
 from flightrecon.filters.joint.settings import SOURCES, JointSettings
-from flightrecon.geo.frames import geodetic_to_ecef
+from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
 
@@ -48,6 +48,15 @@ def _decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -
     keep = np.ones(len(t), bool)
     keep[1:] = b[1:] != b[:-1]
     return keep
+
+
+def _per_fix(g, column: str, default: float) -> np.ndarray:
+    """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own
+    accuracy figures), ``default`` where absent or not finite."""
+    if column not in g.columns:
+        return np.full(len(g), float(default))
+    v = g[column].to_numpy(float)
+    return np.where(np.isfinite(v) & (v > 0), v, float(default))
 
 
 class _MeasBuilder:
@@ -277,10 +286,22 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     g = inp.gnss
     if len(g):
         tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
-        ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(),
-                                      g["h_m"].to_numpy())
-        ant = np.c_[ex, ey, ez]
         k = step_of(tg)
+        hg = g["h_m"].to_numpy(float)
+        no_h = ~np.isfinite(hg)
+        if no_h.any():
+            # a fix without height is used horizontally: its north and east components only,
+            # computed at a substitute height (the nominal's, else the field's plus the pressure
+            # height); the north/east projection of the fix moves by (angle between the
+            # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
+            if pnom is not None:
+                h_sub = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+            else:
+                ii = _nearest(t_in, tg)
+                h_sub = inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
+            hg = np.where(no_h, h_sub, hg)
+        ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
+        ant = np.c_[ex, ey, ez]
         L = np.asarray(inp.lever_arm, float)
         v_arm = np.zeros((len(tg), 3))
         if np.any(L != 0):
@@ -294,11 +315,16 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             ip, im = _nearest(t_in, tg + 0.5), _nearest(t_in, tg - 0.5)
             span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
             v_arm = np.einsum("mij,j->mi", inp.Cnb[ip] - inp.Cnb[im], L) / span
-        linear_ned("gnss_pos", tg, None, (nz.gnss_h_m, nz.gnss_h_m, nz.gnss_v_m), "pos", ant)
+        # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
+        # else the noise settings; no height: no vertical component
+        sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
+        sd_v = np.where(no_h, np.nan, _per_fix(g, "v_sd_m", nz.gnss_v_m))
+        linear_ned("gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
         if {"vn_mps", "ve_mps"} <= set(g.columns):
+            sd_vel = _per_fix(g, "vel_sd_mps", nz.gnss_vel_mps)
             linear_ned("gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
                                         g["ve_mps"].to_numpy() - v_arm[:, 1]),
-                       (nz.gnss_vel_mps, nz.gnss_vel_mps), "vel")
+                       (sd_vel, sd_vel), "vel")
     if pnom is not None and vnom is not None:
         _runway_measurements(b, inp, settings, step_of, pnom, vnom, psi_hat)
     # radar

@@ -27,6 +27,7 @@ from flightrecon.filters.joint.noise import (
     NOISE_GROUPS,
     _em_noise_scales,
     _noise_groups,
+    innovation_loglik,
 )
 from flightrecon.filters.joint.nominal import (
     _attitude_step_means,
@@ -65,6 +66,7 @@ class JointRun:
     iterations: list[dict[str, Any]]
     end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
     roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
+    noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
     # steps of the last pass whose predicted covariance failed its Cholesky factorisation (the
     # smoother gain then came from a general solve): reported, never silent
     cholesky_fallbacks: int = 0
@@ -213,8 +215,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # measurements taken at face value in this pass: full weight, not gated
             use = (weights >= 1.0) & (w_before >= 1.0) & (infl <= 1.0)
             new_scale = scale.copy()
+            lo_b, hi_b = settings.noise_factor_bounds
             for gi, c in _em_noise_scales(groups, res, hph, meas.r, use).items():
-                new_scale[gi] = c
+                new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
             noise_moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
             scale = new_scale
             info["noise_scale"] = {name: float(scale[i])
@@ -245,6 +248,43 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         # to round-off: same gains, same linearisation)
         xs, Pblk, var, *_, n_fallback_cov = jp.backward(xf, Pf, xp, Pp, *kern_args, False)
         n_fallback = max(n_fallback, n_fallback_cov)
+    noise_check = None
+    if settings.estimate_noise:
+        # the estimated noise must raise the likelihood of the data: the innovations'
+        # log-likelihood (prediction-error decomposition) of the last pass against a forward
+        # pass with the default variances at the same linearisation, weights and clock
+        # offsets; otherwise the defaults are kept (docs/joint.md, "Noise estimation")
+        lo_b, hi_b = settings.noise_factor_bounds
+        xf1, xp1 = np.empty_like(xf), np.empty_like(xp)
+        Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
+        r1 = meas.r.copy()
+        # (w_before: the weights the last forward pass ran with)
+        innov1, innov_var1, infl1 = jp.forward(
+            xf1, Pf1, xp1, Pp1, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra,
+            q, meas.start, meas.mtype, meas.z, r1, w_before, tau, meas.H, meas.hrow, meas.d,
+            pnom, hnom, pst, Cst, settings.innovation_gate if settings.robust else 0.0, xlin)
+        sel = (w_before >= 1.0) & (infl <= 1.0) & (infl1 <= 1.0)
+        ll_est = innovation_loglik(innov, innov_var, sel)
+        ll_def = innovation_loglik(innov1, innov_var1, sel)
+        at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
+                    if np.any(groups == i) and (scale[i] <= lo_b or scale[i] >= hi_b)]
+        accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
+        noise_check = {"loglik_estimated": ll_est, "loglik_default": ll_def,
+                       "measurements": int(sel.sum()), "accepted": accepted,
+                       "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
+        if not accepted:
+            scale = np.ones(len(NOISE_GROUPS))
+            r_used = r1 * infl1
+            kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z,
+                         r_used, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz,
+                         qv_extra)
+            xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1,
+                                                                   *kern_args, True)
+            n_fallback = int(n_fb1)
+            res_n = res / np.sqrt(r1)
+            xf, innov, innov_var = xf1, innov1, innov_var1
+            lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+        del Pf1, Pp1
     del Pf, Pp
     return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
@@ -253,4 +293,5 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
                     iterations=history, end_points=end_points(inp, nz, roll), roll=roll,
+                    noise_check=noise_check,
                     cholesky_fallbacks=int(n_fallback))

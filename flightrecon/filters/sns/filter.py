@@ -30,6 +30,7 @@ from flightrecon.filters.sns.model import (
     boxminus,
     boxplus,
     fill_single_sample,
+    per_fix_sd,
 )
 
 
@@ -110,8 +111,8 @@ class KernelNoise(NamedTuple):
 
     sig: np.ndarray      # (4,) sensor noise per sample
     q: np.ndarray        # random-walk densities of the corrections
-    pos_sd: float        # SNS position sd [m]
-    vel_sd: float        # SNS velocity sd [m/s]
+    pos_sd: np.ndarray   # (F,) per-fix SNS position sd [m]
+    vel_sd: np.ndarray   # (F,) per-fix SNS velocity sd [m/s]
     rcond: float         # pseudo-inverse tolerance
 
 
@@ -216,13 +217,13 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
                         Gs[r, l] = Gi[j, l]
                     if j == 0:
                         nu[r] = dn - hh[0]
-                        Rd[r] = pos_sd * pos_sd
+                        Rd[r] = pos_sd[i] * pos_sd[i]
                     elif j == 1:
                         nu[r] = de - hh[1]
-                        Rd[r] = pos_sd * pos_sd
+                        Rd[r] = pos_sd[i] * pos_sd[i]
                     else:
                         nu[r] = fv[i, j - 2] - hh[j]
-                        Rd[r] = vel_sd * vel_sd
+                        Rd[r] = vel_sd[i] * vel_sd[i]
                     r += 1
             _mmt(Gs, Gs, Rt)  # Rt = D D^T + G G^T
             for r in range(m):
@@ -367,8 +368,10 @@ def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoi
                         _c(inputs.fix_PU).reshape(-1, 2), _c(inputs.fix_PW).reshape(-1, 2),
                         _c(inputs.fix_a).reshape(-1, 2), _c(inputs.fix_u).reshape(-1, 2),
                         _c(inputs.fix_w).reshape(-1, 2), _c(inputs.fix_tau_in))
-    kn = KernelNoise(_c(noise.sensor_sd), _c(noise.rw_q), float(noise.pos_sd_m),
-                     float(noise.vel_sd_mps), float(noise.rcond))
+    kn = KernelNoise(_c(noise.sensor_sd), _c(noise.rw_q),
+                     per_fix_sd(inputs.fix_pos_sd, noise.pos_sd_m, len(inputs.fix_lat)),
+                     per_fix_sd(inputs.fix_vel_sd, noise.vel_sd_mps, len(inputs.fix_lat)),
+                     float(noise.rcond))
     out = _filter_kernel(int(model), int(form), _c(x0), P0, steps, fixes, kn)
     xp, xs, Pp, Ps, cross, nis, rank = out
     return SnsRun(xp, xs, Pp, Ps, cross, nis, rank, _c(inputs.h).copy(), int(model),

@@ -370,6 +370,8 @@ class StepInputs:
     Qb, Qa : (N, 7) noise sums (:func:`segment_factor`) of the step's recorder samples before and
         after that sample (steps without fixes: all samples in ``Qb``)
     fix_tau_in : (F,) time from the start of the fix's recorder sample to the fix [s]
+    fix_pos_sd, fix_vel_sd : (F,) per-fix sd of the position / velocity components (the
+        receiver's accuracy figures); ``None`` or NaN: ``SnsNoise.pos_sd_m`` / ``vel_sd_mps``
 
     ``star``, ``dt_star``, ``Qb``, ``Qa``, ``fix_tau_in`` may be left ``None`` when every filter
     step is one recorder sample (then ``star = A / tau`` etc., as :func:`fill_single_sample`).
@@ -397,6 +399,16 @@ class StepInputs:
     Qb: np.ndarray | None = None
     Qa: np.ndarray | None = None
     fix_tau_in: np.ndarray | None = None
+    fix_pos_sd: np.ndarray | None = None
+    fix_vel_sd: np.ndarray | None = None
+
+
+def per_fix_sd(v: np.ndarray | None, default: float, n: int) -> np.ndarray:
+    """(n,) per-fix standard deviations: ``v`` where finite and positive, else ``default``."""
+    if v is None:
+        return np.full(n, float(default))
+    v = np.asarray(v, float).reshape(-1)
+    return np.ascontiguousarray(np.where(np.isfinite(v) & (v > 0), v, float(default)))
 
 
 def fill_single_sample(inp: StepInputs) -> StepInputs:
