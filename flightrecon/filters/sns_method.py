@@ -515,7 +515,9 @@ def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNo
             sens[1] = float(np.deg2rad(v))
         elif k == "heading_bias_prior_deg":
             prior[2] = float(np.deg2rad(v))
-    return replace(nz, sensor_sd=tuple(sens), prior_sd=tuple(prior), **kw)
+    s0, s1, s2, s3 = (float(v) for v in sens)
+    p0, p1, p2 = (float(v) for v in prior)
+    return replace(nz, sensor_sd=(s0, s1, s2, s3), prior_sd=(p0, p1, p2), **kw)
 
 
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
