@@ -515,9 +515,8 @@ def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNo
             sens[1] = float(np.deg2rad(v))
         elif k == "heading_bias_prior_deg":
             prior[2] = float(np.deg2rad(v))
-    s0, s1, s2, s3 = (float(v) for v in sens)
-    p0, p1, p2 = (float(v) for v in prior)
-    return replace(nz, sensor_sd=(s0, s1, s2, s3), prior_sd=(p0, p1, p2), **kw)
+    return replace(nz, sensor_sd=(sens[0], sens[1], sens[2], sens[3]),
+                   prior_sd=(prior[0], prior[1], prior[2]), **kw)
 
 
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",

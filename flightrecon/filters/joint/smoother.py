@@ -259,8 +259,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
         r1 = meas.r.copy()
         # (w_before: the weights the last forward pass ran with)
+        scalars1 = scalars._replace(r=r1, w=w_before)
         innov1, innov_var1, infl1 = jp.forward(
-            xf1, Pf1, xp1, Pp1, x0, P0, dyn, scalars._replace(r=r1, w=w_before), geo,
+            xf1, Pf1, xp1, Pp1, x0, P0, dyn, scalars1, geo,
             settings.innovation_gate if settings.robust else 0.0, xlin)
         sel = (w_before >= 1.0) & (infl <= 1.0) & (infl1 <= 1.0)
         ll_est = innovation_loglik(innov, innov_var, sel)
@@ -274,7 +275,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if not accepted:
             scale = np.ones(len(NOISE_GROUPS))
             r_used = r1 * infl1
-            kern_args = (dyn, scalars._replace(r=r_used), geo)
+            kern_args = (dyn, scalars1._replace(r=r_used), geo)
             xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1,
                                                                    *kern_args, True)
             n_fallback = int(n_fb1)
