@@ -78,7 +78,7 @@ def _joint_nees(sc, runs, smoothed, linearisation="ekf"):
     M, N = runs, len(sc.t_s)
     nees = np.zeros(N)
     for i in range(M):
-        run = A.run_joint(*_inputs(sc, i), MODEL, linearisation=linearisation, smooth=smoothed)
+        run = A.run_joint_model(*_inputs(sc, i), MODEL, linearisation=linearisation, smooth=smoothed)
         src = run.smooth if smoothed else run.filt
         truth = np.column_stack([sc.pos[i, :, 0], sc.vel[i, :, 0], sc.pos[i, :, 1],
                                  sc.vel[i, :, 1], sc.dv[i]])
@@ -122,8 +122,8 @@ def main(argv=None) -> None:
             A.run_cascade(p, a, MODEL, smooth=False), smoothed=False),
         "cascade, smoother": lambda p, a: A.estimate_of(A.run_cascade(p, a, MODEL)),
         "joint, filter": lambda p, a: A.estimate_of(
-            A.run_joint(p, a, MODEL, smooth=False), smoothed=False),
-        "joint, smoother": lambda p, a: A.estimate_of(A.run_joint(p, a, MODEL)),
+            A.run_joint_model(p, a, MODEL, smooth=False), smoothed=False),
+        "joint, smoother": lambda p, a: A.estimate_of(A.run_joint_model(p, a, MODEL)),
     }
     res = {name: _collect(sc, M, fn) for name, fn in configs.items()}
     nees_f = _joint_nees(sc, M, smoothed=False)
@@ -190,7 +190,7 @@ def main(argv=None) -> None:
         for lname, (lin, at) in lin_cfg.items():
             for smoothed in (False, True):
                 c = _collect(scg, M, lambda p, a, lin=lin, at=at, sm=smoothed: A.estimate_of(
-                    A.run_joint(p, a, MODEL, linearisation=lin, converted_at=at, smooth=sm),
+                    A.run_joint_model(p, a, MODEL, linearisation=lin, converted_at=at, smooth=sm),
                     smoothed=sm))
                 r_dv, s_dv = _pooled(c, "dv", late)
                 r_w, s_w = _pooled(c, "w", late)
@@ -219,7 +219,7 @@ def main(argv=None) -> None:
     # ---------------- figures
     plots, air = _inputs(sc, 0)
     cf = A.estimate_of(A.run_cascade(plots, air, MODEL, smooth=False), smoothed=False)
-    js = A.estimate_of(A.run_joint(plots, air, MODEL))
+    js = A.estimate_of(A.run_joint_model(plots, air, MODEL))
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     for a, ax in enumerate(axes):
         ax.plot(t, sc.dv[0, :, a], "k-", lw=1.2, label="simulated dV (2)")

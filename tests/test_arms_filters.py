@@ -22,7 +22,7 @@ def _run(sc, i, model, form, *, keep=None, air_every=1, **kw):
     plots = A.RadarPlots.from_arrays(t[k], sc.range_m[i, k], sc.azimuth_rad[i, k], model)
     ka = np.arange(0, len(t), air_every)
     air = A.AirData(t[ka], sc.air[i, ka, 0], sc.air[i, ka, 1])
-    fn = A.run_joint if form == "joint" else A.run_cascade
+    fn = A.run_joint_model if form == "joint" else A.run_cascade
     return fn(plots, air, model, **kw)
 
 
@@ -170,7 +170,7 @@ def test_azimuth_wrap_south_of_station():
     runs = []
     for az in (sc.azimuth_rad[0], np.mod(sc.azimuth_rad[0], 2 * np.pi)):
         plots = A.RadarPlots.from_arrays(t, sc.range_m[0], az, PAPER)
-        runs.append(A.run_joint(plots, air, PAPER))
+        runs.append(A.run_joint_model(plots, air, PAPER))
     assert np.any(np.abs(np.diff(sc.azimuth_rad[0])) > np.pi)  # the wrap is crossed
     # identical up to rounding of the wrapped innovations (1e-16 rad x 40 km ~ 1e-11 m)
     np.testing.assert_allclose(runs[0].smooth.x, runs[1].smooth.x, rtol=0, atol=1e-6)

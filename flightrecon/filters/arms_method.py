@@ -241,7 +241,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     """Ground track, ground velocity and air-data error from radar plots and air data.
 
     docs/arms.md.  ``form="joint"`` runs the joint model
-    (:func:`flightrecon.filters.arms.run_joint`), ``"cascade"`` the paper's two stages
+    (:func:`flightrecon.filters.arms.run_joint_model`), ``"cascade"`` the paper's two stages
     (:func:`flightrecon.filters.arms.run_cascade`); ``linearisation`` is ``"ekf"`` or
     ``"converted"``.
 
@@ -314,7 +314,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     if form == "joint":
         sel = _thin(ta, settings.air_rate_hz, "air_rate_hz")
         air = A.AirData(ta[sel], air_all.vx_mps[sel], air_all.vy_mps[sel])
-        run = A.run_joint(plots, air, model, linearisation=linearisation,
+        run = A.run_joint_model(plots, air, model, linearisation=linearisation,
                           converted_at=settings.converted_at, smooth=settings.smooth,
                           extra_times=tg[_thin(tg, settings.output_rate_hz, "output_rate_hz")])
         radar_used = int(run.radar_used.sum()) + 1

@@ -15,7 +15,7 @@ Three forms, each filtered forward and (optionally) smoothed backward with the R
 * stage 2 (:func:`compensate`): the paper's compensation filter, state ``dV = [dVx, dVy]``
   (first-order Gauss-Markov per axis, paper eq. 4), measurement ``V* - W_hat`` at the plot times;
   :func:`run_cascade` chains the two as in the paper's Fig. 1;
-* joint (:func:`run_joint`): one model ``[x, Vx, y, Vy, dVx, dVy]`` with range/azimuth and the
+* joint (:func:`run_joint_model`): one model ``[x, Vx, y, Vy, dVx, dVy]`` with range/azimuth and the
   air-data velocity ``V* = [Vx + dVx, Vy + dVy]`` as measurements, each at its own time: the
   consistent form (docs/arms.md, "Two cautions" of the joint form) and the product default.
 
@@ -34,14 +34,14 @@ from __future__ import annotations
 
 from flightrecon.filters.arms.filter import (
     ArmsEstimate,
+    ArmsJointRun,
     CascadeResult,
-    JointRun,
     Stage1Run,
     Stage2Run,
     compensate,
     estimate_of,
     run_cascade,
-    run_joint,
+    run_joint_model,
     track_ground_velocity,
 )
 from flightrecon.filters.arms.model import (
@@ -70,6 +70,6 @@ __all__ = [
     "range_azimuth", "range_azimuth_jacobian", "wrap_angle", "converted_measurement",
     "converted_covariance", "cv_transition", "cv_process_noise", "gm_transition",
     "gm_process_noise", "joint_transition", "joint_process_noise", "ArmsEstimate", "Stage1Run",
-    "Stage2Run", "JointRun", "CascadeResult", "track_ground_velocity", "compensate",
-    "run_cascade", "run_joint", "estimate_of", "PaperScenario", "simulate_paper_scenario",
+    "Stage2Run", "ArmsJointRun", "CascadeResult", "track_ground_velocity", "compensate",
+    "run_cascade", "run_joint_model", "estimate_of", "PaperScenario", "simulate_paper_scenario",
 ]

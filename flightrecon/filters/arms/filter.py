@@ -72,7 +72,7 @@ class Stage2Run:
 
 
 @dataclass(frozen=True)
-class JointRun:
+class ArmsJointRun:
     """Joint-model run on the union of plot and air-data times."""
 
     t_s: np.ndarray
@@ -313,9 +313,9 @@ def run_cascade(plots: RadarPlots, air: AirData, model: ArmsModel, *, linearisat
     return CascadeResult(s1, s2)
 
 
-def run_joint(plots: RadarPlots, air: AirData, model: ArmsModel, *, linearisation: str = "ekf",
-              converted_at: str = "predicted", smooth: bool = True,
-              extra_times=None) -> JointRun:
+def run_joint_model(plots: RadarPlots, air: AirData, model: ArmsModel, *,
+                    linearisation: str = "ekf", converted_at: str = "predicted",
+                    smooth: bool = True, extra_times=None) -> ArmsJointRun:
     """Joint model ``[x, Vx, y, Vy, dVx, dVy]`` (docs/arms.md, product form).
 
     Steps: the union of the plot times, the air-data times and ``extra_times`` (steps without a
@@ -362,14 +362,14 @@ def run_joint(plots: RadarPlots, air: AirData, model: ArmsModel, *, linearisatio
     out = _arms_kernel(x0, P0, F, Q, radar, radar_sd, av, Rv, lin)
     run = FilterRun(out[0], out[1], out[2], out[3], F, out[4], out[5], out[6], out[7])
     sm = rts_smooth_run(run) if smooth else None
-    return JointRun(t, run, sm, out[8], out[9])
+    return ArmsJointRun(t, run, sm, out[8], out[9])
 
 
 def _sub(P: np.ndarray, idx: list[int]) -> np.ndarray:
     return P[:, idx][:, :, idx]
 
 
-def estimate_of(run: CascadeResult | JointRun, *, smoothed: bool = True) -> ArmsEstimate:
+def estimate_of(run: CascadeResult | ArmsJointRun, *, smoothed: bool = True) -> ArmsEstimate:
     """Collect positions, velocities and air-data errors of a run (smoothed or filtered).
 
     Raises
