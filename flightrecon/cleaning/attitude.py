@@ -3,7 +3,7 @@
 Flight-test exports often record the body rates ``p_dps, q_dps, r_dps`` (roll, pitch, yaw rate,
 FRD body axes) and roll and pitch, but no heading, or a heading that is dead (constant).  The
 heading is then propagated from the rates with the Euler kinematics of the ZYX (yaw-pitch-roll)
-attitude (METHODS.md, "Common ground")::
+attitude (docs/schema.md, "Conventions")::
 
     psi_dot = (q sin(phi) + r cos(phi)) / cos(theta)
 
