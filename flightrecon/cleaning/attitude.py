@@ -242,6 +242,7 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
         cost = float(np.sum(residuals(x)[0] ** 2))
         if best is None or cost < best[0]:
             best = (cost, x.copy())
+    assert best is not None  # the loop above runs at least once
     x = best[1]
     free = list(range(npar))
     for _ in range(20):
