@@ -7,7 +7,10 @@ Usage::
 
 Each flight size runs in a fresh subprocess (so peak memory, read from ``ru_maxrss``, is that
 size's own).  The log is generated with the simulator (``longhaul`` scenario: 16 Hz inputs, 1 Hz
-GNSS) and written to Parquet first; generation is not timed.  Stages timed: ingest, cleaning,
+GNSS) and written to Parquet first; generation is not timed.  Its sidecar has no departure and
+no arrival airfield (a GNSS-only flight, as a cruise segment comes: the frame's origin is the
+first fix, ``--departure`` is not needed), so the Sabziev fusion, which needs the end points,
+does not run; the joint smoother and SNS do.  Stages timed: ingest, cleaning,
 kinematics, each estimator (filter + smoother), combine, export; then the whole
 ``flightrecon reconstruct`` command in another subprocess.
 
@@ -53,7 +56,15 @@ def _child(hours: float, workdir: str) -> dict:
     work = Path(workdir)
     log = work / f"longhaul_{hours:g}h.parquet"
     if not log.exists():
-        write_simulation(simulate("longhaul", seed=1, duration_s=hours * 3600.0), log)
+        import dataclasses
+
+        from flightrecon.sim.io import meta_toml, sibling
+
+        sim = simulate("longhaul", seed=1, duration_s=hours * 3600.0)
+        write_simulation(sim, log)
+        # GNSS-only: no airfield in the metadata (no --departure either)
+        sibling(log, ".meta.toml").write_text(meta_toml(dataclasses.replace(
+            sim.meta, departure=None, arrival=None)))
     times: dict[str, float] = {}
 
     def timed(name, fn, *a, **k):
@@ -68,7 +79,7 @@ def _child(hours: float, workdir: str) -> dict:
     timed("kinematics", kinematic_acceleration_ned, g["n_long_g"].to_numpy(),
           g["n_lat_g"].to_numpy(), g["n_norm_g"].to_numpy(), g["roll_deg"].to_numpy(),
           g["pitch_deg"].to_numpy(), g["heading_deg"].to_numpy(),
-          lat_deg=np.full(len(g), clean.meta.departure.lat_deg), h_m=g["baro_alt_m"].to_numpy())
+          lat_deg=np.full(len(g), clean.meta.origin.lat_deg), h_m=g["baro_alt_m"].to_numpy())
     settings = ReconstructSettings()
     avail = available_methods(clean, settings)
     results = {}
@@ -80,6 +91,10 @@ def _child(hours: float, workdir: str) -> dict:
     out = work / f"out_{hours:g}h.parquet"
     timed("export", lambda: (write_track(out, track, summary),
                              write_summary(out.with_suffix(".json"), summary)))
+    if clean.meta.departure is not None or clean.meta.origin is None:
+        raise SystemExit("the benchmark flight must have no departure and a GNSS origin")
+    if not {"joint", "sns"} <= set(results):
+        raise SystemExit(f"joint and SNS must run on the GNSS-only flight: {avail}")
     return {"hours": hours, "samples": len(g), "gnss_fixes": len(clean.gnss),
             "times_s": times, "methods": sorted(results),
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}

@@ -11,4 +11,10 @@ try:
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0+unknown"
 
+from flightrecon import _numba_cache
+
+# where the compiled kernels are cached: before any kernel module is imported (a read-only
+# installation with an unwritable home must still run)
+_numba_cache.configure()
+
 __all__ = ["__version__"]

@@ -8,8 +8,12 @@ FOOT_M = 0.3048
 FPM_MPS = FOOT_M / 60.0
 HPA_PA = 100.0
 
-# WGS-84 (for reference and for the normal-gravity formula; geodesy itself goes through pyproj)
-WGS84_A = 6378137.0
-WGS84_F = 1.0 / 298.257223563
-WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+# WGS-84: the ellipsoid's parameters come from PROJ (flightrecon.geo.ellipsoid), its radii of
+# curvature from one formula there; geodesy itself goes through pyproj
+from flightrecon.geo.ellipsoid import WGS84_A, WGS84_E2, WGS84_F  # noqa: E402
+
 WGS84_OMEGA = 7.292115e-5
+"""Earth rotation rate [rad/s] (WGS-84 defining constant)."""
+
+__all__ = ["FOOT_M", "FPM_MPS", "G0", "HPA_PA", "KNOT_MPS", "WGS84_A", "WGS84_E2", "WGS84_F",
+           "WGS84_OMEGA"]

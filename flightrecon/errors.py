@@ -12,14 +12,17 @@ Exit codes
 2     command-line usage error (click)
 3     input file unreadable: missing, empty, not text, corrupt or truncated
 4     schema error: missing required column, unknown unit or channel
-5     validation error: non-numeric, impossible values, bad timestamps, polarity
+5     validation error: non-numeric, impossible values, bad timestamps, polarity, a unit
+      the physics shows to be wrong, a log too short to reconstruct
 6     mapping file error
 7     metadata / sidecar error (airfields, station, aircraft)
 8     no physically possible result (every method failed or is unhealthy); with
       ``--strict``, any method that did not converge or is unhealthy
 9     output error: would overwrite an input, cannot write
 10    coefficient store error
-130   interrupted (Ctrl-C)
+130   interrupted (Ctrl-C, SIGINT)
+143   terminated (SIGTERM, what ``timeout`` and batch systems send); other catchable
+      signals 128 + their number (SIGHUP 129); handled like Ctrl-C: nothing half-written
 ====  ==============================================================
 """
 

@@ -1,6 +1,6 @@
 """The canonical flight-log schema: channel names, units, kinds and physical limits.
 
-Conventions (METHODS.md, "Common ground"); documented in ``docs/schema.md``:
+Conventions (docs/schema.md, "Conventions"); documented in ``docs/schema.md``:
 
 * Body axes forward-right-down (FRD).  Load factor n = specific force / g0 (g0 = 9.80665 m/s^2).
   ``n_long_g`` positive forward, ``n_lat_g`` positive toward the right wing,
@@ -12,8 +12,8 @@ Conventions (METHODS.md, "Common ground"); documented in ``docs/schema.md``:
 * ``baro_alt_m`` is pressure altitude (1013.25 hPa datum) unless the metadata says otherwise.
 * A correction to a sensor reading is true minus measured.
 
-Two kinds of channel (METHODS.md, "Two kinds of channel"): *inputs* are cleaned and brought to one
-grid; *measurements* are kept once each, at their own time.
+Two kinds of channel (docs/schema.md, "Two kinds of channel"): *inputs* are cleaned and brought
+to one grid; *measurements* are kept once each, at their own time.
 """
 
 from __future__ import annotations
@@ -67,12 +67,28 @@ CHANNELS: tuple[Channel, ...] = (
     Channel("wind_speed_mps", "m/s", "input", "wind speed (recorded or forecast)", 0, 150),
     Channel("wind_from_deg", "deg", "input", "wind direction, where it blows from", -360, 720,
             angle=True),
+    Channel("p_dps", "deg/s", "input", "body roll rate, + right wing going down", -500, 500),
+    Channel("q_dps", "deg/s", "input", "body pitch rate, + nose going up", -500, 500),
+    Channel("r_dps", "deg/s", "input", "body yaw rate, + nose going right", -500, 500),
     Channel("gnss_lat_deg", "deg", "measurement", "GNSS latitude", -90, 90, group="gnss"),
     Channel("gnss_lon_deg", "deg", "measurement", "GNSS longitude", -180, 360, group="gnss"),
     Channel("gnss_alt_m", "m", "measurement", "GNSS altitude (datum in metadata)", -1000, 25000,
             group="gnss"),
     Channel("gnss_vn_mps", "m/s", "measurement", "GNSS north velocity", -800, 800, group="gnss"),
     Channel("gnss_ve_mps", "m/s", "measurement", "GNSS east velocity", -800, 800, group="gnss"),
+    Channel("gnss_h_sd_m", "m", "measurement", "GNSS horizontal position sd per axis "
+            "(receiver's estimate)", 0, 1e5, group="gnss"),
+    Channel("gnss_v_sd_m", "m", "measurement", "GNSS vertical position sd (receiver's estimate)",
+            0, 1e5, group="gnss"),
+    Channel("gnss_vel_sd_mps", "m/s", "measurement", "GNSS velocity sd per axis (receiver's "
+            "estimate)", 0, 100, group="gnss"),
+    Channel("gnss_hdop", "1", "measurement", "GNSS horizontal dilution of precision", 0, 100,
+            group="gnss"),
+    Channel("gnss_nacp", "1", "measurement", "ADS-B navigation accuracy category for position "
+            "(NACp, 0-11)", 0, 11, group="gnss"),
+    Channel("gnss_quality", "1", "measurement", "GNSS fix quality (NMEA GGA: 0 invalid, 1 GPS, "
+            "2 DGPS, 4 RTK fixed, 5 RTK float, 6 estimated, 7 manual, 8 simulation)", 0, 9,
+            group="gnss"),
     Channel("arms_range_m", "m", "measurement", "radar slant range from the station", 0, 1e6,
             group="radar"),
     Channel("arms_azimuth_deg", "deg", "measurement", "radar azimuth, clockwise from true north",

@@ -46,6 +46,31 @@ class Position:
 
 
 @dataclass(frozen=True)
+class PositionFix:
+    """A known position at a given time (``--fix``: a radar return, a waypoint report, a
+    witness): ``t_s`` in the log's time base, latitude and longitude [deg], ``alt_msl_m`` (MSL,
+    ``None`` when unknown) and ``sd_m``, the standard deviation per horizontal axis [m]."""
+
+    t_s: float
+    lat_deg: float
+    lon_deg: float
+    alt_msl_m: float | None = None
+    sd_m: float = 100.0
+
+
+@dataclass(frozen=True)
+class WindLevel:
+    """One level of a winds-aloft prior (``--wind``): MSL altitude [m], meteorological
+    direction (where the wind blows from) [deg, 0-360), speed [m/s], standard deviation of each
+    wind component [m/s]."""
+
+    alt_msl_m: float
+    from_deg: float
+    speed_mps: float
+    sd_mps: float = 2.0
+
+
+@dataclass(frozen=True)
 class FlightMeta:
     """Flight metadata, from the command line or a sidecar file next to the log.
 
@@ -60,6 +85,10 @@ class FlightMeta:
     qnh_departure_hpa, qnh_arrival_hpa : sea-level pressure at the airfields, where known
     geoid_undulation_m : ellipsoidal height minus MSL height in the area of the flight (one value
         per flight; no geoid grid is shipped, so 0 unless given)
+    fixes : known positions at given times (:class:`PositionFix`, ``--fix``), sorted by time
+    wind_aloft : winds-aloft prior by altitude (:class:`WindLevel`, ``--wind``), sorted
+    origin : origin of the output frame when no departure is given: the first GNSS fix (or radar
+        plot) of the record, set by the cleaning layer (MSL elevation); never an airfield
     """
 
     aircraft_id: str | None = None
@@ -75,6 +104,9 @@ class FlightMeta:
     qnh_arrival_hpa: float | None = None
     geoid_undulation_m: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+    fixes: tuple[PositionFix, ...] = ()
+    wind_aloft: tuple[WindLevel, ...] = ()
+    origin: Position | None = None
 
 
 @dataclass(frozen=True)
@@ -98,6 +130,9 @@ class FlightPhases:
 
     ``starts_airborne`` / ``ends_airborne`` say that the record is cut in the air.
     ``liftoff_velocity_ned_mps`` is the ground velocity at lift-off estimated from the ground roll.
+    ``lineup_t_s`` is when the aircraft turned onto the take-off runway heading (the end of the
+    taxi; the record's start when it starts lined up), ``roll_start_t_s`` when the take-off roll
+    began (NaN where there is no ground roll in the record).
     """
 
     liftoff_t_s: float
@@ -105,6 +140,8 @@ class FlightPhases:
     starts_airborne: bool
     ends_airborne: bool
     liftoff_velocity_ned_mps: tuple[float, float, float]
+    lineup_t_s: float = float("nan")
+    roll_start_t_s: float = float("nan")
 
 
 @dataclass(frozen=True)

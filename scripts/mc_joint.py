@@ -310,7 +310,8 @@ def summarise(rows: list[dict]) -> str:
             if case == "corrupt_radar":
                 off = np.array([r["joint_clock"]["radar"]["value"] for r in rs])
                 lines.append(f"radar clock offset estimated: mean {off.mean():+.2f} s, "
-                             f"sd over runs {off.std(ddof=1) if M > 1 else 0:.2f} s (truth +2.00 s)")
+                             f"sd over runs {off.std(ddof=1) if M > 1 else 0:.2f} s (truth -2.00 s: the radar is "
+                             "stamped 2 s late, the offset is what is added to its times)")
         lines.append("")
     return "\n".join(lines)
 

@@ -104,7 +104,7 @@ def test_model_validation():
 def test_horizontal_range_from_altitude_matches_geodesy():
     """r from slant range and altitude difference against pyproj's station tangent plane.
 
-    Guards the 1.7 km slant/horizontal difference of METHODS.md section 2 and the plane's drop
+    Guards the 1.7 km slant/horizontal difference (docs/arms.md) and the plane's drop
     below the aircraft (785 m at 100 km)."""
     st = TangentPlane(47.0, 8.0, 400.0)
     rng = np.random.default_rng(5)
@@ -113,14 +113,15 @@ def test_horizontal_range_from_altitude_matches_geodesy():
     h = rng.uniform(1000.0, 11000.0, 50)
     x, y, u = st.forward(lat, lon, h)
     rho = np.sqrt(x**2 + y**2 + u**2)
-    r = A.horizontal_range(rho, dh_m=h - 400.0)
-    # sphere vs ellipsoid in the drop term: ~0.5 % of r^2/2R (<= 6 m at 140 km) times u/r (< 0.1)
+    r = A.horizontal_range(rho, lat_deg=47.0, dh_m=h - 400.0)
+    # Gaussian radius at the station vs the ellipsoid along the path: a small part of r^2/2R
     np.testing.assert_allclose(r, np.hypot(x, y), atol=1.0)
     el = np.rad2deg(np.arcsin(u / rho))
-    np.testing.assert_allclose(A.horizontal_range(rho, elevation_deg=el), np.hypot(x, y),
+    np.testing.assert_allclose(A.horizontal_range(rho, lat_deg=47.0, elevation_deg=el),
+                               np.hypot(x, y),
                                rtol=1e-12)
     with pytest.raises(ValidationError):
-        A.horizontal_range([1000.0], dh_m=[2000.0])
+        A.horizontal_range([1000.0], lat_deg=47.0, dh_m=[2000.0])
 
 
 @pytest.mark.parametrize("lin,conv_at", [("ekf", "predicted"), ("converted", "measured"),

@@ -122,7 +122,9 @@ def test_singer_kernel_matches_generic_kalman_filter():
     var = np.full(t.size, np.radians(0.05) ** 2)
     run = azimuth_filter(t, eps_meas, var, rt, model="singer", alpha_m=0.1, sigma_m_mps2=1.5)
     Q = singer_process_noise(0.1, 1.5 / rt.r, np.diff(t, prepend=t[0]))
-    ref = kalman_filter(run.x_pred[0], run.P_pred[0], run.F, Q, eps_meas[:, None],
+    z = eps_meas.copy()
+    z[0] = np.nan  # the first plot is the prior (x_pred[0], P_pred[0]), used once
+    ref = kalman_filter(run.x_pred[0], run.P_pred[0], run.F, Q, z[:, None],
                         np.array([[1.0, 0.0, 0.0]]), var[:, None, None])
     sd = np.sqrt(np.diagonal(run.P, axis1=1, axis2=2))
     np.testing.assert_allclose((ref.x - run.x) / sd, 0.0, atol=1e-9)
@@ -162,3 +164,33 @@ def test_covariances_stay_positive_definite(offset, speed, heading, turn, model,
     assert np.all(np.linalg.eigvalsh(run.P).min(axis=1) > 0)
     assert np.all(np.linalg.eigvalsh(run.Ps).min(axis=1) > 0)
     assert np.all(np.linalg.eigvalsh(run.P - run.Ps).min(axis=1) > -1e-12 * scale)
+
+
+def test_range_tracker_uses_its_first_plot_once():
+    """Regression: the range tracker took its first plot as the prior *and* as a measurement,
+    so one plot of variance 100 m^2 came out with variance 50 m^2.  With a single plot the
+    smoothed range variance must be that plot's variance, and the plot has no innovation."""
+    t = np.array([0.0, 1.0])
+    rt = track_range(t, np.array([5000.0, np.nan]), np.array([100.0, np.nan]),
+                     q_range_m2ps3=1e-6)
+    assert rt.P[0, 0, 0] == pytest.approx(100.0, rel=1e-12)
+    assert rt.r[0] == 5000.0
+    assert np.isnan(rt.nis).all()
+
+
+@pytest.mark.parametrize("model", ["singer", "aided"])
+def test_azimuth_filter_uses_its_first_plot_once(model):
+    """Regression: the azimuth filter also used its first plot twice (prior and update),
+    halving the first azimuth variance.  The filtered variance at the first event must be the
+    plot's variance, with no innovation recorded there; the second plot is used as usual."""
+    t = np.array([0.0, 1.0, 2.0])
+    eps = np.radians([30.0, np.nan, 30.1])
+    var = np.full(3, np.radians(0.2) ** 2)
+    rt = track_range(t, np.array([8000.0, np.nan, 8010.0]), np.array([400.0, np.nan, 400.0]),
+                     q_range_m2ps3=0.1)
+    extra = {}
+    if model == "aided":
+        extra = {"a_ne": np.full((3, 2), np.nan), "a_ne_cov": np.zeros((3, 2, 2))}
+    run = azimuth_filter(t, eps, var, rt, model=model, **extra)
+    assert run.P[0, 0, 0] == pytest.approx(var[0], rel=1e-12)
+    assert np.isnan(run.nu_eps[0]) and np.isfinite(run.nu_eps[2])

@@ -157,11 +157,26 @@ def _no_time(tmp):
 
 
 def _impossible(tmp):
-    return [write_csv(tmp / "i.csv", _edit(SAMPLE, "n_norm_g", 321, 50.0))]
+    # systematic: the whole airspeed channel negative (a flipped sign), refused with the fix
+    d = SAMPLE.copy()
+    d["tas_mps"] = -d["tas_mps"]
+    return [write_csv(tmp / "i.csv", d)]
+
+
+def _wrong_unit(tmp):
+    # systematic: SAT written in kelvin under the canonical name
+    d = SAMPLE.copy()
+    d["sat_degc"] = d["sat_degc"] + 273.15
+    return [write_csv(tmp / "k.csv", d)]
 
 
 def _inf(tmp):
-    return [write_csv(tmp / "inf.csv", _edit(SAMPLE, "baro_alt_m", 401, np.inf))]
+    # systematic: infinities in every 5th baro sample from row 401 on
+    d = SAMPLE.copy()
+    idx = d.index[d["baro_alt_m"].notna()]
+    idx = idx[idx >= 400][::5]
+    d.loc[idx, "baro_alt_m"] = np.inf
+    return [write_csv(tmp / "inf.csv", d)]
 
 
 def _nan_storm(tmp):
@@ -305,8 +320,9 @@ def _gnss_clash(tmp):
 def _gnss_backward(tmp):
     d = SAMPLE.drop(columns=[c for c in SAMPLE if c.startswith("gnss")])
     log = write_csv(tmp / "gb.csv", d)
-    (tmp / "gb_gnss.csv").write_text("t_s,gnss_lat_deg,gnss_lon_deg\n0.5,40.46,50.05\n"
-                                     "1.5,40.46,50.05\n1.0,40.46,50.05\n")
+    # a clock reset (back by 10 s at 1 s intervals): a local swap would be re-sorted
+    (tmp / "gb_gnss.csv").write_text("t_s,gnss_lat_deg,gnss_lon_deg\n10.5,40.46,50.05\n"
+                                     "11.5,40.46,50.05\n1.0,40.46,50.05\n")
     return [log, "--gnss", tmp / "gb_gnss.csv"]
 
 
@@ -333,8 +349,11 @@ CASES = [
     ("duplicate-time", _duplicate_time, 5, ["duplicate timestamps", "row 50"]),
     ("missing-time", _missing_time, 5, ["column 't_s'", "row 7", "missing"]),
     ("no-time-column", _no_time, 4, ["no time column"]),
-    ("impossible-value", _impossible, 5, ["column 'n_norm_g'", "row 321", "impossible"]),
-    ("inf-value", _inf, 5, ["column 'baro_alt_m'", "row 401", "inf"]),
+    ("impossible-value", _impossible, 5, ["column 'tas_mps'", "rows 249", "systematically",
+                                          "sign = -1"]),
+    ("wrong-unit", _wrong_unit, 5, ["column 'sat_degc'", "systematically", "unit = 'K'"]),
+    ("inf-value", _inf, 5, ["column 'baro_alt_m'", "rows 401", "inf", "systematically",
+                            "infinities"]),
     ("nan-storm", _nan_storm, 5, ["NaN storm", "heading_deg"]),
     ("flipped-n-norm", _flipped_norm, 5, ["n_norm_g looks flipped"]),
     ("flipped-n-long", _flipped_long, 5, ["n_long_g looks flipped"]),

@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
+from flightrecon.estimation import linalg as est_linalg
 from flightrecon.filters.joint import dynamics as jd
+from flightrecon.filters.joint import enu_to_ecef_matrix
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint import observation as jo
 from flightrecon.filters.joint import passes as jp
-from flightrecon.filters.joint import enu_to_ecef_matrix
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
@@ -130,11 +131,11 @@ def test_cholesky_solve_and_its_refusal():
     A = _random_spd(rng, n)
     b = rng.normal(size=n)
     y = np.empty(n)
-    assert jd._cholesky_solve(A, b, np.empty((n, n)), y)
+    assert est_linalg._cholesky_solve(A, b, np.empty((n, n)), y)
     # condition number of A is O(10): 1e-12 is far above round-off, far below any real error
     np.testing.assert_allclose(A @ y, b, atol=1e-12)
     A[3, 3] = -1.0
-    assert not jd._cholesky_solve(A, b, np.empty((n, n)), y)
+    assert not est_linalg._cholesky_solve(A, b, np.empty((n, n)), y)
 
 
 def test_mean_only_backward_pass_gives_the_covariance_pass_states():
@@ -249,6 +250,60 @@ def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
     inside = (t >= 0) & (t <= 4)
     np.testing.assert_allclose(got[inside], path(t[inside]), atol=1e-12)
     np.testing.assert_allclose(got[t < 0], np.repeat(path(T[:1]), (t < 0).sum(), 0), atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def captured_passes():
+    """The forward and backward kernels' arguments of one joint pass on the circuit sample."""
+    from pathlib import Path
+
+    import flightrecon.filters.joint as J
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.filters.joint_method import joint_inputs
+    from flightrecon.ingest import load_flight
+
+    log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
+    inp = joint_inputs(clean_flight(load_flight(log)))
+    cap = {}
+    orig_fw, orig_bw = jp.forward, jp.backward
+
+    def fw(*a):
+        cap["fw"] = a
+        return orig_fw(*a)
+
+    def bw(*a):
+        cap["bw"] = a
+        return orig_bw(*a)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(jp, "forward", fw)
+    mp.setattr(jp, "backward", bw)
+    try:
+        J.smooth_joint(inp, J.JointSettings(iterations=1))
+    finally:
+        mp.undo()
+    return cap
+
+
+def test_backward_passes_count_cholesky_failures(captured_passes):
+    """Regression: where a predicted covariance was not positive definite the backward passes
+    fell back to a general solve without a word.  They now count those steps (reported in the
+    summary as ``cholesky_fallbacks``): zero on the circuit, one after making one P_p[k+1]
+    indefinite (one diagonal entry negated), in both the mean and the covariance pass."""
+    a = list(captured_passes["fw"])
+    n = jl.N_STATE
+    Pp = np.empty((len(a[0]), n, n))
+    a[3] = Pp
+    jp.forward(*a)
+    b = list(captured_passes["bw"])
+    b_mean = b[4:-1]
+    assert jp.backward_mean(a[0], a[1], a[2], Pp, *b_mean)[-1] == 0
+    assert jp.backward(a[0], a[1], a[2], Pp, *b[4:])[-1] == 0
+    bad = Pp.copy()
+    k = len(bad) // 2
+    bad[k, jl.IBH, jl.IBH] = -bad[k, jl.IBH, jl.IBH]
+    assert jp.backward_mean(a[0], a[1], a[2], bad, *b_mean)[-1] == 1
+    assert jp.backward(a[0], a[1], a[2], bad, *b[4:-1], False)[-1] == 1
 
 
 def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypatch):

@@ -38,10 +38,15 @@ def test_corrupted_gnss_is_flagged_and_does_not_drag():
 
 
 def test_radar_clock_offset_estimated():
+    """The radar clock offset is estimated in the convention of ``clean --radar-clock-offset``
+    (seconds added to the radar times).  Regression: the joint reported +2 s for radar stamped
+    2 s late, the opposite sign of the correction `clean` takes, so passing the reported value
+    on doubled the error."""
     r = mc.one_run("corrupt_radar", 5001)
     off = r["joint_clock"]["radar"]
-    # the simulator stamps the radar 2 s late (rounded to its 1/16 s truth grid)
-    assert abs(off["value"] - 2.0) < 0.3
+    # the simulator stamps the radar 2 s late (rounded to its 1/16 s truth grid): the times
+    # need -2 s
+    assert abs(off["value"] + 2.0) < 0.3
     assert r["joint"]["rms_h_m"] < 10.0
 
 
@@ -239,3 +244,55 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
     assert np.exp(np.mean(np.log(ratios))) < 0.6, ratios
     assert rests >= 3
 
+
+
+def _circuit_clean():
+    from pathlib import Path
+
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.ingest import load_flight
+
+    return clean_flight(load_flight(Path(__file__).resolve().parents[1] / "sample_logs"
+                                    / "circuit.parquet"))
+
+
+def test_missing_attitude_is_held_and_reported_not_zero():
+    """Regression: a missing roll/pitch/heading sample became 0 deg in the joint smoother's
+    rotations (the bias rotation and the ground constraints), without a word.  It now holds
+    the nearest recorded attitude and says so in a note; the acceleration there stays NaN
+    (replaced by process noise)."""
+    from dataclasses import replace
+
+    from flightrecon.filters.joint_method import joint_inputs
+    from flightrecon.geo.kinematics import body_to_ned_matrix
+
+    clean = _circuit_clean()
+    g = clean.grid.copy()
+    rows = slice(1000, 1010)
+    g.loc[g.index[rows], "heading_deg"] = np.nan
+    inp = joint_inputs(replace(clean, grid=g))
+    held = g["heading_deg"].to_numpy()[999]
+    want = body_to_ned_matrix(g["roll_deg"].to_numpy()[1000], g["pitch_deg"].to_numpy()[1000],
+                              held)
+    np.testing.assert_allclose(inp.Cnb[1000], want[0], atol=1e-12)
+    assert np.isnan(inp.acc_ned[1000:1010]).all()
+    assert any("heading_deg missing on 10 samples" in n for n in inp.notes)
+
+
+def test_joint_inputs_need_the_departure_for_gravity():
+    """Regression: without a departure position the joint's gravity latitude defaulted to
+    45 deg silently; it is now an error naming what is missing, and
+    ``kinematic_acceleration_ned`` has no default latitude."""
+    from dataclasses import replace
+
+    import pytest
+
+    from flightrecon.errors import MetadataError
+    from flightrecon.filters.joint_method import joint_inputs
+    from flightrecon.geo.kinematics import kinematic_acceleration_ned
+
+    clean = _circuit_clean()
+    with pytest.raises(MetadataError, match="departure"):
+        joint_inputs(replace(clean, meta=replace(clean.meta, departure=None)))
+    with pytest.raises(TypeError):
+        kinematic_acceleration_ned(0.0, 0.0, 1.0, 0.0, 0.0, 0.0)

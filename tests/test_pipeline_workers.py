@@ -24,3 +24,25 @@ def test_one_and_two_threads_give_identical_tracks_and_statuses():
     for m in r1:
         num = r1[m].track.select_dtypes("number").to_numpy()
         np.testing.assert_array_equal(num, r2[m].track.select_dtypes("number").to_numpy())
+
+
+def test_a_numerical_failure_is_that_methods_error_not_the_runs(monkeypatch):
+    """Regression: the pipeline caught FlightReconError only, so a LinAlgError (or another
+    numerical breakdown) in one method aborted the whole reconstruction.  It is now that
+    method's ``failed`` status, with the exception named, and the others' results stand;
+    ``strict`` still raises."""
+    import pytest
+
+    import flightrecon.filters.sns_method as sns_method
+
+    def broken(clean, **kwargs):
+        raise np.linalg.LinAlgError("Matrix is singular to machine precision.")
+
+    clean = clean_flight(load_flight(LOG))
+    monkeypatch.setattr(sns_method, "run_sns", broken)
+    track, results, status = reconstruct_clean(clean, ReconstructSettings(), workers=1)
+    assert status["sns"]["status"] == "failed"
+    assert "LinAlgError" in status["sns"]["reason"]
+    assert "sns" not in results and "joint" in results and len(track)
+    with pytest.raises(np.linalg.LinAlgError):
+        reconstruct_clean(clean, ReconstructSettings(strict=True), workers=1)

@@ -20,9 +20,10 @@ from flightrecon.geo.atmosphere import pressure_altitude_m
 from flightrecon.geo.frames import TangentPlane, geodetic_to_ecef, output_plane
 from flightrecon.sim import acceleration_from_loads, simulate
 from flightrecon.sim.kinematics import coordinated_roll_rad, loads_from_acceleration
+from flightrecon.sim.plan import PlanBuilder
 from flightrecon.sim.profiles import SmoothProfile
 from flightrecon.sim.scenarios import build_plan, scenario_config
-from flightrecon.sim.trajectory import PlanBuilder, kinematics, simulate_truth
+from flightrecon.sim.trajectory import kinematics, simulate_truth
 from flightrecon.sim.weather import Atmosphere, WindField, geopotential_height_m
 from flightrecon.types import FlightMeta
 

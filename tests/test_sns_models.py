@@ -382,3 +382,30 @@ def test_segment_factor_equals_sum_of_sample_noise(model):
         expect += Gs @ Gs.T
     L = core.segment_factor(model, c, Q, sig)
     np.testing.assert_allclose(L @ L.T, expect, rtol=1e-10, atol=1e-12 * np.abs(expect).max())
+
+
+def test_smoother_counts_cholesky_failures():
+    """Regression: the SNS smoother fell back to a general solve, silently, where the predicted
+    covariance P_p[k+1] failed its Cholesky factorisation.  The kernel now counts those steps
+    (the adapter reports them as ``cholesky_fallbacks``): none for a positive-definite P_p, one
+    for an indefinite (but regular) one, whose gain still equals the general solve's."""
+    from flightrecon.filters.sns.filter import _smoother_kernel
+
+    rng = np.random.default_rng(5)
+    n = core.N_STATE
+    A = rng.standard_normal((n, n))
+    Pf = np.stack([A @ A.T + n * np.eye(n)] * 2)
+    lat, lon = np.radians(50.0), np.radians(30.0)
+    xf = np.array([[lat, lon, 0.0, 0.0, 0.0]] * 2)
+    xp = xf + np.array([0.0, 0.0, 0.1, 0.2, 0.01])
+    cross = np.stack([0.5 * Pf[0]] * 2)
+    hgt = np.zeros(2)
+    _, _, count = _smoother_kernel(xp, xf, Pf.copy(), Pf, cross, hgt)
+    assert count == 0
+    Pp = Pf.copy()
+    Pp[1, 2, 2] = -Pp[1, 2, 2]
+    xs, _, count = _smoother_kernel(xp, xf, Pp, Pf, cross, hgt)
+    assert count == 1
+    C = np.linalg.solve(Pp[1], cross[0].T).T
+    d = np.r_[0.0, 0.0, xf[1, 2:] - xp[1, 2:]]
+    np.testing.assert_allclose(xs[0, 2:], xf[0, 2:] + (C @ d)[2:], rtol=1e-12, atol=1e-15)

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from _scripts import load_script
 
+from flightrecon.estimation import linalg as sns_linalg
 from flightrecon.filters import sns as core
-from flightrecon.filters.sns import linalg as sns_linalg
-from flightrecon.filters.sns import output as sns_output
 from flightrecon.filters import sns_method
+from flightrecon.filters.sns import output as sns_output
 from flightrecon.filters.sns_method import run_sns, solve_sns
 from flightrecon.geo.frames import output_plane
 

@@ -22,9 +22,12 @@ from flightrecon.pipeline import ReconstructSettings, sha256_file
 MANIFEST_VERSION = 1
 
 
-def input_hashes(log: Path, sidecar: Path | None) -> dict[str, str]:
-    """``{resolved path: SHA-256}`` of the log, its sidecar and the sidecar's companion files."""
-    paths = [log] + ([sidecar] if sidecar is not None else [])
+def input_hashes(log: Path, sidecar: Path | None, mapping: Path | None = None
+                 ) -> dict[str, str]:
+    """``{resolved path: SHA-256}`` of the log, its sidecar, the sidecar's companion files and
+    the batch's ``--mapping``."""
+    paths = [log] + ([sidecar] if sidecar is not None else []) \
+        + ([mapping] if mapping is not None else [])
     if sidecar is not None:
         from flightrecon.errors import FlightReconError
         from flightrecon.ingest.sidecar import load_sidecar

@@ -191,7 +191,7 @@ def _average_rows(stats_list) -> list[dict[str, Any]]:
 def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = None,
           settings: ReconstructSettings = ReconstructSettings(), store: str | Path | None = None,
           force: bool = False, progress: Callable[[FlightOutcome, int], None] | None = None,
-          fmt: str = "parquet") -> BatchResult:
+          fmt: str = "parquet", mapping: str | Path | None = None) -> BatchResult:
     """Reconstruct many flights on a Dask cluster; record their coefficients; summarise.
 
     Parameters
@@ -208,6 +208,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     progress : called with each :class:`FlightOutcome` as it is known (skipped ones first) and
         the number of flights in the batch
     fmt : result format, one of :data:`FORMATS`
+    mapping : mapping file for the logs whose sidecar names none (``--mapping``)
 
     Returns
     -------
@@ -279,7 +280,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
         todo = []
         for i, e in enumerate(entries):
             paths = output_paths(out_dir, e.name, fmt)
-            hashes = input_hashes(e.log, e.sidecar)
+            hashes = input_hashes(e.log, e.sidecar, None if mapping is None else Path(mapping))
             man = read_manifest(paths["manifest"])
             if not force and is_up_to_date(man, hashes, key,
                                            [paths["result"], paths["summary"]]):
@@ -303,7 +304,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
             else:
                 todo.append((i, e, paths, hashes))
         if todo:
-            _run(todo, client, settings, fmt, finish)
+            _run(todo, client, settings, fmt, finish,
+                 None if mapping is None else str(Path(mapping).resolve()))
         for j in sorted(pending):  # not expected: every submitted flight reports back
             _finish(j, *pending.pop(j))
         ordered = tuple(outcomes[i] for i in range(len(entries)))
@@ -330,18 +332,18 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
                        averages_csv=averages_csv, elapsed_s=time.perf_counter() - t_start)
 
 
-def _run(todo, client, settings, fmt, finish) -> None:
+def _run(todo, client, settings, fmt, finish, mapping=None) -> None:
     """Submit one task per flight and hand each result to ``finish`` as it completes."""
     from flightrecon.batch.cluster import open_client
 
     if client is None:
         with open_client() as c:
-            _submit_all(c, todo, settings, fmt, finish)
+            _submit_all(c, todo, settings, fmt, finish, mapping)
     else:
-        _submit_all(client, todo, settings, fmt, finish)
+        _submit_all(client, todo, settings, fmt, finish, mapping)
 
 
-def _submit_all(client, todo, settings, fmt, finish) -> None:
+def _submit_all(client, todo, settings, fmt, finish, mapping=None) -> None:
     from distributed import as_completed
 
     from flightrecon.batch.task import run_flight
@@ -351,7 +353,8 @@ def _submit_all(client, todo, settings, fmt, finish) -> None:
         fut = client.submit(run_flight, str(e.log.resolve()),
                             None if e.sidecar is None else str(e.sidecar.resolve()),
                             str(paths["result"].resolve()), str(paths["summary"].resolve()),
-                            settings, fmt, key=f"flightrecon-{e.name}-{uuid.uuid4().hex[:12]}",
+                            settings, fmt, mapping,
+                            key=f"flightrecon-{e.name}-{uuid.uuid4().hex[:12]}",
                             pure=False)
         futures[fut] = (i, hashes)
     try:

@@ -60,6 +60,21 @@ def _sabziev_for_store(summary: dict[str, Any]) -> dict[str, Any] | None:
     return {k: v for k, v in sab.items() if k != "history"}  # history: large, not needed
 
 
+def _mapping_for(sidecar: str | None, default: str | None) -> str | None:
+    """The batch's default mapping unless the sidecar names the log's own mapping (which
+    ``load_flight`` then reads from the sidecar's ``[files]``)."""
+    if default is None or sidecar is None:
+        return default
+    from flightrecon.errors import FlightReconError
+    from flightrecon.ingest.sidecar import load_sidecar
+
+    try:
+        own = load_sidecar(sidecar).files.get("mapping")
+    except FlightReconError:
+        return default   # the sidecar fails the flight with its own message
+    return None if own is not None else default
+
+
 def _joint_for_store(summary: dict[str, Any]) -> dict[str, Any] | None:
     """What the store needs of the joint smoother's summary (None unless it ran healthy)."""
     j = summary.get("methods", {}).get("joint")
@@ -71,7 +86,8 @@ def _joint_for_store(summary: dict[str, Any]) -> dict[str, Any] | None:
 
 
 def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: str,
-               settings: ReconstructSettings, fmt: str) -> dict[str, Any]:
+               settings: ReconstructSettings, fmt: str,
+               mapping: str | None = None) -> dict[str, Any]:
     """Reconstruct ``log`` and write its result and summary atomically.
 
     Calls :func:`flightrecon.pipeline.reconstruct` with ``store=None, record=False`` (the client
@@ -83,6 +99,8 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
     result_path, summary_path : where to write (already confined to the output folder)
     settings : reconstruction settings
     fmt : ``parquet``, ``csv``, ``geojson`` or ``kml``
+    mapping : the batch's ``--mapping``, used when the sidecar names no mapping (the log's own
+        mapping, found as ``reconstruct`` finds it, wins)
 
     Returns
     -------
@@ -104,8 +122,8 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
     t0 = time.perf_counter()
     try:
         # one thread per flight: the batch's parallelism is across flights (Dask workers)
-        rec = reconstruct(log, sidecar=sidecar, settings=settings, store=None, record=False,
-                          workers=1)
+        rec = reconstruct(log, sidecar=sidecar, mapping=_mapping_for(sidecar, mapping),
+                          settings=settings, store=None, record=False, workers=1)
         write_track(result_path, rec.track, rec.summary, fmt)
         write_summary(summary_path, rec.summary)
     except FlightReconError as exc:

@@ -26,6 +26,15 @@ wheels leave or meet the runway:
   altitude is 2 m above field level.  (Integrating ``a_up`` back from the end of the landing
   run was tried first: over 30-40 s of landing run the integrated noise and speed-dependent
   bias reach 0.3 m/s, the size of a gentle sink rate.)  The report says which rule was used.
+* Taxi and take-off roll (a record that starts at the gate): the runway heading is the circular
+  mean heading over the first 2 s of the fast ground run (airspeed above ``airborne_speed_mps``);
+  the *line-up* is the start of the last stretch before it whose heading stays within
+  ``lineup_deg`` (10 deg) of the runway heading: everything before is taxi (turns onto and
+  along taxiways), never "at rest on the runway".  Within the lined-up stretch the ground speed
+  is integrated back from the fast run's start, ``v(t) = V_fast - int_t a_along``, with the
+  along-heading kinematic acceleration; the *roll start* is the last sample with
+  ``v <= rest_mps`` (3 m/s), or the line-up itself for a rolling take-off.  The joint smoother
+  takes its "at rest, lined up" stretch only after the line-up.
 * Lift-off ground velocity: the runway direction is the mean heading over the last 10 s of the
   ground run; airspeed over those 10 s is fitted as ``V(t) = c + integral of a_along`` (the
   along-runway kinematic acceleration), which averages the airspeed noise with the
@@ -67,6 +76,8 @@ class PhaseSettings:
     sink_mps : vertical speed below which the aircraft is still descending [m/s]
     td_smooth_s : running mean applied to the vertical acceleration at touchdown [s]
     td_accel_mps2 : smallest touchdown excursion of the vertical acceleration [m/s^2]
+    lineup_deg : heading within this of the take-off runway's heading counts as lined up [deg]
+    rest_mps : ground speed at or below which the aircraft is at rest (roll start) [m/s]
     """
 
     airborne_speed_mps: float = 30.0
@@ -78,6 +89,8 @@ class PhaseSettings:
     sink_mps: float = 0.2
     td_smooth_s: float = 0.5
     td_accel_mps2: float = 0.2
+    lineup_deg: float = 10.0
+    rest_mps: float = 3.0
 
 
 def _filled(grid: pd.DataFrame, name: str) -> np.ndarray | None:
@@ -161,6 +174,43 @@ def _liftoff(t, dt, speed, baro, accel, s: PhaseSettings, rep: list) -> tuple[fl
     rep.append(report_entry("phases", "liftoff", method, count=1, t_s=[t_lo],
                             field_pressure_alt_m=h_dep))
     return t_lo, i_lo, i_fast
+
+
+def _lineup_and_roll(t, dt, speed, hdg, accel, i_fast: int, s: PhaseSettings, rep: list
+                     ) -> tuple[float, float]:
+    """Line-up time and roll-start time before the fast ground run starting at ``i_fast``
+    (module docstring, "Taxi and take-off roll"); NaN each where undecidable."""
+    if hdg is None or i_fast <= 0:
+        return float("nan"), float("nan")
+    n2 = max(int(round(2.0 / dt)), 1)
+    psi = np.radians(hdg)
+    w = psi[i_fast:i_fast + n2]
+    psi_rw = float(np.arctan2(np.mean(np.sin(w)), np.mean(np.cos(w))))
+    off = np.degrees(np.abs(np.angle(np.exp(1j * (psi[:i_fast + 1] - psi_rw)))))
+    out = np.flatnonzero(off > s.lineup_deg)
+    i_lu = int(out[-1]) + 1 if len(out) else 0
+    a_ned = accel(i_lu, i_fast + 1)
+    a_al = a_ned[:, 0] * np.cos(psi_rw) + a_ned[:, 1] * np.sin(psi_rw)
+    a_al = np.where(np.isfinite(a_al), a_al, 0.0)
+    dv = 0.5 * (a_al[1:] + a_al[:-1]) * dt
+    v = float(speed[i_fast]) - np.r_[np.cumsum(dv[::-1])[::-1], 0.0]
+    slow = np.flatnonzero(v <= s.rest_mps)
+    if len(slow):
+        i_rs = i_lu + int(slow[-1])
+        how = f"last time the ground speed integrated back from the fast run is <= {s.rest_mps:g} m/s"
+    else:
+        i_rs = i_lu
+        how = "rolling take-off: the roll starts at the line-up"
+    t_lu, t_rs = float(t[i_lu]), float(t[i_rs])
+    taxi_s = t_lu - float(t[0])
+    rep.append(report_entry("phases", "lineup", f"start of the last stretch within "
+                            f"{s.lineup_deg:g} deg of the runway heading before the take-off run; "
+                            f"{taxi_s:.0f} s of taxi or stand before it (never used as at rest "
+                            "on the runway)", count=1, t_s=[t_lu],
+                            runway_heading_deg=float(np.degrees(psi_rw) % 360.0),
+                            taxi_s=taxi_s))
+    rep.append(report_entry("phases", "roll_start", how, count=1, t_s=[t_rs]))
+    return t_lu, t_rs
 
 
 def _touchdown(t, dt, speed, baro, accel, i_from: int, s: PhaseSettings, rep: list) -> float:
@@ -290,9 +340,12 @@ def detect_phases_with_report(grid: pd.DataFrame, settings: PhaseSettings = Phas
                                           h_m=baro[lo:hi])
 
     t_lo, i_lo, i_fast, vel = float("nan"), -1, -1, _NAN3
+    t_lu = t_rs = float("nan")
     if not starts_air:
         t_lo, i_lo, i_fast = _liftoff(t, dt, speed, baro, accel, settings, rep)
         if np.isfinite(t_lo):
+            t_lu, t_rs = _lineup_and_roll(t, dt, speed, filled("heading_deg"), accel, i_fast,
+                                          settings, rep)
             vel = _liftoff_velocity(filled, t, dt, i_lo, i_fast, accel, settings, rep)
     t_td = float("nan")
     if not ends_air and (starts_air or np.isfinite(t_lo)):
@@ -304,7 +357,8 @@ def detect_phases_with_report(grid: pd.DataFrame, settings: PhaseSettings = Phas
         rep.append(report_entry("phases", "ends_airborne", "airspeed over the last second "
                                 f">= {settings.airborne_speed_mps:g} m/s", count=1))
     return FlightPhases(liftoff_t_s=t_lo, touchdown_t_s=t_td, starts_airborne=starts_air,
-                        ends_airborne=ends_air, liftoff_velocity_ned_mps=vel), rep
+                        ends_airborne=ends_air, liftoff_velocity_ned_mps=vel,
+                        lineup_t_s=t_lu, roll_start_t_s=t_rs), rep
 
 
 def detect_phases(grid: pd.DataFrame, settings: PhaseSettings = PhaseSettings(), *,

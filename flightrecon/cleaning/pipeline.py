@@ -14,7 +14,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from flightrecon.cleaning.attitude import (
+    heading_from_rates,
+    heading_needed,
+    provisional_heading,
+    rate_aided_attitude,
+)
 from flightrecon.cleaning.despike import DespikeSettings
+from flightrecon.cleaning.origin import with_origin
 from flightrecon.cleaning.phases import PhaseSettings, detect_phases_with_report
 from flightrecon.cleaning.report import report_entry
 from flightrecon.cleaning.resample import resample_inputs
@@ -25,6 +32,7 @@ from flightrecon.cleaning.steps import (
     run_steps,
 )
 from flightrecon.cleaning.timebase import check_clock_offsets, measurement_table
+from flightrecon.cleaning.trim import trim_flight
 from flightrecon.errors import FlightReconError, ValidationError
 from flightrecon.schema import GROUPS
 from flightrecon.types import CleanFlight, Flight
@@ -43,12 +51,32 @@ class CleaningSettings:
     clock_offsets_s : seconds added to the sample times of a measurement group
         (``{"gnss": 0.0, "radar": 0.0}``)
     phases : phase-detector thresholds (``None`` skips phase detection)
+    start, end : keep only ``start <= t_s <= end`` (seconds from the epoch, or UTC timestamps;
+        :func:`flightrecon.cleaning.trim.trim_flight`); ``None``: the whole record
     """
 
     max_gap_s: float = 2.0
     despike: DespikeSettings | None = field(default_factory=DespikeSettings)
     clock_offsets_s: dict[str, float] = field(default_factory=lambda: {"gnss": 0.0, "radar": 0.0})
     phases: PhaseSettings | None = field(default_factory=PhaseSettings)
+    start: float | str | None = None
+    end: float | str | None = None
+
+
+def _repair_entry(r: dict) -> dict:
+    """A cleaning-report entry for one validation repair (``flightrecon.ingest.validate.Repair``):
+    ``range_clip`` / ``range_mask`` with the file, its source column and 1-based data rows."""
+    action = "range_clip" if r["action"] == "clipped" else "range_mask"
+    lo, hi = r["range"]
+    why = (f"outside the physical range [{lo:g}, {hi:g}] (first {r['first_value']:g}); "
+           + ("within the clip margin: clipped to the bound" if action == "range_clip" else
+              "isolated (at most 1 % of the channel's samples): masked as missing samples"))
+    if r.get("why"):
+        action, why = "gnss_quality_mask", r["why"]
+    e = report_entry(r["channel"], action, why, count=r["count"], t_s=r.get("t_s") or None,
+                     file=r["file"], column=r["column"])
+    e["file_rows"] = list(r["rows"])
+    return e
 
 
 def clean_flight(flight: Flight, *, rate_hz: float | None = None,
@@ -68,7 +96,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     CleanFlight
         ``grid`` (``t_s``, each input channel and ``<channel>_valid``; angles unwrapped),
         ``gnss`` / ``radar`` (one row per fix / plot at its own time, ``t_s`` first), the report
-        and the phases (METHODS.md, "Two kinds of channel").  ``phases`` is ``None`` when
+        and the phases (docs/schema.md, "Two kinds of channel").  ``phases`` is ``None`` when
         phase detection is switched off or impossible on this data (no airspeed, no pressure
         altitude, no loads or attitude); the report then says why (``not_detected``).
 
@@ -83,6 +111,9 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     if not (np.isfinite(settings.max_gap_s) and settings.max_gap_s >= 0.0):
         raise ValidationError(f"max_gap_s must be a non-negative number, got {settings.max_gap_s}")
     offsets = check_clock_offsets(settings.clock_offsets_s)
+    if not isinstance(flight.data, pd.DataFrame):
+        raise ValidationError("flight.data must be a pandas DataFrame")
+    flight, trim_rep = trim_flight(flight, settings.start, settings.end)
     data = flight.data
     if not isinstance(data, pd.DataFrame):
         raise ValidationError("flight.data must be a pandas DataFrame")
@@ -95,6 +126,9 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         raise ValidationError(f"cannot clean the log: {exc}") from exc
     grid, rate, rep = resample_inputs(work, rate_hz, settings.max_gap_s)
     report.extend(rep)
+    # repairs made at validation (values outside the physical range), first in the report
+    ingest = [_repair_entry(r) for r in flight.meta.extra.get("ingest_repairs", ())]
+    report[:0] = ingest + trim_rep
     tables = {}
     for g in GROUPS:
         off = offsets.get(g, 0.0)
@@ -102,13 +136,35 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         if off != 0.0 and len(tables[g]):
             report.append(report_entry(g, "clock_offset", f"{off:+g} s added to the {g} times",
                                        count=len(tables[g]), offset_s=off))
+    meta, rep = with_origin(flight.meta, grid, tables["gnss"], tables["radar"])
+    report.extend(rep)
+    # roll, pitch and heading between their samples shaped by the body rates, where both exist
+    grid, rep = rate_aided_attitude(grid, work, settings.max_gap_s)
+    report.extend(rep)
+    why = heading_needed(grid)
+    if why is not None:
+        # heading from the body rates: a provisional heading (from 0 deg) lets the phase
+        # detector find the take-off and landing rolls (its lift-off rule needs the vertical
+        # only), then the anchored heading replaces it (cleaning/attitude.py)
+        p0 = meta.departure if meta.departure is not None else meta.origin
+        g0 = grid.copy()
+        g0["heading_deg"] = provisional_heading(grid)
+        g0["heading_valid"] = True
+        try:
+            ph0 = detect_phases_with_report(g0, settings.phases or PhaseSettings(),
+                                            lat_deg=p0.lat_deg if p0 is not None else 45.0)[0]
+        except FlightReconError:
+            ph0 = None
+        grid, rep = heading_from_rates(grid, tables["gnss"], meta, ph0, why)
+        report.extend(rep)
     phases = None
     if settings.phases is not None:
-        lat = flight.meta.departure.lat_deg if flight.meta.departure is not None else 45.0
+        p0 = meta.departure if meta.departure is not None else meta.origin
+        lat = p0.lat_deg if p0 is not None else 45.0
         try:
             phases, rep = detect_phases_with_report(grid, settings.phases, lat_deg=lat)
         except FlightReconError as exc:
             rep = [report_entry("phases", "not_detected", str(exc), count=0)]
         report.extend(rep)
     return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
-                       meta=flight.meta, report=tuple(report), phases=phases)
+                       meta=meta, report=tuple(report), phases=phases)

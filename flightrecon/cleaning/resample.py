@@ -1,4 +1,4 @@
-"""Resampling policy (METHODS.md, "Two kinds of channel").
+"""Resampling policy (docs/schema.md, "Two kinds of channel").
 
 * **Input channels** (load factors, attitude, airspeeds, pressure altitude, temperature, Doppler,
   drift, wind) are brought onto one uniform grid, by default at the rate of the fastest input

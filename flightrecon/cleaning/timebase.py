@@ -5,7 +5,9 @@
   channels except the epoch.
 * Measurement groups (``gnss``, ``radar``) can carry a clock offset [s] that is *added* to their
   sample times (``clock_offsets_s={"gnss": 0.0, "radar": 0.0}``).
-* Row order (:func:`resolve_timestamps`): rows whose ``t_s`` is smaller than an earlier row's
+* Row order (:func:`resolve_timestamps`; a log read by ``load_flight`` is already in time
+  order, repaired or refused by :mod:`flightrecon.ingest.timestamps`, so this rule is for
+  tables made another way, e.g. ``allow_unsorted=True``): rows whose ``t_s`` is smaller than an earlier row's
   (a backward jump) are dropped (the later, out-of-order row loses); rows repeating a time stamp
   with identical values are dropped; rows repeating a time stamp with other values are merged
   column by column (first non-missing value wins), and each column where they disagree is

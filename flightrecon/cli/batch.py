@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from flightrecon.cli.common import parse_k
+from flightrecon.cli.trim import trim_options
 
 
 @click.command("batch")
@@ -35,12 +36,18 @@ from flightrecon.cli.common import parse_k
 @click.option("--estimate-noise", is_flag=True,
               help="Joint smoother: estimate each source's noise variance from the flight "
                    "itself (expectation-maximisation; docs/joint.md).")
+@click.option("--mapping", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Column-mapping TOML for the logs whose sidecar names no mapping (a "
+                   "sidecar's [files] mapping wins, as for reconstruct).")
 @click.option("--format", "fmt", type=click.Choice(["parquet", "csv", "geojson", "kml"]),
               default="parquet", show_default=True, help="Result format.")
+@trim_options
 @click.pass_context
 def command(ctx: click.Context, inputs: tuple[str, ...], out_dir: Path, scheduler: str | None,
             workers: int | None, store_path: Path | None, force: bool, methods: str | None,
-            rate_hz: float | None, k_text: str | None, estimate_noise: bool, fmt: str) -> None:
+            rate_hz: float | None, k_text: str | None, estimate_noise: bool,
+            mapping: Path | None, fmt: str, start: str | None = None,
+            end: str | None = None) -> None:
     """Reconstruct every log among INPUTS (files, folders, globs) into --out, one Dask task per
     flight; a failed flight is reported and the batch goes on; a re-run skips finished flights."""
     from flightrecon.batch import batch, open_client
@@ -50,7 +57,7 @@ def command(ctx: click.Context, inputs: tuple[str, ...], out_dir: Path, schedule
     settings = ReconstructSettings(
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
         rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
-        joint_estimate_noise=estimate_noise)
+        joint_estimate_noise=estimate_noise, start=start, end=end)
     bar = None
     if not quiet:
         from tqdm import tqdm
@@ -72,7 +79,8 @@ def command(ctx: click.Context, inputs: tuple[str, ...], out_dir: Path, schedule
     try:
         with open_client(scheduler, workers) as client:
             res = batch(list(inputs), out_dir, client=client, settings=settings,
-                        store=store_path, force=force, progress=progress, fmt=fmt)
+                        store=store_path, force=force, progress=progress, fmt=fmt,
+                        mapping=mapping)
     finally:
         if bar is not None:
             bar.close()

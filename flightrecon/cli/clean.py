@@ -9,7 +9,8 @@ from typing import Any
 
 import click
 
-from flightrecon.cli.common import input_options
+from flightrecon.cli.common import NonEmptyPath, input_options
+from flightrecon.cli.trim import trim_options
 
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
 
@@ -42,7 +43,7 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
     rate, phases and settings to ``<stem>.cleaning.json``.  No path may be an input file.
     Returns the paths written.
     """
-    from flightrecon.export.atomic import check_not_input, write_text_atomic
+    from flightrecon.export.atomic import Publication, check_not_input, write_text_atomic
     from flightrecon.export.writers import to_json, write_csv, write_parquet
 
     paths = output_paths(out)
@@ -61,24 +62,26 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
     fmt = _SUFFIXES[out.suffix.lower()]
     written = []
     tables = {"grid": clean.grid, "gnss": clean.gnss, "radar": clean.radar}
-    for key, df in tables.items():
-        if key != "grid" and len(df) == 0:
-            continue
-        if fmt == "parquet":
-            write_parquet(paths[key], df, {"cleaning": {k: v for k, v in doc.items()
-                                                        if k != "report"}, "table": key})
-        else:
-            write_csv(paths[key], df)
-        written.append(paths[key])
-    write_text_atomic(paths["report"], to_json(doc) + "\n")
-    written.append(paths["report"])
+    with Publication() as pub:   # the grid, its measurements and its report: one unit
+        for key, df in tables.items():
+            if key != "grid" and len(df) == 0:
+                continue
+            if fmt == "parquet":
+                write_parquet(pub.file(paths[key]), df, {"cleaning": {
+                    k: v for k, v in doc.items() if k != "report"}, "table": key})
+            else:
+                write_csv(pub.file(paths[key]), df)
+            written.append(paths[key])
+        write_text_atomic(pub.file(paths["report"]), to_json(doc) + "\n")
+        written.append(paths["report"])
+        pub.commit()
     return written
 
 
 @click.command("clean")
 @click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
 @input_options
-@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False,
+@click.option("-o", "--output", "out", required=True, type=NonEmptyPath(dir_okay=False,
               path_type=Path), help="Cleaned grid (.parquet or .csv); the measurements and the "
               "report go beside it as <stem>.gnss.<ext>, <stem>.radar.<ext>, <stem>.cleaning.json.")
 @click.option("--rate", "rate_hz", type=float, help="Grid rate [Hz] (default: the fastest input "
@@ -89,36 +92,88 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
               help="Seconds added to the GNSS times.")
 @click.option("--radar-clock-offset", type=float, default=0.0, show_default=True,
               help="Seconds added to the radar times.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the cleaning report (the <stem>.cleaning.json document) on stdout "
+                   "instead of the summary lines.")
+@trim_options
 @click.pass_context
 def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gnss: Path | None,
             radar: Path | None, mapping: Path | None, sidecar: Path | None, max_gap_s: float,
-            gnss_clock_offset: float, radar_clock_offset: float) -> None:
+            gnss_clock_offset: float, radar_clock_offset: float, as_json: bool,
+            start: str | None = None, end: str | None = None) -> None:
     """Clean LOG: despike, unwrap, resample the input channels onto one grid, keep the GNSS fixes
-    and radar plots at their own times, detect lift-off and touchdown."""
+    and radar plots at their own times, detect lift-off and touchdown.
+
+    Writes the grid to -o and, beside it, <stem>.gnss.<ext>, <stem>.radar.<ext> (when the log
+    has them) and <stem>.cleaning.json; every path is checked before any work.
+    """
     from flightrecon.cleaning import CleaningSettings, clean_flight
-    from flightrecon.export.atomic import check_not_input, sweep_leftovers
+    from flightrecon.cli.common import errors_name_file, run_inputs
+    from flightrecon.cli.progress import stage_progress
+    from flightrecon.export.atomic import check_outputs, sweep_leftovers
     from flightrecon.ingest import load_flight
 
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
-    for p in output_paths(out).values():
-        check_not_input(p, inputs)
+    check_outputs(output_paths(out), run_inputs(log, gnss=gnss, radar=radar, mapping=mapping,
+                                                sidecar=sidecar))
     settings = CleaningSettings(max_gap_s=max_gap_s,
                                 clock_offsets_s={"gnss": gnss_clock_offset,
-                                                 "radar": radar_clock_offset})
-    flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
-    clean = clean_flight(flight, rate_hz=rate_hz, settings=settings)
-    sweep_leftovers(out.parent)
-    written = write_clean_outputs(clean, out, inputs, {
-        "rate_hz": rate_hz, "max_gap_s": max_gap_s,
-        "clock_offsets_s": dict(settings.clock_offsets_s), "despike": asdict(settings.despike),
-        "phases": asdict(settings.phases)})
+                                                 "radar": radar_clock_offset},
+                                start=start, end=end)
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    with stage_progress(quiet, ["ingest", "cleaning", "write"], "clean") as stage:
+        with errors_name_file(log, sidecar):
+            stage("ingest")
+            flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
+            stage("cleaning")
+            clean = clean_flight(flight, rate_hz=rate_hz, settings=settings)
+        stage("write")
+        sweep_leftovers(out.parent)
+        written = write_clean_outputs(clean, out, inputs, {
+            "rate_hz": rate_hz, "max_gap_s": max_gap_s,
+            "clock_offsets_s": dict(settings.clock_offsets_s), "despike": asdict(settings.despike),
+            "phases": asdict(settings.phases), "start": start, "end": end})
+    if as_json:
+        click.echo(written[-1].read_text(encoding="utf-8").rstrip("\n"))
+        return
     if not quiet:
-        ph = clean.phases
-        if ph is not None:
-            click.echo(f"  lift-off t = {ph.liftoff_t_s:.2f} s, touchdown t = "
-                       f"{ph.touchdown_t_s:.2f} s", err=True)
-        click.echo(f"  {len(clean.report)} cleaning actions; grid {clean.rate_hz:g} Hz, "
-                   f"{len(clean.grid)} samples", err=True)
+        for line in summary_lines(clean):
+            click.echo(f"  {line}", err=True)
     for p in written:
         click.echo(f"wrote {p}")
+
+
+def summary_lines(clean) -> list[str]:
+    """Human-readable lines about a cleaned flight: phases in UTC (never ``nan``), the grid,
+    the measurements, the cleaning actions by kind."""
+    import math
+    from collections import Counter
+
+    from flightrecon.events import utc_text
+
+    epoch = clean.meta.epoch_utc
+    lines = []
+
+    def when(t: float) -> str:
+        u = utc_text(epoch, t)
+        return f"{u[11:23]} UTC (t = {t:.2f} s)" if u else f"t = {t:.2f} s"
+
+    ph = clean.phases
+    if ph is None:
+        lines.append("phases: not detected (see the cleaning report)")
+    else:
+        lo, td = ph.liftoff_t_s, ph.touchdown_t_s
+        lines.append("lift-off: " + (when(lo) if math.isfinite(lo) else
+                                     "none in the record (it starts airborne)"
+                                     if ph.starts_airborne else "not detected"))
+        lines.append("touchdown: " + (when(td) if math.isfinite(td) else
+                                      "none in the record (it ends airborne)"
+                                      if ph.ends_airborne else "not detected"))
+    lines.append(f"grid: {clean.rate_hz:g} Hz, {len(clean.grid)} samples; "
+                 f"{len(clean.gnss)} GNSS fixes, {len(clean.radar)} radar plots kept at their "
+                 "own times")
+    kinds = Counter(str(r.get("action")) for r in clean.report)
+    lines.append(f"{len(clean.report)} cleaning actions"
+                 + (": " + ", ".join(f"{k} {v}" for k, v in sorted(kinds.items())) if kinds
+                    else ""))
+    return lines

@@ -369,9 +369,20 @@ def remove_cmd(store_path: Path | None, aircraft_id: str, flight_id: str | None,
         if n == 0:
             raise StoreError(f"no flights of aircraft '{aircraft_id}' in the store",
                              file=str(store.path))
-        if not yes and not click.confirm(f"remove {what} from {store.path}?", default=False):
-            click.echo("nothing removed")
-            return
+        if not yes:
+            try:
+                agreed = click.confirm(f"remove {what} from {store.path}?", default=False)
+            except click.Abort:
+                import sys
+
+                if sys.stdin is not None and sys.stdin.isatty():
+                    raise  # Ctrl-C at the prompt: interrupted (130)
+                raise click.UsageError("no answer to the confirmation (standard input is "
+                                       "empty or closed): nothing removed; add --yes to "
+                                       "remove without asking") from None
+            if not agreed:
+                click.echo("nothing removed")
+                return
         removed = store.remove(aircraft_id, flight_id)
     click.echo(f"removed {removed} flight(s)")
 

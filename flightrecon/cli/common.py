@@ -27,6 +27,49 @@ def input_options(f):
     return f
 
 
+class NonEmptyPath(click.Path):
+    """A click path that refuses an empty string (``-o ''``) as a usage error (exit code 2)
+    instead of taking it for the current folder."""
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value.strip() == "":
+            self.fail("the path is empty", param, ctx)
+        if isinstance(value, str) and self.file_okay and not self.dir_okay \
+                and Path(value).name in ("", ".", ".."):
+            self.fail(f"'{value}' is a folder, not a file name", param, ctx)
+        return super().convert(value, param, ctx)
+
+
+def run_inputs(log: Path, *, gnss: Path | None = None, radar: Path | None = None,
+               mapping: Path | None = None, sidecar: Path | None = None,
+               **others: Path | None) -> dict[str, Path]:
+    """Every file a run reads, by role: the log, its companions given on the command line,
+    the sidecar (given, or found beside the log) and the companion files it names, and
+    ``others`` (noise file, truth, a store read from).  Used to refuse outputs over inputs
+    before any work (:func:`flightrecon.export.atomic.check_outputs`); a sidecar that cannot
+    be read here is reported later by the ingest, with its own message."""
+    from flightrecon.errors import FlightReconError
+    from flightrecon.ingest.sidecar import discover_sidecar, load_sidecar
+
+    found: dict[str, Path] = {"log": log}
+    for k, v in (("GNSS file", gnss), ("radar file", radar), ("mapping file", mapping)):
+        if v is not None:
+            found[k] = Path(v)
+    sc = Path(sidecar) if sidecar is not None else discover_sidecar(log)
+    if sc is not None:
+        found["sidecar"] = sc
+        try:
+            companions = load_sidecar(sc).files if sc.is_file() else {}
+        except (FlightReconError, OSError, ValueError):
+            companions = {}
+        for k, v in companions.items():
+            found.setdefault(f"{k} file named by the sidecar", Path(v))
+    for k, v in others.items():
+        if v is not None:
+            found[k.replace("_", " ")] = Path(v)
+    return found
+
+
 def parse_k(text: str) -> tuple[float, float, float]:
     """Parse ``K1,K2,K3`` into three floats."""
     try:
@@ -73,6 +116,29 @@ def progress_bar(quiet: bool) -> Iterator[Callable[[str], None]]:
         bar.close()
 
 
+def read_sns_noise_file(path: Path) -> dict[str, float] | None:
+    """The ``[sns]`` table of a noise TOML file (checked by the SNS method), or ``None``."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return None   # read_noise_file reports it
+    t = doc.get("sns")
+    if t is not None and not isinstance(t, dict):
+        raise MetadataError("[sns] in the noise file must be a table", file=str(path))
+    if t:
+        from flightrecon.filters.sns_method import sns_noise_with
+        from flightrecon.filters.sns import MODEL_AIRSPEED
+
+        try:
+            sns_noise_with(MODEL_AIRSPEED, t)   # keys and values checked now
+        except MetadataError as exc:
+            raise MetadataError(exc.message, file=str(path)) from None
+    return dict(t) if t else None
+
+
 def read_noise_file(path: Path) -> dict[str, float]:
     """The ``[joint]`` table of a noise TOML file: field name -> number (safe parser)."""
     import tomllib
@@ -88,8 +154,10 @@ def read_noise_file(path: Path) -> dict[str, float]:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise MetadataError(f"not a valid TOML file: {exc}", file=str(path)) from exc
     table = doc.get("joint")
+    if table is None and isinstance(doc.get("sns"), dict):
+        return {}   # an SNS-only noise file (read_sns_noise_file)
     if not isinstance(table, dict):
-        raise MetadataError("the noise file needs a [joint] table", file=str(path))
+        raise MetadataError("the noise file needs a [joint] or an [sns] table", file=str(path))
     known = {f.name for f in fields(JointNoise)}
     out = {}
     for k, v in table.items():
@@ -104,3 +172,101 @@ def read_noise_file(path: Path) -> dict[str, float]:
                                 "zero would make its measurements exact)", file=str(path))
         out[k] = float(v)
     return out
+
+
+def report_file_name(name: str) -> bool:
+    """True for the names a report folder receives (``report.html`` and its figures)."""
+    return name.lower().endswith((".html", ".htm", ".png"))
+
+
+def check_run_outputs(log: Path, *, gnss=None, radar=None, mapping=None, sidecar=None,
+                      noise_file=None, result: Path, summary: Path, report: Path | None = None,
+                      store: Path | None = None, store_is_input: bool = False,
+                      fmt: str | None = None) -> None:
+    """Refuse, before any work, a reconstruction whose outputs (result, summary, report folder,
+    store) would replace one of its inputs or each other, or cannot be written (exit 9).
+
+    The store is an input when it is only read (fleet coefficients) and an output otherwise;
+    either way no other output may be written over it."""
+    from flightrecon.export.atomic import check_outputs, sweep_leftovers
+    from flightrecon.export.writers import format_from_path
+
+    format_from_path(result, fmt)  # a result whose format cannot be told: refused now
+    inputs: dict[str, Path | None] = dict(run_inputs(log, gnss=gnss, radar=radar,
+                                                     mapping=mapping, sidecar=sidecar,
+                                                     noise_file=noise_file))
+    outputs: dict[str, Path | None] = {"result": result, "summary": summary}
+    if store is not None and store_is_input:
+        inputs["coefficient store"] = store
+    elif store is not None:
+        outputs["coefficient store"] = store
+    check_outputs(outputs, inputs, folders={"report": report}, folder_names=report_file_name,
+                  created_folders=("coefficient store",))
+    for folder in {result.parent, summary.parent} | ({report, report.parent} if report
+                                                      else set()):
+        sweep_leftovers(folder if str(folder) else Path("."))
+
+
+def publish_reconstruction(rec, out: Path, summary_path: Path, fmt: str | None,
+                           report_dir: Path | None, store: Path | None, *, title: str,
+                           record: bool = True, stage: Callable[[str], None] | None = None):
+    """Write the result, its summary and its report as one unit, with the store's record.
+
+    Each is written completely into a hidden staging folder beside its target; then, with the
+    catchable signals deferred, the flight's coefficients are recorded in the store (one
+    transaction) and every output is renamed into place
+    (:class:`flightrecon.export.atomic.Publication`).  An error or interrupt before that
+    leaves every previous output and the store as they were.  Returns the report page's path
+    (or ``None``).
+    """
+    from flightrecon.export.atomic import Publication
+    from flightrecon.export.writers import format_from_path, write_summary, write_track
+
+    page = None
+    fmt = format_from_path(out, fmt)
+    with Publication() as pub:
+        write_track(pub.file(out), rec.track, rec.summary, fmt, attitude=rec.clean.grid)
+        if report_dir is not None:
+            from flightrecon.report import write_report
+
+            if stage:
+                stage("report")
+            staged_page = write_report(pub.folder(report_dir), rec.track, rec.summary,
+                                       title=title, grid=rec.clean.grid, gnss=rec.clean.gnss,
+                                       radar=rec.clean.radar)
+            page = Path(report_dir) / staged_page.name
+        staged_summary = pub.file(summary_path)
+
+        def record_then_summary() -> None:
+            if store is not None and record and "sabziev" in rec.results:
+                from flightrecon.pipeline import record_coefficients
+
+                rec.summary["stored_coefficients"] = record_coefficients(store, rec)
+            write_summary(staged_summary, rec.summary)
+
+        pub.commit(before=record_then_summary)
+    return page
+
+
+@contextlib.contextmanager
+def errors_name_file(log: Path, sidecar: Path | None = None) -> Iterator[None]:
+    """Every error of the project that does not name a file is about the run's log: name it.
+
+    A metadata error on a log with no sidecar also says where the sidecar was looked for
+    (the usual cause: departure/arrival airfields missing)."""
+    from flightrecon.errors import FlightReconError
+
+    try:
+        yield
+    except FlightReconError as exc:
+        if not exc.file:
+            exc.file = str(log)
+        if isinstance(exc, MetadataError) and sidecar is None:
+            from flightrecon.ingest.sidecar import discover_sidecar
+
+            if discover_sidecar(log) is None and "sidecar" not in exc.message:
+                expected = default_output(log, ".meta.toml")
+                exc.message += (f" (no sidecar: flight metadata is read from {expected} "
+                                "beside the log, or give it on the command line)")
+        exc.args = (str(exc),)
+        raise

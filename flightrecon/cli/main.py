@@ -7,8 +7,14 @@ hierarchy are printed as ``error: ...`` with their exit code; ``--debug`` shows 
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import importlib
+import os
+import signal
 import sys
+import threading
+from typing import Any
 
 import click
 
@@ -28,7 +34,19 @@ COMMAND_MODULES = (
 )
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _PipeClosed(Exception):
+    """The reader of our standard output went away (``flightrecon info LOG | head``)."""
+
+
+class _Group(click.Group):
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except BrokenPipeError as exc:  # before click turns it into a silent exit 1
+            raise _PipeClosed() from exc
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="flightrecon")
 @click.option("--debug", is_flag=True, help="Show the full traceback on errors.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars or chatter (for scripts).")
@@ -101,10 +119,117 @@ def _tune_memory() -> None:
         _set_madvise_hugepage(False)
 
 
+class Interrupted(KeyboardInterrupt):
+    """A catchable signal that ends the run (SIGTERM, SIGHUP, ...; SIGINT as well).
+
+    A subclass of :class:`KeyboardInterrupt`, so every clean-up written for Ctrl-C (temporary
+    files removed, staged outputs discarded, store transaction rolled back) runs for it too.
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+_first_signal: list[int] = []
+
+
+def _on_signal(signum: int, frame) -> None:
+    """Raise :class:`Interrupted` in the main thread; while outputs are being published the
+    signal waits (:func:`flightrecon.export.atomic.deferred_signals`); a second signal while
+    the first one's clean-up runs is ignored, so the clean-up is not cut short."""
+    if _first_signal:
+        return
+    _first_signal.append(signum)
+    raise Interrupted(signum)
+
+
+def install_signal_handlers() -> dict[int, Any]:
+    """Handle every catchable terminating signal like SIGINT (:data:`CATCHABLE_SIGNALS`);
+    signals the caller chose to ignore (``nohup``: SIGHUP) stay ignored.  Returns the
+    previous handlers."""
+    from flightrecon.export.atomic import CATCHABLE_SIGNALS
+
+    previous: dict[int, Any] = {}
+    if threading.current_thread() is not threading.main_thread():
+        return previous
+    for s in CATCHABLE_SIGNALS:
+        try:
+            h = signal.getsignal(s)
+            if h == signal.SIG_IGN:
+                continue
+            previous[s] = signal.signal(s, _on_signal)
+        except (OSError, ValueError):
+            pass
+    return previous
+
+
+def _signal_exit_code(exc: BaseException) -> int:
+    """128 + the signal number (SIGINT 130, SIGTERM 143) for an interrupt."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, Interrupted):
+            return 128 + e.signum
+        e = e.__cause__ or e.__context__
+    return 128 + int(signal.SIGINT)
+
+
+def _exit_interrupted(exc: BaseException) -> None:
+    """Report an interrupt and end the process now: the estimators' worker threads are not
+    waited for (nothing they hold is an output; every temporary file was removed on the way
+    out)."""
+    code = _signal_exit_code(exc)
+    name = signal.Signals(code - 128).name if code - 128 in signal.Signals._value2member_map_ \
+        else "signal"
+    click.echo("interrupted" if code == 130 else f"interrupted ({name})", err=True)
+    if _handlers_installed:
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
+_handlers_installed: list[int] = []
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: run the CLI and map project errors to exit codes."""
     _tune_memory()
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
+    previous = install_signal_handlers() if argv is None else {}
+    if previous:
+        _handlers_installed.append(1)
+    try:
+        try:
+            _run(argv, debug)
+        except SystemExit:
+            _flush_stdout()
+            raise
+    finally:
+        for s, h in previous.items():
+            with contextlib.suppress(OSError, ValueError, TypeError):
+                signal.signal(s, h)
+        _handlers_installed.clear()
+
+
+def _flush_stdout() -> None:
+    """Flush the output now: a reader that closed the pipe early (``| head``) is not an error
+    (exit 0, as :class:`_PipeClosed`), instead of a failed flush at exit."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        with contextlib.suppress(OSError, ValueError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        sys.exit(0)
+    except (OSError, ValueError):
+        pass
+
+
+def _run(argv: list[str] | None, debug: bool) -> None:
     try:
         # with standalone_mode=False click returns a ctx.exit(code) as the code
         rv = cli.main(args=argv, prog_name="flightrecon", standalone_mode=False)
@@ -113,18 +238,31 @@ def main(argv: list[str] | None = None) -> None:
             raise
         click.echo(f"error: {exc}", err=True)
         sys.exit(exc.exit_code)
-    except click.exceptions.Abort:
-        click.echo("interrupted", err=True)
-        sys.exit(130)
-    except KeyboardInterrupt:
-        click.echo("interrupted", err=True)
-        sys.exit(130)
+    except _PipeClosed:
+        # the reader stopped reading (``| head``): silently, with SIGPIPE's code as a shell
+        # reports it (128 + 13, as _flush_stdout). Point stdout at /dev/null so the
+        # interpreter's final flush does not fail again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        sys.exit(128 + 13)
+    except click.exceptions.Abort as exc:
+        _exit_interrupted(exc)
+    except KeyboardInterrupt as exc:
+        _exit_interrupted(exc)
     except click.ClickException as exc:
         exc.show()
         sys.exit(exc.exit_code)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except Exception as exc:  # noqa: BLE001 - last resort: no traceback without --debug
+    except SystemExit as exc:
+        # a pipe closed where click saw it first: click ends such a run with exit 1 (the code
+        # of an internal error) and marks it by wrapping sys.stdout; like _PipeClosed, exit 0
+        ctx = exc.__context__
+        epipe = isinstance(ctx, OSError) and ctx.errno == errno.EPIPE
+        if exc.code == 1 and (epipe or type(sys.stdout).__name__ == "_PacifyFlushWrapper"):
+            sys.exit(0)
+        raise
+    except Exception as exc:
         if debug:
             raise
         click.echo(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", err=True)

@@ -6,7 +6,9 @@ from pathlib import Path
 
 import click
 
-SCENARIO_NAMES = ("circuit", "regional", "seed-ads-arms", "landing", "longhaul")
+SCENARIO_NAMES = ("circuit", "regional", "seed-ads-arms", "landing", "longhaul",
+                  "jsbsim-circuit", "jsbsim-xc", "jsbsim-jet", "jsbsim-spiral", "jsbsim-spin")
+"""Point-mass scenarios, then the JSBSim ones (docs/jsbsim.md; need the ``jsbsim`` extra)."""
 
 
 @click.command("simulate")
@@ -16,24 +18,37 @@ SCENARIO_NAMES = ("circuit", "regional", "seed-ads-arms", "landing", "longhaul")
               help="Simulate K flights of one airframe (files <stem>_F01... beside LOG).")
 @click.option("--aircraft-id", default="A1", show_default=True,
               help="Airframe id for --fleet-flights (persistent errors drawn from it).")
+@click.option("--scale", type=click.FloatRange(min=0.01, max=1.0), default=None,
+              help="JSBSim scenarios: shorten the en-route legs by this factor (1 = full "
+                   "length).")
+@click.option("--no-gnss", is_flag=True, help="Record no GNSS (recorder channels only).")
 @click.option("-o", "--output", "output", required=True,
               type=click.Path(dir_okay=False, path_type=Path),
               help="Log file (.parquet or .csv); truth, sidecar and sensor truth beside it.")
 @click.pass_context
 def command(ctx: click.Context, scenario: str, seed: int, fleet_flights: int | None,
-            aircraft_id: str, output: Path) -> None:
+            aircraft_id: str, scale: float | None, no_gnss: bool, output: Path) -> None:
     """Simulate SCENARIO and write its log (-o), <stem>.truth.parquet, <stem>.meta.toml and
-    <stem>.sensors.json."""
+    <stem>.sensors.json.
+
+    The jsbsim-* scenarios fly the JSBSim flight dynamics model (a second, independent truth:
+    docs/jsbsim.md) with the project's recorder model on top."""
     from flightrecon.errors import OutputError
     from flightrecon.sim import simulate, simulate_fleet, write_simulation
 
     if output.suffix.lower() not in (".parquet", ".csv"):
         raise OutputError("the log must end in .parquet or .csv", file=str(output))
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    overrides: dict = {"gnss_hz": 0.0} if no_gnss else {}
+    if scale is not None:
+        if not scenario.startswith("jsbsim-"):
+            raise click.UsageError("--scale applies to the jsbsim-* scenarios only")
+        overrides["scale"] = scale
     if fleet_flights is None:
-        results = [(output, simulate(scenario, seed))]
+        results = [(output, simulate(scenario, seed, **overrides))]
     else:
-        flights = simulate_fleet(aircraft_id, fleet_flights, seed, scenario=scenario)
+        flights = simulate_fleet(aircraft_id, fleet_flights, seed, scenario=scenario,
+                                 **overrides)
         results = [(output.with_name(f"{output.stem}_{r.meta.flight_id}{output.suffix}"), r)
                    for r in flights]
     for path, result in results:

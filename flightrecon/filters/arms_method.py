@@ -1,6 +1,6 @@
 """ADS/ARMS adapter: a cleaned flight in, the ``arms_`` columns and summary out.
 
-METHODS.md section 2; the estimators are in :mod:`flightrecon.filters.arms`.
+docs/arms.md; the estimators are in :mod:`flightrecon.filters.arms`.
 
 Frames.  The filters work in the east-north-up tangent plane at the radar station (x east,
 y north).  The aircraft's height above that plane, ``u = dh - r^2 / (2 R_e)``, comes from the
@@ -27,7 +27,8 @@ rough as the paper's, 1.5 m/s per second, the interpolated sd is then slightly o
 between steps).  The cascade steps at the plots only; its estimates
 are linearly interpolated to the grid times for output only (between plots its sd is then an
 interpolation too).  NaN outside the radar coverage (before the first plot, after the last).
-Inside a radar outage the estimate is the model's bridge, and its standard deviations say how good that is.
+Inside a radar outage the estimate is the model's bridge, and its standard deviations say how
+good that is.
 """
 
 from __future__ import annotations
@@ -38,8 +39,13 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import MetadataError, SchemaError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import arms as A
+from flightrecon.geo.atmosphere import pressure_to_msl_m
 from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
+from flightrecon.geo.navframe import north_azimuth_in_plane
+from flightrecon.geo.radar import horizontal_range, plane_drop_m
+from flightrecon.tracks import TrackColumns
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult
 
 __all__ = ["FORMS", "ArmsSettings", "run_arms"]
@@ -47,9 +53,6 @@ __all__ = ["FORMS", "ArmsSettings", "run_arms"]
 FORMS = ("joint", "cascade")
 """Estimator forms: the joint model (product default) or the paper's two-stage cascade."""
 
-NIS_ALARM = 5.0
-"""A forward mean NIS per measurement component above this (expected 1) marks the result
-unhealthy: the noise settings or the motion model grossly misfit the flight."""
 
 RANGE_MODES = ("auto", "elevation", "altitude", "slant")
 """Horizontal range from the slant range: with the elevation angle, with the altitude
@@ -127,22 +130,10 @@ def station_plane(meta: FlightMeta) -> TangentPlane:
                         float(msl_to_ellipsoid(s.elev_m, meta.geoid_undulation_m)))
 
 
-def _pressure_to_msl(h_p: np.ndarray, qnh_hpa: float | None) -> np.ndarray:
-    """Pressure altitude to ISA altitude above MSL with the sea-level pressure ``qnh_hpa``."""
-    from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
-
-    if qnh_hpa is None:
-        return np.asarray(h_p, dtype=np.float64)
-    p = isa_pressure_pa(np.asarray(h_p, dtype=np.float64))
-    return np.asarray(pressure_altitude_m(p * 1013.25 / qnh_hpa), dtype=np.float64)
-
-
 def _north_convergence(plane: TangentPlane, x_m, y_m, u_m) -> np.ndarray:
     """Azimuth [rad] of true north at points (x, y, u) of ``plane``, measured in the plane."""
-    lat, lon, h = plane.inverse(x_m, y_m, u_m)
-    e0, n0, _ = plane.forward(lat, lon, h)
-    e1, n1, _ = plane.forward(lat + 1e-3, lon, h)
-    return np.arctan2(e1 - e0, n1 - n0)
+    lat, lon, _ = plane.inverse(x_m, y_m, u_m)
+    return north_azimuth_in_plane(plane.lat0_deg, plane.lon0_deg, lat, lon)
 
 
 def _to_output(src: TangentPlane, dst: TangentPlane, x, y, u):
@@ -205,7 +196,8 @@ def _plots(clean: CleanFlight, s: ArmsSettings, model: A.ArmsModel,
     r = rho.copy()
     sig_r = np.full(len(t), model.sigma_range_m)
     if use_el.any():
-        r[use_el] = A.horizontal_range(rho[use_el], elevation_deg=el[use_el])
+        r[use_el] = horizontal_range(rho[use_el], lat_deg=clean.meta.station.lat_deg,
+                                     elevation_deg=el[use_el])
     use_alt = ~use_el if mode in ("auto", "altitude") else np.zeros(len(t), dtype=bool)
     if use_alt.any():
         dh = alt_fn(t[use_alt])
@@ -213,7 +205,7 @@ def _plots(clean: CleanFlight, s: ArmsSettings, model: A.ArmsModel,
             raise ValidationError("no valid pressure altitude at some radar plot times (needed for "
                                   "the horizontal range); use horizontal_range='slant' or "
                                   "'elevation'", column="baro_alt_m")
-        r[use_alt] = A.horizontal_range(rho[use_alt], dh_m=dh)
+        r[use_alt] = horizontal_range(rho[use_alt], lat_deg=clean.meta.station.lat_deg, dh_m=dh)
         # dr/drho = rho / r at fixed height: the range error grows with the slant angle
         sig_r[use_alt] = model.sigma_range_m * rho[use_alt] / r[use_alt]
     plots = A.RadarPlots.from_arrays(t, r, np.deg2rad(az), model, sigma_range_m=sig_r)
@@ -248,7 +240,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
              settings: ArmsSettings = ArmsSettings()) -> MethodResult:
     """Ground track, ground velocity and air-data error from radar plots and air data.
 
-    METHODS.md section 2.  ``form="joint"`` runs the joint model
+    docs/arms.md.  ``form="joint"`` runs the joint model
     (:func:`flightrecon.filters.arms.run_joint`), ``"cascade"`` the paper's two stages
     (:func:`flightrecon.filters.arms.run_cascade`); ``linearisation`` is ``"ekf"`` or
     ``"converted"``.
@@ -296,7 +288,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
 
     ok_alt = _grid_valid(grid, ("baro_alt_m",))
     st_elev = meta.station.elev_m
-    h_msl = _pressure_to_msl(grid["baro_alt_m"].to_numpy(dtype=np.float64), meta.qnh_departure_hpa)
+    h_msl = pressure_to_msl_m(grid["baro_alt_m"].to_numpy(dtype=np.float64), meta.qnh_departure_hpa)
 
     def dh_at(t):
         return np.interp(t, tg[ok_alt], h_msl[ok_alt] - st_elev, left=np.nan, right=np.nan) \
@@ -313,7 +305,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     conv = A.converted_measurement(plots.range_m, plots.azimuth_rad)
     xa = np.interp(ta, tp, conv[:, 0])
     ya = np.interp(ta, tp, conv[:, 1])
-    ua = np.nan_to_num(dh_at(ta)) - (xa ** 2 + ya ** 2) / (2.0 * A.EARTH_RADIUS_M)
+    ua = np.nan_to_num(dh_at(ta)) - plane_drop_m(np.hypot(xa, ya), meta.station.lat_deg)
     gamma = _north_convergence(splane, xa, ya, ua)
     hdg = grid["heading_deg"].to_numpy(dtype=np.float64)[ok_air] + np.rad2deg(gamma)
     air_all = A.AirData.from_tas_heading(ta, grid["tas_mps"].to_numpy(dtype=np.float64)[ok_air],
@@ -356,7 +348,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     dv = interp(est.dv)
     Cp, Cv, Cd = interp_cov(est.pos_cov), interp_cov(est.vel_cov), interp_cov(est.dv_cov)
     dh_k = dh_at(tk)
-    uk = np.nan_to_num(dh_k) - (pos[:, 0] ** 2 + pos[:, 1] ** 2) / (2.0 * A.EARTH_RADIUS_M)
+    uk = np.nan_to_num(dh_k) - plane_drop_m(np.hypot(pos[:, 0], pos[:, 1]), meta.station.lat_deg)
     east, north, J = _to_output(splane, oplane, pos[:, 0], pos[:, 1], uk)
     Vs = air_all.at(tk, max_gap_s=settings.air_max_gap_s)
     airv = Vs - dv
@@ -372,42 +364,22 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     def rot(v, M=Rl):
         return np.einsum("kij,kj->ki", M, v)
 
-    def rot_cov(C, M=Rl):
-        return M @ C @ np.swapaxes(M, 1, 2)
-
-    n = len(tg)
-    cols: dict[str, np.ndarray] = {"t_s": tg}
-
-    def put(name_e, name_n, v, C, unit):
-        ve, vn = rot(v).T
-        Ce = rot_cov(C)
-        for name, val in ((name_n, vn), (name_e, ve),
-                          (name_n.replace(f"_{unit}", f"_sd_{unit}"), np.sqrt(Ce[:, 1, 1])),
-                          (name_e.replace(f"_{unit}", f"_sd_{unit}"), np.sqrt(Ce[:, 0, 0]))):
-            col = np.full(n, np.nan)
-            col[inside] = val
-            cols[name] = col
-
-    for name, val in (("arms_north_m", north), ("arms_east_m", east)):
-        col = np.full(n, np.nan)
-        col[inside] = val
-        cols[name] = col
-    Cpo = rot_cov(Cp, J)
-    for name, val in (("arms_north_sd_m", np.sqrt(Cpo[:, 1, 1])),
-                      ("arms_east_sd_m", np.sqrt(Cpo[:, 0, 0]))):
-        col = np.full(n, np.nan)
-        col[inside] = val
-        cols[name] = col
-    put("arms_ve_mps", "arms_vn_mps", vel, Cv, "mps")
-    put("arms_dve_mps", "arms_dvn_mps", dv, Cd, "mps")
-    put("arms_air_ve_mps", "arms_air_vn_mps", airv, Ca, "mps")
-    track = pd.DataFrame(cols)
+    # station-plane (east, north) vectors: positions through the map to the output plane
+    # (its Jacobian J rotates their covariance), velocities into the local level (Rl)
+    out = TrackColumns("arms", tg, inside)
+    out.add_horizontal("north", "east", "m", np.c_[east, north], Cp, J, order="en",
+                       value_is_output=True)
+    out.add_horizontal("vn", "ve", "mps", vel, Cv, Rl, order="en")
+    out.add_horizontal("dvn", "dve", "mps", dv, Cd, Rl, order="en")
+    out.add_horizontal("air_vn", "air_ve", "mps", airv, Ca, Rl, order="en")
+    track = out.frame()
 
     # ---- summary
     nis_r = _nis_block(nu[:, :2], S[:, :2, :2])
     nis_a = _nis_block(nu[:, 2:], S[:, 2:, 2:])
     n_r, n_a = int(np.isfinite(nis_r).sum()), int(np.isfinite(nis_a).sum())
-    nis_per_component = float((np.nansum(nis_r) + np.nansum(nis_a)) / max(2 * (n_r + n_a), 1))
+    verdict = chi_square_verdict(np.r_[nis_r, nis_a], 2.0)  # both blocks are 2-dimensional
+    nis_per_component = verdict.mean if verdict.count else 0.0
     outs = _outages(tp, settings.outage_factor)
     warnings: list[str] = []
     if not np.isfinite(dh_k).all():
@@ -416,7 +388,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
                         "conversion (horizontal error ~ height x tilt between the planes)")
     finite = bool(np.isfinite(track.loc[inside, "arms_north_m"]).all())
     healthy = finite
-    if nis_per_component > NIS_ALARM:
+    if verdict.gross:
         healthy = False
         warnings.append(f"mean NIS per measurement component {nis_per_component:.1f} (expected "
                         "1): the noise settings or the motion model do not fit this flight")
@@ -424,7 +396,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
         warnings.append("non-finite ARMS estimates")
     dvo = rot(dv)
     summary = {
-        "method": "ADS/ARMS (METHODS.md section 2)",
+        "method": "ADS/ARMS (docs/arms.md)",
         "form": form,
         "linearisation": linearisation,
         "converted_at": settings.converted_at if linearisation == "converted" else None,
@@ -443,6 +415,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
         "nis_note": "forward-filter NIS; radar and air-data blocks expect 2 each, "
                     "mean_nis_per_component expects 1",
         "mean_nis_per_component": nis_per_component,
+        "consistency": verdict.as_dict(),
         "dv_mean_mps": {"north": float(np.mean(dvo[:, 1])), "east": float(np.mean(dvo[:, 0]))},
         "healthy": healthy,
         "warnings": warnings,

@@ -1,18 +1,21 @@
-"""Adapter: the azimuth channel (METHODS.md section 3) on a cleaned flight -> ``MethodResult``.
+"""Adapter: the azimuth channel (docs/azimuth.md) on a cleaned flight -> ``MethodResult``.
 
 Pipeline, all on one event timeline (the union of the radar plots' own times and the grid times
 inside radar coverage; measurements are used once, at their own time):
 
-1. horizontal range of each plot, in the station's tangent plane: ``r = rho cos(elevation)``
-   when the plot has an elevation, else ``r = sqrt(rho^2 - dh^2)`` with ``dh`` the pressure
-   altitude above the station less the earth-curvature drop ``r^2 / (2 R)``;
+1. horizontal range of each plot, in the station's tangent plane
+   (:func:`flightrecon.geo.radar.horizontal_range`): ``r = rho cos(elevation)`` when the plot
+   has an elevation, else from ``rho`` and the height above the station (pressure altitude to
+   MSL with the departure QNH, minus the station elevation) less the plane's drop ``r^2 / (2 R)``;
 2. range tracker (:func:`flightrecon.filters.azimuth.track_range`, CV filter + RTS smoother);
 3. on-board observation at the downlink rate: (a_N, a_E) from the body load factors and attitude
    with its propagated covariance;
 4. azimuth filter and RTS smoother, ``model = "aided"`` or ``"singer"``;
 5. output on the grid times inside radar coverage (NaN outside): azimuth, rate, acceleration and
    the implied position (station tangent plane -> geodetic -> output tangent plane at the
-   departure airfield) with standard deviations.
+   departure airfield) with standard deviations in the output plane's axes, and the ground
+   velocity in the local level at the aircraft (rotated from the station plane's axes by
+   :func:`flightrecon.geo.navframe.horizontal_rotation`).
 """
 
 from __future__ import annotations
@@ -23,18 +26,22 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.azimuth import (
     azimuth_filter,
     horizontal_acceleration,
     horizontal_acceleration_covariance,
     track_range,
 )
+from flightrecon.geo.atmosphere import pressure_to_msl_m
 from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
+from flightrecon.geo.navframe import horizontal_rotation
+from flightrecon.geo.radar import horizontal_range, plane_drop_m
+from flightrecon.tracks import TrackColumns
 from flightrecon.types import CleanFlight, MethodResult
 
 __all__ = ["AzimuthSettings", "run_azimuth"]
 
-_EARTH_RADIUS_M = 6371000.0  # mean radius; only for the r^2/(2R) drop (31 m at 20 km)
 _LOADS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg")
 
 
@@ -125,23 +132,25 @@ def _horizontal_range(plots: pd.DataFrame, clean: CleanFlight, s: AzimuthSetting
         raise ValidationError("radar plots without elevation need baro_alt_m for the height "
                               "above the station", column="arms_elevation_deg")
     tg = grid["t_s"].to_numpy(float)
-    hb = grid["baro_alt_m"].to_numpy(float)
+    # pressure altitude to MSL with the departure QNH (as ADS/ARMS does), minus the station's
+    # MSL elevation: the height above the station
+    hb = pressure_to_msl_m(grid["baro_alt_m"].to_numpy(float), clean.meta.qnh_departure_hpa)
     good = np.isfinite(hb)
     dh = np.interp(plots["t_s"].to_numpy(float), tg[good], hb[good]) - h_station_m
-    dh = dh - rho**2 / (2 * _EARTH_RADIUS_M)  # height above the station's tangent plane
-    r2 = rho**2 - dh**2
-    if np.any(r2 <= 0):
+    if np.any(rho ** 2 - dh ** 2 <= 0):
         raise ValidationError("radar slant range shorter than the altitude difference to the "
                               "station (check the station elevation and baro datum)",
                               column="arms_range_m")
-    r = np.sqrt(r2)
-    var = (rho / r) ** 2 * s.sigma_range_m**2 + (dh / r) ** 2 * s.sigma_altitude_m**2
-    return r, var, dh, "pressure altitude"
+    lat_st = clean.meta.station.lat_deg
+    r = horizontal_range(rho, lat_deg=lat_st, dh_m=dh)
+    up = dh - plane_drop_m(r, lat_st)  # height above the station's tangent plane
+    var = (rho / r) ** 2 * s.sigma_range_m**2 + (up / r) ** 2 * s.sigma_altitude_m**2
+    return r, var, up, "pressure altitude"
 
 
 def run_azimuth(clean: CleanFlight, *, model: str = "aided",
                 settings: AzimuthSettings | None = None) -> MethodResult:
-    """Azimuth channel of the approach radar, Singer or load-factor aided (METHODS.md s. 3).
+    """Azimuth channel of the approach radar, Singer or load-factor aided (docs/azimuth.md).
 
     Parameters
     ----------
@@ -249,10 +258,13 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     # station-plane position and velocity; range and azimuth channels are independent
     n_st, e_st = r * ce, r * se
     var_r = Pr[:, 0, 0]
-    var_n = ce**2 * var_r + (r * se) ** 2 * P[:, 0, 0]
-    var_e = se**2 * var_r + (r * ce) ** 2 * P[:, 0, 0]
-    vn = rd * ce - r * om * se
-    ve = rd * se + r * om * ce
+    # position covariance in the station plane's (north, east) axes, from (r, eps)
+    Jp = np.stack([np.stack([ce, -r * se], -1), np.stack([se, r * ce], -1)], -2)
+    C_re = np.zeros((len(r), 2, 2))
+    C_re[:, 0, 0], C_re[:, 1, 1] = var_r, P[:, 0, 0]
+    Cp = Jp @ C_re @ Jp.transpose(0, 2, 1)
+    vn_st = rd * ce - r * om * se
+    ve_st = rd * se + r * om * ce
     # first-order: d(vn, ve)/d(r, r_dot) and /d(eps, omega)
     Jr = np.stack([np.stack([-om * se, ce], -1), np.stack([om * ce, se], -1)], -2)
     Je = np.stack([np.stack([-rd * se - r * om * ce, -r * se], -1),
@@ -263,36 +275,25 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     stp = TangentPlane(st.lat_deg, st.lon_deg, h_station)
     lat, lon, h = stp.inverse(e_st, n_st, up_st)
     e_out, n_out, _ = plane_out.forward(lat, lon, h)
+    # into the output's axes: positions' covariance into the output plane's (north, east),
+    # velocities and theirs into the local level at the aircraft (true north there)
+    Mp = horizontal_rotation(st.lat_deg, st.lon_deg, plane_out.lat0_deg, plane_out.lon0_deg)[0]
+    Mv = horizontal_rotation(st.lat_deg, st.lon_deg, lat, lon)
 
-    N = tg.size
-    cols: dict[str, np.ndarray] = {}
-
-    def put(name: str, val: np.ndarray) -> None:
-        full = np.full(N, np.nan)
-        full[ig] = val
-        cols[name] = full
-
-    put("azimuth_azimuth_deg", np.mod(np.degrees(eps), 360.0))
-    put("azimuth_azimuth_sd_deg", np.degrees(sd[:, 0]))
-    put("azimuth_rate_dps", np.degrees(om))
-    put("azimuth_rate_sd_dps", np.degrees(sd[:, 1]))
-    put("azimuth_accel_dps2", np.degrees(x[:, 2]))
-    put("azimuth_accel_sd_dps2", np.degrees(sd[:, 2]))
-    put("azimuth_range_m", r)
-    put("azimuth_range_sd_m", np.sqrt(var_r))
-    put("azimuth_north_m", n_out)
-    put("azimuth_north_sd_m", np.sqrt(var_n))
-    put("azimuth_east_m", e_out)
-    put("azimuth_east_sd_m", np.sqrt(var_e))
-    put("azimuth_vn_mps", vn)
-    put("azimuth_vn_sd_mps", np.sqrt(Cv[:, 0, 0]))
-    put("azimuth_ve_mps", ve)
-    put("azimuth_ve_sd_mps", np.sqrt(Cv[:, 1, 1]))
-    track = pd.DataFrame({"t_s": tg, **cols})
+    out = TrackColumns("azimuth", tg, ig)
+    out.add("azimuth", "deg", np.mod(np.degrees(eps), 360.0), np.degrees(sd[:, 0]))
+    out.add("rate", "dps", np.degrees(om), np.degrees(sd[:, 1]))
+    out.add("accel", "dps2", np.degrees(x[:, 2]), np.degrees(sd[:, 2]))
+    out.add("range", "m", r, np.sqrt(var_r))
+    out.add_horizontal("north", "east", "m", np.c_[n_out, e_out], Cp, Mp, value_is_output=True)
+    out.add_horizontal("vn", "ve", "mps", np.c_[vn_st, ve_st], Cv, Mv)
+    track = out.frame()
 
     nis_e = run.nis_eps[np.isfinite(run.nis_eps)]
     nis_z = run.nis_z[np.isfinite(run.nis_z)]
     finite = bool(np.all(np.isfinite(run.xs)) and np.all(np.isfinite(run.Ps)))
+    # every scalar innovation of the three filters (azimuth, transverse acceleration, range)
+    verdict = chi_square_verdict(np.r_[nis_e, nis_z, rt.nis])
     gaps = np.diff(tp)
     summary = {
         "model": model,
@@ -307,8 +308,12 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
         "nis_transverse_mean": float(nis_z.mean()) if nis_z.size else None,
         "nis_range_mean": float(np.nanmean(rt.nis)),
         "correlated_error_inflation": float(run.n_corr),
-        "healthy": finite,
+        "consistency": verdict.as_dict(),
+        "healthy": finite and not verdict.gross,
     }
     if not finite:
         summary["warning"] = "non-finite estimates: the filter diverged"
+    elif verdict.gross:
+        summary["warning"] = (f"mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
+                              "noise settings or the motion model do not fit this flight")
     return MethodResult(name="azimuth", track=track, summary=summary)

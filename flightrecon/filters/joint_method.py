@@ -16,7 +16,8 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
-from flightrecon.filters.joint import layout as jl
+from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.joint import (
     SOURCES,
     JointInputs,
@@ -27,22 +28,42 @@ from flightrecon.filters.joint import (
     source_report,
     takeoff_roll,
 )
-from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.inputs import _nearest
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult
 
 PREFIX = "joint_"
 
 
-def field_pressure_altitude_m(elev_msl_m: float, qnh_hpa: float | None) -> float:
-    """Pressure altitude of an airfield: the ISA altitude of its station pressure.
+def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
+    """Roll, pitch, heading with each missing sample replaced by the nearest recorded one.
 
-    Station pressure = ISA pressure at the field elevation scaled by QNH / 1013.25 hPa
-    (about 8.3 m of pressure altitude per hPa near sea level).
+    The acceleration stays NaN there (the smoother then adds process noise instead of the
+    measured acceleration); the rotation of the accelerometer biases and of the ground
+    constraints needs an attitude and takes the nearest recorded one.  Returns the angles and
+    a note for the summary when any was missing.  An angle never recorded is an error.
     """
-    q = 1013.25 if qnh_hpa is None else float(qnh_hpa)
-    return float(pressure_altitude_m(isa_pressure_pa(elev_msl_m) * q / 1013.25))
+    names = ("roll_deg", "pitch_deg", "heading_deg")
+    out, notes = [], []
+    for name, a in zip(names, angles_deg):
+        ok = np.isfinite(a)
+        if not ok.any():
+            raise ValidationError(f"the joint smoother needs {name}: it has no finite sample",
+                                  column=name)
+        if ok.all():
+            out.append(a)
+            continue
+        held = a.copy()
+        held[~ok] = a[ok][_nearest(t[ok], t[~ok])]
+        out.append(held)
+        notes.append(f"joint: {name} missing on {int((~ok).sum())} samples; the acceleration "
+                     "there is replaced by process noise and the bias rotation holds the "
+                     "nearest recorded attitude")
+    return out, notes
 
 
 def joint_inputs(clean: CleanFlight) -> JointInputs:
@@ -54,12 +75,20 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     def col(name):
         return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
 
-    lat0 = meta.departure.lat_deg if meta.departure is not None else 45.0
-    Cnb = body_to_ned_matrix(np.nan_to_num(col("roll_deg")), np.nan_to_num(col("pitch_deg")),
-                             np.nan_to_num(col("heading_deg")))
+    # the departure, or without one the frame origin from the first fix (cleaning/origin.py)
+    p0 = meta.departure if meta.departure is not None else getattr(meta, "origin", None)
+    if p0 is None:
+        raise MetadataError("the joint smoother needs the departure position (--departure) or a "
+                            "GNSS / radar fix: it anchors the output plane and the latitude of "
+                            "normal gravity")
+    t_in = g["t_s"].to_numpy(float)
+    att, notes = _held_attitude(t_in, col("roll_deg"), col("pitch_deg"), col("heading_deg"))
+    Cnb = body_to_ned_matrix(*att)
+    # gravity at the departure latitude (normal gravity changes by 5e-6 m/s^2 per km north)
     acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
                                      col("roll_deg"), col("pitch_deg"), col("heading_deg"),
-                                     lat_deg=lat0, h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
+                                     lat_deg=p0.lat_deg,
+                                     h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
     dep = meta.departure
     if dep is not None:
         h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
@@ -69,12 +98,12 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         field_h = 0.0
     wind = None
     if "wind_speed_mps" in g.columns and "wind_from_deg" in g.columns:
-        to = np.radians(col("wind_from_deg") + 180.0)
-        wind = np.c_[col("wind_speed_mps") * np.cos(to), col("wind_speed_mps") * np.sin(to)]
+        wind = wind_toward_ne(col("wind_speed_mps"), col("wind_from_deg"))
     gn = clean.gnss
     gnss = pd.DataFrame()
     if len(gn) and {"gnss_lat_deg", "gnss_lon_deg"} <= set(gn.columns):
-        alt = gn["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in gn.columns else np.full(len(gn), np.nan)
+        alt = (gn["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in gn.columns
+               else np.full(len(gn), np.nan))
         if meta.gnss_alt_datum.lower() == "msl":
             alt = alt + N_und
         gnss = pd.DataFrame({"t_s": gn["t_s"].to_numpy(float), "lat_deg": gn["gnss_lat_deg"],
@@ -82,6 +111,11 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         if {"gnss_vn_mps", "gnss_ve_mps"} <= set(gn.columns):
             gnss["vn_mps"] = gn["gnss_vn_mps"].to_numpy(float)
             gnss["ve_mps"] = gn["gnss_ve_mps"].to_numpy(float)
+        # the receiver's per-fix accuracy (docs/ingest.md, "GNSS as receivers write it")
+        for src, dst in (("gnss_h_sd_m", "h_sd_m"), ("gnss_v_sd_m", "v_sd_m"),
+                         ("gnss_vel_sd_mps", "vel_sd_mps")):
+            if src in gn.columns:
+                gnss[dst] = gn[src].to_numpy(float)
     rd = clean.radar
     radar = pd.DataFrame()
     if len(rd) and {"arms_range_m", "arms_azimuth_deg"} <= set(rd.columns):
@@ -92,11 +126,13 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
             radar["elevation_rad"] = np.radians(rd["arms_elevation_deg"].to_numpy(float))
 
     def pos(p):
-        return None if p is None else (p.lat_deg, p.lon_deg, float(msl_to_ellipsoid(p.elev_m, N_und)))
+        if p is None:
+            return None
+        return (p.lat_deg, p.lon_deg, float(msl_to_ellipsoid(p.elev_m, N_und)))
 
     ph = clean.phases
     inp = JointInputs(
-        t_in=g["t_s"].to_numpy(float), acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
+        t_in=t_in, acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
         heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
         gnss=gnss, radar=radar, station=pos(meta.station), departure=pos(meta.departure),
         arrival=pos(meta.arrival),
@@ -111,10 +147,13 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                          for p in (meta.departure, meta.arrival)),
         thresholds=tuple(None if p is None or p.threshold is None
                          else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
-                         for p in (meta.departure, meta.arrival)))
+                         for p in (meta.departure, meta.arrival)),
+        lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
+        notes=tuple(notes))
     if not (ph is not None and ph.starts_airborne):
         inp = replace(inp, roll=takeoff_roll(
-            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne))
+            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
+            not_before_t=inp.lineup_t))
     return inp
 
 
@@ -197,26 +236,28 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     def interp(v):
         return np.interp(t_out, T, v)
 
-    ecef = _hermite_positions(t_out, T, x[:, 0:3], np.einsum("kij,kj->ki", run.Cen, x[:, 3:6]))
+    ecef = _hermite_positions(t_out, T, x[:, jl.S_POS],
+                              np.einsum("kij,kj->ki", run.Cen, x[:, jl.S_VEL]))
     lat, lon, h = ecef_to_geodetic(ecef[:, 0], ecef[:, 1], ecef[:, 2])
     plane = output_plane(clean.meta)
     e, n, u = plane.forward(lat, lon, h)
     C = run.Cen
-    Pp = np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)  # ECEF -> local NED
+    # ECEF -> local NED (P_pv holds the position and velocity blocks, in that order)
+    Pp = np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)
     sd_pos = np.sqrt(np.maximum(np.einsum("kii->ki", Pp), 0.0))
-    sd_vel = np.sqrt(np.maximum(run.var[:, 3:6], 0.0))
-    sd_w = np.sqrt(np.maximum(run.var[:, 6:8], 0.0))
+    sd_vel = np.sqrt(np.maximum(run.var[:, jl.S_VEL], 0.0))
+    sd_w = np.sqrt(np.maximum(run.var[:, jl.S_WIND], 0.0))
     p = PREFIX
     cols = {"t_s": t_out,
             p + "north_m": n, p + "east_m": e, p + "up_m": u,
             p + "north_sd_m": interp(sd_pos[:, 0]), p + "east_sd_m": interp(sd_pos[:, 1]),
             p + "up_sd_m": interp(sd_pos[:, 2]),
-            p + "vn_mps": interp(x[:, 3]), p + "ve_mps": interp(x[:, 4]),
-            p + "vu_mps": -interp(x[:, 5]),
+            p + "vn_mps": interp(x[:, jl.IV]), p + "ve_mps": interp(x[:, jl.IV + 1]),
+            p + "vu_mps": -interp(x[:, jl.IV + 2]),
             p + "vn_sd_mps": interp(sd_vel[:, 0]), p + "ve_sd_mps": interp(sd_vel[:, 1]),
             p + "vu_sd_mps": interp(sd_vel[:, 2]),
             p + "lat_deg": lat, p + "lon_deg": lon, p + "alt_m": h,
-            p + "wind_n_mps": interp(x[:, 6]), p + "wind_e_mps": interp(x[:, 7]),
+            p + "wind_n_mps": interp(x[:, jl.IW]), p + "wind_e_mps": interp(x[:, jl.IW + 1]),
             p + "wind_n_sd_mps": interp(sd_w[:, 0]), p + "wind_e_sd_mps": interp(sd_w[:, 1])}
     out = pd.DataFrame(cols, copy=False)
     out[p + "sources"] = pd.array(_provenance(run, t_out), dtype="string")
@@ -261,20 +302,51 @@ def _correction_items(item) -> dict[str, Any]:
     }
 
 
+def _derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """A heading propagated from the body rates (``heading_sd_deg`` on the grid, cleaning's
+    ``heading_from_rates``) has a slowly varying error (anchor offset, gyro-bias drift): the
+    heading-bias state's prior is widened to its largest sd and its random walk to what lets
+    the bias follow that sd's growth over the record (both never below the settings)."""
+    g = clean.grid
+    if "heading_sd_deg" not in g.columns:
+        return settings
+    sd = g["heading_sd_deg"].to_numpy(float)
+    if not np.isfinite(sd).any():
+        return settings
+    nz = settings.noise
+    span = max(float(g["t_s"].iloc[-1] - g["t_s"].iloc[0]), 1.0)
+    prior = max(nz.heading_bias_deg, float(np.nanmax(sd)))
+    rw = max(nz.heading_bias_rw_deg_sqrt_s, float(np.nanmax(sd)) / np.sqrt(span))
+    return replace(settings, noise=replace(nz, heading_bias_deg=prior,
+                                           heading_bias_rw_deg_sqrt_s=rw))
+
+
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
     """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
     settings = settings or JointSettings()
+    settings = _derived_heading_noise(clean, settings)
     inp = joint_inputs(clean)
     run = smooth_joint(inp, settings)
     track = joint_track(clean, run)
-    finite = np.isfinite(run.x).all() and np.all(run.var[:, :6] > 0)
+    finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
-    warnings = []
+    warnings = list(inp.notes)
     for name, st in sources.items():
         if st["flagged_inconsistent"]:
             warnings.append(f"joint: source '{name}' inconsistent with the others in "
-                            f"{st['beyond_5_sigma']} measurements (spans {st['flagged_spans_s'][:5]}"
+                            f"{st['beyond_5_sigma']} measurements "
+                            f"(spans {st['flagged_spans_s'][:5]}"
                             " s); down-weighted")
+    nc = run.noise_check
+    if nc is not None and not nc["accepted"]:
+        warnings.append("joint: the estimated noise did not raise the likelihood of the data "
+                        f"(log-likelihood {nc['loglik_estimated']:.1f} vs "
+                        f"{nc['loglik_default']:.1f} with the defaults): the default noise is "
+                        "kept")
+    elif nc is not None and nc["factors_at_bound"]:
+        warnings.append(f"joint: noise factors at their bound {nc['bounds']}: "
+                        f"{', '.join(nc['factors_at_bound'])} (the noise settings or the data "
+                        "of these sources are far off)")
     if settings.estimate_noise and not run.iterations[-1].get("converged"):
         warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
                         "iterations; the last factors are used")
@@ -282,7 +354,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     # than 5 % of its median position standard deviation (the linearisation then no longer
     # matters at the precision claimed); otherwise reported as not converged
     last = run.iterations[-1]
-    sd_h = np.sqrt(np.nanmedian(run.var[:, 0] + run.var[:, 1] + run.var[:, 2]))
+    sd_h = np.sqrt(np.nanmedian(run.var[:, jl.S_POS].sum(axis=1)))
     converged = bool(last.get("converged")) or bool(
         last["max_position_change_m"] < 0.05 * sd_h)
     if not last.get("converged"):
@@ -293,15 +365,33 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     for name, (o, sd) in run.clock_offsets_s.items():
         if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
             warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "
-                            "and corrected")
+                            f"and corrected (seconds added to the {name} times, as "
+                            f"`clean --{name}-clock-offset` takes it)")
+    if run.cholesky_fallbacks:
+        warnings.append(f"joint: on {run.cholesky_fallbacks} steps the predicted covariance was "
+                        "not positive definite to rounding (Cholesky failed); the smoother gain "
+                        "there came from a general solve")
+    # the forward innovations of the measurements the smoother kept at full weight (the
+    # robustly down-weighted ones are reported per source above, not held against the noise
+    # model)
+    full = (run.weights >= 1.0) & (run.innov_var > 0)
+    verdict = chi_square_verdict(np.where(full, run.innov ** 2 / np.where(full, run.innov_var,
+                                                                          1.0), np.nan))
+    if verdict.gross:
+        warnings.append(f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
+                        "noise settings do not fit this flight")
     summary = {
-        "healthy": bool(finite),
+        "healthy": bool(finite) and not verdict.gross,
+        "consistency": verdict.as_dict(),
         "converged": bool(finite) and converged,
+        "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,
         "corrections": _corrections(run, settings),
-        "clock_offsets_s": {k: {"value": o, "sd": sd} for k, (o, sd) in run.clock_offsets_s.items()},
+        "clock_offsets_s": {k: {"value": o, "sd": sd}
+                            for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
+        "noise_check": run.noise_check,
         "end_points": [{"which": e["which"], "model": e["model"], "t_s": e["t_s"],
                         "lat_deg": e["point"][0], "lon_deg": e["point"][1],
                         "runway_true_deg": (None if e["runway_rad"] is None

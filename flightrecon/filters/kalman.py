@@ -14,7 +14,10 @@ Equations (filterpy / Bar-Shalom notation)::
     S = H P^- H^T + R,               K = P^- H^T S^{-1}
     x^+ = x^- + K (z - H x^-),       P^+ = (I - K H) P^- (I - K H)^T + K R K^T   (Joseph)
 
-The backward pass is :func:`flightrecon.smoothing.rts.rts_smooth`.
+The prediction and the update are the estimation core's
+(:func:`flightrecon.estimation.predict.predict`,
+:func:`flightrecon.estimation.updates.joseph_update`); the backward pass is
+:func:`flightrecon.smoothing.rts.rts_smooth`.
 """
 
 from __future__ import annotations
@@ -23,6 +26,9 @@ from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
+
+from flightrecon.estimation.predict import predict
+from flightrecon.estimation.updates import joseph_update
 
 
 @dataclass(frozen=True)
@@ -44,38 +50,6 @@ class FilterRun:
     S: np.ndarray
     nis: np.ndarray
     n_meas: np.ndarray
-
-
-@nb.njit(cache=True, nogil=True)
-def predict(x, P, F, Q):
-    """Prediction ``x^- = F x``, ``P^- = F P F^T + Q`` (symmetrised)."""
-    x = F @ x
-    P = F @ P @ F.T + Q
-    return x, 0.5 * (P + P.T)
-
-
-@nb.njit(cache=True, nogil=True)
-def joseph_update(x, P, nu, H, R):
-    """Measurement update with innovation ``nu`` (m,), ``H`` (m, n), ``R`` (m, m).
-
-    Gain through a Cholesky factor of S (no explicit inverse); Joseph-form covariance, then
-    symmetrised.  Returns the updated ``x``, ``P``, the innovation covariance ``S`` and the
-    normalised innovation squared ``nu^T S^-1 nu``.
-    """
-    n = x.shape[0]
-    PHt = P @ H.T
-    S = H @ PHt + R
-    S = 0.5 * (S + S.T)
-    L = np.linalg.cholesky(S)
-    Kt = np.linalg.solve(L, PHt.T)
-    Kt = np.linalg.solve(L.T, Kt)
-    K = Kt.T
-    x = x + K @ nu
-    IKH = np.eye(n) - K @ H
-    P = IKH @ P @ IKH.T + K @ R @ K.T
-    P = 0.5 * (P + P.T)
-    w = np.linalg.solve(L, nu)
-    return x, P, S, w @ w
 
 
 @nb.njit(cache=True, nogil=True)
@@ -155,3 +129,6 @@ def kalman_filter(x0, P0, F, Q, z, H, R) -> FilterRun:
     out = _kf_kernel(x0, P0, F, Q, z, H, R)
     xs, Ps, xp, Pp, nus, Ss, nis, nmeas = out
     return FilterRun(xs, Ps, xp, Pp, F, nus, Ss, nis, nmeas)
+
+
+__all__ = ["FilterRun", "joseph_update", "kalman_filter", "predict"]

@@ -1,4 +1,4 @@
-"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (METHODS.md 4).
+"""Adapter: heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (docs/sns.md).
 
 :func:`run_sns` takes a :class:`flightrecon.types.CleanFlight` and returns a
 :class:`flightrecon.types.MethodResult` with the smoothed track on the recorder grid;
@@ -33,14 +33,17 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
+from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import sns as core
-from flightrecon.filters.sns import model as sns_model
+from flightrecon.geo.ellipsoid import radii_from_sin
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+from flightrecon.geo.navframe import north_azimuth_in_plane
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult
 
 MODELS = {"airspeed": core.MODEL_AIRSPEED, "doppler": core.MODEL_DOPPLER}
 FORMS = {"consistent": core.FORM_CONSISTENT, "seed": core.FORM_SEED}
-GNSS_COLUMNS = ("t_s", "gnss_lat_deg", "gnss_lon_deg", "gnss_alt_m")
+GNSS_COLUMNS = ("t_s", "gnss_lat_deg", "gnss_lon_deg")
 TRACK_COLUMNS = ("t_s", "sns_north_m", "sns_east_m", "sns_north_sd_m", "sns_east_sd_m",
                  "sns_vn_mps", "sns_ve_mps", "sns_vn_sd_mps", "sns_ve_sd_mps")
 
@@ -122,9 +125,8 @@ def _readings(grid: pd.DataFrame, model: int, notes: list[str]):
     tas = _channel(grid, "tas_mps", notes)
     u = np.column_stack([np.cos(psi), np.sin(psi)])
     if "wind_speed_mps" in grid.columns and "wind_from_deg" in grid.columns:
-        ws = _channel(grid, "wind_speed_mps", notes, fill=0.0)
-        wf = np.deg2rad(_channel(grid, "wind_from_deg", notes, fill=0.0))
-        w = -ws[:, None] * np.column_stack([np.cos(wf), np.sin(wf)])
+        w = wind_toward_ne(_channel(grid, "wind_speed_mps", notes, fill=0.0),
+                           _channel(grid, "wind_from_deg", notes, fill=0.0))
     else:
         notes.append("no wind channel: zero forecast wind, the wind correction is the whole wind")
         w = np.zeros_like(u)
@@ -277,15 +279,34 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         if c not in g.columns:
             raise SchemaError("the SNS method needs GNSS fixes with this column", column=c)
     g = g[np.isfinite(g[list(GNSS_COLUMNS)].to_numpy(float)).all(axis=1)].sort_values("t_s")
+    if "gnss_quality" in g.columns:
+        g = g[g["gnss_quality"].isna() | (g["gnss_quality"] > 0)]
     inside = (g["t_s"] >= t[0]) & (g["t_s"] <= t[-1])
     n_drop = int((~inside).sum())
     g = g[inside]
     if len(g) < 2:
         raise ValidationError("fewer than two GNSS fixes inside the recorder grid")
     tf = g["t_s"].to_numpy(float)
-    h_fix = g["gnss_alt_m"].to_numpy(float)
+    h_fix = (g["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in g.columns
+             else np.full(len(g), np.nan))
     if clean.meta.gnss_alt_datum == "msl":
         h_fix = msl_to_ellipsoid(h_fix, clean.meta.geoid_undulation_m)
+    no_h = ~np.isfinite(h_fix)
+    if no_h.any():
+        # fixes without height are used horizontally (the filter is horizontal; the height
+        # only sets the earth radii and the lever arm): the pressure altitude stands in, as
+        # MSL height, at the fix time (a 300 m error changes the radii by 5e-5)
+        if "baro_alt_m" in grid.columns and np.isfinite(grid["baro_alt_m"].to_numpy(float)).any():
+            b = grid["baro_alt_m"].to_numpy(float)
+            okb = np.isfinite(b)
+            h_sub = msl_to_ellipsoid(np.interp(tf[no_h], t[okb], b[okb]),
+                                     clean.meta.geoid_undulation_m)
+        else:
+            h_sub = 0.0
+        h_fix = h_fix.copy()
+        h_fix[no_h] = h_sub
+        notes.append(f"{int(no_h.sum())} GNSS fixes without height used horizontally (height "
+                     "for the earth radii from the pressure altitude)")
     h_grid = np.interp(t, tf, h_fix)
 
     a, u, w = _readings(grid, m, notes)
@@ -347,7 +368,10 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         fix_PA=_at(t, IA, a, tf, jf) - IA[idx[kf]], fix_PU=_at(t, IU, u, tf, jf) - IU[idx[kf]],
         fix_PW=_at(t, IW, w, tf, jf) - IW[idx[kf]],
         fix_a=a[jf], fix_u=u[jf], fix_w=w[jf], star=star, dt_star=dt_star, Qb=Qb, Qa=Qa,
-        fix_tau_in=tf - t[jf])
+        fix_tau_in=tf - t[jf],
+        fix_pos_sd=(g["gnss_h_sd_m"].to_numpy(float) if "gnss_h_sd_m" in g.columns else None),
+        fix_vel_sd=(g["gnss_vel_sd_mps"].to_numpy(float) if "gnss_vel_sd_mps" in g.columns
+                    else None))
 
     # initial state: first fix moved back by the uncorrected dead reckoning
     back = (_at(t, IA, a, tf[:1]) + _at(t, IW, w, tf[:1]) - IA[:1] - IW[:1])[0]
@@ -370,16 +394,17 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
         np.asarray(noise.sensor_sd, float))
     if n_drop:
         notes.append(f"{n_drop} GNSS fixes outside the recorder grid not used")
+    if sm.cholesky_fallbacks:
+        notes.append(f"{sm.cholesky_fallbacks} steps' predicted covariance failed its Cholesky "
+                     "factorisation; their smoother gain came from a general solve")
     return SnsSolution(m, fm, noise, inputs, run, sm, idx, tf, n_drop, lat, lon, h_grid, P_ne,
                        v_ne, P_v, tuple(notes))
 
 
 def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised twin of :func:`flightrecon.filters.sns.radii`."""
-    s = np.sin(lat)
-    wq = 1.0 - sns_model._E2 * s * s
-    n = sns_model._A / np.sqrt(wq)
-    return n * (1.0 - sns_model._E2) / wq + h, n + h
+    """:func:`flightrecon.filters.sns.radii` on arrays: ``(M + h, N + h)`` [m]."""
+    m, n = radii_from_sin(np.sin(lat))
+    return m + h, n + h
 
 
 GAMMA_STRIDE = 16  # recorder samples between pyproj evaluations of the meridian convergence
@@ -389,15 +414,16 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
                 ) -> dict[str, np.ndarray]:
     """Positions and their standard deviations in the output tangent plane's axes.
 
-    The local north/east covariance is rotated by the angle ``gamma`` between local north and
-    the plane's north (meridian convergence), found through pyproj as the direction of a 1e-4 deg
-    step north.  ``gamma`` is a smooth function of position (its second derivative along the
-    track is of order ``1 / R_earth^2``), so it is evaluated every ``GAMMA_STRIDE`` recorder
-    samples (and at the last) and interpolated linearly: over 16 samples (one second at 16 Hz,
-    about 250 m) the interpolation error is below ``250^2 / 8 / R^2``, 2e-10 rad, which changes a
-    standard deviation by less than 1e-9 of itself.  The rotated variances are written in closed
-    form: ``north = cg^2 Pnn - 2 cg sg Pne + sg^2 Pee``, ``east = sg^2 Pnn + 2 cg sg Pne +
-    cg^2 Pee``.  ``out`` (4, M), if given, receives ``north_m, east_m, north_sd_m, east_sd_m``.
+    The local north/east covariance is rotated by the angle ``gamma`` between local north and the
+    plane's north (meridian convergence, exact:
+    :func:`flightrecon.geo.navframe.north_azimuth_in_plane`).  ``gamma`` is a smooth function of
+    position (its second derivative along the track is of order ``1 / R_earth^2``), so it is
+    evaluated every ``GAMMA_STRIDE`` recorder samples (and at the last) and interpolated linearly:
+    over 16 samples (one second at 16 Hz, about 250 m) the interpolation error is below ``250^2 / 8
+    / R^2``, 2e-10 rad, which changes a standard deviation by less than 1e-9 of itself.  The rotated
+    variances are written in closed form: ``north = cg^2 Pnn - 2 cg sg Pne + sg^2 Pee``, ``east =
+    sg^2 Pnn + 2 cg sg Pne + cg^2 Pee``.  ``out`` (4, M), if given, receives ``north_m, east_m,
+    north_sd_m, east_sd_m``.
     """
     latd, lond = np.rad2deg(sol.lat), np.rad2deg(sol.lon)
     M = len(latd)
@@ -405,8 +431,7 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
     sub = np.arange(0, M, GAMMA_STRIDE)
     if sub[-1] != M - 1:
         sub = np.append(sub, M - 1)
-    e1, n1, _ = plane.forward(latd[sub] + 1e-4, lond[sub], sol.h[sub])
-    gam_sub = np.arctan2(e1 - e[sub], n1 - n[sub])
+    gam_sub = north_azimuth_in_plane(plane.lat0_deg, plane.lon0_deg, latd[sub], lond[sub])
     # cos and sin interpolated directly: the chord of the unit circle over one interval
     # (gamma changes by < 1e-5 rad) is shorter than the arc by < 1e-11 relative
     pos = np.arange(M, dtype=float)
@@ -445,11 +470,61 @@ def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
             "track_corr_deg": float(deg(x[3] + x[4])), "track_corr_sd_deg": float(deg(track_sd))}
 
 
-def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
-            filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None) -> MethodResult:
-    """Dead reckoning fused with SNS, smoothed, on the recorder grid (METHODS.md section 4).
+#: SNS noise settings a user can override (``[sns]`` table of ``--noise``), in natural units
+SNS_NOISE_KEYS = ("pos_sd_m", "vel_sd_mps", "speed_sd_mps", "heading_sd_deg", "wind_sd_mps",
+                  "drift_sd_deg", "heading_bias_prior_deg")
 
-    Parameters are those of :func:`solve_sns`.
+
+def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNoise:
+    """:func:`~flightrecon.filters.sns.default_noise` of ``model`` with ``overrides`` applied
+    (keys :data:`SNS_NOISE_KEYS`: GNSS position / velocity sd per component, the speed reading's
+    sd (TAS or Doppler ground speed), heading sd, wind reading sd (airspeed model), drift sd
+    (Doppler model), the heading-bias prior).
+
+    Raises
+    ------
+    MetadataError
+        An unknown key, or a value that is not a positive number.
+    """
+    from dataclasses import replace
+
+    from flightrecon.errors import MetadataError
+
+    nz = core.default_noise(model)
+    if not overrides:
+        return nz
+    sens = list(nz.sensor_sd)
+    prior = list(nz.prior_sd)
+    kw: dict = {}
+    for k, v in overrides.items():
+        if k not in SNS_NOISE_KEYS:
+            raise MetadataError(f"unknown SNS noise setting '{k}' (known: "
+                                f"{', '.join(SNS_NOISE_KEYS)})")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
+            raise MetadataError(f"SNS noise setting '{k}' must be a positive number, got {v!r}")
+        v = float(v)
+        if k in ("pos_sd_m", "vel_sd_mps"):
+            kw[k] = v
+        elif k == "speed_sd_mps":
+            sens[0] = v
+        elif k == "heading_sd_deg":
+            sens[1 if model == core.MODEL_AIRSPEED else 2] = float(np.deg2rad(v))
+        elif k == "wind_sd_mps" and model == core.MODEL_AIRSPEED:
+            sens[2] = sens[3] = v
+        elif k == "drift_sd_deg" and model == core.MODEL_DOPPLER:
+            sens[1] = float(np.deg2rad(v))
+        elif k == "heading_bias_prior_deg":
+            prior[2] = float(np.deg2rad(v))
+    return replace(nz, sensor_sd=tuple(sens), prior_sd=tuple(prior), **kw)
+
+
+def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",
+            filter_rate_hz: float = 2.0, noise: core.SnsNoise | None = None,
+            noise_overrides: dict[str, float] | None = None) -> MethodResult:
+    """Dead reckoning fused with SNS, smoothed, on the recorder grid (docs/sns.md).
+
+    Parameters are those of :func:`solve_sns`; ``noise_overrides`` (:func:`sns_noise_with`)
+    change the default noise of the chosen model where ``noise`` is not given.
 
     Returns
     -------
@@ -459,6 +534,8 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
         north/east), ``sns_vn_sd_mps``, ``sns_ve_sd_mps``; summary with model, form, corrections
         and their standard deviations, fixes used, GNSS gaps, innovation statistics.
     """
+    if noise is None and noise_overrides:
+        noise = sns_noise_with(choose_model(clean.grid, model), noise_overrides)
     sol = solve_sns(clean, model=model, form=form, filter_rate_hz=filter_rate_hz, noise=noise)
     plane = output_plane(clean.meta)
     t = clean.grid["t_s"].to_numpy(float)
@@ -471,10 +548,9 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     np.sqrt(sol.P_v[:, 0, 0], out=block[7])
     np.sqrt(sol.P_v[:, 1, 1], out=block[8])
     track = pd.DataFrame(block.T, columns=list(TRACK_COLUMNS), copy=False)
-    nis = sol.run.nis
-    ok = np.isfinite(nis)
-    dof = float(sol.run.rank[ok].sum())
-    nis_ratio = float(nis[ok].sum() / dof) if dof > 0 else float("nan")
+    # NIS per fix with the rank of its innovation covariance as degrees of freedom
+    verdict = chi_square_verdict(sol.run.nis, sol.run.rank)
+    nis_ratio = verdict.mean
     finite = bool(np.isfinite(block).all())
     dt_fix = np.diff(sol.fix_t)
     min_gap = 3.0 * float(np.median(dt_fix)) if len(dt_fix) else 0.0
@@ -487,9 +563,11 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
         "n_fixes_dropped": sol.n_fix_dropped,
         "gaps": _gaps(sol.fix_t, float(t[0]), float(t[-1]), min_gap),
         "nis_per_dof": nis_ratio,
+        "consistency": verdict.as_dict(),
+        "cholesky_fallbacks": sol.smoothed.cholesky_fallbacks,
         "converged": finite,
         # a mean NIS per degree of freedom far above 1 means the noise settings do not fit
-        "healthy": finite and bool(np.isfinite(nis_ratio) and nis_ratio < 10.0),
+        "healthy": finite and verdict.count > 0 and not verdict.gross,
         "notes": list(sol.notes),
     }
     return MethodResult(name="sns", track=track, summary=summary)

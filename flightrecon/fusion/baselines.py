@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.geo.frames import output_plane
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight
 
 
@@ -26,9 +27,8 @@ def dead_reckoning(clean: CleanFlight, *, corrected: bool = False) -> pd.DataFra
     tas = g["tas_mps"].to_numpy(float)
     vn, ve = tas * np.cos(psi), tas * np.sin(psi)
     if {"wind_speed_mps", "wind_from_deg"} <= set(g.columns):
-        to = np.radians(g["wind_from_deg"].to_numpy(float) + 180.0)
-        w = g["wind_speed_mps"].to_numpy(float)
-        vn, ve = vn + np.nan_to_num(w * np.cos(to)), ve + np.nan_to_num(w * np.sin(to))
+        w = np.nan_to_num(wind_toward_ne(g["wind_speed_mps"], g["wind_from_deg"]))
+        vn, ve = vn + w[:, 0], ve + w[:, 1]
     dt = np.diff(t, prepend=t[0])
     n = np.full(len(t), np.nan)
     e = np.full(len(t), np.nan)

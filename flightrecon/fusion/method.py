@@ -1,7 +1,7 @@
 """Method adapter: the Sabziev boundary-value fusion on a cleaned flight.
 
 :func:`run_sabziev` takes a :class:`flightrecon.types.CleanFlight`, builds the inputs of
-:func:`flightrecon.fusion.sabziev.fuse` (METHODS.md section 1) and returns a
+:func:`flightrecon.fusion.sabziev.fuse` (docs/sabziev.md) and returns a
 :class:`flightrecon.types.MethodResult` with ``sabziev_``-prefixed columns.  The practical
 choices the paper leaves open are documented in docs/sabziev.md, "The adapter":
 
@@ -41,29 +41,14 @@ from flightrecon.errors import (
     ValidationError,
 )
 from flightrecon.fusion.sabziev import KT_MAX, SabzievSolution, air_velocity, fuse
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
+from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult, Position
 
 __all__ = ["REQUIRED_CHANNELS", "field_pressure_altitude_m", "run_sabziev"]
 
 REQUIRED_CHANNELS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg",
                      "tas_mps", "baro_alt_m")
-STANDARD_QNH_HPA = 1013.25
-
-
-def field_pressure_altitude_m(elev_m: float, qnh_hpa: float | None) -> float:
-    """Pressure altitude [m] of an airfield of MSL elevation ``elev_m`` under ``qnh_hpa``.
-
-    ``H_p = pressure_altitude(p_ISA(elev) * QNH / 1013.25)`` (ISA, ICAO Doc 7488): the station
-    pressure is the ISA pressure at the elevation scaled to the QNH.  ``qnh_hpa=None`` means
-    standard pressure (``H_p = elev``).  Near sea level ``dH_p/dQNH = -8.3 m/hPa``.
-    """
-    from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
-
-    qnh = STANDARD_QNH_HPA if qnh_hpa is None else float(qnh_hpa)
-    if not (800.0 < qnh < 1100.0):
-        raise MetadataError(f"QNH {qnh} hPa is outside 800..1100 hPa")
-    p = float(isa_pressure_pa(float(elev_m))) * qnh / STANDARD_QNH_HPA
-    return float(pressure_altitude_m(p))
 
 
 def _interval(clean: CleanFlight, t: np.ndarray) -> tuple[int, int, list[str]]:
@@ -110,7 +95,7 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
                 hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
                 vertical_rule: str = "baro", kt_max: float = KT_MAX, strict: bool = False,
                 acceleration_ned: np.ndarray | None = None) -> MethodResult:
-    """Run the Sabziev fusion on a cleaned flight (METHODS.md section 1; module docstring).
+    """Run the Sabziev fusion on a cleaned flight (docs/sabziev.md; module docstring).
 
     Parameters
     ----------
@@ -192,9 +177,8 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     wind = None
     if all(c in grid.columns and np.isfinite(grid[c].to_numpy(dtype=float)[sl]).any()
            for c in ("wind_speed_mps", "wind_from_deg")):
-        ws = _column(grid, "wind_speed_mps", sl, notes)
-        wf = np.radians(_column(grid, "wind_from_deg", sl, notes))
-        wind = np.column_stack([-ws * np.cos(wf), -ws * np.sin(wf)])  # blowing toward
+        wind = wind_toward_ne(_column(grid, "wind_speed_mps", sl, notes),
+                              _column(grid, "wind_from_deg", sl, notes))
     if liftoff_velocity_ned is not None:
         v0 = np.asarray(liftoff_velocity_ned, dtype=np.float64)
         if v0.shape != (3,) or not np.all(np.isfinite(v0)):
@@ -253,9 +237,9 @@ def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray) -> pd.Data
             cols += [cname.replace("_m", "_sd_m"), vname.replace("_mps", "_sd_mps")]
     block = np.full((n, len(cols)), np.nan)
     block[:, 0] = t_all
-    for c, (cname, j) in enumerate(names, start=1):
+    for c, (_cname, j) in enumerate(names, start=1):
         block[sl, c] = sol.xyz_m[:, j] + offset[j]
-    for c, (vname, j) in enumerate(vnames, start=4):
+    for c, (_vname, j) in enumerate(vnames, start=4):
         block[sl, c] = sol.vxyz_mps[:, j]
     if k_sd is not None:
         psd = sol.position_sd_m(k_sd)

@@ -1,6 +1,6 @@
 """Safeguarded Newton-Raphson for one Sabziev coefficient, with a root-selection rule and a report.
 
-Solves ``F(k) = s_N(k) - s_T = 0`` (METHODS.md section 1; seed 001, equations (5)-(7)) where
+Solves ``F(k) = s_N(k) - s_T = 0`` (docs/sabziev.md; seed 001, equations (5)-(7)) where
 ``F`` and its exact derivative come from the discrete recursion of
 :mod:`flightrecon.fusion.sabziev`.  The paper iterates from ``k = 1``; over a flight of length
 ``T`` that weights lift-off data by ``e^T`` and overflows, so here (docs/sabziev.md,
@@ -279,7 +279,8 @@ def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
         else:
             b = k
         if abs(b - a) <= 4e-16 * max(abs(a), abs(b)):
-            return k, F, it, "bracket collapsed before |F| <= tol: F not resolvable in floating point"
+            return k, F, it, ("bracket collapsed before |F| <= tol: F not resolvable in "
+                              "floating point")
         k_new = k - F / dF if dF != 0.0 and np.isfinite(dF) else np.nan
         if not (min(a, b) < k_new < max(a, b)):
             k_new = 0.5 * (a + b)

@@ -67,3 +67,40 @@ def tas_to_cas(tas_mps, pressure_alt_m, sat_degc):
     p = isa_pressure_pa(pressure_alt_m)
     qc = p * ((1.0 + 0.2 * mach**2) ** 3.5 - 1.0)
     return A0_MPS * np.sqrt(5.0 * ((qc / P0_PA + 1.0) ** (2.0 / 7.0) - 1.0))
+
+
+STANDARD_QNH_HPA = 1013.25
+"""The pressure datum of pressure altitude [hPa]."""
+
+
+def _check_qnh(qnh_hpa: float) -> float:
+    from flightrecon.errors import MetadataError
+
+    q = float(qnh_hpa)
+    if not (800.0 < q < 1100.0):
+        raise MetadataError(f"QNH {q} hPa is outside 800..1100 hPa")
+    return q
+
+
+def field_pressure_altitude_m(elev_msl_m: float, qnh_hpa: float | None) -> float:
+    """Pressure altitude [m] of an airfield of MSL elevation ``elev_msl_m`` under ``qnh_hpa``.
+
+    ``H_p = pressure_altitude(p_ISA(elev) * QNH / 1013.25)``: the station pressure is the ISA
+    pressure at the elevation scaled to the QNH.  ``qnh_hpa=None`` means standard pressure
+    (``H_p = elev``).  Near sea level ``dH_p/dQNH = -8.3 m/hPa``.
+    """
+    q = STANDARD_QNH_HPA if qnh_hpa is None else _check_qnh(qnh_hpa)
+    p = float(isa_pressure_pa(float(elev_msl_m))) * q / STANDARD_QNH_HPA
+    return float(pressure_altitude_m(p))
+
+
+def pressure_to_msl_m(h_p_m, qnh_hpa: float | None) -> np.ndarray:
+    """Pressure altitude to ISA altitude above MSL with the sea-level pressure ``qnh_hpa``
+    (the inverse of :func:`field_pressure_altitude_m` along a column of ISA air); ``None``:
+    standard pressure, the altitude unchanged."""
+    h = np.asarray(h_p_m, dtype=np.float64)
+    if qnh_hpa is None:
+        return h
+    q = _check_qnh(qnh_hpa)
+    return np.asarray(pressure_altitude_m(isa_pressure_pa(h) * STANDARD_QNH_HPA / q),
+                      dtype=np.float64)

@@ -96,22 +96,25 @@ def msl_to_ellipsoid(h_msl_m, geoid_undulation_m: float = 0.0):
 
 
 def output_plane(meta) -> TangentPlane:
-    """The output tangent plane: east-north-up at the departure airfield.
+    """The output tangent plane: east-north-up at the departure airfield, or, without one, at the
+    flight's first GNSS fix or radar plot (``meta.origin``, set by the cleaning layer).
 
     Parameters
     ----------
-    meta : :class:`flightrecon.types.FlightMeta` with ``departure`` set.
+    meta : :class:`flightrecon.types.FlightMeta` with ``departure`` or ``origin`` set.
 
     Raises
     ------
     MetadataError
-        If the flight has no departure position (give ``--departure`` or a sidecar).
+        If the flight has neither a departure position nor a position fix (give
+        ``--departure`` or a sidecar).
     """
     from flightrecon.errors import MetadataError
 
-    if meta.departure is None:
-        raise MetadataError("the flight has no departure position: give --departure LAT,LON,ELEV_M "
-                            "or a sidecar [departure] table")
-    d = meta.departure
+    d = meta.departure if meta.departure is not None else getattr(meta, "origin", None)
+    if d is None:
+        raise MetadataError("the flight has no departure position and no GNSS or radar fix to "
+                            "place it: give --departure LAT,LON,ELEV_M or a sidecar [departure] "
+                            "table")
     return TangentPlane(d.lat_deg, d.lon_deg,
                         float(msl_to_ellipsoid(d.elev_m, meta.geoid_undulation_m)))

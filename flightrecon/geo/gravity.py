@@ -2,7 +2,7 @@
 
 Implements NIMA TR8350.2 (WGS-84, 3rd ed.), eq. (4-1) for the surface value and eq. (4-3) for the
 height dependence; used by :func:`flightrecon.geo.kinematics.kinematic_acceleration_ned`
-(METHODS.md, "Common ground": ``a_NED = C_nb g0 [n_long, n_lat, -n_norm] + [0, 0, g(lat, h)]``).
+(docs/schema.md, "Conventions": ``a_NED = C_nb g0 [n_long, n_lat, -n_norm] + [0, 0, g(lat, h)]``).
 Normal gravity includes the centrifugal acceleration of the earth's rotation; it ignores the
 gravity anomaly and deflection of the vertical (tens of mGal, a few arc-seconds).
 """

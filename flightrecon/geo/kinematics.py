@@ -1,6 +1,6 @@
 """Kinematic acceleration in north-east-down from recorded body load factors and attitude.
 
-Conventions (METHODS.md, "Common ground"): body axes forward-right-down; load factor
+Conventions (docs/schema.md, "Conventions"): body axes forward-right-down; load factor
 n = specific force / g0; ``n_norm_g = -f_z / g0`` (+1 at rest); Euler order yaw-pitch-roll
 (ZYX) with heading true from north, pitch nose up, roll right wing down.  The vector
 ``[n_long, n_lat, n_norm]`` is *not* a right-handed triad: the body specific force is
@@ -23,7 +23,7 @@ __all__ = ["body_to_ned_matrix", "kinematic_acceleration_ned", "load_factors_fro
 def body_to_ned_matrix(roll_deg, pitch_deg, heading_deg) -> np.ndarray:
     """Direction-cosine matrices ``C_nb`` (body FRD -> NED), shape (N, 3, 3).
 
-    ``C_nb = R_z(heading) R_y(pitch) R_x(roll)`` (ZYX Euler angles, METHODS.md "Common ground";
+    ``C_nb = R_z(heading) R_y(pitch) R_x(roll)`` (ZYX Euler angles, docs/schema.md, "Conventions";
     Titterton & Weston, *Strapdown Inertial Navigation Technology*, eq. 3.47).
 
     Parameters
@@ -55,11 +55,11 @@ def body_to_ned_matrix(roll_deg, pitch_deg, heading_deg) -> np.ndarray:
 
 
 def kinematic_acceleration_ned(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg, heading_deg, *,
-                               lat_deg=45.0, h_m=0.0, C_nb=None) -> np.ndarray:
+                               lat_deg, h_m=0.0, C_nb=None) -> np.ndarray:
     """Kinematic acceleration ``a_NED`` [m/s^2], shape (N, 3), from body load factors.
 
     ``a_NED = C_nb(heading, pitch, roll) g0 [n_long, n_lat, -n_norm] + [0, 0, g(lat, h)]``
-    (METHODS.md, "Common ground"), with ``g`` the WGS-84 normal gravity
+    (docs/schema.md, "Conventions"), with ``g`` the WGS-84 normal gravity
     (:func:`flightrecon.geo.gravity.normal_gravity`).  Zero in level, unaccelerated flight.
     Coriolis and transport-rate terms are not included: this is the acceleration of the
     aircraft relative to the rotating earth's local-level frame up to those terms (about
@@ -73,7 +73,9 @@ def kinematic_acceleration_ned(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,
         Euler attitude [deg] (true heading).
     lat_deg, h_m : array_like, shape (N,) or scalar
         Geodetic latitude [deg] and ellipsoidal height [m] at which gravity is evaluated
-        (a pressure altitude is close enough: 100 m of height changes g by 3e-4 m/s^2).
+        (a pressure altitude is close enough: 100 m of height changes g by 3e-4 m/s^2).  The
+        latitude has no default: normal gravity changes by 0.052 m/s^2 from the equator to the
+        pole, so a silent default latitude would bias the vertical acceleration.
     C_nb : numpy.ndarray, shape (N, 3, 3), optional
         :func:`body_to_ned_matrix` of the same angles, when the caller has it already; the
         acceleration is NaN wherever an angle is non-finite either way.
@@ -102,7 +104,7 @@ def kinematic_acceleration_ned(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,
     return a
 
 
-def load_factors_from_acceleration(a_ned, roll_deg, pitch_deg, heading_deg, *, lat_deg=45.0,
+def load_factors_from_acceleration(a_ned, roll_deg, pitch_deg, heading_deg, *, lat_deg,
                                    h_m=0.0) -> np.ndarray:
     """Body load factors ``[n_long, n_lat, n_norm]`` [g], shape (N, 3), for a given ``a_NED``.
 

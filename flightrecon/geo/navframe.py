@@ -1,6 +1,6 @@
 """Moving local-level (north-east-down) frame for estimators on long flights.
 
-METHODS.md, "Frames": a tangent plane at the departure airfield fails over long flights, so
+docs/schema.md, "Frames": a tangent plane at the departure airfield fails over long flights, so
 estimators propagate latitude, longitude and ellipsoidal height with north/east/up velocity in a
 frame that moves with the aircraft; the tangent plane is only an output convenience.
 
@@ -22,6 +22,7 @@ import numpy as np
 
 from flightrecon.constants import WGS84_A, WGS84_E2
 from flightrecon.errors import ValidationError
+from flightrecon.geo.ellipsoid import radii_from_sin
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 
 __all__ = [
@@ -32,6 +33,8 @@ __all__ = [
     "integrate_local_level",
     "ned_to_ecef_matrix",
     "ned_to_ecef_vector",
+    "horizontal_rotation",
+    "north_azimuth_in_plane",
     "radii_of_curvature",
     "transport_rate_ned",
 ]
@@ -45,18 +48,16 @@ _MAX_SUBSTEP_M = 5000.0
 
 
 def radii_of_curvature(lat_deg):
-    """Meridian and prime-vertical radii of curvature of WGS-84 [m].
+    """Meridian and prime-vertical radii of curvature of WGS-84 [m] at ``lat_deg``.
 
     ``R_M = a (1 - e^2) / (1 - e^2 sin^2 lat)^(3/2)``, ``R_N = a / sqrt(1 - e^2 sin^2 lat)``
-    (Groves eqs. 2.105-2.106).
+    (Groves eqs. 2.105-2.106), by :func:`flightrecon.geo.ellipsoid.radii_from_sin`.
 
     Returns
     -------
     (R_M, R_N) : tuple of numpy.ndarray
     """
-    s2 = np.sin(np.radians(np.asarray(lat_deg, float))) ** 2
-    w = 1.0 - WGS84_E2 * s2
-    return WGS84_A * (1.0 - WGS84_E2) / w**1.5, WGS84_A / np.sqrt(w)
+    return radii_from_sin(np.sin(np.radians(np.asarray(lat_deg, float))))
 
 
 def ned_to_ecef_matrix(lat_deg, lon_deg) -> np.ndarray:
@@ -73,6 +74,42 @@ def ned_to_ecef_matrix(lat_deg, lon_deg) -> np.ndarray:
     C[..., 1, 0], C[..., 1, 1], C[..., 1, 2] = -sl * so, co, -cl * so
     C[..., 2, 0], C[..., 2, 1], C[..., 2, 2] = cl, 0.0, -sl
     return C
+
+
+def horizontal_rotation(from_lat_deg, from_lon_deg, to_lat_deg, to_lon_deg) -> np.ndarray:
+    """Matrices ``M`` (N, 2, 2) with ``[n, e]_to = M [n, e]_from`` for horizontal vectors.
+
+    A horizontal vector given in the local-level north/east axes at ``from`` (a tangent plane's
+    axes are those at its origin) is expressed in the local-level north/east axes at ``to``:
+    ``M`` is the horizontal block of ``C_ne(to) C_en(from)`` (:func:`ned_to_ecef_matrix`).  Its
+    main effect is the rotation by the meridian convergence, about ``dlon sin(lat)``; the block
+    drops the small vertical component that the vector acquires at ``to`` (``sin`` of the angle
+    between the two verticals, 3e-3 at 20 km).  Covariances rotate as ``M C M^T``.
+    """
+    Cf = ned_to_ecef_matrix(from_lat_deg, from_lon_deg)
+    Ct = ned_to_ecef_matrix(to_lat_deg, to_lon_deg)
+    M = np.einsum("...ki,...kj->...ij", Ct, Cf)
+    return np.ascontiguousarray(M[..., :2, :2])
+
+
+def north_azimuth_in_plane(plane_lat_deg: float, plane_lon_deg: float, lat_deg, lon_deg
+                           ) -> np.ndarray:
+    """Azimuth [rad] of true north at ``(lat, lon)`` in a tangent plane's axes (the meridian
+    convergence), clockwise from the plane's north.
+
+    Exact: the local north unit vector at the point, ``n_p = C_en(point) e_N``, projected on the
+    plane's north and east axes, ``gamma = atan2(E_0 . n_p, N_0 . n_p)`` (no finite
+    difference); about ``dlon sin(lat)``.
+    """
+    lat, lon = np.broadcast_arrays(np.radians(np.atleast_1d(np.asarray(lat_deg, float))),
+                                   np.radians(np.atleast_1d(np.asarray(lon_deg, float))))
+    l0, o0 = np.radians(float(plane_lat_deg)), np.radians(float(plane_lon_deg))
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    sl0, cl0, so0, co0 = np.sin(l0), np.cos(l0), np.sin(o0), np.cos(o0)
+    # n_p = (-sl co, -sl so, cl); N_0 = (-sl0 co0, -sl0 so0, cl0); E_0 = (-so0, co0, 0)
+    dot_n = sl0 * sl * (co0 * co + so0 * so) + cl0 * cl
+    dot_e = sl * (so0 * co - co0 * so)
+    return np.arctan2(dot_e, dot_n)
 
 
 def ned_to_ecef_vector(lat_deg, lon_deg, v_ned) -> np.ndarray:
@@ -104,10 +141,7 @@ def transport_rate_ned(lat_deg, h_m, vn_mps, ve_mps) -> np.ndarray:
 
 @nb.njit(cache=True, nogil=True)
 def _rates(lat, h, vn, ve, vu, a, e2):
-    s = np.sin(lat)
-    w = 1.0 - e2 * s * s
-    rm = a * (1.0 - e2) / (w * np.sqrt(w))
-    rn = a / np.sqrt(w)
+    rm, rn = radii_from_sin(np.sin(lat))
     return vn / (rm + h), ve / ((rn + h) * np.cos(lat)), vu
 
 

@@ -20,9 +20,12 @@ import pandas as pd
 
 from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
 from flightrecon.ingest.derive import derive_tas, true_from_magnetic
+from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
+from flightrecon.ingest.physics import check_physics
+from flightrecon.ingest.timestamps import repair_time_order
 from flightrecon.ingest.sidecar import (
     apply_overrides,
     discover_sidecar,
@@ -39,7 +42,7 @@ from flightrecon.ingest.validate import (
 from flightrecon.schema import BY_NAME, CHANNELS, GROUPS
 from flightrecon.types import Flight, FlightMeta
 
-__all__ = ["load_flight"]
+__all__ = ["load_flight", "mapping_beside"]
 
 PathLike = str | os.PathLike
 
@@ -96,7 +99,14 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
                      f"{raw.blank_rows[0]})")
-    mt = apply_mapping(raw, mp)
+    try:
+        mt = apply_mapping(raw, mp)
+    except SchemaError as exc:          # no time column: point at a mapping beside the log
+        hint = _mapping_hint(log) if mp is None else ""
+        if not hint:
+            raise
+        raise SchemaError(f"{exc.message}; {hint}", file=exc.file, column=exc.column,
+                          rows=exc.rows) from None
     if raw.nan_is_missing:
         notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
     used = set(mt.source_column.values()) | {_time_column(mt, mp, raw.columns)}
@@ -110,13 +120,18 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
         present.add("tas_mps")
         mt = dataclasses.replace(mt, derived={**mt.derived, "tas_mps": "cas" if "cas_mps"
                                               in present else "ias"})
-    check_required(present, str(log), ignored)
+    if "heading_deg" not in present and {"q_dps", "r_dps"} <= present:
+        present.add("heading_deg")
+        notes.append("no heading channel: the heading is propagated from the body rates at "
+                     "cleaning (docs/signals.md, 'Heading from the body rates')")
+    check_required(present, str(log), ignored,
+                   mapping_hint="" if mp is not None else _mapping_hint(log))
     notes += list(mt.notes)
     t, meta, epoch_ns, epoch_note = _log_seconds(mt, meta)
     if epoch_note:
         notes.append(epoch_note)
-    order, w = check_time(t, mt.rows, str(log), _time_column(mt, mp, raw.columns),
-                          allow_unsorted=allow_unsorted)
+    order, w = _time_order(t, mt.rows, mt.values, str(log), _time_column(mt, mp, raw.columns),
+                           allow_unsorted)
     warns += w
     sel = order if order is not None else slice(None)
     rows = Rows(t=t[sel], values={k: v[sel] for k, v in mt.values.items()},
@@ -142,7 +157,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
             raise SchemaError(f"the log already has {group} data in {', '.join(clash)} and a "
                               f"separate {group} file was given", file=str(path), column=clash[0])
         ct = _companion_seconds(cm, meta, epoch_ns)
-        corder, w = check_time(ct, cm.rows, str(path), "time", allow_unsorted=allow_unsorted)
+        corder, w = _time_order(ct, cm.rows, cm.values, str(path), "time", allow_unsorted)
         warns += w
         csel = corder if corder is not None else slice(None)
         k = len(files)
@@ -171,8 +186,16 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     data = pd.DataFrame(cols, copy=False)
     prov = Provenance(files=tuple(files), src_file=rows.src_file, row=rows.row,
                       source_column=tuple(source_cols))
-    warns += check_values(data, prov, rows.nan_text)
+    w, repairs = check_values(data, prov, rows.nan_text)
+    warns += w
+    for r in {r.channel for r in repairs}:
+        cols[r] = data[r].to_numpy()
     warns += check_polarity(data, prov)
+    w, rq, nq = apply_gnss_quality(cols, rows.t, prov)
+    warns += w
+    repairs += rq
+    notes += nq
+    warns += check_physics(data, prov)   # units and time base against physics
     for name in list(cols):
         ch = BY_NAME.get(name)
         if ch is not None and ch.angle:
@@ -187,12 +210,48 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     cols["row"] = np.array(rows.row, copy=True)
     cols["src_file"] = rows.src_file.astype(np.int8)
     data = pd.DataFrame(cols, copy=False)
+    if meta.fixes and len(data):  # known positions must fall inside the record
+        from flightrecon.ingest.priors import check_fix_times
+
+        check_fix_times(meta.fixes, float(data["t_s"].iloc[0]), float(data["t_s"].iloc[-1]))
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
+                                            "ingest_repairs": [r.as_dict() for r in repairs],
                                             "mapping": None if mp is None else mp.file,
                                             "sidecar": None if sc is None else sc.path})
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
     return Flight(data=data, meta=meta, sources=tuple(files), warnings=tuple(warns))
+
+
+def mapping_beside(log: PathLike) -> list[Path]:
+    """Mapping files beside ``log``: ``<stem>.mapping.toml`` first, then any other
+    ``*.mapping.toml`` / ``*mapping*.toml`` in its folder (sorted)."""
+    log = Path(log)
+    stem = log.name.split(".")[0]
+    own = log.with_name(f"{stem}.mapping.toml")
+    found = [own] if own.is_file() else []
+    try:
+        others = sorted(p for p in log.parent.glob("*mapping*.toml") if p.is_file())
+    except OSError:
+        others = []
+    return found + [p for p in others if p != own]
+
+
+def _mapping_hint(log: Path) -> str:
+    found = mapping_beside(log)
+    if not found:
+        return ""
+    names = ", ".join(str(p) for p in found[:3])
+    return (f"a mapping file lies beside the log ({names}): give it with --mapping "
+            f"{found[0]} (or mapping = \"{found[0].name}\" in the sidecar's [files])")
+
+
+def _time_order(t, rows, values, file: str, column: str, allow_unsorted: bool):
+    """Rows in time order: repaired and reported, or refused (:mod:`.timestamps`); with
+    ``allow_unsorted`` the old rule (sort everything, keep duplicates, with a warning)."""
+    if allow_unsorted:
+        return check_time(t, rows, file, column, allow_unsorted=True)
+    return repair_time_order(t, rows, values, file, column)
 
 
 def _own_columns(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -62,6 +62,7 @@ def describe_flight(flight: Flight) -> dict[str, Any]:
             "body_axes": "FRD; n_norm_g = -f_z/g0 (+1 at rest)",
             "conversions": list(extra.get("ingest_notes", [])),
         },
+        "repairs": list(extra.get("ingest_repairs", [])),
         "mapping": extra.get("mapping"),
         "sidecar": extra.get("sidecar"),
         "warnings": list(flight.warnings),

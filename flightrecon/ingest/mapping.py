@@ -12,6 +12,8 @@ is documented with an example in ``docs/ingest.md``::
     column = "VRTG"
     unit = "g"
     sign = 1               # or -1 (source positive the other way)
+    scale = 1.0            # factor on the raw value, applied first
+    offset = 1.0           # canonical units, added last (this recorder writes nz - 1)
 
     [channels.heading_deg]
     column = "HDG_MAG"
@@ -88,6 +90,8 @@ class ChannelSpec:
     column : source column (``None`` for a derived channel)
     unit : source unit
     sign : +1 or -1, applied after the unit conversion
+    scale : factor on the raw value, applied first (a recorder counting in hundredths: 0.01)
+    offset : added last, in the canonical unit (a normal load factor recorded as nz - 1: 1.0)
     reference : ``"true"`` or ``"magnetic"`` (heading-like channels only)
     derived_from : ``"cas"`` or ``"ias"`` for ``tas_mps`` computed from the air data
     """
@@ -98,6 +102,8 @@ class ChannelSpec:
     sign: float = 1.0
     reference: str = "true"
     derived_from: str | None = None
+    scale: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -203,7 +209,7 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
         hint = f" (did you mean '{close[0]}'?)" if close else ""
         raise MappingError(f"[{where}]: unknown channel '{name}'{hint}", file=file)
     spec = _table(spec, file, where)
-    _only(spec, {"column", "unit", "sign", "reference", "from"}, file, where)
+    _only(spec, {"column", "unit", "sign", "reference", "from", "scale", "offset"}, file, where)
     ch = BY_NAME[name]
     if "from" in spec:
         src = spec["from"]
@@ -237,7 +243,19 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
     if ref == "magnetic" and name not in MAGNETIC_OK:
         raise MappingError(f"[{where}]: reference = 'magnetic' only applies to "
                            f"{', '.join(MAGNETIC_OK)}", file=file, column=col)
-    return ChannelSpec(name, col, unit, float(sign), ref)
+    scale = _number(spec, "scale", 1.0, file, where, col)
+    if scale == 0.0:
+        raise MappingError(f"[{where}]: scale must not be zero", file=file, column=col)
+    offset = _number(spec, "offset", 0.0, file, where, col)
+    return ChannelSpec(name, col, unit, float(sign), ref, scale=scale, offset=offset)
+
+
+def _number(t: dict, key: str, default: float, file: str, where: str, col: str) -> float:
+    v = t.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise MappingError(f"[{where}]: {key} must be a finite number, got {v!r}", file=file,
+                           column=col)
+    return float(v)
 
 
 def _table(v, file: str, where: str) -> dict:
@@ -351,18 +369,23 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
             continue
         col = raw.columns[s.column]
         arr = _numeric(col, file, s.column, rows, raw.bad_text.get(s.column))
-        v = to_canonical(arr, s.unit)
+        v = to_canonical(arr * s.scale if s.scale != 1.0 else arr, s.unit)
         if s.sign < 0:
             v = -v
+        if s.offset != 0.0:
+            v = v + s.offset
         values[s.channel] = v
         source[s.channel] = s.column
         if s.column in raw.nan_text:
             nan_text[s.channel] = raw.nan_text[s.column]
         if s.reference == "magnetic":
             magnetic.append(s.channel)
-        if s.column != s.channel or s.unit.name != BY_NAME[s.channel].unit or s.sign < 0:
-            notes.append(f"{s.channel} <- {s.column} [{s.unit.name}]"
-                         + (" x -1" if s.sign < 0 else ""))
+        if (s.column != s.channel or s.unit.name != BY_NAME[s.channel].unit or s.sign < 0
+                or s.scale != 1.0 or s.offset != 0.0):
+            notes.append(f"{s.channel} <- {s.column}"
+                         + (f" x {s.scale:g}" if s.scale != 1.0 else "")
+                         + f" [{s.unit.name}]" + (" x -1" if s.sign < 0 else "")
+                         + (f" {s.offset:+g} {BY_NAME[s.channel].unit}" if s.offset else ""))
     return MappedTable(file=file, time_kind=tspec.unit, time=time, values=values,
                        nan_text=nan_text, source_column=source, magnetic=tuple(magnetic),
                        derived=derived, rows=rows, notes=tuple(notes))

@@ -1,6 +1,6 @@
 """Merge separate measurement files (GNSS, radar) onto the recorder's time base.
 
-METHODS.md ("Two kinds of channel"): a measurement is used once, at its own time.  So each fix
+docs/schema.md ("Two kinds of channel"): a measurement is used once, at its own time.  So each fix
 or plot stays one row at its own time: if its time coincides with a recorder row (within
 :data:`COINCIDENT_S`) it is written on that row; otherwise it becomes a new row whose input
 channels are NaN.  Nothing is interpolated.  The result is sorted by time (stable).

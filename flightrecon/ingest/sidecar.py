@@ -341,6 +341,17 @@ def apply_overrides(meta: FlightMeta, overrides: dict[str, Any] | None) -> Fligh
         if k not in names:
             raise MetadataError(f"unknown metadata override '{k}' (known: "
                                 f"{', '.join(sorted(names))})")
+        if k == "fixes":  # PositionFix objects or "T_S,LAT,LON[,ALT_M[,SD_M]]" strings
+            from flightrecon.ingest.priors import parse_fix
+
+            kw[k] = tuple(sorted((parse_fix(f) if isinstance(f, str) else f for f in v),
+                                 key=lambda f: f.t_s))
+            continue
+        if k == "wind_aloft":  # WindLevel objects or the path of a winds-aloft CSV
+            from flightrecon.ingest.priors import read_wind_table
+
+            kw[k] = read_wind_table(v) if isinstance(v, (str, os.PathLike)) else tuple(v)
+            continue
         if k in ("departure", "arrival", "station"):
             if isinstance(v, str):
                 v = parse_position(v, what=f"--{k}")

@@ -3,7 +3,7 @@
 Every canonical channel has one unit (``flightrecon.schema.Channel.unit``).  A source column may
 be in any unit of the same *dimension*; :func:`to_canonical` converts it with an exact affine map
 ``value_canonical = scale * value + offset`` (docs/ingest.md, "Units").  Load factors given as an
-acceleration in m/s^2 are divided by g0 = 9.80665 m/s^2 (METHODS.md, "Common ground": g0 is a
+acceleration in m/s^2 are divided by g0 = 9.80665 m/s^2 (docs/schema.md, "Conventions": g0 is a
 unit, not the local gravity).
 """
 
@@ -48,6 +48,9 @@ UNITS: dict[str, Unit] = {u.name: u for u in (
     Unit("degC", "temperature", 1.0),
     Unit("K", "temperature", 1.0, -273.15),
     Unit("s", "time", 1.0),
+    Unit("deg/s", "angular rate", 1.0),
+    Unit("rad/s", "angular rate", 180.0 / np.pi),
+    Unit("1", "ratio", 1.0),
 )}
 
 #: other spellings seen in recorder exports -> canonical spelling
@@ -64,11 +67,14 @@ ALIASES: dict[str, str] = {
     "c": "degC", "degc": "degC", "celsius": "degC",
     "k": "K", "kelvin": "K",
     "sec": "s", "second": "s", "seconds": "s",
+    "dps": "deg/s", "deg/sec": "deg/s", "degrees/s": "deg/s", "rad/sec": "rad/s", "rps": "rad/s",
+    "-": "1", "none": "1", "": "1",
 }
 
 #: dimension of each canonical unit string used in ``flightrecon.schema``
 CANONICAL_DIMENSION: dict[str, str] = {
     "m": "length", "m/s": "speed", "g": "load", "deg": "angle", "degC": "temperature", "s": "time",
+    "deg/s": "angular rate", "1": "ratio",
 }
 
 

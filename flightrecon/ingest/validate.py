@@ -5,10 +5,12 @@ Errors name the file, the source column and the 1-based data rows of that file
 
 * time: missing, non-finite, duplicate or backward timestamps (rows named; no silent fix);
 * schema: required channels present, a required channel with no sample at all;
-* physically impossible values: outside ``Channel.lo``/``Channel.hi`` (schema.py), +-inf included;
+* values outside ``Channel.lo``/``Channel.hi`` (schema.py), +-inf included: isolated ones are
+  clipped (just outside) or masked (far outside) and reported as :class:`Repair`; a channel out of
+  range systematically (a wrong unit, a flipped sign) is refused with the likely fix named;
 * NaN storms: a channel whose recorded samples are mostly literal ``NaN`` (an error); a few
   literal NaN are a recoverable defect (a warning, the values stay missing);
-* polarity (METHODS.md, "Common ground"): ``n_norm_g`` is +1 at rest and about +1 on average in
+* polarity (docs/schema.md, "Conventions"): ``n_norm_g`` is +1 at rest and about +1 on average in
   flight, so a median near -1 means a flipped channel; at rest ``n_long_g = sin(pitch)`` (the
   specific force is g0 up; its forward body component is g0 sin(theta)), so ``n_long_g`` matching
   ``-sin(pitch)`` means a flipped channel.
@@ -29,6 +31,7 @@ __all__ = [
     "GROUND_TAS_MPS",
     "NAN_STORM_FRACTION",
     "Provenance",
+    "Repair",
     "check_polarity",
     "check_required",
     "check_time",
@@ -113,9 +116,10 @@ def check_time(t: np.ndarray, rows: np.ndarray, file: str, column: str, *,
     return None, warns
 
 
-def check_required(channels, file: str, other_columns=()) -> None:
+def check_required(channels, file: str, other_columns=(), mapping_hint: str = "") -> None:
     """Raise :class:`SchemaError` naming the required channels missing from ``channels``
-    (with the closest of ``other_columns``, the file's unused columns, as a hint)."""
+    (with the closest of ``other_columns``, the file's unused columns, as a hint, and
+    ``mapping_hint``: the mapping files found beside the log)."""
     import difflib
 
     missing = [c for c in REQUIRED if c != "t_s" and c not in channels]
@@ -127,33 +131,131 @@ def check_required(channels, file: str, other_columns=()) -> None:
             if close:
                 hints.append(f"'{close[0]}' -> {m}?")
         hint = f" (similar columns: {', '.join(hints)})" if hints else ""
-        raise SchemaError(f"missing required channel(s): {', '.join(missing)}{hint}; map foreign "
-                          "names with a mapping file (docs/ingest.md)", file=file,
-                          column=missing[0])
+        how = mapping_hint or "map foreign names with a mapping file (docs/ingest.md)"
+        raise SchemaError(f"missing required channel(s): {', '.join(missing)}{hint}; {how}",
+                          file=file, column=missing[0])
+
+
+#: how far beyond a channel's physical range a value may lie and still be *clipped* to the bound
+#: (noise or quantisation of a sensor at the end of its range: airspeed noise at rest, a load
+#: factor saturating on an impact), per canonical unit.  Angles that wrap, positions and other
+#: units have no margin: a value outside is masked.
+CLIP_MARGIN: dict[str, float] = {"m/s": 2.0, "g": 0.5, "deg": 1.0, "m": 50.0, "degC": 2.0,
+                                 "deg/s": 5.0}
+#: channels with no clip margin whatever their unit (a position or a wrapped angle outside its
+#: range is no sensor noise)
+NO_CLIP = ("gnss_lat_deg", "gnss_lon_deg")
+#: fraction of a channel's samples beyond the clip margin above which the channel is out of range
+#: *systematically* (a wrong unit, a flipped sign): refused.  At or below it the values are
+#: isolated glitches and are masked (treated as missing samples; the cleaning layer fills them).
+SYSTEMATIC_FRACTION = 0.01
+#: minimum number of masked values for a systematic verdict (one bad value in a 20-sample file
+#: is a glitch, not a unit)
+SYSTEMATIC_MIN_COUNT = 3
+
+
+@dataclass(frozen=True)
+class Repair:
+    """One repair made at validation: ``count`` values of ``channel`` (source ``column`` of
+    ``file``, 1-based data ``rows``) ``action`` (``"clipped"`` to the range or ``"masked"`` as
+    missing samples), with the first offending value."""
+
+    file: str
+    column: str
+    channel: str
+    rows: tuple[int, ...]
+    count: int
+    action: str
+    first_value: float
+    bound: tuple[float, float]
+    t_s: tuple[float, ...] = ()
+    why: str = ""
+
+    def message(self) -> str:
+        shown = ", ".join(str(r) for r in self.rows[:10]) + (" ..." if len(self.rows) > 10
+                                                              else "")
+        if self.why:
+            return (f"{self.file}: column '{self.column}': {self.count} fix(es) {self.action} "
+                    f"(row(s) {shown}): {self.why}")
+        what = ("clipped to the range" if self.action == "clipped"
+                else "masked (treated as missing samples; the cleaning layer fills them)")
+        return (f"{self.file}: column '{self.column}': {self.count} value(s) outside the "
+                f"physical range [{self.bound[0]:g}, {self.bound[1]:g}] (first {self.first_value:g}"
+                f", row(s) {shown}) {what}")
+
+    def as_dict(self) -> dict:
+        return {"file": self.file, "column": self.column, "channel": self.channel,
+                "rows": [int(r) for r in self.rows], "count": self.count, "action": self.action,
+                "first_value": float(self.first_value), "range": list(self.bound),
+                "t_s": [float(x) for x in self.t_s], "why": self.why}
+
+
+def _suggest_fix(ch, v: np.ndarray) -> str:
+    """What would bring the sampled values ``v`` of channel ``ch`` into range: a flipped sign or
+    one of the other units of the channel's dimension (the first candidate under which at least
+    99 % of the samples are in range)."""
+    from flightrecon.ingest.units import CANONICAL_DIMENSION, UNITS
+
+    fin = v[np.isfinite(v)]
+    if fin.size == 0:
+        return "the channel has no finite value"
+    if np.all((fin >= ch.lo) & (fin <= ch.hi)):
+        return ("the values outside are infinities: the recorder marks this channel invalid "
+                "there; drop the column or mask those rows")
+
+    def fits(x):
+        return float(np.mean((x >= ch.lo) & (x <= ch.hi))) >= 1.0 - SYSTEMATIC_FRACTION
+
+    if fits(-fin):
+        return "the sign looks flipped: use sign = -1 in a mapping file"
+    dim = CANONICAL_DIMENSION.get(ch.unit)
+    for u in UNITS.values():
+        if u.dimension != dim or (u.scale == 1.0 and u.offset == 0.0):
+            continue
+        for sgn in (1.0, -1.0):
+            if fits(sgn * (fin * u.scale + u.offset)):
+                s = "" if sgn > 0 else " and sign = -1"
+                return (f"the values fit if the column is in {u.name}: use unit = '{u.name}'{s} "
+                        "in a mapping file")
+    return ("check the column's unit and sign (unit = / sign = in a mapping file) or whether it "
+            "is the right column")
 
 
 def check_values(data: pd.DataFrame, prov: Provenance,
-                 nan_text: dict[str, np.ndarray]) -> list[str]:
+                 nan_text: dict[str, np.ndarray]) -> tuple[list[str], list[Repair]]:
     """Range, inf, empty-channel and NaN-storm checks over every canonical channel.
+
+    Values outside a channel's physical range ``[Channel.lo, Channel.hi]`` are judged
+    (docs/ingest.md, "Values outside the physical range"):
+
+    * within ``CLIP_MARGIN`` of the range (sensor noise at the end of the range): clipped to the
+      bound;
+    * farther out, or infinite: masked (set to NaN, a missing sample) when they are isolated, at
+      most ``SYSTEMATIC_FRACTION`` of the channel's samples (or fewer than
+      ``SYSTEMATIC_MIN_COUNT``);
+    * more than that: the channel is out of range systematically and is refused, with the likely
+      fix (sign or unit) named.
 
     Parameters
     ----------
-    data : merged table (canonical columns)
+    data : merged table (canonical columns); repaired columns are replaced in it
     prov : row provenance
     nan_text : channel -> (N,) mask of cells written as literal NaN
 
     Returns
     -------
-    warnings : recoverable defects found
+    warnings : recoverable defects found (one line per repair among them)
+    repairs : the repairs made, one per channel and action
 
     Raises
     ------
     ValidationError
-        A value outside the channel's physical range (infinities included), a required channel
-        with no sample, a NaN storm.
+        A channel out of range systematically, a required channel with no sample, a NaN storm.
     """
     warns: list[str] = []
-    for name in data.columns:
+    repairs: list[Repair] = []
+    t_all = data["t_s"].to_numpy() if "t_s" in data else np.full(len(data), np.nan)
+    for name in list(data.columns):
         ch = BY_NAME.get(name)
         if ch is None or ch.kind == "time":
             continue
@@ -168,13 +270,47 @@ def check_values(data: pd.DataFrame, prov: Provenance,
                                       column=prov.source_column[0].get(name, name))
             warns.append(f"channel {name} has no sample; ignored")
             continue
-        bad = (v < ch.lo) | (v > ch.hi)
+        with np.errstate(invalid="ignore"):
+            low = v < ch.lo
+            high = v > ch.hi
+        bad = low | high
         if bad.any():
-            where = prov.locate(bad, name)
-            first = v[bad][0]
-            raise ValidationError(f"{int(bad.sum())} physically impossible value(s) (first "
-                                  f"{first:g} {ch.unit}; possible range [{ch.lo:g}, {ch.hi:g}] "
-                                  f"{ch.unit})", **where)
+            margin = 0.0 if (ch.angle or name in NO_CLIP) else CLIP_MARGIN.get(ch.unit, 0.0)
+            with np.errstate(invalid="ignore"):
+                clip = bad & np.isfinite(v) & (v >= ch.lo - margin) & (v <= ch.hi + margin)
+            far = bad & ~clip
+            n_far = int(far.sum())
+            if n_far and n_far > SYSTEMATIC_FRACTION * n_val and n_far >= SYSTEMATIC_MIN_COUNT:
+                where = prov.locate(far, name)
+                first = v[far][0]
+                raise ValidationError(
+                    f"{n_far} of {n_val} values ({100 * n_far / n_val:.1f} %) outside the "
+                    f"physical range (first {first:g} {ch.unit}; possible range [{ch.lo:g}, "
+                    f"{ch.hi:g}] {ch.unit}, values within {margin:g} {ch.unit} of it are "
+                    f"clipped): out of range systematically, not a glitch; "
+                    f"{_suggest_fix(ch, v[~np.isnan(v)])}", **where)
+            v = v.copy()
+            for action, m in (("clipped", clip), ("masked", far)):
+                if not m.any():
+                    continue
+                first = float(v[m][0])
+                files = np.unique(prov.src_file[m])
+                for f in files:
+                    mf = m & (prov.src_file == f)
+                    col = prov.source_column[int(f)].get(name, name)
+                    col_txt = col if col == name else f"{col}' -> '{name}"
+                    rep = Repair(file=prov.files[int(f)], column=col_txt, channel=name,
+                                 rows=tuple(int(r) for r in prov.row[mf]),
+                                 count=int(mf.sum()), action=action,
+                                 first_value=float(v[mf][0]) if f != files[0] else first,
+                                 bound=(float(ch.lo), float(ch.hi)),
+                                 t_s=tuple(float(x) for x in t_all[mf]))
+                    repairs.append(rep)
+                    warns.append(rep.message())
+            v[clip & low] = ch.lo
+            v[clip & high] = ch.hi
+            v[far] = np.nan
+            data[name] = v
         if n_txt:
             frac = n_txt / (n_txt + n_val)
             where = prov.locate(txt, name)
@@ -183,7 +319,7 @@ def check_values(data: pd.DataFrame, prov: Provenance,
                                       f"are NaN ({100 * frac:.0f} %)", **where)
             warns.append(f"{where['file']}: column '{where['column']}': {n_txt} NaN value(s) "
                          f"(first: row {where['rows'][0]}) treated as missing samples")
-    return warns
+    return warns, repairs
 
 
 class _Sampled:
@@ -297,9 +433,12 @@ TURN_FLIP_FRACTION = 0.8
 
 def _check_turn_polarity(sampled: _Sampled, prov: Provenance) -> None:
     """Bank and turn direction agree: in a coordinated turn the heading rate is
-    ``g0 tan(roll) / V`` (METHODS.md conventions: roll + right wing down, heading clockwise), so
+    ``g0 tan(roll) / V`` (docs/schema.md, "Conventions": roll + right wing down, heading
+    clockwise), so
     a right bank turns the heading clockwise.  If at least 32 clearly turning samples mostly
     (> 80 %) turn against the bank, roll or heading has the wrong sign."""
+    if "heading_deg" not in sampled.data.columns:
+        return
     _, _, hdg, th = sampled("heading_deg")
     if len(hdg) < 3:
         return

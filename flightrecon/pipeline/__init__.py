@@ -37,6 +37,16 @@ from flightrecon.pipeline.run import (
     record_coefficients,
     record_flight,
 )
-from flightrecon.pipeline.summary import SUMMARY_SCHEMA_VERSION, build_summary, sha256_file
+from flightrecon.pipeline.summary import (
+    SUMMARY_SCHEMA_VERSION,
+    build_summary,
+    sha256_file,
+)
 
-__all__ = ['METHOD_FUNCTIONS', 'ALL_METHODS', 'DEFAULT_PRIORITY', 'ReconstructSettings', 'Reconstruction', 'available_methods', 'run_method', 'method_health', 'combine', 'SUMMARY_SCHEMA_VERSION', 'sha256_file', 'build_summary', 'default_workers', 'reconstruct_clean', 'fleet_settings', 'record_coefficients', 'record_flight', 'reconstruct']
+__all__ = [
+    "METHOD_FUNCTIONS", "ALL_METHODS", "DEFAULT_PRIORITY", "ReconstructSettings",
+    "Reconstruction", "available_methods", "run_method", "method_health", "combine",
+    "SUMMARY_SCHEMA_VERSION", "sha256_file", "build_summary", "default_workers",
+    "reconstruct_clean", "fleet_settings", "record_coefficients", "record_flight",
+    "reconstruct",
+]

@@ -55,6 +55,9 @@ class ReconstructSettings:
     keep_unhealthy : when no method is healthy, return (and let the CLI write) the unhealthy
         tracks under their prefixes for inspection instead of raising
         :class:`~flightrecon.errors.NoResultError`
+    sns_noise : overrides of the SNS noise (:func:`flightrecon.filters.sns_method.sns_noise_with`)
+    start, end : trim the record to ``start <= t_s <= end`` before cleaning (seconds from the
+        epoch or UTC timestamps; :func:`flightrecon.cleaning.trim.trim_flight`)
     """
 
     methods: tuple[str, ...] | None = None
@@ -71,6 +74,9 @@ class ReconstructSettings:
     joint_priors: tuple[tuple[str, float, float], ...] | None = None
     strict: bool = False
     keep_unhealthy: bool = False
+    start: float | str | None = None
+    end: float | str | None = None
+    sns_noise: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -106,8 +112,12 @@ def available_methods(clean: CleanFlight, settings: ReconstructSettings) -> dict
     has_gnss = len(clean.gnss) > 0 and "gnss_lat_deg" in clean.gnss.columns
     out["sns"] = None if has_gnss else "no GNSS fixes in the data"
     if meta.departure is None:
-        for m in out:
-            out[m] = out[m] or "no departure position (give --departure)"
+        out["sabziev"] = out["sabziev"] or ("no departure airfield (the fusion integrates from "
+                                            "the lift-off point; give --departure)")
+        if meta.origin is None:
+            for m in out:
+                out[m] = out[m] or ("no departure position and no GNSS or radar fix to place "
+                                    "the frame (give --departure)")
     return out
 
 
@@ -132,7 +142,7 @@ def _method_kwargs(name: str, s: ReconstructSettings) -> dict[str, Any]:
     if name == "azimuth":
         return {"model": s.azimuth_model}
     if name == "sns":
-        return {"model": s.sns_model, "form": s.sns_form}
+        return {"model": s.sns_model, "form": s.sns_form, "noise_overrides": s.sns_noise}
     raise KeyError(name)
 
 

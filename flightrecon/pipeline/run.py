@@ -7,10 +7,10 @@ import os
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from flightrecon.errors import (
@@ -32,6 +32,13 @@ from flightrecon.pipeline.registry import (
 )
 from flightrecon.pipeline.summary import build_summary, result_choice
 from flightrecon.types import CleanFlight, Flight, MethodResult
+
+NUMERICAL_FAILURES: tuple[type[BaseException], ...] = (
+    FlightReconError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+"""What a method may raise and still leave the others' results standing: the project's own
+errors, and numerical breakdowns (``LinAlgError`` is a ``ValueError``; ``FloatingPointError``,
+``ZeroDivisionError`` and ``OverflowError`` are ``ArithmeticError``).  Anything else is a bug
+and stops the run."""
 
 
 def default_workers() -> int:
@@ -81,10 +88,14 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     for m in chosen:
         try:
             res = futures[m].result()
-        except FlightReconError as exc:
+        except NUMERICAL_FAILURES as exc:
+            # one method's failure (bad data it cannot use, or a numerical breakdown: a
+            # singular matrix, an overflow) is that method's error, not the whole run's
             if settings.strict:
                 raise
-            status[m] = {"status": "failed", "reason": str(exc)}
+            reason = str(exc) if isinstance(exc, FlightReconError) else (
+                f"numerical failure ({type(exc).__name__}): {exc}")
+            status[m] = {"status": "failed", "reason": reason}
             continue
         results[m] = res
         health = method_health(res, clean)
@@ -163,9 +174,10 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     -------
     Reconstruction
     """
-    from flightrecon.cleaning import clean_flight
+    from flightrecon.cleaning import CleaningSettings, clean_flight
     from flightrecon.cleaning.plausibility import plausibility_checks
     from flightrecon.ingest import load_flight
+    from flightrecon.ingest.physics import check_reconstructable
 
     def stage(name: str) -> None:
         if progress:
@@ -176,13 +188,15 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         warnings.simplefilter("always")
         flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                                      meta_overrides=meta_overrides)
+        check_reconstructable(flight)   # a log too short: refused with the minimum
         fleet = None
         if use_fleet_coefficients:
             settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id,
                                              at_utc=flight.meta.epoch_utc,
                                              configuration=flight.meta.extra.get("configuration"))
         stage("cleaning")
-        clean = clean_flight(flight, rate_hz=settings.rate_hz)
+        clean = clean_flight(flight, rate_hz=settings.rate_hz,
+                             settings=CleaningSettings(start=settings.start, end=settings.end))
         stage("plausibility")
         findings = plausibility_checks(clean)
         for f in findings:
@@ -199,6 +213,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
     summary["result"] = result_choice(track, status)
+    from flightrecon.events import detect_events, events_table
+
+    summary["events"] = events_table(detect_events(clean, track, status), clean.meta.epoch_utc)
     if summary["result"]["method"] is None:
         msg = ("no method produced a physically possible track: " + _reasons(status))
         if not settings.keep_unhealthy:

@@ -9,7 +9,6 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from flightrecon import __version__
@@ -38,7 +37,8 @@ def _meta_dict(meta) -> dict[str, Any]:
 
 
 def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dict[str, Any], *,
-                  inputs: Sequence[str | Path] = (), warnings_: Sequence[str] = ()) -> dict[str, Any]:
+                  inputs: Sequence[str | Path] = (), warnings_: Sequence[str] = ()
+                  ) -> dict[str, Any]:
     """The summary document (JSON-serialisable) with its schema version."""
     ph = clean.phases
     return {
@@ -55,7 +55,10 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
         "phases": None if ph is None else asdict(ph),
         "cleaning": {"actions": len(clean.report), "report": list(clean.report)[:200]},
         "output": {
-            "frame": "east-north-up tangent plane at the departure airfield (metres)",
+            "frame": ("east-north-up tangent plane at the departure airfield (metres)"
+                      if clean.meta.departure is not None else
+                      "east-north-up tangent plane at the first position fix (meta origin; "
+                      "no departure airfield given) (metres)"),
             "alt_datum": "WGS-84 ellipsoidal height (alt_m)",
             "default_source_priority": list(DEFAULT_PRIORITY),
         },
@@ -76,9 +79,8 @@ def result_choice(track: pd.DataFrame, status: dict[str, Any],
         ``not_used``: for each method ahead of it in the priority, why it is not the source.
     """
     n = len(track)
-    src = track["source"].astype("string").fillna("").to_numpy(dtype=object)
-    names, counts = np.unique(src, return_counts=True)
-    fractions = {str(k): float(c) / n for k, c in zip(names, counts) if k and n}
+    counts = track["source"].value_counts(dropna=True)  # Arrow strings: no Python loop
+    fractions = {str(k): float(c) / n for k, c in counts.items() if k and n}
     method = max(fractions, key=lambda k: fractions[k]) if fractions else None
     not_used = {}
     for m in priority:
@@ -93,7 +95,7 @@ def result_choice(track: pd.DataFrame, status: dict[str, Any],
     else:
         share = fractions[method]
         why = (f"{method} is the first healthy method in the priority "
-               f"{' > '.join(priority)}" + (f" and gives {100 * share:.0f} % of the samples"
+               f"{' > '.join(priority)}" + (f" and gives {100 * share:.1f} % of the samples"
                                             if share < 0.999 else ""))
         if not_used:
             why += "; ahead of it: " + "; ".join(f"{m} {r}" for m, r in not_used.items())

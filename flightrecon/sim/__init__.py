@@ -5,6 +5,7 @@ Public API::
     simulate(scenario, seed=0, **overrides) -> SimResult
     simulate_fleet(aircraft_id, n_flights, seed=0, scenario="circuit", **overrides)
     write_simulation(result, path) -> dict[str, Path]
+    simulate("jsbsim-circuit", seed)   # JSBSim truth source (docs/jsbsim.md; jsbsim extra)
     loads_from_acceleration / acceleration_from_loads / dcm_body_to_ned
 """
 
@@ -15,6 +16,7 @@ from flightrecon.sim.kinematics import (
     dcm_body_to_ned,
     loads_from_acceleration,
 )
+from flightrecon.sim.plan import PlanBuilder
 from flightrecon.sim.scenarios import (
     SCENARIOS,
     ScenarioConfig,
@@ -23,7 +25,7 @@ from flightrecon.sim.scenarios import (
     simulate,
     simulate_fleet,
 )
-from flightrecon.sim.trajectory import TRUTH_COLUMNS, FlightPlan, PlanBuilder, simulate_truth
+from flightrecon.sim.trajectory import TRUTH_COLUMNS, FlightPlan, simulate_truth
 
 __all__ = [
     "JET",

@@ -1,4 +1,4 @@
-"""Attitude matrices and the load-factor relation (METHODS.md, "Common ground").
+"""Attitude matrices and the load-factor relation (docs/schema.md, "Conventions").
 
 ``a_NED = C_nb(heading, pitch, roll) g0 [n_long, n_lat, -n_norm] + [0, 0, g(lat, h)]``;
 :func:`loads_from_acceleration` is its exact inverse,
@@ -54,7 +54,7 @@ def loads_from_acceleration(a_ned_mps2, g_mps2, heading_rad, pitch_rad, roll_rad
 
 def acceleration_from_loads(n_g, g_mps2, heading_rad, pitch_rad, roll_rad) -> np.ndarray:
     """Kinematic acceleration (north, east, down) [m/s^2], shape (N, 3), from body load factors
-    ``n_g`` (N, 3) = ``[n_long, n_lat, n_norm]`` (METHODS.md "Common ground" formula)."""
+    ``n_g`` (N, 3) = ``[n_long, n_lat, n_norm]`` (docs/schema.md, "Conventions" formula)."""
     v = np.asarray(n_g, float) * G0
     v = np.column_stack([v[:, 0], v[:, 1], -v[:, 2]])
     a = np.einsum("nij,nj->ni", dcm_body_to_ned(heading_rad, pitch_rad, roll_rad), v)

@@ -7,7 +7,7 @@ recorder writes the readings at the channel's stamp rows.  Noise is white Gaussi
 otherwise; Gauss-Markov processes use the exact discretisation
 ``x_i = e^{-dt/tau} x_{i-1} + sigma sqrt(1 - e^{-2 dt/tau}) n_i`` started in its stationary law.
 Quantisation rounds to the nearest multiple of the quantum (0 = none).  Error conventions follow
-METHODS.md: measured = true + error, a *correction* is true minus measured.
+docs/schema.md, "Conventions": measured = true + error, a *correction* is true minus measured.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def gauss_markov(n: int, dt_s: float, sigma: float, tau_s: float,
                  rng: np.random.Generator) -> np.ndarray:
     """First-order Gauss-Markov samples (stationary start), exact discretisation (module doc).
 
-    ``dx/dt = -x / tau + sigma sqrt(2 / tau) w``; METHODS.md section 2.
+    ``dx/dt = -x / tau + sigma sqrt(2 / tau) w``; docs/arms.md.
     """
     if sigma == 0.0 or n == 0:
         return np.zeros(n)
@@ -100,7 +100,8 @@ def _in_intervals(t: np.ndarray, intervals) -> np.ndarray:
 class LoadFactorSensor:
     """Body accelerometers, recorded as load factors ``n_long_g, n_lat_g, n_norm_g``.
 
-    reading = (1 + scale) n + bias + noise, quantised.
+    reading = (1 + scale) n + bias + noise, quantised, then clipped to the recorder's range
+    ``range_g`` ((lo, hi) per axis; ``None``: unlimited): saturation.
     """
 
     rate_hz: float = 16.0
@@ -108,6 +109,7 @@ class LoadFactorSensor:
     scale: tuple[float, float, float] = (0.0, 0.0, 0.0)
     noise_sd_g: tuple[float, float, float] = (0.003, 0.003, 0.005)
     quantum_g: float = 0.0
+    range_g: tuple[tuple[float, float], ...] | None = None
 
     group = "loads"
 
@@ -119,6 +121,8 @@ class LoadFactorSensor:
             x = (1.0 + self.scale[i]) * n + self.bias_g[i] + self.noise_sd_g[i] * \
                 rng.standard_normal(n.size)
             out[col] = quantise(x, self.quantum_g)
+            if self.range_g is not None:
+                out[col] = np.clip(out[col], *self.range_g[i])
         return out
 
 
@@ -157,7 +161,9 @@ class AirspeedSensor:
     """True airspeed from the air-data computer.
 
     reading = (1 + scale) lag(TAS) + noise; ``lag`` first-order with time constant ``lag_s``
-    (:func:`first_order_lag`, on the truth grid before sampling).
+    (:func:`first_order_lag`, on the truth grid before sampling); clipped to ``range_mps``
+    (lo, hi) when given (the recorder's range: 0 below the instrument's lowest reading, hi
+    at saturation).
     """
 
     rate_hz: float = 4.0
@@ -165,13 +171,18 @@ class AirspeedSensor:
     noise_sd_mps: float = 0.3
     lag_s: float = 0.5
     quantum_mps: float = 0.0
+    range_mps: tuple[float, float] | None = None
 
     group = "airspeed"
 
     def record(self, truth, src, rng, dt_s):
         lagged = first_order_lag(truth["tas_mps"].to_numpy(), dt_s, self.lag_s)[src]
         x = (1.0 + self.scale) * lagged + self.noise_sd_mps * rng.standard_normal(src.size)
-        return {"tas_mps": quantise(np.maximum(x, 0.0), self.quantum_mps)}
+        x = quantise(np.maximum(x, 0.0), self.quantum_mps)
+        if self.range_mps is not None:
+            lo, hi = self.range_mps
+            x = np.where(x < lo, 0.0, np.minimum(x, hi))
+        return {"tas_mps": x}
 
 
 @dataclass(frozen=True)
@@ -305,7 +316,7 @@ class ArmsRadar:
 
 @dataclass(frozen=True)
 class DopplerSensor:
-    """Doppler ground speed and drift angle (METHODS.md section 4).
+    """Doppler ground speed and drift angle (docs/sns.md).
 
     W~ = W (1 + scale) + noise; c~ = c + drift_bias + noise, c = track - heading (wrapped to
     (-180, 180]).
@@ -333,7 +344,7 @@ class DopplerSensor:
 
 @dataclass(frozen=True)
 class WindSensor:
-    """Wind speed and direction (recorded or forecast), METHODS.md section 4:
+    """Wind speed and direction (recorded or forecast), docs/sns.md:
     U~ = U + bias + GM + noise, from~ = from + bias + GM + noise.
 
     The Gauss-Markov parts (``*_gm_sd``, ``*_gm_tau_s``) run on the truth grid; their series

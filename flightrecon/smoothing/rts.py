@@ -46,7 +46,8 @@ def _rts_kernel(x, P, xp, Pp, F):
 
 def rts_smooth(x, P, x_pred, P_pred, F) -> SmootherRun:
     """Backward RTS pass over a forward run (see module docstring)."""
-    args = [np.ascontiguousarray(np.asarray(a, dtype=np.float64)) for a in (x, P, x_pred, P_pred, F)]
+    args = [np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+            for a in (x, P, x_pred, P_pred, F)]
     xs, Ps, Cs = _rts_kernel(*args)
     return SmootherRun(xs, Ps, Cs)
 

@@ -3,7 +3,7 @@
 The Sabziev fusion fits one coefficient per axis (k1, k2, k3) on each flight that has a known
 arrival point.  Sabziev (2020, Conclusions) proposes that the coefficients depend mainly on the
 aircraft, so their mean over an aircraft's flights can reconstruct a flight whose arrival point
-is unknown (METHODS.md section 1).  This package keeps those fits, one SQLite file for the whole
+is unknown (docs/sabziev.md).  This package keeps those fits, one SQLite file for the whole
 fleet, and computes the averages.
 
 Modules

@@ -21,7 +21,7 @@ from flightrecon.errors import StoreError
 from flightrecon.store.calibration import FlightCalibration, SensorEstimate
 from flightrecon.store.records import AXES, FlightCoefficients
 
-#: Sabziev-frame axis of each coefficient (METHODS.md section 1: x north, y up, z east)
+#: Sabziev-frame axis of each coefficient (docs/sabziev.md: x north, y up, z east)
 SUMMARY_AXES: tuple[str, str, str] = ("x", "y", "z")
 
 

@@ -326,8 +326,8 @@ def migrate_v1_to_v2(con: sqlite3.Connection) -> None:
 
     v1 had neither the per-axis root branch and convergence nor the iteration count, and it
     required k on every row.  The branch of an old row is the sign of its coefficient
-    (``"positive"`` if k > 0, else ``"negative"``), which is what the branch means (METHODS.md
-    section 1); each axis gets the row's overall convergence flag (v1 knew no better); the
+    (``"positive"`` if k > 0, else ``"negative"``), which is what the branch means
+    (docs/sabziev.md); each axis gets the row's overall convergence flag (v1 knew no better); the
     iteration count is unknown and stays NULL.  The table is rebuilt (create new, copy, drop
     old, rename), the SQLite-documented way to add NOT NULL and CHECK-constrained columns.
     """

@@ -1,7 +1,7 @@
 """Records of the coefficient store: one flight's Sabziev coefficients and per-aircraft statistics.
 
 Units: ``k1`` and ``k3`` in 1/s (along-track complementary-filter coefficients of the x and z
-equations), ``k2`` in 1/s^2 (baro-inertial loop of the y equation); see METHODS.md section 1.
+equations), ``k2`` in 1/s^2 (baro-inertial loop of the y equation); see docs/sabziev.md.
 Times are UTC, written as ISO-8601 strings ``YYYY-MM-DDTHH:MM:SSZ`` (microseconds kept when given).
 """
 
@@ -20,7 +20,7 @@ from flightrecon.errors import StoreError
 AXES: tuple[str, str, str] = ("k1", "k2", "k3")
 
 #: root branches: ``negative`` is the physical one (stable filter / oscillating baro loop),
-#: ``positive`` grows like exp(k T) and is reported as unphysical (METHODS.md section 1)
+#: ``positive`` grows like exp(k T) and is reported as unphysical (docs/sabziev.md)
 BRANCHES: tuple[str, str] = ("negative", "positive")
 #: branch of an axis on which the solver found no root (only on a non-converged axis)
 NO_ROOT = "none"

@@ -1,4 +1,4 @@
-"""Averaging rules for the per-aircraft coefficients (METHODS.md section 1, last paragraph).
+"""Averaging rules for the per-aircraft coefficients (docs/sabziev.md, last paragraph).
 
 Sabziev (2020, Conclusions) proposes that the coefficients depend mainly on the aircraft, so that
 their mean over several flights of one aircraft can reconstruct a flight whose arrival point is

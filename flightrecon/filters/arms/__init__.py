@@ -1,6 +1,6 @@
 """ADS/ARMS estimators: ground velocity from range/azimuth plots and the air-data error.
 
-METHODS.md section 2; Vasyliev (2025), seed ``000_92b8f66acbd1b85b.txt``.
+docs/arms.md; Vasyliev (2025), seed ``000_92b8f66acbd1b85b.txt``.
 
 Frame: the station's east-north-up tangent plane, ``x`` east, ``y`` north, station at the origin.
 Azimuth ``theta`` clockwise from north, ``theta = atan2(x, y)``; ``r`` is the *horizontal* range
@@ -17,12 +17,12 @@ Three forms, each filtered forward and (optionally) smoothed backward with the R
   :func:`run_cascade` chains the two as in the paper's Fig. 1;
 * joint (:func:`run_joint`): one model ``[x, Vx, y, Vy, dVx, dVy]`` with range/azimuth and the
   air-data velocity ``V* = [Vx + dVx, Vy + dVy]`` as measurements, each at its own time: the
-  consistent form (METHODS.md section 2, "Two cautions") and the product default.
+  consistent form (docs/arms.md, "Two cautions" of the joint form) and the product default.
 
 Discretisations are exact for the step ``T`` taken from the data:
 CV per axis ``F = [[1, T], [0, 1]]``, ``Q = q [[T^3/3, T^2/2], [T^2/2, T]]`` (q: acceleration
 power spectral density, m^2/s^3); Gauss-Markov ``dV_i = e^{-a T} dV_{i-1} + w_i`` with
-``var(w_i) = sigma^2 (1 - e^{-2 a T})`` (METHODS.md section 2: the seed's eq. 9 noise factor is
+``var(w_i) = sigma^2 (1 - e^{-2 a T})`` (docs/arms.md: the seed's eq. 9 noise factor is
 dimensionally inconsistent and is not used).
 
 The nonlinear measurement update (EKF and converted-at-predicted forms) runs in a numba kernel
@@ -46,7 +46,6 @@ from flightrecon.filters.arms.filter import (
 )
 from flightrecon.filters.arms.model import (
     CONVERTED_AT,
-    EARTH_RADIUS_M,
     LINEARISATIONS,
     AirData,
     ArmsModel,
@@ -66,4 +65,11 @@ from flightrecon.filters.arms.model import (
 )
 from flightrecon.filters.arms.paper import PaperScenario, simulate_paper_scenario
 
-__all__ = ['LINEARISATIONS', 'CONVERTED_AT', 'EARTH_RADIUS_M', 'ArmsModel', 'RadarPlots', 'AirData', 'horizontal_range', 'range_azimuth', 'range_azimuth_jacobian', 'wrap_angle', 'converted_measurement', 'converted_covariance', 'cv_transition', 'cv_process_noise', 'gm_transition', 'gm_process_noise', 'joint_transition', 'joint_process_noise', 'ArmsEstimate', 'Stage1Run', 'Stage2Run', 'JointRun', 'CascadeResult', 'track_ground_velocity', 'compensate', 'run_cascade', 'run_joint', 'estimate_of', 'PaperScenario', 'simulate_paper_scenario']
+__all__ = [
+    "LINEARISATIONS", "CONVERTED_AT", "ArmsModel", "RadarPlots", "AirData", "horizontal_range",
+    "range_azimuth", "range_azimuth_jacobian", "wrap_angle", "converted_measurement",
+    "converted_covariance", "cv_transition", "cv_process_noise", "gm_transition",
+    "gm_process_noise", "joint_transition", "joint_process_noise", "ArmsEstimate", "Stage1Run",
+    "Stage2Run", "JointRun", "CascadeResult", "track_ground_velocity", "compensate",
+    "run_cascade", "run_joint", "estimate_of", "PaperScenario", "simulate_paper_scenario",
+]

@@ -234,7 +234,7 @@ def track_ground_velocity(plots: RadarPlots, model: ArmsModel, *, linearisation:
                           converted_at: str = "predicted", smooth: bool = True) -> Stage1Run:
     """Stage 1: CV tracker of ``[x, Vx, y, Vy]`` from the plots at their own times.
 
-    Paper eqs. 10-15 (METHODS.md section 2, stage 1).  One step per plot, ``T`` from the plot
+    Paper eqs. 10-15 (docs/arms.md, stage 1).  One step per plot, ``T`` from the plot
     times; the prior is the first plot's converted position (eq. 13, covariance eq. 15) with zero
     velocity of standard deviation ``model.v0_sd_mps``; the first plot initialises and is not
     reused.  EKF: azimuth innovation wrapped to (-pi, pi].
@@ -272,7 +272,7 @@ def compensate(stage1: Stage1Run, air: AirData, model: ArmsModel, *,
     State ``dV = [dVx, dVy]``, Gauss-Markov per axis (exact discretisation).  Measurement at each
     plot time: ``z = V* - W_hat = dV - dW`` with ``H = I`` and ``R = cov(dW) + sigma_air^2 I``,
     where ``cov(dW)`` is stage 1's velocity covariance: the cascade treats the stage-1 error as
-    white, which it is not (METHODS.md section 2, first caution), so this filter's covariance is
+    white, which it is not (docs/arms.md, first caution), so this filter's covariance is
     optimistic.  The air data is taken at the plot times by interpolation (:meth:`AirData.at`).
 
     Parameters
@@ -316,7 +316,7 @@ def run_cascade(plots: RadarPlots, air: AirData, model: ArmsModel, *, linearisat
 def run_joint(plots: RadarPlots, air: AirData, model: ArmsModel, *, linearisation: str = "ekf",
               converted_at: str = "predicted", smooth: bool = True,
               extra_times=None) -> JointRun:
-    """Joint model ``[x, Vx, y, Vy, dVx, dVy]`` (METHODS.md section 2, product form).
+    """Joint model ``[x, Vx, y, Vy, dVx, dVy]`` (docs/arms.md, product form).
 
     Steps: the union of the plot times, the air-data times and ``extra_times`` (steps without a
     measurement, e.g. the output grid, so that the estimate there is the exact prediction or

@@ -8,6 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightrecon.errors import ValidationError
+from flightrecon.estimation.discretise import (
+    check_steps,
+    constant_velocity,
+    gauss_markov,
+)
+from flightrecon.geo.radar import horizontal_range  # noqa: F401  (public here too)
 
 LINEARISATIONS = ("ekf", "converted")
 """Stage-1 / joint radar linearisations: EKF on (range, azimuth) or converted x/y measurements."""
@@ -16,15 +22,12 @@ LINEARISATIONS = ("ekf", "converted")
 CONVERTED_AT = ("predicted", "measured")
 """Where the converted-measurement covariance is evaluated (range and azimuth of the predicted
 state, or the measured ones).  ``predicted`` avoids the correlation between the measurement noise
-and its own covariance that ``measured`` introduces (Bar-Shalom, Li & Kirubarajan 2001, sec. 10.4)."""
+and its own covariance that ``measured`` introduces (Bar-Shalom, Li & Kirubarajan 2001,
+sec. 10.4)."""
 
 
 _LIN_CODE = {("ekf", "predicted"): 0, ("ekf", "measured"): 0,
              ("converted", "measured"): 1, ("converted", "predicted"): 2}
-
-
-EARTH_RADIUS_M = 6371008.8
-"""Mean Earth radius [m], for the drop of the station's tangent plane below the aircraft."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -141,7 +144,7 @@ class AirData:
     def at(self, t_s: np.ndarray, max_gap_s: float = np.inf) -> np.ndarray:
         """(K, 2) components linearly interpolated to times ``t_s``.
 
-        Air data is an *input* channel on the recorder grid (METHODS.md, "Two kinds of
+        Air data is an *input* channel on the recorder grid (docs/schema.md, "Two kinds of
         channel"), so taking it at a plot's time by interpolation between neighbouring grid
         samples reuses no measurement.  NaN outside the samples and where the two bracketing
         samples are more than ``max_gap_s`` apart (a gap in the air data is not bridged).
@@ -160,40 +163,6 @@ class AirData:
 # --------------------------------------------------------------------------------------------
 # measurement models
 # --------------------------------------------------------------------------------------------
-
-def horizontal_range(slant_m, *, elevation_deg=None, dh_m=None,
-                     earth_radius_m: float = EARTH_RADIUS_M) -> np.ndarray:
-    """Horizontal range in the station's tangent plane from the radar's slant range.
-
-    With the elevation angle: ``r = rho cos(el)`` (METHODS.md section 2).  With the altitude
-    difference ``dh`` (aircraft minus station, metres above the same datum): the aircraft's
-    height above the station's tangent plane is ``u = dh - r^2 / (2 R_e)`` (the plane drops
-    away from the sphere), and ``r`` solves ``r^2 + u^2 = rho^2``; two fixed-point steps from
-    ``r0 = sqrt(rho^2 - dh^2)`` converge to well under a metre for ranges below 500 km.
-    Refraction is ignored.  Without either, the slant range is returned unchanged.
-
-    Raises
-    ------
-    ValidationError
-        If the altitude difference exceeds the slant range (inconsistent data).
-    """
-    rho = np.asarray(slant_m, dtype=np.float64)
-    if elevation_deg is not None:
-        return rho * np.cos(np.deg2rad(np.asarray(elevation_deg, dtype=np.float64)))
-    if dh_m is None:
-        return rho.copy()
-    dh = np.asarray(dh_m, dtype=np.float64)
-    r2 = rho ** 2 - dh ** 2
-    if np.any(r2 < 0):
-        raise ValidationError("radar plots: altitude difference to the station exceeds the slant "
-                              "range; check the station elevation and the altitude datum",
-                              rows=np.flatnonzero(r2 < 0)[:20] + 1)
-    r = np.sqrt(r2)
-    for _ in range(2):
-        u = dh - r ** 2 / (2.0 * earth_radius_m)
-        r = np.sqrt(np.maximum(rho ** 2 - u ** 2, 0.0))
-    return r
-
 
 def range_azimuth(X: np.ndarray) -> np.ndarray:
     """Measurement function h(X) = [sqrt(x^2 + y^2), atan2(x, y)] (paper eq. 10).
@@ -228,7 +197,8 @@ def wrap_angle(a):
 
 
 def converted_measurement(range_m, azimuth_rad) -> np.ndarray:
-    """Converted measurement ``[x*, y*] = rho* [sin theta*, cos theta*]`` (paper eq. 13), (..., 2)."""
+    """Converted measurement ``[x*, y*] = rho* [sin theta*, cos theta*]`` (paper eq. 13),
+    (..., 2)."""
     r = np.asarray(range_m, dtype=np.float64)
     a = np.asarray(azimuth_rad, dtype=np.float64)
     return np.stack([r * np.sin(a), r * np.cos(a)], axis=-1)
@@ -238,7 +208,7 @@ def converted_covariance(range_m, azimuth_rad, sigma_range_m, sigma_azimuth_rad)
     """Covariance of the converted measurement error (paper eq. 15, first order), (..., 2, 2).
 
     ``s_x^2 = s_r^2 sin^2 t + r^2 s_t^2 cos^2 t``, ``s_y^2 = s_r^2 cos^2 t + r^2 s_t^2 sin^2 t``,
-    ``s_xy = sin t cos t (s_r^2 - r^2 s_t^2)`` (METHODS.md section 2), evaluated at the range and
+    ``s_xy = sin t cos t (s_r^2 - r^2 s_t^2)`` (docs/arms.md), evaluated at the range and
     azimuth given (measured or predicted: see :data:`CONVERTED_AT`).
     """
     r = np.asarray(range_m, dtype=np.float64)
@@ -259,70 +229,51 @@ def converted_covariance(range_m, azimuth_rad, sigma_range_m, sigma_azimuth_rad)
 # --------------------------------------------------------------------------------------------
 
 def _check_dt(dt) -> np.ndarray:
-    dt = np.asarray(dt, dtype=np.float64)
-    if dt.ndim != 1:
-        raise ValidationError("time steps must be a 1-D array")
-    if np.any(~np.isfinite(dt)) or np.any(dt[1:] <= 0):
-        raise ValidationError("time steps must be finite and positive (times strictly increasing)")
-    return dt
+    return check_steps(dt)
 
 
 def cv_transition(dt) -> np.ndarray:
     """CV transition of ``[x, Vx, y, Vy]`` for steps ``dt`` (N,): (N, 4, 4), ``[[1, T], [0, 1]]``
-    per axis (``dt[0]``, the step into the first epoch, is not used by the filter)."""
-    dt = _check_dt(dt)
-    F = np.zeros((len(dt), 4, 4))
-    for i in (0, 2):
-        F[:, i, i] = 1.0
-        F[:, i + 1, i + 1] = 1.0
-        F[:, i, i + 1] = dt
+    per axis (:func:`flightrecon.estimation.discretise.constant_velocity`)."""
+    F1, _ = constant_velocity(dt, 0.0)
+    F = np.zeros((len(F1), 4, 4))
+    F[:, 0:2, 0:2] = F[:, 2:4, 2:4] = F1
     return F
 
 
 def cv_process_noise(dt, q_m2ps3: float) -> np.ndarray:
     """Exact CV process noise (N, 4, 4): ``q [[T^3/3, T^2/2], [T^2/2, T]]`` per axis
-    (white-acceleration model, Bar-Shalom et al. 2001, eq. 6.2.2-12)."""
-    dt = _check_dt(dt)
-    Q = np.zeros((len(dt), 4, 4))
-    for i in (0, 2):
-        Q[:, i, i] = q_m2ps3 * dt ** 3 / 3.0
-        Q[:, i, i + 1] = Q[:, i + 1, i] = q_m2ps3 * dt ** 2 / 2.0
-        Q[:, i + 1, i + 1] = q_m2ps3 * dt
+    (:func:`flightrecon.estimation.discretise.constant_velocity`)."""
+    _, Q1 = constant_velocity(dt, q_m2ps3)
+    Q = np.zeros((len(Q1), 4, 4))
+    Q[:, 0:2, 0:2] = Q[:, 2:4, 2:4] = Q1
     return Q
 
 
 def gm_transition(dt, alpha_ps: float) -> np.ndarray:
     """Gauss-Markov transition of ``[dVx, dVy]`` (N, 2, 2): ``e^{-alpha T} I`` (paper eq. 9)."""
-    dt = _check_dt(dt)
-    return np.exp(-alpha_ps * dt)[:, None, None] * np.eye(2)
+    phi, _ = gauss_markov(dt, alpha_ps, 0.0)
+    return phi[:, None, None] * np.eye(2)
 
 
 def gm_process_noise(dt, alpha_ps: float, sigma_mps: float) -> np.ndarray:
     """Exact Gauss-Markov process noise (N, 2, 2): ``sigma^2 (1 - e^{-2 alpha T}) I``
-    (METHODS.md section 2; ``-expm1`` keeps it accurate for small ``alpha T``)."""
-    dt = _check_dt(dt)
-    return (sigma_mps ** 2 * -np.expm1(-2.0 * alpha_ps * dt))[:, None, None] * np.eye(2)
+    (:func:`flightrecon.estimation.discretise.gauss_markov`)."""
+    _, var = gauss_markov(dt, alpha_ps, sigma_mps)
+    return var[:, None, None] * np.eye(2)
 
 
 def joint_transition(dt, alpha_ps: float) -> np.ndarray:
     """Joint transition of ``[x, Vx, y, Vy, dVx, dVy]``: block-diag(CV, GM), (N, 6, 6)."""
-    dt = _check_dt(dt)
-    F = np.zeros((len(dt), 6, 6))
-    for i in range(4):
-        F[:, i, i] = 1.0
-    F[:, 0, 1] = F[:, 2, 3] = dt
-    F[:, 4, 4] = F[:, 5, 5] = np.exp(-alpha_ps * dt)
+    F = np.zeros((len(np.atleast_1d(dt)), 6, 6))
+    F[:, 0:4, 0:4] = cv_transition(dt)
+    F[:, 4, 4] = F[:, 5, 5] = gauss_markov(dt, alpha_ps, 0.0)[0]
     return F
 
 
 def joint_process_noise(dt, q_m2ps3: float, alpha_ps: float, sigma_mps: float) -> np.ndarray:
     """Joint process noise: block-diag(CV, GM), (N, 6, 6)."""
-    dt = _check_dt(dt)
-    Q = np.zeros((len(dt), 6, 6))
-    for i in (0, 2):
-        Q[:, i, i] = q_m2ps3 * dt ** 3 / 3.0
-        Q[:, i, i + 1] = Q[:, i + 1, i] = q_m2ps3 * dt ** 2 / 2.0
-        Q[:, i + 1, i + 1] = q_m2ps3 * dt
-    g = sigma_mps ** 2 * -np.expm1(-2.0 * alpha_ps * dt)
-    Q[:, 4, 4] = Q[:, 5, 5] = g
+    Q = np.zeros((len(np.atleast_1d(dt)), 6, 6))
+    Q[:, 0:4, 0:4] = cv_process_noise(dt, q_m2ps3)
+    Q[:, 4, 4] = Q[:, 5, 5] = gauss_markov(dt, alpha_ps, sigma_mps)[1]
     return Q

@@ -1,4 +1,4 @@
-"""Azimuth channel of an approach radar: Singer model and load-factor-aided model (METHODS.md s. 3).
+"""Azimuth channel of an approach radar: Singer model and load-factor-aided model (docs/azimuth.md).
 
 State ``x = [eps, omega, a]``: azimuth [rad, clockwise from true north at the station], azimuth
 rate [rad/s] and azimuth angular acceleration [rad/s^2].  Two process models:
@@ -9,7 +9,7 @@ rate [rad/s] and azimuth angular acceleration [rad/s^2].  Two process models:
 * **Aided** (seed 002 equations (5)-(7)): ``a`` is a random walk driven by white noise on ``a'``
   of spectral density ``q``; exact discretisation :func:`random_walk_matrices`.
 
-Observations (METHODS.md s. 3):
+Observations (docs/azimuth.md):
 
 * radar azimuth ``eps_meas = eps + v``, innovation wrapped to (-pi, pi] (seed eq. (4)/(8));
 * the *transverse acceleration* from the downlinked load factors and attitude (replacing the
@@ -32,12 +32,12 @@ backward by the generic Rauch-Tung-Striebel pass :func:`flightrecon.smoothing.rt
 
 from __future__ import annotations
 
-from flightrecon.filters.azimuth.filter import AzimuthRun, azimuth_filter
-from flightrecon.filters.azimuth.models import (
+from flightrecon.estimation.discretise import (
     random_walk_matrices,
     singer_process_noise,
     singer_transition,
 )
+from flightrecon.filters.azimuth.filter import AzimuthRun, azimuth_filter
 from flightrecon.filters.azimuth.observation import (
     horizontal_acceleration,
     horizontal_acceleration_covariance,
@@ -47,4 +47,9 @@ from flightrecon.filters.azimuth.observation import (
 )
 from flightrecon.filters.azimuth.range_track import RangeTrack, track_range
 
-__all__ = ['singer_transition', 'singer_process_noise', 'random_walk_matrices', 'horizontal_acceleration', 'horizontal_acceleration_jacobian', 'horizontal_acceleration_covariance', 'transverse_acceleration', 'wrap_pi', 'RangeTrack', 'track_range', 'AzimuthRun', 'azimuth_filter']
+__all__ = [
+    "singer_transition", "singer_process_noise", "random_walk_matrices",
+    "horizontal_acceleration", "horizontal_acceleration_jacobian",
+    "horizontal_acceleration_covariance", "transverse_acceleration", "wrap_pi", "RangeTrack",
+    "track_range", "AzimuthRun", "azimuth_filter",
+]

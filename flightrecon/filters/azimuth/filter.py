@@ -8,11 +8,13 @@ import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters.azimuth.models import (
+from flightrecon.estimation.discretise import (
     random_walk_matrices,
     singer_process_noise,
     singer_transition,
 )
+from flightrecon.estimation.predict import predict
+from flightrecon.estimation.updates import joseph_update
 from flightrecon.filters.azimuth.range_track import RangeTrack
 from flightrecon.smoothing.rts import rts_smooth
 
@@ -24,67 +26,6 @@ from flightrecon.smoothing.rts import rts_smooth
 @nb.njit(cache=True, nogil=True)
 def _wrap(x):
     return np.pi - np.mod(np.pi - x, 2.0 * np.pi)
-
-
-@nb.njit(cache=True, nogil=True)
-def _predict(F, Q, x, P):
-    """``x = F x``, ``P = F P F^T + Q`` (3 x 3, explicit loops), symmetrised."""
-    xn = np.zeros(3)
-    FP = np.zeros((3, 3))
-    Pn = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            xn[i] += F[i, j] * x[j]
-            for m in range(3):
-                FP[i, j] += F[i, m] * P[m, j]
-    for i in range(3):
-        for j in range(3):
-            v = Q[i, j]
-            for m in range(3):
-                v += FP[i, m] * F[j, m]
-            Pn[i, j] = v
-    for i in range(3):
-        for j in range(i + 1, 3):
-            v = 0.5 * (Pn[i, j] + Pn[j, i])
-            Pn[i, j] = v
-            Pn[j, i] = v
-    return xn, Pn
-
-
-@nb.njit(cache=True, nogil=True)
-def _scalar_update(x, P, h, nu, r):
-    """Joseph-form scalar update ``P = (I - K h^T) P (I - K h^T)^T + r K K^T``; x, P, S."""
-    Ph = np.zeros(3)
-    for i in range(3):
-        for j in range(3):
-            Ph[i] += P[i, j] * h[j]
-    S = r
-    for i in range(3):
-        S += h[i] * Ph[i]
-    K = Ph / S
-    xn = x + K * nu
-    A = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            A[i, j] = (1.0 if i == j else 0.0) - K[i] * h[j]
-    AP = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            for m in range(3):
-                AP[i, j] += A[i, m] * P[m, j]
-    Pn = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            v = r * K[i] * K[j]
-            for m in range(3):
-                v += AP[i, m] * A[j, m]
-            Pn[i, j] = v
-    for i in range(3):
-        for j in range(i + 1, 3):
-            v = 0.5 * (Pn[i, j] + Pn[j, i])
-            Pn[i, j] = v
-            Pn[j, i] = v
-    return xn, Pn, S
 
 
 @nb.njit(cache=True, nogil=True)
@@ -107,33 +48,38 @@ def _azimuth_kernel(x0, P0, F, Q, eps_meas, eps_var, a_ne, Sa, Sb, r, rdot, Pr, 
     r_z = np.full(N, np.nan)
     x = x0.copy()
     P = P0.copy()
-    h_eps = np.array([1.0, 0.0, 0.0])
+    h_eps = np.array([[1.0, 0.0, 0.0]])
+    r1 = np.empty((1, 1))
+    nu1 = np.empty(1)
     for k in range(N):
         if k > 0:
-            x, P = _predict(F[k], Q[k], x, P)
+            x, P = predict(x, P, F[k], Q[k])
         xp[k] = x
         Pp[k] = P
         if not np.isnan(eps_meas[k]):
-            nu = _wrap(eps_meas[k] - x[0])
-            x, P, S = _scalar_update(x, P, h_eps, nu, eps_var[k])
-            nu_e[k] = nu
-            s_e[k] = S
+            nu1[0] = _wrap(eps_meas[k] - x[0])
+            r1[0, 0] = eps_var[k]
+            x, P, S1, _ = joseph_update(x, P, nu1, h_eps, r1)
+            nu_e[k] = nu1[0]
+            s_e[k] = S1[0, 0]
         if not np.isnan(a_ne[k, 0]):
             e, om, a = x[0], x[1], x[2]
             s, c = np.sin(e), np.cos(e)
             zacc = a_ne[k, 1] * c - a_ne[k, 0] * s
             dz = -(a_ne[k, 1] * s + a_ne[k, 0] * c)
-            h = np.array([-dz, 2.0 * rdot[k], r[k]])
+            h = np.empty((1, 3))
+            h[0, 0], h[0, 1], h[0, 2] = -dz, 2.0 * rdot[k], r[k]
             u0, u1 = -s, c
             rs = (u0 * u0 * Sa[k, 0, 0] + 2.0 * u0 * u1 * Sa[k, 0, 1] + u1 * u1 * Sa[k, 1, 1])
             rb = (u0 * u0 * Sb[k, 0, 0] + 2.0 * u0 * u1 * Sb[k, 0, 1] + u1 * u1 * Sb[k, 1, 1])
             g0_, g1_ = a, 2.0 * om  # dz_model / d(r, r_dot)
             rr = g0_ * g0_ * Pr[k, 0, 0] + 2.0 * g0_ * g1_ * Pr[k, 0, 1] + g1_ * g1_ * Pr[k, 1, 1]
             R = rs + n_corr * (rb + rr)
-            nu = zacc - 2.0 * rdot[k] * om - r[k] * a
-            x, P, S = _scalar_update(x, P, h, nu, R)
-            nu_z[k] = nu
-            s_z[k] = S
+            nu1[0] = zacc - 2.0 * rdot[k] * om - r[k] * a
+            r1[0, 0] = R
+            x, P, S1, _ = joseph_update(x, P, nu1, h, r1)
+            nu_z[k] = nu1[0]
+            s_z[k] = S1[0, 0]
             r_z[k] = R
         xs[k] = x
         Ps[k] = P
@@ -190,11 +136,12 @@ def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, 
                    sigma_m_mps2: float = 2.0, q_jerk_m2ps5: float = 0.2,
                    correlation_time_s: float = 0.0, v_max_mps: float = 150.0,
                    a_max_mps2: float = 5.0) -> AzimuthRun:
-    """Filter and smooth the azimuth channel on the event times (METHODS.md s. 3).
+    """Filter and smooth the azimuth channel on the event times (docs/azimuth.md).
 
     Parameters
     ----------
     t_s : (N,) strictly increasing event times [s]; the first event must hold a radar plot
+        (it initialises the azimuth and is used once, as the prior: its innovation is NaN)
     eps_meas_rad : (N,) radar azimuth [rad], NaN where no plot at that event
     eps_var_rad2 : (N,) azimuth measurement variance [rad^2]
     range_track : :func:`track_range` on the same events
@@ -267,10 +214,13 @@ def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, 
     n_corr = 1.0
     if t_on.size > 1:
         n_corr = max(1.0, correlation_time_s / float(np.median(np.diff(t_on))))
+    # the first plot is the prior; it is not used again as a measurement at the first event
     x0 = np.array([eps[0], 0.0, 0.0])
     P0 = np.diag([eps_var[0], (v_max_mps / r[0]) ** 2, (a_max_mps2 / r[0]) ** 2])
-    out = _azimuth_kernel(x0, P0, np.ascontiguousarray(F), np.ascontiguousarray(Q), eps, eps_var,
-                          a_ne, a_ne_cov, a_ne_cov_corr, r,
+    eps_used = eps.copy()
+    eps_used[0] = np.nan
+    out = _azimuth_kernel(x0, P0, np.ascontiguousarray(F), np.ascontiguousarray(Q), eps_used,
+                          eps_var, a_ne, a_ne_cov, a_ne_cov_corr, r,
                           np.ascontiguousarray(range_track.r_dot),
                           np.ascontiguousarray(range_track.P), n_corr)
     xf, Pf, xp, Pp, nu_e, s_e, nu_z, s_z, r_z = out

@@ -28,7 +28,7 @@ def horizontal_acceleration(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,
                             heading_deg) -> np.ndarray:
     """Horizontal kinematic acceleration (a_N, a_E) from body load factors and Euler attitude.
 
-    METHODS.md "Common ground": ``a_NED = C_nb(heading, pitch, roll) g0 [n_long, n_lat, -n_norm]
+    docs/schema.md, "Conventions": ``a_NED = C_nb(heading, pitch, roll) g0 [n_long, n_lat, -n_norm]
     + [0, 0, g]``; gravity is vertical, so the horizontal rows need neither latitude nor height:
     ``[a_N, a_E] = Rz(heading) [v_x, v_y]`` with ``v = Ry(pitch) Rx(roll) g0 [n_long, n_lat,
     -n_norm]`` (ZYX order).
@@ -49,9 +49,10 @@ def horizontal_acceleration(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,
     """
     from flightrecon.geo.kinematics import kinematic_acceleration_ned
 
-    # gravity is vertical: the horizontal rows do not depend on where it is evaluated
+    # gravity is vertical: the horizontal rows do not depend on the latitude it is evaluated
+    # at (0 here), only the dropped vertical row would
     return kinematic_acceleration_ned(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,
-                                      heading_deg)[..., :2]
+                                      heading_deg, lat_deg=0.0)[..., :2]
 
 
 def horizontal_acceleration_jacobian(n_long_g, n_lat_g, n_norm_g, roll_deg, pitch_deg,

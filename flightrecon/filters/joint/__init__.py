@@ -2,16 +2,18 @@
 
 The state, its propagation by the kinematic accelerations from load factors and attitude, and
 the measurement models are in :mod:`flightrecon.filters.joint.layout` and the compiled kernels
-beside it.  This package builds their inputs from a cleaned flight, runs the forward filter and the RTS backward pass, and
-iterates (Gauss-Newton about the smoothed trajectory) with
+beside it.  This package builds their inputs from a cleaned flight, runs the forward filter
+and the RTS backward pass, and iterates (Gauss-Newton about the smoothed trajectory) with
 
 * the linearisation refreshed on the smoothed trajectory (nominal positions through pyproj);
 * robust re-weighting: each measurement's smoothed residual, normalised by its own standard
   deviation sqrt(R - H P_s H^T), enters a Huber weight (threshold ``huber_c``), so a source that
   jumps (a GNSS offset of 500 m for a minute) is down-weighted rather than trusted;
 * clock offsets of the GNSS and radar against the recorder estimated by weighted least squares
-  of the smoothed residuals against the rate of each predicted measurement (a plot stamped
-  t_m that belongs to true time t_m - o has residual -hdot * o);
+  of the smoothed residuals against the rate of each predicted measurement.  An offset is the
+  number of seconds to *add* to the source's time stamps, as ``flightrecon clean
+  --radar-clock-offset`` takes it: a plot stamped t_m that belongs to true time t_m + c has
+  residual hdot * c;
 * optionally, a scale factor on each source's noise variance estimated from the flight
   (variance-component estimation from the normalised residuals).
 
@@ -35,7 +37,7 @@ from flightrecon.filters.joint.measurements import (
     build_measurements,
     static_measurements,
 )
-from flightrecon.filters.joint.noise import NOISE_GROUPS
+from flightrecon.filters.joint.noise import NOISE_GROUPS, innovation_loglik
 from flightrecon.filters.joint.nominal import attitude_jacobian, relinearised_increments
 from flightrecon.filters.joint.settings import (
     POSITIVE_NOISE,
@@ -47,4 +49,10 @@ from flightrecon.filters.joint.settings import (
 )
 from flightrecon.filters.joint.smoother import JointRun, smooth_joint
 
-__all__ = ['SOURCES', 'JointNoise', 'POSITIVE_NOISE', 'JointSettings', 'PRIOR_STATES', 'prior_of', 'enu_to_ecef_matrix', 'TakeoffRoll', 'JointInputs', 'takeoff_roll', 'refined_roll', 'end_points', 'attitude_jacobian', 'relinearised_increments', 'Measurements', 'static_measurements', 'build_measurements', 'NOISE_GROUPS', 'JointRun', 'smooth_joint', 'source_report']
+__all__ = [
+    "SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
+    "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "takeoff_roll", "refined_roll",
+    "end_points", "attitude_jacobian", "relinearised_increments", "Measurements",
+    "static_measurements", "build_measurements", "NOISE_GROUPS", "innovation_loglik", "JointRun",
+    "smooth_joint", "source_report",
+]

@@ -19,7 +19,6 @@ from flightrecon.filters.joint.layout import (
     IW,
     N_STATE,
 )
-from flightrecon.filters.smallmat import cholesky_factor, cholesky_solve_columns
 
 
 @nb.njit(cache=True, nogil=True)
@@ -143,18 +142,6 @@ def _sparse_rmatvec(cols, vals, cnt, y, out):
     for i in range(n):
         for c in range(cnt[i]):
             out[cols[i, c]] += vals[i, c] * y[i]
-
-
-@nb.njit(cache=True, nogil=True)
-def _cholesky_solve(A, b, L, y):
-    """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
-
-    Returns False (and leaves y undefined) if A is not numerically positive definite.
-    """
-    if not cholesky_factor(A, L, 0.0):
-        return False
-    cholesky_solve_columns(L, b.reshape((-1, 1)), y.reshape((-1, 1)))
-    return True
 
 
 @nb.njit(cache=True, nogil=True)

@@ -46,7 +46,8 @@ class JointInputs:
     Cnb : body-to-NED rotations on the input grid (Ni, 3, 3)
     tas, heading_rad : airspeed and (unwrapped) true heading on the input grid
     baro_rel_m : pressure altitude minus the departure field's pressure altitude (input grid)
-    gnss : DataFrame t_s, lat_deg, lon_deg, h_m (ellipsoidal), vn_mps, ve_mps (may be empty)
+    gnss : DataFrame t_s, lat_deg, lon_deg, h_m (ellipsoidal; NaN: a horizontal-only fix),
+        vn_mps, ve_mps, optionally h_sd_m, v_sd_m, vel_sd_mps (per-fix sd) (may be empty)
     radar : DataFrame t_s, range_m, azimuth_rad, elevation_rad (NaN if absent) (may be empty)
     station : (lat, lon, h_ellipsoidal) or None
     departure, arrival : (lat, lon, h_ellipsoidal) or None
@@ -61,6 +62,9 @@ class JointInputs:
     thresholds : (lat, lon, h_ellipsoidal) of the departure and arrival runway thresholds,
         ``None`` each where unknown (used only with the runway's direction)
     roll : the take-off roll and the rest before it (:func:`takeoff_roll`)
+    lineup_t : when the aircraft lined up on the take-off runway (cleaning phases); nothing
+        before it is taken as at rest on the runway (NaN: no limit)
+    notes : what the input builder had to assume (missing attitude held, ...), for the summary
     """
 
     t_in: np.ndarray
@@ -86,13 +90,15 @@ class JointInputs:
     thresholds: tuple[tuple[float, float, float] | None,
                       tuple[float, float, float] | None] = (None, None)
     roll: TakeoffRoll = field(default_factory=TakeoffRoll)
+    lineup_t: float = np.nan
+    notes: tuple[str, ...] = ()
 
 
 def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
                  tas: np.ndarray, liftoff_t: float, wind_ne: np.ndarray | None = None,
                  rest_mps: float = 3.0, max_rolling_mps: float = 10.0,
                  settle_s: float = 10.0, v_lo_mps: float | None = None,
-                 accel_bias_mps2: float = 0.0) -> TakeoffRoll:
+                 accel_bias_mps2: float = 0.0, not_before_t: float = np.nan) -> TakeoffRoll:
     """Start of the take-off roll, and the rest before it, from the recorded data alone.
 
     The ground speed is integrated backwards from lift-off, v(t) = v_lo - int_t^t_lo a dt,
@@ -107,6 +113,8 @@ def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
     ``settle_s`` (the first metres of the roll, where the detection lags).
     ``accel_bias_mps2`` is subtracted from the along-track acceleration (the accelerometer's
     forward bias, once the smoother has estimated it: 0.003 g is 1.8 m/s over a minute's rest).
+    ``not_before_t`` (the line-up on the runway, from the cleaning's phases): the search and the
+    rest stretch start there, so taxiing from the gate is never taken as the roll or the rest.
 
     Returns
     -------
@@ -130,8 +138,12 @@ def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,
                           + wind_ne[i_lo, 1] * np.sin(psi[i_lo]))
     dv = 0.5 * (a[1:] + a[:-1]) * np.diff(t_in[:i_lo + 1])   # speed gained over each interval
     v = v_lo - np.r_[np.cumsum(dv[::-1])[::-1], 0.0]
+    if np.isfinite(not_before_t):
+        v = np.where(t_in[:i_lo + 1] >= not_before_t, v, np.inf)   # taxi: never at rest here
     slow = v <= rest_mps
     if not slow.any():
+        if not np.isfinite(v.min()):
+            return TakeoffRoll()
         # the end of the slowest stretch (within 0.5 m/s of the minimum)
         i_min = int(np.flatnonzero(v <= v.min() + 0.5)[-1])
         return TakeoffRoll(float(t_in[i_min]) if v.min() <= max_rolling_mps else np.nan)
@@ -161,7 +173,7 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
     return takeoff_roll(t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
                         v_lo_mps=float(vnom[k_lo, 0] * np.cos(psi_lo)
                                        + vnom[k_lo, 1] * np.sin(psi_lo)),
-                        accel_bias_mps2=bias)
+                        accel_bias_mps2=bias, not_before_t=inp.lineup_t)
 
 
 def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,

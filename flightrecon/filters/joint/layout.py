@@ -52,12 +52,25 @@ minus the step's time (the state is carried to the measurement time by the veloc
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import numpy as np
+
 N_STATE = 24
 
 
 IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT, IG = (0, 3, 6, 8, 11, 12, 13, 14, 15, 16,
                                                                 17, 20, 22)
 
+
+# the state's blocks as slices, named once (the indices above are their first elements)
+S_POS = slice(IP, IP + 3)      # ECEF position [m]
+S_VEL = slice(IV, IV + 3)      # NED velocity [m/s]
+S_WIND = slice(IW, IW + 2)     # horizontal wind, north/east [m/s]
+S_ACC_BIAS = slice(IBA, IBA + 3)
+S_ACC_SCALE = slice(IKS, IKS + 3)
+S_ATT_BIAS = slice(IATT, IATT + 2)
+S_WIND_GRAD = slice(IG, IG + 2)
 
 G0 = 9.80665
 
@@ -66,3 +79,44 @@ LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO, DOPPLER, TRACK = 0, 1, 2,
 
 
 ANGLE_TYPES = (AZIMUTH, ELEVATION, HEADING, TRACK)
+
+
+# ---- named layouts across the compiled boundary (numba takes NamedTuples of arrays) ----
+
+class Dynamics(NamedTuple):
+    """The propagation model on the state grid (N steps)."""
+
+    dt: np.ndarray        # (N,) step lengths [s] (dt[0] = 0)
+    Cen: np.ndarray       # (N, 3, 3) NED -> ECEF at the nominal positions
+    Cnb: np.ndarray       # (N, 3, 3) step-mean body -> NED
+    Csf: np.ndarray       # (N, 3, 3) step-mean rotation of the specific force (bias terms)
+    Jatt: np.ndarray      # (N, 3, 2) step-mean attitude Jacobian of the rotated force
+    acc: np.ndarray       # (N, 3) step-mean measured kinematic acceleration [m/s^2]
+    dP: np.ndarray        # (N, 3) exact position increments of the held accelerations
+    dV: np.ndarray        # (N, 3) exact velocity increments
+    dz: np.ndarray        # (N,) height change over each step (wind gradient)
+    qv_extra: np.ndarray  # (N,) extra acceleration PSD where the loads are missing
+    q: np.ndarray         # process-noise densities and the bias time constant (_q_vector)
+
+
+class Scalars(NamedTuple):
+    """The scalar measurements, sorted by state step (``start`` (N+1,) indexes each step's)."""
+
+    start: np.ndarray     # (N+1,)
+    mtype: np.ndarray     # (M,) measurement type (LINEAR, RANGE, ...)
+    z: np.ndarray         # (M,) measured values
+    r: np.ndarray         # (M,) variances (nominal in the forward pass, inflated backward)
+    w: np.ndarray         # (M,) robust weights (the variance used is r / w)
+    tau: np.ndarray       # (M,) measurement time minus its step's time [s]
+    H: np.ndarray         # (K, n) rows of the LINEAR measurements
+    row: np.ndarray       # (M,) their row in H (-1 for the others)
+    d: np.ndarray         # (M,) offsets of the LINEAR measurements
+
+
+class Geometry(NamedTuple):
+    """The linearisation point and the radar station."""
+
+    pnom: np.ndarray      # (N, 3) nominal ECEF positions
+    hnom: np.ndarray      # (N,) nominal ellipsoidal heights
+    pst: np.ndarray       # (3,) station ECEF position
+    Cst: np.ndarray       # (3, 3) station ENU -> ECEF

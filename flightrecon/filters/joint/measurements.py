@@ -15,13 +15,13 @@ from flightrecon.filters.joint.inputs import (
     refined_roll,
 )
 from flightrecon.filters.joint.settings import SOURCES, JointSettings
-from flightrecon.geo.frames import geodetic_to_ecef
+from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
 
 @dataclass(frozen=True)
 class Measurements:
-    """Scalar measurements sorted by state step (see :mod:`~flightrecon.filters.joint.layout` for the types).
+    """Scalar measurements sorted by state step (types: :mod:`~flightrecon.filters.joint.layout`).
 
     Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]`` (``hrow`` is -1 for the
     others), so the table stays small when most measurements are nonlinear scalars.
@@ -48,6 +48,15 @@ def _decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -
     keep = np.ones(len(t), bool)
     keep[1:] = b[1:] != b[:-1]
     return keep
+
+
+def _per_fix(g, column: str, default: float) -> np.ndarray:
+    """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own
+    accuracy figures), ``default`` where absent or not finite."""
+    if column not in g.columns:
+        return np.full(len(g), float(default))
+    v = g[column].to_numpy(float)
+    return np.where(np.isfinite(v) & (v > 0), v, float(default))
 
 
 class _MeasBuilder:
@@ -170,7 +179,7 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
         cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
         along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
         H = np.zeros((len(tt), n))
-        H[:, jl.IP:jl.IP + 3] = cross
+        H[:, jl.S_POS] = cross
         if not known:
             H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
         b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
@@ -186,7 +195,8 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     t_in = inp.t_in
 
     # air data: airspeed and heading, decimated, airborne speeds only
-    ok = np.isfinite(inp.tas) & np.isfinite(inp.heading_rad) & (inp.tas >= settings.min_airspeed_mps)
+    ok = (np.isfinite(inp.tas) & np.isfinite(inp.heading_rad)
+          & (inp.tas >= settings.min_airspeed_mps))
     keep = ok & _decimate_mask(t_in, settings.airdata_rate_hz)
     # a first-order lag delays a ramp by its time constant: the airspeed recorded at t is the
     # airspeed at t - lag; sampled at the state steps plus the lag, so that it is used at a step
@@ -243,9 +253,10 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
     end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
     positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
-    and are rebuilt on each call.  ``roll`` is :func:`refined_roll` (computed here if not
-    given); ``psi_hat`` the heading bias of the last pass (per state step), about which the
-    ground constraints are linearised.
+    ``clock`` (seconds *added* to each group's time stamps, the convention of
+    ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is
+    :func:`refined_roll` (computed here if not given); ``psi_hat`` the heading bias of the last
+    pass (per state step), about which the ground constraints are linearised.
     """
     nz = settings.noise
     b = (static if static is not None else static_measurements(inp, settings, T)).copy()
@@ -263,7 +274,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             H = np.zeros((len(t), n))
             if kind == "pos":
                 c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
-                H[:, jl.IP:jl.IP + 3] = c
+                H[:, jl.S_POS] = c
                 H[:, jl.IV + i] = tau
                 z = np.einsum("mj,mj->m", c, ecef)
             else:
@@ -274,11 +285,23 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     # GNSS
     g = inp.gnss
     if len(g):
-        tg = g["t_s"].to_numpy() - clock.get("gnss", 0.0)
-        ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(),
-                                      g["h_m"].to_numpy())
-        ant = np.c_[ex, ey, ez]
+        tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
         k = step_of(tg)
+        hg = g["h_m"].to_numpy(float)
+        no_h = ~np.isfinite(hg)
+        if no_h.any():
+            # a fix without height is used horizontally: its north and east components only,
+            # computed at a substitute height (the nominal's, else the field's plus the pressure
+            # height); the north/east projection of the fix moves by (angle between the
+            # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
+            if pnom is not None:
+                h_sub = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+            else:
+                ii = _nearest(t_in, tg)
+                h_sub = inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
+            hg = np.where(no_h, h_sub, hg)
+        ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
+        ant = np.c_[ex, ey, ez]
         L = np.asarray(inp.lever_arm, float)
         v_arm = np.zeros((len(tg), 3))
         if np.any(L != 0):
@@ -292,17 +315,22 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             ip, im = _nearest(t_in, tg + 0.5), _nearest(t_in, tg - 0.5)
             span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
             v_arm = np.einsum("mij,j->mi", inp.Cnb[ip] - inp.Cnb[im], L) / span
-        linear_ned("gnss_pos", tg, None, (nz.gnss_h_m, nz.gnss_h_m, nz.gnss_v_m), "pos", ant)
+        # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
+        # else the noise settings; no height: no vertical component
+        sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
+        sd_v = np.where(no_h, np.nan, _per_fix(g, "v_sd_m", nz.gnss_v_m))
+        linear_ned("gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
         if {"vn_mps", "ve_mps"} <= set(g.columns):
+            sd_vel = _per_fix(g, "vel_sd_mps", nz.gnss_vel_mps)
             linear_ned("gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
                                         g["ve_mps"].to_numpy() - v_arm[:, 1]),
-                       (nz.gnss_vel_mps, nz.gnss_vel_mps), "vel")
+                       (sd_vel, sd_vel), "vel")
     if pnom is not None and vnom is not None:
         _runway_measurements(b, inp, settings, step_of, pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
-        tr = rd["t_s"].to_numpy() - clock.get("radar", 0.0)
+        tr = rd["t_s"].to_numpy() + clock.get("radar", 0.0)
         b.add("radar", jl.RANGE, tr, rd["range_m"].to_numpy(), nz.radar_range_m ** 2)
         b.add("radar", jl.AZIMUTH, tr, rd["azimuth_rad"].to_numpy(),
               np.radians(nz.radar_azimuth_deg) ** 2)
@@ -337,7 +365,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
                           [0.0, 0.0, 1.0]), ep["sd_m"]):
             u = np.asarray(u)
             H = np.zeros((1, n))
-            H[0, jl.IP:jl.IP + 3] = Ca @ u
-            H[0, jl.IV:jl.IV + 3] = u * tau
+            H[0, jl.S_POS] = Ca @ u
+            H[0, jl.S_VEL] = u * tau
             b.add("endpoint", jl.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe)
     return b.build()

@@ -26,6 +26,18 @@ def _noise_groups(meas: Measurements) -> np.ndarray:
     return g
 
 
+def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray) -> float:
+    """Log-likelihood of the data by the prediction-error decomposition,
+    ``-1/2 sum_j (nu_j^2 / S_j + ln(2 pi S_j))`` over the selected scalar innovations ``nu``
+    with their variances ``S`` (the exact likelihood of the linearised model for the given
+    noise; Harvey 1989, section 3.4)."""
+    ok = sel & np.isfinite(innov) & np.isfinite(innov_var) & (innov_var > 0)
+    if not ok.any():
+        return float("nan")
+    s = innov_var[ok]
+    return float(-0.5 * np.sum(innov[ok] ** 2 / s + np.log(2.0 * np.pi * s)))
+
+
 def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int, float]:
     """M-step of expectation-maximisation for one variance factor c per group.
 

@@ -5,8 +5,13 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flightrecon.filters.joint.dynamics import (
+from flightrecon.estimation.linalg import (
     _cholesky_solve,
+    cholesky_factor,
+    cholesky_solve_columns,
+)
+from flightrecon.estimation.updates import scalar_update_short
+from flightrecon.filters.joint.dynamics import (
     _predict_cov,
     _sparse_matvec,
     _sparse_rmatvec,
@@ -27,13 +32,15 @@ from flightrecon.filters.joint.layout import (
     TRACK,
 )
 from flightrecon.filters.joint.observation import measure_into
-from flightrecon.filters.smallmat import cholesky_factor, cholesky_solve_columns
 
 
 @nb.njit(cache=True, nogil=True)
-def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, mstart, mtype, mz, mr, mw,
-            mtau, mH, mrow, md, pnom, hnom, pst, Cst, gate, xlin):
+def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
     """Forward extended Kalman filter with sequential scalar updates.
+
+    ``dyn``, ``meas``, ``geo``: the :class:`~flightrecon.filters.joint.layout.Dynamics`,
+    :class:`~flightrecon.filters.joint.layout.Scalars` and
+    :class:`~flightrecon.filters.joint.layout.Geometry` layouts.
 
     With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
     last pass: h(x) ~ h(xlin_k) + H(xlin_k)(x - xlin_k), which makes the iterations Gauss-Newton
@@ -52,6 +59,9 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
     Allocation-free per step: the prediction uses the row-compressed F_k (P <- F P F^T + Q in
     O(n nnz)), the update the nonzero entries of each measurement's gradient.
     """
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
+    pnom, hnom, pst, Cst = geo
     N = dt.shape[0]
     n = N_STATE
     M = mtype.shape[0]
@@ -125,16 +135,9 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
                 infl[j] = r_new / r
                 r = r_new
                 S = HPH + r
-            # scalar update with K = PH / S, in place, O(n^2): the Joseph form
-            # (I - K H) P (I - K H)^T + K r K^T expanded for the optimal gain is
-            # P - K PH^T - PH K^T + S K K^T = P - PH PH^T / S; (PH_a PH_b) / S is bitwise
-            # symmetric, so P stays exactly symmetric
-            inv_s = 1.0 / S
-            for a in range(n):
-                pa = PH[a]
-                for b in range(n):
-                    P[a, b] -= (pa * PH[b]) * inv_s
-                x[a] += pa * inv_s * nu
+            # scalar update with K = PH / S, in place, O(n^2): the short form P - PH PH^T / S
+            # (not the Joseph form, which it equals only at this optimal gain, to rounding)
+            scalar_update_short(x, P, PH, nu, S)
         xf[k] = x
         Pf[k] = P
     return nu_out, s_out, infl
@@ -142,7 +145,8 @@ def forward(xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv
 
 @nb.njit(cache=True, nogil=True)
 def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
-    """F_k into ``F`` and its row-compressed copy (:func:`transition_into`, :func:`_sparse_rows`)."""
+    """F_k into ``F`` and its row-compressed copy (:func:`transition_into`,
+    :func:`_sparse_rows`)."""
     transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
     _sparse_rows(F, cols, vals, cnt)
 
@@ -205,8 +209,7 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
 
 
 @nb.njit(cache=True, nogil=True)
-def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH,
-                  mrow, md, pnom, hnom, pst, Cst, dz, qv_extra):
+def backward_mean(xf, Pf, xp, Pp, dyn, meas, geo):
     """RTS backward pass for the smoothed states only (no covariances), and the residuals.
 
     x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
@@ -214,8 +217,14 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     solve with a vector) instead of O(n^3) products; used in the Gauss-Newton iterations, which
     need the trajectory and the residuals but not the smoothed covariances.
 
-    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`).
+    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`)
+    and the number of steps whose predicted covariance failed its Cholesky factorisation (not
+    positive definite to rounding: the gain then comes from a general solve, which raises
+    LinAlgError only if the matrix is singular; the caller reports the count).
     """
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
+    pnom, hnom, pst, Cst = geo
     N, n = xf.shape
     M = mtype.shape[0]
     xs = xf.copy()
@@ -235,6 +244,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
     Pbuf = np.empty((n, n))
     no_P = np.empty((0, 0))
     no_hph = np.empty(0)
+    n_fallback = 0
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
@@ -243,6 +253,7 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
             for i in range(n):
                 d[i] = xs[k + 1, i] - xp[k + 1, i]
             if not _cholesky_solve(Pk1, d, L, y):
+                n_fallback += 1
                 y[:] = np.linalg.solve(Pk1, d)
             _sparse_rmatvec(cols, vals, cnt, y, z)
             for a in range(n):
@@ -252,21 +263,24 @@ def backward_mean(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype
                 xs[k, a] = v
         _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
                       Cst, H, res, res_n, rate, no_P, no_hph)
-    return xs, res_n, res, rate
+    return xs, res_n, res, rate, n_fallback
 
 
 @nb.njit(cache=True, nogil=True)
-def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz, mr, mtau, mH, mrow,
-             md, pnom, hnom, pst, Cst, dz, qv_extra, residuals):
+def backward(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
     """RTS backward pass with covariances; also the smoothed residuals (see
     :func:`backward_mean`, which gives the same states without the covariances).
 
     Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
     smoothed state variances (N, n), normalised residuals, raw residuals, rates and, per
-    measurement, H P_s H^T (the smoothed variance of the predicted measurement).  With
+    measurement, H P_s H^T (the smoothed variance of the predicted measurement), and the number
+    of Cholesky failures (as :func:`backward_mean`).  With
     ``residuals`` False the residual outputs stay NaN (the covariances do not need them: this
     pass can then run beside :func:`backward_mean` on another thread).
     """
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
+    pnom, hnom, pst, Cst = geo
     N, n = xf.shape
     M = mtype.shape[0]
     xs = xf.copy()
@@ -291,6 +305,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
     d = np.empty(n)
     H = np.empty(n)
     Ps = Pf[N - 1].copy()
+    n_fallback = 0
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
@@ -306,6 +321,7 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
             if cholesky_factor(Pk1, L, 0.0):
                 cholesky_solve_columns(L, A, GT)      # GT = P_p^-1 A = G^T
             else:
+                n_fallback += 1
                 GT[:, :] = np.linalg.solve(Pk1, A)
             for i in range(n):
                 for j in range(n):
@@ -338,4 +354,4 @@ def backward(xf, Pf, xp, Pp, dt, Cen, Cnb, Csf, Jatt, acc, q, mstart, mtype, mz,
         if residuals:
             _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom,
                           pst, Cst, H, res, res_n, rate, Ps, hph)
-    return xs, Pblk, var, res_n, res, rate, hph
+    return xs, Pblk, var, res_n, res, rate, hph, n_fallback

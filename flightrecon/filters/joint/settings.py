@@ -102,6 +102,7 @@ class JointSettings:
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
     noise_tol: float = 0.01                  # EM stops when no variance moves by more
+    noise_factor_bounds: tuple[float, float] = (0.01, 100.0)  # EM variance factors kept inside
     priors: tuple[tuple[str, float, float], ...] = ()  # (error, mean, sd) replacing the
     #                                          default prior N(0, budget^2): PRIOR_STATES names
 

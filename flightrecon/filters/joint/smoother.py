@@ -27,6 +27,7 @@ from flightrecon.filters.joint.noise import (
     NOISE_GROUPS,
     _em_noise_scales,
     _noise_groups,
+    innovation_loglik,
 )
 from flightrecon.filters.joint.nominal import (
     _attitude_step_means,
@@ -60,11 +61,15 @@ class JointRun:
     resid_norm: np.ndarray
     innov: np.ndarray
     innov_var: np.ndarray
-    clock_offsets_s: dict[str, tuple[float, float]]
+    clock_offsets_s: dict[str, tuple[float, float]]  # (value, sd): seconds added to the stamps
     noise_scale: dict[str, float]
     iterations: list[dict[str, Any]]
     end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
     roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
+    noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
+    # steps of the last pass whose predicted covariance failed its Cholesky factorisation (the
+    # smoother gain then came from a general solve): reported, never silent
+    cholesky_fallbacks: int = 0
 
 
 def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) -> JointRun:
@@ -101,7 +106,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(idx))]
     psi_hat = None   # heading bias of the last pass: the linearisation point of its rotation
     ba_hat = None    # accelerometer biases of the last pass (for the take-off roll)
-    xlin = np.zeros((0, jl.N_STATE))   # smoothed states of the last pass (measurements' linearisation)
+    # smoothed states of the last pass (the measurements' linearisation)
+    xlin = np.zeros((0, jl.N_STATE))
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
         n_iter = max(n_iter, settings.noise_iterations)
@@ -131,25 +137,28 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # (an empty Pp would have the backward passes recompute the predicted covariances,
             # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
             Pf, Pp = np.empty((len(T), n, n)), np.empty((len(T), n, n))
+        dyn = jl.Dynamics(dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra, q)
+        geo = jl.Geometry(pnom, hnom, pst, Cst)
+        scalars = jl.Scalars(meas.start, meas.mtype, meas.z, r, weights, tau, meas.H, meas.hrow,
+                             meas.d)
         innov, innov_var, infl = jp.forward(
-            xf, Pf, xp, Pp, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra, q, meas.start, meas.mtype,
-            meas.z, r, weights, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst,
+            xf, Pf, xp, Pp, x0, P0, dyn, scalars, geo,
             settings.innovation_gate if settings.robust else 0.0, xlin)
         r_used = r * infl
         # the iterations need the smoothed trajectory only; covariances once, after the last
-        kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z, r_used, tau,
-                     meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz, qv_extra)
+        kern_args = (dyn, scalars._replace(r=r_used), geo)
         # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
         # the solution) smooths the states only, the later ones (likely the last) everything
         with_cov = settings.estimate_noise or it > 0
         if settings.estimate_noise:
-            xs, Pblk, var, _, res, rate, hph = jp.backward(xf, Pf, xp, Pp, *kern_args, True)
+            xs, Pblk, var, _, res, rate, hph, n_fallback = jp.backward(xf, Pf, xp, Pp, *kern_args,
+                                                                       True)
         elif with_cov:
             # the covariance recursion does not need the smoothed states: it runs on a second
             # thread beside the mean pass (the kernels release the GIL)
             cov: dict[str, Any] = {}
 
-            def covariances(*args: Any) -> None:
+            def covariances(*args: Any, cov: dict[str, Any] = cov) -> None:
                 try:
                     cov["out"] = jp.backward(*args, False)
                 except BaseException as exc:  # re-raised on the calling thread
@@ -158,19 +167,21 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             worker = threading.Thread(target=covariances, name="joint-covariances",
                                       args=(xf, Pf, xp, Pp, *kern_args))
             worker.start()
-            xs, _, res, rate = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+            xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
             worker.join()
             if "error" in cov:
                 raise cov["error"]
-            _, Pblk, var, *_ = cov["out"]
+            _, Pblk, var, *_, n_fallback_cov = cov["out"]
+            n_fallback = max(n_fallback, n_fallback_cov)
         else:
-            xs, _, res, rate = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+            xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
         # residual in units of the measurement's own (nominal, not inflated) standard deviation
         res_n = res / np.sqrt(r)
         # new nominal: the smoothed trajectory
         lat_new, lon_new, h_new = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
-        shift = float(np.max(np.abs(np.c_[xs[:, 0:3] - pnom])))
-        info = {"iteration": it, "max_position_change_m": shift, "roll_start_t_s": roll.start_t}
+        shift = float(np.max(np.abs(np.c_[xs[:, jl.S_POS] - pnom])))
+        info = {"iteration": it, "max_position_change_m": shift, "roll_start_t_s": roll.start_t,
+                "cholesky_fallbacks": int(n_fallback)}
         # robust weights from the smoothed residuals
         w_before = weights.copy()
         clock_before = dict(clock)
@@ -181,7 +192,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # redescending rule, so a jumped source cannot pull the track at all
             weights = np.where(a > settings.reject_c, 1e-8, weights)
             weights[~np.isfinite(weights)] = 1.0
-        # clock offsets: residual = -hdot * offset
+        # clock offsets, in seconds added to the source's time stamps (the convention of
+        # `clean --gnss-clock-offset / --radar-clock-offset`): a measurement stamped t_m and
+        # taken at t_m + c_true, used at t_m + c, has residual hdot * (c_true - c)
         if settings.estimate_clock:
             for name, src in (("gnss", ("gnss_pos",)), ("radar", ("radar",))):
                 sel = np.isin(meas.source, [SOURCES.index(s) for s in src]) & np.isfinite(rate)
@@ -191,7 +204,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                 den = np.sum(wv * rate[sel] ** 2)
                 if den <= 0:
                     continue
-                o = -np.sum(wv * rate[sel] * res[sel]) / den
+                o = np.sum(wv * rate[sel] * res[sel]) / den
                 sd = 1.0 / np.sqrt(den)
                 clock_sd[name] = sd
                 if abs(o) > 3 * sd:
@@ -202,8 +215,9 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             # measurements taken at face value in this pass: full weight, not gated
             use = (weights >= 1.0) & (w_before >= 1.0) & (infl <= 1.0)
             new_scale = scale.copy()
+            lo_b, hi_b = settings.noise_factor_bounds
             for gi, c in _em_noise_scales(groups, res, hph, meas.r, use).items():
-                new_scale[gi] = c
+                new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
             noise_moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
             scale = new_scale
             info["noise_scale"] = {name: float(scale[i])
@@ -211,12 +225,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                                    if np.any(groups == i)}
         history.append(info)
         lat, lon, h = lat_new, lon_new, h_new
-        vnom = xs[:, jl.IV:jl.IV + 3]
+        vnom = xs[:, jl.S_VEL]
         psi_new = np.ascontiguousarray(xs[:, jl.IPSI])
         psi_moved = float(np.max(np.abs(psi_new - (0.0 if psi_hat is None else psi_hat))))
         info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
         psi_hat = psi_new
-        ba_hat = xs[:, jl.IBA:jl.IBA + 3]
+        ba_hat = xs[:, jl.S_ACC_BIAS]
         xlin = xs
         # converged: the linearisation point, the weights, the clock offsets and (with
         # estimate_noise) the noise variances stand still
@@ -232,7 +246,45 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     if not with_cov:
         # smoothed covariances of the last pass (its states equal those of the mean-only pass
         # to round-off: same gains, same linearisation)
-        xs, Pblk, var, *_ = jp.backward(xf, Pf, xp, Pp, *kern_args, False)
+        xs, Pblk, var, *_, n_fallback_cov = jp.backward(xf, Pf, xp, Pp, *kern_args, False)
+        n_fallback = max(n_fallback, n_fallback_cov)
+    noise_check = None
+    if settings.estimate_noise:
+        # the estimated noise must raise the likelihood of the data: the innovations'
+        # log-likelihood (prediction-error decomposition) of the last pass against a forward
+        # pass with the default variances at the same linearisation, weights and clock
+        # offsets; otherwise the defaults are kept (docs/joint.md, "Noise estimation")
+        lo_b, hi_b = settings.noise_factor_bounds
+        xf1, xp1 = np.empty_like(xf), np.empty_like(xp)
+        Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
+        r1 = meas.r.copy()
+        # (w_before: the weights the last forward pass ran with)
+        innov1, innov_var1, infl1 = jp.forward(
+            xf1, Pf1, xp1, Pp1, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra,
+            q, meas.start, meas.mtype, meas.z, r1, w_before, tau, meas.H, meas.hrow, meas.d,
+            pnom, hnom, pst, Cst, settings.innovation_gate if settings.robust else 0.0, xlin)
+        sel = (w_before >= 1.0) & (infl <= 1.0) & (infl1 <= 1.0)
+        ll_est = innovation_loglik(innov, innov_var, sel)
+        ll_def = innovation_loglik(innov1, innov_var1, sel)
+        at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
+                    if np.any(groups == i) and (scale[i] <= lo_b or scale[i] >= hi_b)]
+        accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
+        noise_check = {"loglik_estimated": ll_est, "loglik_default": ll_def,
+                       "measurements": int(sel.sum()), "accepted": accepted,
+                       "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
+        if not accepted:
+            scale = np.ones(len(NOISE_GROUPS))
+            r_used = r1 * infl1
+            kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z,
+                         r_used, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz,
+                         qv_extra)
+            xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1,
+                                                                   *kern_args, True)
+            n_fallback = int(n_fb1)
+            res_n = res / np.sqrt(r1)
+            xf, innov, innov_var = xf1, innov1, innov_var1
+            lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+        del Pf1, Pp1
     del Pf, Pp
     return JointRun(t=T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=Cen, meas=meas, weights=weights, resid_norm=res_n, innov=innov,
@@ -240,4 +292,6 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                     clock_offsets_s={k: (clock[k], clock_sd[k]) for k in clock},
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
-                    iterations=history, end_points=end_points(inp, nz, roll), roll=roll)
+                    iterations=history, end_points=end_points(inp, nz, roll), roll=roll,
+                    noise_check=noise_check,
+                    cholesky_fallbacks=int(n_fallback))

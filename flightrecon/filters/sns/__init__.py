@@ -1,4 +1,4 @@
-"""Heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (METHODS.md section 4).
+"""Heading-airspeed / heading-Doppler dead reckoning fused with SNS fixes (docs/sns.md).
 
 Seed 003 (Ukrainian paper on "non-invariant" processing): one nonlinear discrete filter estimates
 the position *and* the corrections to the sensor readings, with SNS (GNSS) position and ground
@@ -18,15 +18,17 @@ with the integrals of the held readings ``A = int a dt`` (``a`` the measured vel
 
 * ``model=0`` heading-airspeed, state ``[n, e, corr_wind_n, corr_wind_e, corr_psi]``:
   ``a = TAS [cos psi~, sin psi~]``, ``w`` the wind reading (blowing toward), ``s = 1``,
-  ``theta = corr_psi``, ``dw = (corr_wind_n, corr_wind_e)``.  METHODS.md eq. (1) with the wind
+  ``theta = corr_psi``, ``dw = (corr_wind_n, corr_wind_e)``.  docs/sns.md, "Models", eq. (1)
+  with the wind
   correction in Cartesian form (observability note of section 4).
 * ``model=1`` heading-Doppler, state ``[n, e, corr_W, corr_c, corr_psi]``:
   ``a = W~ [cos(psi~ + c~), sin(psi~ + c~)]``, ``w = 0``, ``s = 1 + corr_W``,
-  ``theta = corr_c + corr_psi``, ``dw = 0``.  METHODS.md eq. (4).  Heading and drift enter only
+  ``theta = corr_c + corr_psi``, ``dw = 0``.  docs/sns.md, "Models", eq. (4).  Heading and drift
+  enter only
   through their sum (the track angle), so they separate only through their priors; the sum is
   what the data determine.
 
-Corrections are true minus measured (METHODS.md "Common ground"): the true heading is
+Corrections are true minus measured (docs/schema.md, "Conventions"): the true heading is
 ``psi~ + corr_psi``; the true Doppler ground speed ``W~ (1 + corr_W)``.
 
 Noise model
@@ -54,7 +56,7 @@ terms are the dependence of the radii on a position error (relative 1e-7 per kil
 and the rotation of the local axes across one step (sub-millimetre); the test
 ``test_sns_models.py::test_local_level_propagation_10h`` bounds the total over a 10-hour flight.
 
-Filter (METHODS.md section 4)
+Filter (docs/sns.md)
 -----------------------------
 Observation of the fixes in step k (stacked if several)::
 
@@ -67,7 +69,7 @@ with ``S^+`` the Moore-Penrose pseudo-inverse (eigen-decomposition, eigenvalues 
     X_{k+1} = f(X+) + B G^T S^+ nu
     P_{k+1} = (Phi - L H) P- (Phi - L H)^T + (B - L G)(B - L G)^T + L D D^T L^T
 
-which equals METHODS.md's ``Phi P+ Phi^T + B B^T - B G^T S^+ G B^T - Phi P- H^T S^+ G B^T -
+which equals docs/sns.md's ``Phi P+ Phi^T + B B^T - B G^T S^+ G B^T - Phi P- H^T S^+ G B^T -
 B G^T S^+ H P- Phi^T`` and is symmetric positive semi-definite by construction.  The seed's form
 (``form=1``) ignores the correlation: ``X_{k+1} = f(X+)``, ``P_{k+1} = Phi P+ Phi^T + B B^T``.
 
@@ -99,8 +101,8 @@ results equal the straightforward matrix expressions to round-off
 
 from __future__ import annotations
 
+from flightrecon.estimation.linalg import pinv_sym
 from flightrecon.filters.sns.filter import SnsRun, SnsSmoothed, sns_filter, sns_smooth
-from flightrecon.filters.sns.linalg import pinv_sym
 from flightrecon.filters.sns.model import (
     FORM_CONSISTENT,
     FORM_SEED,
@@ -123,4 +125,10 @@ from flightrecon.filters.sns.model import (
 )
 from flightrecon.filters.sns.output import densify, integrate_readings
 
-__all__ = ['pinv_sym', 'MODEL_AIRSPEED', 'MODEL_DOPPLER', 'FORM_CONSISTENT', 'FORM_SEED', 'N_STATE', 'N_EPS1', 'STATE_NAMES', 'radii', 'boxplus', 'boxminus', 'increment', 'segment_factor', 'step_matrices', 'observation_rows', 'StepInputs', 'fill_single_sample', 'SnsNoise', 'default_noise', 'SnsRun', 'SnsSmoothed', 'sns_filter', 'sns_smooth', 'densify', 'integrate_readings']
+__all__ = [
+    "pinv_sym", "MODEL_AIRSPEED", "MODEL_DOPPLER", "FORM_CONSISTENT", "FORM_SEED", "N_STATE",
+    "N_EPS1", "STATE_NAMES", "radii", "boxplus", "boxminus", "increment", "segment_factor",
+    "step_matrices", "observation_rows", "StepInputs", "fill_single_sample", "SnsNoise",
+    "default_noise", "SnsRun", "SnsSmoothed", "sns_filter", "sns_smooth", "densify",
+    "integrate_readings",
+]

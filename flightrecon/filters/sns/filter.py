@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
-from flightrecon.filters.sns.linalg import (
+from flightrecon.estimation.linalg import (
     _chol_solve_rows,
     _mdmt_acc,
     _mm,
@@ -29,6 +30,7 @@ from flightrecon.filters.sns.model import (
     boxminus,
     boxplus,
     fill_single_sample,
+    per_fix_sd,
 )
 
 
@@ -60,16 +62,65 @@ class SnsRun:
 
 @dataclass(frozen=True)
 class SnsSmoothed:
-    """Smoothed states ``x`` (N, 5) (lat/lon radians first) and covariances ``P`` (N, 5, 5)."""
+    """Smoothed states ``x`` (N, 5) (lat/lon radians first) and covariances ``P`` (N, 5, 5).
+
+    ``cholesky_fallbacks``: steps whose predicted covariance failed its Cholesky factorisation
+    (not positive definite to rounding), where the gain came from a general solve; reported by
+    the adapter, never silent.
+    """
 
     x: np.ndarray
     P: np.ndarray
+    cholesky_fallbacks: int = 0
+
+
+class KernelSteps(NamedTuple):
+    """The filter steps' inputs across the compiled boundary (see :class:`StepInputs`)."""
+
+    t: np.ndarray        # (N,) step times [s]
+    hgt: np.ndarray      # (N,) heights [m]
+    A: np.ndarray        # (N, 2) integrated measured velocity over each step
+    U: np.ndarray        # (N, 2) its unit-vector integral
+    W: np.ndarray        # (N, 2) integrated wind reading
+    star: np.ndarray     # (N, 3, 2) the readings of the sample that straddles a step end
+    dt_star: np.ndarray  # (N,) its hold
+    Qb: np.ndarray       # (N, 7) noise integrals of the step (whole samples)
+    Qa: np.ndarray       # (N, 7) and of the straddling part
+
+
+class KernelFixes(NamedTuple):
+    """The SNS fixes, grouped per step (``start``/``end`` index the fixes of each step)."""
+
+    start: np.ndarray    # (N,)
+    end: np.ndarray      # (N,)
+    lat: np.ndarray      # (F,) [rad]
+    lon: np.ndarray      # (F,) [rad]
+    v: np.ndarray        # (F, 2) velocity north/east [m/s]
+    tau: np.ndarray      # (F,) fix time minus step time [s]
+    PA: np.ndarray       # (F, 2) reading integrals from the step to the fix
+    PU: np.ndarray       # (F, 2)
+    PW: np.ndarray       # (F, 2)
+    a: np.ndarray        # (F, 2) readings at the fix
+    u: np.ndarray        # (F, 2)
+    w: np.ndarray        # (F, 2)
+    tau_in: np.ndarray   # (F,) fix time minus its recorder sample's time [s]
+
+
+class KernelNoise(NamedTuple):
+    """Noise of the filter (see :class:`SnsNoise`)."""
+
+    sig: np.ndarray      # (4,) sensor noise per sample
+    q: np.ndarray        # random-walk densities of the corrections
+    pos_sd: np.ndarray   # (F,) per-fix SNS position sd [m]
+    vel_sd: np.ndarray   # (F,) per-fix SNS velocity sd [m/s]
+    rcond: float         # pseudo-inverse tolerance
 
 
 @nb.njit(cache=True, nogil=True)
-def _filter_kernel(model, form, x0, P0, t, hgt, A, U, W, fs, fe, flat, flon, fv, ftau,
-                   fPA, fPU, fPW, fa, fu, fw, star, dt_star, Qb, Qa, ftau_in, sig, q, pos_sd,
-                   vel_sd, rcond):
+def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
+    t, hgt, A, U, W, star, dt_star, Qb, Qa = steps
+    fs, fe, flat, flon, fv, ftau, fPA, fPU, fPW, fa, fu, fw, ftau_in = fixes
+    sig, q, pos_sd, vel_sd, rcond = noise
     # All small-matrix algebra runs in preallocated buffers with loop products (_mm, _mmt):
     # the same operations as the matrix expressions in the module docstring, without the
     # per-step heap allocations and BLAS calls that dominated the run time.
@@ -166,13 +217,13 @@ def _filter_kernel(model, form, x0, P0, t, hgt, A, U, W, fs, fe, flat, flon, fv,
                         Gs[r, l] = Gi[j, l]
                     if j == 0:
                         nu[r] = dn - hh[0]
-                        Rd[r] = pos_sd * pos_sd
+                        Rd[r] = pos_sd[i] * pos_sd[i]
                     elif j == 1:
                         nu[r] = de - hh[1]
-                        Rd[r] = pos_sd * pos_sd
+                        Rd[r] = pos_sd[i] * pos_sd[i]
                     else:
                         nu[r] = fv[i, j - 2] - hh[j]
-                        Rd[r] = vel_sd * vel_sd
+                        Rd[r] = vel_sd[i] * vel_sd[i]
                     r += 1
             _mmt(Gs, Gs, Rt)  # Rt = D D^T + G G^T
             for r in range(m):
@@ -286,7 +337,7 @@ def _c(a, dtype=np.float64) -> np.ndarray:
 
 def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoise, *,
                model: int, form: int = FORM_CONSISTENT) -> SnsRun:
-    """Run the nonlinear SNS filter forward (module docstring; METHODS.md section 4).
+    """Run the nonlinear SNS filter forward (module docstring; docs/sns.md).
 
     Parameters
     ----------
@@ -308,16 +359,20 @@ def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoi
     if P0.shape != (N_STATE, N_STATE):
         raise ValueError(f"P0 must be (5, 5), got {P0.shape}")
     inputs = fill_single_sample(inputs)
-    out = _filter_kernel(
-        int(model), int(form), _c(x0), P0, t, _c(inputs.h), _c(inputs.A), _c(inputs.U),
-        _c(inputs.W), _c(inputs.fix_start, np.int64), _c(inputs.fix_end, np.int64),
-        _c(inputs.fix_lat), _c(inputs.fix_lon), _c(inputs.fix_v).reshape(-1, 2),
-        _c(inputs.fix_tau), _c(inputs.fix_PA).reshape(-1, 2), _c(inputs.fix_PU).reshape(-1, 2),
-        _c(inputs.fix_PW).reshape(-1, 2), _c(inputs.fix_a).reshape(-1, 2),
-        _c(inputs.fix_u).reshape(-1, 2), _c(inputs.fix_w).reshape(-1, 2),
-        _c(inputs.star).reshape(-1, 3, 2), _c(inputs.dt_star), _c(inputs.Qb).reshape(-1, 7),
-        _c(inputs.Qa).reshape(-1, 7), _c(inputs.fix_tau_in), _c(noise.sensor_sd),
-        _c(noise.rw_q), float(noise.pos_sd_m), float(noise.vel_sd_mps), float(noise.rcond))
+    steps = KernelSteps(t, _c(inputs.h), _c(inputs.A), _c(inputs.U), _c(inputs.W),
+                        _c(inputs.star).reshape(-1, 3, 2), _c(inputs.dt_star),
+                        _c(inputs.Qb).reshape(-1, 7), _c(inputs.Qa).reshape(-1, 7))
+    fixes = KernelFixes(_c(inputs.fix_start, np.int64), _c(inputs.fix_end, np.int64),
+                        _c(inputs.fix_lat), _c(inputs.fix_lon), _c(inputs.fix_v).reshape(-1, 2),
+                        _c(inputs.fix_tau), _c(inputs.fix_PA).reshape(-1, 2),
+                        _c(inputs.fix_PU).reshape(-1, 2), _c(inputs.fix_PW).reshape(-1, 2),
+                        _c(inputs.fix_a).reshape(-1, 2), _c(inputs.fix_u).reshape(-1, 2),
+                        _c(inputs.fix_w).reshape(-1, 2), _c(inputs.fix_tau_in))
+    kn = KernelNoise(_c(noise.sensor_sd), _c(noise.rw_q),
+                     per_fix_sd(inputs.fix_pos_sd, noise.pos_sd_m, len(inputs.fix_lat)),
+                     per_fix_sd(inputs.fix_vel_sd, noise.vel_sd_mps, len(inputs.fix_lat)),
+                     float(noise.rcond))
+    out = _filter_kernel(int(model), int(form), _c(x0), P0, steps, fixes, kn)
     xp, xs, Pp, Ps, cross, nis, rank = out
     return SnsRun(xp, xs, Pp, Ps, cross, nis, rank, _c(inputs.h).copy(), int(model),
                   int(form))
@@ -335,10 +390,12 @@ def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
     Dd = np.zeros((n, n))
     T = np.zeros((n, n))
     Pk = np.zeros((n, n))
+    n_fallback = 0
     for k in range(N - 2, -1, -1):
         # C = cross_k Pp_{k+1}^{-1}: Cholesky solve with the symmetric Pp; a general solve
-        # (which raises LinAlgError if Pp is singular) when it is not positive definite
+        # (which raises LinAlgError if Pp is singular) when it is not positive definite, counted
         if not _chol_solve_rows(Pp[k + 1], cross[k], Lw, C):
+            n_fallback += 1
             C[:, :] = np.linalg.solve(Pp[k + 1], cross[k].T).T
         dn, de = boxminus(xs[k + 1, 0], xs[k + 1, 1], xp[k + 1, 0], xp[k + 1, 1], hgt[k + 1])
         d[0] = dn
@@ -364,11 +421,11 @@ def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
             for j in range(n):
                 Pk[i, j] += Pf[k, i, j]
         _sym_into(Pk, Ps[k])
-    return xs, Ps
+    return xs, Ps, n_fallback
 
 
 def sns_smooth(run: SnsRun) -> SnsSmoothed:
     """Backward pass with the gain matching the filter's form (module docstring, "Smoother")."""
-    xs, Ps = _smoother_kernel(_c(run.x_pred), _c(run.x), _c(run.P_pred), _c(run.P),
-                              _c(run.cross), _c(run.h))
-    return SnsSmoothed(xs, Ps)
+    xs, Ps, n_fallback = _smoother_kernel(_c(run.x_pred), _c(run.x), _c(run.P_pred), _c(run.P),
+                                          _c(run.cross), _c(run.h))
+    return SnsSmoothed(xs, Ps, int(n_fallback))

@@ -8,8 +8,8 @@ from dataclasses import dataclass, replace
 import numba as nb
 import numpy as np
 
-from flightrecon.constants import WGS84_A, WGS84_E2
-from flightrecon.filters.sns.linalg import _chol2_into
+from flightrecon.estimation.linalg import _chol2_into
+from flightrecon.geo.ellipsoid import WGS84_A, WGS84_E2, radii_from_sin
 
 MODEL_AIRSPEED = 0
 
@@ -45,12 +45,9 @@ _E2 = WGS84_E2
 def radii(lat_rad: float, h_m: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature plus height, ``(M + h, N + h)`` [m].
 
-    WGS-84: ``M = a (1 - e^2) / (1 - e^2 sin^2 lat)^1.5``, ``N = a / sqrt(1 - e^2 sin^2 lat)``.
+    WGS-84 (:func:`flightrecon.geo.ellipsoid.radii_from_sin`).
     """
-    s = np.sin(lat_rad)
-    w = 1.0 - _E2 * s * s
-    n = _A / np.sqrt(w)
-    m = n * (1.0 - _E2) / w
+    m, n = radii_from_sin(np.sin(lat_rad))
     return m + h_m, n + h_m
 
 
@@ -152,7 +149,7 @@ def increment(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: np.nd
 
     Returns
     -------
-    d : (2,) increment north/east [m] (METHODS.md eq. (1) / (4), exact for held readings)
+    d : (2,) increment north/east [m] (docs/sns.md, "Models", exact for held readings)
     J : (2, 3) ``dd/dc``
     Gs : (2, 4) ``dd/d eta`` times the noise standard deviations
 
@@ -373,6 +370,8 @@ class StepInputs:
     Qb, Qa : (N, 7) noise sums (:func:`segment_factor`) of the step's recorder samples before and
         after that sample (steps without fixes: all samples in ``Qb``)
     fix_tau_in : (F,) time from the start of the fix's recorder sample to the fix [s]
+    fix_pos_sd, fix_vel_sd : (F,) per-fix sd of the position / velocity components (the
+        receiver's accuracy figures); ``None`` or NaN: ``SnsNoise.pos_sd_m`` / ``vel_sd_mps``
 
     ``star``, ``dt_star``, ``Qb``, ``Qa``, ``fix_tau_in`` may be left ``None`` when every filter
     step is one recorder sample (then ``star = A / tau`` etc., as :func:`fill_single_sample`).
@@ -400,6 +399,16 @@ class StepInputs:
     Qb: np.ndarray | None = None
     Qa: np.ndarray | None = None
     fix_tau_in: np.ndarray | None = None
+    fix_pos_sd: np.ndarray | None = None
+    fix_vel_sd: np.ndarray | None = None
+
+
+def per_fix_sd(v: np.ndarray | None, default: float, n: int) -> np.ndarray:
+    """(n,) per-fix standard deviations: ``v`` where finite and positive, else ``default``."""
+    if v is None:
+        return np.full(n, float(default))
+    v = np.asarray(v, float).reshape(-1)
+    return np.ascontiguousarray(np.where(np.isfinite(v) & (v > 0), v, float(default)))
 
 
 def fill_single_sample(inp: StepInputs) -> StepInputs:
@@ -423,8 +432,8 @@ class SnsNoise:
 
     Attributes
     ----------
-    sensor_sd : (4,) sensor noise per recorder sample (white): airspeed model ``[TAS m/s, heading rad,
-        wind north m/s, wind east m/s]``; Doppler model ``[ground speed m/s, drift rad,
+    sensor_sd : (4,) sensor noise per recorder sample (white): airspeed model ``[TAS m/s,
+        heading rad, wind north m/s, wind east m/s]``; Doppler model ``[ground speed m/s, drift rad,
         heading rad, unused]``
     rw_q : (3,) random-walk intensities of the corrections [unit^2/s]
     pos_sd_m, vel_sd_mps : SNS position / velocity noise per component (``D``)
@@ -443,10 +452,10 @@ class SnsNoise:
 def default_noise(model: int) -> SnsNoise:
     """Default noise settings, typical of a transport aircraft's recorder and a GNSS receiver.
 
-    Airspeed: TAS 0.5 m/s, heading 0.2 deg, wind reading 1 m/s white per recorder sample; heading bias prior
-    2 deg, wind-correction prior 10 m/s.  Doppler: ground speed 0.5 m/s, drift 0.2 deg, heading
-    0.2 deg; scale prior 0.03, drift and heading bias priors 1 and 2 deg.  Random walks let the
-    corrections drift by about 0.1 deg/h, 1 m/s per hour and 0.1 %/h.  GNSS 3 m, 0.1 m/s.
+    Airspeed: TAS 0.5 m/s, heading 0.2 deg, wind reading 1 m/s white per recorder sample; heading
+    bias prior 2 deg, wind-correction prior 10 m/s.  Doppler: ground speed 0.5 m/s, drift 0.2 deg,
+    heading 0.2 deg; scale prior 0.03, drift and heading bias priors 1 and 2 deg.  Random walks let
+    the corrections drift by about 0.1 deg/h, 1 m/s per hour and 0.1 %/h.  GNSS 3 m, 0.1 m/s.
     """
     d = np.deg2rad
     hour = 3600.0

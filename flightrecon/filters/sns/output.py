@@ -8,14 +8,13 @@ import numpy as np
 
 from flightrecon.filters.sns.filter import _c
 from flightrecon.filters.sns.model import (
-    _A,
-    _E2,
     MODEL_AIRSPEED,
     _increment_cs_into,
     _scale_angle,
     boxplus,
     radii,
 )
+from flightrecon.geo.ellipsoid import radii_from_sin
 
 
 @nb.njit(cache=True, nogil=True)
@@ -49,9 +48,7 @@ def _boxplus_pre(lat: float, lon: float, slat: float, clat: float, mr: float, nr
     cd = 1.0 - 0.5 * d2 + d2 * d2 / 24.0
     sm = slat * cd + clat * sd
     cm = clat * cd - slat * sd
-    w = 1.0 - _E2 * sm * sm
-    n = _A / np.sqrt(w)
-    m = n * (1.0 - _E2) / w
+    m, n = radii_from_sin(sm)
     return lat + dn / (m + h), lon + de / ((n + h) * cm)
 
 
@@ -157,9 +154,9 @@ def densify(model: int, xs: np.ndarray, Ps: np.ndarray, kidx: np.ndarray, tq: np
     readings, corrections of step k) forward from ``x_k`` and backward from ``x_{k+1}`` and the
     two are blended linearly in time, in latitude/longitude (they differ only by the smoothed
     process noise of the step, millimetres, over which this equals a blend of the north/east
-    difference to 1e-9 relative); the position covariance is interpolated linearly.  The velocity is the corrected
-    reading, with covariance ``Jv P_c Jv^T + Gv Gv^T`` (corrections' covariance plus the
-    reading's own noise).
+    difference to 1e-9 relative); the position covariance is interpolated linearly.  The
+    velocity is the corrected reading, with covariance ``Jv P_c Jv^T + Gv Gv^T`` (corrections'
+    covariance plus the reading's own noise).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Sabziev boundary-value fusion: the discrete analogue, its exact sensitivities, closed forms.
 
-Implements METHODS.md section 1 (seed 001, Sabziev 2020, section IV) on a uniform time grid.
-Frame (METHODS.md section 1): origin at the lift-off point, ``x`` north, ``y`` up, ``z`` east.
+Implements docs/sabziev.md (seed 001, Sabziev 2020, section IV) on a uniform time grid.
+Frame (docs/sabziev.md): origin at the lift-off point, ``x`` north, ``y`` up, ``z`` east.
 
 Model, one linear ODE per axis with one coefficient each::
 
@@ -73,4 +73,10 @@ from flightrecon.fusion.sabziev.solve import (
     solve_axis_y,
 )
 
-__all__ = ['HOLDS', 'phi_functions', 'psi_functions', 'StepCoefficients', 'horizontal_step', 'vertical_step', 'propagate_end', 'propagate_end_many', 'propagate_path', 'check_grid', 'vertical_end_point', 'horizontal_end_point', 'KT_MAX', 'POINTS_PER_DECADE', 'AxisSolution', 'solve_axis_y', 'solve_axis_horizontal', 'SabzievSolution', 'air_velocity', 'fuse']
+__all__ = [
+    "HOLDS", "phi_functions", "psi_functions", "StepCoefficients", "horizontal_step",
+    "vertical_step", "propagate_end", "propagate_end_many", "propagate_path", "check_grid",
+    "vertical_end_point", "horizontal_end_point", "KT_MAX", "POINTS_PER_DECADE",
+    "AxisSolution", "solve_axis_y", "solve_axis_horizontal", "SabzievSolution", "air_velocity",
+    "fuse",
+]

@@ -428,7 +428,7 @@ def vertical_end_point(k2: float, dt: float, a_y, h, y0: float,
                        hold: str = "linear") -> tuple[float, float]:
     """Discrete end point ``y_N(k2)`` and its exact derivative ``d y_N / d k2``.
 
-    ``y'' - k2 y = a_y - k2 h``, ``y(0) = 0``, ``y'(0) = y0`` (METHODS.md section 1).
+    ``y'' - k2 y = a_y - k2 h``, ``y(0) = 0``, ``y'(0) = y0`` (docs/sabziev.md).
     """
     q, s, _ = propagate_end(vertical_step(k2, dt, hold), (0.0, y0), a_y, h, k2)
     return float(q[0]), float(s[0])
@@ -438,7 +438,7 @@ def horizontal_end_point(k: float, dt: float, a, v, s0: float,
                          hold: str = "linear") -> tuple[float, float]:
     """Discrete end point ``x_N(k)`` and its exact derivative ``d x_N / d k``.
 
-    ``x'' - k x' = a - k v``, ``x(0) = 0``, ``x'(0) = s0`` (METHODS.md section 1).
+    ``x'' - k x' = a - k v``, ``x(0) = 0``, ``x'(0) = s0`` (docs/sabziev.md).
     """
     q, s, _ = propagate_end(horizontal_step(k, dt, hold), (0.0, s0), a, v, k)
     return float(q[0]), float(s[0])

@@ -116,7 +116,7 @@ def solve_axis_y(t, a_y, h, y0: float, y_T: float | None = None, *, k: float | N
                  strict: bool = False, rule: str = "baro") -> AxisSolution:
     """Vertical axis: ``y'' - k2 y = a_y - k2 h``, ``y(0) = 0``, ``y'(0) = y0``, ``y(T) = y_T``.
 
-    METHODS.md section 1; seed 001 equations (1)-(4).  Either ``y_T`` (boundary-value mode:
+    docs/sabziev.md; seed 001 equations (1)-(4).  Either ``y_T`` (boundary-value mode:
     ``k2`` by :func:`flightrecon.fusion.newton.find_coefficient`) or ``k`` (initial-value mode).
 
     Parameters
@@ -149,7 +149,7 @@ def solve_axis_horizontal(t, a, v_air, v0: float, s_T: float | None = None, *,
                           axis: str = "horizontal") -> AxisSolution:
     """Horizontal axis: ``s'' - k s' = a - k v_air``, ``s(0) = 0``, ``s'(0) = v0``, ``s(T) = s_T``.
 
-    METHODS.md section 1; seed 001 section IV (x with k1, z with k3).
+    docs/sabziev.md; seed 001 section IV (x with k1, z with k3).
 
     Parameters
     ----------
@@ -257,7 +257,7 @@ class SabzievSolution:
 
 
 def air_velocity(tas, heading_rad, climb_rate, wind_ne=None) -> tuple[np.ndarray, np.ndarray]:
-    """Air-derived horizontal velocity (north, east) of METHODS.md section 1.
+    """Air-derived horizontal velocity (north, east) of docs/sabziev.md.
 
     ``v_x = sqrt(max(v^2 - y'^2, 0)) cos(psi) + W_N``, ``v_z = sqrt(max(v^2 - y'^2, 0)) sin(psi)
     + W_E`` with the wind (north, east components of where it blows *to*) when given.
@@ -275,7 +275,7 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
          k0=None, hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
          parametrisation: str = "k", kt_max: float = KT_MAX, strict: bool = False,
          vertical_rule: str = "baro") -> SabzievSolution:
-    """Sabziev boundary-value fusion of loads, airspeed, heading and baro height (METHODS.md 1).
+    """Sabziev boundary-value fusion of loads, airspeed, heading and baro height (docs/sabziev.md).
 
     Solves the vertical axis first (k2), then north (k1) and east (k3), which need ``y'``.
 
@@ -337,7 +337,8 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
         targets = (None, None, None)
         end = None if end_ned is None else np.asarray(end_ned, dtype=np.float64)
     starts = (None, None, None) if k0 is None else tuple(k0)
-    common = {"hold": hold, "tol_m": tol_m, "max_iter": max_iter, "kt_max": kt_max, "strict": strict}
+    common = {"hold": hold, "tol_m": tol_m, "max_iter": max_iter, "kt_max": kt_max,
+              "strict": strict}
     ax_y = solve_axis_y(t, -a_ned[:, 2], h_rel, -v0[2], targets[1], k=ks[1], k0=starts[1],
                         parametrisation=parametrisation, rule=vertical_rule, **common)
     if np.all(np.isfinite(ax_y.velocity_mps)):

@@ -1,5 +1,15 @@
-"""Process models of the azimuth channel: the exact Singer discretisation (series near
-alpha_m T = 0) and the random-walk acceleration model of the aided filter."""
+"""Exact discretisations of the process models, once for every method.
+
+* constant velocity (white acceleration of spectral density ``q``), per axis:
+  ``F = [[1, T], [0, 1]]``, ``Q = q [[T^3/3, T^2/2], [T^2/2, T]]``;
+* first-order Gauss-Markov ``x' = -alpha x + w`` with stationary sd ``sigma``:
+  ``phi = e^{-alpha T}``, ``var = sigma^2 (1 - e^{-2 alpha T})``;
+* Singer's manoeuvring target (acceleration a Gauss-Markov process): transition and process
+  noise in closed form, by series near ``alpha T = 0``;
+* the integrated random walk of the aided azimuth model (random-walk acceleration).
+
+Maths in docs/estimation.md, "Discretisations" (Singer's brackets: docs/azimuth.md).
+"""
 
 from __future__ import annotations
 
@@ -10,9 +20,40 @@ import numpy as np
 
 from flightrecon.errors import ValidationError
 
-# ---------------------------------------------------------------------------------------------
-# Process models
-# ---------------------------------------------------------------------------------------------
+
+def check_steps(dt) -> np.ndarray:
+    """Steps ``dt`` (N,) as float64: 1-D, finite, positive after the first (the step into the
+    first epoch, ``dt[0]``, is not used by the filters)."""
+    dt = np.asarray(dt, dtype=np.float64)
+    if dt.ndim != 1:
+        raise ValidationError("time steps must be a 1-D array")
+    if np.any(~np.isfinite(dt)) or np.any(dt[1:] <= 0):
+        raise ValidationError("time steps must be finite and positive (times strictly increasing)")
+    return dt
+
+
+def constant_velocity(dt, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """One axis of the constant-velocity model: ``F`` and ``Q``, each (N, 2, 2), for steps
+    ``dt`` and white-acceleration spectral density ``q`` (Bar-Shalom et al. 2001, eq.
+    6.2.2-12)."""
+    T = check_steps(dt)
+    F = np.zeros((len(T), 2, 2))
+    F[:, 0, 0] = F[:, 1, 1] = 1.0
+    F[:, 0, 1] = T
+    Q = np.empty((len(T), 2, 2))
+    Q[:, 0, 0] = q * T ** 3 / 3.0
+    Q[:, 0, 1] = Q[:, 1, 0] = q * T ** 2 / 2.0
+    Q[:, 1, 1] = q * T
+    return F, Q
+
+
+def gauss_markov(dt, alpha: float, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """First-order Gauss-Markov process: ``phi = e^{-alpha T}`` and the exact step variance
+    ``sigma^2 (1 - e^{-2 alpha T})`` (``-expm1`` keeps it accurate for small ``alpha T``),
+    each (N,)."""
+    T = check_steps(dt)
+    return np.exp(-alpha * T), sigma ** 2 * -np.expm1(-2.0 * alpha * T)
+
 
 _SERIES_X = 0.1
 """Below ``alpha_m T`` = 0.1 the Singer brackets are evaluated by their Taylor series (the closed
@@ -91,7 +132,7 @@ def singer_transition(alpha_m: float, T) -> np.ndarray:
     """Exact Singer transition matrix over steps ``T``.
 
     ``Phi = [[1, T, (alpha T - 1 + e^{-alpha T})/alpha^2], [0, 1, (1 - e^{-alpha T})/alpha],
-    [0, 0, e^{-alpha T}]]`` (Singer 1970, eq. for Phi(T); METHODS.md s. 3), which seed 002's
+    [0, 0, e^{-alpha T}]]`` (Singer 1970, eq. for Phi(T); docs/azimuth.md), which seed 002's
     equations (1)-(3) approximate for small ``alpha T``.
 
     Parameters

@@ -1,0 +1,5 @@
+"""``python -m flightrecon``: the command line (same as the ``flightrecon`` script)."""
+
+from flightrecon.cli.entry import run
+
+run()

@@ -1,0 +1,35 @@
+"""The console entry point: catchable signals are handled from the first moment.
+
+Python turns Ctrl-C into a ``KeyboardInterrupt`` traceback while modules are still being
+imported, and SIGTERM ends a process without any clean-up.  Before the CLI's modules are
+imported (a second or more), :func:`run` makes every catchable terminating signal end the
+process quietly with 128 + its number; nothing has been written yet at that point.
+:func:`flightrecon.cli.main.main` then installs the handlers that clean up
+(:func:`flightrecon.cli.main.install_signal_handlers`).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+
+
+def _quiet_exit(signum: int, frame) -> None:
+    os._exit(128 + signum)
+
+
+def run() -> None:
+    """``flightrecon`` console script and ``python -m flightrecon``."""
+    for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT", "SIGUSR1", "SIGUSR2", "SIGALRM",
+                 "SIGXCPU", "SIGXFSZ", "SIGVTALRM", "SIGPROF"):
+        s = getattr(signal, name, None)
+        if s is None:
+            continue
+        try:
+            if signal.getsignal(s) != signal.SIG_IGN:
+                signal.signal(s, _quiet_exit)
+        except (OSError, ValueError):
+            pass
+    from flightrecon.cli.main import main
+
+    main()

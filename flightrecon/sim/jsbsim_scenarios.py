@@ -1,0 +1,283 @@
+"""JSBSim truth scenarios: ``simulate("jsbsim-circuit", seed)`` and the others (docs/jsbsim.md).
+
+Every scenario starts at rest, lined up on the departure runway's threshold (JSBSim settles
+the aircraft on its gear before ``t = 0``), and is flown by the autopilot of
+:mod:`flightrecon.sim.autopilot` through a schedule (:mod:`flightrecon.sim.jsbsim_flight`):
+
+* ``jsbsim-circuit``: Cessna 172 (JSBSim ``c172p``), left-hand pattern at 300 m above the
+  field, landing back on the runway, roll-out to rest (about 8 minutes);
+* ``jsbsim-xc``: the Cessna on a cross-country of about an hour (about 190 km): climbs to
+  1500 m and 2500 m, course changes, a descent, landing at a second airfield;
+* ``jsbsim-jet``: Boeing 737 (JSBSim ``737``), climb to 10 700 m, cruise with course changes,
+  descent, landing about 2000 km away (about 3 hours);
+* ``jsbsim-spiral``: the Cessna climbs to 1800 m, cruises, then a loss of control in a spiral
+  dive to the ground; ``jsbsim-spin``: the same to 1500 m, then a stall and spin to the ground.
+  Both records end at the impact; the wreckage is the sidecar's arrival.
+
+Per seed: the wind (speed, direction, shear, veer, a slow change in time and random walks in
+time and height), JSBSim's turbulence (seeded, light to moderate), the temperature offset, the
+sea-level pressure and its drift, the persistent sensor errors, and the recorder's noise.
+``scale`` < 1 shortens the en-route legs (short versions for tests).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from flightrecon.errors import ValidationError
+from flightrecon.geo.frames import offset_latlon
+from flightrecon.sim.aircraft import JET, LIGHT, draw_aircraft
+from flightrecon.sim.fdm import AirframeModel, FdmWeather
+from flightrecon.sim.jsbsim_flight import (
+    Approach,
+    Leg,
+    Rest,
+    Runway,
+    SpiralDive,
+    StallSpin,
+    TakeOff,
+    Wait,
+)
+from flightrecon.sim.sensors import Faults
+from flightrecon.sim.weather import WindField
+from flightrecon.types import Position
+
+__all__ = ["AIRFRAMES", "JSBSIM_SCENARIOS", "JsbsimConfig", "draw_weather", "schedule"]
+
+AIRFRAMES = {
+    "c172p": AirframeModel(model="c172p", engines=1, rest_agl_ft=4.36, vr_mps=28.0,
+                           climb_mps=36.0, cruise_mps=51.0, approach_mps=34.0,
+                           rotate_pitch_deg=8.0, takeoff_flaps=0.0, landing_flaps=0.66,
+                           flare_ft=20.0, climb_throttle=1.0, idle_throttle=0.25,
+                           gains="light", brake=0.6, flare_pitch_deg=5.0),
+    "737": AirframeModel(model="737", engines=2, rest_agl_ft=3.69, vr_mps=78.0,
+                         climb_mps=150.0, cruise_mps=135.0, approach_mps=75.0,
+                         rotate_pitch_deg=8.0, takeoff_flaps=0.2, landing_flaps=0.6,
+                         flare_ft=60.0, climb_throttle=0.95, idle_throttle=0.0,
+                         gains="jet", brake=0.5, flare_pitch_deg=8.0),
+}
+"""The two JSBSim aircraft; ``rest_agl_ft`` measured (where each settles on its gear)."""
+
+
+JSBSIM_AIRFIELD = Position(40.46, 50.05, 3.0)
+"""Departure runway threshold of every JSBSim scenario (MSL elevation)."""
+
+
+@dataclass(frozen=True)
+class JsbsimConfig:
+    """Settings of a JSBSim scenario (override any field by name in ``simulate``).
+
+    ``weather`` = ``None`` draws it from the seed (:func:`draw_weather`); ``scale`` shortens
+    the en-route legs; rates in Hz divide ``truth_rate_hz``; ``loads_range_g`` is the
+    recorder's range per load factor (long, lat, norm): readings beyond it are clipped
+    (saturation); ``tas_range_mps`` likewise for the airspeed.  ``full_tanks`` fills the
+    fuel tanks for a full-length flight (``scale`` >= 0.5; short versions keep the model's
+    default load).
+    """
+
+    airframe: str = "c172p"
+    flight_id: str = "F1"
+    epoch_utc: str = "2026-01-01T10:00:00Z"
+    airfield: Position = JSBSIM_AIRFIELD
+    runway_deg: float = 160.0
+    runway_length_m: float = 2000.0
+    geoid_undulation_m: float = -22.0
+    dt_s: float = 1.0 / 96.0
+    control_hz: float = 16.0
+    truth_rate_hz: float = 16.0
+    loads_hz: float = 16.0
+    attitude_hz: float = 8.0
+    airspeed_hz: float = 4.0
+    baro_hz: float = 4.0
+    gnss_hz: float = 1.0
+    scale: float = 1.0
+    lineup_s: float = 20.0
+    rest_s: float = 30.0
+    weather: FdmWeather | None = None
+    loads_range_g: tuple[tuple[float, float], ...] = ((-2.0, 2.0), (-2.0, 2.0), (-3.0, 6.0))
+    tas_range_mps: tuple[float, float] = (15.0, 130.0)
+    loads_quantum_g: float = 0.001
+    attitude_quantum_deg: float = 0.05
+    spikes: int = 2
+    ideal_sensors: bool = False
+    full_tanks: bool = False
+
+
+def _runway(cfg: JsbsimConfig, field: Position, heading: float) -> Runway:
+    return Runway(field.lat_deg, field.lon_deg, heading, field.elev_m)
+
+
+def draw_weather(name: str, seed: int) -> FdmWeather:
+    """The weather of scenario ``name`` for ``seed`` (module docstring)."""
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([int(seed), 2121])))
+    jet = name == "jsbsim-jet"
+    speed0 = float(rng.uniform(4.0, 14.0) if jet else rng.uniform(2.0, 9.0))
+    wind = WindField(
+        speed0_mps=speed0, speed_gradient_per_s=float(rng.uniform(0.001, 0.003 if jet else 0.005)),
+        from0_deg=float(rng.uniform(0.0, 360.0)), veer_deg_per_m=float(rng.uniform(-0.005, 0.015)),
+        speed_amp_mps=float(rng.uniform(0.0, 2.0)), dir_amp_deg=float(rng.uniform(0.0, 10.0)),
+        period_s=float(rng.uniform(3600.0, 3 * 3600.0)), rw_time_mps_sqrt_s=0.01,
+        rw_alt_mps_sqrt_m=0.03, rw_seed=int(rng.integers(0, 2**31)))
+    return FdmWeather(
+        wind=wind, turbulence_severity=float(rng.choice([1.0, 2.0, 3.0], p=[0.5, 0.35, 0.15])),
+        turbulence_wind_20ft_mps=speed0, temp_offset_k=float(rng.normal(0.0, 8.0)),
+        p_sl_hpa=float(rng.normal(1013.0, 8.0)), p_sl_rate_hpa_per_h=float(rng.normal(0.0, 1.5)),
+        turbulence_seed=int(rng.integers(1, 2**31 - 1)))
+
+
+# --------------------------------------------------------------------------------------------
+# schedules: (phases, arrival runway or None, longest record [s], terrain(lat, lon) or None)
+
+
+def _circuit(cfg: JsbsimConfig, rw: Runway):
+    pa = rw.elev_m + 300.0
+    phases = [Wait(cfg.lineup_s), TakeOff(rw, 150.0),
+              Leg(*rw.point(2500.0), pa, 40.0), Leg(*rw.point(2500.0, -1500.0), pa, 45.0),
+              Leg(*rw.point(-2000.0, -1500.0), pa, 45.0),
+              Leg(*rw.point(-3500.0, -1500.0), rw.elev_m + 200.0, 38.0, anticipate_m=500.0),
+              Leg(*rw.point(-3500.0), rw.elev_m + 180.0, 36.0, anticipate_m=400.0),
+              Approach(rw, 250.0), Rest(cfg.rest_s)]
+    return phases, rw, 1800.0, None
+
+
+def _destination(rw: Runway, north_m: float, east_m: float, heading: float,
+                 elev_m: float) -> Runway:
+    lat, lon = offset_latlon(rw.lat_deg, rw.lon_deg, north_m, east_m)
+    return Runway(lat, lon, heading, elev_m)
+
+
+def _arrival_legs(dest: Runway, a: AirframeModel, far_m: float, glide_m: float) -> list:
+    """Onto the extended centre line ``far_m`` out (approach speed + 35 %, part flaps), then
+    along it to ``glide_m`` out on the glide path (approach speed + 15 %, more flaps), then the
+    approach."""
+    t3 = np.tan(np.radians(3.0))
+    jet = a.gains == "jet"
+    return [Leg(*dest.point(-far_m), dest.elev_m + far_m * t3 + 150.0, 1.35 * a.approach_mps,
+                anticipate_m=1500.0 if jet else 600.0, flaps=0.5 * a.landing_flaps),
+            Leg(*dest.point(-glide_m), dest.elev_m + glide_m * t3, 1.15 * a.approach_mps,
+                vs_min=-6.0, anticipate_m=300.0, cross_scale_m=600.0,
+                flaps=0.75 * a.landing_flaps),
+            Approach(dest, 300.0 if jet else 250.0)]
+
+
+def _terrain(rw: Runway, dest: Runway, near_m: float):
+    """Flat ground at the departure's elevation, at the destination's within ``near_m``."""
+    def terrain(lat, lon):
+        along, cross = dest.coords(lat, lon)
+        return dest.elev_m if np.hypot(along, cross) < near_m else rw.elev_m
+    return terrain
+
+
+def _xc(cfg: JsbsimConfig, rw: Runway):
+    s = cfg.scale
+    dest = _destination(rw, 60e3 * s, 150e3 * s, 250.0, 120.0)
+
+    def wp(n_km, e_km):
+        return offset_latlon(rw.lat_deg, rw.lon_deg, n_km * 1e3 * s, e_km * 1e3 * s)
+    a = AIRFRAMES[cfg.airframe]
+    cr = a.cruise_mps
+    phases = [Wait(cfg.lineup_s), TakeOff(rw, 150.0),
+              Leg(*wp(-15, 25), rw.elev_m + 1500.0 * min(1.0, 2 * s), cr),
+              Leg(*wp(10, 70), rw.elev_m + 2500.0 * min(1.0, 2 * s), cr),
+              Leg(*wp(45, 95), rw.elev_m + 2500.0 * min(1.0, 2 * s), cr),
+              Leg(*wp(40, 130), dest.elev_m + 1800.0 * min(1.0, 2 * s), cr, vs_min=-3.0),
+              *_arrival_legs(dest, a, 9000.0, 4000.0), Rest(cfg.rest_s)]
+    return phases, dest, 3 * 3600.0, _terrain(rw, dest, 30e3 * s)
+
+
+def _jet(cfg: JsbsimConfig, rw: Runway):
+    s = cfg.scale
+    dest = _destination(rw, 900e3 * s, 1700e3 * s, 70.0, 250.0)
+
+    def wp(n_km, e_km):
+        return offset_latlon(rw.lat_deg, rw.lon_deg, n_km * 1e3 * s, e_km * 1e3 * s)
+    a = AIRFRAMES[cfg.airframe]
+    cruise = rw.elev_m + (10700.0 if s >= 0.5 else 4000.0)
+    phases = [Wait(cfg.lineup_s), TakeOff(rw, 300.0),
+              Leg(*wp(-60, 150), rw.elev_m + 3000.0, a.climb_mps, vs_max=15.0,
+                  anticipate_m=3000.0),
+              Leg(*wp(200, 650), cruise, a.climb_mps if s >= 0.5 else a.cruise_mps,
+                  vs_max=12.0, anticipate_m=3000.0),
+              Leg(*wp(500, 1150), cruise, a.cruise_mps, anticipate_m=3000.0),
+              Leg(*wp(750, 1400), rw.elev_m + 3000.0, a.cruise_mps, vs_min=-15.0,
+                  anticipate_m=3000.0),
+              Leg(*dest.point(-60e3 * min(1.0, 2 * s)), dest.elev_m + 3000.0, 115.0,
+                  vs_min=-12.0, anticipate_m=2500.0),
+              *_arrival_legs(dest, a, 20000.0, 9000.0), Rest(cfg.rest_s)]
+    return phases, dest, 8 * 3600.0, _terrain(rw, dest, 100e3 * s)
+
+
+def _upset_climb(cfg: JsbsimConfig, rw: Runway, agl_m: float) -> list:
+    s = cfg.scale
+    a = AIRFRAMES[cfg.airframe]
+    return [Wait(cfg.lineup_s), TakeOff(rw, 150.0),
+            Leg(*rw.point(9000.0 * s + 3000.0, 2000.0), rw.elev_m + agl_m, a.climb_mps),
+            Leg(*rw.point(9000.0 * s + 3000.0, 2000.0 + 12000.0 * s + 2000.0),
+                rw.elev_m + agl_m, a.cruise_mps)]
+
+
+def _spiral(cfg: JsbsimConfig, rw: Runway):
+    return (_upset_climb(cfg, rw, 1800.0) + [SpiralDive(bank_deg=75.0, roll_rate_dps=1.5,
+                                                        pull=0.04)], None, 3600.0, None)
+
+
+def _spin(cfg: JsbsimConfig, rw: Runway):
+    return _upset_climb(cfg, rw, 1500.0) + [StallSpin()], None, 3600.0, None
+
+
+@dataclass(frozen=True)
+class _JsbScenario:
+    config: JsbsimConfig
+    schedule: Any
+
+
+JSBSIM_SCENARIOS: dict[str, _JsbScenario] = {
+    "jsbsim-circuit": _JsbScenario(JsbsimConfig(), _circuit),
+    "jsbsim-xc": _JsbScenario(JsbsimConfig(), _xc),
+    "jsbsim-jet": _JsbScenario(JsbsimConfig(airframe="737", runway_deg=230.0,
+                                            runway_length_m=3000.0, truth_rate_hz=8.0,
+                                            loads_hz=8.0, attitude_hz=4.0, airspeed_hz=2.0,
+                                            baro_hz=2.0, tas_range_mps=(30.0, 320.0),
+                                            full_tanks=True), _jet),
+    "jsbsim-spiral": _JsbScenario(JsbsimConfig(), _spiral),
+    "jsbsim-spin": _JsbScenario(JsbsimConfig(), _spin),
+}
+
+
+def schedule(name: str, cfg: JsbsimConfig):
+    """(phases, arrival runway or None, longest record, terrain) of scenario ``name``."""
+    rw = _runway(cfg, cfg.airfield, cfg.runway_deg)
+    return JSBSIM_SCENARIOS[name].schedule(cfg, rw)
+
+
+def jsbsim_config(name: str, **overrides: Any) -> JsbsimConfig:
+    """The configuration of JSBSim scenario ``name`` with ``overrides`` (unknown names are an
+    error)."""
+    if name not in JSBSIM_SCENARIOS:
+        raise ValidationError(f"unknown JSBSim scenario '{name}'; choose one of "
+                              f"{sorted(JSBSIM_SCENARIOS)}")
+    import dataclasses
+
+    fields = {f.name for f in dataclasses.fields(JsbsimConfig)}
+    bad = sorted(set(overrides) - fields)
+    if bad:
+        raise ValidationError(f"unknown scenario setting(s) {bad}; valid: {sorted(fields)}")
+    return replace(JSBSIM_SCENARIOS[name].config, **overrides)
+
+
+def persistent_aircraft(name: str, cfg: JsbsimConfig, seed: int):
+    """The persistent sensor errors of this flight (drawn from the seed; the project's
+    :func:`~flightrecon.sim.aircraft.draw_aircraft` spreads)."""
+    base = JET if cfg.airframe == "737" else LIGHT
+    return draw_aircraft(f"{name}:{cfg.airframe}", seed, base)
+
+
+def recorder_faults(cfg: JsbsimConfig) -> Faults:
+    """Spikes in the normal load factor, the airspeed and the baro altitude."""
+    if cfg.spikes <= 0:
+        return Faults()
+    return Faults(spikes=cfg.spikes, spike_channels=(("n_norm_g", 1.0), ("tas_mps", 20.0),
+                                                     ("baro_alt_m", 150.0)))
