@@ -3,7 +3,7 @@
 Flight-test exports often record the body rates ``p_dps, q_dps, r_dps`` (roll, pitch, yaw rate,
 FRD body axes) and roll and pitch, but no heading, or a heading that is dead (constant).  The
 heading is then propagated from the rates with the Euler kinematics of the ZYX (yaw-pitch-roll)
-attitude (METHODS.md, "Common ground")::
+attitude (docs/schema.md, "Conventions")::
 
     psi_dot = (q sin(phi) + r cos(phi)) / cos(theta)
 
@@ -242,6 +242,7 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
         cost = float(np.sum(residuals(x)[0] ** 2))
         if best is None or cost < best[0]:
             best = (cost, x.copy())
+    assert best is not None  # the loop above runs at least once
     x = best[1]
     free = list(range(npar))
     for _ in range(20):

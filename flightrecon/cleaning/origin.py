@@ -6,7 +6,7 @@ the first radar plot of a known station (range, azimuth and elevation, or the pr
 where the elevation is missing).  The height is stored as MSL elevation like an airfield's:
 the fix's height minus the geoid undulation for an ellipsoidal datum, else the pressure altitude
 at the fix's time (a frame origin need not be exact in height: every estimator works in
-geodetic or ECEF coordinates and the plane is an output convenience, METHODS.md "Frames").
+geodetic or ECEF coordinates and the plane is an output convenience, docs/schema.md "Frames").
 The origin is never used as an airfield: no end point, no field level, no runway.
 """
 

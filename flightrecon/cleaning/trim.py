@@ -47,10 +47,11 @@ def parse_time_bound(value: float | str | None, epoch_utc: str | None,
                 raise ValidationError(f"--{what} '{txt}' is neither seconds (t_s) nor a UTC "
                                       "timestamp (ISO-8601, e.g. 2026-01-01T10:05:00Z)") from None
             if np.isnat(ts):
-                raise ValidationError(f"--{what} '{txt}' is not a time")
+                raise ValidationError(f"--{what} '{txt}' is not a time") from None
             if epoch_utc is None:
                 raise MetadataError(f"--{what} is a UTC time but the flight has no epoch_utc: "
-                                    "give it in seconds (t_s) or set epoch_utc in the sidecar")
+                                    "give it in seconds (t_s) or set epoch_utc in the sidecar"
+                                    ) from None
             ep = np.datetime64(str(epoch_utc).rstrip("Z"), "ns")
             v = float((ts - ep).astype(np.int64)) / 1e9
     if not np.isfinite(v):

@@ -515,7 +515,8 @@ def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNo
             sens[1] = float(np.deg2rad(v))
         elif k == "heading_bias_prior_deg":
             prior[2] = float(np.deg2rad(v))
-    return replace(nz, sensor_sd=tuple(sens), prior_sd=tuple(prior), **kw)
+    return replace(nz, sensor_sd=(sens[0], sens[1], sens[2], sens[3]),
+                   prior_sd=(prior[0], prior[1], prior[2]), **kw)
 
 
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",

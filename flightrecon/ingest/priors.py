@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from itertools import pairwise
 from pathlib import Path
 
@@ -92,7 +93,7 @@ def check_fix_times(fixes, t_first_s: float, t_last_s: float) -> None:
                                 f"[{t_first_s:g}, {t_last_s:g}] s")
 
 
-def read_wind_table(path: str | Path) -> tuple[WindLevel, ...]:
+def read_wind_table(path: str | os.PathLike[str]) -> tuple[WindLevel, ...]:
     """Read a winds-aloft CSV (module docstring), levels sorted by altitude.
 
     Raises

@@ -259,10 +259,10 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
         r1 = meas.r.copy()
         # (w_before: the weights the last forward pass ran with)
+        scalars1 = scalars._replace(r=r1, w=w_before)
         innov1, innov_var1, infl1 = jp.forward(
-            xf1, Pf1, xp1, Pp1, x0, P0, dt, Cen, Cnb, Csf, Jatt, acc_k, dP_k, dV_k, dz, qv_extra,
-            q, meas.start, meas.mtype, meas.z, r1, w_before, tau, meas.H, meas.hrow, meas.d,
-            pnom, hnom, pst, Cst, settings.innovation_gate if settings.robust else 0.0, xlin)
+            xf1, Pf1, xp1, Pp1, x0, P0, dyn, scalars1, geo,
+            settings.innovation_gate if settings.robust else 0.0, xlin)
         sel = (w_before >= 1.0) & (infl <= 1.0) & (infl1 <= 1.0)
         ll_est = innovation_loglik(innov, innov_var, sel)
         ll_def = innovation_loglik(innov1, innov_var1, sel)
@@ -275,9 +275,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if not accepted:
             scale = np.ones(len(NOISE_GROUPS))
             r_used = r1 * infl1
-            kern_args = (dt, Cen, Cnb, Csf, Jatt, acc_k, q, meas.start, meas.mtype, meas.z,
-                         r_used, tau, meas.H, meas.hrow, meas.d, pnom, hnom, pst, Cst, dz,
-                         qv_extra)
+            kern_args = (dyn, scalars1._replace(r=r_used), geo)
             xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1,
                                                                    *kern_args, True)
             n_fallback = int(n_fb1)
