@@ -97,11 +97,13 @@ def random_wind(seed: int) -> WindField:
                    rw_alt_mps_sqrt_m=nz.wind_shear_mps_per_sqrt_m, rw_seed=seed)
 
 
-def fleet_aircraft(s: int):
-    """The aircraft of seed ``s``: persistent errors drawn from the joint smoother's priors."""
+def fleet_aircraft(s: int, base=None):
+    """The aircraft of seed ``s``: persistent errors drawn from the joint smoother's priors
+    (on ``base``, default the point-mass circuit's aircraft type)."""
     nz = JointNoise()
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([1000 + s, 4242])))
-    return replace(scenario_config("circuit").aircraft, aircraft_id=AIRCRAFT_ID,
+    base = scenario_config("circuit").aircraft if base is None else base
+    return replace(base, aircraft_id=AIRCRAFT_ID,
                    accel_bias_g=tuple(float(v) for v in rng.normal(0.0, nz.accel_bias_g, 3)),
                    accel_scale=tuple(float(v) for v in rng.normal(0.0, nz.accel_scale, 3)),
                    heading_bias_deg=float(rng.normal(0.0, nz.heading_bias_deg)),
@@ -131,8 +133,11 @@ def with_forecast(log: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     """The log with a wind forecast in its wind channel: the true wind at the aircraft, speed
     + 1.5 m/s and direction + 8 deg, at the truth's rows (1 Hz)."""
     tt = truth["t_s"].to_numpy(float)
-    wn = np.interp(log["t_s"].to_numpy(float), tt, truth["wind_n_mps"].to_numpy(float))
-    we = np.interp(log["t_s"].to_numpy(float), tt, truth["wind_e_mps"].to_numpy(float))
+    # JSBSim truth: the mean wind without turbulence (a forecast does not know the gusts)
+    cn, ce = (("wind_mean_n_mps", "wind_mean_e_mps") if "wind_mean_e_mps" in truth.columns
+              else ("wind_n_mps", "wind_e_mps"))
+    wn = np.interp(log["t_s"].to_numpy(float), tt, truth[cn].to_numpy(float))
+    we = np.interp(log["t_s"].to_numpy(float), tt, truth[ce].to_numpy(float))
     out = log.copy()
     keep = np.isclose(np.mod(out["t_s"].to_numpy(float), 1.0), 0.0, atol=1e-6)
     spd = np.hypot(wn, we) + FORECAST_SPEED_ERR_MPS
@@ -142,8 +147,32 @@ def with_forecast(log: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def run_seed(s: int, n_flights: int) -> dict:
-    ac = fleet_aircraft(s)
+def _simulate(truth: str, ac, sim_seed: int, accident: bool, **kw):
+    """One flight of aircraft ``ac``: a point-mass circuit, or a JSBSim Cessna circuit whose
+    persistent sensor errors are fixed to ``ac``'s (the JSBSim scenarios draw them per seed:
+    here the aircraft's are substituted, the weather and noise still vary with the seed)."""
+    if truth == "pointmass":
+        extra = ACCIDENT if accident else {}
+        return simulate("circuit", seed=sim_seed, aircraft=ac, wind=random_wind(sim_seed),
+                        **kw, **extra)
+    import flightrecon.sim.jsbsim_truth as jt
+
+    orig = jt.persistent_aircraft
+    jt.persistent_aircraft = lambda name, cfg, seed: ac
+    try:
+        return simulate("jsbsim-circuit", seed=sim_seed, **kw,
+                        **({"gnss_hz": 0.0} if accident else {}))
+    finally:
+        jt.persistent_aircraft = orig
+
+
+def run_seed(s: int, n_flights: int, truth: str = "pointmass") -> dict:
+    if truth == "pointmass":
+        ac = fleet_aircraft(s)
+    else:
+        from flightrecon.sim.aircraft import LIGHT
+
+        ac = fleet_aircraft(s, LIGHT)
     out: dict = {"seed": s, "aircraft": {k: truth_value(ac, k) for k in TRUTH_MAP},
                  "baro_bias_m": ac.baro_bias_m, "routine": []}
     with tempfile.TemporaryDirectory() as d:
@@ -151,8 +180,8 @@ def run_seed(s: int, n_flights: int) -> dict:
         for i in range(n_flights):
             sim_seed = 100 * (s + 1) + i
             t0 = time.perf_counter()
-            sim = simulate("circuit", seed=sim_seed, aircraft=ac, wind=random_wind(sim_seed),
-                           flight_id=f"R{i + 1}", epoch_utc=f"2026-03-{i + 1:02d}T09:00:00Z")
+            sim = _simulate(truth, ac, sim_seed, False, flight_id=f"R{i + 1}",
+                            epoch_utc=f"2026-03-{i + 1:02d}T09:00:00Z")
             clean = clean_flight(Flight(data=sim.log, meta=sim.meta))
             res = run_joint(clean)
             cal = from_joint_summary(res.summary, aircraft_id=AIRCRAFT_ID, flight_id=f"R{i + 1}",
@@ -183,8 +212,7 @@ def run_seed(s: int, n_flights: int) -> dict:
     out["priors_applied"] = [p[0] for p in priors]
     # the accident flight
     acc_seed = 100 * (s + 1) + 50
-    sim = simulate("circuit", seed=acc_seed, aircraft=ac, wind=random_wind(acc_seed),
-                   flight_id="ACC", epoch_utc=acc_date, **ACCIDENT)
+    sim = _simulate(truth, ac, acc_seed, True, flight_id="ACC", epoch_utc=acc_date)
     meta = replace(sim.meta, arrival=None)
     acc: dict = {}
     for wind_case in ("no_wind", "forecast"):
@@ -206,9 +234,10 @@ def run_seed(s: int, n_flights: int) -> dict:
     return out
 
 
-def tables(runs: list[dict], n_flights: int) -> str:
+def tables(runs: list[dict], n_flights: int, truth: str = "pointmass") -> str:
+    flag = "" if truth == "pointmass" else f" --truth {truth}"
     lines = [f"<!-- generated by scripts/fleet_calibration.py --seeds {len(runs)} --flights "
-             f"{n_flights} -->", "",
+             f"{n_flights}{flag} -->", "",
              f"### Recovery of the persistent errors ({len(runs)} seeds, {n_flights} routine "
              "flights with GNSS each)", "",
              "Per error: fused mean - truth in units of the fused sd (z), and the fused sd "
@@ -239,7 +268,8 @@ def tables(runs: list[dict], n_flights: int) -> str:
              ("joint_calibration_no_wind", "joint, fleet calibration, no wind information"),
              ("joint_default_priors_forecast", "joint, default priors, wind forecast"),
              ("joint_calibration_forecast", "joint, fleet calibration, wind forecast")]
-    lines += ["### The accident flight (recorder only, departure known, no arrival, 20 minutes)",
+    what = "20 minutes" if truth == "pointmass" else "a JSBSim Cessna circuit"
+    lines += [f"### The accident flight (recorder only, departure known, no arrival, {what})",
               "", "Horizontal RMS error over the airborne part [m] (error at touchdown [m]).", "",
               "| seed | " + " | ".join(c[1] for c in cases) + " |",
               "|---|" + "---|" * len(cases)]
@@ -273,23 +303,29 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--flights", type=int, default=4)
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--truth", choices=("pointmass", "jsbsim"), default="pointmass",
+                    help="point-mass circuits (default) or JSBSim Cessna circuits (the "
+                         "jsbsim-circuit scenario, about 8 minutes)")
     ap.add_argument("--summarise", type=Path, help="tables only, from a runs JSON")
     a = ap.parse_args()
+    sfx = "" if a.truth == "pointmass" else "_" + a.truth
+    table = TABLE.with_name(f"fleet_calibration{sfx}.md")
+    runs_path = RUNS.with_name(f"fleet_calibration{sfx}_runs.json")
     if a.summarise:
         runs = json.loads(a.summarise.read_text())
         n = len(runs[0]["routine"])
     else:
         runs = []
         for s in range(a.seeds):
-            runs.append(run_seed(s, a.flights))
+            runs.append(run_seed(s, a.flights, a.truth))
             if not a.no_write:  # keep what is done if a later seed is interrupted
-                RUNS.parent.mkdir(parents=True, exist_ok=True)
-                RUNS.write_text(json.dumps(runs, indent=1))
+                runs_path.parent.mkdir(parents=True, exist_ok=True)
+                runs_path.write_text(json.dumps(runs, indent=1))
         n = a.flights
-    text = tables(runs, n)
+    text = tables(runs, n, a.truth)
     print(text)
     if not a.no_write:
-        TABLE.write_text(text + "\n")
+        table.write_text(text + "\n")
 
 
 if __name__ == "__main__":
