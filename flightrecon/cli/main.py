@@ -240,12 +240,12 @@ def _run(argv: list[str] | None, debug: bool) -> None:
         click.echo(f"error: {exc}", err=True)
         sys.exit(exc.exit_code)
     except _PipeClosed:
-        # the reader stopped reading (``| head``): silently, with SIGPIPE's code as a shell
-        # reports it (128 + 13, as _flush_stdout). Point stdout at /dev/null so the
+        # not an error: the reader stopped reading (``| head``); what it read is complete up
+        # to there: exit 0, silently, as _flush_stdout. Point stdout at /dev/null so the
         # interpreter's final flush does not fail again.
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
-        sys.exit(128 + 13)
+        sys.exit(0)
     except click.exceptions.Abort as exc:
         _exit_interrupted(exc)
     except KeyboardInterrupt as exc:
