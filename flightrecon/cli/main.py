@@ -217,7 +217,7 @@ def main(argv: list[str] | None = None) -> None:
 
 def _flush_stdout() -> None:
     """Flush the output now: a reader that closed the pipe early (``| head``) ends the run
-    silently with SIGPIPE's code, 128 + 13 (as :class:`_PipeClosed`), instead of a failed
+    silently with exit 0 (as :class:`_PipeClosed`; docs/exit-codes.md), instead of a failed
     flush at exit."""
     try:
         sys.stdout.flush()
@@ -225,7 +225,7 @@ def _flush_stdout() -> None:
         with contextlib.suppress(OSError, ValueError):
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
-        sys.exit(128 + 13)
+        sys.exit(0)
     except (OSError, ValueError):
         pass
 
@@ -257,11 +257,11 @@ def _run(argv: list[str] | None, debug: bool) -> None:
         sys.exit(exc.exit_code)
     except SystemExit as exc:
         # a pipe closed where click saw it first: click ends such a run with exit 1 (the code
-        # of an internal error) and marks it by wrapping sys.stdout; like _PipeClosed, 141
+        # of an internal error) and marks it by wrapping sys.stdout; like _PipeClosed, 0
         ctx = exc.__context__
         epipe = isinstance(ctx, OSError) and ctx.errno == errno.EPIPE
         if exc.code == 1 and (epipe or type(sys.stdout).__name__ == "_PacifyFlushWrapper"):
-            sys.exit(128 + 13)
+            sys.exit(0)
         raise
     except Exception as exc:
         if debug:
