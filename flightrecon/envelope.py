@@ -101,15 +101,14 @@ def second_rate(t: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
 
 
 def _field_pressure_altitude_m(clean: CleanFlight) -> float | None:
-    """Pressure altitude of the departure field (QNH-scaled ISA, as the Sabziev adapter and
-    the pipeline's pressure fallback use), ``None`` without a departure."""
-    from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+    """Pressure altitude of the departure field under its QNH (as the Sabziev adapter and the
+    pipeline's pressure fallback use), ``None`` without a departure."""
+    from flightrecon.geo.atmosphere import field_pressure_altitude_m
 
     dep = clean.meta.departure
     if dep is None:
         return None
-    qnh = clean.meta.qnh_departure_hpa or 1013.25
-    return float(pressure_altitude_m(isa_pressure_pa(dep.elev_m) * qnh / 1013.25))
+    return field_pressure_altitude_m(dep.elev_m, clean.meta.qnh_departure_hpa)
 
 
 def _height_above_departure(res: MethodResult, clean: CleanFlight, tr_t: np.ndarray
