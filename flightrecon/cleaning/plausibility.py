@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from pyproj import Geod
 
-from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.types import CleanFlight
 
 CONTINUOUS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg",
@@ -163,8 +163,7 @@ def endpoints(clean: CleanFlight, max_km: float = 5.0, max_alt_m: float = 300.0
     ph = clean.phases
     if meta.departure is not None and "baro_alt_m" in g.columns and ph is not None \
             and np.isfinite(ph.liftoff_t_s) and not ph.starts_airborne:
-        q = meta.qnh_departure_hpa or 1013.25
-        h_field = float(pressure_altitude_m(isa_pressure_pa(meta.departure.elev_m) * q / 1013.25))
+        h_field = field_pressure_altitude_m(meta.departure.elev_m, meta.qnh_departure_hpa)
         before = g["t_s"].to_numpy(float) < ph.liftoff_t_s
         h = np.nanmedian(g["baro_alt_m"].to_numpy(float)[before]) if before.any() else np.nan
         if np.isfinite(h) and abs(h - h_field) > max_alt_m:

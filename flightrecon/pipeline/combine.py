@@ -104,12 +104,11 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
         if "sabziev_up_sd_m" in su.columns:
             up_sd[ok] = su["sabziev_up_sd_m"].to_numpy()[ok]
     if "baro_alt_m" in clean.grid.columns and clean.meta.departure is not None:
-        from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
+        from flightrecon.geo.atmosphere import field_pressure_altitude_m
 
-        qnh = clean.meta.qnh_departure_hpa or 1013.25
         # pressure altitude of the departure airfield: ISA altitude of its station pressure
-        p_field = isa_pressure_pa(clean.meta.departure.elev_m) * qnh / 1013.25
-        h_field = float(pressure_altitude_m(p_field))
+        h_field = field_pressure_altitude_m(clean.meta.departure.elev_m,
+                                            clean.meta.qnh_departure_hpa)
         baro = clean.grid["baro_alt_m"].to_numpy() - h_field
         fill = ~np.isfinite(up) & np.isfinite(baro)
         up[fill] = baro[fill]
