@@ -214,6 +214,15 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
         from flightrecon.ingest.priors import check_fix_times
 
         check_fix_times(meta.fixes, float(data["t_s"].iloc[0]), float(data["t_s"].iloc[-1]))
+    if meta.fixes or meta.wind_aloft:
+        # parsed, validated and kept in the summary's flight metadata; not yet an input of
+        # any estimator (docs/schema.md): said, so that nobody takes the result for one that
+        # used them
+        given = " and ".join(w for w, on in (("known positions (--fix)", meta.fixes),
+                                             ("a winds-aloft prior (--wind)", meta.wind_aloft))
+                             if on)
+        warns.append(f"{given} read and validated, but no estimator uses them yet: the result "
+                     "does not depend on them")
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "ingest_repairs": [r.as_dict() for r in repairs],
                                             "mapping": None if mp is None else mp.file,
