@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from flightrecon.cleaning.plausibility import time_spans
 from flightrecon.constants import G0
 from flightrecon.types import CleanFlight, MethodResult
 
@@ -57,18 +58,6 @@ class Envelope:
     alt_tol_m: float = 300.0
     alt_tol_frac: float = 0.15
     alt_min_span_s: float = 30.0
-
-
-def _spans(t: np.ndarray, bad: np.ndarray, min_len_s: float = 0.0) -> list[list[float]]:
-    """Time spans [start, end] of consecutive samples where ``bad`` holds (at least
-    ``min_len_s`` long)."""
-    if not bad.any():
-        return []
-    m = np.concatenate([[False], bad, [False]]).astype(np.int8)
-    d = np.diff(m)
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1
-    return [[float(t[a]), float(t[b])] for a, b in zip(starts, ends)
-            if t[b] - t[a] >= min_len_s]
 
 
 def _half_window(t: np.ndarray, window_s: float) -> int:
@@ -158,7 +147,7 @@ def envelope_problems(res: MethodResult, clean: CleanFlight,
 
     def add(check: str, words: str, value: np.ndarray, limit: float, min_span: float = 0.0):
         bad = np.isfinite(value) & (value > limit)
-        spans = _spans(t, bad, min_span)
+        spans = time_spans(t, bad, min_span)
         if spans:
             worst = float(np.nanmax(np.where(bad, value, np.nan)))
             out.append({"check": check, "worst": worst, "limit": float(limit), "spans_s": spans,
@@ -187,7 +176,7 @@ def envelope_problems(res: MethodResult, clean: CleanFlight,
             diff = np.abs(h - baro)
             tol = env.alt_tol_m + env.alt_tol_frac * np.abs(baro)
             bad = np.isfinite(diff) & (diff > tol)
-            spans = _spans(t, bad)
+            spans = time_spans(t, bad)
             dt = np.diff(t, append=t[-1])
             if spans and float(dt[bad].sum()) >= env.alt_min_span_s:
                 worst = float(np.nanmax(np.where(bad, diff, np.nan)))

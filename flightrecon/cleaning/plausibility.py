@@ -37,7 +37,7 @@ CONTINUOUS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "headi
               "tas_mps", "baro_alt_m")
 
 
-def _spans(t: np.ndarray, mask: np.ndarray, min_len_s: float) -> list[list[float]]:
+def time_spans(t: np.ndarray, mask: np.ndarray, min_len_s: float = 0.0) -> list[list[float]]:
     """Time spans [start, end] where ``mask`` holds for at least ``min_len_s``."""
     if not mask.any():
         return []
@@ -83,7 +83,7 @@ def frozen_channels(clean: CleanFlight, min_s: float = 120.0) -> list[dict[str, 
             continue
         same = np.zeros(len(x), bool)
         same[1:] = (np.diff(x) == 0.0) & ok[1:] & ok[:-1]
-        spans = _spans(t, same & air, min_s)
+        spans = time_spans(t, same & air, min_s)
         if spans:
             out.append(_finding("frozen_channel", ch, f"{ch} exactly constant for "
                                 f"{sum(b - a for a, b in spans):.0f} s while airborne: a stuck "
@@ -111,12 +111,12 @@ def envelope(clean: CleanFlight, max_roll_deg: float = 70.0, max_pitch_deg: floa
         tests.append(("n_norm_g", (n < n_norm_range[0]) | (n > n_norm_range[1]),
                       f"normal load factor outside [{n_norm_range[0]:g}, {n_norm_range[1]:g}] g"))
     for ch, bad, what in tests:
-        spans = _spans(t, bad & air, 0.0)
+        spans = time_spans(t, bad & air, 0.0)
         if spans:
             out.append(_finding("out_of_envelope", ch, f"{what} while airborne", spans))
     if "tas_mps" in g.columns:
         slow = (g["tas_mps"].to_numpy(float) < min_tas_mps) & air
-        spans = _spans(t, slow, min_stall_s)
+        spans = time_spans(t, slow, min_stall_s)
         if spans:
             out.append(_finding("below_stall", "tas_mps", f"true airspeed below {min_tas_mps:g} "
                                 "m/s while airborne: airspeed channel suspect, or the lift-off / "
@@ -133,7 +133,7 @@ def time_jumps(clean: CleanFlight, max_step_s: float = 10.0) -> list[dict[str, A
     if not valid_cols or len(t) < 2:
         return []
     any_valid = g[valid_cols].to_numpy(bool).any(axis=1)
-    spans = _spans(t, ~any_valid, max_step_s)
+    spans = time_spans(t, ~any_valid, max_step_s)
     if not spans:
         return []
     return [_finding("time_jump", "t_s", f"no input data for {len(spans)} span(s) longer than "
