@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -96,24 +95,6 @@ def default_output(log: Path, suffix: str) -> Path:
             stem = stem[: -len(s)]
             break
     return log.with_name(stem + suffix)
-
-
-@contextlib.contextmanager
-def progress_bar(quiet: bool) -> Iterator[Callable[[str], None]]:
-    """A stage progress display on stderr (tqdm); silent with ``quiet`` or when not a TTY."""
-    if quiet or not sys.stderr.isatty():
-        yield lambda name: None
-        return
-    from tqdm import tqdm
-
-    bar = tqdm(total=None, desc="flightrecon", unit=" stage", file=sys.stderr, leave=False)
-    try:
-        def stage(name: str) -> None:
-            bar.set_description(f"flightrecon: {name}")
-            bar.update(1)
-        yield stage
-    finally:
-        bar.close()
 
 
 def read_sns_noise_file(path: Path) -> dict[str, float] | None:
