@@ -11,7 +11,6 @@ exactly like a point-mass one.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import replace
 from typing import Any
@@ -35,6 +34,7 @@ from flightrecon.sim.jsbsim_scenarios import (
     schedule,
 )
 from flightrecon.sim.recorder import record_log
+from flightrecon.sim.scenarios import json_ready
 from flightrecon.sim.sensors import (
     AirspeedSensor,
     AttitudeSensor,
@@ -106,18 +106,6 @@ def _sensors(cfg: JsbsimConfig, aircraft) -> SensorSuite:
         AirspeedSensor(cfg.airspeed_hz, scale=a.airspeed_scale, range_mps=cfg.tas_range_mps),
         BaroSensor(cfg.baro_hz, bias_m=a.baro_bias_m),
         GnssReceiver(cfg.gnss_hz, lever_arm_m=a.gnss_lever_arm_m) if cfg.gnss_hz > 0 else None)
-
-
-def _json(x: Any) -> Any:
-    if dataclasses.is_dataclass(x):
-        return {f.name: _json(getattr(x, f.name)) for f in dataclasses.fields(x)}
-    if isinstance(x, (tuple, list)):
-        return [_json(v) for v in x]
-    if isinstance(x, dict):
-        return {str(k): _json(v) for k, v in x.items()}
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return x
 
 
 def _airfield(rw, length_m: float) -> Position:
@@ -203,7 +191,7 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
     sensor_truth = {
         "scenario": name, "seed": int(seed), "truth_source": "jsbsim",
         "jsbsim": {"model": airframe.model, "dt_s": cfg.dt_s, "control_hz": cfg.control_hz},
-        "aircraft": _json(aircraft),
+        "aircraft": json_ready(aircraft),
         "persistent_errors": {
             "accel_bias_g": list(suite.loads.bias_g), "accel_scale": list(suite.loads.scale),
             "heading_bias_deg": suite.attitude.heading_bias_deg,
@@ -211,10 +199,10 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
             "pitch_bias_deg": suite.attitude.pitch_bias_deg,
             "airspeed_scale": suite.airspeed.scale, "baro_bias_m": suite.baro.bias_m,
             "gnss_lever_arm_m": list(aircraft.gnss_lever_arm_m)},
-        "sensors": {s.group: _json(s) for s in suite.fitted()},
-        "weather": _json(replace(weather)),
+        "sensors": {s.group: json_ready(s) for s in suite.fitted()},
+        "weather": json_ready(replace(weather)),
         "events": ev,
-        "faults": [_json(f) for f in rec.faults],
+        "faults": [json_ready(f) for f in rec.faults],
         "truth_rate_hz": cfg.truth_rate_hz,
     }
-    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=_json(sensor_truth))
+    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))

@@ -299,13 +299,14 @@ def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
     return SensorSuite(loads, att, aspd, baro, gnss, radar, doppler, wind)
 
 
-def _json(x: Any) -> Any:
+def json_ready(x: Any) -> Any:
+    """``x`` with dataclasses, tuples and numpy scalars turned into JSON-ready values."""
     if dataclasses.is_dataclass(x):
-        return {f.name: _json(getattr(x, f.name)) for f in dataclasses.fields(x)}
+        return {f.name: json_ready(getattr(x, f.name)) for f in dataclasses.fields(x)}
     if isinstance(x, (tuple, list)):
-        return [_json(v) for v in x]
+        return [json_ready(v) for v in x]
     if isinstance(x, dict):
-        return {str(k): _json(v) for k, v in x.items()}
+        return {str(k): json_ready(v) for k, v in x.items()}
     if isinstance(x, (np.floating, np.integer)):
         return x.item()
     return x
@@ -395,7 +396,7 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     a = cfg.aircraft
     sensor_truth = {
         "scenario": name, "seed": int(seed),
-        "aircraft": _json(a),
+        "aircraft": json_ready(a),
         "persistent_errors": {
             "accel_bias_g": list(suite.loads.bias_g), "accel_scale": list(suite.loads.scale),
             "heading_bias_deg": suite.attitude.heading_bias_deg,
@@ -412,15 +413,15 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
                               "tau_s": cfg.airdata_gm_tau_s,
                               "series": ["airdata_err_e_mps", "airdata_err_n_mps"]}
                              if cfg.airdata_gm_sigma_mps > 0 else None),
-        "sensors": {s.group: _json(s) for s in suite.fitted()},
-        "weather": {"wind": _json(cfg.wind), "temp_offset_k": cfg.temp_offset_k,
+        "sensors": {s.group: json_ready(s) for s in suite.fitted()},
+        "weather": {"wind": json_ready(cfg.wind), "temp_offset_k": cfg.temp_offset_k,
                     "p_sl_departure_hpa": cfg.p_sl_departure_hpa,
                     "p_sl_arrival_hpa": cfg.p_sl_arrival_hpa},
         "events": events,
-        "faults": [_json(f) for f in rec.faults],
+        "faults": [json_ready(f) for f in rec.faults],
         "truth_rate_hz": cfg.truth_rate_hz,
     }
-    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=_json(sensor_truth))
+    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
 
 
 def simulate(scenario: str, seed: int = 0, **overrides: Any) -> SimResult:
