@@ -259,13 +259,20 @@ def jsbsim_config(name: str, **overrides: Any) -> JsbsimConfig:
     if name not in JSBSIM_SCENARIOS:
         raise ValidationError(f"unknown JSBSim scenario '{name}'; choose one of "
                               f"{sorted(JSBSIM_SCENARIOS)}")
+    return config_with_overrides(JSBSIM_SCENARIOS[name].config, overrides)
+
+
+def config_with_overrides(config: Any, overrides: dict[str, Any]) -> Any:
+    """The scenario configuration dataclass ``config`` with ``overrides`` applied (an unknown
+    setting is a :class:`~flightrecon.errors.ValidationError` naming the valid ones); shared by
+    both truth sources' scenario tables."""
     import dataclasses
 
-    fields = {f.name for f in dataclasses.fields(JsbsimConfig)}
+    fields = {f.name for f in dataclasses.fields(config)}
     bad = sorted(set(overrides) - fields)
     if bad:
         raise ValidationError(f"unknown scenario setting(s) {bad}; valid: {sorted(fields)}")
-    return replace(JSBSIM_SCENARIOS[name].config, **overrides)
+    return replace(config, **overrides)
 
 
 def persistent_aircraft(name: str, cfg: JsbsimConfig, seed: int):

@@ -26,7 +26,7 @@ from flightrecon.sim.aircraft import (
     aircraft_seed,
     draw_aircraft,
 )
-from flightrecon.sim.jsbsim_scenarios import JSBSIM_SCENARIOS
+from flightrecon.sim.jsbsim_scenarios import JSBSIM_SCENARIOS, config_with_overrides
 from flightrecon.sim.plan import PlanBuilder
 from flightrecon.sim.recorder import record_log, stream
 from flightrecon.sim.routes import (  # noqa: F401 - ARP_OFFSET_M, circuit_touchdown_m: API
@@ -206,11 +206,7 @@ def scenario_config(name: str, **overrides: Any) -> ScenarioConfig:
     if name not in SCENARIOS:
         raise ValidationError(f"unknown scenario '{name}'; choose one of "
                               f"{sorted(SCENARIOS) + sorted(JSBSIM_SCENARIOS)}")
-    fields = {f.name for f in dataclasses.fields(ScenarioConfig)}
-    bad = sorted(set(overrides) - fields)
-    if bad:
-        raise ValidationError(f"unknown scenario setting(s) {bad}; valid: {sorted(fields)}")
-    return replace(SCENARIOS[name].config, **overrides)
+    return config_with_overrides(SCENARIOS[name].config, overrides)
 
 
 # --------------------------------------------------------------------------------------------
