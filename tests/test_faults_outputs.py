@@ -489,3 +489,25 @@ def test_plot_report_folder_is_checked_against_the_truth_and_the_result(tmp_path
     assert code == 9, err
     assert "wind.png" in err and "truth" in err
     assert digest(tmp_path) == before
+
+
+def test_signal_disguised_as_import_error_is_an_interrupt(monkeypatch, capsys):
+    """A SIGTERM that lands while a C extension is being imported (a cold kernel cache, a fresh
+    CI machine) surfaces as "ImportError: initialization failed": it was reported as an internal
+    error, exit 1.  The handler records the signal, so the run ends as interrupted, 143."""
+    import signal
+
+    from flightrecon.cli import main as cli_main
+
+    def interrupted_import(*args, **kwargs):
+        cli_main._first_signal.append(int(signal.SIGTERM))
+        raise ImportError("initialization failed")
+
+    monkeypatch.setattr(cli_main, "_first_signal", [])
+    monkeypatch.setattr(cli_main, "_handlers_installed", [])
+    monkeypatch.setattr(cli_main.cli, "main", interrupted_import)
+    with pytest.raises(SystemExit) as exc:
+        cli_main._run(["info", "x"], debug=False)
+    assert exc.value.code == 128 + int(signal.SIGTERM)
+    err = capsys.readouterr().err
+    assert "interrupted (SIGTERM)" in err and "internal error" not in err

@@ -173,6 +173,8 @@ def _signal_exit_code(exc: BaseException) -> int:
         if isinstance(e, Interrupted):
             return 128 + e.signum
         e = e.__cause__ or e.__context__
+    if _first_signal:  # the Interrupted was swallowed on the way (see _run)
+        return 128 + _first_signal[0]
     return 128 + int(signal.SIGINT)
 
 
@@ -264,6 +266,11 @@ def _run(argv: list[str] | None, debug: bool) -> None:
             sys.exit(0)
         raise
     except Exception as exc:
+        if _first_signal:
+            # a signal arrived and its Interrupted surfaced disguised: raised inside a C
+            # extension's import it becomes "ImportError: initialization failed", inside
+            # numba's cache loading another error; the run was interrupted, not broken
+            _exit_interrupted(exc)
         if debug:
             raise
         click.echo(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", err=True)
