@@ -9,6 +9,12 @@ import os
 
 from hypothesis import settings
 
+# a first run on a cold kernel cache sends the methods other than the joint smoother to a child
+# process (flightrecon/pipeline/coldstart.py); the tests run them in-process whatever the cache
+# holds, so that a monkeypatched method runs where its test put it (tests/test_coldstart.py
+# turns the child on where it tests it)
+os.environ["FLIGHTRECON_COMPILE_IN_CHILD"] = "0"
+
 settings.register_profile("ci", derandomize=True, database=None)
 if os.environ.get("CI"):
     settings.load_profile("ci")

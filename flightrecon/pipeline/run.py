@@ -20,6 +20,7 @@ from flightrecon.errors import (
     MetadataError,
     NoResultError,
 )
+from flightrecon.pipeline.coldstart import ChildMethods, child_methods
 from flightrecon.pipeline.combine import combine
 from flightrecon.pipeline.health import has_finite_track, method_health
 from flightrecon.pipeline.registry import (
@@ -76,14 +77,20 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     results: dict[str, MethodResult] = {}
     workers = default_workers() if workers is None else max(1, int(workers))
 
+    # on a cold kernel cache the methods other than the joint smoother compile and run in a
+    # child process while this one compiles the joint smoother (pipeline/coldstart.py)
+    child = ChildMethods(child_methods(chosen, workers), clean, settings)
+
     def run(name: str) -> MethodResult:
         if progress:
             progress(name)
+        if child.handles(name):
+            return child.result(name, clean, settings)
         return run_method(name, clean, settings)
 
     # with two threads the joint smoother, the longest, starts first and runs beside the others
     order = sorted(chosen, key=lambda name: name != "joint") if workers > 1 else chosen
-    with ThreadPoolExecutor(max_workers=workers) as pool:
+    with child, ThreadPoolExecutor(max_workers=workers) as pool:
         futures = {m: pool.submit(run, m) for m in order}
     for m in chosen:
         try:

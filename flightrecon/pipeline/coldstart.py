@@ -1,0 +1,137 @@
+"""A first run on a cold kernel cache: the estimators compile in two processes at once.
+
+Compiling the numba kernels (``cache=True``) is most of a first run's time on a fresh
+installation, and numba compiles one kernel at a time per process (its compiler lock), so two
+estimator threads gain nothing while they compile.  When the kernels of more than one chosen
+method are not in the cache yet, :func:`run_in_child` runs every chosen method except the
+joint smoother in one spawned child process while the parent compiles and runs the joint
+smoother: both compile at once, on two cores, and write the cache that every later run loads.
+The results are the same as in one process (the same functions on the same inputs; the child's
+warnings are re-issued in the parent), so only the first run's wall time changes.  Anything
+that goes wrong with the child itself (it cannot start, a result cannot be sent back) falls back
+to running that method in the parent.  A warm cache changes nothing: the methods run on
+threads as before.  ``FLIGHTRECON_COMPILE_IN_CHILD=0`` in the environment turns the child
+off (the test suite does, so that a test's monkeypatched method runs where the test put it,
+whatever the state of the cache).
+"""
+
+from __future__ import annotations
+
+import importlib
+import multiprocessing
+import os
+import warnings
+from concurrent.futures import Future, ProcessPoolExecutor
+from typing import Any
+
+from flightrecon.types import CleanFlight, MethodResult
+
+#: per method, the compiled kernel whose cache entry tells whether the method's kernels are
+#: compiled (its largest kernel, compiled on every run of the method)
+KERNEL_SENTINELS: dict[str, tuple[str, str]] = {
+    "joint": ("flightrecon.filters.joint.passes", "forward"),
+    "sns": ("flightrecon.filters.sns.filter", "_filter_kernel"),
+    "sabziev": ("flightrecon.fusion.sabziev.discrete", "_run_end"),
+    "arms": ("flightrecon.filters.arms.filter", "_arms_kernel"),
+    "azimuth": ("flightrecon.filters.azimuth.filter", "_azimuth_kernel"),
+}
+
+
+def kernels_cached(method: str) -> bool:
+    """True when ``method``'s sentinel kernel has a compiled entry in numba's cache for this
+    source (numba's index file exists and its source stamp matches), or when that cannot be
+    told (then nothing changes: the method runs as on a warm cache)."""
+    spec = KERNEL_SENTINELS.get(method)
+    if spec is None:
+        return True
+    try:
+        dispatcher = getattr(importlib.import_module(spec[0]), spec[1])
+        # numba's own index: empty when missing or written for another version of the source
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals changed, caching off: do as when warm
+        return True
+
+
+def child_methods(chosen: list[str], workers: int) -> list[str]:
+    """The methods to run in a child process: every chosen method but the joint smoother, when
+    two workers are allowed, the joint smoother is among ``chosen`` (it keeps the parent busy)
+    and at least one of the others is not compiled yet; otherwise none."""
+    others = [m for m in chosen if m != "joint"]
+    if os.environ.get("FLIGHTRECON_COMPILE_IN_CHILD", "1").strip() == "0":
+        return []
+    if workers < 2 or "joint" not in chosen or not others:
+        return []
+    if all(kernels_cached(m) for m in others):
+        return []
+    return others
+
+
+def _run_recording(name: str, clean: CleanFlight, settings: Any
+                   ) -> tuple[str, Any, list[tuple[str, type[Warning]]]]:
+    """In the child: run one method; returns ``("ok", result, warnings)`` or ``("error",
+    exception, warnings)``, so that an error of the method itself crosses back as a value and
+    any exception of the future is the child's or the transport's own."""
+    from flightrecon.pipeline.registry import run_method
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            res: Any = run_method(name, clean, settings)
+            kind = "ok"
+        except Exception as exc:  # noqa: BLE001 - sent back and raised in the parent
+            res, kind = exc, "error"
+    return kind, res, [(str(w.message), w.category) for w in caught]
+
+
+class ChildMethods:
+    """The methods run in the child process; :meth:`result` waits for one of them.
+
+    Use as a context manager: the process is shut down on exit.
+    """
+
+    def __init__(self, names: list[str], clean: CleanFlight, settings: Any) -> None:
+        self.names = list(names)
+        self._pool: ProcessPoolExecutor | None = None
+        self._futures: dict[str, Future[Any]] = {}
+        if not self.names:
+            return
+        try:
+            self._pool = ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            for name in self.names:
+                self._futures[name] = self._pool.submit(_run_recording, name, clean, settings)
+        except Exception:  # noqa: BLE001 - no child process here: run them in the parent
+            self.close()
+            self._futures = {}
+
+    def __enter__(self) -> ChildMethods:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Shut the child process down (cancelling what it has not started)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def handles(self, name: str) -> bool:
+        """True when ``name`` was sent to the child process."""
+        return name in self._futures
+
+    def result(self, name: str, clean: CleanFlight, settings: Any) -> MethodResult:
+        """The result of ``name`` from the child, its warnings re-issued here.  An error the
+        method raised is raised here as it was; a failure of the child process itself (it died,
+        or a result could not be sent back) runs the method in this process instead."""
+        from flightrecon.pipeline.registry import run_method
+
+        try:
+            kind, payload, caught = self._futures[name].result()
+        except Exception:  # noqa: BLE001 - the child's own failure, not the method's
+            return run_method(name, clean, settings)
+        for message, category in caught:
+            warnings.warn(message, category, stacklevel=2)
+        if kind == "error":
+            raise payload
+        return payload

@@ -1,0 +1,94 @@
+"""A first run on a cold kernel cache compiles in two processes (flightrecon/pipeline/coldstart.py):
+the methods other than the joint smoother run in a spawned child process.  What is guarded: the
+results are those of one process, the child's warnings reach the parent, a method's own error
+stays that method's error, a failure of the child itself falls back to the parent, and the
+sentinel kernels that tell a cold cache exist."""
+
+import importlib
+import warnings
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from flightrecon.cleaning import clean_flight
+from flightrecon.ingest import load_flight
+from flightrecon.pipeline import ReconstructSettings, coldstart, reconstruct_clean
+from flightrecon.pipeline import run as pipeline_run
+
+LOG = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return clean_flight(load_flight(LOG))
+
+
+def test_every_sentinel_is_a_cached_kernel_of_its_method():
+    """A sentinel that moved or lost ``cache=True`` would leave a cold cache undetected."""
+    from flightrecon.pipeline.registry import ALL_METHODS
+
+    assert set(coldstart.KERNEL_SENTINELS) == set(ALL_METHODS)
+    for mod, name in coldstart.KERNEL_SENTINELS.values():
+        d = getattr(importlib.import_module(mod), name)
+        assert d._cache._cache_file._index_path.endswith(".nbi"), (mod, name)
+
+
+def test_the_child_is_used_only_when_it_helps(monkeypatch):
+    monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "1")
+    cold = {"joint": False, "sns": False, "sabziev": True}
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: cold.get(m, True))
+    assert coldstart.child_methods(["joint", "sabziev", "sns"], 2) == ["sabziev", "sns"]
+    assert coldstart.child_methods(["joint", "sabziev", "sns"], 1) == []   # one worker
+    assert coldstart.child_methods(["sabziev", "sns"], 2) == []           # no joint beside
+    assert coldstart.child_methods(["joint"], 2) == []
+    cold["sns"] = True
+    assert coldstart.child_methods(["joint", "sabziev", "sns"], 2) == []  # all warm
+    cold["sns"] = False
+    monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "0")
+    assert coldstart.child_methods(["joint", "sabziev", "sns"], 2) == []  # turned off
+
+
+def test_methods_in_the_child_give_the_results_of_one_process(clean, monkeypatch):
+    t1, r1, s1 = reconstruct_clean(clean, ReconstructSettings(), workers=1)
+    sent = []
+
+    def all_others(chosen, workers):
+        sent[:] = [m for m in chosen if m != "joint"]
+        return list(sent)
+
+    monkeypatch.setattr(pipeline_run, "child_methods", all_others)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        t2, r2, s2 = reconstruct_clean(clean, ReconstructSettings(), workers=2)
+    assert set(sent) >= {"sabziev", "sns"}
+    pd.testing.assert_frame_equal(t1, t2, check_exact=True)
+    assert list(r1) == list(r2)
+    for m in r1:
+        np.testing.assert_array_equal(r1[m].track.select_dtypes("number").to_numpy(),
+                                      r2[m].track.select_dtypes("number").to_numpy())
+        assert s1[m]["status"] == s2[m]["status"]
+    # Sabziev warns (no wind channel on this log): the warning crossed back from the child
+    assert any(str(w.message).startswith("sabziev:") for w in caught)
+
+
+def test_a_failed_child_falls_back_and_a_methods_error_stays_its_own(clean):
+    from flightrecon.pipeline.registry import run_method
+
+    settings = ReconstructSettings()
+    kids = coldstart.ChildMethods([], clean, settings)
+    broken: Future = Future()
+    broken.set_exception(BrokenProcessPool("the child died"))
+    kids._futures["sabziev"] = broken
+    res = kids.result("sabziev", clean, settings)    # re-run in this process
+    ref = run_method("sabziev", clean, settings)
+    np.testing.assert_array_equal(res.track.select_dtypes("number").to_numpy(),
+                                  ref.track.select_dtypes("number").to_numpy())
+    own: Future = Future()
+    own.set_result(("error", np.linalg.LinAlgError("singular"), []))
+    kids._futures["sns"] = own
+    with pytest.raises(np.linalg.LinAlgError, match="singular"):
+        kids.result("sns", clean, settings)
