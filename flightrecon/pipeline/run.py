@@ -20,6 +20,7 @@ from flightrecon.errors import (
     MetadataError,
     NoResultError,
 )
+from flightrecon.memory import release_unused
 from flightrecon.pipeline.coldstart import ChildMethods, child_methods
 from flightrecon.pipeline.combine import combine
 from flightrecon.pipeline.health import has_finite_track, method_health
@@ -204,6 +205,11 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         stage("cleaning")
         clean = clean_flight(flight, rate_hz=settings.rate_hz,
                              settings=CleaningSettings(start=settings.start, end=settings.end))
+        # the raw log is not needed past cleaning (its warnings are): freed, with what reading
+        # and cleaning left free, before the estimators' peak (flightrecon/memory.py)
+        flight_warnings = list(flight.warnings)
+        del flight
+        release_unused()
         stage("plausibility")
         findings = plausibility_checks(clean)
         for f in findings:
@@ -214,8 +220,8 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                           FlightReconWarning, stacklevel=2)
         track, results, status = reconstruct_clean(clean, settings, progress=stage,
                                                    workers=workers)
-    warn_list = list(flight.warnings) + [str(w.message) for w in caught
-                                         if str(w.message) not in flight.warnings]
+    warn_list = flight_warnings + [str(w.message) for w in caught
+                                  if str(w.message) not in flight_warnings]
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
