@@ -55,7 +55,7 @@ class ReconstructSettings:
     keep_unhealthy : when no method is healthy, return (and let the CLI write) the unhealthy
         tracks under their prefixes for inspection instead of raising
         :class:`~flightrecon.errors.NoResultError`
-    sns_noise : overrides of the SNS noise (:func:`flightrecon.filters.sns_method.sns_noise_with`)
+    sns_noise : overrides of the SNS noise (:func:`flightrecon.filters.sns_settings.sns_noise_with`)
     start, end : trim the record to ``start <= t_s <= end`` before cleaning (seconds from the
         epoch or UTC timestamps; :func:`flightrecon.cleaning.trim.trim_flight`)
     """
