@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -52,3 +52,17 @@ def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNo
             prior[2] = float(np.deg2rad(v))
     return replace(nz, sensor_sd=(sens[0], sens[1], sens[2], sens[3]),
                    prior_sd=(prior[0], prior[1], prior[2]), **kw)
+
+
+@dataclass(frozen=True)
+class SnsSettings:
+    """Settings of the SNS method beyond its model, form and noise overrides (which are
+    :class:`flightrecon.pipeline.ReconstructSettings` fields ``sns_model``, ``sns_form``,
+    ``sns_noise``).
+
+    Attributes
+    ----------
+    filter_rate_hz : rate of the filter grid [Hz] (:func:`flightrecon.filters.sns_method.solve_sns`)
+    """
+
+    filter_rate_hz: float = 2.0
