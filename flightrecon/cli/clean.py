@@ -97,8 +97,9 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
                    "instead of the summary lines.")
 @trim_options
 @click.pass_context
-def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gnss: Path | None,
-            radar: Path | None, mapping: Path | None, sidecar: Path | None, max_gap_s: float,
+def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
+            gnss: Path | None, radar: Path | None, mapping: Path | None, sidecar: Path | None,
+            max_gap_s: float,
             gnss_clock_offset: float, radar_clock_offset: float, as_json: bool,
             start: str | None = None, end: str | None = None) -> None:
     """Clean LOG: despike, unwrap, resample the input channels onto one grid, keep the GNSS fixes
