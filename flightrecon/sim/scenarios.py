@@ -310,12 +310,7 @@ def json_ready(x: Any) -> Any:
 
 def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     sc = SCENARIOS[name]
-    if cfg.touchdown_sd_m > 0.0:
-        d = stream(seed, "touchdown").normal(cfg.touchdown_m, cfg.touchdown_sd_m)
-        cfg = replace(cfg, touchdown_m=float(np.clip(d, 100.0, 1000.0)), touchdown_sd_m=0.0)
-    if cfg.lineup_sd_m > 0.0:
-        d = stream(seed, "lineup").normal(cfg.lineup_m, cfg.lineup_sd_m)
-        cfg = replace(cfg, lineup_m=float(d), lineup_sd_m=0.0)
+    cfg = _drawn_end_points(cfg, seed)
     plan, atm = build_plan(name, cfg)
     # a record that starts airborne: departure = the ground point below its first sample; an
     # airfield departure carries the true direction of its runway and its threshold, where the
@@ -327,54 +322,15 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
                  if sc.airborne else field)
     pre_meta = FlightMeta(departure=departure, geoid_undulation_m=cfg.geoid_undulation_m)
     truth = simulate_truth(plan, cfg.truth_rate_hz, output_plane(pre_meta))
-
-    t = truth["t_s"].to_numpy()
-    events: dict[str, Any] = {"liftoff_t_s": None, "touchdown_t_s": None,
-                              "touchdown_past_threshold_m": cfg.touchdown_m,
-                              "lineup_past_threshold_m": cfg.lineup_m}
-    for key, t_ev in (("liftoff", plan.liftoff_s), ("touchdown", plan.touchdown_s)):
-        if np.isfinite(t_ev):
-            i = int(np.searchsorted(t, t_ev))
-            events[f"{key}_t_s"] = float(t_ev)
-            events[f"{key}_lat_deg"] = float(truth["lat_deg"].iloc[i])
-            events[f"{key}_lon_deg"] = float(truth["lon_deg"].iloc[i])
-    # arrival airfield
-    last = truth.iloc[-1]
-    if name == "circuit":
-        arrival = field  # landing on the runway it took off from, in the same direction
-    elif np.isfinite(plan.touchdown_s):
-        i = int(np.searchsorted(t, plan.touchdown_s))
-        trk = np.radians(truth["track_deg"].iloc[i])
-        td = Position(float(truth["lat_deg"].iloc[i]), float(truth["lon_deg"].iloc[i]))
-        lat, lon = _offset(td, ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
-        thr_lat, thr_lon = _offset(td, -cfg.touchdown_m * np.cos(trk),
-                                   -cfg.touchdown_m * np.sin(trk))
-        # the landing runway's direction: the track at touchdown (on the centre line)
-        arrival = Position(lat, lon, cfg.arrival_elev_m,
-                           runway_true_deg=float(np.degrees(trk) % 360.0),
-                           threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
-    else:
-        arrival = Position(float(last["lat_deg"]), float(last["lon_deg"]),
-                           float(cfg.arrival_elev_m))
+    events = _events(plan, truth, cfg)
+    arrival = field if name == "circuit" else _arrival(plan, truth, cfg)
     station = None
     if cfg.radar_scan_s > 0:
         base = cfg.airfield if name == "seed-ads-arms" else arrival
         lat, lon = _offset(base, *cfg.station_offset_m)
         station = Position(lat, lon, base.elev_m)
     suite = _sensors(cfg, station)
-
-    airdata_truth = None
-    extra_truth: dict[str, np.ndarray] = {}
-    if cfg.airdata_gm_sigma_mps > 0.0:
-        rng = stream(seed, "airdata")
-        dt = 1.0 / cfg.truth_rate_hz
-        dv_e = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
-        dv_n = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
-        ve = truth["ve_mps"].to_numpy() + dv_e
-        vn = truth["vn_mps"].to_numpy() + dv_n
-        airdata_truth = truth.assign(tas_mps=np.hypot(ve, vn),
-                                     heading_deg=wrap360(np.degrees(np.arctan2(ve, vn))))
-        extra_truth = {"airdata_err_e_mps": dv_e, "airdata_err_n_mps": dv_n}
+    airdata_truth, extra_truth = _airdata_error(cfg, truth, seed)
     rec = record_log(truth, suite, seed, cfg.truth_rate_hz, cfg.faults, airdata_truth)
     extra_truth.update(rec.truth_extra)
     if extra_truth:
@@ -389,8 +345,79 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
         qnh_arrival_hpa=round(qnh_hpa(atm, arrival.elev_m, plan.t_end_s), 2),
         geoid_undulation_m=cfg.geoid_undulation_m,
     )
+    sensor_truth = _sensor_truth(name, seed, cfg, suite, events, rec.faults)
+    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
+
+
+def _drawn_end_points(cfg: ScenarioConfig, seed: int) -> ScenarioConfig:
+    """The touchdown and line-up distances drawn from their spreads (seeded), where given."""
+    if cfg.touchdown_sd_m > 0.0:
+        d = stream(seed, "touchdown").normal(cfg.touchdown_m, cfg.touchdown_sd_m)
+        cfg = replace(cfg, touchdown_m=float(np.clip(d, 100.0, 1000.0)), touchdown_sd_m=0.0)
+    if cfg.lineup_sd_m > 0.0:
+        d = stream(seed, "lineup").normal(cfg.lineup_m, cfg.lineup_sd_m)
+        cfg = replace(cfg, lineup_m=float(d), lineup_sd_m=0.0)
+    return cfg
+
+
+def _events(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> dict[str, Any]:
+    """Lift-off and touchdown of the truth (time, position) and the end points' distances."""
+    t = truth["t_s"].to_numpy()
+    events: dict[str, Any] = {"liftoff_t_s": None, "touchdown_t_s": None,
+                              "touchdown_past_threshold_m": cfg.touchdown_m,
+                              "lineup_past_threshold_m": cfg.lineup_m}
+    for key, t_ev in (("liftoff", plan.liftoff_s), ("touchdown", plan.touchdown_s)):
+        if np.isfinite(t_ev):
+            i = int(np.searchsorted(t, t_ev))
+            events[f"{key}_t_s"] = float(t_ev)
+            events[f"{key}_lat_deg"] = float(truth["lat_deg"].iloc[i])
+            events[f"{key}_lon_deg"] = float(truth["lon_deg"].iloc[i])
+    return events
+
+
+def _arrival(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> Position:
+    """The arrival airfield: reference point ``ARP_OFFSET_M`` down the landing runway (its
+    direction the track at touchdown, its threshold ``touchdown_m`` behind the touchdown), or
+    the last position of a record that ends airborne."""
+    if np.isfinite(plan.touchdown_s):
+        t = truth["t_s"].to_numpy()
+        i = int(np.searchsorted(t, plan.touchdown_s))
+        trk = np.radians(truth["track_deg"].iloc[i])
+        td = Position(float(truth["lat_deg"].iloc[i]), float(truth["lon_deg"].iloc[i]))
+        lat, lon = _offset(td, ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
+        thr_lat, thr_lon = _offset(td, -cfg.touchdown_m * np.cos(trk),
+                                   -cfg.touchdown_m * np.sin(trk))
+        # the landing runway's direction: the track at touchdown (on the centre line)
+        return Position(lat, lon, cfg.arrival_elev_m,
+                        runway_true_deg=float(np.degrees(trk) % 360.0),
+                        threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
+    last = truth.iloc[-1]
+    return Position(float(last["lat_deg"]), float(last["lon_deg"]), float(cfg.arrival_elev_m))
+
+
+def _airdata_error(cfg: ScenarioConfig, truth: pd.DataFrame, seed: int
+                   ) -> tuple[pd.DataFrame | None, dict[str, np.ndarray]]:
+    """The air data seen through a Gauss-Markov error per axis (the seed ADS/ARMS scenario),
+    and the error series for the truth table; ``(None, {})`` without one."""
+    if not cfg.airdata_gm_sigma_mps > 0.0:
+        return None, {}
+    t = truth["t_s"].to_numpy()
+    rng = stream(seed, "airdata")
+    dt = 1.0 / cfg.truth_rate_hz
+    dv_e = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
+    dv_n = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
+    ve = truth["ve_mps"].to_numpy() + dv_e
+    vn = truth["vn_mps"].to_numpy() + dv_n
+    airdata_truth = truth.assign(tas_mps=np.hypot(ve, vn),
+                                 heading_deg=wrap360(np.degrees(np.arctan2(ve, vn))))
+    return airdata_truth, {"airdata_err_e_mps": dv_e, "airdata_err_n_mps": dv_n}
+
+
+def _sensor_truth(name: str, seed: int, cfg: ScenarioConfig, suite: Any,
+                  events: dict[str, Any], faults: Any) -> dict[str, Any]:
+    """The ``<stem>.sensors.json`` document: the errors drawn, the sensors, the weather."""
     a = cfg.aircraft
-    sensor_truth = {
+    return {
         "scenario": name, "seed": int(seed),
         "aircraft": json_ready(a),
         "persistent_errors": {
@@ -414,10 +441,9 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
                     "p_sl_departure_hpa": cfg.p_sl_departure_hpa,
                     "p_sl_arrival_hpa": cfg.p_sl_arrival_hpa},
         "events": events,
-        "faults": [json_ready(f) for f in rec.faults],
+        "faults": [json_ready(f) for f in faults],
         "truth_rate_hz": cfg.truth_rate_hz,
     }
-    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
 
 
 def simulate(scenario: str, seed: int = 0, **overrides: Any) -> SimResult:
