@@ -132,8 +132,10 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
         sweep_leftovers(out.parent)
         written = write_clean_outputs(clean, out, inputs, {
             "rate_hz": rate_hz, "max_gap_s": max_gap_s,
-            "clock_offsets_s": dict(settings.clock_offsets_s), "despike": asdict(settings.despike),
-            "phases": asdict(settings.phases), "start": start, "end": end})
+            "clock_offsets_s": dict(settings.clock_offsets_s),
+            "despike": None if settings.despike is None else asdict(settings.despike),
+            "phases": None if settings.phases is None else asdict(settings.phases),
+            "start": start, "end": end})
     if as_json:
         click.echo(written[-1].read_text(encoding="utf-8").rstrip("\n"))
         return

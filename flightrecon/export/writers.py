@@ -322,8 +322,8 @@ def _kml_event_marks(metadata: Mapping[str, Any] | None, t: np.ndarray, lat: np.
         lo = float(np.interp(e.t_s, t, lon))
         h = float(np.interp(e.t_s, t, alt_msl))
         stamp = ""
-        if with_time:
-            u = utc_strings(np.array([e.t_s]), epoch_utc)
+        u = utc_strings(np.array([e.t_s]), epoch_utc) if with_time else None
+        if u is not None:
             stamp = f"<TimeStamp><when>{u[0]}</when></TimeStamp>"
         marks.append(f"<Placemark><name>{num}. {escape(e.label)}</name>"
                      f"<description>{escape(e.detail)}</description>{stamp}"
@@ -426,7 +426,10 @@ def write_czml(path: str | Path, track: pd.DataFrame, name: str,
     rows = _geo_rows(track)
     rows = rows.iloc[_thin_index(len(rows), max_samples)]
     t = rows["t_s"].to_numpy(float)
-    start, end = utc_strings(np.array([t[0], t[-1]]), fl.get("epoch_utc"))
+    ends = utc_strings(np.array([t[0], t[-1]]), fl.get("epoch_utc"))
+    if ends is None:  # not reached: the epoch was checked above
+        raise MetadataError("CZML needs the flight's UTC epoch (the summary's flight.epoch_utc)")
+    start, end = ends
     epoch = str(fl.get("epoch_utc"))
     samples = np.column_stack([t, rows["lon_deg"].to_numpy(float),
                                rows["lat_deg"].to_numpy(float), rows["alt_m"].to_numpy(float)])

@@ -273,7 +273,7 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     meta = FlightMeta(
         aircraft_id=cfg.aircraft.aircraft_id, flight_id=cfg.flight_id, epoch_utc=cfg.epoch_utc,
         departure=departure, arrival=arrival, station=station,
-        gnss_lever_arm_m=tuple(float(v) for v in cfg.aircraft.gnss_lever_arm_m),
+        gnss_lever_arm_m=_three(cfg.aircraft.gnss_lever_arm_m),
         gnss_alt_datum="ellipsoid", baro_datum="pressure",
         qnh_departure_hpa=round(qnh_hpa(atm, departure.elev_m, 0.0), 2),
         qnh_arrival_hpa=round(qnh_hpa(atm, arrival.elev_m, plan.t_end_s), 2),
@@ -281,6 +281,11 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     )
     sensor_truth = _sensor_truth(name, seed, cfg, suite, events, rec.faults)
     return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
+
+
+def _three(v: Any) -> tuple[float, float, float]:
+    """Three floats (a lever arm)."""
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def _drawn_end_points(cfg: ScenarioConfig, seed: int) -> ScenarioConfig:
