@@ -28,7 +28,7 @@ Exit codes
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 
 
 def _format_rows(rows: Sequence[int] | None, limit: int = 5) -> str:
@@ -62,7 +62,7 @@ class FlightReconError(Exception):
         *,
         file: str | None = None,
         column: str | None = None,
-        rows: Sequence[int] | None = None,
+        rows: Collection[int] | None = None,
     ) -> None:
         self.message = message
         self.file = None if file is None else str(file)

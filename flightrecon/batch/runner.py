@@ -233,93 +233,21 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     store_path = None if store is None else Path(store)
     key = settings_key(settings, fmt, store_path)
     db = CoefficientStore(store_path) if store_path is not None else None
-    outcomes: dict[int, FlightOutcome] = {}
-    fits = {}  # (aircraft, log SHA-256) -> FlightCoefficients, for the averages
-    local_ids: dict = {}  # (aircraft, flight id) -> log SHA-256, identity without a store
-
-    # flights are recorded in input order, whatever order they finish in, so that which of two
-    # logs claiming the same flight id keeps the plain id does not depend on the workers'
-    # timing (docs/store.md, "Flight identity"); a finished flight waits for the earlier ones
-    pending: dict[int, tuple[dict[str, Any], dict[str, str]]] = {}
-    next_i = [0]
-
-    def finish(i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
-        pending[i] = (out, hashes)
-        while next_i[0] < len(entries) and (next_i[0] in pending or next_i[0] in outcomes):
-            j = next_i[0]
-            if j in pending:
-                _finish(j, *pending.pop(j))
-            next_i[0] += 1
-
-    def _finish(i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
-        e = entries[i]
-        stored = ""
-        paths = output_paths(out_dir, e.name, fmt)
-        if out["status"] == "ok":
-            try:
-                recs = _records(out)
-            except FlightReconError as exc:  # nothing to record: said in the table
-                stored = f"no: {exc}"
-            else:
-                # one transaction; a StoreError stops the (resumable) batch
-                stored = _record(db, out, recs, fits, local_ids)
-            row = _row(e, out, stored)
-            write_manifest(paths["manifest"], {
-                "status": "ok", "log": str(e.log), "inputs": hashes, "settings_key": key,
-                "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                "row": row, "outcome": {k: v for k, v in out.items() if k != "warnings"}})
-        else:
-            row = _row(e, out, stored)
-            paths["manifest"].unlink(missing_ok=True)  # a stale manifest must not outlive this
-        oc = FlightOutcome(log=e.log, name=e.name, status=out["status"], row=row)
-        outcomes[i] = oc
-        if progress:
-            progress(oc, len(entries))
-
+    run = _BatchRun(entries, out_dir, fmt, key, db, progress)
     try:
         todo = []
         for i, e in enumerate(entries):
             paths = output_paths(out_dir, e.name, fmt)
             hashes = input_hashes(e.log, e.sidecar, None if mapping is None else Path(mapping))
-            man = read_manifest(paths["manifest"])
-            if not force and is_up_to_date(man, hashes, key,
-                                           [paths["result"], paths["summary"]]):
-                prev = man["outcome"]
-                try:
-                    recs = _records(prev)
-                except FlightReconError:
-                    recs = None  # the flight had nothing to record
-                if recs is not None:
-                    aircraft, h = str(prev["aircraft_id"]), recs[0]
-                    fid = db.flight_id_of(aircraft, h) if db is not None else None
-                    if fid is None:  # no store, or the store was replaced since: record again
-                        _record(db, prev, recs, fits, local_ids)
-                    elif recs[1] is not None:
-                        fits[(aircraft, h)] = replace(recs[1], flight_id=fid)
-                row = {**man["row"], "status": "skipped"}
-                oc = FlightOutcome(log=e.log, name=e.name, status="skipped", row=row)
-                outcomes[i] = oc
-                if progress:
-                    progress(oc, len(entries))
-            else:
+            if force or not run.skip_if_done(i, e, paths, hashes):
                 todo.append((i, e, paths, hashes))
         if todo:
-            _run(todo, client, settings, fmt, finish,
+            _run(todo, client, settings, fmt, run.finish,
                  None if mapping is None else str(Path(mapping).resolve()))
-        for j in sorted(pending):  # not expected: every submitted flight reports back
-            _finish(j, *pending.pop(j))
-        ordered = tuple(outcomes[i] for i in range(len(entries)))
-        aircraft = sorted({str(o.row["aircraft_id"]) for o in ordered
-                           if o.status != "failed" and o.row.get("aircraft_id")})
-        stats_list = []
-        for a in aircraft:
-            if db is not None:
-                if db.list_flights(a):
-                    stats_list.append(db.aircraft_stats(a))
-            else:
-                recs = [f for (ac, _), f in sorted(fits.items()) if ac == a]
-                if recs:
-                    stats_list.append(store_stats.aircraft_stats(a, recs))
+        for j in sorted(run.pending):  # not expected: every submitted flight reports back
+            run.record_finished(j, *run.pending.pop(j))
+        ordered = tuple(run.outcomes[i] for i in range(len(entries)))
+        stats_list = run.aircraft_stats(ordered, store_stats)
     finally:
         if db is not None:
             db.close()
@@ -330,6 +258,103 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
                               averages)
     return BatchResult(outcomes=ordered, averages=tuple(averages), summary_csv=summary_csv,
                        averages_csv=averages_csv, elapsed_s=time.perf_counter() - t_start)
+
+
+class _BatchRun:
+    """The client's record of one batch: outcomes by input index, the Sabziev fits for the
+    averages, flight identities without a store.
+
+    Flights are recorded in input order, whatever order they finish in, so that which of two
+    logs claiming the same flight id keeps the plain id does not depend on the workers'
+    timing (docs/store.md, "Flight identity"); a finished flight waits for the earlier ones.
+    """
+
+    def __init__(self, entries: Sequence[LogEntry], out_dir: Path, fmt: str, key: str,
+                 db: Any, progress: Callable[[FlightOutcome, int], None] | None) -> None:
+        self.entries, self.out_dir, self.fmt, self.key, self.db = entries, out_dir, fmt, key, db
+        self.progress = progress
+        self.outcomes: dict[int, FlightOutcome] = {}
+        self.fits: dict = {}  # (aircraft, log SHA-256) -> FlightCoefficients, for the averages
+        self.local_ids: dict = {}  # (aircraft, flight id) -> log SHA-256, identity, no store
+        self.pending: dict[int, tuple[dict[str, Any], dict[str, str]]] = {}
+        self.next_i = 0
+
+    def _report(self, i: int, oc: FlightOutcome) -> None:
+        self.outcomes[i] = oc
+        if self.progress:
+            self.progress(oc, len(self.entries))
+
+    def skip_if_done(self, i: int, e: LogEntry, paths: dict[str, Path],
+                     hashes: dict[str, str]) -> bool:
+        """Skip flight ``i`` when its manifest says it is up to date (its fit still counts
+        for the averages, recorded again in a replaced store); ``False`` when it must run."""
+        man = read_manifest(paths["manifest"])
+        if man is None or not is_up_to_date(man, hashes, self.key,
+                                            [paths["result"], paths["summary"]]):
+            return False
+        prev = man["outcome"]
+        try:
+            recs = _records(prev)
+        except FlightReconError:
+            recs = None  # the flight had nothing to record
+        if recs is not None:
+            aircraft, h = str(prev["aircraft_id"]), recs[0]
+            fid = self.db.flight_id_of(aircraft, h) if self.db is not None else None
+            if fid is None:  # no store, or the store was replaced since: record again
+                _record(self.db, prev, recs, self.fits, self.local_ids)
+            elif recs[1] is not None:
+                self.fits[(aircraft, h)] = replace(recs[1], flight_id=fid)
+        row = {**man["row"], "status": "skipped"}
+        self._report(i, FlightOutcome(log=e.log, name=e.name, status="skipped", row=row))
+        return True
+
+    def finish(self, i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
+        """A flight's task is done: record it, and every later one waiting for it, in order."""
+        self.pending[i] = (out, hashes)
+        while self.next_i < len(self.entries) and (self.next_i in self.pending
+                                                   or self.next_i in self.outcomes):
+            j = self.next_i
+            if j in self.pending:
+                self.record_finished(j, *self.pending.pop(j))
+            self.next_i += 1
+
+    def record_finished(self, i: int, out: dict[str, Any], hashes: dict[str, str]) -> None:
+        """Store flight ``i``'s fit (one transaction; a StoreError stops the resumable batch),
+        write its manifest (or remove a stale one) and report its outcome."""
+        e = self.entries[i]
+        stored = ""
+        paths = output_paths(self.out_dir, e.name, self.fmt)
+        if out["status"] == "ok":
+            try:
+                recs = _records(out)
+            except FlightReconError as exc:  # nothing to record: said in the table
+                stored = f"no: {exc}"
+            else:
+                stored = _record(self.db, out, recs, self.fits, self.local_ids)
+            row = _row(e, out, stored)
+            write_manifest(paths["manifest"], {
+                "status": "ok", "log": str(e.log), "inputs": hashes, "settings_key": self.key,
+                "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                "row": row, "outcome": {k: v for k, v in out.items() if k != "warnings"}})
+        else:
+            row = _row(e, out, stored)
+            paths["manifest"].unlink(missing_ok=True)  # a stale manifest must not outlive this
+        self._report(i, FlightOutcome(log=e.log, name=e.name, status=out["status"], row=row))
+
+    def aircraft_stats(self, ordered: Sequence[FlightOutcome], store_stats: Any) -> list:
+        """Each aircraft's coefficient statistics: from the store, or over this batch's fits."""
+        aircraft = sorted({str(o.row["aircraft_id"]) for o in ordered
+                           if o.status != "failed" and o.row.get("aircraft_id")})
+        stats_list = []
+        for a in aircraft:
+            if self.db is not None:
+                if self.db.list_flights(a):
+                    stats_list.append(self.db.aircraft_stats(a))
+            else:
+                recs = [f for (ac, _), f in sorted(self.fits.items()) if ac == a]
+                if recs:
+                    stats_list.append(store_stats.aircraft_stats(a, recs))
+        return stats_list
 
 
 def _run(todo, client, settings, fmt, finish, mapping=None) -> None:

@@ -41,6 +41,8 @@ says which anchors were used and the estimated biases.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pandas as pd
 
@@ -142,8 +144,45 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
     """
     t, psi_int, Q, R = _integrals(grid)
     tas = _filled(grid, "tas_mps") if "tas_mps" in grid.columns else np.zeros(len(t))
-    # anchors: runway rolls (mean heading = runway direction)
-    rows_psi: list[tuple[np.ndarray, float, float, str]] = []   # (weights over grid, value, sd)
+    rows_psi, used, anchor_t = _runway_anchors(meta, t, tas, phases)
+    tri = _gnss_triangle(grid, gnss, t, tas, psi_int, Q, R, used, anchor_t)
+    if not rows_psi and tri is None:
+        raise ValidationError(f"{why}: the heading can be propagated from the body rates, but the "
+                              "flight has nothing to anchor it (give the departure's "
+                              "runway_true_deg in the sidecar, or a log with GNSS velocity)",
+                              column="heading_deg")
+    n_w = 0 if tri is None or tri["wind"] is not None else int(tri["seg"].max()) + 1
+    npar = 3 + 2 * n_w
+
+    def residuals(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return _anchor_residuals(x, npar, rows_psi, tri, psi_int, Q, R)
+
+    x, s2, Cfull = _fit_offset_and_biases(residuals, npar)
+    psi = psi_int + x[0] - x[1] * Q - x[2] * R
+    sd = _heading_sd(t, psi_int, Q, R, Cfull, anchor_t, tri is not None)
+    g = grid.copy()
+    g["heading_deg"] = np.degrees(psi)
+    g["heading_valid"] = True
+    g["heading_sd_deg"] = sd
+    rep = report_entry(
+        "heading_deg", "heading_from_rates",
+        f"{why}: heading propagated from the body rates (psi_dot = (q sin phi + r cos phi) / "
+        f"cos theta) and anchored by {'; '.join(used)}", count=len(t),
+        gyro_bias_q_dps=float(np.degrees(x[1])), gyro_bias_r_dps=float(np.degrees(x[2])),
+        gyro_bias_sd_dps=float(np.degrees(np.sqrt(max(Cfull[2, 2], 0.0)))),
+        heading_sd_median_deg=float(np.median(sd)), heading_sd_max_deg=float(np.max(sd)),
+        fit_rms=float(np.sqrt(s2)))
+    return g, [rep]
+
+
+_Anchor = tuple[np.ndarray, float, float, str]   # (weights over the grid, value, sd, which)
+
+
+def _runway_anchors(meta: FlightMeta, t: np.ndarray, tas: np.ndarray,
+                    phases: FlightPhases | None) -> tuple[list[_Anchor], list[str], list[float]]:
+    """Runway rolls as anchors (mean heading over the roll = the runway direction): the rows,
+    what was used (for the report) and the anchors' time spans."""
+    rows_psi: list[_Anchor] = []
     used: list[str] = []
     anchor_t: list[float] = []
     for which in ("departure", "arrival"):
@@ -158,77 +197,87 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
                          which))
         used.append(f"{which} runway {pos.runway_true_deg:g} deg")
         anchor_t += [float(t[sel][0]), float(t[sel][-1])]
-    # GNSS velocity fixes while airborne (wind triangle)
-    tri = None
-    if len(gnss) and {"gnss_vn_mps", "gnss_ve_mps"} <= set(gnss.columns):
-        tg = gnss["t_s"].to_numpy(float)
-        vn, ve = gnss["gnss_vn_mps"].to_numpy(float), gnss["gnss_ve_mps"].to_numpy(float)
-        inside = (tg >= t[0]) & (tg <= t[-1]) & np.isfinite(vn) & np.isfinite(ve)
-        V = np.interp(tg, t, tas)
-        ok = inside & (V > MIN_AIR_TAS_MPS)
-        if ok.sum() >= 10:
-            tg, vn, ve, V = tg[ok], vn[ok], ve[ok], V[ok]
-            wind = None
-            if {"wind_speed_mps", "wind_from_deg"} <= set(grid.columns):
-                ws = np.interp(tg, t, _filled(grid, "wind_speed_mps"))
-                to = np.radians(np.interp(tg, t, _filled(grid, "wind_from_deg")) + 180.0)
-                wind = np.c_[ws * np.cos(to), ws * np.sin(to)]
-            seg = np.floor((tg - tg[0]) / WIND_SEGMENT_S).astype(int)
-            tri = {"t": tg, "vn": vn, "ve": ve, "V": V, "wind": wind, "seg": seg,
-                   "pi": np.interp(tg, t, psi_int), "Q": np.interp(tg, t, Q),
-                   "R": np.interp(tg, t, R)}
-            used.append(f"GNSS track: {int(ok.sum())} velocity fixes"
-                        + (" with the recorded wind" if wind is not None else
-                           f", wind estimated per {WIND_SEGMENT_S:g} s"))
-            anchor_t += list(tg)
-    if not rows_psi and tri is None:
-        raise ValidationError(f"{why}: the heading can be propagated from the body rates, but the "
-                              "flight has nothing to anchor it (give the departure's "
-                              "runway_true_deg in the sidecar, or a log with GNSS velocity)",
-                              column="heading_deg")
-    n_w = 0 if tri is None or tri["wind"] is not None else int(tri["seg"].max()) + 1
-    npar = 3 + 2 * n_w
+    return rows_psi, used, anchor_t
 
-    def residuals(x):
-        res, J = [], []
-        # prior of the gyro biases (zero mean): the biases stay defined with one anchor
-        sb = np.radians(BIAS_PRIOR_DPS)
-        for i in (1, 2):
-            row = np.zeros(npar)
-            row[i] = 1.0 / sb
-            res.append(np.array([x[i] / sb]))
-            J.append(row[None, :])
-        for w, val, sd, _ in rows_psi:
-            psi_m = np.sum(w * (psi_int + x[0] - x[1] * Q - x[2] * R))
-            d = np.angle(np.exp(1j * (psi_m - val)))
-            row = np.zeros(npar)
-            row[0], row[1], row[2] = 1.0, -np.sum(w * Q), -np.sum(w * R)
-            res.append(np.array([d / sd]))
-            J.append(row[None, :] / sd)
-        if tri is not None:
-            psi = tri["pi"] + x[0] - x[1] * tri["Q"] - x[2] * tri["R"]
-            if tri["wind"] is not None:
-                wn, we = tri["wind"][:, 0], tri["wind"][:, 1]
-            else:
-                wn = x[3 + 2 * tri["seg"]]
-                we = x[4 + 2 * tri["seg"]]
-            c, s = np.cos(psi), np.sin(psi)
-            sdv = GNSS_TRIANGLE_SD_MPS
-            rn = (tri["V"] * c + wn - tri["vn"]) / sdv
-            re = (tri["V"] * s + we - tri["ve"]) / sdv
-            m = len(psi)
-            Jn, Je = np.zeros((m, npar)), np.zeros((m, npar))
-            dpsi = np.c_[np.ones(m), -tri["Q"], -tri["R"]]
-            Jn[:, :3] = (-tri["V"] * s)[:, None] * dpsi / sdv
-            Je[:, :3] = (tri["V"] * c)[:, None] * dpsi / sdv
-            if tri["wind"] is None:
-                Jn[np.arange(m), 3 + 2 * tri["seg"]] = 1.0 / sdv
-                Je[np.arange(m), 4 + 2 * tri["seg"]] = 1.0 / sdv
-            res += [rn, re]
-            J += [Jn, Je]
-        return np.concatenate(res), np.vstack(J)
 
-    # initial offset: the best of a coarse search (no biases, winds solved in the GN steps)
+def _gnss_triangle(grid: pd.DataFrame, gnss: pd.DataFrame, t: np.ndarray, tas: np.ndarray,
+                   psi_int: np.ndarray, Q: np.ndarray, R: np.ndarray, used: list[str],
+                   anchor_t: list[float]) -> dict[str, Any] | None:
+    """GNSS velocity fixes while airborne as anchors through the wind triangle (recorded wind,
+    or one wind per :data:`WIND_SEGMENT_S`); ``None`` with fewer than 10 usable fixes.  What
+    was used is appended to ``used`` and the fix times to ``anchor_t``."""
+    if not (len(gnss) and {"gnss_vn_mps", "gnss_ve_mps"} <= set(gnss.columns)):
+        return None
+    tg = gnss["t_s"].to_numpy(float)
+    vn, ve = gnss["gnss_vn_mps"].to_numpy(float), gnss["gnss_ve_mps"].to_numpy(float)
+    inside = (tg >= t[0]) & (tg <= t[-1]) & np.isfinite(vn) & np.isfinite(ve)
+    V = np.interp(tg, t, tas)
+    ok = inside & (V > MIN_AIR_TAS_MPS)
+    if ok.sum() < 10:
+        return None
+    tg, vn, ve, V = tg[ok], vn[ok], ve[ok], V[ok]
+    wind = None
+    if {"wind_speed_mps", "wind_from_deg"} <= set(grid.columns):
+        ws = np.interp(tg, t, _filled(grid, "wind_speed_mps"))
+        to = np.radians(np.interp(tg, t, _filled(grid, "wind_from_deg")) + 180.0)
+        wind = np.c_[ws * np.cos(to), ws * np.sin(to)]
+    seg = np.floor((tg - tg[0]) / WIND_SEGMENT_S).astype(int)
+    used.append(f"GNSS track: {int(ok.sum())} velocity fixes"
+                + (" with the recorded wind" if wind is not None else
+                   f", wind estimated per {WIND_SEGMENT_S:g} s"))
+    anchor_t += list(tg)
+    return {"t": tg, "vn": vn, "ve": ve, "V": V, "wind": wind, "seg": seg,
+            "pi": np.interp(tg, t, psi_int), "Q": np.interp(tg, t, Q), "R": np.interp(tg, t, R)}
+
+
+def _anchor_residuals(x: np.ndarray, npar: int, rows_psi: list[_Anchor],
+                      tri: dict[str, Any] | None, psi_int: np.ndarray, Q: np.ndarray,
+                      R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted residuals and Jacobian of the anchors for ``x = (offset, q bias, r bias,
+    winds...)``: the biases' zero-mean prior, the runway rolls, the GNSS wind triangle."""
+    res, J = [], []
+    # prior of the gyro biases (zero mean): the biases stay defined with one anchor
+    sb = np.radians(BIAS_PRIOR_DPS)
+    for i in (1, 2):
+        row = np.zeros(npar)
+        row[i] = 1.0 / sb
+        res.append(np.array([x[i] / sb]))
+        J.append(row[None, :])
+    for w, val, sd, _ in rows_psi:
+        psi_m = np.sum(w * (psi_int + x[0] - x[1] * Q - x[2] * R))
+        d = np.angle(np.exp(1j * (psi_m - val)))
+        row = np.zeros(npar)
+        row[0], row[1], row[2] = 1.0, -np.sum(w * Q), -np.sum(w * R)
+        res.append(np.array([d / sd]))
+        J.append(row[None, :] / sd)
+    if tri is not None:
+        psi = tri["pi"] + x[0] - x[1] * tri["Q"] - x[2] * tri["R"]
+        if tri["wind"] is not None:
+            wn, we = tri["wind"][:, 0], tri["wind"][:, 1]
+        else:
+            wn = x[3 + 2 * tri["seg"]]
+            we = x[4 + 2 * tri["seg"]]
+        c, s = np.cos(psi), np.sin(psi)
+        sdv = GNSS_TRIANGLE_SD_MPS
+        rn = (tri["V"] * c + wn - tri["vn"]) / sdv
+        re = (tri["V"] * s + we - tri["ve"]) / sdv
+        m = len(psi)
+        Jn, Je = np.zeros((m, npar)), np.zeros((m, npar))
+        dpsi = np.c_[np.ones(m), -tri["Q"], -tri["R"]]
+        Jn[:, :3] = (-tri["V"] * s)[:, None] * dpsi / sdv
+        Je[:, :3] = (tri["V"] * c)[:, None] * dpsi / sdv
+        if tri["wind"] is None:
+            Jn[np.arange(m), 3 + 2 * tri["seg"]] = 1.0 / sdv
+            Je[np.arange(m), 4 + 2 * tri["seg"]] = 1.0 / sdv
+        res += [rn, re]
+        J += [Jn, Je]
+    return np.concatenate(res), np.vstack(J)
+
+
+def _fit_offset_and_biases(residuals, npar: int) -> tuple[np.ndarray, float, np.ndarray]:
+    """Gauss-Newton on the anchors from the best start of a coarse search of the offset (every
+    15 deg, biases held at zero, winds solved); returns ``x``, the residual variance factor
+    ``s2`` and the covariance of ``x`` (scaled by ``max(s2, 1)``)."""
     best = None
     for psi0 in np.radians(np.arange(0.0, 360.0, 15.0)):
         x = np.zeros(npar)
@@ -258,7 +307,13 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
     C = np.linalg.pinv(Jf.T @ Jf) * max(s2, 1.0)
     Cfull = np.zeros((npar, npar))
     Cfull[np.ix_(free, free)] = C
-    psi = psi_int + x[0] - x[1] * Q - x[2] * R
+    return x, s2, Cfull
+
+
+def _heading_sd(t: np.ndarray, psi_int: np.ndarray, Q: np.ndarray, R: np.ndarray,
+                Cfull: np.ndarray, anchor_t: list[float], triangle: bool) -> np.ndarray:
+    """Heading sd [deg]: the fitted offset and biases, plus the angle random walk of the rate
+    noise with the distance in time to the nearest anchor, plus the triangle's floor."""
     Jt = np.c_[np.ones(len(t)), -Q, -R]
     var = np.einsum("ij,jk,ik->i", Jt, Cfull[:3, :3], Jt)
     # angle random walk of the rate noise away from the anchors
@@ -271,21 +326,8 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
     j = np.clip(np.searchsorted(at, t), 1, len(at) - 1) if len(at) > 1 else np.zeros(len(t), int)
     dist = (np.minimum(np.abs(t - at[j - 1]), np.abs(t - at[j])) if len(at) > 1
             else np.abs(t - at[0]))
-    floor = np.radians(TRIANGLE_FLOOR_DEG) ** 2 if tri is not None else 0.0
-    sd = np.degrees(np.sqrt(var + arw2 * dist + floor))
-    g = grid.copy()
-    g["heading_deg"] = np.degrees(psi)
-    g["heading_valid"] = True
-    g["heading_sd_deg"] = sd
-    rep = report_entry(
-        "heading_deg", "heading_from_rates",
-        f"{why}: heading propagated from the body rates (psi_dot = (q sin phi + r cos phi) / "
-        f"cos theta) and anchored by {'; '.join(used)}", count=len(t),
-        gyro_bias_q_dps=float(np.degrees(x[1])), gyro_bias_r_dps=float(np.degrees(x[2])),
-        gyro_bias_sd_dps=float(np.degrees(np.sqrt(max(Cfull[2, 2], 0.0)))),
-        heading_sd_median_deg=float(np.median(sd)), heading_sd_max_deg=float(np.max(sd)),
-        fit_rms=float(np.sqrt(s2)))
-    return g, [rep]
+    floor = np.radians(TRIANGLE_FLOOR_DEG) ** 2 if triangle else 0.0
+    return np.degrees(np.sqrt(var + arw2 * dist + floor))
 
 
 #: the body rates must be sampled at least this many times faster than an attitude channel

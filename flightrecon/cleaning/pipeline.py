@@ -35,7 +35,7 @@ from flightrecon.cleaning.timebase import check_clock_offsets, measurement_table
 from flightrecon.cleaning.trim import trim_flight
 from flightrecon.errors import FlightReconError, ValidationError
 from flightrecon.schema import GROUPS
-from flightrecon.types import CleanFlight, Flight
+from flightrecon.types import CleanFlight, Flight, FlightMeta
 
 __all__ = ["CleaningSettings", "clean_flight"]
 
@@ -129,13 +129,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     # repairs made at validation (values outside the physical range), first in the report
     ingest = [_repair_entry(r) for r in flight.meta.extra.get("ingest_repairs", ())]
     report[:0] = ingest + trim_rep
-    tables = {}
-    for g in GROUPS:
-        off = offsets.get(g, 0.0)
-        tables[g] = measurement_table(work, g, off)
-        if off != 0.0 and len(tables[g]):
-            report.append(report_entry(g, "clock_offset", f"{off:+g} s added to the {g} times",
-                                       count=len(tables[g]), offset_s=off))
+    tables = _measurement_tables(work, offsets, report)
     meta, rep = with_origin(flight.meta, grid, tables["gnss"], tables["radar"])
     report.extend(rep)
     # roll, pitch and heading between their samples shaped by the body rates, where both exist
@@ -143,28 +137,53 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     report.extend(rep)
     why = heading_needed(grid)
     if why is not None:
-        # heading from the body rates: a provisional heading (from 0 deg) lets the phase
-        # detector find the take-off and landing rolls (its lift-off rule needs the vertical
-        # only), then the anchored heading replaces it (cleaning/attitude.py)
-        p0 = meta.departure if meta.departure is not None else meta.origin
-        g0 = grid.copy()
-        g0["heading_deg"] = provisional_heading(grid)
-        g0["heading_valid"] = True
-        try:
-            ph0 = detect_phases_with_report(g0, settings.phases or PhaseSettings(),
-                                            lat_deg=p0.lat_deg if p0 is not None else 45.0)[0]
-        except FlightReconError:
-            ph0 = None
-        grid, rep = heading_from_rates(grid, tables["gnss"], meta, ph0, why)
+        grid, rep = _heading_from_body_rates(grid, tables["gnss"], meta, settings, why)
         report.extend(rep)
     phases = None
     if settings.phases is not None:
-        p0 = meta.departure if meta.departure is not None else meta.origin
-        lat = p0.lat_deg if p0 is not None else 45.0
         try:
-            phases, rep = detect_phases_with_report(grid, settings.phases, lat_deg=lat)
+            phases, rep = detect_phases_with_report(grid, settings.phases,
+                                                    lat_deg=_gravity_latitude(meta))
         except FlightReconError as exc:
             rep = [report_entry("phases", "not_detected", str(exc), count=0)]
         report.extend(rep)
     return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
                        meta=meta, report=tuple(report), phases=phases)
+
+
+def _measurement_tables(work: pd.DataFrame, offsets: dict[str, float], report: list
+                        ) -> dict[str, pd.DataFrame]:
+    """Each measurement group's table (one row per fix / plot at its own time), its clock
+    offset added (reported)."""
+    tables = {}
+    for g in GROUPS:
+        off = offsets.get(g, 0.0)
+        tables[g] = measurement_table(work, g, off)
+        if off != 0.0 and len(tables[g]):
+            report.append(report_entry(g, "clock_offset", f"{off:+g} s added to the {g} times",
+                                       count=len(tables[g]), offset_s=off))
+    return tables
+
+
+def _gravity_latitude(meta: FlightMeta) -> float:
+    """Latitude for normal gravity in the phase detection: the departure airfield's, else the
+    frame origin's, else 45 deg."""
+    p0 = meta.departure if meta.departure is not None else meta.origin
+    return p0.lat_deg if p0 is not None else 45.0
+
+
+def _heading_from_body_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
+                             settings: CleaningSettings, why: str
+                             ) -> tuple[pd.DataFrame, list[dict]]:
+    """Heading from the body rates: a provisional heading (from 0 deg) lets the phase detector
+    find the take-off and landing rolls (its lift-off rule needs the vertical only), then the
+    anchored heading replaces it (cleaning/attitude.py)."""
+    g0 = grid.copy()
+    g0["heading_deg"] = provisional_heading(grid)
+    g0["heading_valid"] = True
+    try:
+        ph0 = detect_phases_with_report(g0, settings.phases or PhaseSettings(),
+                                        lat_deg=_gravity_latitude(meta))[0]
+    except FlightReconError:
+        ph0 = None
+    return heading_from_rates(grid, gnss, meta, ph0, why)

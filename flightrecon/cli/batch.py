@@ -43,9 +43,9 @@ from flightrecon.cli.trim import trim_options
               default="parquet", show_default=True, help="Result format.")
 @trim_options
 @click.pass_context
-def command(ctx: click.Context, inputs: tuple[str, ...], out_dir: Path, scheduler: str | None,
-            workers: int | None, store_path: Path | None, force: bool, methods: str | None,
-            rate_hz: float | None, k_text: str | None, estimate_noise: bool,
+def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
+            scheduler: str | None, workers: int | None, store_path: Path | None, force: bool,
+            methods: str | None, rate_hz: float | None, k_text: str | None, estimate_noise: bool,
             mapping: Path | None, fmt: str, start: str | None = None,
             end: str | None = None) -> None:
     """Reconstruct every log among INPUTS (files, folders, globs) into --out, one Dask task per

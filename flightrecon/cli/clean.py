@@ -97,8 +97,9 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
                    "instead of the summary lines.")
 @trim_options
 @click.pass_context
-def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gnss: Path | None,
-            radar: Path | None, mapping: Path | None, sidecar: Path | None, max_gap_s: float,
+def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
+            gnss: Path | None, radar: Path | None, mapping: Path | None, sidecar: Path | None,
+            max_gap_s: float,
             gnss_clock_offset: float, radar_clock_offset: float, as_json: bool,
             start: str | None = None, end: str | None = None) -> None:
     """Clean LOG: despike, unwrap, resample the input channels onto one grid, keep the GNSS fixes
@@ -131,8 +132,10 @@ def command(ctx: click.Context, log: Path, out: Path, rate_hz: float | None, gns
         sweep_leftovers(out.parent)
         written = write_clean_outputs(clean, out, inputs, {
             "rate_hz": rate_hz, "max_gap_s": max_gap_s,
-            "clock_offsets_s": dict(settings.clock_offsets_s), "despike": asdict(settings.despike),
-            "phases": asdict(settings.phases), "start": start, "end": end})
+            "clock_offsets_s": dict(settings.clock_offsets_s),
+            "despike": None if settings.despike is None else asdict(settings.despike),
+            "phases": None if settings.phases is None else asdict(settings.phases),
+            "start": start, "end": end})
     if as_json:
         click.echo(written[-1].read_text(encoding="utf-8").rstrip("\n"))
         return

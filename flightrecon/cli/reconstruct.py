@@ -94,11 +94,11 @@ from flightrecon.cli.trim import trim_options
               help="Also write figures and a self-contained report.html into this folder.")
 @trim_options
 @click.pass_context
-def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, departure, arrival,
-            station, fixes, wind_file, aircraft_id, methods, k_text, rate_hz, arms_form, arms_linearisation,
-            azimuth_model, sns_model, sns_form, noise_file, estimate_noise, store_path,
-            use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt, summary_path,
-            report_dir, start=None, end=None) -> None:
+def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, departure,
+            arrival, station, fixes, wind_file, aircraft_id, methods, k_text, rate_hz, arms_form,
+            arms_linearisation, azimuth_model, sns_model, sns_form, noise_file, estimate_noise,
+            store_path, use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt,
+            summary_path, report_dir, start=None, end=None) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary.
 
     Writes the result (-o, default <log stem>.recon.parquet beside the log), the summary
@@ -111,14 +111,7 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
     from flightrecon.pipeline import ALL_METHODS, ReconstructSettings, reconstruct
 
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
-    method_list = None
-    if methods:
-        method_list = tuple(m.strip() for m in methods.split(",") if m.strip())
-        unknown = [m for m in method_list if m not in ALL_METHODS]
-        if unknown or not method_list:
-            raise click.BadParameter(
-                f"unknown method(s) {', '.join(unknown) or '(none given)'}; choose from "
-                f"{', '.join(ALL_METHODS)}", param_hint="--methods")
+    method_list = _method_list(methods)
     overrides = position_option_values(departure=departure, arrival=arrival, station=station)
     if fixes:
         overrides["fixes"] = list(fixes)  # parsed and validated in ingest (priors.py)
@@ -159,41 +152,7 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
                                       title=f"flightrecon: {log.name}",
                                       record=not use_fleet_coefficients, stage=stage)
     if not quiet:
-        fc = rec.summary.get("fleet_coefficients")
-        if fc:
-            cal = fc.get("calibration")
-            if cal:
-                click.echo(f"  fleet calibration of {fc['aircraft_id']} at {cal['at_utc']}: "
-                           f"{len(cal['applied'])} sensor errors as priors, from "
-                           f"{cal['n_flights']} flight(s)", err=True)
-            else:
-                click.echo(f"  no fleet calibration: {fc.get('calibration_missing')}", err=True)
-            if fc.get("k") is not None:
-                click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
-                           f"(flights per axis {fc['flights']})", err=True)
-        sc = rec.summary.get("stored_coefficients")
-        if sc and sc.get("recorded", True):
-            what = ([f"k = {sc['k']}"] if sc.get("k") else []) + (
-                ["sensor calibration"] if sc.get("calibration") else [])
-            click.echo(f"  recorded {' and '.join(what)} for {sc['aircraft_id']}/"
-                       f"{sc['flight_id']} in {sc['store']}", err=True)
-        elif sc:
-            click.echo(f"  nothing recorded in {sc['store']}: "
-                       f"{sc.get('reason') or sc.get('note')}", err=True)
-        for name, st in rec.summary["methods"].items():
-            line = f"  {name:8s} {st.get('status')}"
-            # the reason of an unhealthy method already names its health problems
-            why = [str(st["reason"])] if st.get("reason") else [
-                str(p.get("what")) for p in (st.get("health") or {}).get("problems", [])]
-            if why:
-                line += ": " + "; ".join(why)
-            click.echo(line, err=True)
-        for w in rec.summary["warnings"]:
-            click.echo(f"  warning: {w}", err=True)
-        res = rec.summary.get("result") or {}
-        if res.get("method"):
-            click.echo(f"  result from {res['method']}: {res['why']}", err=True)
-        click.echo(_events_line(rec.summary), err=True)
+        _print_outcome(rec.summary)
     click.echo(f"wrote {out}")
     click.echo(f"wrote {summ}")
     if report_dir:
@@ -203,6 +162,61 @@ def command(ctx: click.Context, log: Path, gnss, radar, mapping, sidecar, depart
 
         raise NoResultError("no method produced a physically possible track; the unhealthy "
                             f"tracks were written for inspection to {out}")
+
+
+def _method_list(methods: str | None) -> tuple[str, ...] | None:
+    """``--methods a,b`` as a tuple of known method names (``None``: every method)."""
+    from flightrecon.pipeline import ALL_METHODS
+
+    if not methods:
+        return None
+    method_list = tuple(m.strip() for m in methods.split(",") if m.strip())
+    unknown = [m for m in method_list if m not in ALL_METHODS]
+    if unknown or not method_list:
+        raise click.BadParameter(
+            f"unknown method(s) {', '.join(unknown) or '(none given)'}; choose from "
+            f"{', '.join(ALL_METHODS)}", param_hint="--methods")
+    return method_list
+
+
+def _print_outcome(summary: dict) -> None:
+    """The run in a few lines on stderr: fleet coefficients used or recorded, each method's
+    status, the warnings, where the result comes from, the events."""
+    fc = summary.get("fleet_coefficients")
+    if fc:
+        cal = fc.get("calibration")
+        if cal:
+            click.echo(f"  fleet calibration of {fc['aircraft_id']} at {cal['at_utc']}: "
+                       f"{len(cal['applied'])} sensor errors as priors, from "
+                       f"{cal['n_flights']} flight(s)", err=True)
+        else:
+            click.echo(f"  no fleet calibration: {fc.get('calibration_missing')}", err=True)
+        if fc.get("k") is not None:
+            click.echo(f"  fleet coefficients of {fc['aircraft_id']}: k = {fc['k']} "
+                       f"(flights per axis {fc['flights']})", err=True)
+    sc = summary.get("stored_coefficients")
+    if sc and sc.get("recorded", True):
+        what = ([f"k = {sc['k']}"] if sc.get("k") else []) + (
+            ["sensor calibration"] if sc.get("calibration") else [])
+        click.echo(f"  recorded {' and '.join(what)} for {sc['aircraft_id']}/"
+                   f"{sc['flight_id']} in {sc['store']}", err=True)
+    elif sc:
+        click.echo(f"  nothing recorded in {sc['store']}: "
+                   f"{sc.get('reason') or sc.get('note')}", err=True)
+    for name, st in summary["methods"].items():
+        line = f"  {name:8s} {st.get('status')}"
+        # the reason of an unhealthy method already names its health problems
+        why = [str(st["reason"])] if st.get("reason") else [
+            str(p.get("what")) for p in (st.get("health") or {}).get("problems", [])]
+        if why:
+            line += ": " + "; ".join(why)
+        click.echo(line, err=True)
+    for w in summary["warnings"]:
+        click.echo(f"  warning: {w}", err=True)
+    res = summary.get("result") or {}
+    if res.get("method"):
+        click.echo(f"  result from {res['method']}: {res['why']}", err=True)
+    click.echo(_events_line(summary), err=True)
 
 
 def _events_line(summary: dict) -> str:

@@ -306,6 +306,46 @@ _KML_EVENT_KINDS = ("liftoff", "touchdown", "impact", "end_airborne", "exceedanc
                     "gap", "source_change")
 
 
+def _kml_event_marks(metadata: Mapping[str, Any] | None, t: np.ndarray, lat: np.ndarray,
+                     lon: np.ndarray, alt_msl: np.ndarray, epoch_utc: Any, *, with_time: bool
+                     ) -> list[str]:
+    """One KML point per event of the summary on the track (numbered as the events table),
+    time-stamped in UTC when the epoch is known."""
+    from flightrecon.events import events_from_summary
+
+    marks = []
+    events = events_from_summary(metadata or {})
+    for num, e in enumerate(events, start=1):
+        if e.kind not in _KML_EVENT_KINDS or not np.isfinite(e.t_s) or len(t) < 2:
+            continue
+        la = float(np.interp(e.t_s, t, lat))
+        lo = float(np.interp(e.t_s, t, lon))
+        h = float(np.interp(e.t_s, t, alt_msl))
+        stamp = ""
+        u = utc_strings(np.array([e.t_s]), epoch_utc) if with_time else None
+        if u is not None:
+            stamp = f"<TimeStamp><when>{u[0]}</when></TimeStamp>"
+        marks.append(f"<Placemark><name>{num}. {escape(e.label)}</name>"
+                     f"<description>{escape(e.detail)}</description>{stamp}"
+                     f"<styleUrl>#event-{escape(e.severity)}</styleUrl><Point><altitudeMode>"
+                     f"absolute</altitudeMode><coordinates>{lo:.7f},{la:.7f},{h:.1f}"
+                     "</coordinates></Point></Placemark>")
+    return marks
+
+
+#: the KML styles: the line, the aircraft, and the events by severity
+_KML_STYLES = (
+    '<Style id="line"><LineStyle><color>ff0080ff</color><width>3</width></LineStyle>'
+    "</Style>"
+    '<Style id="aircraft"><IconStyle><scale>1.1</scale><Icon><href>'
+    "http://maps.google.com/mapfiles/kml/shapes/airports.png</href></Icon></IconStyle>"
+    "<LineStyle><color>ff00ffff</color><width>2</width></LineStyle></Style>"
+    + "".join(f'<Style id="event-{sev}"><IconStyle><color>{col}</color><scale>0.9</scale>'
+              "</IconStyle><LabelStyle><scale>0.8</scale></LabelStyle></Style>"
+              for sev, col in (("info", "ff00ff00"), ("caution", "ff00c0ff"),
+                               ("warning", "ff0000ff"))))
+
+
 def write_kml(path: str | Path, track: pd.DataFrame, name: str,
               geoid_undulation_m: float | None = None, *,
               metadata: Mapping[str, Any] | None = None, attitude: pd.DataFrame | None = None,
@@ -324,8 +364,6 @@ def write_kml(path: str | Path, track: pd.DataFrame, name: str,
         slows down beyond a few hundred thousand); every written sample has one ``when``,
         one ``gx:coord`` and one ``gx:angles``
     """
-    from flightrecon.events import events_from_summary
-
     n_geoid = _geoid_or_refuse(metadata, geoid_undulation_m, "KML")
     rows = _geo_rows(track)
     rows = rows.iloc[_thin_index(len(rows), max_samples)]
@@ -355,33 +393,9 @@ def write_kml(path: str | Path, track: pd.DataFrame, name: str,
                  f"= heading/pitch/bank, {angle_source}. ")
     else:
         desc += "No replay: the flight's UTC epoch is unknown, so no time stamps. "
-    marks = []
-    events = events_from_summary(metadata or {})
-    for num, e in enumerate(events, start=1):
-        if e.kind not in _KML_EVENT_KINDS or not np.isfinite(e.t_s) or len(t) < 2:
-            continue
-        la = float(np.interp(e.t_s, t, lat))
-        lo = float(np.interp(e.t_s, t, lon))
-        h = float(np.interp(e.t_s, t, alt_msl))
-        stamp = ""
-        if utc is not None:
-            u = utc_strings(np.array([e.t_s]), fl.get("epoch_utc"))
-            stamp = f"<TimeStamp><when>{u[0]}</when></TimeStamp>"
-        marks.append(f"<Placemark><name>{num}. {escape(e.label)}</name>"
-                     f"<description>{escape(e.detail)}</description>{stamp}"
-                     f"<styleUrl>#event-{escape(e.severity)}</styleUrl><Point><altitudeMode>"
-                     f"absolute</altitudeMode><coordinates>{lo:.7f},{la:.7f},{h:.1f}"
-                     "</coordinates></Point></Placemark>")
-    styles = (
-        '<Style id="line"><LineStyle><color>ff0080ff</color><width>3</width></LineStyle>'
-        "</Style>"
-        '<Style id="aircraft"><IconStyle><scale>1.1</scale><Icon><href>'
-        "http://maps.google.com/mapfiles/kml/shapes/airports.png</href></Icon></IconStyle>"
-        "<LineStyle><color>ff00ffff</color><width>2</width></LineStyle></Style>"
-        + "".join(f'<Style id="event-{sev}"><IconStyle><color>{col}</color><scale>0.9</scale>'
-                  "</IconStyle><LabelStyle><scale>0.8</scale></LabelStyle></Style>"
-                  for sev, col in (("info", "ff00ff00"), ("caution", "ff00c0ff"),
-                                   ("warning", "ff0000ff"))))
+    marks = _kml_event_marks(metadata, t, lat, lon, alt_msl, fl.get("epoch_utc"),
+                             with_time=utc is not None)
+    styles = _KML_STYLES
     text = (
         '<?xml version="1.0" encoding="UTF-8"?>\n'
         '<kml xmlns="http://www.opengis.net/kml/2.2" xmlns:gx="http://www.google.com/kml/ext/2.2">'
@@ -412,7 +426,10 @@ def write_czml(path: str | Path, track: pd.DataFrame, name: str,
     rows = _geo_rows(track)
     rows = rows.iloc[_thin_index(len(rows), max_samples)]
     t = rows["t_s"].to_numpy(float)
-    start, end = utc_strings(np.array([t[0], t[-1]]), fl.get("epoch_utc"))
+    ends = utc_strings(np.array([t[0], t[-1]]), fl.get("epoch_utc"))
+    if ends is None:  # not reached: the epoch was checked above
+        raise MetadataError("CZML needs the flight's UTC epoch (the summary's flight.epoch_utc)")
+    start, end = ends
     epoch = str(fl.get("epoch_utc"))
     samples = np.column_stack([t, rows["lon_deg"].to_numpy(float),
                                rows["lat_deg"].to_numpy(float), rows["alt_m"].to_numpy(float)])

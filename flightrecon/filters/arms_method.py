@@ -33,7 +33,9 @@ good that is.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -46,7 +48,7 @@ from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
 from flightrecon.geo.navframe import north_azimuth_in_plane
 from flightrecon.geo.radar import horizontal_range, plane_drop_m
 from flightrecon.tracks import TrackColumns
-from flightrecon.types import CleanFlight, FlightMeta, MethodResult
+from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position
 
 __all__ = ["FORMS", "ArmsSettings", "run_arms"]
 
@@ -114,8 +116,8 @@ class ArmsSettings:
 # frames
 # --------------------------------------------------------------------------------------------
 
-def station_plane(meta: FlightMeta) -> TangentPlane:
-    """East-north-up tangent plane at the radar station (ellipsoidal height of its MSL elevation).
+def station(meta: FlightMeta) -> Position:
+    """The radar station's position.
 
     Raises
     ------
@@ -125,7 +127,18 @@ def station_plane(meta: FlightMeta) -> TangentPlane:
     if meta.station is None:
         raise MetadataError("radar plots but no station position: give --station LAT,LON,ELEV_M "
                             "or a sidecar [station] table")
-    s = meta.station
+    return meta.station
+
+
+def station_plane(meta: FlightMeta) -> TangentPlane:
+    """East-north-up tangent plane at the radar station (ellipsoidal height of its MSL elevation).
+
+    Raises
+    ------
+    MetadataError
+        If the flight has no station position.
+    """
+    s = station(meta)
     return TangentPlane(s.lat_deg, s.lon_deg,
                         float(msl_to_ellipsoid(s.elev_m, meta.geoid_undulation_m)))
 
@@ -196,7 +209,7 @@ def _plots(clean: CleanFlight, s: ArmsSettings, model: A.ArmsModel,
     r = rho.copy()
     sig_r = np.full(len(t), model.sigma_range_m)
     if use_el.any():
-        r[use_el] = horizontal_range(rho[use_el], lat_deg=clean.meta.station.lat_deg,
+        r[use_el] = horizontal_range(rho[use_el], lat_deg=station(clean.meta).lat_deg,
                                      elevation_deg=el[use_el])
     use_alt = ~use_el if mode in ("auto", "altitude") else np.zeros(len(t), dtype=bool)
     if use_alt.any():
@@ -205,7 +218,7 @@ def _plots(clean: CleanFlight, s: ArmsSettings, model: A.ArmsModel,
             raise ValidationError("no valid pressure altitude at some radar plot times (needed for "
                                   "the horizontal range); use horizontal_range='slant' or "
                                   "'elevation'", column="baro_alt_m")
-        r[use_alt] = horizontal_range(rho[use_alt], lat_deg=clean.meta.station.lat_deg, dh_m=dh)
+        r[use_alt] = horizontal_range(rho[use_alt], lat_deg=station(clean.meta).lat_deg, dh_m=dh)
         # dr/drho = rho / r at fixed height: the range error grows with the slant angle
         sig_r[use_alt] = model.sigma_range_m * rho[use_alt] / r[use_alt]
     plots = A.RadarPlots.from_arrays(t, r, np.deg2rad(az), model, sigma_range_m=sig_r)
@@ -283,21 +296,55 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     splane = station_plane(meta)
     oplane = output_plane(meta)
     model = settings.model()
-    grid = clean.grid
-    tg = grid["t_s"].to_numpy(dtype=np.float64)
+    tg = clean.grid["t_s"].to_numpy(dtype=np.float64)
+    dh_at = _height_above_station(clean)
+    plots, info = _plots(clean, settings, model, dh_at)
+    ta, air_all = _air_data(clean, plots, splane, dh_at)
+    run, radar_used, air_used, nu, S = _filter(form, linearisation, settings, model, plots,
+                                               ta, air_all, tg)
+    est = A.estimate_of(run, smoothed=settings.smooth)
+    track, inside, dh_k, dvo = _grid_track(clean, est, plots.t_s, splane, oplane, dh_at,
+                                           air_all, model, settings)
+    summary = {
+        "method": "ADS/ARMS (docs/arms.md)",
+        "form": form,
+        "linearisation": linearisation,
+        "converted_at": settings.converted_at if linearisation == "converted" else None,
+        "smoothed": settings.smooth,
+        "frame": "station east-north-up tangent plane; output: tangent plane at departure",
+        "plots_used": radar_used,
+        **info,
+        "air_samples_used": air_used,
+        **_diagnostics(plots.t_s, nu, S, track, inside, dh_k, dvo, settings),
+        "settings": asdict(settings),
+    }
+    return MethodResult("arms", track, summary)
 
+
+def _height_above_station(clean: CleanFlight) -> Callable[[np.ndarray], np.ndarray]:
+    """``dh_at(t)``: the pressure altitude (as MSL height with the departure QNH) minus the
+    station's elevation [m] at times ``t``, interpolated over the valid grid samples; NaN
+    outside them or without any."""
+    grid, meta = clean.grid, clean.meta
+    tg = grid["t_s"].to_numpy(dtype=np.float64)
     ok_alt = _grid_valid(grid, ("baro_alt_m",))
-    st_elev = meta.station.elev_m
+    st_elev = station(meta).elev_m
     h_msl = pressure_to_msl_m(grid["baro_alt_m"].to_numpy(dtype=np.float64), meta.qnh_departure_hpa)
 
     def dh_at(t):
         return np.interp(t, tg[ok_alt], h_msl[ok_alt] - st_elev, left=np.nan, right=np.nan) \
             if ok_alt.any() else np.full(np.shape(t), np.nan)
 
-    plots, info = _plots(clean, settings, model, dh_at)
-    tp = plots.t_s
+    return dh_at
 
-    # air data: valid grid samples, rotated into the station plane by the meridian convergence
+
+def _air_data(clean: CleanFlight, plots: A.RadarPlots, splane, dh_at
+              ) -> tuple[np.ndarray, A.AirData]:
+    """The valid air-data samples (times, and TAS/heading as a vector) with the heading rotated
+    into the station plane by the meridian convergence at the radar track."""
+    grid, meta = clean.grid, clean.meta
+    tg = grid["t_s"].to_numpy(dtype=np.float64)
+    tp = plots.t_s
     ok_air = _grid_valid(grid, ("tas_mps", "heading_deg"))
     ta = tg[ok_air]
     if len(ta) < 2:
@@ -305,34 +352,47 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     conv = A.converted_measurement(plots.range_m, plots.azimuth_rad)
     xa = np.interp(ta, tp, conv[:, 0])
     ya = np.interp(ta, tp, conv[:, 1])
-    ua = np.nan_to_num(dh_at(ta)) - plane_drop_m(np.hypot(xa, ya), meta.station.lat_deg)
+    ua = np.nan_to_num(dh_at(ta)) - plane_drop_m(np.hypot(xa, ya), station(meta).lat_deg)
     gamma = _north_convergence(splane, xa, ya, ua)
     hdg = grid["heading_deg"].to_numpy(dtype=np.float64)[ok_air] + np.rad2deg(gamma)
     air_all = A.AirData.from_tas_heading(ta, grid["tas_mps"].to_numpy(dtype=np.float64)[ok_air],
                                          hdg)
+    return ta, air_all
 
+
+def _filter(form: str, linearisation: str, settings: ArmsSettings, model: A.ArmsModel,
+            plots: A.RadarPlots, ta: np.ndarray, air_all: A.AirData, tg: np.ndarray
+            ) -> tuple[A.ArmsJointRun | A.CascadeResult, int, int, np.ndarray, np.ndarray]:
+    """Run the joint model or the cascade; returns the run, the radar plots and air-data
+    samples used, and the forward innovations ``nu`` (K, 4) with their covariances ``S``
+    (radar block first, air data second)."""
     if form == "joint":
         sel = _thin(ta, settings.air_rate_hz, "air_rate_hz")
         air = A.AirData(ta[sel], air_all.vx_mps[sel], air_all.vy_mps[sel])
-        run = A.run_joint_model(plots, air, model, linearisation=linearisation,
-                          converted_at=settings.converted_at, smooth=settings.smooth,
-                          extra_times=tg[_thin(tg, settings.output_rate_hz, "output_rate_hz")])
-        radar_used = int(run.radar_used.sum()) + 1
-        air_used = int(run.air_used.sum())
-        nu, S = run.filt.nu, run.filt.S
-    else:
-        run = A.run_cascade(plots, air_all, model, linearisation=linearisation,
-                            converted_at=settings.converted_at, smooth=settings.smooth,
-                            air_max_gap_s=settings.air_max_gap_s)
-        radar_used = int(run.stage1.radar_used.sum()) + 1
-        air_used = int(run.stage2.filt.n_meas.astype(bool).sum())
-        nu = np.concatenate([run.stage1.filt.nu[:, :2], run.stage2.filt.nu], axis=1)
-        S = np.full((len(tp), 4, 4), np.nan)
-        S[:, :2, :2] = run.stage1.filt.S[:, :2, :2]
-        S[:, 2:, 2:] = run.stage2.filt.S
-    est = A.estimate_of(run, smoothed=settings.smooth)
+        jr = A.run_joint_model(plots, air, model, linearisation=linearisation,
+                               converted_at=settings.converted_at, smooth=settings.smooth,
+                               extra_times=tg[_thin(tg, settings.output_rate_hz,
+                                                    "output_rate_hz")])
+        return jr, int(jr.radar_used.sum()) + 1, int(jr.air_used.sum()), jr.filt.nu, jr.filt.S
+    cr = A.run_cascade(plots, air_all, model, linearisation=linearisation,
+                       converted_at=settings.converted_at, smooth=settings.smooth,
+                       air_max_gap_s=settings.air_max_gap_s)
+    radar_used = int(cr.stage1.radar_used.sum()) + 1
+    air_used = int(cr.stage2.filt.n_meas.astype(bool).sum())
+    nu = np.concatenate([cr.stage1.filt.nu[:, :2], cr.stage2.filt.nu], axis=1)
+    S = np.full((len(plots.t_s), 4, 4), np.nan)
+    S[:, :2, :2] = cr.stage1.filt.S[:, :2, :2]
+    S[:, 2:, 2:] = cr.stage2.filt.S
+    return cr, radar_used, air_used, nu, S
 
-    # ---- to the grid (output only), station plane -> output plane
+
+def _grid_track(clean: CleanFlight, est, tp: np.ndarray, splane, oplane, dh_at,
+                air_all: A.AirData, model, settings: ArmsSettings):
+    """The estimate on the grid times inside the radar coverage (output only), station plane
+    to output plane: the track columns, the coverage mask, the height above the station
+    there and the air-data error in local north/east axes."""
+    meta = clean.meta
+    tg = clean.grid["t_s"].to_numpy(dtype=np.float64)
     inside = (tg >= tp[0]) & (tg <= tp[-1])
     tk = tg[inside]
 
@@ -348,7 +408,8 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     dv = interp(est.dv)
     Cp, Cv, Cd = interp_cov(est.pos_cov), interp_cov(est.vel_cov), interp_cov(est.dv_cov)
     dh_k = dh_at(tk)
-    uk = np.nan_to_num(dh_k) - plane_drop_m(np.hypot(pos[:, 0], pos[:, 1]), meta.station.lat_deg)
+    uk = np.nan_to_num(dh_k) - plane_drop_m(np.hypot(pos[:, 0], pos[:, 1]),
+                                           station(meta).lat_deg)
     east, north, J = _to_output(splane, oplane, pos[:, 0], pos[:, 1], uk)
     Vs = air_all.at(tk, max_gap_s=settings.air_max_gap_s)
     airv = Vs - dv
@@ -361,9 +422,6 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     Rl[:, 0, 1] = -np.sin(gk)
     Rl[:, 1, 0] = np.sin(gk)
 
-    def rot(v, M=Rl):
-        return np.einsum("kij,kj->ki", M, v)
-
     # station-plane (east, north) vectors: positions through the map to the output plane
     # (its Jacobian J rotates their covariance), velocities into the local level (Rl)
     out = TrackColumns("arms", tg, inside)
@@ -372,9 +430,13 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
     out.add_horizontal("vn", "ve", "mps", vel, Cv, Rl, order="en")
     out.add_horizontal("dvn", "dve", "mps", dv, Cd, Rl, order="en")
     out.add_horizontal("air_vn", "air_ve", "mps", airv, Ca, Rl, order="en")
-    track = out.frame()
+    return out.frame(), inside, dh_k, np.einsum("kij,kj->ki", Rl, dv)
 
-    # ---- summary
+
+def _diagnostics(tp: np.ndarray, nu: np.ndarray, S: np.ndarray, track: pd.DataFrame,
+                 inside: np.ndarray, dh_k: np.ndarray, dvo: np.ndarray,
+                 settings: ArmsSettings) -> dict[str, Any]:
+    """The summary's coverage, outages, innovation statistics, health and warnings."""
     nis_r = _nis_block(nu[:, :2], S[:, :2, :2])
     nis_a = _nis_block(nu[:, 2:], S[:, 2:, 2:])
     n_r, n_a = int(np.isfinite(nis_r).sum()), int(np.isfinite(nis_a).sum())
@@ -394,17 +456,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
                         "1): the noise settings or the motion model do not fit this flight")
     if not finite:
         warnings.append("non-finite ARMS estimates")
-    dvo = rot(dv)
-    summary = {
-        "method": "ADS/ARMS (docs/arms.md)",
-        "form": form,
-        "linearisation": linearisation,
-        "converted_at": settings.converted_at if linearisation == "converted" else None,
-        "smoothed": settings.smooth,
-        "frame": "station east-north-up tangent plane; output: tangent plane at departure",
-        "plots_used": radar_used,
-        **info,
-        "air_samples_used": air_used,
+    return {
         "coverage_s": [float(tp[0]), float(tp[-1])],
         "median_plot_interval_s": float(np.median(np.diff(tp))),
         "outages": len(outs),
@@ -419,9 +471,7 @@ def run_arms(clean: CleanFlight, *, form: str = "joint", linearisation: str = "e
         "dv_mean_mps": {"north": float(np.mean(dvo[:, 1])), "east": float(np.mean(dvo[:, 0]))},
         "healthy": healthy,
         "warnings": warnings,
-        "settings": asdict(settings),
     }
-    return MethodResult("arms", track, summary)
 
 
 def _nis_block(nu: np.ndarray, S: np.ndarray) -> np.ndarray:

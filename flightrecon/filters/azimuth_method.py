@@ -21,6 +21,7 @@ inside radar coverage; measurements are used once, at their own time):
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -38,7 +39,7 @@ from flightrecon.geo.frames import TangentPlane, msl_to_ellipsoid, output_plane
 from flightrecon.geo.navframe import horizontal_rotation
 from flightrecon.geo.radar import horizontal_range, plane_drop_m
 from flightrecon.tracks import TrackColumns
-from flightrecon.types import CleanFlight, MethodResult
+from flightrecon.types import CleanFlight, MethodResult, Position
 
 __all__ = ["AzimuthSettings", "run_azimuth"]
 
@@ -116,8 +117,9 @@ def _radar_plots(clean: CleanFlight) -> pd.DataFrame:
 
 
 def _horizontal_range(plots: pd.DataFrame, clean: CleanFlight, s: AzimuthSettings,
-                      h_station_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+                      station: Position) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """Horizontal range [m], its variance and the height above the station plane [m]."""
+    h_station_m = station.elev_m
     rho = plots["arms_range_m"].to_numpy(float)
     el = (plots["arms_elevation_deg"].to_numpy(float) if "arms_elevation_deg" in plots.columns
           else np.full(rho.size, np.nan))
@@ -141,7 +143,7 @@ def _horizontal_range(plots: pd.DataFrame, clean: CleanFlight, s: AzimuthSetting
         raise ValidationError("radar slant range shorter than the altitude difference to the "
                               "station (check the station elevation and baro datum)",
                               column="arms_range_m")
-    lat_st = clean.meta.station.lat_deg
+    lat_st = station.lat_deg
     r = horizontal_range(rho, lat_deg=lat_st, dh_m=dh)
     up = dh - plane_drop_m(r, lat_st)  # height above the station's tangent plane
     var = (rho / r) ** 2 * s.sigma_range_m**2 + (up / r) ** 2 * s.sigma_altitude_m**2
@@ -185,40 +187,16 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
         raise MetadataError("the azimuth channel needs the radar station position (--station)")
     plane_out = output_plane(meta)
     st = meta.station
-    h_station = float(msl_to_ellipsoid(st.elev_m, meta.geoid_undulation_m))
     plots = _radar_plots(clean)
     tp = plots["t_s"].to_numpy(float)
-    r_p, r_var_p, up_p, range_from = _horizontal_range(plots, clean, s, st.elev_m)
+    r_p, r_var_p, up_p, range_from = _horizontal_range(plots, clean, s, st)
 
     grid = clean.grid
     tg = grid["t_s"].to_numpy(float)
-    cover = (tg >= tp[0]) & (tg <= tp[-1])
-    ig = np.flatnonzero(cover)
-    # on-board observations: grid samples at the downlink rate with valid loads and attitude
-    io = np.empty(0, dtype=np.int64)
-    if model == "aided":
-        missing = [c for c in _LOADS if c not in grid.columns]
-        if missing:
-            raise ValidationError(f"the aided azimuth model needs {', '.join(missing)}",
-                                  column=missing[0])
-        if s.onboard_rate_hz is None:
-            cand = ig
-        else:
-            tick = np.floor((tg[ig] - tp[0]) * s.onboard_rate_hz + 1e-9)
-            cand = ig[np.r_[True, np.diff(tick) > 0]] if ig.size else ig
-        vals = np.stack([grid[c].to_numpy(float)[cand] for c in _LOADS], -1)
-        io = cand[np.isfinite(vals).all(axis=1)]
-        if io.size == 0:
-            raise ValidationError("no valid load-factor/attitude sample inside radar coverage")
-
-    # event timeline: plots and grid samples, merged where they coincide (to the nanosecond)
-    t_all = np.concatenate([tp, tg[ig]])
-    key = np.round(t_all * 1e9)
-    uniq, inv = np.unique(key, return_inverse=True)
-    t_ev = uniq * 1e-9
+    ig = np.flatnonzero((tg >= tp[0]) & (tg <= tp[-1]))
+    io = _onboard_samples(grid, tg, ig, tp, s) if model == "aided" else np.empty(0, np.int64)
+    t_ev, pos_p, pos_g = _timeline(tp, tg[ig])
     n = t_ev.size
-    pos_p = inv[: tp.size]
-    pos_g = inv[tp.size:]
     eps_meas = np.full(n, np.nan)
     eps_meas[pos_p] = np.radians(plots["arms_azimuth_deg"].to_numpy(float))
     eps_var = np.full(n, np.radians(s.sigma_azimuth_deg) ** 2)
@@ -230,23 +208,69 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
 
     a_ne = a_cov = a_corr = None
     if model == "aided":
-        pos_o = pos_g[np.searchsorted(ig, io)]
-        args = [grid[c].to_numpy(float)[io] for c in _LOADS]
-        a_ne = np.full((n, 2), np.nan)
-        a_ne[pos_o] = horizontal_acceleration(*args)
-        a_cov = np.zeros((n, 2, 2))
-        a_cov[pos_o] = horizontal_acceleration_covariance(
-            *args, sigma_load_g=s.sigma_load_g, sigma_attitude_deg=s.sigma_attitude_deg,
-            sigma_heading_deg=s.sigma_heading_deg)
-        a_corr = np.zeros((n, 2, 2))
-        a_corr[pos_o] = horizontal_acceleration_covariance(
-            *args, sigma_load_g=s.sigma_load_bias_g, sigma_attitude_deg=0.0,
-            sigma_heading_deg=0.0)
+        a_ne, a_cov, a_corr = _aided_inputs(grid, io, pos_g[np.searchsorted(ig, io)], n, s)
     run = azimuth_filter(t_ev, eps_meas, eps_var, rt, model=model, a_ne=a_ne, a_ne_cov=a_cov,
                          a_ne_cov_corr=a_corr, alpha_m=s.alpha_m, sigma_m_mps2=s.sigma_m_mps2,
                          q_jerk_m2ps5=s.q_jerk_m2ps5, correlation_time_s=s.correlation_time_s)
+    h_station = float(msl_to_ellipsoid(st.elev_m, meta.geoid_undulation_m))
+    stp = TangentPlane(st.lat_deg, st.lon_deg, h_station)
+    track = _grid_track(run, rt, pos_g, tg, ig, np.interp(tg[ig], tp, up_p), stp, plane_out)
+    summary = _summary(run, rt, model, s, range_from, tp, len(clean.radar), io)
+    return MethodResult(name="azimuth", track=track, summary=summary)
 
-    # ---- output on the grid (smoothed) ----
+
+def _onboard_samples(grid: pd.DataFrame, tg: np.ndarray, ig: np.ndarray, tp: np.ndarray,
+                     s: AzimuthSettings) -> np.ndarray:
+    """Grid rows of the on-board observations: inside the radar coverage (rows ``ig``), at the
+    downlink rate, with valid loads and attitude."""
+    missing = [c for c in _LOADS if c not in grid.columns]
+    if missing:
+        raise ValidationError(f"the aided azimuth model needs {', '.join(missing)}",
+                              column=missing[0])
+    if s.onboard_rate_hz is None:
+        cand = ig
+    else:
+        tick = np.floor((tg[ig] - tp[0]) * s.onboard_rate_hz + 1e-9)
+        cand = ig[np.r_[True, np.diff(tick) > 0]] if ig.size else ig
+    vals = np.stack([grid[c].to_numpy(float)[cand] for c in _LOADS], -1)
+    io = cand[np.isfinite(vals).all(axis=1)]
+    if io.size == 0:
+        raise ValidationError("no valid load-factor/attitude sample inside radar coverage")
+    return io
+
+
+def _timeline(tp: np.ndarray, tg_in: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The event times: plots ``tp`` and grid samples ``tg_in``, merged where they coincide (to
+    the nanosecond); returns the times and the events of the plots and of the samples."""
+    t_all = np.concatenate([tp, tg_in])
+    key = np.round(t_all * 1e9)
+    uniq, inv = np.unique(key, return_inverse=True)
+    return uniq * 1e-9, inv[: tp.size], inv[tp.size:]
+
+
+def _aided_inputs(grid: pd.DataFrame, io: np.ndarray, pos_o: np.ndarray, n: int,
+                  s: AzimuthSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The on-board horizontal acceleration at events ``pos_o`` (grid rows ``io``), its white
+    covariance and the covariance of its slowly varying (bias) part (docs/azimuth.md)."""
+    args = [grid[c].to_numpy(float)[io] for c in _LOADS]
+    a_ne = np.full((n, 2), np.nan)
+    a_ne[pos_o] = horizontal_acceleration(*args)
+    a_cov = np.zeros((n, 2, 2))
+    a_cov[pos_o] = horizontal_acceleration_covariance(
+        *args, sigma_load_g=s.sigma_load_g, sigma_attitude_deg=s.sigma_attitude_deg,
+        sigma_heading_deg=s.sigma_heading_deg)
+    a_corr = np.zeros((n, 2, 2))
+    a_corr[pos_o] = horizontal_acceleration_covariance(
+        *args, sigma_load_g=s.sigma_load_bias_g, sigma_attitude_deg=0.0,
+        sigma_heading_deg=0.0)
+    return a_ne, a_cov, a_corr
+
+
+def _grid_track(run, rt, pos_g: np.ndarray, tg: np.ndarray, ig: np.ndarray,
+                up_st: np.ndarray, stp: TangentPlane, plane_out: TangentPlane) -> pd.DataFrame:
+    """The smoothed estimate at the grid samples ``ig`` (events ``pos_g``) as track columns:
+    azimuth channel, range, and position / velocity from the station plane into the output's
+    axes (``up_st``: the height above the station plane there)."""
     x = run.xs[pos_g]
     P = run.Ps[pos_g]
     r = rt.r[pos_g]
@@ -270,15 +294,13 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     Je = np.stack([np.stack([-rd * se - r * om * ce, -r * se], -1),
                    np.stack([rd * ce - r * om * se, r * ce], -1)], -2)
     Cv = Jr @ Pr @ Jr.transpose(0, 2, 1) + Je @ P[:, :2, :2] @ Je.transpose(0, 2, 1)
-    # height above the station plane at the grid times: interpolated from the plots
-    up_st = np.interp(tg[ig], tp, up_p)
-    stp = TangentPlane(st.lat_deg, st.lon_deg, h_station)
     lat, lon, h = stp.inverse(e_st, n_st, up_st)
     e_out, n_out, _ = plane_out.forward(lat, lon, h)
     # into the output's axes: positions' covariance into the output plane's (north, east),
     # velocities and theirs into the local level at the aircraft (true north there)
-    Mp = horizontal_rotation(st.lat_deg, st.lon_deg, plane_out.lat0_deg, plane_out.lon0_deg)[0]
-    Mv = horizontal_rotation(st.lat_deg, st.lon_deg, lat, lon)
+    Mp = horizontal_rotation(stp.lat0_deg, stp.lon0_deg, plane_out.lat0_deg,
+                             plane_out.lon0_deg)[0]
+    Mv = horizontal_rotation(stp.lat0_deg, stp.lon0_deg, lat, lon)
 
     out = TrackColumns("azimuth", tg, ig)
     out.add("azimuth", "deg", np.mod(np.degrees(eps), 360.0), np.degrees(sd[:, 0]))
@@ -287,20 +309,24 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     out.add("range", "m", r, np.sqrt(var_r))
     out.add_horizontal("north", "east", "m", np.c_[n_out, e_out], Cp, Mp, value_is_output=True)
     out.add_horizontal("vn", "ve", "mps", np.c_[vn_st, ve_st], Cv, Mv)
-    track = out.frame()
+    return out.frame()
 
+
+def _summary(run, rt, model: str, s: AzimuthSettings, range_from: str, tp: np.ndarray,
+             n_plots: int, io: np.ndarray) -> dict[str, Any]:
+    """Counts, innovation statistics and the health verdict of the three filters."""
     nis_e = run.nis_eps[np.isfinite(run.nis_eps)]
     nis_z = run.nis_z[np.isfinite(run.nis_z)]
     finite = bool(np.all(np.isfinite(run.xs)) and np.all(np.isfinite(run.Ps)))
     # every scalar innovation of the three filters (azimuth, transverse acceleration, range)
     verdict = chi_square_verdict(np.r_[nis_e, nis_z, rt.nis])
     gaps = np.diff(tp)
-    summary = {
+    summary: dict[str, Any] = {
         "model": model,
         "settings": asdict(s),
         "range_from": range_from,
         "radar_plots_used": int(tp.size),
-        "radar_plots_dropped": int(len(clean.radar) - tp.size),
+        "radar_plots_dropped": int(n_plots - tp.size),
         "longest_radar_gap_s": float(gaps.max()),
         "onboard_observations": int(io.size),
         "coverage_s": [float(tp[0]), float(tp[-1])],
@@ -316,4 +342,4 @@ def run_azimuth(clean: CleanFlight, *, model: str = "aided",
     elif verdict.gross:
         summary["warning"] = (f"mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
                               "noise settings or the motion model do not fit this flight")
-    return MethodResult(name="azimuth", track=track, summary=summary)
+    return summary

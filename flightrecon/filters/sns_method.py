@@ -24,6 +24,7 @@ Output positions are in the output tangent plane at the departure airfield (nort
 covariance rotated into the plane's axes); velocities are true north/east at the aircraft.
 """
 
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,15 +36,29 @@ import pandas as pd
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
 from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters import sns as core
-from flightrecon.geo.ellipsoid import radii_from_sin
-from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+from flightrecon.filters.sns_inputs import (  # noqa: F401  (re-exported: tests, scripts)
+    FORMS,
+    GNSS_COLUMNS,
+    MODELS,
+    _at,
+    _channel,
+    _lever_arm_at,
+    _lever_arm_rows,
+    _radii_np,
+    _readings,
+    choose_model,
+    filter_grid,
+    gnss_fixes,
+    initial_state,
+    lever_arm_ne,
+    readings,
+    step_inputs,
+)
+from flightrecon.filters.sns_settings import SNS_NOISE_KEYS, sns_noise_with  # noqa: F401
+from flightrecon.geo.frames import output_plane
 from flightrecon.geo.navframe import north_azimuth_in_plane
-from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, MethodResult
 
-MODELS = {"airspeed": core.MODEL_AIRSPEED, "doppler": core.MODEL_DOPPLER}
-FORMS = {"consistent": core.FORM_CONSISTENT, "seed": core.FORM_SEED}
-GNSS_COLUMNS = ("t_s", "gnss_lat_deg", "gnss_lon_deg")
 TRACK_COLUMNS = ("t_s", "sns_north_m", "sns_east_m", "sns_north_sd_m", "sns_east_sd_m",
                  "sns_vn_mps", "sns_ve_mps", "sns_vn_sd_mps", "sns_ve_sd_mps")
 
@@ -72,157 +87,6 @@ class SnsSolution:
     v_ne: np.ndarray
     P_v: np.ndarray
     notes: tuple[str, ...]
-
-
-def choose_model(grid: pd.DataFrame, model: str = "auto") -> int:
-    """The dead-reckoning model for ``model`` (``auto``, ``airspeed`` or ``doppler``).
-
-    Raises
-    ------
-    SchemaError
-        ``doppler`` asked without the Doppler channels, or an unknown model name.
-    """
-    has_doppler = all(c in grid.columns and np.isfinite(grid[c].to_numpy(float)).any()
-                      for c in ("doppler_gs_mps", "drift_deg"))
-    if model == "auto":
-        return core.MODEL_DOPPLER if has_doppler else core.MODEL_AIRSPEED
-    if model not in MODELS:
-        raise SchemaError(f"unknown SNS model '{model}': choose auto, airspeed or doppler")
-    if model == "doppler" and not has_doppler:
-        raise SchemaError("heading-Doppler model needs the doppler_gs_mps and drift_deg channels")
-    return MODELS[model]
-
-
-def _channel(grid: pd.DataFrame, name: str, notes: list[str], fill: float | None = None
-             ) -> np.ndarray:
-    """A grid channel as float array; NaN gaps filled by linear interpolation (noted)."""
-    if name not in grid.columns:
-        if fill is None:
-            raise SchemaError("the SNS method needs this channel", column=name)
-        return np.full(len(grid), fill)
-    x = grid[name].to_numpy(dtype=float).copy()
-    bad = ~np.isfinite(x)
-    if bad.all():
-        if fill is None:
-            raise ValidationError("channel has no valid sample", column=name)
-        notes.append(f"{name}: no valid sample, {fill} used")
-        return np.full(len(grid), fill)
-    if bad.any():
-        i = np.arange(len(x))
-        x[bad] = np.interp(i[bad], i[~bad], x[~bad])
-        notes.append(f"{name}: {int(bad.sum())} missing samples interpolated for dead reckoning")
-    return x
-
-
-def _readings(grid: pd.DataFrame, model: int, notes: list[str]):
-    """Per recorder sample: measured velocity vector a, its unit vector u, wind (toward) w."""
-    psi = np.deg2rad(_channel(grid, "heading_deg", notes))
-    if model == core.MODEL_DOPPLER:
-        gs = _channel(grid, "doppler_gs_mps", notes)
-        ang = psi + np.deg2rad(_channel(grid, "drift_deg", notes))
-        u = np.column_stack([np.cos(ang), np.sin(ang)])
-        return u * gs[:, None], u, np.zeros_like(u)
-    tas = _channel(grid, "tas_mps", notes)
-    u = np.column_stack([np.cos(psi), np.sin(psi)])
-    if "wind_speed_mps" in grid.columns and "wind_from_deg" in grid.columns:
-        w = wind_toward_ne(_channel(grid, "wind_speed_mps", notes, fill=0.0),
-                           _channel(grid, "wind_from_deg", notes, fill=0.0))
-    else:
-        notes.append("no wind channel: zero forecast wind, the wind correction is the whole wind")
-        w = np.zeros_like(u)
-    return u * tas[:, None], u, w
-
-
-def lever_arm_ne(grid: pd.DataFrame, lever_arm_m: tuple[float, float, float]) -> np.ndarray:
-    """North/east components (N, 2) of ``C_nb(heading, pitch, roll) l`` on the grid [m].
-
-    ZYX Euler rotation of the body (FRD) lever arm; roll and pitch zero where not recorded.
-    """
-    n = len(grid)
-    notes: list[str] = []
-    psi = np.deg2rad(_channel(grid, "heading_deg", notes))
-    th = np.deg2rad(_channel(grid, "pitch_deg", notes, fill=0.0))
-    ph = np.deg2rad(_channel(grid, "roll_deg", notes, fill=0.0))
-    l0, l1, l2 = (float(v) for v in lever_arm_m)
-    b1 = np.cos(ph) * l1 - np.sin(ph) * l2
-    b2 = np.sin(ph) * l1 + np.cos(ph) * l2
-    c0 = np.cos(th) * l0 + np.sin(th) * b2
-    c1 = b1
-    out = np.empty((n, 2))
-    out[:, 0] = np.cos(psi) * c0 - np.sin(psi) * c1
-    out[:, 1] = np.sin(psi) * c0 + np.cos(psi) * c1
-    return out
-
-
-def _lever_arm_rows(grid: pd.DataFrame, rows: np.ndarray,
-                    lever_arm_m: tuple[float, float, float]) -> np.ndarray:
-    """:func:`lever_arm_ne` at the grid rows ``rows`` only (same arithmetic, same NaN filling)."""
-    notes: list[str] = []
-    psi = np.deg2rad(_channel(grid, "heading_deg", notes)[rows])
-    th = np.deg2rad(_channel(grid, "pitch_deg", notes, fill=0.0)[rows])
-    ph = np.deg2rad(_channel(grid, "roll_deg", notes, fill=0.0)[rows])
-    l0, l1, l2 = (float(v) for v in lever_arm_m)
-    cph, sph = np.cos(ph), np.sin(ph)
-    b1 = cph * l1 - sph * l2
-    b2 = sph * l1 + cph * l2
-    c0 = np.cos(th) * l0 + np.sin(th) * b2
-    c1 = b1
-    cpsi, spsi = np.cos(psi), np.sin(psi)
-    out = np.empty((len(rows), 2))
-    out[:, 0] = cpsi * c0 - spsi * c1
-    out[:, 1] = spsi * c0 + cpsi * c1
-    return out
-
-
-def _lever_arm_at(grid: pd.DataFrame, t: np.ndarray, tf: np.ndarray, jf: np.ndarray,
-                  lever_arm_m: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Lever arm ``C_nb l`` (north/east) and its time derivative at the fix times ``tf``.
-
-    Equal to ``np.interp(tf, t, arm)`` and ``np.interp(tf, t, np.gradient(arm, t))`` with
-    ``arm = lever_arm_ne(grid, l)`` on the whole grid, but the attitude is rotated only at the
-    rows those need: the samples ``jf``, ``jf + 1`` bracketing each fix (``jf`` the sample held at
-    the fix) and their neighbours for the central differences (numpy's second-order
-    non-uniform formula inside, one-sided at the ends).
-    """
-    M = len(t)
-    mask = np.zeros(M, dtype=bool)
-    for off in (-1, 0, 1, 2):
-        mask[np.clip(jf + off, 0, M - 1)] = True
-    need = np.flatnonzero(mask)
-    arm = _lever_arm_rows(grid, need, lever_arm_m)
-    tr = t[need]
-    # derivative at the rows whose grid neighbours are also computed (jf and jf + 1 always are)
-    darm = np.zeros_like(arm)
-    ip = np.minimum(np.searchsorted(need, need - 1), len(need) - 1)
-    inx = np.minimum(np.searchsorted(need, need + 1), len(need) - 1)
-    has_p = need[ip] == need - 1
-    has_n = need[inx] == need + 1
-    mid = has_p & has_n
-    dx1 = tr[mid] - tr[ip[mid]]
-    dx2 = tr[inx[mid]] - tr[mid]
-    ca = -(dx2) / (dx1 * (dx1 + dx2))
-    cb = (dx2 - dx1) / (dx1 * dx2)
-    cc = dx1 / (dx2 * (dx1 + dx2))
-    darm[mid] = (ca[:, None] * arm[ip[mid]] + cb[:, None] * arm[mid]
-                 + cc[:, None] * arm[inx[mid]])
-    first = (need == 0) & has_n
-    darm[first] = (arm[inx[first]] - arm[first]) / (tr[inx[first]] - tr[first])[:, None]
-    last = (need == M - 1) & has_p
-    darm[last] = (arm[last] - arm[ip[last]]) / (tr[last] - tr[ip[last]])[:, None]
-    arm_f = np.column_stack([np.interp(tf, tr, arm[:, i]) for i in range(2)])
-    darm_f = np.column_stack([np.interp(tf, tr, darm[:, i]) for i in range(2)])
-    return arm_f, darm_f
-
-
-def _at(t: np.ndarray, cum: np.ndarray, v: np.ndarray, tq: np.ndarray,
-        j: np.ndarray | None = None) -> np.ndarray:
-    """Integral of the held series up to arbitrary times ``tq`` (within ``[t[0], t[-1]]``).
-
-    ``j`` (optional) are the samples held at ``tq`` if already known.
-    """
-    if j is None:
-        j = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
-    return cum[j] + v[j] * (tq - t[j])[:, None]
 
 
 def _gaps(t_fix: np.ndarray, t0: float, t1: float, min_gap_s: float) -> list[dict[str, float]]:
@@ -274,111 +138,12 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
     fm = FORMS[form]
     noise = noise or core.default_noise(m)
 
-    g = clean.gnss
-    for c in GNSS_COLUMNS:
-        if c not in g.columns:
-            raise SchemaError("the SNS method needs GNSS fixes with this column", column=c)
-    g = g[np.isfinite(g[list(GNSS_COLUMNS)].to_numpy(float)).all(axis=1)].sort_values("t_s")
-    if "gnss_quality" in g.columns:
-        g = g[g["gnss_quality"].isna() | (g["gnss_quality"] > 0)]
-    inside = (g["t_s"] >= t[0]) & (g["t_s"] <= t[-1])
-    n_drop = int((~inside).sum())
-    g = g[inside]
-    if len(g) < 2:
-        raise ValidationError("fewer than two GNSS fixes inside the recorder grid")
-    tf = g["t_s"].to_numpy(float)
-    h_fix = (g["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in g.columns
-             else np.full(len(g), np.nan))
-    if clean.meta.gnss_alt_datum == "msl":
-        h_fix = msl_to_ellipsoid(h_fix, clean.meta.geoid_undulation_m)
-    no_h = ~np.isfinite(h_fix)
-    if no_h.any():
-        # fixes without height are used horizontally (the filter is horizontal; the height
-        # only sets the earth radii and the lever arm): the pressure altitude stands in, as
-        # MSL height, at the fix time (a 300 m error changes the radii by 5e-5)
-        if "baro_alt_m" in grid.columns and np.isfinite(grid["baro_alt_m"].to_numpy(float)).any():
-            b = grid["baro_alt_m"].to_numpy(float)
-            okb = np.isfinite(b)
-            h_sub = msl_to_ellipsoid(np.interp(tf[no_h], t[okb], b[okb]),
-                                     clean.meta.geoid_undulation_m)
-        else:
-            h_sub = 0.0
-        h_fix = h_fix.copy()
-        h_fix[no_h] = h_sub
-        notes.append(f"{int(no_h.sum())} GNSS fixes without height used horizontally (height "
-                     "for the earth radii from the pressure altitude)")
-    h_grid = np.interp(t, tf, h_fix)
-
-    a, u, w = _readings(grid, m, notes)
-    # cumulative integrals of the held readings, and CQ[j] = sum over samples < j of
-    # dt^2 [u u^T, (Ja)(Ja)^T, 1] for the summed errors of whole samples (one compiled pass)
-    IA, IU, IW, CQ = core.integrate_readings(t, a, u, w)
-
-    # filter grid: every dec-th sample, dec reduced until each step's fixes share one sample
-    jf = np.clip(np.searchsorted(t, tf, side="right") - 1, 0, len(t) - 1)
-    rate = 1.0 / np.median(np.diff(t))
-    dec = max(1, round(rate / filter_rate_hz))
-    while True:
-        idx = np.arange(0, len(t), dec)
-        if idx[-1] != len(t) - 1:
-            idx = np.append(idx, len(t) - 1)
-        tk = t[idx]
-        N = len(idx)
-        kf = np.clip(np.searchsorted(tk, tf, side="right") - 1, 0, N - 1)
-        same_step = kf[1:] == kf[:-1]
-        if dec == 1 or not np.any(same_step & (jf[1:] != jf[:-1])):
-            break
-        dec = max(1, dec // 2)
-    if dec != max(1, round(rate / filter_rate_hz)):
-        notes.append(f"filter grid raised to {rate / dec:.3g} Hz so that each step's GNSS fixes "
-                     "fall in one recorder sample")
-    A = np.zeros((N, 2))
-    U = np.zeros((N, 2))
-    W = np.zeros((N, 2))
-    A[:-1], U[:-1], W[:-1] = np.diff(IA[idx], axis=0), np.diff(IU[idx], axis=0), np.diff(
-        IW[idx], axis=0)
-    ks = np.arange(N)
-    fstart = np.searchsorted(kf, ks, side="left")
-    fend = np.searchsorted(kf, ks, side="right")
-    has = fend > fstart
-    jstar = np.where(has, jf[np.minimum(fstart, len(jf) - 1)], idx)
-    nxt = np.append(idx[1:], idx[-1])  # first sample of the next step
-    star = np.zeros((N, 3, 2))
-    star[has] = np.stack([a[jstar[has]], u[jstar[has]], w[jstar[has]]], axis=1)
-    dt_star = np.zeros(N)
-    inner = has & (jstar < nxt)
-    dt_star[inner] = t[np.minimum(jstar[inner] + 1, len(t) - 1)] - t[jstar[inner]]
-    Qb = np.where(has[:, None], CQ[jstar] - CQ[idx], CQ[nxt] - CQ[idx])
-    Qa = np.where(inner[:, None], CQ[nxt] - CQ[np.minimum(jstar + 1, len(t))], 0.0)
-
-    # fixes: centre of mass, step, partial integrals, held readings
-    arm_f, darm_f = _lever_arm_at(grid, t, tf, jf, clean.meta.gnss_lever_arm_m)
-    lat_a = np.deg2rad(g["gnss_lat_deg"].to_numpy(float))
-    lon_a = np.deg2rad(g["gnss_lon_deg"].to_numpy(float))
-    mh, nh = _radii_np(lat_a, h_fix)
-    flat = lat_a - arm_f[:, 0] / mh
-    flon = lon_a - arm_f[:, 1] / (nh * np.cos(lat_a))
-    fv = np.full((len(tf), 2), np.nan)
-    for i, c in enumerate(("gnss_vn_mps", "gnss_ve_mps")):
-        if c in g.columns:
-            fv[:, i] = g[c].to_numpy(float) - darm_f[:, i]
-    inputs = core.StepInputs(
-        t=tk, h=h_grid[idx], A=A, U=U, W=W, fix_start=fstart, fix_end=fend,
-        fix_lat=flat, fix_lon=flon, fix_v=fv, fix_tau=tf - tk[kf],
-        fix_PA=_at(t, IA, a, tf, jf) - IA[idx[kf]], fix_PU=_at(t, IU, u, tf, jf) - IU[idx[kf]],
-        fix_PW=_at(t, IW, w, tf, jf) - IW[idx[kf]],
-        fix_a=a[jf], fix_u=u[jf], fix_w=w[jf], star=star, dt_star=dt_star, Qb=Qb, Qa=Qa,
-        fix_tau_in=tf - t[jf],
-        fix_pos_sd=(g["gnss_h_sd_m"].to_numpy(float) if "gnss_h_sd_m" in g.columns else None),
-        fix_vel_sd=(g["gnss_vel_sd_mps"].to_numpy(float) if "gnss_vel_sd_mps" in g.columns
-                    else None))
-
-    # initial state: first fix moved back by the uncorrected dead reckoning
-    back = (_at(t, IA, a, tf[:1]) + _at(t, IW, w, tf[:1]) - IA[:1] - IW[:1])[0]
-    lat0, lon0 = core.boxplus(flat[0], flon[0], -back[0], -back[1], h_fix[0])
-    sd0 = 3.0 * noise.pos_sd_m + 0.1 * float(np.hypot(*back)) + 1.0
-    x0 = np.array([lat0, lon0, 0.0, 0.0, 0.0])
-    P0 = np.diag([sd0 ** 2, sd0 ** 2, *np.square(noise.prior_sd)])
+    fixes = gnss_fixes(clean, t, notes)
+    h_grid = np.interp(t, fixes.tf, fixes.h)
+    r = readings(grid, t, m, notes)
+    fg = filter_grid(t, fixes.tf, filter_rate_hz, notes)
+    inputs, flat, flon = step_inputs(clean, t, h_grid, fixes, fg, r)
+    x0, P0 = initial_state(t, r, fixes, flat, flon, noise)
     try:
         run = core.sns_filter(inputs, x0, P0, noise, model=m, form=fm)
         sm = core.sns_smooth(run)
@@ -387,24 +152,20 @@ def solve_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consisten
                                "singular: check the noise settings)") from exc
 
     # filter step of each recorder sample: idx = [0, dec, 2 dec, ...] (+ the last sample)
+    N, idx, dec = len(fg.idx), fg.idx, fg.dec
     kq = np.minimum(np.arange(len(t)) // dec, N - 1)
     kq[-1] = N - 1
+    IA, IU, IW = r.IA, r.IU, r.IW
     lat, lon, P_ne, v_ne, P_v = core.densify(
-        m, sm.x, sm.P, kq, t, tk, (IA, IU, IW), (IA[idx], IU[idx], IW[idx]), h_grid, (a, u, w),
-        np.asarray(noise.sensor_sd, float))
-    if n_drop:
-        notes.append(f"{n_drop} GNSS fixes outside the recorder grid not used")
+        m, sm.x, sm.P, kq, t, fg.tk, (IA, IU, IW), (IA[idx], IU[idx], IW[idx]), h_grid,
+        (r.a, r.u, r.w), np.asarray(noise.sensor_sd, float))
+    if fixes.n_dropped:
+        notes.append(f"{fixes.n_dropped} GNSS fixes outside the recorder grid not used")
     if sm.cholesky_fallbacks:
         notes.append(f"{sm.cholesky_fallbacks} steps' predicted covariance failed its Cholesky "
                      "factorisation; their smoother gain came from a general solve")
-    return SnsSolution(m, fm, noise, inputs, run, sm, idx, tf, n_drop, lat, lon, h_grid, P_ne,
-                       v_ne, P_v, tuple(notes))
-
-
-def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`flightrecon.filters.sns.radii` on arrays: ``(M + h, N + h)`` [m]."""
-    m, n = radii_from_sin(np.sin(lat))
-    return m + h, n + h
+    return SnsSolution(m, fm, noise, inputs, run, sm, idx, fixes.tf, fixes.n_dropped, lat, lon,
+                       h_grid, P_ne, v_ne, P_v, tuple(notes))
 
 
 GAMMA_STRIDE = 16  # recorder samples between pyproj evaluations of the meridian convergence
@@ -469,54 +230,6 @@ def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
             "heading_corr_deg": float(deg(x[4])), "heading_corr_sd_deg": float(deg(sd[4])),
             "track_corr_deg": float(deg(x[3] + x[4])), "track_corr_sd_deg": float(deg(track_sd))}
 
-
-#: SNS noise settings a user can override (``[sns]`` table of ``--noise``), in natural units
-SNS_NOISE_KEYS = ("pos_sd_m", "vel_sd_mps", "speed_sd_mps", "heading_sd_deg", "wind_sd_mps",
-                  "drift_sd_deg", "heading_bias_prior_deg")
-
-
-def sns_noise_with(model: int, overrides: dict[str, float] | None) -> core.SnsNoise:
-    """:func:`~flightrecon.filters.sns.default_noise` of ``model`` with ``overrides`` applied
-    (keys :data:`SNS_NOISE_KEYS`: GNSS position / velocity sd per component, the speed reading's
-    sd (TAS or Doppler ground speed), heading sd, wind reading sd (airspeed model), drift sd
-    (Doppler model), the heading-bias prior).
-
-    Raises
-    ------
-    MetadataError
-        An unknown key, or a value that is not a positive number.
-    """
-    from dataclasses import replace
-
-    from flightrecon.errors import MetadataError
-
-    nz = core.default_noise(model)
-    if not overrides:
-        return nz
-    sens = list(nz.sensor_sd)
-    prior = list(nz.prior_sd)
-    kw: dict = {}
-    for k, v in overrides.items():
-        if k not in SNS_NOISE_KEYS:
-            raise MetadataError(f"unknown SNS noise setting '{k}' (known: "
-                                f"{', '.join(SNS_NOISE_KEYS)})")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
-            raise MetadataError(f"SNS noise setting '{k}' must be a positive number, got {v!r}")
-        v = float(v)
-        if k in ("pos_sd_m", "vel_sd_mps"):
-            kw[k] = v
-        elif k == "speed_sd_mps":
-            sens[0] = v
-        elif k == "heading_sd_deg":
-            sens[1 if model == core.MODEL_AIRSPEED else 2] = float(np.deg2rad(v))
-        elif k == "wind_sd_mps" and model == core.MODEL_AIRSPEED:
-            sens[2] = sens[3] = v
-        elif k == "drift_sd_deg" and model == core.MODEL_DOPPLER:
-            sens[1] = float(np.deg2rad(v))
-        elif k == "heading_bias_prior_deg":
-            prior[2] = float(np.deg2rad(v))
-    return replace(nz, sensor_sd=(sens[0], sens[1], sens[2], sens[3]),
-                   prior_sd=(prior[0], prior[1], prior[2]), **kw)
 
 
 def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent",

@@ -80,21 +80,58 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     warns: list[str] = []
     notes: list[str] = []
     log = Path(log)
-    # ---- metadata
+    sc, meta, companion = _metadata(log, sidecar, meta_overrides, warns)
+    gnss = gnss if gnss is not None else companion.get("gnss")
+    radar = radar if radar is not None else companion.get("radar")
+    mapping = mapping if mapping is not None else companion.get("mapping")
+    mp: Mapping | None = load_mapping(mapping) if mapping is not None else None
+    src, meta = _read_log(log, mp, meta, allow_unsorted, warns, notes)
+    for group, path in (("gnss", gnss), ("radar", radar)):
+        if path is not None:
+            _add_companion(src, group, Path(path), mp, meta, allow_unsorted, warns, notes)
+    values = _derived_channels(src, meta, log, warns, notes)
+    data, repairs = _validated_frame(src, values, warns, notes)
+    _check_priors(meta, data, warns)
+    meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
+                                            "ingest_repairs": [r.as_dict() for r in repairs],
+                                            "mapping": None if mp is None else mp.file,
+                                            "sidecar": None if sc is None else sc.path})
+    for w in warns:
+        warnings.warn(w, FlightReconWarning, stacklevel=2)
+    return Flight(data=data, meta=meta, sources=tuple(src.files), warnings=tuple(warns))
+
+
+def _metadata(log: Path, sidecar: PathLike | None, meta_overrides: dict[str, Any] | None,
+              warns: list[str]) -> tuple[Any, FlightMeta, dict[str, Any]]:
+    """The sidecar (given, or beside the log), the metadata with the command line's
+    overrides, and the companion files the sidecar names."""
     if sidecar is not None and not Path(sidecar).is_file():
         raise MetadataError("sidecar file not found", file=str(sidecar))
     sc_path = Path(sidecar) if sidecar is not None else discover_sidecar(log)
     sc = load_sidecar(sc_path) if sc_path is not None else None
     meta = sc.meta if sc else FlightMeta()
-    companion = sc.files if sc else {}
+    companion = dict(sc.files) if sc else {}
     if sc:
         warns += list(sc.warnings)
-    meta = apply_overrides(meta, meta_overrides)
-    gnss = gnss if gnss is not None else companion.get("gnss")
-    radar = radar if radar is not None else companion.get("radar")
-    mapping = mapping if mapping is not None else companion.get("mapping")
-    mp: Mapping | None = load_mapping(mapping) if mapping is not None else None
-    # ---- recorder log
+    return sc, apply_overrides(meta, meta_overrides), companion
+
+
+@dataclasses.dataclass
+class _Sources:
+    """The rows read so far (log first, then the companion files merged in), with the
+    provenance the validation reports against."""
+
+    mt: MappedTable
+    rows: Rows
+    epoch_ns: Any
+    files: list[str]
+    source_cols: list[dict[str, str]]
+    magnetic: dict[str, tuple[str, str]]
+
+
+def _read_log(log: Path, mp: Mapping | None, meta: FlightMeta, allow_unsorted: bool,
+              warns: list[str], notes: list[str]) -> tuple[_Sources, FlightMeta]:
+    """The recorder log through its mapping: schema checks, time base, time order."""
     raw = read_table(log)
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
@@ -137,55 +174,68 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     rows = Rows(t=t[sel], values={k: v[sel] for k, v in mt.values.items()},
                 src_file=np.zeros(t.size, dtype=np.int64)[sel], row=mt.rows[sel],
                 nan_text={k: v[sel] for k, v in mt.nan_text.items()})
-    files = [str(log)]
-    source_cols: list[dict[str, str]] = [dict(mt.source_column)]
-    magnetic: dict[str, tuple[str, str]] = {c: (str(log), mt.source_column[c])
-                                            for c in mt.magnetic}
-    # ---- separate measurement files
-    for group, path in (("gnss", gnss), ("radar", radar)):
-        if path is None:
-            continue
-        sub = getattr(mp, group) if mp is not None else None
-        craw = read_table(path)
-        cm = apply_mapping(craw, sub, group=group, mapping_file=mp.file if mp else None)
-        if not cm.values:
-            raise SchemaError(f"no {group} columns ({', '.join(GROUPS[group])}) in the "
-                              f"{group} file", file=str(path))
-        clash = [c for c in cm.values if c in rows.values
-                 and (~np.isnan(rows.values[c])).any()]
-        if clash:
-            raise SchemaError(f"the log already has {group} data in {', '.join(clash)} and a "
-                              f"separate {group} file was given", file=str(path), column=clash[0])
-        ct = _companion_seconds(cm, meta, epoch_ns)
-        corder, w = _time_order(ct, cm.rows, cm.values, str(path), "time", allow_unsorted)
-        warns += w
-        csel = corder if corder is not None else slice(None)
-        k = len(files)
-        files.append(str(path))
-        source_cols.append(dict(cm.source_column))
-        for c in cm.magnetic:
-            magnetic[c] = (str(path), cm.source_column[c])
-        notes += list(cm.notes)
-        add = Rows(t=ct[csel], values={c: v[csel] for c, v in cm.values.items()},
-                   src_file=np.full(ct.size, k, dtype=np.int64), row=cm.rows[csel],
-                   nan_text={c: v[csel] for c, v in cm.nan_text.items()})
-        rows = merge_rows(rows, add)
+    magnetic = {c: (str(log), mt.source_column[c]) for c in mt.magnetic}
+    return _Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic), meta
+
+
+def _add_companion(src: _Sources, group: str, path: Path, mp: Mapping | None, meta: FlightMeta,
+                   allow_unsorted: bool, warns: list[str], notes: list[str]) -> None:
+    """Merge a separate GNSS or radar file into ``src`` on UTC time (each fix its own row)."""
+    sub = getattr(mp, group) if mp is not None else None
+    craw = read_table(path)
+    cm = apply_mapping(craw, sub, group=group, mapping_file=mp.file if mp else None)
+    if not cm.values:
+        raise SchemaError(f"no {group} columns ({', '.join(GROUPS[group])}) in the "
+                          f"{group} file", file=str(path))
+    clash = [c for c in cm.values if c in src.rows.values
+             and (~np.isnan(src.rows.values[c])).any()]
+    if clash:
+        raise SchemaError(f"the log already has {group} data in {', '.join(clash)} and a "
+                          f"separate {group} file was given", file=str(path), column=clash[0])
+    ct = _companion_seconds(cm, meta, src.epoch_ns)
+    corder, w = _time_order(ct, cm.rows, cm.values, str(path), "time", allow_unsorted)
+    warns += w
+    csel = corder if corder is not None else slice(None)
+    k = len(src.files)
+    src.files.append(str(path))
+    src.source_cols.append(dict(cm.source_column))
+    for c in cm.magnetic:
+        src.magnetic[c] = (str(path), cm.source_column[c])
+    notes += list(cm.notes)
+    add = Rows(t=ct[csel], values={c: v[csel] for c, v in cm.values.items()},
+               src_file=np.full(ct.size, k, dtype=np.int64), row=cm.rows[csel],
+               nan_text={c: v[csel] for c, v in cm.nan_text.items()})
+    src.rows = merge_rows(src.rows, add)
+
+
+def _derived_channels(src: _Sources, meta: FlightMeta, log: Path, warns: list[str],
+                      notes: list[str]) -> dict[str, np.ndarray]:
+    """The channels on the merged rows, with TAS from CAS/IAS and true from magnetic angles."""
+    rows = src.rows
     values = dict(rows.values)
-    # ---- derived channels
-    for ch, src in mt.derived.items():
-        values[ch], w = derive_tas(rows.t, values, src, str(log))
+    for ch, kind in src.mt.derived.items():
+        values[ch], w = derive_tas(rows.t, values, kind, str(log))
         warns += w
-        notes.append(f"{ch} computed from {src}_mps, sat_degc and baro_alt_m (ISA, compressible)")
-    for ch, (f, col) in magnetic.items():
+        notes.append(f"{ch} computed from {kind}_mps, sat_degc and baro_alt_m (ISA, "
+                     "compressible)")
+    for ch, (f, col) in src.magnetic.items():
         values[ch], n = true_from_magnetic(rows.t, values[ch], values, meta, f, col)
         notes += n
-    # ---- validation
+    return values
+
+
+def _validated_frame(src: _Sources, values: dict[str, np.ndarray], warns: list[str],
+                     notes: list[str]) -> tuple[pd.DataFrame, list[Any]]:
+    """The flight's table: values checked (ranges, polarity, GNSS quality, physics), angles
+    wrapped, empty channels dropped, provenance columns ``row`` and ``src_file``; with the
+    repairs made."""
+    rows = src.rows
     cols = _own_columns({"t_s": rows.t, **{c.name: values[c.name] for c in CHANNELS
                                            if c.name in values}})
     # one block per column (copy=False): no 100 MB consolidation copy for a 10-hour log
     data = pd.DataFrame(cols, copy=False)
-    prov = Provenance(files=tuple(files), src_file=rows.src_file, row=rows.row,
-                      source_column=tuple(source_cols))
+    prov = Provenance(files=tuple(src.files), src_file=rows.src_file, row=rows.row,
+                      source_column=tuple(src.source_cols))
     w, repairs = check_values(data, prov, rows.nan_text)
     warns += w
     for r in {r.channel for r in repairs}:
@@ -209,27 +259,23 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
             del cols[name]
     cols["row"] = np.array(rows.row, copy=True)
     cols["src_file"] = rows.src_file.astype(np.int8)
-    data = pd.DataFrame(cols, copy=False)
-    if meta.fixes and len(data):  # known positions must fall inside the record
+    return pd.DataFrame(cols, copy=False), repairs
+
+
+def _check_priors(meta: FlightMeta, data: pd.DataFrame, warns: list[str]) -> None:
+    """Known positions must fall inside the record; fixes and winds aloft are parsed and
+    validated but no estimator uses them yet (docs/schema.md): said, so that nobody takes the
+    result for one that used them."""
+    if meta.fixes and len(data):
         from flightrecon.ingest.priors import check_fix_times
 
         check_fix_times(meta.fixes, float(data["t_s"].iloc[0]), float(data["t_s"].iloc[-1]))
     if meta.fixes or meta.wind_aloft:
-        # parsed, validated and kept in the summary's flight metadata; not yet an input of
-        # any estimator (docs/schema.md): said, so that nobody takes the result for one that
-        # used them
         given = " and ".join(w for w, on in (("known positions (--fix)", meta.fixes),
                                              ("a winds-aloft prior (--wind)", meta.wind_aloft))
                              if on)
         warns.append(f"{given} read and validated, but no estimator uses them yet: the result "
                      "does not depend on them")
-    meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
-                                            "ingest_repairs": [r.as_dict() for r in repairs],
-                                            "mapping": None if mp is None else mp.file,
-                                            "sidecar": None if sc is None else sc.path})
-    for w in warns:
-        warnings.warn(w, FlightReconWarning, stacklevel=2)
-    return Flight(data=data, meta=meta, sources=tuple(files), warnings=tuple(warns))
 
 
 def mapping_beside(log: PathLike) -> list[Path]:

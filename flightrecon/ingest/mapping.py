@@ -186,7 +186,7 @@ def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
             raise MappingError(f"[{prefix}time] unit '{unit}' is not one of {TIME_UNITS}",
                                file=file, column=col)
         fmt = _str(t, "format", file, f"{prefix}time", required=False)
-        time = TimeSpec(col, unit, fmt)
+        time = TimeSpec(str(col), unit, fmt)   # required: never None here
     chans: list[ChannelSpec] = []
     targets = _table(doc.get("channels", {}), file, f"{prefix}channels")
     for name, spec in targets.items():
@@ -250,7 +250,8 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
     return ChannelSpec(name, col, unit, float(sign), ref, scale=scale, offset=offset)
 
 
-def _number(t: dict, key: str, default: float, file: str, where: str, col: str) -> float:
+def _number(t: dict, key: str, default: float, file: str, where: str, col: str | None
+            ) -> float:
     v = t.get(key, default)
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
         raise MappingError(f"[{where}]: {key} must be a finite number, got {v!r}", file=file,
@@ -315,37 +316,10 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
     ValidationError
         Non-numeric values in a used column, unparsable or missing timestamps.
     """
-    from flightrecon.errors import SchemaError
-
     file = raw.file
     mfile = mapping_file or (mapping.file if mapping else None)
-    specs: list[ChannelSpec] = list(mapping.channels) if mapping else []
-    for s in specs:
-        if s.column is not None and s.column not in raw.columns:
-            close = difflib.get_close_matches(s.column, list(raw.columns), n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
-            raise MappingError(f"mapping file {mfile} maps channel {s.channel} to a column that "
-                               f"is not in the file{hint}", file=file, column=s.column)
-    mapped_cols = {s.column for s in specs if s.column}
-    mapped_chans = {s.channel for s in specs}
-    specs += identity_specs([c for c in raw.columns if c not in mapped_cols], mapped_chans)
-    if group is not None:
-        allowed = set(GROUPS[group])
-        specs = [s for s in specs if s.channel in allowed]
-    # time
-    tspec = mapping.time if mapping and mapping.time else None
-    if tspec is None:
-        for col, unit in DEFAULT_TIME_COLUMNS:
-            if col in raw.columns:
-                tspec = TimeSpec(col, unit)
-                break
-    if tspec is None:
-        raise SchemaError("no time column: expected 't_s' (seconds from epoch_utc) or "
-                          "'time_utc' (UTC timestamps), or a [time] table in a mapping file",
-                          file=file)
-    if tspec.column not in raw.columns:
-        raise MappingError(f"mapping file {mfile}: time column is not in the file", file=file,
-                           column=tspec.column)
+    specs = _channel_specs(raw, mapping, group, mfile)
+    tspec = _time_spec(raw, mapping, mfile)
     rows = np.arange(1, raw.n_rows + 1, dtype=np.int64)
     if raw.blank_rows.size:
         keep = np.ones(raw.n_rows, dtype=bool)
@@ -367,28 +341,86 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
         if s.derived_from is not None:
             derived[s.channel] = s.derived_from
             continue
-        col = raw.columns[s.column]
-        arr = _numeric(col, file, s.column, rows, raw.bad_text.get(s.column))
-        v = to_canonical(arr * s.scale if s.scale != 1.0 else arr, s.unit)
-        if s.sign < 0:
-            v = -v
-        if s.offset != 0.0:
-            v = v + s.offset
+        col, v = _converted(raw, s, rows)
         values[s.channel] = v
-        source[s.channel] = s.column
-        if s.column in raw.nan_text:
-            nan_text[s.channel] = raw.nan_text[s.column]
+        source[s.channel] = col
+        if col in raw.nan_text:
+            nan_text[s.channel] = raw.nan_text[col]
         if s.reference == "magnetic":
             magnetic.append(s.channel)
-        if (s.column != s.channel or s.unit.name != BY_NAME[s.channel].unit or s.sign < 0
-                or s.scale != 1.0 or s.offset != 0.0):
-            notes.append(f"{s.channel} <- {s.column}"
-                         + (f" x {s.scale:g}" if s.scale != 1.0 else "")
-                         + f" [{s.unit.name}]" + (" x -1" if s.sign < 0 else "")
-                         + (f" {s.offset:+g} {BY_NAME[s.channel].unit}" if s.offset else ""))
+        note = _mapping_note(s)
+        if note:
+            notes.append(note)
     return MappedTable(file=file, time_kind=tspec.unit, time=time, values=values,
                        nan_text=nan_text, source_column=source, magnetic=tuple(magnetic),
                        derived=derived, rows=rows, notes=tuple(notes))
+
+
+def _channel_specs(raw: RawTable, mapping: Mapping | None, group: str | None,
+                   mfile: str | None) -> list[ChannelSpec]:
+    """The mapping's channel specs (each source column checked to be in the file), the
+    canonical columns not mapped taken as they are, restricted to ``group``'s channels."""
+    specs: list[ChannelSpec] = list(mapping.channels) if mapping else []
+    for s in specs:
+        if s.column is not None and s.column not in raw.columns:
+            close = difflib.get_close_matches(s.column, list(raw.columns), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise MappingError(f"mapping file {mfile} maps channel {s.channel} to a column that "
+                               f"is not in the file{hint}", file=raw.file, column=s.column)
+    mapped_cols = {s.column for s in specs if s.column}
+    mapped_chans = {s.channel for s in specs}
+    specs += identity_specs([c for c in raw.columns if c not in mapped_cols], mapped_chans)
+    if group is not None:
+        allowed = set(GROUPS[group])
+        specs = [s for s in specs if s.channel in allowed]
+    return specs
+
+
+def _time_spec(raw: RawTable, mapping: Mapping | None, mfile: str | None) -> TimeSpec:
+    """The time column: the mapping's ``[time]``, else the first default time column found."""
+    from flightrecon.errors import SchemaError
+
+    tspec = mapping.time if mapping and mapping.time else None
+    if tspec is None:
+        for col, unit in DEFAULT_TIME_COLUMNS:
+            if col in raw.columns:
+                tspec = TimeSpec(col, unit)
+                break
+    if tspec is None:
+        raise SchemaError("no time column: expected 't_s' (seconds from epoch_utc) or "
+                          "'time_utc' (UTC timestamps), or a [time] table in a mapping file",
+                          file=raw.file)
+    if tspec.column not in raw.columns:
+        raise MappingError(f"mapping file {mfile}: time column is not in the file", file=raw.file,
+                           column=tspec.column)
+    return tspec
+
+
+def _converted(raw: RawTable, s: ChannelSpec, rows: np.ndarray) -> tuple[str, np.ndarray]:
+    """One source column (its name, its values) as numbers in the canonical unit: scale, unit,
+    sign, offset."""
+    if s.column is None or s.unit is None:
+        raise MappingError(f"channel {s.channel} has neither a source column and unit nor a "
+                           "derivation", file=raw.file)
+    arr = _numeric(raw.columns[s.column], raw.file, s.column, rows, raw.bad_text.get(s.column))
+    v = to_canonical(arr * s.scale if s.scale != 1.0 else arr, s.unit)
+    if s.sign < 0:
+        v = -v
+    if s.offset != 0.0:
+        v = v + s.offset
+    return s.column, v
+
+
+def _mapping_note(s: ChannelSpec) -> str | None:
+    """``channel <- column x scale [unit] x -1 +offset`` where the mapping changes anything."""
+    unit = s.unit.name if s.unit is not None else None
+    if (s.column != s.channel or unit != BY_NAME[s.channel].unit or s.sign < 0
+            or s.scale != 1.0 or s.offset != 0.0):
+        return (f"{s.channel} <- {s.column}"
+                + (f" x {s.scale:g}" if s.scale != 1.0 else "")
+                + f" [{unit}]" + (" x -1" if s.sign < 0 else "")
+                + (f" {s.offset:+g} {BY_NAME[s.channel].unit}" if s.offset else ""))
+    return None
 
 
 def _numeric(col: np.ndarray, file: str, name: str, rows: np.ndarray,

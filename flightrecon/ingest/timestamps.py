@@ -169,51 +169,81 @@ def repair_time_order(t: np.ndarray, rows: np.ndarray, values: dict[str, np.ndar
         return None, []
     warns: list[str] = []
     period = nominal_interval_s(t)
-    sel = np.arange(n)
-    back = np.flatnonzero(dt < 0) + 1
-    if back.size:
-        running_max = np.maximum.accumulate(t)
-        depth = running_max[back - 1] - t[back]
-        limit = LOCAL_SWAP_PERIODS * period if np.isfinite(period) else 0.0
-        reset = depth > limit
-        if reset.any():
-            i = back[reset]
-            raise ValidationError(
-                f"time goes backward by {depth[reset][0]:.6g} s at the first row named "
-                f"({int(reset.sum())} such step(s); more than {LOCAL_SWAP_PERIODS:g} sample "
-                f"periods of {period:.6g} s): a clock reset or files appended, which cannot be "
-                "re-sorted unambiguously", file=file, column=column, rows=rows[i])
-        sel = np.argsort(t, kind="stable")
-        moved = np.flatnonzero(sel != np.arange(n))
-        warns.append(f"{file}: column '{column}': {back.size} local swap(s) of rows out of time "
-                     f"order re-sorted ({_rows_text(rows[moved])})")
-    ts = t[sel]
-    dup = np.flatnonzero(np.diff(ts) == 0) + 1          # positions in the sorted order
-    if dup.size:
-        a, b = sel[dup - 1], sel[dup]
-        same, complementary, conflict, first = _same_values(values, a, b)
-        ambiguous = ~same & ~complementary
-        if ambiguous.any():
-            pair = np.flatnonzero(ambiguous)
-            what = ("with different values" if conflict[pair].any()
-                    else "that are neither exact repeats nor complementary")
-            raise ValidationError(
-                f"duplicate timestamps {what} ({pair.size} time stamp(s); the rows named repeat "
-                f"the time of an earlier row, first row {int(rows[a[pair[0]]])}, and share "
-                f"channel {first} with it): which row is right cannot be told",
-                file=file, column=column, rows=rows[b[pair]])
-        # exact repeats of an earlier row at the same time: drop (complementary rows stay)
-        drop_pos = dup[same]
-        if drop_pos.size:
-            keep = np.ones(n, dtype=bool)
-            keep[drop_pos] = False
-            warns.append(f"{file}: column '{column}': {drop_pos.size} exact duplicate row(s) "
-                         f"dropped ({_rows_text(rows[sel[drop_pos]])})")
-            sel = sel[keep]
+    sel = _resort_local_swaps(t, rows, dt, period, file, column, warns)
+    sel = _drop_exact_duplicates(t, rows, values, sel, file, column, warns)
     jumps = _clock_jumps(t[sel], {k: v[sel] for k, v in values.items()}, period)
     if jumps.size:
         _raise_jump(t[sel], rows[sel], jumps, file, column)
     return sel, warns
+
+
+def _resort_local_swaps(t: np.ndarray, rows: np.ndarray, dt: np.ndarray, period: float,
+                        file: str, column: str, warns: list[str]) -> np.ndarray:
+    """Rows in time order when every backward step is a local swap (at most
+    :data:`LOCAL_SWAP_PERIODS` sample periods deep); a deeper one is a clock reset.
+
+    Raises
+    ------
+    ValidationError
+        A clock reset (or files appended), naming the rows.
+    """
+    n = t.size
+    back = np.flatnonzero(dt < 0) + 1
+    if not back.size:
+        return np.arange(n)
+    running_max = np.maximum.accumulate(t)
+    depth = running_max[back - 1] - t[back]
+    limit = LOCAL_SWAP_PERIODS * period if np.isfinite(period) else 0.0
+    reset = depth > limit
+    if reset.any():
+        i = back[reset]
+        raise ValidationError(
+            f"time goes backward by {depth[reset][0]:.6g} s at the first row named "
+            f"({int(reset.sum())} such step(s); more than {LOCAL_SWAP_PERIODS:g} sample "
+            f"periods of {period:.6g} s): a clock reset or files appended, which cannot be "
+            "re-sorted unambiguously", file=file, column=column, rows=rows[i].tolist())
+    sel = np.argsort(t, kind="stable")
+    moved = np.flatnonzero(sel != np.arange(n))
+    warns.append(f"{file}: column '{column}': {back.size} local swap(s) of rows out of time "
+                 f"order re-sorted ({_rows_text(rows[moved])})")
+    return sel
+
+
+def _drop_exact_duplicates(t: np.ndarray, rows: np.ndarray, values: dict[str, np.ndarray],
+                           sel: np.ndarray, file: str, column: str, warns: list[str]
+                           ) -> np.ndarray:
+    """``sel`` without the exact repeats of an earlier row at the same time (complementary
+    rows, each with channels the other lacks, stay).
+
+    Raises
+    ------
+    ValidationError
+        Duplicates with different values, or neither repeats nor complementary.
+    """
+    ts = t[sel]
+    dup = np.flatnonzero(np.diff(ts) == 0) + 1          # positions in the sorted order
+    if not dup.size:
+        return sel
+    a, b = sel[dup - 1], sel[dup]
+    same, complementary, conflict, first = _same_values(values, a, b)
+    ambiguous = ~same & ~complementary
+    if ambiguous.any():
+        pair = np.flatnonzero(ambiguous)
+        what = ("with different values" if conflict[pair].any()
+                else "that are neither exact repeats nor complementary")
+        raise ValidationError(
+            f"duplicate timestamps {what} ({pair.size} time stamp(s); the rows named repeat "
+            f"the time of an earlier row, first row {int(rows[a[pair[0]]])}, and share "
+            f"channel {first} with it): which row is right cannot be told",
+            file=file, column=column, rows=rows[b[pair]].tolist())
+    drop_pos = dup[same]
+    if drop_pos.size:
+        keep = np.ones(t.size, dtype=bool)
+        keep[drop_pos] = False
+        warns.append(f"{file}: column '{column}': {drop_pos.size} exact duplicate row(s) "
+                     f"dropped ({_rows_text(rows[sel[drop_pos]])})")
+        sel = sel[keep]
+    return sel
 
 
 def _raise_jump(t: np.ndarray, rows: np.ndarray, jumps: np.ndarray, file: str, column: str):

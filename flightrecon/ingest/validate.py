@@ -25,7 +25,7 @@ import pandas as pd
 
 from flightrecon.constants import G0
 from flightrecon.errors import SchemaError, ValidationError
-from flightrecon.schema import BY_NAME, REQUIRED
+from flightrecon.schema import BY_NAME, REQUIRED, Channel
 
 __all__ = [
     "GROUND_TAS_MPS",
@@ -102,10 +102,10 @@ def check_time(t: np.ndarray, rows: np.ndarray, file: str, column: str, *,
             if back.size:
                 raise ValidationError(f"time goes backward ({back.size} times; the rows named "
                                       "are earlier than the row before them)", file=file,
-                                      column=column, rows=rows[back])
+                                      column=column, rows=rows[back].tolist())
             raise ValidationError(f"duplicate timestamps ({dup.size}; the rows named repeat the "
                                   "time of the row before them)", file=file, column=column,
-                                  rows=rows[dup])
+                                  rows=rows[dup].tolist())
         if back.size:
             warns.append(f"{file}: time goes backward at {back.size} row(s) (first: row "
                          f"{rows[back[0]]}); rows sorted by time as allowed")
@@ -270,48 +270,10 @@ def check_values(data: pd.DataFrame, prov: Provenance,
                                       column=prov.source_column[0].get(name, name))
             warns.append(f"channel {name} has no sample; ignored")
             continue
-        with np.errstate(invalid="ignore"):
-            low = v < ch.lo
-            high = v > ch.hi
-        bad = low | high
-        if bad.any():
-            margin = 0.0 if (ch.angle or name in NO_CLIP) else CLIP_MARGIN.get(ch.unit, 0.0)
-            with np.errstate(invalid="ignore"):
-                clip = bad & np.isfinite(v) & (v >= ch.lo - margin) & (v <= ch.hi + margin)
-            far = bad & ~clip
-            n_far = int(far.sum())
-            if n_far and n_far > SYSTEMATIC_FRACTION * n_val and n_far >= SYSTEMATIC_MIN_COUNT:
-                where = prov.locate(far, name)
-                first = v[far][0]
-                raise ValidationError(
-                    f"{n_far} of {n_val} values ({100 * n_far / n_val:.1f} %) outside the "
-                    f"physical range (first {first:g} {ch.unit}; possible range [{ch.lo:g}, "
-                    f"{ch.hi:g}] {ch.unit}, values within {margin:g} {ch.unit} of it are "
-                    f"clipped): out of range systematically, not a glitch; "
-                    f"{_suggest_fix(ch, v[~np.isnan(v)])}", **where)
-            v = v.copy()
-            for action, m in (("clipped", clip), ("masked", far)):
-                if not m.any():
-                    continue
-                first = float(v[m][0])
-                files = np.unique(prov.src_file[m])
-                for f in files:
-                    mf = m & (prov.src_file == f)
-                    col = prov.source_column[int(f)].get(name, name)
-                    col_txt = col if col == name else f"{col}' -> '{name}"
-                    rep = Repair(file=prov.files[int(f)], column=col_txt, channel=name,
-                                 rows=tuple(int(r) for r in prov.row[mf]),
-                                 count=int(mf.sum()), action=action,
-                                 first_value=float(v[mf][0]) if f != files[0] else first,
-                                 bound=(float(ch.lo), float(ch.hi)),
-                                 t_s=tuple(float(x) for x in t_all[mf]))
-                    repairs.append(rep)
-                    warns.append(rep.message())
-            v[clip & low] = ch.lo
-            v[clip & high] = ch.hi
-            v[far] = np.nan
-            data[name] = v
-        if n_txt:
+        v_new = _range_checked(ch, v, n_val, prov, t_all, warns, repairs)
+        if v_new is not None:
+            data[name] = v_new
+        if txt is not None and n_txt:
             frac = n_txt / (n_txt + n_val)
             where = prov.locate(txt, name)
             if frac > NAN_STORM_FRACTION or n_val == 0:
@@ -320,6 +282,67 @@ def check_values(data: pd.DataFrame, prov: Provenance,
             warns.append(f"{where['file']}: column '{where['column']}': {n_txt} NaN value(s) "
                          f"(first: row {where['rows'][0]}) treated as missing samples")
     return warns, repairs
+
+
+def _range_checked(ch: Channel, v: np.ndarray, n_val: int, prov: Provenance, t_all: np.ndarray,
+                   warns: list[str], repairs: list[Repair]) -> np.ndarray | None:
+    """One channel against its physical range (rule: :func:`check_values`): the repaired
+    values (clipped near the range, masked far out), ``None`` when every value is inside.
+
+    Raises
+    ------
+    ValidationError
+        The channel is out of range systematically.
+    """
+    name = ch.name
+    with np.errstate(invalid="ignore"):
+        low = v < ch.lo
+        high = v > ch.hi
+    bad = low | high
+    if not bad.any():
+        return None
+    margin = 0.0 if (ch.angle or name in NO_CLIP) else CLIP_MARGIN.get(ch.unit, 0.0)
+    with np.errstate(invalid="ignore"):
+        clip = bad & np.isfinite(v) & (v >= ch.lo - margin) & (v <= ch.hi + margin)
+    far = bad & ~clip
+    n_far = int(far.sum())
+    if n_far and n_far > SYSTEMATIC_FRACTION * n_val and n_far >= SYSTEMATIC_MIN_COUNT:
+        where = prov.locate(far, name)
+        first = v[far][0]
+        raise ValidationError(
+            f"{n_far} of {n_val} values ({100 * n_far / n_val:.1f} %) outside the "
+            f"physical range (first {first:g} {ch.unit}; possible range [{ch.lo:g}, "
+            f"{ch.hi:g}] {ch.unit}, values within {margin:g} {ch.unit} of it are "
+            f"clipped): out of range systematically, not a glitch; "
+            f"{_suggest_fix(ch, v[~np.isnan(v)])}", **where)
+    v = v.copy()
+    for action, m in (("clipped", clip), ("masked", far)):
+        if m.any():
+            _record_repairs(ch, v, m, action, prov, t_all, warns, repairs)
+    v[clip & low] = ch.lo
+    v[clip & high] = ch.hi
+    v[far] = np.nan
+    return v
+
+
+def _record_repairs(ch: Channel, v: np.ndarray, m: np.ndarray, action: str, prov: Provenance,
+                    t_all: np.ndarray, warns: list[str], repairs: list[Repair]) -> None:
+    """One :class:`Repair` (and its warning line) per source file of the rows ``m``."""
+    name = ch.name
+    first = float(v[m][0])
+    files = np.unique(prov.src_file[m])
+    for f in files:
+        mf = m & (prov.src_file == f)
+        col = prov.source_column[int(f)].get(name, name)
+        col_txt = col if col == name else f"{col}' -> '{name}"
+        rep = Repair(file=prov.files[int(f)], column=col_txt, channel=name,
+                     rows=tuple(int(r) for r in prov.row[mf]),
+                     count=int(mf.sum()), action=action,
+                     first_value=float(v[mf][0]) if f != files[0] else first,
+                     bound=(float(ch.lo), float(ch.hi)),
+                     t_s=tuple(float(x) for x in t_all[mf]))
+        repairs.append(rep)
+        warns.append(rep.message())
 
 
 class _Sampled:

@@ -24,6 +24,8 @@ from flightrecon.pipeline.registry import (
     ALL_METHODS,
     DEFAULT_PRIORITY,
     METHOD_FUNCTIONS,
+    METHODS,
+    MethodSpec,
     Reconstruction,
     ReconstructSettings,
     available_methods,
@@ -44,7 +46,8 @@ from flightrecon.pipeline.summary import (
 )
 
 __all__ = [
-    "METHOD_FUNCTIONS", "ALL_METHODS", "DEFAULT_PRIORITY", "ReconstructSettings",
+    "METHOD_FUNCTIONS", "METHODS", "MethodSpec", "ALL_METHODS", "DEFAULT_PRIORITY",
+    "ReconstructSettings",
     "Reconstruction", "available_methods", "run_method", "method_health", "combine",
     "SUMMARY_SCHEMA_VERSION", "sha256_file", "build_summary", "default_workers",
     "reconstruct_clean", "fleet_settings", "record_coefficients", "record_flight",

@@ -3,7 +3,7 @@ conversion of heights to the output plane."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -65,6 +65,49 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
             aligned[name] = _on_grid(results[name].track, t)
         return aligned[name]
 
+    cols, source, source_names = _horizontal(results, priority, healthy, grid_track, n)
+    up, up_sd, up_source = _heights(clean, results, healthy, grid_track, n)
+    plane = output_plane(clean.meta)
+    east, north = cols["east_m"], cols["north_m"]
+    jt = results.get("joint")
+    tj = grid_track("joint") if jt is not None and healthy["joint"] else None
+    # Sabziev and pressure heights are heights above the departure airfield: turn them into
+    # tangent-plane up (the plane falls below the ellipsoid with distance, 31 m at 20 km)
+    if tj is None:
+        up, lat, lon, alt = _height_to_plane_up(plane, east, north, up)
+    else:
+        j_ok = np.isfinite(tj["joint_up_m"].to_numpy())
+        need = ~j_ok
+        need[1:] |= ~j_ok[:-1]
+        need[:-1] |= ~j_ok[1:]
+        up = _height_to_plane_up(plane, east, north, up, where=need)[0]
+    dt = np.gradient(t) if n > 1 else np.ones(n)
+    vu = np.gradient(up) / dt if n > 1 else np.full(n, np.nan)
+    extra: dict[str, Any] = {}
+    if tj is not None:
+        up = np.where(j_ok, tj["joint_up_m"].to_numpy(), up)
+        up_sd = np.where(j_ok, tj["joint_up_sd_m"].to_numpy(), up_sd)
+        vu = np.where(j_ok, tj["joint_vu_mps"].to_numpy(), vu)
+        up_source[j_ok] = 3
+        extra = _joint_extra(tj)
+        lat, lon, alt = plane.inverse(east, north, up)
+    out: dict[str, Any] = {"t_s": t, **cols, "up_m": up, "up_sd_m": up_sd, "vu_mps": vu,
+                           "lat_deg": lat, "lon_deg": lon, "alt_m": alt,
+                           "source": _text_column(source, source_names),
+                           "up_source": _text_column(up_source, _UP_NAMES), **extra}
+    return _with_method_columns(out, results, t, grid_track)
+
+
+#: ``up_source`` codes: none, Sabziev, pressure altitude, joint smoother
+_UP_NAMES = ("", "sabziev", "baro", "joint")
+
+
+def _horizontal(results: dict[str, MethodResult], priority: Sequence[str],
+                healthy: dict[str, bool], grid_track: Callable[[str], pd.DataFrame], n: int
+                ) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
+    """Horizontal position and velocity with their sds, sample by sample from the first
+    healthy method in ``priority`` that covers it; the source code of each sample and the
+    names the codes stand for (0: no method)."""
     cols: dict[str, np.ndarray] = {}
     for q, unit in (("north", "m"), ("east", "m"), ("vn", "mps"), ("ve", "mps")):
         cols[f"{q}_{unit}"] = np.full(n, np.nan)
@@ -89,11 +132,17 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
             src = f"{name}_{key}"
             if src in tr.columns:
                 arr[take] = tr[src].to_numpy()[take]
-    # vertical
+    return cols, source, source_names
+
+
+def _heights(clean: CleanFlight, results: dict[str, MethodResult], healthy: dict[str, bool],
+             grid_track: Callable[[str], pd.DataFrame], n: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Height above the departure airfield: the healthy Sabziev solution where present, else
+    the pressure altitude relative to the field's; its sd and source codes (:data:`_UP_NAMES`)."""
     up = np.full(n, np.nan)
     up_sd = np.full(n, np.nan)
-    up_names = ("", "sabziev", "baro", "joint")
-    up_source = np.zeros(n, dtype=np.int8)  # index into up_names
+    up_source = np.zeros(n, dtype=np.int8)  # index into _UP_NAMES
     sab = results.get("sabziev")
     if sab is not None and healthy["sabziev"] and "sabziev_up_m" in sab.track.columns:
         su = grid_track("sabziev")
@@ -113,38 +162,23 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
         fill = ~np.isfinite(up) & np.isfinite(baro)
         up[fill] = baro[fill]
         up_source[fill] = 2
-    plane = output_plane(clean.meta)
-    east, north = cols["east_m"], cols["north_m"]
-    jt = results.get("joint")
-    tj = grid_track("joint") if jt is not None and healthy["joint"] else None
-    # Sabziev and pressure heights are heights above the departure airfield: turn them into
-    # tangent-plane up (the plane falls below the ellipsoid with distance, 31 m at 20 km)
-    if tj is None:
-        up, lat, lon, alt = _height_to_plane_up(plane, east, north, up)
-    else:
-        j_ok = np.isfinite(tj["joint_up_m"].to_numpy())
-        need = ~j_ok
-        need[1:] |= ~j_ok[:-1]
-        need[:-1] |= ~j_ok[1:]
-        up = _height_to_plane_up(plane, east, north, up, where=need)[0]
-    dt = np.gradient(t) if n > 1 else np.ones(n)
-    vu = np.gradient(up) / dt if n > 1 else np.full(n, np.nan)
-    extra: dict[str, Any] = {}
-    if tj is not None:
-        up = np.where(j_ok, tj["joint_up_m"].to_numpy(), up)
-        up_sd = np.where(j_ok, tj["joint_up_sd_m"].to_numpy(), up_sd)
-        vu = np.where(j_ok, tj["joint_vu_mps"].to_numpy(), vu)
-        up_source[j_ok] = 3
-        extra["vu_sd_mps"] = tj["joint_vu_sd_mps"].to_numpy()
-        for c in ("wind_n_mps", "wind_e_mps", "wind_n_sd_mps", "wind_e_sd_mps"):
-            extra[c] = tj["joint_" + c].to_numpy()
-        extra["provenance"] = tj["joint_sources"].astype(
-            pd.StringDtype("pyarrow", na_value=np.nan)).array
-        lat, lon, alt = plane.inverse(east, north, up)
-    out: dict[str, Any] = {"t_s": t, **cols, "up_m": up, "up_sd_m": up_sd, "vu_mps": vu,
-                           "lat_deg": lat, "lon_deg": lon, "alt_m": alt,
-                           "source": _text_column(source, source_names),
-                           "up_source": _text_column(up_source, up_names), **extra}
+    return up, up_sd, up_source
+
+
+def _joint_extra(tj: pd.DataFrame) -> dict[str, Any]:
+    """The joint smoother's columns the default result carries: vertical-velocity sd, wind
+    with its sds, and which sources informed each sample."""
+    extra: dict[str, Any] = {"vu_sd_mps": tj["joint_vu_sd_mps"].to_numpy()}
+    for c in ("wind_n_mps", "wind_e_mps", "wind_n_sd_mps", "wind_e_sd_mps"):
+        extra[c] = tj["joint_" + c].to_numpy()
+    extra["provenance"] = tj["joint_sources"].astype(
+        pd.StringDtype("pyarrow", na_value=np.nan)).array
+    return extra
+
+
+def _with_method_columns(out: dict[str, Any], results: dict[str, MethodResult], t: np.ndarray,
+                         grid_track: Callable[[str], pd.DataFrame]) -> pd.DataFrame:
+    """The default columns ``out`` and, after them, each method's own columns on the grid."""
     # the table owns writeable arrays (read-only views of the grid or the joint track are
     # copied); each method's own columns are appended as its (lazily copied) table
     out = {k: v.copy() if isinstance(v, np.ndarray) and not v.flags.writeable else v

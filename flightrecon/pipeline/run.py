@@ -182,42 +182,16 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     -------
     Reconstruction
     """
-    from flightrecon.cleaning import CleaningSettings, clean_flight
-    from flightrecon.cleaning.plausibility import plausibility_checks
-    from flightrecon.ingest import load_flight
-    from flightrecon.ingest.physics import check_reconstructable
-
     def stage(name: str) -> None:
         if progress:
             progress(name)
 
-    stage("ingest")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-                                     meta_overrides=meta_overrides)
-        check_reconstructable(flight)   # a log too short: refused with the minimum
-        fleet = None
-        if use_fleet_coefficients:
-            settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id,
-                                             at_utc=flight.meta.epoch_utc,
-                                             configuration=flight.meta.extra.get("configuration"))
-        stage("cleaning")
-        clean = clean_flight(flight, rate_hz=settings.rate_hz,
-                             settings=CleaningSettings(start=settings.start, end=settings.end))
-        # the raw log is not needed past cleaning (its warnings are): freed, with what reading
-        # and cleaning left free, before the estimators' peak (flightrecon/memory.py)
-        flight_warnings = list(flight.warnings)
-        del flight
-        release_unused()
-        stage("plausibility")
-        findings = plausibility_checks(clean)
-        for f in findings:
-            warnings.warn(f"{f['check']}: {f['message']}"
-                          + (f" (t = {f['spans_s'][0][0]:.0f}..{f['spans_s'][0][1]:.0f} s"
-                             + (f" and {len(f['spans_s']) - 1} more" if len(f['spans_s']) > 1
-                                else "") + ")" if f["spans_s"] else ""),
-                          FlightReconWarning, stacklevel=2)
+        flight_warnings, clean, settings, fleet, findings = _load_and_clean(
+            log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+            meta_overrides=meta_overrides, settings=settings, stage=stage, store=store,
+            use_fleet_coefficients=use_fleet_coefficients)
         track, results, status = reconstruct_clean(clean, settings, progress=stage,
                                                    workers=workers)
     warn_list = flight_warnings + [str(w.message) for w in caught
@@ -245,3 +219,46 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         if sc.get("note"):
             summary["warnings"].append(f"store: {sc['note']}")
     return rec
+
+
+def _load_and_clean(log: str | Path, *, gnss: str | Path | None, radar: str | Path | None,
+                    mapping: str | Path | None, sidecar: str | Path | None,
+                    meta_overrides: dict[str, Any] | None, settings: ReconstructSettings,
+                    stage: Callable[[str], None], store: str | Path | None,
+                    use_fleet_coefficients: bool
+                    ) -> tuple[list[str], CleanFlight, ReconstructSettings,
+                               dict[str, Any] | None, list[dict[str, Any]]]:
+    """Ingest, the fleet's settings (if asked), cleaning and the plausibility checks (each
+    finding also a warning); returns the log's warnings, the cleaned flight, the settings used,
+    the fleet information and the findings.  The raw log is not kept past cleaning: it is
+    freed, with what reading and cleaning left free, before the estimators' peak
+    (flightrecon/memory.py)."""
+    from flightrecon.cleaning import CleaningSettings, clean_flight
+    from flightrecon.cleaning.plausibility import plausibility_checks
+    from flightrecon.ingest import load_flight
+    from flightrecon.ingest.physics import check_reconstructable
+
+    stage("ingest")
+    flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                                 meta_overrides=meta_overrides)
+    check_reconstructable(flight)   # a log too short: refused with the minimum
+    fleet = None
+    if use_fleet_coefficients:
+        settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id,
+                                         at_utc=flight.meta.epoch_utc,
+                                         configuration=flight.meta.extra.get("configuration"))
+    stage("cleaning")
+    clean = clean_flight(flight, rate_hz=settings.rate_hz,
+                         settings=CleaningSettings(start=settings.start, end=settings.end))
+    flight_warnings = list(flight.warnings)
+    del flight
+    release_unused()
+    stage("plausibility")
+    findings = plausibility_checks(clean)
+    for f in findings:
+        warnings.warn(f"{f['check']}: {f['message']}"
+                      + (f" (t = {f['spans_s'][0][0]:.0f}..{f['spans_s'][0][1]:.0f} s"
+                         + (f" and {len(f['spans_s']) - 1} more" if len(f['spans_s']) > 1
+                            else "") + ")" if f["spans_s"] else ""),
+                      FlightReconWarning, stacklevel=3)
+    return flight_warnings, clean, settings, fleet, findings

@@ -47,7 +47,7 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
                      "python": platform.python_version()},
         "inputs": [{"path": str(p), "sha256": sha256_file(p)} for p in inputs if Path(p).is_file()],
         "flight": _meta_dict(clean.meta),
-        "settings": asdict(settings),
+        "settings": settings.to_dict(),
         "grid": {"rate_hz": clean.rate_hz, "samples": len(clean.grid),
                  "t0_s": float(clean.grid["t_s"].iloc[0]) if len(clean.grid) else None,
                  "t1_s": float(clean.grid["t_s"].iloc[-1]) if len(clean.grid) else None},

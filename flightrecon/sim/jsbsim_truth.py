@@ -134,15 +134,7 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
     cfg = jsbsim_config(name, **overrides)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValidationError(f"the seed must be a non-negative integer, got {seed!r}")
-    for rate in (cfg.loads_hz, cfg.attitude_hz, cfg.airspeed_hz, cfg.baro_hz):
-        if rate <= 0:
-            raise ValidationError("JSBSim scenarios record every recorder channel (rate > 0)")
-    per_control = round(1.0 / (cfg.dt_s * cfg.control_hz))
-    per_sample = round(cfg.control_hz / cfg.truth_rate_hz)
-    if abs(per_control * cfg.dt_s * cfg.control_hz - 1.0) > 1e-9 or \
-            abs(per_sample * cfg.truth_rate_hz - cfg.control_hz) > 1e-9:
-        raise ValidationError("dt_s must divide 1/control_hz and truth_rate_hz divide "
-                              "control_hz")
+    per_control, per_sample = _steps(cfg)
     weather = cfg.weather or draw_weather(name, seed)
     airframe = AIRFRAMES[cfg.airframe]
     phases, dest, max_s, terrain = schedule(name, cfg)
@@ -174,6 +166,49 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
         qnh_departure_hpa=_qnh_hpa(cols["p_pa"][0], rw.elev_m + cols["agl"][0]),
         qnh_arrival_hpa=_qnh_hpa(cols["p_pa"][-1], end_elev + max(cols["agl"][-1], 0.0)),
         geoid_undulation_m=cfg.geoid_undulation_m)
+    sensor_truth = {
+        "scenario": name, "seed": int(seed), "truth_source": "jsbsim",
+        "jsbsim": {"model": airframe.model, "dt_s": cfg.dt_s, "control_hz": cfg.control_hz},
+        "aircraft": json_ready(aircraft),
+        "persistent_errors": {
+            "accel_bias_g": list(suite.loads.bias_g), "accel_scale": list(suite.loads.scale),
+            "heading_bias_deg": suite.attitude.heading_bias_deg,
+            "roll_bias_deg": suite.attitude.roll_bias_deg,
+            "pitch_bias_deg": suite.attitude.pitch_bias_deg,
+            "airspeed_scale": suite.airspeed.scale, "baro_bias_m": suite.baro.bias_m,
+            "gnss_lever_arm_m": list(aircraft.gnss_lever_arm_m)},
+        "sensors": {s.group: json_ready(s) for s in suite.fitted()},
+        "weather": json_ready(replace(weather)),
+        "events": _truth_events(events, truth),
+        "faults": [json_ready(f) for f in rec.faults],
+        "truth_rate_hz": cfg.truth_rate_hz,
+    }
+    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
+
+
+def _steps(cfg: Any) -> tuple[int, int]:
+    """JSBSim steps per control update and control updates per truth sample.
+
+    Raises
+    ------
+    ValidationError
+        A recorder channel switched off, or rates that do not divide each other.
+    """
+    for rate in (cfg.loads_hz, cfg.attitude_hz, cfg.airspeed_hz, cfg.baro_hz):
+        if rate <= 0:
+            raise ValidationError("JSBSim scenarios record every recorder channel (rate > 0)")
+    per_control = round(1.0 / (cfg.dt_s * cfg.control_hz))
+    per_sample = round(cfg.control_hz / cfg.truth_rate_hz)
+    if abs(per_control * cfg.dt_s * cfg.control_hz - 1.0) > 1e-9 or \
+            abs(per_sample * cfg.truth_rate_hz - cfg.control_hz) > 1e-9:
+        raise ValidationError("dt_s must divide 1/control_hz and truth_rate_hz divide "
+                              "control_hz")
+    return per_control, per_sample
+
+
+def _truth_events(events: dict[str, Any], truth: pd.DataFrame) -> dict[str, Any]:
+    """The flight's events with the truth's position at each, and at an impact its speed,
+    vertical speed and attitude at the last sample before the contact."""
     t = truth["t_s"].to_numpy()
     ev: dict[str, Any] = {k: float(v) for k, v in events.items()}
     for key in ("liftoff", "touchdown", "impact"):
@@ -188,21 +223,4 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
         ev["impact_vu_mps"] = float(truth["vu_mps"].iloc[i])
         ev["impact_roll_deg"] = float(truth["roll_deg"].iloc[i])
         ev["impact_pitch_deg"] = float(truth["pitch_deg"].iloc[i])
-    sensor_truth = {
-        "scenario": name, "seed": int(seed), "truth_source": "jsbsim",
-        "jsbsim": {"model": airframe.model, "dt_s": cfg.dt_s, "control_hz": cfg.control_hz},
-        "aircraft": json_ready(aircraft),
-        "persistent_errors": {
-            "accel_bias_g": list(suite.loads.bias_g), "accel_scale": list(suite.loads.scale),
-            "heading_bias_deg": suite.attitude.heading_bias_deg,
-            "roll_bias_deg": suite.attitude.roll_bias_deg,
-            "pitch_bias_deg": suite.attitude.pitch_bias_deg,
-            "airspeed_scale": suite.airspeed.scale, "baro_bias_m": suite.baro.bias_m,
-            "gnss_lever_arm_m": list(aircraft.gnss_lever_arm_m)},
-        "sensors": {s.group: json_ready(s) for s in suite.fitted()},
-        "weather": json_ready(replace(weather)),
-        "events": ev,
-        "faults": [json_ready(f) for f in rec.faults],
-        "truth_rate_hz": cfg.truth_rate_hz,
-    }
-    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
+    return ev

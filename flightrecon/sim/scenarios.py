@@ -8,7 +8,6 @@ plus a route builder; ``simulate(name, seed, **overrides)`` replaces config fiel
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -41,20 +40,8 @@ from flightrecon.sim.routes import (  # noqa: F401 - ARP_OFFSET_M, circuit_touch
     _threshold,
     circuit_touchdown_m,
 )
-from flightrecon.sim.sensors import (
-    AirspeedSensor,
-    ArmsRadar,
-    AttitudeSensor,
-    BaroSensor,
-    DopplerSensor,
-    Faults,
-    GnssReceiver,
-    LoadFactorSensor,
-    SensorSuite,
-    WindSensor,
-    gauss_markov,
-    wrap360,
-)
+from flightrecon.sim.scenario_sensors import _sensor_truth, _sensors, json_ready
+from flightrecon.sim.sensors import Faults, gauss_markov, wrap360
 from flightrecon.sim.trajectory import FlightPlan, simulate_truth
 from flightrecon.sim.weather import Atmosphere, WindField, qnh_hpa
 from flightrecon.types import FlightMeta, Position
@@ -255,67 +242,9 @@ def build_plan(name: str, cfg: ScenarioConfig) -> tuple[FlightPlan, Atmosphere]:
     return b.plan(b.t), atm
 
 
-def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
-    a = cfg.aircraft
-    ideal = cfg.ideal_sensors
-    air_gm = cfg.airdata_gm_sigma_mps > 0.0
-
-    def rate(x):
-        return x if x > 0 else None
-
-    loads = LoadFactorSensor(cfg.loads_hz, a.accel_bias_g, a.accel_scale)
-    att = AttitudeSensor(cfg.attitude_hz, heading_bias_deg=a.heading_bias_deg,
-                         roll_bias_deg=a.roll_bias_deg, pitch_bias_deg=a.pitch_bias_deg)
-    aspd = AirspeedSensor(cfg.airspeed_hz, scale=a.airspeed_scale)
-    baro = BaroSensor(cfg.baro_hz, bias_m=a.baro_bias_m)
-    if air_gm:  # air data = ground velocity + Gauss-Markov error, nothing else (docs/arms.md)
-        att = replace(att, heading_noise_sd_deg=0.0, heading_bias_deg=0.0)
-        aspd = replace(aspd, scale=0.0, noise_sd_mps=0.0, lag_s=0.0)
-    if ideal:
-        loads = LoadFactorSensor(cfg.loads_hz, (0.0,) * 3, (0.0,) * 3, (0.0,) * 3)
-        att = AttitudeSensor(cfg.attitude_hz, 0.0, 0.0, 0.0, 0.0)
-        aspd = AirspeedSensor(cfg.airspeed_hz, 0.0, 0.0, 0.0)
-        baro = BaroSensor(cfg.baro_hz, 0.0, 0.0, 0.0, 0.0, 0.0)
-    gnss = None
-    if rate(cfg.gnss_hz):
-        gnss = GnssReceiver(cfg.gnss_hz, dropouts=cfg.gnss_dropouts,
-                            lever_arm_m=a.gnss_lever_arm_m)
-        if ideal:
-            gnss = replace(gnss, pos_sd_h_m=0.0, pos_sd_v_m=0.0, vel_sd_mps=0.0)
-    radar = None
-    if cfg.radar_scan_s > 0 and station is not None:
-        radar = ArmsRadar(station, cfg.geoid_undulation_m, cfg.radar_scan_s,
-                          cfg.radar_range_sd_m, cfg.radar_azimuth_sd_deg,
-                          cfg.radar_elevation_sd_deg, cfg.radar_outages)
-    doppler = (DopplerSensor(cfg.doppler_hz, a.doppler_scale, a.drift_bias_deg)
-               if rate(cfg.doppler_hz) else None)
-    wind = (WindSensor(cfg.wind_hz, speed_bias_mps=1.0, from_bias_deg=-4.0,
-                       speed_gm_sd_mps=2.0, speed_gm_tau_s=900.0, from_gm_sd_deg=5.0,
-                       from_gm_tau_s=900.0) if rate(cfg.wind_hz) else None)
-    return SensorSuite(loads, att, aspd, baro, gnss, radar, doppler, wind)
-
-
-def json_ready(x: Any) -> Any:
-    """``x`` with dataclasses, tuples and numpy scalars turned into JSON-ready values."""
-    if dataclasses.is_dataclass(x):
-        return {f.name: json_ready(getattr(x, f.name)) for f in dataclasses.fields(x)}
-    if isinstance(x, (tuple, list)):
-        return [json_ready(v) for v in x]
-    if isinstance(x, dict):
-        return {str(k): json_ready(v) for k, v in x.items()}
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return x
-
-
 def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     sc = SCENARIOS[name]
-    if cfg.touchdown_sd_m > 0.0:
-        d = stream(seed, "touchdown").normal(cfg.touchdown_m, cfg.touchdown_sd_m)
-        cfg = replace(cfg, touchdown_m=float(np.clip(d, 100.0, 1000.0)), touchdown_sd_m=0.0)
-    if cfg.lineup_sd_m > 0.0:
-        d = stream(seed, "lineup").normal(cfg.lineup_m, cfg.lineup_sd_m)
-        cfg = replace(cfg, lineup_m=float(d), lineup_sd_m=0.0)
+    cfg = _drawn_end_points(cfg, seed)
     plan, atm = build_plan(name, cfg)
     # a record that starts airborne: departure = the ground point below its first sample; an
     # airfield departure carries the true direction of its runway and its threshold, where the
@@ -327,7 +256,51 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
                  if sc.airborne else field)
     pre_meta = FlightMeta(departure=departure, geoid_undulation_m=cfg.geoid_undulation_m)
     truth = simulate_truth(plan, cfg.truth_rate_hz, output_plane(pre_meta))
+    events = _events(plan, truth, cfg)
+    arrival = field if name == "circuit" else _arrival(plan, truth, cfg)
+    station = None
+    if cfg.radar_scan_s > 0:
+        base = cfg.airfield if name == "seed-ads-arms" else arrival
+        lat, lon = _offset(base, *cfg.station_offset_m)
+        station = Position(lat, lon, base.elev_m)
+    suite = _sensors(cfg, station)
+    airdata_truth, extra_truth = _airdata_error(cfg, truth, seed)
+    rec = record_log(truth, suite, seed, cfg.truth_rate_hz, cfg.faults, airdata_truth)
+    extra_truth.update(rec.truth_extra)
+    if extra_truth:
+        truth = truth.assign(**extra_truth)
 
+    meta = FlightMeta(
+        aircraft_id=cfg.aircraft.aircraft_id, flight_id=cfg.flight_id, epoch_utc=cfg.epoch_utc,
+        departure=departure, arrival=arrival, station=station,
+        gnss_lever_arm_m=_three(cfg.aircraft.gnss_lever_arm_m),
+        gnss_alt_datum="ellipsoid", baro_datum="pressure",
+        qnh_departure_hpa=round(qnh_hpa(atm, departure.elev_m, 0.0), 2),
+        qnh_arrival_hpa=round(qnh_hpa(atm, arrival.elev_m, plan.t_end_s), 2),
+        geoid_undulation_m=cfg.geoid_undulation_m,
+    )
+    sensor_truth = _sensor_truth(name, seed, cfg, suite, events, rec.faults)
+    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
+
+
+def _three(v: Any) -> tuple[float, float, float]:
+    """Three floats (a lever arm)."""
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _drawn_end_points(cfg: ScenarioConfig, seed: int) -> ScenarioConfig:
+    """The touchdown and line-up distances drawn from their spreads (seeded), where given."""
+    if cfg.touchdown_sd_m > 0.0:
+        d = stream(seed, "touchdown").normal(cfg.touchdown_m, cfg.touchdown_sd_m)
+        cfg = replace(cfg, touchdown_m=float(np.clip(d, 100.0, 1000.0)), touchdown_sd_m=0.0)
+    if cfg.lineup_sd_m > 0.0:
+        d = stream(seed, "lineup").normal(cfg.lineup_m, cfg.lineup_sd_m)
+        cfg = replace(cfg, lineup_m=float(d), lineup_sd_m=0.0)
+    return cfg
+
+
+def _events(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> dict[str, Any]:
+    """Lift-off and touchdown of the truth (time, position) and the end points' distances."""
     t = truth["t_s"].to_numpy()
     events: dict[str, Any] = {"liftoff_t_s": None, "touchdown_t_s": None,
                               "touchdown_past_threshold_m": cfg.touchdown_m,
@@ -338,11 +311,15 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
             events[f"{key}_t_s"] = float(t_ev)
             events[f"{key}_lat_deg"] = float(truth["lat_deg"].iloc[i])
             events[f"{key}_lon_deg"] = float(truth["lon_deg"].iloc[i])
-    # arrival airfield
-    last = truth.iloc[-1]
-    if name == "circuit":
-        arrival = field  # landing on the runway it took off from, in the same direction
-    elif np.isfinite(plan.touchdown_s):
+    return events
+
+
+def _arrival(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> Position:
+    """The arrival airfield: reference point ``ARP_OFFSET_M`` down the landing runway (its
+    direction the track at touchdown, its threshold ``touchdown_m`` behind the touchdown), or
+    the last position of a record that ends airborne."""
+    if np.isfinite(plan.touchdown_s):
+        t = truth["t_s"].to_numpy()
         i = int(np.searchsorted(t, plan.touchdown_s))
         trk = np.radians(truth["track_deg"].iloc[i])
         td = Position(float(truth["lat_deg"].iloc[i]), float(truth["lon_deg"].iloc[i]))
@@ -350,74 +327,29 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
         thr_lat, thr_lon = _offset(td, -cfg.touchdown_m * np.cos(trk),
                                    -cfg.touchdown_m * np.sin(trk))
         # the landing runway's direction: the track at touchdown (on the centre line)
-        arrival = Position(lat, lon, cfg.arrival_elev_m,
-                           runway_true_deg=float(np.degrees(trk) % 360.0),
-                           threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
-    else:
-        arrival = Position(float(last["lat_deg"]), float(last["lon_deg"]),
-                           float(cfg.arrival_elev_m))
-    station = None
-    if cfg.radar_scan_s > 0:
-        base = cfg.airfield if name == "seed-ads-arms" else arrival
-        lat, lon = _offset(base, *cfg.station_offset_m)
-        station = Position(lat, lon, base.elev_m)
-    suite = _sensors(cfg, station)
+        return Position(lat, lon, cfg.arrival_elev_m,
+                        runway_true_deg=float(np.degrees(trk) % 360.0),
+                        threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
+    last = truth.iloc[-1]
+    return Position(float(last["lat_deg"]), float(last["lon_deg"]), float(cfg.arrival_elev_m))
 
-    airdata_truth = None
-    extra_truth: dict[str, np.ndarray] = {}
-    if cfg.airdata_gm_sigma_mps > 0.0:
-        rng = stream(seed, "airdata")
-        dt = 1.0 / cfg.truth_rate_hz
-        dv_e = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
-        dv_n = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
-        ve = truth["ve_mps"].to_numpy() + dv_e
-        vn = truth["vn_mps"].to_numpy() + dv_n
-        airdata_truth = truth.assign(tas_mps=np.hypot(ve, vn),
-                                     heading_deg=wrap360(np.degrees(np.arctan2(ve, vn))))
-        extra_truth = {"airdata_err_e_mps": dv_e, "airdata_err_n_mps": dv_n}
-    rec = record_log(truth, suite, seed, cfg.truth_rate_hz, cfg.faults, airdata_truth)
-    extra_truth.update(rec.truth_extra)
-    if extra_truth:
-        truth = truth.assign(**extra_truth)
 
-    meta = FlightMeta(
-        aircraft_id=cfg.aircraft.aircraft_id, flight_id=cfg.flight_id, epoch_utc=cfg.epoch_utc,
-        departure=departure, arrival=arrival, station=station,
-        gnss_lever_arm_m=tuple(float(v) for v in cfg.aircraft.gnss_lever_arm_m),
-        gnss_alt_datum="ellipsoid", baro_datum="pressure",
-        qnh_departure_hpa=round(qnh_hpa(atm, departure.elev_m, 0.0), 2),
-        qnh_arrival_hpa=round(qnh_hpa(atm, arrival.elev_m, plan.t_end_s), 2),
-        geoid_undulation_m=cfg.geoid_undulation_m,
-    )
-    a = cfg.aircraft
-    sensor_truth = {
-        "scenario": name, "seed": int(seed),
-        "aircraft": json_ready(a),
-        "persistent_errors": {
-            "accel_bias_g": list(suite.loads.bias_g), "accel_scale": list(suite.loads.scale),
-            "heading_bias_deg": suite.attitude.heading_bias_deg,
-            "roll_bias_deg": suite.attitude.roll_bias_deg,
-            "pitch_bias_deg": suite.attitude.pitch_bias_deg,
-            "airspeed_scale": suite.airspeed.scale, "baro_bias_m": suite.baro.bias_m,
-            "doppler_scale": suite.doppler.scale if suite.doppler else None,
-            "drift_bias_deg": suite.doppler.drift_bias_deg if suite.doppler else None,
-            "wind_speed_bias_mps": suite.wind.speed_bias_mps if suite.wind else None,
-            "wind_from_bias_deg": suite.wind.from_bias_deg if suite.wind else None,
-            "gnss_lever_arm_m": list(a.gnss_lever_arm_m),
-        },
-        "airdata_error_gm": ({"sigma_mps": cfg.airdata_gm_sigma_mps,
-                              "tau_s": cfg.airdata_gm_tau_s,
-                              "series": ["airdata_err_e_mps", "airdata_err_n_mps"]}
-                             if cfg.airdata_gm_sigma_mps > 0 else None),
-        "sensors": {s.group: json_ready(s) for s in suite.fitted()},
-        "weather": {"wind": json_ready(cfg.wind), "temp_offset_k": cfg.temp_offset_k,
-                    "p_sl_departure_hpa": cfg.p_sl_departure_hpa,
-                    "p_sl_arrival_hpa": cfg.p_sl_arrival_hpa},
-        "events": events,
-        "faults": [json_ready(f) for f in rec.faults],
-        "truth_rate_hz": cfg.truth_rate_hz,
-    }
-    return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
+def _airdata_error(cfg: ScenarioConfig, truth: pd.DataFrame, seed: int
+                   ) -> tuple[pd.DataFrame | None, dict[str, np.ndarray]]:
+    """The air data seen through a Gauss-Markov error per axis (the seed ADS/ARMS scenario),
+    and the error series for the truth table; ``(None, {})`` without one."""
+    if not cfg.airdata_gm_sigma_mps > 0.0:
+        return None, {}
+    t = truth["t_s"].to_numpy()
+    rng = stream(seed, "airdata")
+    dt = 1.0 / cfg.truth_rate_hz
+    dv_e = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
+    dv_n = gauss_markov(t.size, dt, cfg.airdata_gm_sigma_mps, cfg.airdata_gm_tau_s, rng)
+    ve = truth["ve_mps"].to_numpy() + dv_e
+    vn = truth["vn_mps"].to_numpy() + dv_n
+    airdata_truth = truth.assign(tas_mps=np.hypot(ve, vn),
+                                 heading_deg=wrap360(np.degrees(np.arctan2(ve, vn))))
+    return airdata_truth, {"airdata_err_e_mps": dv_e, "airdata_err_n_mps": dv_n}
 
 
 def simulate(scenario: str, seed: int = 0, **overrides: Any) -> SimResult:

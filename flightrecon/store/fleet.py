@@ -61,7 +61,8 @@ def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
     if fm is not None:
         info.update({"k": list(fm.k), "sd": list(fm.sd), "flights": list(fm.n),
                      "branch": list(fm.branch)})
-        settings = replace(settings, k=tuple(fm.k), k_sd=tuple(fm.sd))
+        settings = replace(settings, k=(fm.k[0], fm.k[1], fm.k[2]),
+                           k_sd=(fm.sd[0], fm.sd[1], fm.sd[2]))
     else:
         info.update({"k": None, "sd": None, "flights": None, "branch": None})
     info["calibration"] = None

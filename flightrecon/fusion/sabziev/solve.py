@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -66,9 +67,21 @@ def _arr(name: str, x, n: int) -> np.ndarray:
     return a
 
 
+class _AxisOptions(NamedTuple):
+    """Numerical options of one axis (:func:`solve_axis_y` documents each)."""
+
+    hold: str
+    tol_m: float
+    max_iter: int
+    parametrisation: str
+    kt_max: float
+    strict: bool
+    rule: str = "slowest"
+
+
 def _solve_axis(kind: str, t, a, w, v0: float, s_T: float | None, k: float | None,
-                k0: float | None, hold: str, tol_m: float, max_iter: int, parametrisation: str,
-                kt_max: float, strict: bool, axis: str, rule: str = "slowest") -> AxisSolution:
+                k0: float | None, opts: _AxisOptions, axis: str) -> AxisSolution:
+    hold, tol_m, max_iter, parametrisation, kt_max, strict, rule = opts
     dt = check_grid(t)
     n = len(t)
     a = _arr(f"{axis} acceleration", a, n)
@@ -138,8 +151,8 @@ def solve_axis_y(t, a_y, h, y0: float, y_T: float | None = None, *, k: float | N
         whose track stays closest to ``h`` in RMS) or ``"slowest"`` (smallest ``w``);
         :mod:`flightrecon.fusion.newton`, step 4
     """
-    return _solve_axis("vertical", t, a_y, h, float(y0), y_T, k, k0, hold, tol_m, max_iter,
-                       parametrisation, kt_max, strict, "y (vertical)", rule)
+    opts = _AxisOptions(hold, tol_m, max_iter, parametrisation, kt_max, strict, rule)
+    return _solve_axis("vertical", t, a_y, h, float(y0), y_T, k, k0, opts, "y (vertical)")
 
 
 def solve_axis_horizontal(t, a, v_air, v0: float, s_T: float | None = None, *,
@@ -162,8 +175,8 @@ def solve_axis_horizontal(t, a, v_air, v0: float, s_T: float | None = None, *,
     k0, hold, tol_m, max_iter, kt_max, strict : as :func:`solve_axis_y`
     axis : name for messages
     """
-    return _solve_axis("horizontal", t, a, v_air, float(v0), s_T, k, k0, hold, tol_m, max_iter,
-                       "k", kt_max, strict, axis)
+    opts = _AxisOptions(hold, tol_m, max_iter, "k", kt_max, strict)
+    return _solve_axis("horizontal", t, a, v_air, float(v0), s_T, k, k0, opts, axis)
 
 
 @dataclass(frozen=True)
@@ -305,6 +318,41 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
     t = np.asarray(t, dtype=np.float64)
     dt = check_grid(t)
     n = len(t)
+    a_ned, tas, psi, h_rel, v0, wind_ne, warn = _fuse_inputs(t, a_ned, tas, heading_rad, h_rel,
+                                                             v0_ned, wind_ne)
+    targets, ks, end = _end_or_coefficients(end_ned, k)
+    starts = (None, None, None) if k0 is None else tuple(k0)
+    common: dict[str, Any] = {"hold": hold, "tol_m": tol_m, "max_iter": max_iter,
+                              "kt_max": kt_max, "strict": strict}
+    ax_y = solve_axis_y(t, -a_ned[:, 2], h_rel, -v0[2], targets[1], k=ks[1], k0=starts[1],
+                        parametrisation=parametrisation, rule=vertical_rule, **common)
+    if np.all(np.isfinite(ax_y.velocity_mps)):
+        climb = ax_y.velocity_mps
+        dclimb = ax_y.dvelocity_dk
+    else:
+        climb = np.gradient(h_rel, dt)
+        dclimb = np.zeros(n)
+        warn.append("vertical axis has no root: the climb rate in the air-derived velocity is "
+                    "taken from the baro height instead")
+    vn, ve = air_velocity(tas, psi, climb, wind_ne)
+    ax_x = solve_axis_horizontal(t, a_ned[:, 0], vn, v0[0], targets[0], k=ks[0], k0=starts[0],
+                                 axis="x (north)", **common)
+    ax_z = solve_axis_horizontal(t, a_ned[:, 1], ve, v0[1], targets[2], k=ks[2], k0=starts[2],
+                                 axis="z (east)", **common)
+    cross, dcross = _cross_sensitivities(dt, hold, a_ned, tas, psi, v0, climb, dclimb,
+                                         (ax_x, ax_y, ax_z), (vn, ve))
+    xyz = np.column_stack([ax_x.position_m, ax_y.position_m, ax_z.position_m])
+    vxyz = np.column_stack([ax_x.velocity_mps, ax_y.velocity_mps, ax_z.velocity_mps])
+    res = np.full(3, np.nan)
+    if end is not None:
+        res = xyz[-1] - np.array([end[0], -end[2], end[1]])
+    return SabzievSolution(t, xyz, vxyz, (ax_x.k, ax_y.k, ax_z.k), {"x": ax_x, "y": ax_y,
+                           "z": ax_z}, cross, dcross, res, wind_ne is not None, tuple(warn))
+
+
+def _fuse_inputs(t, a_ned, tas, heading_rad, h_rel, v0_ned, wind_ne):
+    """:func:`fuse`'s inputs checked and as float arrays; the warning when there is no wind."""
+    n = len(t)
     a_ned = np.asarray(a_ned, dtype=np.float64)
     if a_ned.shape != (n, 3):
         raise ValidationError(f"a_ned must have shape ({n}, 3), got {a_ned.shape}")
@@ -322,44 +370,36 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
     else:
         warn.append("wind unmodelled: no wind channel, the air-derived velocity is used as "
                     "ground velocity and k1, k3 absorb the drift")
+    return a_ned, tas, psi, h_rel, v0, wind_ne, warn
+
+
+def _end_or_coefficients(end_ned, k):
+    """Boundary-value mode (the end point's (x, y, z) targets) or initial-value mode (the
+    coefficients); returns ``(targets, ks, end)``, each axis ``None`` where not given."""
     if k is None:
         if end_ned is None:
             raise ValidationError("give the arrival point (end_ned) or the coefficients k")
         end = np.asarray(end_ned, dtype=np.float64)
         if end.shape != (3,) or not np.all(np.isfinite(end)):
             raise ValidationError("end_ned must be three finite numbers")
-        targets = (end[0], -end[2], end[1])
-        ks = (None, None, None)
-    else:
-        ks = tuple(float(x) for x in k)
-        if len(ks) != 3 or not all(np.isfinite(ks)):
-            raise ValidationError("k must be three finite numbers (k1, k2, k3)")
-        targets = (None, None, None)
-        end = None if end_ned is None else np.asarray(end_ned, dtype=np.float64)
-    starts = (None, None, None) if k0 is None else tuple(k0)
-    common = {"hold": hold, "tol_m": tol_m, "max_iter": max_iter, "kt_max": kt_max,
-              "strict": strict}
-    ax_y = solve_axis_y(t, -a_ned[:, 2], h_rel, -v0[2], targets[1], k=ks[1], k0=starts[1],
-                        parametrisation=parametrisation, rule=vertical_rule, **common)
-    if np.all(np.isfinite(ax_y.velocity_mps)):
-        climb = ax_y.velocity_mps
-        dclimb = ax_y.dvelocity_dk
-    else:
-        climb = np.gradient(h_rel, dt)
-        dclimb = np.zeros(n)
-        warn.append("vertical axis has no root: the climb rate in the air-derived velocity is "
-                    "taken from the baro height instead")
-    vn, ve = air_velocity(tas, psi, climb, wind_ne)
-    ax_x = solve_axis_horizontal(t, a_ned[:, 0], vn, v0[0], targets[0], k=ks[0], k0=starts[0],
-                                 axis="x (north)", **common)
-    ax_z = solve_axis_horizontal(t, a_ned[:, 1], ve, v0[1], targets[2], k=ks[2], k0=starts[2],
-                                 axis="z (east)", **common)
-    # cross sensitivities d(x, z)/d k2 through y' in sqrt(v^2 - y'^2)
+        return (end[0], -end[2], end[1]), (None, None, None), end
+    ks = tuple(float(x) for x in k)
+    if len(ks) != 3 or not all(np.isfinite(ks)):
+        raise ValidationError("k must be three finite numbers (k1, k2, k3)")
+    return (None, None, None), ks, None if end_ned is None else np.asarray(end_ned,
+                                                                         dtype=np.float64)
+
+
+def _cross_sensitivities(dt, hold, a_ned, tas, psi, v0, climb, dclimb, axes, air_ne):
+    """Cross sensitivities d(x, z)/d k2 through y' in ``sqrt(v^2 - y'^2)`` and their
+    derivatives (NaN where an axis has no coefficient); each (N, 2) for (x, z).  ``axes``:
+    the x, y, z :class:`AxisSolution`; ``air_ne``: the air-derived north and east velocity."""
+    ax_x, ax_y, ax_z = axes
+    vn, ve = air_ne
+    n = len(tas)
     v_h2 = tas**2 - climb**2
     with np.errstate(divide="ignore", invalid="ignore"):
         dvh = np.where(v_h2 > 0, -climb * dclimb / np.sqrt(np.where(v_h2 > 0, v_h2, 1.0)), 0.0)
-    xyz = np.column_stack([ax_x.position_m, ax_y.position_m, ax_z.position_m])
-    vxyz = np.column_stack([ax_x.velocity_mps, ax_y.velocity_mps, ax_z.velocity_mps])
     cross = np.zeros((n, 2))
     dcross = np.zeros((n, 2))
     for i, ax, a_col, v_col, trig in ((0, ax_x, 0, vn, np.cos(psi)), (1, ax_z, 1, ve, np.sin(psi))):
@@ -373,8 +413,4 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
         _, S = propagate_path(zero, (0.0, v0[a_col]), u, dvh * trig, 0.0, dscale=ax.k)
         cross[:, i] = S[:, 0]
         dcross[:, i] = S[:, 1]
-    res = np.full(3, np.nan)
-    if end is not None:
-        res = xyz[-1] - np.array([end[0], -end[2], end[1]])
-    return SabzievSolution(t, xyz, vxyz, (ax_x.k, ax_y.k, ax_z.k), {"x": ax_x, "y": ax_y,
-                           "z": ax_z}, cross, dcross, res, wind_ne is not None, tuple(warn))
+    return cross, dcross

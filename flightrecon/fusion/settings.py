@@ -1,0 +1,31 @@
+"""Settings of the Sabziev fusion method beyond its coefficients (docs/sabziev.md, "The
+adapter"; the coefficients ``k``, ``k_sd`` and ``strict`` are fields of
+:class:`flightrecon.pipeline.ReconstructSettings`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from flightrecon.fusion.sabziev.solve import KT_MAX
+
+
+@dataclass(frozen=True)
+class SabzievSettings:
+    """Numerical settings of :func:`flightrecon.fusion.method.run_sabziev`.
+
+    Attributes
+    ----------
+    hold : how the inputs are held between grid samples (``linear`` or ``zero``; see
+        :func:`flightrecon.fusion.sabziev.fuse`)
+    tol_m : end-point miss [m] below which the Newton-Raphson iterations stop
+    max_iter : iteration cap per phase
+    vertical_rule : root selection for k2 on the oscillatory branch (``baro``: the root whose
+        track stays closest to the pressure height; ``slowest``); docs/sabziev.md
+    kt_max : overflow guard on ``k t`` (:data:`flightrecon.fusion.sabziev.solve.KT_MAX`)
+    """
+
+    hold: str = "linear"
+    tol_m: float = 1e-3
+    max_iter: int = 60
+    vertical_rule: str = "baro"
+    kt_max: float = KT_MAX
