@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from flightrecon.estimation import linalg as est_linalg
+from flightrecon.estimation import predict as est_predict
+from flightrecon.estimation import rts as est_rts
+from flightrecon.estimation.manifold import EUCLIDEAN
 from flightrecon.filters.joint import dynamics as jd
 from flightrecon.filters.joint import enu_to_ecef_matrix
 from flightrecon.filters.joint import layout as jl
@@ -108,34 +110,40 @@ def test_sparse_prediction_equals_dense_products():
     cols = np.empty((n, n), np.int64)
     vals = np.empty((n, n))
     cnt = np.empty(n, np.int64)
-    jd._sparse_rows(F, cols, vals, cnt)
+    est_predict.sparse_rows(F, cols, vals, cnt)
     assert cnt.sum() == np.count_nonzero(F)
     P = _random_spd(rng, n)
     want = F @ P @ F.T
     got = P.copy()
-    jd._predict_cov(got, cols, vals, cnt, np.empty((n, n)))
+    est_predict.predict_cov_sparse(got, cols, vals, cnt, np.empty((n, n)))
     # entries up to ~1e2 * 1e2; 1e-12 relative is a few ulps of the largest term summed
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
     assert np.array_equal(got, got.T)
     y = rng.normal(size=n)
     out = np.empty(n)
-    jd._sparse_matvec(cols, vals, cnt, y, out)
+    est_predict.sparse_matvec(cols, vals, cnt, y, out)
     np.testing.assert_allclose(out, F @ y, rtol=1e-13, atol=1e-13 * np.abs(F @ y).max())
-    jd._sparse_rmatvec(cols, vals, cnt, y, out)
+    est_predict.sparse_rmatvec(cols, vals, cnt, y, out)
     np.testing.assert_allclose(out, F.T @ y, rtol=1e-13, atol=1e-13 * np.abs(F.T @ y).max())
 
 
 def test_cholesky_solve_and_its_refusal():
+    """The core's mean-step solve y = A^-1 (b - 0): by Cholesky for a positive-definite A; for
+    an indefinite (regular) A it says so (returns False, the caller counts it) and still
+    solves, by LU."""
     rng = np.random.default_rng(5)
     n = jl.N_STATE
     A = _random_spd(rng, n)
     b = rng.normal(size=n)
     y = np.empty(n)
-    assert est_linalg._cholesky_solve(A, b, np.empty((n, n)), y)
+    zero = np.zeros(n)
+    L, d = np.empty((n, n)), np.empty(n)
+    assert est_rts.rts_mean_solve(EUCLIDEAN, zero, A, b, 0.0, 0.0, L, d, y)
     # condition number of A is O(10): 1e-12 is far above round-off, far below any real error
     np.testing.assert_allclose(A @ y, b, atol=1e-12)
     A[3, 3] = -1.0
-    assert not est_linalg._cholesky_solve(A, b, np.empty((n, n)), y)
+    assert not est_rts.rts_mean_solve(EUCLIDEAN, zero, A, b, 0.0, 0.0, L, d, y)
+    np.testing.assert_allclose(A @ y, b, atol=1e-10)
 
 
 def test_mean_only_backward_pass_gives_the_covariance_pass_states():

@@ -1,5 +1,10 @@
-"""Compiled state transition, sparse covariance prediction and process noise of the joint
-smoother (state layout in :mod:`flightrecon.filters.joint.layout`)."""
+"""Compiled state transition and process noise of the joint smoother (state layout in
+:mod:`flightrecon.filters.joint.layout`).
+
+The transition is the identity plus a few blocks; the passes predict with it row-compressed
+through the estimation core (:func:`flightrecon.estimation.predict.predict_sparse`) and add the
+process noise here, touching only its nonzero entries (:func:`add_process_noise`).
+"""
 
 from __future__ import annotations
 
@@ -81,67 +86,6 @@ def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
     F = np.empty((N_STATE, N_STATE))
     transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
     return F
-
-
-@nb.njit(cache=True, nogil=True)
-def _sparse_rows(F, cols, vals, cnt):
-    """Row-compressed copy of ``F``: row i has ``cnt[i]`` nonzeros ``vals[i, :cnt[i]]`` in the
-    columns ``cols[i, :cnt[i]]`` (F_k is the identity plus a few blocks: 11 nonzeros at most
-    per row, so products with it cost O(n nnz) instead of O(n^3))."""
-    n = F.shape[0]
-    for i in range(n):
-        c = 0
-        for m in range(n):
-            if F[i, m] != 0.0:
-                cols[i, c] = m
-                vals[i, c] = F[i, m]
-                c += 1
-        cnt[i] = c
-
-
-@nb.njit(cache=True, nogil=True)
-def _predict_cov(P, cols, vals, cnt, B):
-    """P <- F P F^T in place with the row-compressed F (:func:`_sparse_rows`); B is scratch.
-
-    B = P F^T (B[a, i] = sum_m P[a, m] F[i, m]), then P = F B, symmetrised.
-    """
-    n = P.shape[0]
-    for i in range(n):
-        for a in range(n):
-            s = 0.0
-            for c in range(cnt[i]):
-                s += P[a, cols[i, c]] * vals[i, c]
-            B[a, i] = s
-    for i in range(n):
-        for j in range(i, n):
-            s = 0.0
-            for c in range(cnt[i]):
-                s += vals[i, c] * B[cols[i, c], j]
-            P[i, j] = s
-    for i in range(n):
-        for j in range(i):
-            P[i, j] = P[j, i]
-
-
-@nb.njit(cache=True, nogil=True)
-def _sparse_matvec(cols, vals, cnt, x, out):
-    """out = F x with the row-compressed F."""
-    for i in range(x.shape[0]):
-        s = 0.0
-        for c in range(cnt[i]):
-            s += vals[i, c] * x[cols[i, c]]
-        out[i] = s
-
-
-@nb.njit(cache=True, nogil=True)
-def _sparse_rmatvec(cols, vals, cnt, y, out):
-    """out = F^T y with the row-compressed F."""
-    n = y.shape[0]
-    for m in range(n):
-        out[m] = 0.0
-    for i in range(n):
-        for c in range(cnt[i]):
-            out[cols[i, c]] += vals[i, c] * y[i]
 
 
 @nb.njit(cache=True, nogil=True)

@@ -102,6 +102,7 @@ results equal the straightforward matrix expressions to round-off
 from __future__ import annotations
 
 from flightrecon.estimation.linalg import pinv_sym
+from flightrecon.estimation.manifold import boxminus, boxplus, radii
 from flightrecon.filters.sns.filter import SnsRun, SnsSmoothed, sns_filter, sns_smooth
 from flightrecon.filters.sns.model import (
     FORM_CONSISTENT,
@@ -113,13 +114,10 @@ from flightrecon.filters.sns.model import (
     STATE_NAMES,
     SnsNoise,
     StepInputs,
-    boxminus,
-    boxplus,
     default_noise,
     fill_single_sample,
     increment,
     observation_rows,
-    radii,
     segment_factor,
     step_matrices,
 )
