@@ -322,11 +322,12 @@ def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoi
 
 
 @nb.njit(cache=True, nogil=True)
-def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
+def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt, geom=LATLON):
     """RTS backward pass on the core's step (:func:`~flightrecon.estimation.rts.rts_step`) with
     the filter's cross-covariances (``C = cross[k]``, which holds the correlated-noise term of
-    the consistent form) and the latitude/longitude geometry; returns ``xs``, ``Ps`` and the
-    number of predicted covariances that failed their Cholesky factorisation."""
+    the consistent form) in the geometry ``geom`` (latitude/longitude; Euclidean only for the
+    reference test); returns ``xs``, ``Ps`` and the number of predicted covariances that failed
+    their Cholesky factorisation."""
     N, n = xf.shape
     xs = xf.copy()
     Ps = Pf.copy()
@@ -337,7 +338,7 @@ def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
         for i in range(n):
             for j in range(n):
                 CT[i, j] = cross[k, j, i]
-        if not rts_step(LATLON, xf[k], Pf[k], CT, xp[k + 1], Pp[k + 1], xs[k + 1], Ps[k + 1],
+        if not rts_step(geom, xf[k], Pf[k], CT, xp[k + 1], Pp[k + 1], xs[k + 1], Ps[k + 1],
                         hgt[k], hgt[k + 1], 1e-14, xs[k], Ps[k], work):
             n_fallback += 1
     return xs, Ps, n_fallback
