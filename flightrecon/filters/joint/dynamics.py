@@ -3,7 +3,8 @@
 
 The transition is the identity plus a few blocks; the passes predict with it row-compressed
 through the estimation core (:func:`flightrecon.estimation.predict.predict_sparse`) and add the
-process noise here, touching only its nonzero entries (:func:`add_process_noise`).
+process noise here, touching only its nonzero entries (:func:`add_process_noise`: the
+constant-velocity and Gauss-Markov blocks from :mod:`flightrecon.estimation.discretise`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation.discretise import gauss_markov_step, white_acceleration_q
 from flightrecon.filters.joint.layout import (
     G0,
     IATT,
@@ -73,7 +75,7 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
         for j in range(2):
             F[IP + i, IATT + j] = -G0 * (c0 * Jatt[k, 0, j] + c1 * Jatt[k, 1, j]
                                          + c2 * Jatt[k, 2, j]) * hh
-    e = np.exp(-h / tau_ba)
+    e, _ = gauss_markov_step(1.0 / tau_ba, 0.0, h)  # accelerometer bias: Gauss-Markov
     for j in range(3):
         F[IBA + j, IBA + j] = e
     F[IW, IG] = dz[k]
@@ -96,18 +98,18 @@ def add_process_noise(P, k, dt, Cen, dz, qv_extra, q):
     where the load factors are missing.  Position-velocity block: white acceleration of PSD q_a
     (Q_pp = q_a h^3/3, Q_vv = q_a h, Q_pv = q_a h^2/2 C_en)."""
     h = dt[k]
-    qa = q[0] + qv_extra[k]
+    qpp, qpv, qvv = white_acceleration_q(q[0] + qv_extra[k], h)
     for i in range(3):
-        P[IP + i, IP + i] += qa * h ** 3 / 3.0
-        P[IV + i, IV + i] += qa * h
+        P[IP + i, IP + i] += qpp
+        P[IV + i, IV + i] += qvv
         for j in range(3):
-            v = qa * h * h / 2.0 * Cen[k - 1, i, j]
+            v = qpv * Cen[k - 1, i, j]
             P[IP + i, IV + j] += v
             P[IV + j, IP + i] += v
     qw = q[1] * h + q[2] * abs(dz[k])
     P[IW, IW] += qw
     P[IW + 1, IW + 1] += qw
-    gm = q[3] * (1.0 - np.exp(-2.0 * h / q[4]))
+    _, gm = gauss_markov_step(1.0 / q[4], q[3], h)
     for j in range(3):
         P[IBA + j, IBA + j] += gm
     P[IPSI, IPSI] += q[5] * h
