@@ -330,10 +330,9 @@ def test_correlated_noise_prediction_against_brute_force():
         Pplus = P - K @ H @ P
         Pn, cross = np.empty((n, n)), Pplus @ F.T
         BGS = np.empty((n, m))
-        correlated_noise_predict_into(P, F, B, K, H, G, Sp, Rd, Pn, cross, np.empty((n, m)),
-                                      np.empty((n, m)), BGS, np.empty((n, n)),
-                                      np.empty((n, n)), np.empty((n, nw)), np.ones(nw),
-                                      -np.ones(m))
+        work = (np.empty((n, m)), np.empty((n, m)), np.empty((n, n)), np.empty((n, n)),
+                np.empty((n, nw)), np.ones(nw), -np.ones(m))
+        correlated_noise_predict_into(P, F, B, K, H, G, Sp, Rd, Pn, cross, BGS, work)
         x = F @ (x + K @ nu) + BGS @ nu
         P = 0.5 * (Pn + Pn.T)
         sd = np.sqrt(np.diag(want_P[k]))
@@ -385,8 +384,8 @@ def test_cv_joint_kernels_through_the_core(cv_case):
     for k in range(N - 2, -1, -1):
         sparse_rows(np.ascontiguousarray(F[k + 1]), cols, vals, cnt)
         sparse_left_product(cols, vals, cnt, Pf[k], CT)
-        assert rts_step(EUCLIDEAN, xf[k], Pf[k], CT, xp[k + 1], Pp[k + 1], xs[k + 1],
-                        Ps[k + 1], 0.0, 0.0, 0.0, xs[k], Ps[k], work)
+        assert rts_step(EUCLIDEAN, (xf[k], Pf[k]), (xp[k + 1], Pp[k + 1]),
+                        (xs[k + 1], Ps[k + 1]), CT, (0.0, 0.0), 0.0, (xs[k], Ps[k]), work)
         assert rts_mean_solve(EUCLIDEAN, xp[k + 1], Pp[k + 1], xm[k + 1], 0.0, 0.0, L, d, y)
         sparse_rmatvec(cols, vals, cnt, y, zz)
         dx[:] = Pf[k] @ zz

@@ -56,28 +56,33 @@ def rts_gain_into(CT, Pp, rel_tol, L, GT, G):
 
 
 @nb.njit(cache=True, nogil=True)
-def rts_step(geom, xf, Pf, CT, xp, Pp, xs_next, Ps_next, h, h_next, rel_tol, xs, Ps, work):
-    """One RTS backward step (module docstring) into ``xs`` (n,) and ``Ps`` (n, n).
+def rts_step(geom, filtered, predicted, smoothed_next, CT, heights, rel_tol, out, work):
+    """One RTS backward step (module docstring).
 
     Parameters
     ----------
     geom : :data:`~flightrecon.estimation.manifold.EUCLIDEAN` or ``LATLON``
-    xf, Pf : filtered state and covariance at step k
+    filtered : ``(x_f, P_f)`` at step k
+    predicted : ``(x_p, P_p)``, the prediction of step k+1
+    smoothed_next : ``(x_s, P_s)`` at step k+1
     CT : (n, n) ``C^T``, the transposed cross-covariance ``Cov(x_k, x_{k+1} | Y_0..k)^T``
         (``F P_f`` for a plain transition)
-    xp, Pp : prediction of step k+1
-    xs_next, Ps_next : smoothed state and covariance at step k+1 (``Ps_next`` may be ``Ps``:
-        the step then runs in place)
-    h, h_next : heights [m] at k and k+1 for a latitude/longitude state (else unused)
+    heights : ``(h, h_next)`` [m] at k and k+1 for a latitude/longitude state (else unused)
     rel_tol : Cholesky pivot tolerance (:func:`~flightrecon.estimation.linalg.cholesky_factor`)
-    xs, Ps : outputs
-    work : tuple ``(L, GT, G, D, E, d, dx)`` of scratch, five (n, n) and two (n,)
+    out : ``(x_s, P_s)`` at step k, written (its ``P_s`` may be the ``P_s`` of
+        ``smoothed_next``: the step then runs in place)
+    work : scratch from :func:`rts_step_work`, ``(L, GT, G, D, E, d, dx)``
 
     Returns
     -------
     bool
-        False if ``Pp`` failed its Cholesky factorisation (a general solve was used).
+        False if ``P_p`` failed its Cholesky factorisation (a general solve was used).
     """
+    xf, Pf = filtered
+    xp, Pp = predicted
+    xs_next, Ps_next = smoothed_next
+    h, h_next = heights
+    xs, Ps = out
     L, GT, G, D, E, d, dx = work
     n = xf.shape[0]
     ok = rts_gain_into(CT, Pp, rel_tol, L, GT, G)

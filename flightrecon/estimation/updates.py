@@ -146,8 +146,7 @@ def joseph_update(x, P, nu, H, R):
 
 
 @nb.njit(cache=True, nogil=True)
-def correlated_noise_predict_into(P, F, B, K, H, G, Sp, Rd, Pn, cross, L, BG, BGS, A, T, BmLG,
-                                  ones_w, minus_m):
+def correlated_noise_predict_into(P, F, B, K, H, G, Sp, Rd, Pn, cross, BGS, work):
     """Update at step k and prediction to k+1 with correlated noise, covariances only.
 
     Model: ``x_{k+1} = f(x_k) + B w_k``, ``z_k = h(x_k) + G w_k + D v_k`` with ``w_k``, ``v_k``
@@ -155,18 +154,18 @@ def correlated_noise_predict_into(P, F, B, K, H, G, Sp, Rd, Pn, cross, L, BG, BG
     correlated with the process noise of the step k -> k+1.  Given the predicted ``P`` (= P_k^-)
     and ``K = P H^T S^+`` with ``S = H P H^T + G G^T + D D^T``:
 
-    * ``L = F K + B G^T S^+`` (the one-step predictor's gain; Simon 2006, eq. 7.14);
+    * ``L = F K + B G^T S^+`` (the one-step predictor's gain; Simon 2006, section 7.1);
     * ``P_{k+1}^- = (F - L H) P (F - L H)^T + (B - L G)(B - L G)^T + L D D^T L^T`` into ``Pn``
       (not symmetrised);
-    * the smoother's cross-covariance ``Cov(x_k, x_{k+1} | Y_k) = P^+ F^T - K G B^T`` into
-      ``cross`` (given ``P^+`` already in ``cross``'s caller: here ``cross`` must hold
-      ``P^+ F^T`` on entry; the ``- K G B^T`` term is added);
-    * ``BGS = B G^T S^+``: the state's correction is ``BGS nu`` on top of the filtered mean's
-      prediction (the caller applies it in its geometry).
+    * the smoother's cross-covariance ``Cov(x_k, x_{k+1} | Y_k) = P^+ F^T - K G B^T``: ``cross``
+      holds ``P^+ F^T`` on entry, the ``- K G B^T`` term is added;
+    * ``BGS = B G^T S^+`` (n, m): the state's correction is ``BGS nu`` on top of the filtered
+      mean's prediction (the caller applies it in its geometry).
 
-    ``L``, ``BG``, ``BGS`` (n, m), ``A``, ``T`` (n, n), ``BmLG`` (n, nw) scratch; ``ones_w``
-    (nw,) ones, ``minus_m`` (m,) minus ones.
+    ``work``: scratch ``(L, BG, A, T, BmLG, ones_w, minus_m)``, ``L``, ``BG`` (n, m), ``A``,
+    ``T`` (n, n), ``BmLG`` (n, nw), ``ones_w`` (nw,) ones, ``minus_m`` (m,) minus ones.
     """
+    L, BG, A, T, BmLG, ones_w, minus_m = work
     n = P.shape[0]
     m = K.shape[1]
     nw = B.shape[1]

@@ -51,8 +51,8 @@ def _rts_kernel(x, P, xp, Pp, F):
     n_fallback = 0
     for k in range(N - 2, -1, -1):
         _mm(F[k + 1], P[k], CT)
-        if not rts_step(EUCLIDEAN, x[k], P[k], CT, xp[k + 1], Pp[k + 1], xs[k + 1], Ps[k + 1],
-                        0.0, 0.0, 0.0, xs[k], Ps[k], work):
+        if not rts_step(EUCLIDEAN, (x[k], P[k]), (xp[k + 1], Pp[k + 1]), (xs[k + 1], Ps[k + 1]),
+                        CT, (0.0, 0.0), 0.0, (xs[k], Ps[k]), work):
             n_fallback += 1
         Cs[k] = work[2]  # the gain G = C P_p^-1 of this step
     return xs, Ps, Cs, n_fallback

@@ -312,8 +312,8 @@ def backward(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
             Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q,
                                 Pbuf)
             # the core's step, in place on Ps (P_s[k+1] -> P_s[k])
-            if not rts_step(EUCLIDEAN, xf[k], Pf[k], CT, xp[k + 1], Pk1, xs[k + 1], Ps, 0.0, 0.0,
-                            0.0, xs[k], Ps, work):
+            if not rts_step(EUCLIDEAN, (xf[k], Pf[k]), (xp[k + 1], Pk1), (xs[k + 1], Ps), CT,
+                            (0.0, 0.0), 0.0, (xs[k], Ps), work):
                 n_fallback += 1
         for i in range(6):
             for j in range(6):

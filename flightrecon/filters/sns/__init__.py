@@ -95,9 +95,9 @@ whose moves from the filter states reuse the states' ``sin``/``cos`` of latitude
 :func:`_boxplus_pre`).  ``S^+`` is the Cholesky inverse whenever a trace bound proves full rank
 at ``rcond`` (:func:`_inv_spd_into`), else a Jacobi eigen-decomposition; the update, the
 correlated-noise prediction and the smoother's step are the estimation core's
-(:mod:`flightrecon.estimation.updates`, :mod:`flightrecon.estimation.rts`: the smoother's gain by a
-Cholesky solve with ``Pp``, a general solve, which reports singularity, if that fails, counted).  The
-results equal the straightforward matrix expressions to round-off
+(:mod:`flightrecon.estimation.updates`, :mod:`flightrecon.estimation.rts`: the smoother's gain
+by a Cholesky solve with ``Pp``, or, counted, a general solve, which reports singularity, where
+that fails).  The results equal the straightforward matrix expressions to round-off
 (``tests/test_sns_speed_paths.py``).
 """
 

@@ -257,8 +257,9 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
         _mmt(Pplus, Phi, ck)  # smoother numerator P+ Phi^T (- K G B^T when correlated)
         if have and form == FORM_CONSISTENT:
             BGS = BGSb[:, :m]
-            correlated_noise_predict_into(P, Phi, B, K, Hs, Gs, Sp, Rd[:m], Pn, ck, Lgb[:, :m],
-                                          BGb[:, :m], BGS, KH, T55, T5e, ones_e, minus_m[:m])
+            correlated_noise_predict_into(P, Phi, B, K, Hs, Gs, Sp, Rd[:m], Pn, ck, BGS,
+                                          (Lgb[:, :m], BGb[:, :m], KH, T55, T5e, ones_e,
+                                           minus_m[:m]))
             for j in range(m):  # state correction B G^T S^+ nu (position rows only: the
                 dn += BGS[0, j] * nu[j]  # random-walk columns of B have no G counterpart)
                 de += BGS[1, j] * nu[j]
@@ -338,8 +339,8 @@ def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt, geom=LATLON):
         for i in range(n):
             for j in range(n):
                 CT[i, j] = cross[k, j, i]
-        if not rts_step(geom, xf[k], Pf[k], CT, xp[k + 1], Pp[k + 1], xs[k + 1], Ps[k + 1],
-                        hgt[k], hgt[k + 1], 1e-14, xs[k], Ps[k], work):
+        if not rts_step(geom, (xf[k], Pf[k]), (xp[k + 1], Pp[k + 1]), (xs[k + 1], Ps[k + 1]),
+                        CT, (hgt[k], hgt[k + 1]), 1e-14, (xs[k], Ps[k]), work):
             n_fallback += 1
     return xs, Ps, n_fallback
 
