@@ -16,6 +16,7 @@ from __future__ import annotations
 from fractions import Fraction
 from math import factorial
 
+import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
@@ -32,27 +33,45 @@ def check_steps(dt) -> np.ndarray:
     return dt
 
 
+@nb.njit(cache=True, nogil=True)
+def white_acceleration_q(q, T):
+    """Process noise of one constant-velocity axis driven by white acceleration of spectral
+    density ``q``: ``(Q_pp, Q_pv, Q_vv) = q (T^3/3, T^2/2, T)`` (Bar-Shalom et al. 2001, eq.
+    6.2.2-12).  Compiled; ``T`` a float or an array (element-wise), so that the per-step kernels
+    (the joint smoother's process noise) and the vectorised :func:`constant_velocity` share it.
+    """
+    return q * T ** 3 / 3.0, q * T ** 2 / 2.0, q * T
+
+
+@nb.njit(cache=True, nogil=True)
+def gauss_markov_step(alpha, var, T):
+    """First-order Gauss-Markov ``x' = -alpha x + w`` of stationary variance ``var`` over a step
+    ``T``: ``(phi, q) = (e^{-alpha T}, var (1 - e^{-2 alpha T}))``, the variance by ``-expm1``
+    (accurate for small ``alpha T``).  Compiled; ``T`` a float or an array."""
+    return np.exp(-alpha * T), var * -np.expm1(-2.0 * alpha * T)
+
+
 def constant_velocity(dt, q: float) -> tuple[np.ndarray, np.ndarray]:
     """One axis of the constant-velocity model: ``F`` and ``Q``, each (N, 2, 2), for steps
     ``dt`` and white-acceleration spectral density ``q`` (Bar-Shalom et al. 2001, eq.
-    6.2.2-12)."""
+    6.2.2-12; :func:`white_acceleration_q`)."""
     T = check_steps(dt)
     F = np.zeros((len(T), 2, 2))
     F[:, 0, 0] = F[:, 1, 1] = 1.0
     F[:, 0, 1] = T
     Q = np.empty((len(T), 2, 2))
-    Q[:, 0, 0] = q * T ** 3 / 3.0
-    Q[:, 0, 1] = Q[:, 1, 0] = q * T ** 2 / 2.0
-    Q[:, 1, 1] = q * T
+    qpp, qpv, qvv = white_acceleration_q(float(q), T)
+    Q[:, 0, 0] = qpp
+    Q[:, 0, 1] = Q[:, 1, 0] = qpv
+    Q[:, 1, 1] = qvv
     return F, Q
 
 
 def gauss_markov(dt, alpha: float, sigma: float) -> tuple[np.ndarray, np.ndarray]:
     """First-order Gauss-Markov process: ``phi = e^{-alpha T}`` and the exact step variance
-    ``sigma^2 (1 - e^{-2 alpha T})`` (``-expm1`` keeps it accurate for small ``alpha T``),
-    each (N,)."""
+    ``sigma^2 (1 - e^{-2 alpha T})`` (:func:`gauss_markov_step`), each (N,)."""
     T = check_steps(dt)
-    return np.exp(-alpha * T), sigma ** 2 * -np.expm1(-2.0 * alpha * T)
+    return gauss_markov_step(float(alpha), float(sigma) ** 2, T)
 
 
 _SERIES_X = 0.1

@@ -64,18 +64,6 @@ def cholesky_solve_columns(L, B, X):
 
 
 @nb.njit(cache=True, nogil=True)
-def _cholesky_solve(A, b, L, y):
-    """y = A^{-1} b for a symmetric positive-definite A by Cholesky (L is scratch).
-
-    Returns False (and leaves y undefined) if A is not numerically positive definite.
-    """
-    if not cholesky_factor(A, L, 0.0):
-        return False
-    cholesky_solve_columns(L, b.reshape((-1, 1)), y.reshape((-1, 1)))
-    return True
-
-
-@nb.njit(cache=True, nogil=True)
 def _chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
     """Lower Cholesky factor of the PSD 2x2 [[a, b], [b, c]] into ``L`` (semi-definite allowed)."""
     L[0, 1] = 0.0
@@ -318,28 +306,3 @@ def _sym_into(M, out):
             v = 0.5 * (M[i, j] + M[j, i])
             out[i, j] = v
             out[j, i] = v
-
-
-@nb.njit(cache=True, nogil=True)
-def _chol_solve_rows(P, Cr, L, out) -> bool:
-    """``out = Cr P^{-1}`` for a symmetric positive-definite ``P`` (n, n) by Cholesky.
-
-    ``L`` is an (n, n) scratch.  Returns False (``out`` undefined) if a pivot is not clearly
-    positive (``<= 1e-14`` of its diagonal entry), so the caller can fall back to a general solve
-    that reports singularity.
-    """
-    n = P.shape[0]
-    if not cholesky_factor(P, L, 1e-14):
-        return False
-    for r in range(Cr.shape[0]):  # P z = Cr[r]^T (P symmetric), out[r] = z^T
-        for i in range(n):  # L y = b
-            s = Cr[r, i]
-            for l in range(i):
-                s -= L[i, l] * out[r, l]
-            out[r, i] = s / L[i, i]
-        for i in range(n - 1, -1, -1):  # L^T z = y
-            s = out[r, i]
-            for l in range(i + 1, n):
-                s -= L[l, i] * out[r, l]
-            out[r, i] = s / L[i, i]
-    return True

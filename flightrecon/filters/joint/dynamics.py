@@ -1,11 +1,18 @@
-"""Compiled state transition, sparse covariance prediction and process noise of the joint
-smoother (state layout in :mod:`flightrecon.filters.joint.layout`)."""
+"""Compiled state transition and process noise of the joint smoother (state layout in
+:mod:`flightrecon.filters.joint.layout`).
+
+The transition is the identity plus a few blocks; the passes predict with it row-compressed
+through the estimation core (:func:`flightrecon.estimation.predict.predict_sparse`) and add the
+process noise here, touching only its nonzero entries (:func:`add_process_noise`: the
+constant-velocity and Gauss-Markov blocks from :mod:`flightrecon.estimation.discretise`).
+"""
 
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation.discretise import gauss_markov_step, white_acceleration_q
 from flightrecon.filters.joint.layout import (
     G0,
     IATT,
@@ -68,7 +75,7 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
         for j in range(2):
             F[IP + i, IATT + j] = -G0 * (c0 * Jatt[k, 0, j] + c1 * Jatt[k, 1, j]
                                          + c2 * Jatt[k, 2, j]) * hh
-    e = np.exp(-h / tau_ba)
+    e, _ = gauss_markov_step(1.0 / tau_ba, 0.0, h)  # accelerometer bias: Gauss-Markov
     for j in range(3):
         F[IBA + j, IBA + j] = e
     F[IW, IG] = dz[k]
@@ -84,67 +91,6 @@ def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
 
 
 @nb.njit(cache=True, nogil=True)
-def _sparse_rows(F, cols, vals, cnt):
-    """Row-compressed copy of ``F``: row i has ``cnt[i]`` nonzeros ``vals[i, :cnt[i]]`` in the
-    columns ``cols[i, :cnt[i]]`` (F_k is the identity plus a few blocks: 11 nonzeros at most
-    per row, so products with it cost O(n nnz) instead of O(n^3))."""
-    n = F.shape[0]
-    for i in range(n):
-        c = 0
-        for m in range(n):
-            if F[i, m] != 0.0:
-                cols[i, c] = m
-                vals[i, c] = F[i, m]
-                c += 1
-        cnt[i] = c
-
-
-@nb.njit(cache=True, nogil=True)
-def _predict_cov(P, cols, vals, cnt, B):
-    """P <- F P F^T in place with the row-compressed F (:func:`_sparse_rows`); B is scratch.
-
-    B = P F^T (B[a, i] = sum_m P[a, m] F[i, m]), then P = F B, symmetrised.
-    """
-    n = P.shape[0]
-    for i in range(n):
-        for a in range(n):
-            s = 0.0
-            for c in range(cnt[i]):
-                s += P[a, cols[i, c]] * vals[i, c]
-            B[a, i] = s
-    for i in range(n):
-        for j in range(i, n):
-            s = 0.0
-            for c in range(cnt[i]):
-                s += vals[i, c] * B[cols[i, c], j]
-            P[i, j] = s
-    for i in range(n):
-        for j in range(i):
-            P[i, j] = P[j, i]
-
-
-@nb.njit(cache=True, nogil=True)
-def _sparse_matvec(cols, vals, cnt, x, out):
-    """out = F x with the row-compressed F."""
-    for i in range(x.shape[0]):
-        s = 0.0
-        for c in range(cnt[i]):
-            s += vals[i, c] * x[cols[i, c]]
-        out[i] = s
-
-
-@nb.njit(cache=True, nogil=True)
-def _sparse_rmatvec(cols, vals, cnt, y, out):
-    """out = F^T y with the row-compressed F."""
-    n = y.shape[0]
-    for m in range(n):
-        out[m] = 0.0
-    for i in range(n):
-        for c in range(cnt[i]):
-            out[cols[i, c]] += vals[i, c] * y[i]
-
-
-@nb.njit(cache=True, nogil=True)
 def add_process_noise(P, k, dt, Cen, dz, qv_extra, q):
     """P += Q_k in place, touching only the nonzero entries of Q_k.  q = [q_acc, q_wind_t,
     q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad] (see JointNoise); ``|dz[k]|`` is the height
@@ -152,18 +98,18 @@ def add_process_noise(P, k, dt, Cen, dz, qv_extra, q):
     where the load factors are missing.  Position-velocity block: white acceleration of PSD q_a
     (Q_pp = q_a h^3/3, Q_vv = q_a h, Q_pv = q_a h^2/2 C_en)."""
     h = dt[k]
-    qa = q[0] + qv_extra[k]
+    qpp, qpv, qvv = white_acceleration_q(q[0] + qv_extra[k], h)
     for i in range(3):
-        P[IP + i, IP + i] += qa * h ** 3 / 3.0
-        P[IV + i, IV + i] += qa * h
+        P[IP + i, IP + i] += qpp
+        P[IV + i, IV + i] += qvv
         for j in range(3):
-            v = qa * h * h / 2.0 * Cen[k - 1, i, j]
+            v = qpv * Cen[k - 1, i, j]
             P[IP + i, IV + j] += v
             P[IV + j, IP + i] += v
     qw = q[1] * h + q[2] * abs(dz[k])
     P[IW, IW] += qw
     P[IW + 1, IW + 1] += qw
-    gm = q[3] * (1.0 - np.exp(-2.0 * h / q[4]))
+    _, gm = gauss_markov_step(1.0 / q[4], q[3], h)
     for j in range(3):
         P[IBA + j, IBA + j] += gm
     P[IPSI, IPSI] += q[5] * h

@@ -1,21 +1,28 @@
-"""Compiled forward filter and RTS backward passes of the joint smoother."""
+"""Compiled forward filter and RTS backward passes of the joint smoother.
+
+Built on the estimation core: the sparse prediction (:func:`~flightrecon.estimation.predict.
+predict_sparse`), the scalar short-form update (:func:`~flightrecon.estimation.updates.
+scalar_update_short`) and the RTS step (:func:`~flightrecon.estimation.rts.rts_step`,
+:func:`~flightrecon.estimation.rts.rts_mean_solve`), each fed with the row-compressed transition
+(docs/estimation.md).
+"""
 
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 
-from flightrecon.estimation.linalg import (
-    _cholesky_solve,
-    cholesky_factor,
-    cholesky_solve_columns,
+from flightrecon.estimation.manifold import EUCLIDEAN, state_plus_into
+from flightrecon.estimation.predict import (
+    predict_cov_sparse,
+    predict_sparse,
+    sparse_left_product,
+    sparse_rmatvec,
+    sparse_rows,
 )
+from flightrecon.estimation.rts import rts_mean_solve, rts_step, rts_step_work
 from flightrecon.estimation.updates import scalar_update_short
 from flightrecon.filters.joint.dynamics import (
-    _predict_cov,
-    _sparse_matvec,
-    _sparse_rmatvec,
-    _sparse_rows,
     _wrap,
     add_process_noise,
     transition_into,
@@ -82,14 +89,11 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
     for k in range(N):
         if k > 0:
             _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
-            _sparse_matvec(cols, vals, cnt, x, xn)
-            for i in range(n):
-                x[i] = xn[i]
-            for i in range(3):
+            predict_sparse(x, P, cols, vals, cnt, xn, B)  # x <- F x, P <- F P F^T
+            for i in range(3):  # + the control input (the recorded increments) and Q_k
                 for m in range(3):
                     x[IP + i] += Cen[k - 1, i, m] * dP[k, m]
                 x[IV + i] += dV[k, i]
-            _predict_cov(P, cols, vals, cnt, B)
             add_process_noise(P, k, dt, Cen, dz, qv_extra, q)
         xp[k] = x
         if Pp.shape[0] > 0:
@@ -146,9 +150,9 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
 @nb.njit(cache=True, nogil=True)
 def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
     """F_k into ``F`` and its row-compressed copy (:func:`transition_into`,
-    :func:`_sparse_rows`)."""
+    :func:`~flightrecon.estimation.predict.sparse_rows`)."""
     transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
-    _sparse_rows(F, cols, vals, cnt)
+    sparse_rows(F, cols, vals, cnt)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -169,7 +173,7 @@ def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, out)
     for i in range(n):
         for j in range(n):
             out[i, j] = Pf[k - 1, i, j]
-    _predict_cov(out, cols, vals, cnt, B)
+    predict_cov_sparse(out, cols, vals, cnt, B)
     add_process_noise(out, k, dt, Cen, dz, qv_extra, q)
 
 
@@ -239,6 +243,7 @@ def backward_mean(xf, Pf, xp, Pp, dyn, meas, geo):
     d = np.empty(n)
     y = np.empty(n)
     z = np.empty(n)
+    dx = np.empty(n)
     H = np.empty(n)
     B = np.empty((n, n))
     Pbuf = np.empty((n, n))
@@ -250,17 +255,16 @@ def backward_mean(xf, Pf, xp, Pp, dyn, meas, geo):
             _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
             Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q,
                                 Pbuf)
-            for i in range(n):
-                d[i] = xs[k + 1, i] - xp[k + 1, i]
-            if not _cholesky_solve(Pk1, d, L, y):
+            # y = P_p^-1 (x_s[k+1] - x_p[k+1]), then x_s[k] = x_f[k] + P_f[k] (F^T y)
+            if not rts_mean_solve(EUCLIDEAN, xp[k + 1], Pk1, xs[k + 1], 0.0, 0.0, L, d, y):
                 n_fallback += 1
-                y[:] = np.linalg.solve(Pk1, d)
-            _sparse_rmatvec(cols, vals, cnt, y, z)
+            sparse_rmatvec(cols, vals, cnt, y, z)
             for a in range(n):
-                v = xf[k, a]
+                v = 0.0
                 for b in range(n):
                     v += Pf[k, a, b] * z[b]
-                xs[k, a] = v
+                dx[a] = v
+            state_plus_into(EUCLIDEAN, xf[k], dx, 0.0, xs[k])
         _residuals_at(k, xs[k], mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hnom, pst,
                       Cst, H, res, res_n, rate, no_P, no_hph)
     return xs, res_n, res, rate, n_fallback
@@ -294,58 +298,23 @@ def backward(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
     cols = np.empty((n, n), dtype=np.int64)
     vals = np.empty((n, n))
     cnt = np.empty(n, dtype=np.int64)
-    A = np.empty((n, n))
+    CT = np.empty((n, n))
     B = np.empty((n, n))
     Pbuf = np.empty((n, n))
-    G = np.empty((n, n))
-    GT = np.empty((n, n))
-    L = np.empty((n, n))
-    D = np.empty((n, n))
-    E = np.empty((n, n))
-    d = np.empty(n)
+    work = rts_step_work(n)
     H = np.empty(n)
     Ps = Pf[N - 1].copy()
     n_fallback = 0
     for k in range(N - 1, -1, -1):
         if k < N - 1:
             _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
-            # A = F P_f[k] (row-compressed F); the gain G = P_f F^T P_p^-1, i.e. G^T = P_p^-1 A
-            for i in range(n):
-                for b in range(n):
-                    v = 0.0
-                    for c in range(cnt[i]):
-                        v += vals[i, c] * Pf[k, cols[i, c], b]
-                    A[i, b] = v
+            sparse_left_product(cols, vals, cnt, Pf[k], CT)  # C^T = F P_f[k]
             Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q,
                                 Pbuf)
-            if cholesky_factor(Pk1, L, 0.0):
-                cholesky_solve_columns(L, A, GT)      # GT = P_p^-1 A = G^T
-            else:
+            # the core's step, in place on Ps (P_s[k+1] -> P_s[k])
+            if not rts_step(EUCLIDEAN, (xf[k], Pf[k]), (xp[k + 1], Pk1), (xs[k + 1], Ps), CT,
+                            (0.0, 0.0), 0.0, (xs[k], Ps), work):
                 n_fallback += 1
-                GT[:, :] = np.linalg.solve(Pk1, A)
-            for i in range(n):
-                for j in range(n):
-                    G[i, j] = GT[j, i]
-            # x_s[k] = x_f[k] + G (x_s[k+1] - x_p[k+1])
-            for i in range(n):
-                d[i] = xs[k + 1, i] - xp[k + 1, i]
-            for i in range(n):
-                v = xf[k, i]
-                for j in range(n):
-                    v += G[i, j] * d[j]
-                xs[k, i] = v
-            # P_s[k] = P_f[k] + G (P_s[k+1] - P_p[k+1]) G^T (BLAS products into buffers)
-            for i in range(n):
-                for j in range(n):
-                    D[i, j] = Ps[i, j] - Pk1[i, j]
-            np.dot(G, D, E)
-            np.dot(E, GT, Ps)
-            for i in range(n):
-                for j in range(i, n):
-                    Ps[i, j] += Pf[k, i, j]
-            for i in range(n):           # the upper triangle mirrored: exactly symmetric
-                for j in range(i):
-                    Ps[i, j] = Ps[j, i]
         for i in range(6):
             for j in range(6):
                 Pblk[k, i, j] = Ps[i, j]

@@ -93,15 +93,18 @@ call directly, small products are plain loops (:func:`_mm`, :func:`_mmt`), the t
 the corrections' rotation is evaluated once per step (once per filter step in :func:`densify`,
 whose moves from the filter states reuse the states' ``sin``/``cos`` of latitude,
 :func:`_boxplus_pre`).  ``S^+`` is the Cholesky inverse whenever a trace bound proves full rank
-at ``rcond`` (:func:`_inv_spd_into`), else a Jacobi eigen-decomposition; the smoother's gain uses
-a Cholesky solve with ``Pp`` (a general solve, which reports singularity, if that fails).  The
-results equal the straightforward matrix expressions to round-off
+at ``rcond`` (:func:`_inv_spd_into`), else a Jacobi eigen-decomposition; the update, the
+correlated-noise prediction and the smoother's step are the estimation core's
+(:mod:`flightrecon.estimation.updates`, :mod:`flightrecon.estimation.rts`: the smoother's gain
+by a Cholesky solve with ``Pp``, or, counted, a general solve, which reports singularity, where
+that fails).  The results equal the straightforward matrix expressions to round-off
 (``tests/test_sns_speed_paths.py``).
 """
 
 from __future__ import annotations
 
 from flightrecon.estimation.linalg import pinv_sym
+from flightrecon.estimation.manifold import boxminus, boxplus, radii
 from flightrecon.filters.sns.filter import SnsRun, SnsSmoothed, sns_filter, sns_smooth
 from flightrecon.filters.sns.model import (
     FORM_CONSISTENT,
@@ -113,13 +116,10 @@ from flightrecon.filters.sns.model import (
     STATE_NAMES,
     SnsNoise,
     StepInputs,
-    boxminus,
-    boxplus,
     default_noise,
     fill_single_sample,
     increment,
     observation_rows,
-    radii,
     segment_factor,
     step_matrices,
 )

@@ -8,13 +8,16 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from flightrecon.estimation.linalg import (
-    _chol_solve_rows,
-    _mdmt_acc,
-    _mm,
-    _mmt,
-    _pinv_sym_into,
-    _sym_into,
+from flightrecon.estimation.linalg import _mdmt_acc, _mmt, _sym_into
+from flightrecon.estimation.manifold import LATLON, boxminus, boxplus
+from flightrecon.estimation.predict import predict_cov_into
+from flightrecon.estimation.rts import rts_step, rts_step_work
+from flightrecon.estimation.updates import (
+    correlated_noise_predict_into,
+    gain_into,
+    joseph_cov_into,
+    normalised_innovation,
+    state_correction_into,
 )
 from flightrecon.filters.sns.model import (
     FORM_CONSISTENT,
@@ -27,8 +30,6 @@ from flightrecon.filters.sns.model import (
     StepInputs,
     _observation_rows_into,
     _step_matrices_into,
-    boxminus,
-    boxplus,
     fill_single_sample,
     per_fix_sd,
 )
@@ -180,6 +181,7 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
     x = x0.copy()
     P = P0.copy()
     xplus = np.zeros(n)
+    dxb = np.zeros(n)
     c = np.zeros(3)
     for k in range(N):
         xp[k] = x
@@ -228,49 +230,12 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
             _mmt(Gs, Gs, Rt)  # Rt = D D^T + G G^T
             for r in range(m):
                 Rt[r, r] += Rd[r]
-            _mmt(P, Hs, PHt)  # P- H^T
-            _mm(Hs, PHt, S)
-            for i in range(m):
-                for j in range(m):
-                    S[i, j] += Rt[i, j]
-            rk = _pinv_sym_into(S, rcond, Sp, Ab[:m, :m], Vb[:m, :m])
-            _mm(PHt, Sp, K)  # K = P- H^T S^+
-            # Joseph form: (I - K H) P- (I - K H)^T + K Rt K^T
-            _mm(K, Hs, KH)
-            for i in range(n):
-                for j in range(n):
-                    KH[i, j] = (1.0 if i == j else 0.0) - KH[i, j]
-            _mm(KH, P, T55)
-            _mmt(T55, KH, Pn)
-            T = T5m[:, :m]
-            _mm(K, Rt, T)
-            _mmt(T, K, Pplus)
-            for i in range(n):
-                for j in range(n):
-                    Pplus[i, j] += Pn[i, j]
-            _sym_into(Pplus, Pplus)
-            nis_k = 0.0
-            for i in range(m):
-                s = 0.0
-                for j in range(m):
-                    s += Sp[i, j] * nu[j]
-                Spnu[i] = s
-                nis_k += nu[i] * s
-            nis[k] = nis_k
+            # the core's update: K = P- H^T S^+, Joseph form, x+ = x- (+) K nu on the ellipsoid
+            rk = gain_into(P, Hs, Rt, rcond, PHt, S, Sp, K, Ab[:m, :m], Vb[:m, :m])
+            joseph_cov_into(P, K, Hs, Rt, Pplus, KH, T55, T5m[:, :m], Pn)
+            nis[k] = normalised_innovation(Sp, nu, Spnu[:m])
             rank[k] = rk
-            dx0 = 0.0
-            dx1 = 0.0
-            for j in range(m):
-                dx0 += K[0, j] * nu[j]
-                dx1 += K[1, j] * nu[j]
-            lat, lon = boxplus(x[0], x[1], dx0, dx1, hgt[k])
-            xplus[0] = lat
-            xplus[1] = lon
-            for i in range(2, n):
-                s = 0.0
-                for j in range(m):
-                    s += K[i, j] * nu[j]
-                xplus[i] = x[i] + s
+            state_correction_into(LATLON, x, K, nu, hgt[k], dxb, xplus)
         else:
             for i in range(n):
                 xplus[i] = x[i]
@@ -289,39 +254,18 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
         dn = d[0]
         de = d[1]
         ck = cross[k]
+        _mmt(Pplus, Phi, ck)  # smoother numerator P+ Phi^T (- K G B^T when correlated)
         if have and form == FORM_CONSISTENT:
-            BG = BGb[:, :m]
             BGS = BGSb[:, :m]
-            Lg = Lgb[:, :m]
-            _mmt(B, Gs, BG)  # B G^T
-            _mm(BG, Sp, BGS)  # B G^T S^+
+            correlated_noise_predict_into(P, Phi, B, K, Hs, Gs, Sp, Rd[:m], Pn, ck, BGS,
+                                          (Lgb[:, :m], BGb[:, :m], KH, T55, T5e, ones_e,
+                                           minus_m[:m]))
             for j in range(m):  # state correction B G^T S^+ nu (position rows only: the
                 dn += BGS[0, j] * nu[j]  # random-walk columns of B have no G counterpart)
                 de += BGS[1, j] * nu[j]
-            _mm(Phi, K, Lg)  # L = Phi K + B G^T S^+
-            for i in range(n):
-                for j in range(m):
-                    Lg[i, j] += BGS[i, j]
-            _mm(Lg, Hs, KH)  # Phi - L H
-            for i in range(n):
-                for j in range(n):
-                    KH[i, j] = Phi[i, j] - KH[i, j]
-            _mm(KH, P, T55)
-            _mmt(T55, KH, Pn)
-            _mm(Lg, Gs, T5e)  # B - L G
-            for i in range(n):
-                for j in range(ne):
-                    T5e[i, j] = B[i, j] - T5e[i, j]
-            _mdmt_acc(T5e, ones_e, T5e, Pn)  # + (B - L G)(B - L G)^T
-            _mdmt_acc(Lg, Rd, Lg, Pn)  # + L D D^T L^T
-            # smoother numerator P+ Phi^T - K G B^T
-            _mmt(Pplus, Phi, ck)
-            _mdmt_acc(K, minus_m, BG, ck)
         else:
-            _mm(Phi, Pplus, T55)
-            _mmt(T55, Phi, Pn)
+            predict_cov_into(Pplus, Phi, Pn, T55)  # Phi P+ Phi^T + B B^T
             _mdmt_acc(B, ones_e, B, Pn)
-            _mmt(Pplus, Phi, ck)
         lat, lon = boxplus(xplus[0], xplus[1], dn, de, hgt[k])
         x[0] = lat
         x[1] = lon
@@ -379,48 +323,25 @@ def sns_filter(inputs: StepInputs, x0: np.ndarray, P0: np.ndarray, noise: SnsNoi
 
 
 @nb.njit(cache=True, nogil=True)
-def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt):
+def _smoother_kernel(xp, xf, Pp, Pf, cross, hgt, geom=LATLON):
+    """RTS backward pass on the core's step (:func:`~flightrecon.estimation.rts.rts_step`) with
+    the filter's cross-covariances (``C = cross[k]``, which holds the correlated-noise term of
+    the consistent form) in the geometry ``geom`` (latitude/longitude; Euclidean only for the
+    reference test); returns ``xs``, ``Ps`` and the number of predicted covariances that failed
+    their Cholesky factorisation."""
     N, n = xf.shape
     xs = xf.copy()
     Ps = Pf.copy()
-    d = np.zeros(n)
-    dx = np.zeros(n)
-    C = np.zeros((n, n))
-    Lw = np.zeros((n, n))
-    Dd = np.zeros((n, n))
-    T = np.zeros((n, n))
-    Pk = np.zeros((n, n))
+    CT = np.zeros((n, n))
+    work = rts_step_work(n)
     n_fallback = 0
     for k in range(N - 2, -1, -1):
-        # C = cross_k Pp_{k+1}^{-1}: Cholesky solve with the symmetric Pp; a general solve
-        # (which raises LinAlgError if Pp is singular) when it is not positive definite, counted
-        if not _chol_solve_rows(Pp[k + 1], cross[k], Lw, C):
+        for i in range(n):
+            for j in range(n):
+                CT[i, j] = cross[k, j, i]
+        if not rts_step(geom, (xf[k], Pf[k]), (xp[k + 1], Pp[k + 1]), (xs[k + 1], Ps[k + 1]),
+                        CT, (hgt[k], hgt[k + 1]), 1e-14, (xs[k], Ps[k]), work):
             n_fallback += 1
-            C[:, :] = np.linalg.solve(Pp[k + 1], cross[k].T).T
-        dn, de = boxminus(xs[k + 1, 0], xs[k + 1, 1], xp[k + 1, 0], xp[k + 1, 1], hgt[k + 1])
-        d[0] = dn
-        d[1] = de
-        for j in range(2, n):
-            d[j] = xs[k + 1, j] - xp[k + 1, j]
-        for i in range(n):
-            s = 0.0
-            for j in range(n):
-                s += C[i, j] * d[j]
-            dx[i] = s
-        lat, lon = boxplus(xf[k, 0], xf[k, 1], dx[0], dx[1], hgt[k])
-        xs[k, 0] = lat
-        xs[k, 1] = lon
-        for j in range(2, n):
-            xs[k, j] = xf[k, j] + dx[j]
-        for i in range(n):
-            for j in range(n):
-                Dd[i, j] = Ps[k + 1, i, j] - Pp[k + 1, i, j]
-        _mm(C, Dd, T)
-        _mmt(T, C, Pk)
-        for i in range(n):
-            for j in range(n):
-                Pk[i, j] += Pf[k, i, j]
-        _sym_into(Pk, Ps[k])
     return xs, Ps, n_fallback
 
 

@@ -1,5 +1,6 @@
-"""SNS dead-reckoning models: geodetic box-plus/minus, increments, step matrices, SNS
-observation rows, inputs and noise (see :mod:`flightrecon.filters.sns`)."""
+"""SNS dead-reckoning models: increments, step matrices, SNS observation rows, inputs and noise
+(see :mod:`flightrecon.filters.sns`).  The geodetic box-plus/minus of the latitude/longitude
+state are the estimation core's (:mod:`flightrecon.estimation.manifold`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ import numba as nb
 import numpy as np
 
 from flightrecon.estimation.linalg import _chol2_into
-from flightrecon.geo.ellipsoid import WGS84_A, WGS84_E2, radii_from_sin
 
 MODEL_AIRSPEED = 0
 
@@ -29,46 +29,12 @@ N_STATE = 5
 N_EPS1 = 11
 
 
+
+
 STATE_NAMES = {
     MODEL_AIRSPEED: ("north_m", "east_m", "corr_wind_n_mps", "corr_wind_e_mps", "corr_psi_rad"),
     MODEL_DOPPLER: ("north_m", "east_m", "corr_W_scale", "corr_c_rad", "corr_psi_rad"),
 }
-
-
-_A = WGS84_A
-
-
-_E2 = WGS84_E2
-
-
-@nb.njit(cache=True, nogil=True)
-def radii(lat_rad: float, h_m: float) -> tuple[float, float]:
-    """Meridian and prime-vertical radii of curvature plus height, ``(M + h, N + h)`` [m].
-
-    WGS-84 (:func:`flightrecon.geo.ellipsoid.radii_from_sin`).
-    """
-    m, n = radii_from_sin(np.sin(lat_rad))
-    return m + h_m, n + h_m
-
-
-@nb.njit(cache=True, nogil=True)
-def boxplus(lat: float, lon: float, dn: float, de: float, h: float) -> tuple[float, float]:
-    """Move ``(lat, lon)`` [rad] by ``dn`` north and ``de`` east metres in the local-level frame.
-
-    The radii are taken at the mid-latitude of the move (second-order accurate).
-    """
-    mh, nh = radii(lat, h)
-    latm = lat + 0.5 * dn / mh
-    mh, nh = radii(latm, h)
-    return lat + dn / mh, lon + de / (nh * np.cos(latm))
-
-
-@nb.njit(cache=True, nogil=True)
-def boxminus(lat1: float, lon1: float, lat0: float, lon0: float, h: float) -> tuple[float, float]:
-    """North/east metres from ``(lat0, lon0)`` to ``(lat1, lon1)`` [rad] (inverse of boxplus)."""
-    latm = 0.5 * (lat1 + lat0)
-    mh, nh = radii(latm, h)
-    return (lat1 - lat0) * mh, (lon1 - lon0) * nh * np.cos(latm)
 
 
 @nb.njit(cache=True, nogil=True)

@@ -6,13 +6,12 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation.manifold import boxplus, radii
 from flightrecon.filters.sns.filter import _c
 from flightrecon.filters.sns.model import (
     MODEL_AIRSPEED,
     _increment_cs_into,
     _scale_angle,
-    boxplus,
-    radii,
 )
 from flightrecon.geo.ellipsoid import radii_from_sin
 
