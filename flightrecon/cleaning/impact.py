@@ -1,0 +1,234 @@
+"""Ground impact at the end of a record (docs/signals.md, "Impact").
+
+An accident record ends at the impact: the recorder loses power or its data within a fraction
+of a second of the first contact.  The impact is told apart from a landing (even a firm one)
+by what the record does at its very end::
+
+    the largest load-factor magnitude |n| = sqrt(n_long^2 + n_lat^2 + n_norm^2) of the last
+    ``end_window_s`` (3 s) of the record is
+      * a spike: at least ``spike_g`` (1.5 g) above the median |n| of the 3 s before it
+        (``pre_s``) and at least ``peak_g`` (2.5 g) in all, or on a saturated load sample
+        (:mod:`flightrecon.cleaning.saturation`: the accelerometer's range was reached);
+    and the aircraft came down onto it:
+      * the pressure altitude fell at ``sink_mps`` (5 m/s) or more over the ``pre_s`` before
+        the spike (a straight line fitted to the recorded pressure altitude), or the airspeed
+        at the spike was still at least ``airborne_mps`` (20 m/s) and the record ends within
+        ``end_window_s`` of the spike (no roll-out: a landing's record runs on while the
+        aircraft decelerates on the runway);
+    and, where the departure and arrival (the wreckage) elevations are known, the pressure
+    height above the end point at the spike (pressure altitude minus the one at the start of
+    the record on the departure field, less the elevation difference) is below
+    ``max_height_m`` (300 m: a load spike at altitude is an in-flight break-up or a recorder
+    fault, not an impact with the ground).
+
+A firm landing has |n| of 1.5-2.5 g at a sink rate of 1-3.5 m/s and a record that continues
+through the roll-out: none of the rules hold.  The impact time is the first sample within 1 s
+before the peak whose |n| is half-way from the pre-impact median to the peak (or saturated);
+the peak loads are the extremes of each load factor from there to the end of the record
+(a saturated component's true peak is at least the reading: reported as such).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.cleaning.report import report_entry
+from flightrecon.cleaning.saturation import LOAD_FACTORS
+from flightrecon.types import FlightMeta, FlightPhases
+
+__all__ = ["Impact", "ImpactSettings", "detect_impact", "with_impact"]
+
+
+@dataclass(frozen=True)
+class ImpactSettings:
+    """Thresholds of the impact rule (module docstring)."""
+
+    end_window_s: float = 3.0
+    pre_s: float = 3.0
+    spike_g: float = 1.5
+    peak_g: float = 2.5
+    sink_mps: float = 5.0
+    airborne_mps: float = 20.0
+    max_height_m: float = 300.0
+    onset_search_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class Impact:
+    """A detected impact.
+
+    Attributes
+    ----------
+    t_s : time of the first impact sample [s]
+    peak_load_g : largest |n| from ``t_s`` to the end of the record [g]
+    peak_n_long_g, peak_n_lat_g, peak_n_norm_g : each load factor's extreme there (signed) [g]
+    saturated : load factors whose reading there reached the recorder's range (their true
+        peak is at least the reading)
+    pre_load_g : median |n| before the impact [g]
+    sink_rate_mps : descent rate of the pressure altitude before the impact [m/s] (NaN: none)
+    tas_mps : airspeed at the impact [m/s] (NaN: not recorded)
+    height_above_end_m : pressure height above the end point at the impact [m] (NaN: unknown)
+    record_end_t_s : the record's last sample [s]
+    """
+
+    t_s: float
+    peak_load_g: float
+    peak_n_long_g: float
+    peak_n_lat_g: float
+    peak_n_norm_g: float
+    saturated: tuple[str, ...]
+    pre_load_g: float
+    sink_rate_mps: float
+    tas_mps: float
+    height_above_end_m: float
+    record_end_t_s: float
+
+
+def _col(grid: pd.DataFrame, name: str) -> np.ndarray | None:
+    if name not in grid.columns:
+        return None
+    v = grid[name].to_numpy(float)
+    return v if np.isfinite(v).any() else None
+
+
+def _sink_rate(t: np.ndarray, hp: np.ndarray | None, t0: float, t1: float) -> float:
+    """Descent rate [m/s] (positive down) of a line fitted to the pressure altitude on
+    [t0, t1]; NaN with fewer than two samples."""
+    if hp is None:
+        return float("nan")
+    sel = (t >= t0) & (t <= t1) & np.isfinite(hp)
+    if sel.sum() < 2 or np.ptp(t[sel]) <= 0.0:
+        return float("nan")
+    return -float(np.polyfit(t[sel] - t[sel][0], hp[sel], 1)[0])
+
+
+def _height_above_end(grid: pd.DataFrame, meta: FlightMeta | None, phases: FlightPhases | None,
+                      hp_imp: float) -> float:
+    """Pressure height above the arrival point (the wreckage) at the impact [m]: the pressure
+    altitude there minus the one on the departure field (the first 10 s of a record that starts
+    on the ground), less the elevation difference; NaN where either is unknown."""
+    if (meta is None or meta.departure is None or meta.arrival is None or phases is None
+            or phases.starts_airborne or not np.isfinite(hp_imp)):
+        return float("nan")
+    t = grid["t_s"].to_numpy(float)
+    hp = grid["baro_alt_m"].to_numpy(float)
+    first = (t <= t[0] + 10.0) & np.isfinite(hp)
+    if not first.any():
+        return float("nan")
+    return float(hp_imp - np.median(hp[first])
+                 - (meta.arrival.elev_m - meta.departure.elev_m))
+
+
+def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
+                  meta: FlightMeta | None = None,
+                  settings: ImpactSettings = ImpactSettings()
+                  ) -> tuple[Impact | None, list[dict]]:
+    """The impact at the end of the record, if there is one (module docstring).
+
+    Parameters
+    ----------
+    grid : the cleaned grid (load factors, pressure altitude, airspeed; ``<channel>_saturated``
+        where :func:`flightrecon.cleaning.saturation.saturation_on_grid` found any)
+    phases : the detected phases (for the start on the departure field)
+    meta : the flight's metadata (departure and arrival elevations)
+
+    Returns
+    -------
+    (Impact or None, report entries): one ``impact`` entry with the numbers when detected, one
+    ``no_impact`` entry saying which rule failed when the record ends with a load spike that is
+    not an impact.
+    """
+    cols = [_col(grid, c) for c in LOAD_FACTORS]
+    if any(c is None for c in cols) or len(grid) < 3:
+        return None, []
+    t = grid["t_s"].to_numpy(float)
+    nl, nt, nn = (np.asarray(c) for c in cols)
+    mag = np.sqrt(nl ** 2 + nt ** 2 + nn ** 2)
+    sat = np.zeros(len(t), bool)
+    for c in LOAD_FACTORS:
+        if f"{c}_saturated" in grid.columns:
+            sat |= grid[f"{c}_saturated"].to_numpy(bool)
+    s = settings
+    t_end = float(t[-1])
+    last = (t >= t_end - s.end_window_s) & np.isfinite(mag)
+    if not last.any():
+        return None, []
+    il = np.flatnonzero(last)
+    k_peak = int(il[np.argmax(mag[il])])
+    peak = float(mag[k_peak])
+    pre_sel = (t >= t[k_peak] - s.onset_search_s - s.pre_s) & (t < t[k_peak] - s.onset_search_s) \
+        & np.isfinite(mag)
+    pre = float(np.median(mag[pre_sel])) if pre_sel.any() else 1.0
+    sat_end = bool(sat[il].any())
+    spike = (peak - pre >= s.spike_g and peak >= s.peak_g) or sat_end
+    if not spike:
+        return None, []
+    # onset: the first sample within onset_search_s before the peak half-way up (or saturated)
+    half = pre + 0.5 * (peak - pre)
+    cand = np.flatnonzero((t >= t[k_peak] - s.onset_search_s) & (t <= t[k_peak])
+                          & ((mag >= half) | sat))
+    k0 = int(cand[0]) if len(cand) else k_peak
+    t_imp = float(t[k0])
+    hp = _col(grid, "baro_alt_m")
+    sink = _sink_rate(t, hp, t_imp - s.pre_s, t_imp - 0.25)
+    tas_c = _col(grid, "tas_mps")
+    tas = float(tas_c[k0]) if tas_c is not None and np.isfinite(tas_c[k0]) else float("nan")
+    hp_imp = float("nan")
+    if hp is not None:
+        okh = np.flatnonzero(np.isfinite(hp[: k0 + 1]))
+        hp_imp = float(hp[okh[-1]]) if len(okh) else float("nan")
+    h_end = _height_above_end(grid, meta, phases, hp_imp)
+    came_down = (np.isfinite(sink) and sink >= s.sink_mps) or (
+        np.isfinite(tas) and tas >= s.airborne_mps and t_end - t[k_peak] <= s.end_window_s)
+    low = not (np.isfinite(h_end) and h_end > s.max_height_m)
+    facts = dict(peak_load_g=peak, pre_load_g=pre, sink_rate_mps=sink, tas_mps=tas,
+                 height_above_end_m=h_end)
+    if not (came_down and low):
+        why = ("the load spike at the end of the record is not an impact: "
+               + ("no descent onto it (pressure altitude falling at "
+                  f"{sink:.1f} m/s < {s.sink_mps:g} m/s, airspeed {tas:.0f} m/s)"
+                  if not came_down else
+                  f"{h_end:.0f} m above the end point (> {s.max_height_m:g} m)"))
+        return None, [report_entry("phases", "no_impact", why, count=1, t_s=[t_imp],
+                                   **{k: float(v) for k, v in facts.items()})]
+    win = slice(k0, len(t))
+    peaks = []
+    satd = []
+    for c, x in zip(LOAD_FACTORS, (nl, nt, nn)):
+        seg = x[win]
+        ref = 1.0 if c == "n_norm_g" else 0.0
+        j = int(np.nanargmax(np.abs(seg - ref)))
+        peaks.append(float(seg[j]))
+        if f"{c}_saturated" in grid.columns and grid[f"{c}_saturated"].to_numpy(bool)[win].any():
+            satd.append(c)
+    peak_all = float(np.nanmax(mag[win]))
+    imp = Impact(t_s=t_imp, peak_load_g=peak_all, peak_n_long_g=peaks[0], peak_n_lat_g=peaks[1],
+                 peak_n_norm_g=peaks[2], saturated=tuple(satd), pre_load_g=pre,
+                 sink_rate_mps=sink, tas_mps=tas, height_above_end_m=h_end,
+                 record_end_t_s=t_end)
+    sat_txt = (f"; saturated: {', '.join(satd)} (true peak at least the reading)" if satd
+               else "")
+    why = (f"load spike at the end of the record: |n| {peak_all:.2f} g against {pre:.2f} g "
+           f"before{sat_txt}; descent {sink:.1f} m/s, airspeed {tas:.0f} m/s"
+           + (f", {h_end:.0f} m above the end point" if np.isfinite(h_end) else "")
+           + f"; record ends {t_end - t_imp:.2f} s later")
+    facts["peak_load_g"] = peak_all
+    rep = report_entry("phases", "impact", why, count=1, t_s=[t_imp],
+                       peak_n_long_g=peaks[0], peak_n_lat_g=peaks[1], peak_n_norm_g=peaks[2],
+                       saturated=",".join(satd), record_end_t_s=t_end,
+                       **{k: float(v) for k, v in facts.items()})
+    return imp, [rep]
+
+
+def with_impact(grid: pd.DataFrame, phases: FlightPhases | None, meta: FlightMeta | None,
+                settings: ImpactSettings = ImpactSettings()
+                ) -> tuple[FlightPhases | None, list[dict]]:
+    """``phases`` with the impact's time and peak load (``impact_t_s``,
+    ``impact_peak_load_g``) from :func:`detect_impact`, and its report entries."""
+    imp, rep = detect_impact(grid, phases, meta, settings)
+    if imp is None or phases is None:
+        return phases, rep
+    return replace(phases, impact_t_s=imp.t_s, impact_peak_load_g=imp.peak_load_g), rep

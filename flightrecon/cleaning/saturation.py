@@ -1,0 +1,185 @@
+"""Recorder saturation: samples stuck at the end of a channel's range (docs/signals.md,
+"Saturation").
+
+A recorder channel has a range (an accelerometer's +-2 g, an airspeed indicator's top of
+scale, a rate gyro's +-500 deg/s); beyond it the reading stays at the bound.  The range is
+rarely in the metadata, so the bound is found in the data.  For each saturable channel the
+record's largest value ``L`` (and likewise its smallest) is a *saturation level* when
+
+1. at least ``min_samples`` (2) samples read exactly ``L`` (within ``1e-9 max(1, |L|)``: a
+   clipped reading is the bound itself, the quantised noise of a real signal rarely repeats its
+   extreme), and
+2. ``L`` lies far from the channel's bulk: ``|L - median| >= MIN_EXCURSION`` of the channel's
+   unit (0.5 g, 5 m/s, 10 deg/s; a level near the median is quantised flight at rest, not a
+   range limit), and
+3. one of: ``L`` is the channel's physical bound of the schema (validation clipped readings
+   just beyond it to the bound, :data:`flightrecon.ingest.validate.CLIP_MARGIN`); a run of at
+   least ``min_run`` (3) consecutive samples reads ``L`` (a flat top: a real signal at its
+   extreme is not constant to the last bit for three samples); or ``L`` stands apart from
+   every other value by at least ``gap_factor`` (10) robust standard deviations of the
+   sample-to-sample change (and at least a quarter of ``MIN_EXCURSION``): the signal jumps
+   onto the bound (an impact's load spike clipped at the accelerometer's range).
+
+A single sample at ``-L`` where ``L`` is a detected level is flagged too (a symmetric range,
+the lateral accelerometer's +-2 g: the impact may reach the other end only once).
+
+The airspeed channels' level 0 is not a saturation (the indicator's floor at rest on the
+ground, a true reading of "slow").  Every sample at a saturation level is flagged: on the
+grid ``<channel>_saturated`` is True wherever the value was interpolated from (or is) a
+saturated sample.  The values are kept (they are the recorder's), and the consumers decide:
+the joint smoother treats a saturated load factor as missing (acceleration noise added over
+the step, :mod:`flightrecon.filters.joint.nominal`), the true value being at least the bound;
+Sabziev's fit and the dead reckoning integrate the readings as recorded (the error is the
+excess beyond the bound, over the saturated samples only; docs/signals.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.cleaning.report import report_entry
+from flightrecon.schema import BY_NAME
+
+__all__ = ["SATURABLE", "SaturationSettings", "detect_saturation", "saturated_loads",
+           "saturation_levels", "saturation_on_grid"]
+
+#: channels a recorder's range can clip (load factors, air data speeds, body rates)
+SATURABLE: tuple[str, ...] = ("n_long_g", "n_lat_g", "n_norm_g", "tas_mps", "ias_mps",
+                              "cas_mps", "doppler_gs_mps", "p_dps", "q_dps", "r_dps")
+#: smallest distance of a saturation level from the channel's median, per unit
+MIN_EXCURSION: dict[str, float] = {"g": 0.5, "m/s": 5.0, "deg/s": 10.0}
+_SPEEDS = ("tas_mps", "ias_mps", "cas_mps", "doppler_gs_mps")
+LOAD_FACTORS: tuple[str, ...] = ("n_long_g", "n_lat_g", "n_norm_g")
+
+
+@dataclass(frozen=True)
+class SaturationSettings:
+    """Thresholds of the saturation rule (module docstring)."""
+
+    min_samples: int = 2
+    min_run: int = 3
+    gap_factor: float = 10.0
+
+
+def _longest_run(mask: np.ndarray) -> int:
+    if not mask.any():
+        return 0
+    m = np.concatenate(([0], mask.astype(np.int8), [0]))
+    d = np.diff(m)
+    return int(np.max(np.flatnonzero(d == -1) - np.flatnonzero(d == 1)))
+
+
+def saturation_levels(name: str, x: np.ndarray, settings: SaturationSettings = SaturationSettings()
+                      ) -> list[tuple[str, float, np.ndarray, str]]:
+    """The saturation levels of channel ``name`` in its samples ``x`` (finite values, in time
+    order): ``(end, level, mask, evidence)`` per level, ``end`` ``"low"`` / ``"high"``,
+    ``mask`` the samples at the level (module docstring for the rule)."""
+    ch = BY_NAME[name]
+    x = np.asarray(x, float)
+    if len(x) < settings.min_samples:
+        return []
+    floor = MIN_EXCURSION.get(ch.unit, 0.0)
+    med = float(np.median(x))
+    dx = np.diff(x)
+    s = 1.4826 * float(np.median(np.abs(dx - np.median(dx)))) if len(dx) else 0.0
+    out: list[tuple[str, float, np.ndarray, str]] = []
+    for end, level in (("low", float(np.min(x))), ("high", float(np.max(x)))):
+        if name in _SPEEDS and level == 0.0:
+            continue
+        tol = 1e-9 * max(1.0, abs(level))
+        at = np.abs(x - level) <= tol
+        if int(at.sum()) < settings.min_samples or abs(level - med) < floor:
+            continue
+        bound = ch.lo if end == "low" else ch.hi
+        rest = x[~at]
+        gap = float(np.min(np.abs(rest - level))) if len(rest) else 0.0
+        if abs(level - bound) <= tol:
+            why = f"at the physical bound {bound:g} {ch.unit}"
+        elif _longest_run(at) >= settings.min_run:
+            why = f"flat top: {_longest_run(at)} consecutive samples at the level"
+        elif gap >= max(settings.gap_factor * s, 0.25 * floor) and gap > 0.0:
+            why = (f"jumps onto the level: {gap:.3g} {ch.unit} from every other value "
+                   f"({gap / s if s > 0 else float('inf'):.3g} robust sd of the "
+                   "sample-to-sample change)")
+        else:
+            continue
+        out.append((end, level, at, why))
+    if len(out) == 1:  # a symmetric range: one sample at the mirror of a detected limit
+        end, level = out[0][0], out[0][1]
+        other = float(np.max(x)) if end == "low" else float(np.min(x))
+        tol = 1e-9 * max(1.0, abs(level))
+        if level != 0.0 and abs(other + level) <= tol:
+            at = np.abs(x - other) <= tol
+            out.append(("high" if end == "low" else "low", other, at,
+                        f"the mirror of the detected {level:g} limit (a symmetric range)"))
+    return out
+
+
+def detect_saturation(data: pd.DataFrame, settings: SaturationSettings = SaturationSettings()
+                      ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], list[dict]]:
+    """Saturated samples of every saturable channel of ``data`` (the time-resolved table,
+    each channel on its own samples).
+
+    Returns
+    -------
+    masks : dict
+        channel -> (sample times [s], saturated flag per sample), for the channels with a
+        saturation level
+    report : list of dict
+        One ``saturation`` entry per level: its value, the evidence, the times of the samples.
+    """
+    t_all = data["t_s"].to_numpy(float)
+    masks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    rep: list[dict] = []
+    for c in SATURABLE:
+        if c not in data.columns:
+            continue
+        v = data[c].to_numpy(float)
+        ok = np.isfinite(v)
+        if ok.sum() < settings.min_samples:
+            continue
+        t, x = t_all[ok], v[ok]
+        levels = saturation_levels(c, x, settings)
+        if not levels:
+            continue
+        sat = np.zeros(len(x), bool)
+        for end, level, at, why in levels:
+            sat |= at
+            unit = BY_NAME[c].unit
+            rep.append(report_entry(
+                c, "saturation", f"{int(at.sum())} sample(s) at the recorder's {end} range "
+                f"limit {level:g} {unit} ({why}); kept, flagged {c}_saturated: the true value "
+                f"is at least as far out", count=int(at.sum()), t_s=t[at], level=level,
+                end=end))
+        masks[c] = (t, sat)
+    return masks, rep
+
+
+def saturation_on_grid(grid: pd.DataFrame, masks: dict[str, tuple[np.ndarray, np.ndarray]]
+                       ) -> pd.DataFrame:
+    """``grid`` with a boolean ``<channel>_saturated`` column per channel of ``masks``: True
+    at the grid points whose value is, or is interpolated from, a saturated sample."""
+    if not masks:
+        return grid
+    g = grid.copy()
+    tg = g["t_s"].to_numpy(float)
+    for c, (t, sat) in masks.items():
+        if c not in g.columns:
+            continue
+        # a grid point between two samples takes part of each: flagged if either is saturated
+        f = np.interp(tg, t, sat.astype(float), left=float(sat[0]), right=float(sat[-1]))
+        g[f"{c}_saturated"] = f > 0.0
+    return g
+
+
+def saturated_loads(grid: pd.DataFrame) -> np.ndarray:
+    """Grid points where any load factor is at the recorder's range (``<channel>_saturated``
+    of :func:`saturation_on_grid`); all False without saturation columns."""
+    out = np.zeros(len(grid), bool)
+    for c in LOAD_FACTORS:
+        if f"{c}_saturated" in grid.columns:
+            out |= grid[f"{c}_saturated"].to_numpy(bool)
+    return out
