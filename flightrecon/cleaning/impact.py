@@ -4,28 +4,29 @@ An accident record ends at the impact: the recorder loses power or its data with
 of a second of the first contact.  The impact is told apart from a landing (even a firm one)
 by what the record does at its very end::
 
-    the largest load-factor magnitude |n| = sqrt(n_long^2 + n_lat^2 + n_norm^2) of the last
-    ``end_window_s`` (3 s) of the record is
-      * a spike: at least ``spike_g`` (1.5 g) above the median |n| of the 3 s before it
-        (``pre_s``) and at least ``peak_g`` (2.5 g) in all, or on a saturated load sample
-        (:mod:`flightrecon.cleaning.saturation`: the accelerometer's range was reached);
+    within the last ``end_window_s`` (3 s) of the record, a jolt: the load vector
+    n = (n_long, n_lat, n_norm) changes by at least ``jump_g`` (1.5 g) from one sample to the
+    next with |n| at least ``peak_g`` (2.5 g) on one of the two, or a load factor reads at the
+    recorder's range (:mod:`flightrecon.cleaning.saturation`; a clipped impact can even lower
+    |n|: the change of the vector, not its magnitude, is the test);
     and the aircraft came down onto it:
-      * the pressure altitude fell at ``sink_mps`` (5 m/s) or more over the ``pre_s`` before
-        the spike (a straight line fitted to the recorded pressure altitude), or the airspeed
-        at the spike was still at least ``airborne_mps`` (20 m/s) and the record ends within
-        ``end_window_s`` of the spike (no roll-out: a landing's record runs on while the
+      * the pressure altitude fell at ``sink_mps`` (5 m/s) or more over the ``pre_s`` (3 s)
+        before the jolt (a straight line fitted to the recorded pressure altitude), or the
+        airspeed at the jolt was still at least ``airborne_mps`` (20 m/s) (the record ends
+        within ``end_window_s`` of it: no roll-out; a landing's record runs on while the
         aircraft decelerates on the runway);
     and, where the departure and arrival (the wreckage) elevations are known, the pressure
-    height above the end point at the spike (pressure altitude minus the one at the start of
+    height above the end point at the jolt (pressure altitude minus the one at the start of
     the record on the departure field, less the elevation difference) is below
     ``max_height_m`` (300 m: a load spike at altitude is an in-flight break-up or a recorder
     fault, not an impact with the ground).
 
 A firm landing has |n| of 1.5-2.5 g at a sink rate of 1-3.5 m/s and a record that continues
-through the roll-out: none of the rules hold.  The impact time is the first sample within 1 s
-before the peak whose |n| is half-way from the pre-impact median to the peak (or saturated);
-the peak loads are the extremes of each load factor from there to the end of the record
-(a saturated component's true peak is at least the reading: reported as such).
+through the roll-out: its touchdown is not in the record's last seconds.  The impact time is
+the first jolting (or saturated) sample of the last ``end_window_s``; the peak loads are the
+extremes of each load factor from there to the end of the record (a saturated component's
+true peak is at least the reading: reported as such), ``pre_load_g`` the median |n| over the
+``pre_s`` before it.
 """
 
 from __future__ import annotations
@@ -48,12 +49,11 @@ class ImpactSettings:
 
     end_window_s: float = 3.0
     pre_s: float = 3.0
-    spike_g: float = 1.5
+    jump_g: float = 1.5
     peak_g: float = 2.5
     sink_mps: float = 5.0
     airborne_mps: float = 20.0
     max_height_m: float = 300.0
-    onset_search_s: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -153,25 +153,21 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
             sat |= grid[f"{c}_saturated"].to_numpy(bool)
     s = settings
     t_end = float(t[-1])
-    last = (t >= t_end - s.end_window_s) & np.isfinite(mag)
-    if not last.any():
+    fin = np.isfinite(mag)
+    # the change of the load vector from the previous sample [g]
+    dev = np.full(len(t), np.nan)
+    dev[1:] = np.sqrt((nl[1:] - nl[:-1]) ** 2 + (nt[1:] - nt[:-1]) ** 2
+                      + (nn[1:] - nn[:-1]) ** 2)
+    big = np.maximum(mag, np.r_[np.nan, mag[:-1]])
+    jolt = (dev >= s.jump_g) & (big >= s.peak_g)
+    last = (t >= t_end - s.end_window_s) & fin
+    cand = np.flatnonzero(last & (jolt | sat))
+    if not len(cand):
         return None, []
-    il = np.flatnonzero(last)
-    k_peak = int(il[np.argmax(mag[il])])
-    peak = float(mag[k_peak])
-    pre_sel = (t >= t[k_peak] - s.onset_search_s - s.pre_s) & (t < t[k_peak] - s.onset_search_s) \
-        & np.isfinite(mag)
-    pre = float(np.median(mag[pre_sel])) if pre_sel.any() else 1.0
-    sat_end = bool(sat[il].any())
-    spike = (peak - pre >= s.spike_g and peak >= s.peak_g) or sat_end
-    if not spike:
-        return None, []
-    # onset: the first sample within onset_search_s before the peak half-way up (or saturated)
-    half = pre + 0.5 * (peak - pre)
-    cand = np.flatnonzero((t >= t[k_peak] - s.onset_search_s) & (t <= t[k_peak])
-                          & ((mag >= half) | sat))
-    k0 = int(cand[0]) if len(cand) else k_peak
+    k0 = int(cand[0])
     t_imp = float(t[k0])
+    pre_sel = (t >= t_imp - s.pre_s - 0.25) & (t < t_imp - 0.25) & fin
+    pre = float(np.median(mag[pre_sel])) if pre_sel.any() else float("nan")
     hp = _col(grid, "baro_alt_m")
     sink = _sink_rate(t, hp, t_imp - s.pre_s, t_imp - 0.25)
     tas_c = _col(grid, "tas_mps")
@@ -181,10 +177,10 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
         okh = np.flatnonzero(np.isfinite(hp[: k0 + 1]))
         hp_imp = float(hp[okh[-1]]) if len(okh) else float("nan")
     h_end = _height_above_end(grid, meta, phases, hp_imp)
-    came_down = (np.isfinite(sink) and sink >= s.sink_mps) or (
-        np.isfinite(tas) and tas >= s.airborne_mps and t_end - t[k_peak] <= s.end_window_s)
+    came_down = bool((np.isfinite(sink) and sink >= s.sink_mps)
+                     or (np.isfinite(tas) and tas >= s.airborne_mps))
     low = not (np.isfinite(h_end) and h_end > s.max_height_m)
-    facts = dict(peak_load_g=peak, pre_load_g=pre, sink_rate_mps=sink, tas_mps=tas,
+    facts = dict(peak_load_g=float(np.nanmax(mag[k0:])), pre_load_g=pre, sink_rate_mps=sink, tas_mps=tas,
                  height_above_end_m=h_end)
     if not (came_down and low):
         why = ("the load spike at the end of the record is not an impact: "
@@ -215,7 +211,6 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
            f"before{sat_txt}; descent {sink:.1f} m/s, airspeed {tas:.0f} m/s"
            + (f", {h_end:.0f} m above the end point" if np.isfinite(h_end) else "")
            + f"; record ends {t_end - t_imp:.2f} s later")
-    facts["peak_load_g"] = peak_all
     rep = report_entry("phases", "impact", why, count=1, t_s=[t_imp],
                        peak_n_long_g=peaks[0], peak_n_lat_g=peaks[1], peak_n_norm_g=peaks[2],
                        saturated=",".join(satd), record_end_t_s=t_end,

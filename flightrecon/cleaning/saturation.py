@@ -21,7 +21,10 @@ record's largest value ``L`` (and likewise its smallest) is a *saturation level*
    onto the bound (an impact's load spike clipped at the accelerometer's range).
 
 A single sample at ``-L`` where ``L`` is a detected level is flagged too (a symmetric range,
-the lateral accelerometer's +-2 g: the impact may reach the other end only once).
+the lateral accelerometer's +-2 g: the impact may reach the other end only once), and so is a
+load factor's lone extreme sample that stands apart by the gap rule of 3. when another load
+factor saturates (or has such a lone extreme) within one sample period: an impact drives the
+accelerometer triad to its range in one sample.
 
 The airspeed channels' level 0 is not a saturation (the indicator's floor at rest on the
 ground, a true reading of "slow").  Every sample at a saturation level is flagged: on the
@@ -36,6 +39,7 @@ excess beyond the bound, over the saturated samples only; docs/signals.md).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -43,7 +47,7 @@ import pandas as pd
 from flightrecon.cleaning.report import report_entry
 from flightrecon.schema import BY_NAME
 
-__all__ = ["SATURABLE", "SaturationSettings", "detect_saturation", "saturated_loads",
+__all__ = ["SATURABLE", "Level", "SaturationSettings", "detect_saturation", "saturated_loads",
            "saturation_levels", "saturation_on_grid"]
 
 #: channels a recorder's range can clip (load factors, air data speeds, body rates)
@@ -72,49 +76,66 @@ def _longest_run(mask: np.ndarray) -> int:
     return int(np.max(np.flatnonzero(d == -1) - np.flatnonzero(d == 1)))
 
 
+class Level(NamedTuple):
+    """One saturation level of a channel: ``end`` ``"low"`` / ``"high"``, its ``value``, the
+    samples at it (``mask``), the evidence (``why``); ``single``: a lone sample that stands
+    apart, a saturation only where another load factor saturates at the same time."""
+
+    end: str
+    value: float
+    mask: np.ndarray
+    why: str
+    single: bool = False
+
+
 def saturation_levels(name: str, x: np.ndarray, settings: SaturationSettings = SaturationSettings()
-                      ) -> list[tuple[str, float, np.ndarray, str]]:
+                      ) -> list[Level]:
     """The saturation levels of channel ``name`` in its samples ``x`` (finite values, in time
-    order): ``(end, level, mask, evidence)`` per level, ``end`` ``"low"`` / ``"high"``,
-    ``mask`` the samples at the level (module docstring for the rule)."""
+    order; module docstring for the rule), and the lone extreme samples that stand apart
+    (``single``)."""
     ch = BY_NAME[name]
     x = np.asarray(x, float)
-    if len(x) < settings.min_samples:
+    if len(x) < 2:
         return []
     floor = MIN_EXCURSION.get(ch.unit, 0.0)
     med = float(np.median(x))
     dx = np.diff(x)
     s = 1.4826 * float(np.median(np.abs(dx - np.median(dx)))) if len(dx) else 0.0
-    out: list[tuple[str, float, np.ndarray, str]] = []
+    out: list[Level] = []
     for end, level in (("low", float(np.min(x))), ("high", float(np.max(x)))):
         if name in _SPEEDS and level == 0.0:
             continue
         tol = 1e-9 * max(1.0, abs(level))
         at = np.abs(x - level) <= tol
-        if int(at.sum()) < settings.min_samples or abs(level - med) < floor:
+        if abs(level - med) < floor:
             continue
         bound = ch.lo if end == "low" else ch.hi
         rest = x[~at]
         gap = float(np.min(np.abs(rest - level))) if len(rest) else 0.0
+        apart = gap >= max(settings.gap_factor * s, 0.25 * floor) and gap > 0.0
+        jump = (f"jumps onto the level: {gap:.3g} {ch.unit} from every other value "
+                f"({gap / s if s > 0 else float('inf'):.3g} robust sd of the "
+                "sample-to-sample change)")
+        if int(at.sum()) < settings.min_samples:
+            if apart:
+                out.append(Level(end, level, at, "a lone sample that " + jump, single=True))
+            continue
         if abs(level - bound) <= tol:
             why = f"at the physical bound {bound:g} {ch.unit}"
         elif _longest_run(at) >= settings.min_run:
             why = f"flat top: {_longest_run(at)} consecutive samples at the level"
-        elif gap >= max(settings.gap_factor * s, 0.25 * floor) and gap > 0.0:
-            why = (f"jumps onto the level: {gap:.3g} {ch.unit} from every other value "
-                   f"({gap / s if s > 0 else float('inf'):.3g} robust sd of the "
-                   "sample-to-sample change)")
+        elif apart:
+            why = jump
         else:
             continue
-        out.append((end, level, at, why))
-    if len(out) == 1:  # a symmetric range: one sample at the mirror of a detected limit
-        end, level = out[0][0], out[0][1]
-        other = float(np.max(x)) if end == "low" else float(np.min(x))
+        out.append(Level(end, level, at, why))
+    full = [lv for lv in out if not lv.single]
+    if len(full) == 1:  # a symmetric range: one sample at the mirror of a detected limit
+        level = full[0].value
         tol = 1e-9 * max(1.0, abs(level))
-        if level != 0.0 and abs(other + level) <= tol:
-            at = np.abs(x - other) <= tol
-            out.append(("high" if end == "low" else "low", other, at,
-                        f"the mirror of the detected {level:g} limit (a symmetric range)"))
+        out = [lv if not (lv.single and level != 0.0 and abs(lv.value + level) <= tol)
+               else lv._replace(single=False, why=f"the mirror of the detected {level:g} "
+                                "limit (a symmetric range)") for lv in out]
     return out
 
 
@@ -132,29 +153,45 @@ def detect_saturation(data: pd.DataFrame, settings: SaturationSettings = Saturat
         One ``saturation`` entry per level: its value, the evidence, the times of the samples.
     """
     t_all = data["t_s"].to_numpy(float)
-    masks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    rep: list[dict] = []
+    found: dict[str, tuple[np.ndarray, list[Level]]] = {}
     for c in SATURABLE:
         if c not in data.columns:
             continue
         v = data[c].to_numpy(float)
         ok = np.isfinite(v)
-        if ok.sum() < settings.min_samples:
+        if ok.sum() < 2:
             continue
-        t, x = t_all[ok], v[ok]
-        levels = saturation_levels(c, x, settings)
-        if not levels:
-            continue
-        sat = np.zeros(len(x), bool)
-        for end, level, at, why in levels:
-            sat |= at
-            unit = BY_NAME[c].unit
+        levels = saturation_levels(c, v[ok], settings)
+        if levels:
+            found[c] = (t_all[ok], levels)
+    # lone load-factor extremes count where another load factor saturates (or jumps onto its
+    # extreme) within one sample period: the impact drove the accelerometer triad to its range
+    hits = {c: np.concatenate([t[lv.mask] for lv in lvs]) for c, (t, lvs) in found.items()
+            if c in LOAD_FACTORS}
+    masks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    rep: list[dict] = []
+    for c, (t, levels) in found.items():
+        period = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+        others = [hits[o] for o in hits if o != c]
+        other_t = np.concatenate(others) if others else np.empty(0)
+        sat = np.zeros(len(t), bool)
+        unit = BY_NAME[c].unit
+        for lv in levels:
+            why = lv.why
+            if lv.single:
+                ts = t[lv.mask]
+                if c not in LOAD_FACTORS or not len(other_t) or np.min(
+                        np.abs(other_t - ts[0])) > 1.001 * period:
+                    continue
+                why += "; at the same sample as another load factor's"
+            sat |= lv.mask
+            n = int(lv.mask.sum())
             rep.append(report_entry(
-                c, "saturation", f"{int(at.sum())} sample(s) at the recorder's {end} range "
-                f"limit {level:g} {unit} ({why}); kept, flagged {c}_saturated: the true value "
-                f"is at least as far out", count=int(at.sum()), t_s=t[at], level=level,
-                end=end))
-        masks[c] = (t, sat)
+                c, "saturation", f"{n} sample(s) at the recorder's {lv.end} range limit "
+                f"{lv.value:g} {unit} ({why}); kept, flagged {c}_saturated: the true value is "
+                "at least as far out", count=n, t_s=t[lv.mask], level=lv.value, end=lv.end))
+        if sat.any():
+            masks[c] = (t, sat)
     return masks, rep
 
 
