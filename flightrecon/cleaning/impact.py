@@ -21,6 +21,14 @@ by what the record does at its very end::
     ``max_height_m`` (300 m: a load spike at altitude is an in-flight break-up or a recorder
     fault, not an impact with the ground).
 
+A crash sequence (a tumble or bounces along the ground before the record stops) is followed
+back from that jolt: an earlier jolt (or saturated load) within ``chain_height_m`` (30 m) of
+the final pressure altitude and at most ``chain_gap_s`` (10 s: a bounce to 40 m and back
+takes about 6 s) before the last one found is part of it, and the impact is the sequence's
+first.  A touchdown the phase detection placed inside
+or after the sequence (the gear touching in the tumble) is no landing: it is removed
+(:func:`with_impact`, reported).
+
 A firm landing has |n| of 1.5-2.5 g at a sink rate of 1-3.5 m/s and a record that continues
 through the roll-out: its touchdown is not in the record's last seconds.  The impact time is
 the first jolting (or saturated) sample of the last ``end_window_s``; the peak loads are the
@@ -54,6 +62,8 @@ class ImpactSettings:
     sink_mps: float = 5.0
     airborne_mps: float = 20.0
     max_height_m: float = 300.0
+    chain_gap_s: float = 10.0
+    chain_height_m: float = 30.0
 
 
 @dataclass(frozen=True)
@@ -165,10 +175,20 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
     if not len(cand):
         return None, []
     k0 = int(cand[0])
+    hp = _col(grid, "baro_alt_m")
+    if hp is not None:   # back along a crash sequence: earlier jolts near the same height
+        okh = np.isfinite(hp)
+        hpf = np.interp(t, t[okh], hp[okh])
+        h_last = hpf[int(cand[-1])]
+        prior = np.flatnonzero((jolt | sat) & fin & (np.abs(hpf - h_last) <= s.chain_height_m))
+        while True:
+            j = prior[prior < k0]
+            if not len(j) or t[k0] - t[j[-1]] > s.chain_gap_s:
+                break
+            k0 = int(j[-1])
     t_imp = float(t[k0])
     pre_sel = (t >= t_imp - s.pre_s - 0.25) & (t < t_imp - 0.25) & fin
     pre = float(np.median(mag[pre_sel])) if pre_sel.any() else float("nan")
-    hp = _col(grid, "baro_alt_m")
     sink = _sink_rate(t, hp, t_imp - s.pre_s, t_imp - 0.25)
     tas_c = _col(grid, "tas_mps")
     tas = float(tas_c[k0]) if tas_c is not None and np.isfinite(tas_c[k0]) else float("nan")
@@ -207,7 +227,7 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
                  record_end_t_s=t_end)
     sat_txt = (f"; saturated: {', '.join(satd)} (true peak at least the reading)" if satd
                else "")
-    why = (f"load spike at the end of the record: |n| {peak_all:.2f} g against {pre:.2f} g "
+    why = (f"ground impact: load jolt to |n| {peak_all:.2f} g against {pre:.2f} g "
            f"before{sat_txt}; descent {sink:.1f} m/s, airspeed {tas:.0f} m/s"
            + (f", {h_end:.0f} m above the end point" if np.isfinite(h_end) else "")
            + f"; record ends {t_end - t_imp:.2f} s later")
@@ -226,4 +246,11 @@ def with_impact(grid: pd.DataFrame, phases: FlightPhases | None, meta: FlightMet
     imp, rep = detect_impact(grid, phases, meta, settings)
     if imp is None or phases is None:
         return phases, rep
-    return replace(phases, impact_t_s=imp.t_s, impact_peak_load_g=imp.peak_load_g), rep
+    td = phases.touchdown_t_s
+    if np.isfinite(td) and td >= imp.t_s:
+        rep.append(report_entry("phases", "touchdown_removed", f"the touchdown at {td:.2f} s "
+                                f"lies in the crash sequence that starts at {imp.t_s:.2f} s: "
+                                "a contact of the impact, not a landing", count=1, t_s=[td]))
+        td = float("nan")
+    return replace(phases, impact_t_s=imp.t_s, impact_peak_load_g=imp.peak_load_g,
+                   touchdown_t_s=td), rep

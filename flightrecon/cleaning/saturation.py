@@ -23,8 +23,10 @@ record's largest value ``L`` (and likewise its smallest) is a *saturation level*
 A single sample at ``-L`` where ``L`` is a detected level is flagged too (a symmetric range,
 the lateral accelerometer's +-2 g: the impact may reach the other end only once), and so is a
 load factor's lone extreme sample that stands apart by the gap rule of 3. when another load
-factor saturates (or has such a lone extreme) within one sample period: an impact drives the
-accelerometer triad to its range in one sample.
+factor saturates within one sample period, or has a lone extreme of the same magnitude there
+(the triad's common range, +-2 g on both horizontal axes): an impact drives the accelerometers
+to their range in one sample.  (A touchdown's lone extremes, 3.2 g and -1.4 g, differ: not
+flagged.)
 
 The airspeed channels' level 0 is not a saturation (the indicator's floor at rest on the
 ground, a true reading of "slow").  Every sample at a saturation level is flagged: on the
@@ -164,26 +166,38 @@ def detect_saturation(data: pd.DataFrame, settings: SaturationSettings = Saturat
         levels = saturation_levels(c, v[ok], settings)
         if levels:
             found[c] = (t_all[ok], levels)
-    # lone load-factor extremes count where another load factor saturates (or jumps onto its
-    # extreme) within one sample period: the impact drove the accelerometer triad to its range
-    hits = {c: np.concatenate([t[lv.mask] for lv in lvs]) for c, (t, lvs) in found.items()
-            if c in LOAD_FACTORS}
+    # a lone load-factor extreme counts where another load factor saturates within one sample
+    # period, or has a lone extreme of the same magnitude there (a triad's common range: the
+    # impact drove the accelerometers to it in one sample)
+    conf = {c: np.concatenate([t[lv.mask] for lv in lvs if not lv.single] or [np.empty(0)])
+            for c, (t, lvs) in found.items() if c in LOAD_FACTORS}
+    lone = {c: [(float(t[lv.mask][0]), abs(lv.value)) for lv in lvs if lv.single]
+            for c, (t, lvs) in found.items() if c in LOAD_FACTORS}
+
+    def confirmed(c: str, t0: float, mag: float, period: float) -> bool:
+        for o in conf:
+            if o == c:
+                continue
+            if len(conf[o]) and np.min(np.abs(conf[o] - t0)) <= 1.001 * period:
+                return True
+            if any(abs(t1 - t0) <= 1.001 * period and abs(m1 - mag) <= 1e-9 * max(1.0, mag)
+                   for t1, m1 in lone[o]):
+                return True
+        return False
+
     masks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     rep: list[dict] = []
     for c, (t, levels) in found.items():
         period = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
-        others = [hits[o] for o in hits if o != c]
-        other_t = np.concatenate(others) if others else np.empty(0)
         sat = np.zeros(len(t), bool)
         unit = BY_NAME[c].unit
         for lv in levels:
             why = lv.why
             if lv.single:
-                ts = t[lv.mask]
-                if c not in LOAD_FACTORS or not len(other_t) or np.min(
-                        np.abs(other_t - ts[0])) > 1.001 * period:
+                if c not in LOAD_FACTORS or not confirmed(c, float(t[lv.mask][0]),
+                                                          abs(lv.value), period):
                     continue
-                why += "; at the same sample as another load factor's"
+                why += "; at the same sample as another load factor's range limit"
             sat |= lv.mask
             n = int(lv.mask.sum())
             rep.append(report_entry(
