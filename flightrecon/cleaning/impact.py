@@ -200,8 +200,7 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
     came_down = bool((np.isfinite(sink) and sink >= s.sink_mps)
                      or (np.isfinite(tas) and tas >= s.airborne_mps))
     low = not (np.isfinite(h_end) and h_end > s.max_height_m)
-    facts = dict(peak_load_g=float(np.nanmax(mag[k0:])), pre_load_g=pre, sink_rate_mps=sink, tas_mps=tas,
-                 height_above_end_m=h_end)
+    peak_end = float(np.nanmax(mag[k0:]))
     if not (came_down and low):
         why = ("the load spike at the end of the record is not an impact: "
                + ("no descent onto it (pressure altitude falling at "
@@ -209,15 +208,16 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
                   if not came_down else
                   f"{h_end:.0f} m above the end point (> {s.max_height_m:g} m)"))
         return None, [report_entry("phases", "no_impact", why, count=1, t_s=[t_imp],
-                                   **{k: float(v) for k, v in facts.items()})]
+                                   peak_load_g=peak_end, pre_load_g=pre,
+                                   sink_rate_mps=sink, tas_mps=tas, height_above_end_m=h_end)]
     win = slice(k0, len(t))
     peaks = []
     satd = []
     for c, x in zip(LOAD_FACTORS, (nl, nt, nn)):
         seg = x[win]
         ref = 1.0 if c == "n_norm_g" else 0.0
-        j = int(np.nanargmax(np.abs(seg - ref)))
-        peaks.append(float(seg[j]))
+        jj = int(np.nanargmax(np.abs(seg - ref)))
+        peaks.append(float(seg[jj]))
         if f"{c}_saturated" in grid.columns and grid[f"{c}_saturated"].to_numpy(bool)[win].any():
             satd.append(c)
     peak_all = float(np.nanmax(mag[win]))
@@ -233,8 +233,9 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
            + f"; record ends {t_end - t_imp:.2f} s later")
     rep = report_entry("phases", "impact", why, count=1, t_s=[t_imp],
                        peak_n_long_g=peaks[0], peak_n_lat_g=peaks[1], peak_n_norm_g=peaks[2],
-                       saturated=",".join(satd), record_end_t_s=t_end,
-                       **{k: float(v) for k, v in facts.items()})
+                       saturated=",".join(satd), record_end_t_s=t_end, peak_load_g=peak_all,
+                       pre_load_g=pre, sink_rate_mps=sink, tas_mps=tas,
+                       height_above_end_m=h_end)
     return imp, [rep]
 
 
