@@ -24,8 +24,8 @@ by what the record does at its very end::
 A crash sequence (a tumble or bounces along the ground before the record stops) is followed
 back from that jolt: an earlier jolt (or saturated load) within ``chain_height_m`` (30 m) of
 the final pressure altitude and at most ``chain_gap_s`` (10 s: a bounce to 40 m and back
-takes about 6 s) before the last one found is part of it, and the impact is the sequence's
-first.  A touchdown the phase detection placed inside
+takes about 6 s) before the last one found is part of it, within ``max_sequence_s`` (60 s)
+of the record's last jolt, and the impact is the sequence's first.  A touchdown the phase detection placed inside
 or after the sequence (the gear touching in the tumble) is no landing: it is removed
 (:func:`with_impact`, reported).
 
@@ -63,6 +63,7 @@ class ImpactSettings:
     airborne_mps: float = 20.0
     max_height_m: float = 300.0
     chain_gap_s: float = 10.0
+    max_sequence_s: float = 60.0
     chain_height_m: float = 30.0
 
 
@@ -180,12 +181,11 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
         okh = np.isfinite(hp)
         hpf = np.interp(t, t[okh], hp[okh])
         h_last = hpf[int(cand[-1])]
-        prior = np.flatnonzero((jolt | sat) & fin & (np.abs(hpf - h_last) <= s.chain_height_m))
-        while True:
-            j = prior[prior < k0]
-            if not len(j) or t[k0] - t[j[-1]] > s.chain_gap_s:
-                break
-            k0 = int(j[-1])
+        near = (jolt | sat) & fin & (np.abs(hpf - h_last) <= s.chain_height_m) \
+            & (t >= t[int(cand[-1])] - s.max_sequence_s)
+        seq = np.append(np.flatnonzero(near[:k0]), k0)
+        brk = np.flatnonzero(np.diff(t[seq]) > s.chain_gap_s)
+        k0 = int(seq[brk[-1] + 1] if len(brk) else seq[0])
     t_imp = float(t[k0])
     pre_sel = (t >= t_imp - s.pre_s - 0.25) & (t < t_imp - 0.25) & fin
     pre = float(np.median(mag[pre_sel])) if pre_sel.any() else float("nan")

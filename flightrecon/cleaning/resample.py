@@ -139,7 +139,7 @@ def wrap_roll(grid: pd.DataFrame) -> pd.DataFrame:
     plots read the bank as recorded; the rotations take either."""
     if "roll_deg" not in grid.columns:
         return grid
-    g = grid.copy()
+    g = grid.copy(deep=False)  # copy-on-write (pandas >= 3): the input is never changed
     r = g["roll_deg"].to_numpy(float)
     g["roll_deg"] = (r + 180.0) % 360.0 - 180.0
     return g
