@@ -30,7 +30,10 @@ pressure_altitude   the track's height differs from the recorded pressure altitu
 ==================  =========================================================================
 
 The limits are deliberately wide: they are there to catch the impossible, not the unusual.
-An upset (a spiral dive to the ground) stays inside them; a diverged solver does not.
+An upset (a spiral dive to the ground) stays inside them; a diverged solver does not.  After a
+ground impact detected by the cleaning (``phases.impact_t_s``, :mod:`flightrecon.cleaning.impact`)
+nothing is checked: the crash sequence's decelerations are the structure's (tens to hundreds
+of g) and the recorder's loads are clipped at their range.
 """
 
 from __future__ import annotations
@@ -144,9 +147,13 @@ def envelope_problems(res: MethodResult, clean: CleanFlight,
     grid = clean.grid
     tas_max = float(np.nanmax(grid["tas_mps"])) if (
         "tas_mps" in grid.columns and np.isfinite(grid["tas_mps"]).any()) else None
+    # after a detected ground impact (cleaning/impact.py) the record is a crash sequence, not
+    # flight: its decelerations are the structure's, and the loads are clipped at their range
+    t_imp = getattr(clean.phases, "impact_t_s", float("nan")) if clean.phases else float("nan")
+    flight = ~(t > t_imp) if np.isfinite(t_imp) else np.ones(len(t), bool)
 
     def add(check: str, words: str, value: np.ndarray, limit: float, min_span: float = 0.0):
-        bad = np.isfinite(value) & (value > limit)
+        bad = np.isfinite(value) & (value > limit) & flight
         spans = time_spans(t, bad, min_span)
         if spans:
             worst = float(np.nanmax(np.where(bad, value, np.nan)))
@@ -175,7 +182,7 @@ def envelope_problems(res: MethodResult, clean: CleanFlight,
                              left=np.nan, right=np.nan) - h_field
             diff = np.abs(h - baro)
             tol = env.alt_tol_m + env.alt_tol_frac * np.abs(baro)
-            bad = np.isfinite(diff) & (diff > tol)
+            bad = np.isfinite(diff) & (diff > tol) & flight
             spans = time_spans(t, bad)
             dt = np.diff(t, append=t[-1])
             if spans and float(dt[bad].sum()) >= env.alt_min_span_s:

@@ -1,7 +1,8 @@
 """Events of a reconstructed flight, the way an investigator lists them.
 
-Lift-off and touchdown (from the cleaning's phase detection), the end of a record in the air
-(an *impact* when it ends in a steep descent or with a load spike), exceedances of a flight
+Lift-off and touchdown (from the cleaning's phase detection), the ground impact that ends an
+accident record (detected by the cleaning from the loads: :mod:`flightrecon.cleaning.impact`,
+with its time and peak loads) or the end of a record in the air, exceedances of a flight
 envelope (load factor, attitude, airspeed), sensor outages (long gaps left unfilled by the
 cleaning), gaps between GNSS fixes or radar plots, changes of the source of the default result,
 the measurements used, and the spans where the joint smoother rejected a source.
@@ -114,21 +115,51 @@ def phase_events(phases: Any, t0_s: float | None = None) -> list[Event]:
     return [e for e in out if np.isfinite(e.t_s)]
 
 
+def _impact_entry(report: Sequence[Mapping[str, Any]]) -> Mapping[str, Any] | None:
+    for r in report:
+        if r.get("action") == "impact":
+            return r
+    return None
+
+
 def end_of_record_events(grid: pd.DataFrame, phases: Any,
+                         report: Sequence[Mapping[str, Any]] = (),
                          window_s: float = 10.0, sink_mps: float = 10.0,
                          load_g: float = 3.0) -> list[Event]:
-    """The record ends in the air: an *impact* when, over its last ``window_s`` seconds, the
-    descent is steeper than ``sink_mps`` or the normal load factor leaves 1 +- (``load_g``-1) g;
-    otherwise an ``end_airborne`` caution (recorder stopped, power lost, record cut).  The
-    descent is taken from the recorded pressure altitude (a line fitted over the window), a
-    measurement, not from an estimated track."""
+    """The end of the record: the *impact* detected by the cleaning
+    (:mod:`flightrecon.cleaning.impact`: ``phases.impact_t_s``, the peak loads from its report
+    entry in ``report``), at its first sample; otherwise, for a record that ends in the air, an
+    ``end_airborne`` event: a warning when, over its last ``window_s`` seconds, the descent is
+    steeper than ``sink_mps`` or the normal load factor leaves 1 +- (``load_g``-1) g (an impact
+    the loads do not show, or a record cut in an upset), a caution otherwise (recorder stopped,
+    power lost, record cut).  The descent is taken from the recorded pressure altitude (a line
+    fitted over the window), a measurement, not from an estimated track."""
     if phases is None:
         return []
     ph = phases if isinstance(phases, Mapping) else asdict(phases)
-    if not ph.get("ends_airborne"):
-        return []
     t = grid["t_s"].to_numpy(float)
     t_end = float(t[-1])
+    t_imp = ph.get("impact_t_s")
+    if t_imp is not None and np.isfinite(t_imp):
+        peak = float(ph.get("impact_peak_load_g", float("nan")))
+        r = _impact_entry(report) or {}
+        comps = ", ".join(f"{c} {r[f'peak_{c}']:+.2f} g" for c in ("n_long_g", "n_lat_g",
+                                                                  "n_norm_g")
+                          if isinstance(r.get(f"peak_{c}"), float))
+        sat = r.get("saturated") or ""
+        detail = (f"ground impact detected from the loads: peak |n| {peak:.2f} g"
+                  + (f" ({comps})" if comps else "")
+                  + (f", {sat} at the recorder's range (true peak at least that)" if sat else "")
+                  + (f"; descent {r['sink_rate_mps']:.1f} m/s" if isinstance(
+                      r.get("sink_rate_mps"), float) and np.isfinite(r["sink_rate_mps"]) else "")
+                  + (f", airspeed {r['tas_mps']:.0f} m/s" if isinstance(
+                      r.get("tas_mps"), float) and np.isfinite(r["tas_mps"]) else "")
+                  + f"; the record ends {t_end - float(t_imp):.2f} s later")
+        return [Event("impact", float(t_imp), f"impact {peak:.1f} g"
+                      + (" (saturated)" if sat else ""), detail, end_t_s=t_end,
+                      severity="warning", channel="n_norm_g", value=peak)]
+    if not ph.get("ends_airborne"):
+        return []
     last = t >= t_end - window_s
     reasons = []
     n = _col(grid, "n_norm_g")
@@ -146,9 +177,11 @@ def end_of_record_events(grid: pd.DataFrame, phases: Any,
             if rate <= -sink_mps:
                 reasons.append(f"pressure altitude falling at {-rate:.0f} m/s")
     if reasons:
-        return [Event("impact", t_end, "impact / end of record",
+        return [Event("end_airborne", t_end, "record ends in an upset",
                       "record ends in the air with " + " and ".join(reasons)
-                      + f" in its last {window_s:g} s", severity="warning")]
+                      + f" in its last {window_s:g} s; no impact detected in the loads "
+                      "(no load spike at the end): a possible impact the recorder missed",
+                      severity="warning")]
     return [Event("end_airborne", t_end, "record ends airborne",
                   "record ends in the air (no touchdown in the record)", severity="caution")]
 
@@ -329,7 +362,7 @@ def detect_events(clean: Any, track: pd.DataFrame | None = None,
     grid = clean.grid
     ev = phase_events(clean.phases, float(grid["t_s"].iloc[0]) if len(grid) else None)
     if len(grid):
-        ev += end_of_record_events(grid, clean.phases)
+        ev += end_of_record_events(grid, clean.phases, clean.report)
         ev += exceedance_events(grid, envelope)
         ev += outage_events(grid, clean.report)
     ev += measurement_events(clean)

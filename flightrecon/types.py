@@ -132,7 +132,10 @@ class FlightPhases:
     ``liftoff_velocity_ned_mps`` is the ground velocity at lift-off estimated from the ground roll.
     ``lineup_t_s`` is when the aircraft turned onto the take-off runway heading (the end of the
     taxi; the record's start when it starts lined up), ``roll_start_t_s`` when the take-off roll
-    began (NaN where there is no ground roll in the record).
+    began (NaN where there is no ground roll in the record).  ``impact_t_s`` and
+    ``impact_peak_load_g`` are the ground impact that ends an accident record (its first sample
+    and the largest load-factor magnitude from there to the end; NaN where the record does not
+    end at an impact: :mod:`flightrecon.cleaning.impact`).
     """
 
     liftoff_t_s: float
@@ -142,6 +145,8 @@ class FlightPhases:
     liftoff_velocity_ned_mps: tuple[float, float, float]
     lineup_t_s: float = float("nan")
     roll_start_t_s: float = float("nan")
+    impact_t_s: float = float("nan")
+    impact_peak_load_g: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -152,7 +157,10 @@ class CleanFlight:
     ----------
     grid : uniform time grid: ``t_s`` plus every input channel present, and for each a boolean
         ``<channel>_valid`` mask (False where a long gap was left unfilled, values NaN there).
-        ``heading_deg`` and other angles are unwrapped (continuous, may leave [0, 360)).
+        ``heading_deg`` and other angles are unwrapped (continuous, may leave [0, 360));
+        ``roll_deg`` is wrapped to [-180, 180) (interpolated the short way across +-180 deg).
+        ``<channel>_saturated`` (where a channel reached its recorder range:
+        :mod:`flightrecon.cleaning.saturation`) flags the samples at the range limit.
     rate_hz : grid rate
     gnss, radar : measurements at their own times (one row per fix / plot; ``t_s`` first),
         empty DataFrames when absent

@@ -193,3 +193,24 @@ def test_seed_sample_sabziev_is_unhealthy_by_its_height():
     h = method_health(res, clean)
     assert not h["healthy"]
     assert [p.get("check") for p in h["problems"]] == ["pressure_altitude"]
+
+
+def test_the_crash_sequence_after_a_detected_impact_is_not_checked():
+    """After the cleaning's impact (phases.impact_t_s) the track is a crash sequence (a jump of
+    2 km at t = 90 s stands for its structural decelerations): not checked; the same jump
+    before the impact still is."""
+    from dataclasses import replace
+
+    from flightrecon.types import FlightPhases
+
+    t = np.arange(0.0, 100.0, 0.25)
+    north = 60.0 * t
+    north[t >= 90.0] += 2000.0
+    res = _sabziev(t, north, 0 * t, np.full_like(t, 1000.0))
+    ph = FlightPhases(liftoff_t_s=np.nan, touchdown_t_s=np.nan, starts_airborne=True,
+                      ends_airborne=True, liftoff_velocity_ned_mps=(0.0, 0.0, 0.0),
+                      impact_t_s=88.0)
+    assert envelope_problems(res, replace(_clean(t), phases=ph)) == []
+    late = replace(ph, impact_t_s=95.0)
+    assert {p["check"] for p in envelope_problems(res, replace(_clean(t), phases=late))} \
+        >= {"ground_speed"}

@@ -85,19 +85,33 @@ def test_source_changes():
         (2.0, "horizontal position: joint -> sns"), (4.0, "horizontal position: sns -> joint")]
 
 
-def test_impact_from_a_steep_descent_at_the_end_of_record():
+def test_steep_descent_at_the_end_of_record_is_no_impact_without_one_detected():
     g = grid(60)
     t = g["t_s"].to_numpy()
     g["baro_alt_m"] = np.where(t > 50, 1000 - 40 * (t - 50), 1000)
     ph = {"liftoff_t_s": float("nan"), "touchdown_t_s": float("nan"), "starts_airborne": True,
           "ends_airborne": True}
     ev = end_of_record_events(g, ph)
-    assert len(ev) == 1 and ev[0].kind == "impact" and ev[0].t_s == 60.0
-    assert "falling at 4" in ev[0].detail
+    # an impact is detected (cleaning/impact.py), never assumed from the descent alone
+    assert len(ev) == 1 and ev[0].kind == "end_airborne" and ev[0].t_s == 60.0
+    assert ev[0].severity == "warning" and "falling at 4" in ev[0].detail
     g["baro_alt_m"] = 1000.0
     ev = end_of_record_events(g, ph)
-    assert [e.kind for e in ev] == ["end_airborne"]
+    assert [e.kind for e in ev] == ["end_airborne"] and ev[0].severity == "caution"
     assert end_of_record_events(g, {**ph, "ends_airborne": False}) == []
+
+
+def test_detected_impact_is_the_event_with_its_time_and_peak_loads():
+    g = grid(60)
+    ph = {"liftoff_t_s": float("nan"), "touchdown_t_s": float("nan"), "starts_airborne": True,
+          "ends_airborne": True, "impact_t_s": 59.5, "impact_peak_load_g": 6.63}
+    rep = [{"channel": "phases", "action": "impact", "peak_n_long_g": -2.0,
+            "peak_n_lat_g": 2.0, "peak_n_norm_g": 6.0, "saturated": "n_norm_g",
+            "sink_rate_mps": 30.0, "tas_mps": 46.0}]
+    ev = end_of_record_events(g, ph, rep)
+    assert len(ev) == 1 and ev[0].kind == "impact"
+    assert (ev[0].t_s, ev[0].end_t_s, ev[0].value) == (59.5, 60.0, 6.63)
+    assert "n_norm_g +6.00 g" in ev[0].detail and "n_norm_g at the recorder's range" in ev[0].detail
 
 
 def test_detect_events_sorted_with_utc_and_round_trip():

@@ -2,7 +2,9 @@
 
 Flight-test exports often record the body rates ``p_dps, q_dps, r_dps`` (roll, pitch, yaw rate,
 FRD body axes) and roll and pitch, but no heading, or a heading that is dead (constant).  The
-heading is then propagated from the rates with the Euler kinematics of the ZYX (yaw-pitch-roll)
+heading is then propagated from the rates by rotating the recorded attitude with them
+(:func:`flightrecon.geo.kinematics.heading_increments`: exact at any attitude, through pitch
++-90 deg), which away from the vertical is the Euler kinematics of the ZYX (yaw-pitch-roll)
 attitude (docs/schema.md, "Conventions")::
 
     psi_dot = (q sin(phi) + r cos(phi)) / cos(theta)
@@ -48,6 +50,7 @@ import pandas as pd
 
 from flightrecon.cleaning.report import report_entry
 from flightrecon.errors import ValidationError
+from flightrecon.geo.kinematics import heading_increments
 from flightrecon.types import FlightMeta, FlightPhases
 
 __all__ = ["heading_from_rates", "heading_needed", "provisional_heading", "rate_aided_attitude"]
@@ -98,7 +101,6 @@ def _integrals(grid: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     q = np.radians(_filled(grid, "q_dps"))
     r = np.radians(_filled(grid, "r_dps"))
     sq, sr = np.sin(phi) / np.cos(th), np.cos(phi) / np.cos(th)
-    rate = q * sq + r * sr
     dt = np.diff(t)
 
     def cum(x):
@@ -106,7 +108,15 @@ def _integrals(grid: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
         out[1:] = np.cumsum(0.5 * (x[1:] + x[:-1]) * dt)
         return out
 
-    return t, cum(rate), cum(sq), cum(sr)
+    # the heading itself by rotating the attitude with the rates (exact through the vertical;
+    # the bias sensitivities Q, R keep the Euler form with the pitch clipped)
+    has_p = "p_dps" in grid.columns and bool(grid["p_dps"].notna().any())
+    p_dps = _filled(grid, "p_dps") if has_p else np.zeros(len(t))   # second order only
+    psi = np.zeros(len(t))
+    psi[1:] = np.cumsum(heading_increments(t, _filled(grid, "roll_deg"),
+                                           _filled(grid, "pitch_deg"), p_dps,
+                                           np.degrees(q), np.degrees(r)))
+    return t, psi, cum(sq), cum(sr)
 
 
 def provisional_heading(grid: pd.DataFrame) -> np.ndarray:

@@ -2,8 +2,9 @@
 :class:`~flightrecon.types.CleanFlight`.
 
 Order: resolve time stamps -> unwrap angles -> despike input channels -> bring inputs onto the
-uniform grid (short gaps bridged, long gaps flagged, anti-alias on downsampling) -> measurement
-tables at their own (clock-offset) times -> phase detection.  ``docs/signals.md`` documents each
+uniform grid (short gaps bridged, long gaps flagged, anti-alias on downsampling; recorder
+saturation flagged) -> measurement tables at their own (clock-offset) times -> phase detection
+-> impact at the record's end.  ``docs/signals.md`` documents each
 rule and its numbers.
 """
 
@@ -21,10 +22,12 @@ from flightrecon.cleaning.attitude import (
     rate_aided_attitude,
 )
 from flightrecon.cleaning.despike import DespikeSettings
+from flightrecon.cleaning.impact import with_impact
 from flightrecon.cleaning.origin import with_origin
 from flightrecon.cleaning.phases import PhaseSettings, detect_phases_with_report
 from flightrecon.cleaning.report import report_entry
-from flightrecon.cleaning.resample import resample_inputs
+from flightrecon.cleaning.resample import resample_inputs, wrap_roll
+from flightrecon.cleaning.saturation import detect_saturation, saturation_on_grid
 from flightrecon.cleaning.steps import (
     Despike,
     ResolveTimestamps,
@@ -126,6 +129,8 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         raise ValidationError(f"cannot clean the log: {exc}") from exc
     grid, rate, rep = resample_inputs(work, rate_hz, settings.max_gap_s)
     report.extend(rep)
+    sat_masks, rep = detect_saturation(work)   # samples at the recorder's range (impact, dive)
+    report.extend(rep)
     # repairs made at validation (values outside the physical range), first in the report
     ingest = [_repair_entry(r) for r in flight.meta.extra.get("ingest_repairs", ())]
     report[:0] = ingest + trim_rep
@@ -135,6 +140,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     # roll, pitch and heading between their samples shaped by the body rates, where both exist
     grid, rep = rate_aided_attitude(grid, work, settings.max_gap_s)
     report.extend(rep)
+    grid = saturation_on_grid(wrap_roll(grid), sat_masks)
     why = heading_needed(grid)
     if why is not None:
         grid, rep = _heading_from_body_rates(grid, tables["gnss"], meta, settings, why)
@@ -146,6 +152,8 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
                                                     lat_deg=_gravity_latitude(meta))
         except FlightReconError as exc:
             rep = [report_entry("phases", "not_detected", str(exc), count=0)]
+        report.extend(rep)
+        phases, rep = with_impact(grid, phases, meta)   # an accident record's end
         report.extend(rep)
     return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
                        meta=meta, report=tuple(report), phases=phases)

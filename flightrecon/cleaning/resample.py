@@ -3,7 +3,9 @@
 * **Input channels** (load factors, attitude, airspeeds, pressure altitude, temperature, Doppler,
   drift, wind) are brought onto one uniform grid, by default at the rate of the fastest input
   channel and anchored on its samples (so they are copied, not interpolated).  Slower channels
-  are linearly interpolated (angles on their unwrapped series) with the gap policy of
+  are linearly interpolated (angles, roll included, on their unwrapped series, so an
+  interpolation across the wrap goes the short way: 179 -> -179 deg passes through 180, not
+  through 0) with the gap policy of
   :mod:`flightrecon.cleaning.gaps`.  A channel faster than the grid (``rate > 1.2 * grid rate``)
   is first averaged over ``L = round(rate / grid rate)`` of its own samples (a boxcar, whose
   first spectral zero falls on the new sampling rate, so the band that would alias onto low
@@ -29,7 +31,8 @@ from flightrecon.cleaning.timebase import (
 from flightrecon.errors import ValidationError
 from flightrecon.schema import INPUTS
 
-__all__ = ["ANTIALIAS_RATIO", "boxcar", "default_rate_hz", "input_channels", "resample_inputs"]
+__all__ = ["ANTIALIAS_RATIO", "boxcar", "default_rate_hz", "input_channels", "resample_inputs",
+           "wrap_roll"]
 
 ANTIALIAS_RATIO = 1.2
 """A channel is pre-filtered when its rate exceeds the grid rate by more than this factor."""
@@ -128,3 +131,15 @@ def resample_inputs(data: pd.DataFrame, rate_hz: float | None, max_gap_s: float
         cols[f"{c}_valid"] = valid
     # the arrays are this function's own: the table takes them without a consolidating copy
     return pd.DataFrame(cols, copy=False), float(rate_hz), report
+
+
+def wrap_roll(grid: pd.DataFrame) -> pd.DataFrame:
+    """``grid`` with ``roll_deg`` (unwrapped for despiking and interpolation) wrapped back to
+    its canonical range [-180, 180) (docs/schema.md, "Conventions"): the envelope checks and the
+    plots read the bank as recorded; the rotations take either."""
+    if "roll_deg" not in grid.columns:
+        return grid
+    g = grid.copy(deep=False)  # copy-on-write (pandas >= 3): the input is never changed
+    r = g["roll_deg"].to_numpy(float)
+    g["roll_deg"] = (r + 180.0) % 360.0 - 180.0
+    return g

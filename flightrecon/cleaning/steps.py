@@ -40,17 +40,26 @@ class ResolveTimestamps:
         return resolve_timestamps(data)
 
 
+#: input channels that wrap at 360 deg but are not heading-like in the schema (their canonical
+#: range is [-180, 180]): unwrapped for despiking and interpolation, wrapped back on the grid
+#: (:func:`flightrecon.cleaning.resample.wrap_roll`)
+WRAPPED_INPUTS: tuple[str, ...] = ("roll_deg",)
+
+
 def _angle_inputs(data: pd.DataFrame) -> list[str]:
-    return [c for c in INPUTS if BY_NAME[c].angle and c in data.columns]
+    return [c for c in INPUTS if (BY_NAME[c].angle or c in WRAPPED_INPUTS) and c in data.columns]
 
 
 @dataclass(frozen=True)
 class UnwrapAngles:
-    """Unwrap angle input channels (``heading_deg``, ``wind_from_deg``) on their own samples.
+    """Unwrap angle input channels (``heading_deg``, ``wind_from_deg``, ``roll_deg``) on their
+    own samples.
 
     Consecutive samples never differ by more than 180 deg afterwards (``numpy.unwrap`` with a
-    360 deg period); the first sample is brought into [0, 360).  The values become continuous
-    and may leave [0, 360).
+    360 deg period); the first sample is brought into [0, 360) (roll into [-180, 180)).  The
+    values become continuous and may leave that interval: a roll through +-180 deg (inverted
+    flight, a spin) is then neither despiked as a 360 deg jump nor interpolated the long way
+    through wings level.
     """
 
     channels: tuple[str, ...] | None = None
@@ -67,7 +76,8 @@ class UnwrapAngles:
             if ok.sum() == 0:
                 continue
             u = np.unwrap(v[ok], period=360.0)
-            u = u - 360.0 * np.floor(u[0] / 360.0)
+            lo = -180.0 if c in WRAPPED_INPUTS else 0.0
+            u = u - 360.0 * np.floor((u[0] - lo) / 360.0)
             new = v.copy()
             new[ok] = u
             n_changed = int(np.count_nonzero(np.abs(new[ok] - v[ok]) > 0.0))

@@ -16,6 +16,7 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
+from flightrecon.cleaning.saturation import saturated_loads
 from flightrecon.errors import MetadataError, ValidationError
 from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.joint import (
@@ -89,6 +90,11 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                                      col("roll_deg"), col("pitch_deg"), col("heading_deg"),
                                      lat_deg=p0.lat_deg,
                                      h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
+    sat = saturated_loads(g)   # at the recorder's range: a bound, not a reading (as missing)
+    if sat.any():
+        acc[sat] = np.nan
+        notes.append(f"joint: load factors saturated on {int(sat.sum())} samples; treated as "
+                     "missing (process noise instead of the acceleration)")
     dep = meta.departure
     if dep is not None:
         h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)

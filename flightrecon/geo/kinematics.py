@@ -17,7 +17,8 @@ import numpy as np
 from flightrecon.constants import G0
 from flightrecon.geo.gravity import normal_gravity
 
-__all__ = ["body_to_ned_matrix", "kinematic_acceleration_ned", "load_factors_from_acceleration"]
+__all__ = ["body_to_ned_matrix", "heading_increments", "kinematic_acceleration_ned",
+           "load_factors_from_acceleration"]
 
 
 def body_to_ned_matrix(roll_deg, pitch_deg, heading_deg) -> np.ndarray:
@@ -129,3 +130,54 @@ def load_factors_from_acceleration(a_ned, roll_deg, pitch_deg, heading_deg, *, l
     out = f_body / G0
     out[..., 2] = -out[..., 2]
     return out
+
+
+def heading_increments(t_s, roll_deg, pitch_deg, p_dps, q_dps, r_dps) -> np.ndarray:
+    """Heading change [rad] over each sample interval from the body rates, by exact rotation of
+    the direction-cosine matrix (valid at any attitude, through pitch +-90 deg).
+
+    Over ``[t_k, t_k+1]`` the body turns by ``theta = w dt`` with ``w`` the mean of the two
+    samples' body rates (FRD: roll, pitch, yaw rate); starting from ``C_k = C_nb(roll_k,
+    pitch_k, 0)`` the rotated ``C' = C_k exp([theta]x)`` (Rodrigues' formula; Titterton &
+    Weston, *Strapdown Inertial Navigation Technology*, sec. 11.2.1) has the heading
+    ``atan2(C'_21, C'_11)``: the increment.  Unlike the Euler kinematics
+    ``psi' = (q sin phi + r cos phi) / cos theta`` it has no singularity at the vertical: over
+    the top of a loop the heading steps by 180 deg, as the recorded ZYX angles do (roll and
+    heading flip while the pitch passes 90 deg).
+
+    Parameters
+    ----------
+    t_s : array_like, shape (N,)
+        Sample times [s].
+    roll_deg, pitch_deg : array_like, shape (N,)
+        Recorded roll and pitch [deg] (finite).
+    p_dps, q_dps, r_dps : array_like, shape (N,)
+        Body rates [deg/s] (finite).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N - 1,)
+        Heading increments [rad], each in (-pi, pi].
+    """
+    t = np.asarray(t_s, float)
+    if len(t) < 2:
+        return np.zeros(0)
+    w = np.radians(np.c_[np.asarray(p_dps, float), np.asarray(q_dps, float),
+                         np.asarray(r_dps, float)])
+    d = 0.5 * (w[1:] + w[:-1]) * np.diff(t)[:, None]           # rotation vector per interval
+    a2 = np.einsum("ij,ij->i", d, d)
+    a = np.sqrt(a2)
+    small = a < 1e-4
+    s1 = np.where(small, 1.0 - a2 / 6.0, np.sin(a) / np.where(small, 1.0, a))
+    s2 = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(a)) / np.where(small, 1.0, a2))
+    K = np.zeros((len(d), 3, 3))
+    K[:, 0, 1], K[:, 0, 2] = -d[:, 2], d[:, 1]
+    K[:, 1, 0], K[:, 1, 2] = d[:, 2], -d[:, 0]
+    K[:, 2, 0], K[:, 2, 1] = -d[:, 1], d[:, 0]
+    R = np.eye(3)[None] + s1[:, None, None] * K + s2[:, None, None] * (K @ K)
+    C0 = body_to_ned_matrix(np.asarray(roll_deg, float)[:-1], np.asarray(pitch_deg, float)[:-1],
+                            0.0)
+    # only the first two rows' first column of C0 R are needed: C'_11, C'_21
+    c11 = np.einsum("ij,ij->i", C0[:, 0, :], R[:, :, 0])
+    c21 = np.einsum("ij,ij->i", C0[:, 1, :], R[:, :, 0])
+    return np.arctan2(c21, c11)

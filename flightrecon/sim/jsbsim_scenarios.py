@@ -75,7 +75,9 @@ class JsbsimConfig:
     recorder's range per load factor (long, lat, norm): readings beyond it are clipped
     (saturation); ``tas_range_mps`` likewise for the airspeed.  ``full_tanks`` fills the
     fuel tanks for a full-length flight (``scale`` >= 0.5; short versions keep the model's
-    default load).
+    default load).  ``spiral_bank_deg`` and ``spiral_roll_rate_dps`` shape ``jsbsim-spiral``'s
+    loss of control (the bank it rolls to and how fast; beyond 90 deg the aircraft rolls past
+    the knife edge into a steep, partly inverted dive: the any-attitude validation).
     """
 
     airframe: str = "c172p"
@@ -104,6 +106,8 @@ class JsbsimConfig:
     spikes: int = 2
     ideal_sensors: bool = False
     full_tanks: bool = False
+    spiral_bank_deg: float = 75.0
+    spiral_roll_rate_dps: float = 1.5
 
 
 def _runway(cfg: JsbsimConfig, field: Position, heading: float) -> Runway:
@@ -220,7 +224,8 @@ def _upset_climb(cfg: JsbsimConfig, rw: Runway, agl_m: float) -> list:
 
 
 def _spiral(cfg: JsbsimConfig, rw: Runway):
-    return (_upset_climb(cfg, rw, 1800.0) + [SpiralDive(bank_deg=75.0, roll_rate_dps=1.5,
+    return (_upset_climb(cfg, rw, 1800.0) + [SpiralDive(bank_deg=cfg.spiral_bank_deg,
+                                                        roll_rate_dps=cfg.spiral_roll_rate_dps,
                                                         pull=0.04)], None, 3600.0, None)
 
 
