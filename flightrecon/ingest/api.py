@@ -215,14 +215,16 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
 
         check_fix_times(meta.fixes, float(data["t_s"].iloc[0]), float(data["t_s"].iloc[-1]))
     if meta.fixes or meta.wind_aloft:
-        # parsed, validated and kept in the summary's flight metadata; not yet an input of
-        # any estimator (docs/schema.md): said, so that nobody takes the result for one that
-        # used them
+        # used by the joint smoother (the default result) and Sabziev, not by the others
+        # (docs/wind.md): said, so that nobody takes those methods' results for ones that used
+        # them
         given = " and ".join(w for w, on in (("known positions (--fix)", meta.fixes),
                                              ("a winds-aloft prior (--wind)", meta.wind_aloft))
                              if on)
-        warns.append(f"{given} read and validated, but no estimator uses them yet: the result "
-                     "does not depend on them")
+        warns.append(f"{given}: used by the joint smoother"
+                     + (" and Sabziev (a fix only as the end point, at the end of the record)"
+                        if meta.fixes else " and Sabziev")
+                     + "; the sns, arms and azimuth methods do not use them")
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "ingest_repairs": [r.as_dict() for r in repairs],
                                             "mapping": None if mp is None else mp.file,

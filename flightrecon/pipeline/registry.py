@@ -97,9 +97,12 @@ def available_methods(clean: CleanFlight, settings: ReconstructSettings) -> dict
     needed = [c for c in ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg",
                           "heading_deg", "tas_mps") if c not in g.columns]
     out["joint"] = None if not needed else f"missing input channels {', '.join(needed)}"
-    has_end = meta.arrival is not None or settings.k is not None
+    from flightrecon.fusion.method import end_fix
+
+    has_end = meta.arrival is not None or settings.k is not None or end_fix(clean) is not None
     out["sabziev"] = None if has_end else (
-        "no arrival point and no coefficients (give --arrival, or --k / fleet coefficients)")
+        "no arrival point and no coefficients (give --arrival, a --fix at the end of the "
+        "record, or --k / fleet coefficients)")
     has_radar = len(clean.radar) > 0 and "arms_azimuth_deg" in clean.radar.columns
     if not has_radar:
         reason = "no radar plots in the data"
