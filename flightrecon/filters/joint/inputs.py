@@ -224,6 +224,11 @@ def end_points(inp: JointInputs, nz: JointNoise,
                                 ("arrival", inp.arrival, inp.thresholds[1], inp.runway_rad[1])):
         if pos is None:
             continue
+        if which == "arrival" and inp.ends_airborne:
+            out.append({"which": which, "model": "last_position", "t_s": float(t_in[-1]),
+                        "point": tuple(pos), "runway_rad": None,
+                        "sd_m": (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)})
+            continue
         t_run = (inp.roll if roll is None else roll).start_t if which == "departure" \
             else inp.touchdown_t
         if thr is not None and rw is not None and np.isfinite(t_run):
@@ -232,11 +237,6 @@ def end_points(inp: JointInputs, nz: JointNoise,
             out.append({"which": which, "model": "runway", "t_s": float(t_run),
                         "point": _along_runway_point(thr, rw, dist), "runway_rad": float(rw),
                         "sd_m": (sd, nz.runway_halfwidth_m, nz.endpoint_v_m)})
-            continue
-        if which == "arrival" and inp.ends_airborne:
-            out.append({"which": which, "model": "last_position", "t_s": float(t_in[-1]),
-                        "point": tuple(pos), "runway_rad": None,
-                        "sd_m": (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)})
             continue
         if which == "departure":
             tt = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]
