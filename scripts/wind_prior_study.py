@@ -66,10 +66,19 @@ LEVEL_STEP_M = 300.0
 def forecast(scenario: str, seed: int, truth, speed_err_mps: float = FORECAST_SPEED_ERR_MPS,
              dir_err_deg: float = FORECAST_DIR_ERR_DEG,
              sd_mps: float = FORECAST_SD_MPS) -> tuple[WindLevel, ...]:
-    """The winds-aloft table of a run (module docstring): the truth's mean wind at the middle
-    of the airborne part, every ``LEVEL_STEP_M`` from 300 m below the lowest to 300 m above
-    the highest truth altitude (MSL), speed + ``speed_err_mps``, direction + ``dir_err_deg``."""
-    wind = draw_weather(scenario, seed).wind
+    """The winds-aloft table of a JSBSim run (module docstring): :func:`forecast_from_field`
+    of the scenario's wind for ``seed``."""
+    return forecast_from_field(draw_weather(scenario, seed).wind, truth, speed_err_mps,
+                               dir_err_deg, sd_mps)
+
+
+def forecast_from_field(wind, truth, speed_err_mps: float = FORECAST_SPEED_ERR_MPS,
+                        dir_err_deg: float = FORECAST_DIR_ERR_DEG,
+                        sd_mps: float = FORECAST_SD_MPS) -> tuple[WindLevel, ...]:
+    """A winds-aloft table from a simulator wind field (``flightrecon.sim.weather.WindField``,
+    both truth sources'): its mean wind at the middle of the airborne part, every
+    ``LEVEL_STEP_M`` from 300 m below the lowest to 300 m above the highest truth altitude
+    (MSL), speed + ``speed_err_mps``, direction + ``dir_err_deg``, ``sd_mps`` per component."""
     air = ~truth["on_ground"].to_numpy(bool)
     t_mid = float(np.median(truth["t_s"].to_numpy(float)[air]))
     h = truth["alt_msl_m"].to_numpy(float)
