@@ -122,6 +122,44 @@ def test_airborne_end_is_the_last_position_with_its_sd():
     assert res.summary["end_points"][-1]["model"] == "last_position"
 
 
+def test_sabziev_takes_a_fix_at_the_end_as_its_end_point():
+    """The circuit cut at t = 300 s in the air, no arrival, the truth's position at the last
+    sample given as a --fix, and another fix inside: Sabziev is available (no arrival, no k),
+    its end condition is the fix (in the output plane, within 0.1 m: the fix without height is
+    placed at the field's elevation plus the pressure height, within tens of metres of the
+    truth's, and the plane's north and east move by 1.6 m per km of height at 10 km out), and
+    it says that the other fix is not used. (Whether the fusion then converges is Sabziev's
+    own health on this JSBSim flight: it does not, with the arrival given either.)"""
+    from flightrecon.fusion.method import end_fix, run_sabziev
+    from flightrecon.geo.frames import output_plane
+    from flightrecon.pipeline import ReconstructSettings
+    from flightrecon.pipeline.registry import available_methods
+
+    r = _jsbsim(1)
+    log = r.log[r.log["t_s"] <= 300.0].reset_index(drop=True)
+    t_last = float(log["t_s"].iloc[-1])
+    tr = r.truth.set_index("t_s")
+    last = tr.loc[tr.index[tr.index <= t_last][-1]]
+    mid = tr.loc[200.0]
+    fixes = (PositionFix(200.0, float(mid["lat_deg"]), float(mid["lon_deg"]), None, 50.0),
+             PositionFix(t_last, float(last["lat_deg"]), float(last["lon_deg"]), None, 50.0))
+    clean = clean_flight(Flight(data=log, meta=replace(r.meta, arrival=None, fixes=fixes)))
+    assert clean.phases.ends_airborne
+    assert end_fix(clean) == fixes[1]
+    assert available_methods(clean, ReconstructSettings())["sabziev"] is None
+    res = run_sabziev(clean)
+    assert res.summary["end_point"]["source"].startswith("fix at t =")
+    e, n, _u = output_plane(clean.meta).forward(fixes[1].lat_deg, fixes[1].lon_deg,
+                                                 float(last["alt_m"]))
+    assert abs(res.summary["end_point"]["north_m"] - float(n)) < 0.1
+    assert abs(res.summary["end_point"]["east_m"] - float(e)) < 0.1
+    assert any("1 known position(s) (--fix) inside the interval not used" in w
+               for w in res.summary["warnings"])
+    # without the fixes there is no end point at all
+    bare = clean_flight(Flight(data=log, meta=replace(r.meta, arrival=None)))
+    assert available_methods(bare, ReconstructSettings())["sabziev"] is not None
+
+
 # ---- the joint smoother ------------------------------------------------------------------
 
 def test_fix_pulls_the_joint_track_within_its_sd():

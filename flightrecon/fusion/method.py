@@ -249,13 +249,15 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     elif fix_end is not None:
         # the known position at the end: horizontally the fix; vertically its altitude in
         # pressure terms, or without one the recorded pressure height there
-        h_f = msl_to_ellipsoid(0.0 if fix_end.alt_msl_m is None else fix_end.alt_msl_m,
-                               meta.geoid_undulation_m)
-        e, n, _u = plane.forward(fix_end.lat_deg, fix_end.lon_deg, h_f)
         qnh_arr = meta.qnh_arrival_hpa if meta.qnh_arrival_hpa is not None \
             else meta.qnh_departure_hpa
         y_T = (float(h_rel[-1] + origin[2]) if fix_end.alt_msl_m is None
                else field_pressure_altitude_m(fix_end.alt_msl_m, qnh_arr) - hp_dep)
+        # placed in the output plane at its height (without one, the field's elevation plus
+        # the pressure height: the plane's north and east move 1.6 m per km of height at 10 km)
+        h_f = msl_to_ellipsoid(dep.elev_m + y_T if fix_end.alt_msl_m is None
+                               else fix_end.alt_msl_m, meta.geoid_undulation_m)
+        e, n, _u = plane.forward(fix_end.lat_deg, fix_end.lon_deg, h_f)
         end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
         end_info = {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
                     "departure_pressure_alt_m": hp_dep,
