@@ -313,7 +313,8 @@ def _correction_items(item) -> dict[str, Any]:
 
 def _fix_report(clean: CleanFlight, track: pd.DataFrame) -> list[dict[str, Any]]:
     """Per known position (``--fix``): the smoothed track's offset from it at its time, north
-    and east [m], with the fix's sd and the track's sd there."""
+    and east [m], with the fix's sd and the track's sd there; ``used`` False (and no offsets)
+    for a fix outside the reconstructed span (a record trimmed with ``--start`` / ``--end``)."""
     if not clean.meta.fixes:
         return []
     plane = output_plane(clean.meta)
@@ -322,6 +323,10 @@ def _fix_report(clean: CleanFlight, track: pd.DataFrame) -> list[dict[str, Any]]
     out: list[dict[str, Any]] = []
     h_tr = track[p + "alt_m"].to_numpy(float)
     for f in clean.meta.fixes:
+        if not t[0] <= f.t_s <= t[-1]:
+            out.append({"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg,
+                        "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m, "used": False})
+            continue
         # the fix at the track's height where it has none (the tangent plane's north and east
         # of a point move with its height: 1.6 m per km of height at 10 km from the origin)
         h = (float(np.interp(f.t_s, t, h_tr)) if f.alt_msl_m is None
@@ -330,7 +335,7 @@ def _fix_report(clean: CleanFlight, track: pd.DataFrame) -> list[dict[str, Any]]
         dn = float(np.interp(f.t_s, t, track[p + "north_m"].to_numpy(float)) - float(n))
         de = float(np.interp(f.t_s, t, track[p + "east_m"].to_numpy(float)) - float(e))
         item = {"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg,
-                "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m,
+                "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m, "used": True,
                 "track_minus_fix_north_m": dn, "track_minus_fix_east_m": de,
                 "track_north_sd_m": float(np.interp(f.t_s, t,
                                                     track[p + "north_sd_m"].to_numpy(float))),
