@@ -313,6 +313,13 @@ def measurement_events(clean: Any) -> list[Event]:
                          f"{len(t)} {what} from t = {t[0]:.1f} s to {t[-1]:.1f} s",
                          end_t_s=float(t[-1]), channel=what))
         out += measurement_gap_events(t, one)
+    meta = getattr(clean, "meta", None)
+    for f in getattr(meta, "fixes", ()) or ():
+        # a known position (--fix): one event each, at its time
+        alt = "" if f.alt_msl_m is None else f", {f.alt_msl_m:.0f} m MSL"
+        out.append(Event("fixes", float(f.t_s), "known position",
+                         f"known position (--fix) {f.lat_deg:.5f}, {f.lon_deg:.5f}{alt}, "
+                         f"sd {f.sd_m:g} m", channel="fix"))
     return out
 
 

@@ -13,14 +13,16 @@ estimated random-walk drift, outliers flagged).
    circuit in a new random wind.  Reconstructed by the joint smoother
    * without the calibration (the default priors), and
    * with it (the fused means and sd as the smoother's priors, ``--use-fleet-coefficients``),
-   each without wind information and with a wind forecast 1.5 m/s and 8 deg off (the true wind
-   along the flown path, speed + 1.5 m/s, direction + 8 deg, given in the log's wind channel,
-   used by the smoother as recorded wind with sd 2 m/s per component), and compared with dead
-   reckoning from airspeed and heading without wind.  Error: horizontal RMS against truth over
-   the airborne part, and the position error at touchdown.
+   each without wind information and with a winds-aloft forecast 1.5 m/s and 8 deg off (the
+   flight's true mean wind field at the middle of the flight, every 300 m of altitude, speed
+   + 1.5 m/s, direction + 8 deg, sd 2 m/s per component: ``reconstruct --wind``'s table,
+   ``FlightMeta.wind_aloft``; ``scripts/wind_prior_study.py``'s ``forecast_from_field``), and
+   compared with dead reckoning from airspeed and heading without wind (and with the
+   forecast's wind).  Error: horizontal RMS against truth over the airborne part, and the
+   position error at touchdown.
 
 The truth is the point-mass simulator (flightrecon.sim), which shares the smoother's model and
-flatters it; the JSBSim version is pending (docs/store.md).
+flatters it, or (``--truth jsbsim``) the JSBSim Cessna circuit (docs/store.md).
 
 Usage::
 
@@ -129,22 +131,19 @@ def airborne_errors(track: pd.DataFrame, prefix: str, truth: pd.DataFrame) -> tu
     return float(np.sqrt(np.mean(e[ok] ** 2))), float(e[ok][-1])
 
 
-def with_forecast(log: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
-    """The log with a wind forecast in its wind channel: the true wind at the aircraft, speed
-    + 1.5 m/s and direction + 8 deg, at the truth's rows (1 Hz)."""
-    tt = truth["t_s"].to_numpy(float)
-    # JSBSim truth: the mean wind without turbulence (a forecast does not know the gusts)
-    cn, ce = (("wind_mean_n_mps", "wind_mean_e_mps") if "wind_mean_e_mps" in truth.columns
-              else ("wind_n_mps", "wind_e_mps"))
-    wn = np.interp(log["t_s"].to_numpy(float), tt, truth[cn].to_numpy(float))
-    we = np.interp(log["t_s"].to_numpy(float), tt, truth[ce].to_numpy(float))
-    out = log.copy()
-    keep = np.isclose(np.mod(out["t_s"].to_numpy(float), 1.0), 0.0, atol=1e-6)
-    spd = np.hypot(wn, we) + FORECAST_SPEED_ERR_MPS
-    frm = np.mod(np.degrees(np.arctan2(-we, -wn)) + FORECAST_DIR_ERR_DEG, 360.0)
-    out["wind_speed_mps"] = np.where(keep, spd, np.nan)
-    out["wind_from_deg"] = np.where(keep, frm, np.nan)
-    return out
+def forecast_table(truth_source: str, sim_seed: int, truth: pd.DataFrame):
+    """The accident flight's winds-aloft forecast (module docstring) from its wind field."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from wind_prior_study import forecast_from_field
+
+    if truth_source == "pointmass":
+        field = random_wind(sim_seed)
+    else:
+        from flightrecon.sim.jsbsim_scenarios import draw_weather
+
+        field = draw_weather("jsbsim-circuit", sim_seed).wind
+    return forecast_from_field(field, truth, FORECAST_SPEED_ERR_MPS, FORECAST_DIR_ERR_DEG,
+                               FORECAST_SD_MPS)
 
 
 def _simulate(truth: str, ac, sim_seed: int, accident: bool, **kw):
@@ -215,17 +214,15 @@ def run_seed(s: int, n_flights: int, truth: str = "pointmass") -> dict:
     sim = _simulate(truth, ac, acc_seed, True, flight_id="ACC", epoch_utc=acc_date)
     meta = replace(sim.meta, arrival=None)
     acc: dict = {}
+    table = forecast_table(truth, acc_seed, sim.truth)
     for wind_case in ("no_wind", "forecast"):
-        log = sim.log if wind_case == "no_wind" else with_forecast(sim.log, sim.truth)
-        clean = clean_flight(Flight(data=log, meta=meta))
-        if wind_case == "no_wind":
-            dr = dead_reckoning(clean)
-            acc["dead_reckoning_no_wind"] = airborne_errors(dr, "", sim.truth)
-        noise = JointNoise() if wind_case == "no_wind" else replace(
-            JointNoise(), wind_sensor_mps=FORECAST_SD_MPS)
+        clean = clean_flight(Flight(data=sim.log, meta=meta if wind_case == "no_wind"
+                                    else replace(meta, wind_aloft=table)))
+        dr = dead_reckoning(clean)
+        acc[f"dead_reckoning_{wind_case}"] = airborne_errors(dr, "", sim.truth)
         for label, pr in (("default_priors", ()), ("calibration", priors)):
             t0 = time.perf_counter()
-            res = run_joint(clean, settings=JointSettings(noise=noise, priors=pr))
+            res = run_joint(clean, settings=JointSettings(priors=pr))
             acc[f"joint_{label}_{wind_case}"] = airborne_errors(res.track, "joint_", sim.truth)
             print(f"seed {s} accident {wind_case} {label}: RMS, end "
                   f"{acc[f'joint_{label}_{wind_case}']} ({time.perf_counter() - t0:.0f} s)",
@@ -264,10 +261,11 @@ def tables(runs: list[dict], n_flights: int, truth: str = "pointmass") -> str:
     lines += ["", f"Errors observed by the routine flights, all seeds: {total_in}/{total} within "
               "2 fused sd (a Gaussian would put 95 % there).", ""]
     cases = [("dead_reckoning_no_wind", "dead reckoning, no wind"),
+             ("dead_reckoning_forecast", "dead reckoning, forecast wind"),
              ("joint_default_priors_no_wind", "joint, default priors, no wind information"),
              ("joint_calibration_no_wind", "joint, fleet calibration, no wind information"),
-             ("joint_default_priors_forecast", "joint, default priors, wind forecast"),
-             ("joint_calibration_forecast", "joint, fleet calibration, wind forecast")]
+             ("joint_default_priors_forecast", "joint, default priors, winds-aloft forecast"),
+             ("joint_calibration_forecast", "joint, fleet calibration, winds-aloft forecast")]
     what = "20 minutes" if truth == "pointmass" else "a JSBSim Cessna circuit"
     lines += [f"### The accident flight (recorder only, departure known, no arrival, {what})",
               "", "Horizontal RMS error over the airborne part [m] (error at touchdown [m]).", "",

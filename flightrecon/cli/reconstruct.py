@@ -27,11 +27,13 @@ from flightrecon.cli.trim import trim_options
 @click.option("--station", metavar="LAT,LON,ELEV_M", help="Ground radar position.")
 @click.option("--fix", "fixes", metavar="T_S,LAT,LON[,ALT_M[,SD_M]]", multiple=True,
               help="A known position at a time of the record (radar return, waypoint report, "
-                   "witness; ALT_M MSL, SD_M per axis, default 100 m); repeatable. Validated "
-                   "and kept in the summary; not yet used by the estimators (a warning says so).")
+                   "witness; ALT_M MSL, SD_M per axis, default 100 m); repeatable. A "
+                   "measurement of the joint smoother at its time; Sabziev's end point when "
+                   "it is at the end of a record without --arrival (docs/wind.md).")
 @click.option("--wind", "wind_file", type=click.Path(dir_okay=False, path_type=Path),
-              help="Winds-aloft prior: CSV alt_msl_m,from_deg,speed_mps[,sd_mps]. Validated and "
-                   "kept in the summary; not yet used by the estimators (a warning says so).")
+              help="Winds-aloft prior: CSV alt_msl_m,from_deg,speed_mps[,sd_mps]: the joint "
+                   "smoother's wind prior by altitude, the wind of Sabziev and dead reckoning "
+                   "where the log records none (docs/wind.md).")
 @click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
 @click.option("--methods", metavar="LIST",
               help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "

@@ -31,10 +31,12 @@ from flightrecon.filters.joint import (
 )
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.inputs import _nearest
+from flightrecon.filters.joint.measurements import wind_prior_measurements
 from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
 from flightrecon.geo.wind import wind_toward_ne
+from flightrecon.ingest.priors import wind_aloft_on_grid
 from flightrecon.types import CleanFlight, MethodResult
 
 PREFIX = "joint_"
@@ -137,6 +139,12 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         return (p.lat_deg, p.lon_deg, float(msl_to_ellipsoid(p.elev_m, N_und)))
 
     ph = clean.phases
+    fixes = None
+    if meta.fixes:
+        fixes = np.array([[f.t_s, f.lat_deg, f.lon_deg,
+                           np.nan if f.alt_msl_m is None else f.alt_msl_m + N_und, f.sd_m]
+                          for f in meta.fixes], dtype=float)
+    wa = wind_aloft_on_grid(g, meta)
     inp = JointInputs(
         t_in=t_in, acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
         heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
@@ -155,7 +163,8 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                          else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
                          for p in (meta.departure, meta.arrival)),
         lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
-        notes=tuple(notes))
+        notes=tuple(notes), ends_airborne=bool(ph is not None and ph.ends_airborne),
+        fixes=fixes, wind_aloft=None if wa is None else np.c_[wa[0], wa[1]])
     if not (ph is not None and ph.starts_airborne):
         inp = replace(inp, roll=takeoff_roll(
             inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
@@ -308,6 +317,54 @@ def _correction_items(item) -> dict[str, Any]:
     }
 
 
+def _fix_report(clean: CleanFlight, track: pd.DataFrame) -> list[dict[str, Any]]:
+    """Per known position (``--fix``): the smoothed track's offset from it at its time, north
+    and east [m], with the fix's sd and the track's sd there; ``used`` False (and no offsets)
+    for a fix outside the reconstructed span (a record trimmed with ``--start`` / ``--end``)."""
+    if not clean.meta.fixes:
+        return []
+    plane = output_plane(clean.meta)
+    t = track["t_s"].to_numpy(float)
+    p = PREFIX
+    out: list[dict[str, Any]] = []
+    h_tr = track[p + "alt_m"].to_numpy(float)
+    for f in clean.meta.fixes:
+        if not t[0] <= f.t_s <= t[-1]:
+            out.append({"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg,
+                        "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m, "used": False})
+            continue
+        # the fix at the track's height where it has none (the tangent plane's north and east
+        # of a point move with its height: 1.6 m per km of height at 10 km from the origin)
+        h = (float(np.interp(f.t_s, t, h_tr)) if f.alt_msl_m is None
+             else f.alt_msl_m + clean.meta.geoid_undulation_m)
+        e, n, _u = plane.forward(f.lat_deg, f.lon_deg, h)
+        dn = float(np.interp(f.t_s, t, track[p + "north_m"].to_numpy(float)) - float(n))
+        de = float(np.interp(f.t_s, t, track[p + "east_m"].to_numpy(float)) - float(e))
+        item = {"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg,
+                "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m, "used": True,
+                "track_minus_fix_north_m": dn, "track_minus_fix_east_m": de,
+                "track_north_sd_m": float(np.interp(f.t_s, t,
+                                                    track[p + "north_sd_m"].to_numpy(float))),
+                "track_east_sd_m": float(np.interp(f.t_s, t,
+                                                   track[p + "east_sd_m"].to_numpy(float)))}
+        out.append(item)
+    return out
+
+
+def _wind_prior_report(inp: JointInputs, settings: JointSettings,
+                       clean: CleanFlight) -> dict[str, Any] | None:
+    """Which winds-aloft prior the smoother used (docs/wind.md): its levels, the
+    pseudo-measurements and their sd."""
+    if inp.wind_aloft is None:
+        return None
+    tw, _w, sd, rho = wind_prior_measurements(inp, settings)
+    lv = clean.meta.wind_aloft
+    return {"levels": len(lv), "alt_msl_m": [lv[0].alt_msl_m, lv[-1].alt_msl_m],
+            "correlation_s_m_spacing": list(settings.wind_prior),
+            "pseudo_measurements": len(tw), "t_s": [float(x) for x in tw],
+            "sd_mps": [float(x) for x in sd], "rho": [float(x) for x in rho]}
+
+
 def _derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
     """A heading propagated from the body rates (``heading_sd_deg`` on the grid, cleaning's
     ``heading_from_rates``) has a slowly varying error (anchor offset, gyro-bias drift): the
@@ -404,6 +461,8 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
                                             else float(np.degrees(e["runway_rad"]) % 360.0)),
                         "sd_m": list(e["sd_m"])} for e in run.end_points],
         "takeoff_roll": {"start_t_s": run.roll.start_t, "rest_t_s": list(run.roll.rest_t)},
+        "fixes": _fix_report(clean, track),
+        "wind_prior": _wind_prior_report(inp, settings, clean),
         "sources": sources,
         "settings": asdict(settings),
         "warnings": warnings,

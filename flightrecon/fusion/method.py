@@ -21,7 +21,13 @@ choices the paper leaves open are documented in docs/sabziev.md, "The adapter":
 * Lift-off velocity: ``clean.phases.liftoff_velocity_ned_mps``; when unknown (record starts in
   the air), the air-derived velocity (plus wind) and the baro climb rate at the first sample.
 * Wind: from ``wind_speed_mps`` / ``wind_from_deg`` (meteorological, blowing from) when the
-  grid has them; otherwise the summary warns "wind unmodelled".
+  grid has them; else the winds-aloft table (``--wind``) at the recorded altitude
+  (:func:`flightrecon.ingest.priors.wind_aloft_on_grid`, docs/wind.md); otherwise the summary
+  warns "wind unmodelled".  ``wind_source`` in the summary says which.
+* Known positions (``--fix``): without an arrival position, a fix within
+  :data:`END_FIX_TOLERANCE_S` of the interval's end (the last sample of a record that ends in
+  the air) is the end point (:func:`end_fix`); the boundary-value problem has no place for
+  positions inside the interval, so the other fixes are not used (the summary says so).
 * Gaps (NaN) inside the interval are bridged linearly and reported (the fusion integrates
   every sample; a long bridged gap is a defect the analyst must see).
 """
@@ -43,9 +49,14 @@ from flightrecon.errors import (
 from flightrecon.fusion.sabziev import KT_MAX, SabzievSolution, air_velocity, fuse
 from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.wind import wind_toward_ne
-from flightrecon.types import CleanFlight, MethodResult, Position
+from flightrecon.types import CleanFlight, MethodResult, Position, PositionFix
 
-__all__ = ["REQUIRED_CHANNELS", "field_pressure_altitude_m", "run_sabziev"]
+__all__ = ["END_FIX_TOLERANCE_S", "REQUIRED_CHANNELS", "end_fix", "field_pressure_altitude_m",
+           "run_sabziev"]
+
+END_FIX_TOLERANCE_S = 2.0
+"""A known position this close to the end of the fusion interval [s] (or two grid steps, if
+longer) serves as its end point when there is no arrival position."""
 
 REQUIRED_CHANNELS = ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg",
                      "tas_mps", "baro_alt_m")
@@ -73,6 +84,22 @@ def _interval(clean: CleanFlight, t: np.ndarray) -> tuple[int, int, list[str]]:
         raise ValidationError(f"lift-off to touchdown spans {i1 - i0 + 1} grid samples: "
                               "nothing to fuse")
     return i0, i1, notes
+
+
+def end_fix(clean: CleanFlight) -> PositionFix | None:
+    """The known position (``--fix``) at the end of the fusion interval, if any: the last fix
+    within :data:`END_FIX_TOLERANCE_S` (or two grid steps) of the interval's last sample."""
+    fixes = clean.meta.fixes
+    if not fixes or len(clean.grid) < 3:
+        return None
+    t = clean.grid["t_s"].to_numpy(dtype=np.float64)
+    try:
+        _i0, i1, _notes = _interval(clean, t)
+    except ValidationError:
+        return None
+    tol = max(END_FIX_TOLERANCE_S, 2.0 * float(np.median(np.diff(t))))
+    near = [f for f in fixes if abs(f.t_s - t[i1]) <= tol]
+    return near[-1] if near else None
 
 
 def _column(grid: pd.DataFrame, name: str, sl: slice, notes: list[str]) -> np.ndarray:
@@ -143,9 +170,11 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     if missing:
         raise SchemaError(f"the Sabziev fusion needs {', '.join(missing)}")
     arr = arrival if arrival is not None else meta.arrival
-    if k is None and arr is None:
-        raise MetadataError("the Sabziev fusion needs the arrival position (--arrival) or the "
-                            "coefficients k (--k / fleet coefficients)")
+    fix_end = end_fix(clean) if arr is None and k is None else None
+    if k is None and arr is None and fix_end is None:
+        raise MetadataError("the Sabziev fusion needs the arrival position (--arrival), a known "
+                            "position at the end of the record (--fix) or the coefficients k "
+                            "(--k / fleet coefficients)")
     t_all = grid["t_s"].to_numpy(dtype=np.float64)
     i0, i1, notes = _interval(clean, t_all)
     sl = slice(i0, i1 + 1)
@@ -175,10 +204,30 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     h_rel = cols["baro_alt_m"] - hp_dep - origin[2]
     psi = np.radians(cols["heading_deg"])
     wind = None
+    wind_source = "none"
     if all(c in grid.columns and np.isfinite(grid[c].to_numpy(dtype=float)[sl]).any()
            for c in ("wind_speed_mps", "wind_from_deg")):
         wind = wind_toward_ne(_column(grid, "wind_speed_mps", sl, notes),
                               _column(grid, "wind_from_deg", sl, notes))
+        wind_source = "recorded"
+    elif meta.wind_aloft:
+        from flightrecon.ingest.priors import wind_aloft_on_grid
+
+        wa = wind_aloft_on_grid(grid.iloc[sl], meta)
+        if wa is not None and np.isfinite(wa[0]).any():
+            ok = np.isfinite(wa[0]).all(axis=1)
+            idx = np.arange(len(ok))
+            wind = np.column_stack([np.interp(idx, idx[ok], wa[0][ok, i]) for i in range(2)])
+            wind_source = "winds_aloft"
+            if not ok.all():
+                notes.append(f"winds aloft: no pressure altitude on {int((~ok).sum())} samples; "
+                             "the wind there is bridged linearly")
+    if meta.fixes:
+        used = 1 if fix_end is not None else 0
+        if len(meta.fixes) > used:
+            notes.append(f"{len(meta.fixes) - used} known position(s) (--fix) inside the "
+                         "interval not used: the boundary-value fusion has no place for them "
+                         "(the joint smoother uses them)")
     if liftoff_velocity_ned is not None:
         v0 = np.asarray(liftoff_velocity_ned, dtype=np.float64)
         if v0.shape != (3,) or not np.all(np.isfinite(v0)):
@@ -196,7 +245,24 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
         end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
         end_info = {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
                     "departure_pressure_alt_m": hp_dep,
-                    "liftoff_point_m": [float(x) for x in origin]}
+                    "liftoff_point_m": [float(x) for x in origin], "source": "arrival"}
+    elif fix_end is not None:
+        # the known position at the end: horizontally the fix; vertically its altitude in
+        # pressure terms, or without one the recorded pressure height there
+        qnh_arr = meta.qnh_arrival_hpa if meta.qnh_arrival_hpa is not None \
+            else meta.qnh_departure_hpa
+        y_T = (float(h_rel[-1] + origin[2]) if fix_end.alt_msl_m is None
+               else field_pressure_altitude_m(fix_end.alt_msl_m, qnh_arr) - hp_dep)
+        # placed in the output plane at its height (without one, the field's elevation plus
+        # the pressure height: the plane's north and east move 1.6 m per km of height at 10 km)
+        h_f = msl_to_ellipsoid(dep.elev_m + y_T if fix_end.alt_msl_m is None
+                               else fix_end.alt_msl_m, meta.geoid_undulation_m)
+        e, n, _u = plane.forward(fix_end.lat_deg, fix_end.lon_deg, h_f)
+        end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
+        end_info = {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
+                    "departure_pressure_alt_m": hp_dep,
+                    "liftoff_point_m": [float(x) for x in origin],
+                    "source": f"fix at t = {fix_end.t_s:g} s"}
     sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
                vertical_rule=vertical_rule)
@@ -205,6 +271,7 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
         warnings.warn(f"sabziev: {w}", FlightReconWarning, stacklevel=2)
     track = _track(t_all, sl, sol, k_sd, origin)
     summary = _summary(sol, k, k_sd, t, v0, end_info, warn, hold, vertical_rule)
+    summary["wind_source"] = wind_source
     return MethodResult(name="sabziev", track=track, summary=summary)
 
 

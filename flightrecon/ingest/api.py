@@ -263,19 +263,23 @@ def _validated_frame(src: _Sources, values: dict[str, np.ndarray], warns: list[s
 
 
 def _check_priors(meta: FlightMeta, data: pd.DataFrame, warns: list[str]) -> None:
-    """Known positions must fall inside the record; fixes and winds aloft are parsed and
-    validated but no estimator uses them yet (docs/schema.md): said, so that nobody takes the
-    result for one that used them."""
+    """Known positions must fall inside the record; which estimators use the fixes and the
+    winds aloft is said (docs/wind.md)."""
     if meta.fixes and len(data):
         from flightrecon.ingest.priors import check_fix_times
 
         check_fix_times(meta.fixes, float(data["t_s"].iloc[0]), float(data["t_s"].iloc[-1]))
     if meta.fixes or meta.wind_aloft:
+        # used by the joint smoother (the default result) and Sabziev, not by the others
+        # (docs/wind.md): said, so that nobody takes those methods' results for ones that used
+        # them
         given = " and ".join(w for w, on in (("known positions (--fix)", meta.fixes),
                                              ("a winds-aloft prior (--wind)", meta.wind_aloft))
                              if on)
-        warns.append(f"{given} read and validated, but no estimator uses them yet: the result "
-                     "does not depend on them")
+        warns.append(f"{given}: used by the joint smoother"
+                     + (" and Sabziev (a fix only as the end point, at the end of the record)"
+                        if meta.fixes else " and Sabziev")
+                     + "; the sns, arms and azimuth methods do not use them")
 
 
 def mapping_beside(log: PathLike) -> list[Path]:

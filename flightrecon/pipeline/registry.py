@@ -206,9 +206,12 @@ def _joint_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
 
 
 def _sabziev_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
-    if clean.meta.arrival is not None or s.k is not None:
+    from flightrecon.fusion.method import end_fix
+
+    if clean.meta.arrival is not None or s.k is not None or end_fix(clean) is not None:
         return None
-    return "no arrival point and no coefficients (give --arrival, or --k / fleet coefficients)"
+    return ("no arrival point and no coefficients (give --arrival, a --fix at the end of the "
+            "record, or --k / fleet coefficients)")
 
 
 def _radar_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:

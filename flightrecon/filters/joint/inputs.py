@@ -53,6 +53,13 @@ class JointInputs:
     lineup_t : when the aircraft lined up on the take-off runway (cleaning phases); nothing
         before it is taken as at rest on the runway (NaN: no limit)
     notes : what the input builder had to assume (missing attitude held, ...), for the summary
+    ends_airborne : the record ends in the air or at an impact (cleaning phases): the arrival is
+        then the last known position at the last sample (a radar hand-off, the wreckage), not
+        an airfield (:func:`end_points`)
+    fixes : known positions (``--fix``) (F, 5): t_s, lat_deg, lon_deg, h_ellipsoidal (NaN: a
+        horizontal-only fix), sd_m (per axis), or None
+    wind_aloft : winds-aloft prior (``--wind``) at the recorded altitude on the input grid
+        (Ni, 3): north, east (where the air moves to) [m/s] and sd per component [m/s], or None
     """
 
     t_in: np.ndarray
@@ -80,6 +87,9 @@ class JointInputs:
     roll: TakeoffRoll = field(default_factory=TakeoffRoll)
     lineup_t: float = np.nan
     notes: tuple[str, ...] = ()
+    ends_airborne: bool = False
+    fixes: np.ndarray | None = None
+    wind_aloft: np.ndarray | None = None
 
 
 def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
@@ -121,21 +131,31 @@ def end_points(inp: JointInputs, nz: JointNoise,
     the touchdown is ``touchdown_m`` past the arrival threshold (sd ``touchdown_sd_m``); across
     the runway the centreline holds (``runway_halfwidth_m``). Otherwise the airfield reference
     point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every
-    horizontal direction. Vertically the airfield elevation, ``endpoint_v_m``.  ``roll``
+    horizontal direction. Vertically the airfield elevation, ``endpoint_v_m``.  A record that
+    ends in the air or at an impact (``inp.ends_airborne``) has no arrival airfield: its
+    arrival is the last known position (a radar hand-off, the wreckage) and is applied at the
+    last sample as that position, ``last_position_h_m`` per horizontal axis and
+    ``endpoint_v_m`` vertically (model "last_position"; docs/wind.md, "End points").  ``roll``
     replaces ``inp.roll`` (the smoother refines it with its smoothed lift-off speed).
 
     Returns
     -------
     list of dict
-        Keys ``which`` ("departure" / "arrival"), ``model`` ("runway" / "reference"),
-        ``t_s``, ``point`` (lat, lon, h_ellipsoidal: the constrained point's mean), ``runway_rad``
-        and ``sd_m`` (along, cross, vertical) for the runway model, (h, h, v) otherwise.
+        Keys ``which`` ("departure" / "arrival"), ``model`` ("runway" / "reference" /
+        "last_position"), ``t_s``, ``point`` (lat, lon, h_ellipsoidal: the constrained point's
+        mean), ``runway_rad`` and ``sd_m`` (along, cross, vertical) for the runway model,
+        (north, east, vertical) otherwise.
     """
     out = []
     t_in = inp.t_in
     for which, pos, thr, rw in (("departure", inp.departure, inp.thresholds[0], inp.runway_rad[0]),
                                 ("arrival", inp.arrival, inp.thresholds[1], inp.runway_rad[1])):
         if pos is None:
+            continue
+        if which == "arrival" and inp.ends_airborne:
+            out.append({"which": which, "model": "last_position", "t_s": float(t_in[-1]),
+                        "point": tuple(pos), "runway_rad": None,
+                        "sd_m": (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)})
             continue
         t_run = (inp.roll if roll is None else roll).start_t if which == "departure" \
             else inp.touchdown_t

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from flightrecon.filters.joint import layout as jl
@@ -115,6 +116,75 @@ class _MeasBuilder:
                             start=start.astype(np.int64))
 
 
+@nb.njit(cache=True, nogil=True)
+def _wind_prior_picks(t, h, corr_s, corr_m, spacing):
+    """Indices of the winds-aloft pseudo-measurements and their correlation with the previous
+    one: a new one whenever dt / corr_s + |dh| / corr_m since the last reaches ``spacing``
+    (one pass over the candidate samples)."""
+    n = t.shape[0]
+    idx = np.empty(n, dtype=np.int64)
+    rho = np.empty(n)
+    m = 0
+    for i in range(n):
+        if m == 0:
+            idx[0] = i
+            rho[0] = 0.0
+            m = 1
+            continue
+        j = idx[m - 1]
+        d = (t[i] - t[j]) / corr_s + abs(h[i] - h[j]) / corr_m
+        if d >= spacing:
+            idx[m] = i
+            rho[m] = np.exp(-d)
+            m += 1
+    return idx[:m], rho[:m]
+
+
+def wind_prior_measurements(inp: JointInputs, settings: JointSettings
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The winds-aloft prior (``--wind``) as sparse pseudo-measurements of the wind states.
+
+    The forecast's error e(t, z) is taken as correlated in time and height,
+    corr = exp(-|dt| / tau - |dz| / L) (``settings.wind_prior`` = (tau, L, spacing)).  Using the
+    table at every sample as an independent measurement would count the same error hundreds
+    of times.  Instead one pseudo-measurement is placed at the first airborne air-data sample
+    and a new one whenever |dt| / tau + |dz| / L since the last reaches ``spacing``; each
+    after the first has its variance inflated by (1 + rho) / (1 - rho), rho its correlation
+    with the previous one.  For an AR(1) chain of n measurements of a constant with
+    correlation rho between neighbours, the information is
+    [1 + (n - 1)(1 - rho) / (1 + rho)] / sigma^2 (the tridiagonal inverse of the AR(1)
+    covariance), which these inflated, independently treated measurements reproduce exactly:
+    the forecast is counted once per correlation length, however densely it is sampled
+    (docs/wind.md, "The prior in the joint smoother").
+
+    Returns
+    -------
+    t : (m,) times [s]
+    w : (m, 2) north and east wind (where the air moves to) [m/s]
+    sd : (m,) standard deviation per component after the inflation [m/s]
+    rho : (m,) correlation with the previous pseudo-measurement (0 for the first)
+    """
+    empty = (np.zeros(0), np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+    if inp.wind_aloft is None:
+        return empty
+    t_in = inp.t_in
+    wa = np.asarray(inp.wind_aloft, float)
+    ok = (np.isfinite(wa).all(axis=1) & np.isfinite(inp.baro_rel_m) & np.isfinite(inp.tas)
+          & (inp.tas >= settings.min_airspeed_mps))
+    if np.isfinite(inp.liftoff_t):
+        ok &= t_in >= inp.liftoff_t
+    if np.isfinite(inp.touchdown_t):
+        ok &= t_in <= inp.touchdown_t
+    cand = np.flatnonzero(ok)
+    if len(cand) == 0:
+        return empty
+    tau, L, spacing = (float(v) for v in settings.wind_prior)
+    pick, rho = _wind_prior_picks(t_in[cand], inp.baro_rel_m[cand], tau, L, spacing)
+    i = cand[pick]
+    sd = wa[i, 2] * np.sqrt((1.0 + rho) / (1.0 - rho))
+    return t_in[i], wa[i, :2], sd, rho
+
+
 def _on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
     """Input samples used for the ground constraints: before lift-off and after touchdown (2 s
     margins), at the ground-constraint rate, with a heading."""
@@ -188,7 +258,8 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
 
 def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
     """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
-    recorded wind, pressure altitude, ground and runway constraints (built once)."""
+    recorded wind, the winds-aloft prior, pressure altitude, ground and runway constraints
+    (built once)."""
     nz = settings.noise
     b = _MeasBuilder(T)
     n = jl.N_STATE
@@ -228,6 +299,12 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
             H = np.zeros((int(okw.sum()), n))
             H[:, jl.IW + i] = 1.0
             b.add("wind", jl.LINEAR, t_in[okw], inp.wind_ne[okw, i], nz.wind_sensor_mps ** 2, H)
+    # the winds-aloft prior (--wind): one pseudo-measurement per correlation length
+    tw, ww, sdw, _rho = wind_prior_measurements(inp, settings)
+    for i in range(2):
+        H = np.zeros((len(tw), n))
+        H[:, jl.IW + i] = 1.0
+        b.add("wind_aloft", jl.LINEAR, tw, ww[:, i], sdw ** 2, H)
     # pressure altitude
     okb = np.isfinite(inp.baro_rel_m) & _decimate_mask(t_in, settings.baro_rate_hz)
     b.add("baro", jl.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
@@ -251,8 +328,9 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     """Every source as scalar measurements at its own time (recorder time base).
 
     ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
-    end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
-    positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
+    known-position (``--fix``), end-point and runway measurements depend on the linearisation
+    (``Cen``, the nominal ECEF positions ``pnom`` and NED velocities ``vnom`` on the state
+    grid) and on the clock offsets
     ``clock`` (seconds *added* to each group's time stamps, the convention of
     ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is
     :func:`refined_roll` (computed here if not given); ``psi_hat`` the heading bias of the last
@@ -325,6 +403,25 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             linear_ned("gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
                                         g["ve_mps"].to_numpy() - v_arm[:, 1]),
                        (sd_vel, sd_vel), "vel")
+    # known positions (--fix): at their own time with their sd, horizontal only without a
+    # height (then at the substitute height, as a GNSS fix without one)
+    if inp.fixes is not None and len(inp.fixes):
+        fx = np.asarray(inp.fixes, float)
+        tf = fx[:, 0]
+        k = step_of(tf)
+        hf = fx[:, 3].copy()
+        no_hf = ~np.isfinite(hf)
+        if no_hf.any():
+            if pnom is not None:
+                h_sub = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+            else:
+                ii = _nearest(t_in, tf)
+                h_sub = inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
+            hf = np.where(no_hf, h_sub, hf)
+        ex, ey, ez = geodetic_to_ecef(fx[:, 1], fx[:, 2], hf)
+        sd_f = fx[:, 4]
+        linear_ned("fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)), "pos",
+                   np.c_[ex, ey, ez])
     if pnom is not None and vnom is not None:
         _runway_measurements(b, inp, settings, step_of, pnom, vnom, psi_hat)
     # radar
@@ -354,7 +451,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         lat, lon, h = ep["point"]
         pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
         tt = np.array([ep["t_s"]])
-        if ep["model"] == "reference":
+        if ep["model"] in ("reference", "last_position"):
             linear_ned("endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
             continue
         k = step_of(tt)[0]

@@ -10,7 +10,7 @@ import numpy as np
 from flightrecon.filters.joint import layout as jl
 
 SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway",
-           "doppler", "wind")
+           "doppler", "wind", "fix", "wind_aloft")
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,8 @@ class JointNoise:
     radar_elevation_deg: float = 0.3
     endpoint_h_m: float = 1500.0             # lift-off / touchdown point vs airfield reference
     endpoint_v_m: float = 30.0
+    last_position_h_m: float = 100.0         # last known position of a record ending airborne
+    #                                          or at impact (radar hand-off, wreckage)
     touchdown_m: float = 400.0               # touchdown distance past the runway threshold
     touchdown_sd_m: float = 150.0            # its dispersion
     roll_start_sd_m: float = 100.0           # start of the take-off roll vs the threshold
@@ -75,7 +77,7 @@ POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_
                   "gnss_vel_mps", "radar_range_m", "radar_azimuth_deg", "radar_elevation_deg",
                   "endpoint_h_m", "endpoint_v_m", "touchdown_sd_m", "roll_start_sd_m",
                   "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
-                  "wind_sensor_mps")
+                  "wind_sensor_mps", "last_position_h_m")
 """JointNoise fields that must be positive (a zero would be a measurement without noise)."""
 
 
@@ -88,6 +90,9 @@ class JointSettings:
     airdata_rate_hz: float = 1.0
     baro_rate_hz: float = 1.0
     wind_rate_hz: float = 1.0 / 1800.0       # recorded wind: errors correlated over ~15 min
+    wind_prior: tuple[float, float, float] = (3600.0, 1000.0, 0.25)  # winds-aloft (--wind)
+    #   forecast error correlation time [s] and height [m], spacing of its pseudo-measurements
+    #   in correlation lengths (docs/wind.md, "The prior in the joint smoother")
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
     crab_s: float = 10.0                     # no air-data heading this close to the runway
@@ -107,6 +112,10 @@ class JointSettings:
     #                                          default prior N(0, budget^2): PRIOR_STATES names
 
     def __post_init__(self) -> None:
+        if len(self.wind_prior) != 3 or not all(np.isfinite(v) and v > 0
+                                                for v in self.wind_prior):
+            raise ValueError(f"wind_prior must be three positive numbers (correlation time "
+                             f"[s], height [m], spacing), got {self.wind_prior!r}")
         for name, mean, sd in self.priors:
             if name not in PRIOR_STATES:
                 raise ValueError(f"joint prior '{name}': not a sensor-error state (choose from "
