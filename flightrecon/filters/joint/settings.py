@@ -91,9 +91,16 @@ class JointSettings:
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
     crab_s: float = 10.0                     # no air-data heading this close to the runway
-    iterations: int = 12                     # cap on the Gauss-Newton passes
+    iterations: int = 30                     # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
+    cost_tol: float = 1e-5                   # relative MAP-cost change that counts as settled
+    line_search: bool = True                 # damp each Gauss-Newton step by backtracking on
+    #                                          the MAP cost (False: full steps, cost reported)
+    gate_damped: bool = False                # innovation gate also in the damped passes
+    first_pass: str = "nominal"                 # "ekf": about the filter's own prediction;
+    #                                          "nominal": damped from the nominal trajectory
+    line_search_halvings: int = 8            # step sizes tried: 1, 1/2, ..., 1/2^8
     huber_c: float = 3.0
     innovation_gate: float = 5.0
     reject_c: float = 8.0
