@@ -18,6 +18,7 @@ from _scripts import load_script
 from flightrecon.cleaning import clean_flight
 from flightrecon.filters.joint import JointSettings
 from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint import linearisation as lin
 from flightrecon.filters.joint import smoother as sm
 from flightrecon.filters.joint.cost import map_cost, robust_loss
 from flightrecon.filters.joint.dynamics import add_process_noise, transition
@@ -74,8 +75,8 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     s = JointSettings(noise=mc.noise_from_sensors(r.sensor_truth), iterations=2)
     inp = joint_inputs(clean)
     run = sm.smooth_joint(inp, s)
-    fl = sm._flight(inp, s)
-    mdl, X = sm._models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll)
+    fl = lin._flight(inp, s)
+    mdl, X = lin._models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll)
     rng = np.random.default_rng(3)
     Xp = X.copy()
     Xp[:, jl.S_POS] += np.cumsum(rng.normal(0.0, 3.0, (len(X), 3)), axis=0)
@@ -83,7 +84,7 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     Xp[:, jl.IPSI] += 0.01
     x0 = X[0] + rng.normal(0.0, 1.0, jl.N_STATE) * 1e-3
     P0inv = np.diag(1.0 / (np.arange(1, jl.N_STATE + 1) * 1e-3) ** 2)
-    sc = sm._scalars(mdl, fl.T, mdl.meas.r, np.ones(len(mdl.meas.z)))
+    sc = lin._scalars(mdl, fl.T, mdl.meas.r, np.ones(len(mdl.meas.z)))
     prior, process, data, const, res, rate, n_fail = map_cost(
         Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, s.huber_c, s.reject_c, True)
     ref = _reference_cost(Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, mdl.meas.step, s.huber_c,
