@@ -191,3 +191,27 @@ def _cost(fl: _Flight, mdl: _Models, X: np.ndarray, r: np.ndarray,
             "cost_data": data, "cost_constant_state_change": const,
             "cost_q_failures": int(n_fail)}
     return cost, res, rate
+
+
+def _with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl.Scalars:
+    """``sc`` with the Levenberg-Marquardt pseudo-measurements x_k,i = X_k,i of variance
+    sd_i^2 / lam appended to every step's measurements (Sarkka & Svensson 2020, section 3: the
+    smoother then minimises the linearised cost plus lam/2 sum_k |x_k - X_k|^2_D, D =
+    diag(1/sd^2), the states scaled by their prior sd)."""
+    N, n = X.shape
+    M = len(sc.z)
+    step = np.repeat(np.arange(N), np.diff(sc.start))
+    start = sc.start + n * np.arange(N + 1)
+    pos = np.arange(M) + n * step
+    pseudo = ((start[1:] - n)[:, None] + np.arange(n)[None, :]).ravel()
+
+    def put(orig: np.ndarray, extra: np.ndarray | float) -> np.ndarray:
+        out = np.empty(M + N * n, dtype=orig.dtype)
+        out[pos] = orig
+        out[pseudo] = np.broadcast_to(extra, (N, n)).ravel()
+        return out
+
+    K = sc.H.shape[0]
+    return jl.Scalars(start, put(sc.mtype, jl.LINEAR), put(sc.z, X), put(sc.r, sd ** 2 / lam),
+                      put(sc.w, 1.0), put(sc.tau, 0.0), np.vstack([sc.H, np.eye(n)]),
+                      put(sc.row, K + np.arange(n)), put(sc.d, 0.0))

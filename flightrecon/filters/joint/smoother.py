@@ -13,9 +13,8 @@ passes and held fixed within one (the cost is compared under the same ones).
 
 from __future__ import annotations
 
-import os as _os
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -33,6 +32,7 @@ from flightrecon.filters.joint.linearisation import (
     _nominal_states,
     _scalars,
     _scaled_variances,
+    _with_pseudo,
 )
 from flightrecon.filters.joint.measurements import Measurements
 from flightrecon.filters.joint.noise import NOISE_GROUPS, _em_noise_scales, innovation_loglik
@@ -103,9 +103,10 @@ class _Step:
     res: np.ndarray
     rate: np.ndarray
     evaluations: int
-    ok: bool                  # False: no step size lowered the cost (X is the pass's start)
+    ok: bool                  # False: no step lowered the cost (X is the pass's start)
     gn_shift_m: float         # largest position change of the full Gauss-Newton step
     gn_cost: float            # cost at the full Gauss-Newton step
+    lm_lambda: float = 0.0    # > 0: a Levenberg-Marquardt step with this damping
 
 
 def _gn_pass(fl: _Flight, mdl: _Models, r: np.ndarray, weights: np.ndarray, xlin: np.ndarray,
@@ -121,8 +122,8 @@ def _gn_pass(fl: _Flight, mdl: _Models, r: np.ndarray, weights: np.ndarray, xlin
     # weights) in the first pass; in the later damped passes, with gate_damped off, the IRLS
     # weights alone, so that the step is Gauss-Newton on the majoriser of the MAP cost (a
     # descent direction of it)
-    gate = s.innovation_gate if s.robust else 0.0
-    if (not first or _os.environ.get("DAMP_G0")) and s.line_search and not s.gate_damped:
+    gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
+    if not first and s.line_search and not s.gate_damped:
         gate = 0.0
     innov, innov_var, infl = jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars, mdl.geo,
                                         gate, xlin)
@@ -188,6 +189,35 @@ def _line_search(fl: _Flight, mdl: _Models, X: np.ndarray | None,
             return _Step(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
                          gn_cost)
         alpha *= 0.5
+
+
+def _lm_step(fl: _Flight, st: _State, mdl: _Models,
+             start: tuple[dict[str, Any], np.ndarray, np.ndarray], r: np.ndarray
+             ) -> _Step | None:
+    """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
+    the smoothing pass with the pseudo-measurements of :func:`_with_pseudo` about the iterate,
+    lambda from ``lm_lambda0`` (or ten times the last one) multiplied by 10 until the cost
+    does not exceed the iterate's, at most up to ``lm_lambda_max``; None if none did."""
+    s = fl.settings
+    assert st.X is not None and st.bufs is not None and st.weights is not None
+    if st.lm_bufs is None:  # its own buffers: the plain pass's filter outputs are kept
+        st.lm_bufs = tuple(np.empty_like(b) for b in st.bufs)
+    xf, Pf, xp, Pp = st.lm_bufs
+    assert fl.x0 is not None and fl.P0 is not None
+    sd = np.sqrt(np.diag(fl.P0))
+    lam, evals = max(10.0 * st.lm_lambda, s.lm_lambda0), 0
+    while lam <= s.lm_lambda_max:
+        sc = _with_pseudo(_scalars(mdl, fl.T, r, st.weights), st.X, sd, lam)
+        jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, st.X)
+        xs = jp.backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
+        mc, Xc = _models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = _cost(fl, mc, Xc, r, st.weights)
+        evals += 1
+        if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
+            st.lm_lambda = lam / 10.0
+            return _Step(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan, lam)
+        lam *= 10.0
+    return None
 
 
 def _robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettings
@@ -282,6 +312,8 @@ class _State:
     cost_scale: np.ndarray | None = None
     weights: np.ndarray | None = None
     bufs: tuple[np.ndarray, ...] | None = None
+    lm_bufs: tuple[np.ndarray, ...] | None = None
+    lm_lambda: float = 0.0              # the last accepted Levenberg-Marquardt damping / 10
     converged: bool = False
     reason: str = ""
 
@@ -328,12 +360,17 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     # the solution) smooths the states only, the later ones (likely the last) everything
     out = _gn_pass(fl, mdl, r, st.weights, xlin, st.bufs, s.estimate_noise or it > 0, it == 0)
     step = _line_search(fl, mdl, st.X, start, out, r, st.weights)
+    if not step.ok and s.levenberg_marquardt and start is not None:
+        lm = _lm_step(fl, st, mdl, start, r)
+        if lm is not None:
+            step = replace(lm, evaluations=step.evaluations + lm.evaluations,
+                           gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
     info: dict[str, Any] = {"iteration": it, "max_position_change_m": shift,
                             "roll_start_t_s": mdl.roll.start_t,
                             "cholesky_fallbacks": out.n_fallback, **step.cost,
                             "cost_start": None if start is None else start[0]["cost"],
-                            "step_size": step.alpha,
+                            "step_size": step.alpha, "lm_lambda": step.lm_lambda,
                             "line_search_evaluations": step.evaluations}
     psi_from = 0.0 if st.psi_hat is None else st.psi_hat
     psi_new = np.ascontiguousarray((step.X if step.ok else out.xs)[:, jl.IPSI])
@@ -376,9 +413,11 @@ def _stop_reason(history: list[dict[str, Any]], settings: JointSettings) -> str:
     clock offsets, take-off roll, noise factors), or the cap on the passes was reached."""
     last = history[-1]
     if last.get("line_search_failed"):
+        lm = (f", nor a Levenberg-Marquardt step with damping up to {settings.lm_lambda_max:g}"
+              if settings.levenberg_marquardt else "")
         return (f"line search failed: no step size down to 1/{2 ** settings.line_search_halvings}"
-                " of the Gauss-Newton step lowered the MAP cost (the full step moved the track "
-                f"by {last['gauss_newton_position_change_m']:.0f} m)")
+                f" of the Gauss-Newton step{lm} lowered the MAP cost (the full step moved the "
+                f"track by {last['gauss_newton_position_change_m']:.0f} m)")
     if len(history) > 1 and last["cost"] > history[-2]["cost"] * (1.0 + settings.cost_tol):
         return (f"cost rising: {history[-2]['cost']:.6g} -> {last['cost']:.6g} over the last "
                 "pass (the updates between the passes raised it)")
@@ -431,7 +470,7 @@ def _finish(fl: _Flight, st: _State, mdl: _Models, out: _Pass, step: _Step,
     s = fl.settings
     assert st.bufs is not None and st.weights is not None
     xf, Pf, xp, Pp = st.bufs
-    full = step.ok and step.alpha == 1.0
+    full = step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
     xs = out.xs if full else step.X
     res = out.res if full else step.res
     Pblk, var, n_fallback = out.Pblk, out.var, out.n_fallback
