@@ -158,6 +158,8 @@ def _nominal_states(fl: _Flight, mdl: _Models) -> np.ndarray:
     w = np.zeros((len(idx), 2))
     if inp.wind_ne is not None:
         w = np.where(np.isfinite(inp.wind_ne[idx]), inp.wind_ne[idx], 0.0)
+    # (at least 1 m/s through the air: the airspeed and heading functions are singular at 0)
+    tas = np.maximum(tas, 1.0)
     X[:, jl.S_POS] = mdl.pnom
     X[:, jl.IV] = tas * np.cos(psi) + w[:, 0]
     X[:, jl.IV + 1] = tas * np.sin(psi) + w[:, 1]
@@ -184,9 +186,16 @@ def _cost(fl: _Flight, mdl: _Models, X: np.ndarray, r: np.ndarray,
     s = fl.settings
     assert fl.x0 is not None and fl.P0inv is not None
     # the weights only mark left-out measurements (w <= 0); the loss is the robust one
-    prior, process, data, const, res, rate, n_fail = map_cost(
-        X, fl.x0, fl.P0inv, mdl.dyn, _scalars(mdl, fl.T, r, weights), mdl.geo,
-        s.huber_c, s.reject_c, s.robust)
+    try:
+        prior, process, data, const, res, rate, n_fail = map_cost(
+            X, fl.x0, fl.P0inv, mdl.dyn, _scalars(mdl, fl.T, r, weights), mdl.geo,
+            s.huber_c, s.reject_c, s.robust)
+    except ZeroDivisionError:
+        # a measurement function at a singular point (an air velocity of exactly zero under
+        # an airspeed or heading measurement): no finite cost, the candidate is not taken
+        M = len(mdl.meas.z)
+        prior = process = data = const = np.inf
+        res, rate, n_fail = np.full(M, np.nan), np.full(M, np.nan), 0
     cost = {"cost": prior + process + data, "cost_prior": prior, "cost_process": process,
             "cost_data": data, "cost_constant_state_change": const,
             "cost_q_failures": int(n_fail)}
