@@ -100,6 +100,8 @@ def one_run(scenario: str, seed: int) -> dict:
         res["joint_passes"] = len(its)
         res["joint_pass_change_m"] = [float(it.get("max_position_change_m", np.nan)) for it in its]
         res["joint_pass_cost"] = [float(it["cost"]) for it in its if "cost" in it]
+        res["joint_pass_step"] = [float(it.get("step_size", np.nan)) for it in its]
+        res["joint_stop_reason"] = s.get("stop_reason")
         hb = [it.get("heading_bias_deg") for it in its]
         res["joint_pass_heading_bias_deg"] = [None if v is None else float(v) for v in hb]
         res["joint_heading_bias_deg"] = s["corrections"].get("heading_bias_deg")
@@ -123,11 +125,20 @@ def _rms(r: dict, m: str) -> float:
     return float(v) if v is not None else np.nan
 
 
+def _monotone(r: dict) -> bool | None:
+    """The joint's MAP cost per pass never rose (relative 1e-9 for rounding); None without
+    a cost (runs of the undamped iterations)."""
+    c = r.get("joint_pass_cost") or []
+    if not c:
+        return None
+    return bool(all(b <= a * (1 + 1e-9) for a, b in zip(c, c[1:])))
+
+
 def summarise(rows: list[dict]) -> str:
     lines = [("| scenario | runs | joint converged | joint RMS [m] (median) | DR + linear [m] | "
              "DR [m] | Sabziev [m] | joint / DR+linear (geo. mean) | joint < DR+linear | "
-             "NEES north | NEES east | 95 % band |"),
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "NEES north | NEES east | 95 % band | cost non-increasing |"),
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for sc in SCENARIOS:
         rs = [r for r in rows if r["scenario"] == sc]
         if not rs:
@@ -138,6 +149,9 @@ def summarise(rows: list[dict]) -> str:
         dr = np.array([_rms(r, "dr") for r in rs])
         sb = np.array([_rms(r, "sabziev") for r in rs])
         conv = sum(bool(r.get("joint_converged")) for r in rs)
+        mono = [_monotone(r) for r in rs]
+        mono_s = (f"{sum(m is True for m in mono)}/{sum(m is not None for m in mono)}"
+                  if any(m is not None for m in mono) else "-")
         ok = np.isfinite(jr) & np.isfinite(dl) & (dl > 0)
         ratio = float(np.exp(np.mean(np.log(jr[ok] / dl[ok])))) if ok.any() else np.nan
         better = int(np.sum(jr[ok] < dl[ok]))
@@ -156,7 +170,7 @@ def summarise(rows: list[dict]) -> str:
             + (f" ({nosab} without a track)" if nosab else "")
             + f" | {ratio:.2f} | {better}/{int(ok.sum())} | "
             + (f"{np.mean(nn[fin]):.2f} | {np.mean(ne[fin]):.2f} | [{lo:.2f}, {hi:.2f}] |"
-               if fin.any() else "- | - | - |"))
+               if fin.any() else "- | - | - |") + f" {mono_s} |")
     lines.append("")
     lines.append("Per run (RMS horizontal error over the airborne truth samples [m]; passes: "
                  "the Gauss-Newton passes of the joint smoother with the largest position "
@@ -164,8 +178,9 @@ def summarise(rows: list[dict]) -> str:
                  "(truth: the recorder's heading bias)):")
     lines.append("")
     lines.append("| scenario | seed | min | joint | conv. | passes (first -> last change, m) | "
-                 "DR + lin. | DR | Sabziev | NEES n / e | heading bias est. / truth [deg] |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
+                 "DR + lin. | DR | Sabziev | NEES n / e | heading bias est. / truth [deg] | "
+                 "stop |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         pc = r.get("joint_pass_change_m") or []
         passes = f"{r.get('joint_passes', '-')} ({pc[0]:.0f} -> {pc[-1]:.0f})" if pc else "-"
@@ -183,7 +198,8 @@ def summarise(rows: list[dict]) -> str:
             f"| {r['scenario']} | {r['seed']} | {r.get('duration_s', 0) / 60:.0f} | "
             f"{f0(_rms(r, 'joint'))} | {'yes' if r.get('joint_converged') else 'no'} | {passes} | "
             f"{f0(_rms(r, 'dr_linear'))} | {f0(_rms(r, 'dr'))} | {sab_s} | {nees} | "
-            f"{hb_s} / {r.get('heading_bias_truth_deg', float('nan')):+.2f} |")
+            f"{hb_s} / {r.get('heading_bias_truth_deg', float('nan')):+.2f} | "
+            f"{(r.get('joint_stop_reason') or '-').split(':')[0]} |")
     return "\n".join(lines) + "\n"
 
 

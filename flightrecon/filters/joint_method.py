@@ -413,18 +413,12 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     if settings.estimate_noise and not run.iterations[-1].get("converged"):
         warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
                         "iterations; the last factors are used")
-    # converged: the strict test of smooth_joint, or a last pass that moved the track by less
-    # than 5 % of its median position standard deviation (the linearisation then no longer
-    # matters at the precision claimed); otherwise reported as not converged
-    last = run.iterations[-1]
-    sd_h = np.sqrt(np.nanmedian(run.var[:, jl.S_POS].sum(axis=1)))
-    converged = bool(last.get("converged")) or bool(
-        last["max_position_change_m"] < 0.05 * sd_h)
-    if not last.get("converged"):
-        warnings.append(f"joint: the iterations stopped after {len(run.iterations)} passes; "
-                        f"the last moved the track by {last['max_position_change_m']:.1f} m "
-                        f"(median position sd {sd_h:.1f} m)"
-                        + ("" if converged else ": not converged"))
+    # converged: the test of smooth_joint (the MAP cost and the track settled; docs/joint.md,
+    # "Filter, smoother, iterations"), nothing looser; otherwise a warning with the reason
+    converged = run.converged
+    if not converged:
+        warnings.append(f"joint: not converged after {len(run.iterations)} passes: "
+                        f"{run.stop_reason}")
     for name, (o, sd) in run.clock_offsets_s.items():
         if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
             warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "
@@ -447,6 +441,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "healthy": bool(finite) and not verdict.gross,
         "consistency": verdict.as_dict(),
         "converged": bool(finite) and converged,
+        "stop_reason": run.stop_reason,
         "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,

@@ -223,7 +223,9 @@ def relinearised_increments(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt:
     about the vertical); about psi_hat it is R(-psi_hat) dV + (dpsi - psi_hat) J R(-psi_hat) dV
     with J u = (u_E, -u_N, 0). The kernels build F[v, dpsi] = J a h (and J a h^2/2 for the
     position) from the acceleration they are given and add the increments, so they are given
-    a' = R(-psi_hat) a, dV' = R(-psi_hat) dV - J a' h psi_hat and dP' likewise with h^2/2: the
+    a' = R(-psi_hat) a, dV' = R(-psi_hat) dV - J a' h psi_hat and dP' = dP + (a' - a) h^2/2 -
+    J a' h^2/2 psi_hat (the held-mean part of the position increment rotated, the remainder
+    from the acceleration's variation within the step, second order, not): the
     state keeps the whole bias, and the transition is exact at the solution, not only for a
     small bias (on recorder data without the runway's direction the bias is nearly
     unobservable and a first-order rotation let it wander by several degrees).
@@ -236,5 +238,11 @@ def relinearised_increments(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt:
     a_r = rot(acc)
     ja = np.c_[a_r[:, 1], -a_r[:, 0], np.zeros(len(a_r))]
     dV_r = rot(dV) - ja * (dt * psi_hat)[:, None]
-    dP_r = rot(dP) - ja * (0.5 * dt * dt * psi_hat)[:, None]
+    # the position increment: its held-mean part a h^2/2 rotated by the bias, the rest (the
+    # acceleration's variation within the step, second order) not: then F[p, dpsi] = J a' h^2/2
+    # is its exact derivative in the bias, so that the Gauss-Newton step is a descent
+    # direction of the MAP cost (with R(-dpsi) dP it missed J (R dP - a' h^2/2), which in a
+    # spiral dive made the line search fail: docs/joint.md)
+    hh = (0.5 * dt * dt)[:, None]
+    dP_r = dP + (a_r - acc) * hh - ja * (hh * psi_hat[:, None])
     return np.ascontiguousarray(a_r), np.ascontiguousarray(dV_r), np.ascontiguousarray(dP_r)

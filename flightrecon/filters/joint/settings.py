@@ -96,9 +96,21 @@ class JointSettings:
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
     crab_s: float = 10.0                     # no air-data heading this close to the runway
-    iterations: int = 12                     # cap on the Gauss-Newton passes
+    iterations: int = 30                     # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
+    cost_tol: float = 1e-5                   # relative MAP-cost change that counts as settled
+    line_search: bool = True                 # damp each Gauss-Newton step by backtracking on
+    #                                          the MAP cost (False: full steps, cost reported)
+    first_gate: bool = True                  # innovation gate in the first pass
+    gate_damped: bool = False                # innovation gate also in the damped passes
+    first_pass: str = "ekf"                  # "ekf": about the filter's own prediction;
+    #                                          "nominal": damped from the nominal trajectory
+    levenberg_marquardt: bool = True         # where the line search fails: LM steps
+    lm_lambda0: float = 1.0                  # first LM damping (pseudo-measurement variance:
+    #                                          the prior variance of each state / lambda)
+    lm_lambda_max: float = 1e8               # largest damping tried before giving up
+    line_search_halvings: int = 16           # step sizes tried: 1, 1/2, ..., 1/2^16
     huber_c: float = 3.0
     innovation_gate: float = 5.0
     reject_c: float = 8.0
@@ -116,6 +128,8 @@ class JointSettings:
                                                 for v in self.wind_prior):
             raise ValueError(f"wind_prior must be three positive numbers (correlation time "
                              f"[s], height [m], spacing), got {self.wind_prior!r}")
+        if self.first_pass not in ("ekf", "nominal"):
+            raise ValueError(f"joint first_pass {self.first_pass!r}: 'ekf' or 'nominal'")
         for name, mean, sd in self.priors:
             if name not in PRIOR_STATES:
                 raise ValueError(f"joint prior '{name}': not a sensor-error state (choose from "
