@@ -37,9 +37,8 @@ import numba as nb
 import numpy as np
 
 from flightrecon.estimation.linalg import cholesky_factor
+from flightrecon.estimation.predict import sparse_matvec, sparse_rows
 from flightrecon.filters.joint.dynamics import (
-    _sparse_matvec,
-    _sparse_rows,
     _wrap,
     add_process_noise,
     transition_into,
@@ -83,8 +82,8 @@ def _process_term(X, dyn, F, cols, vals, cnt, Q, xn, e):
     act = np.empty(n, dtype=np.int64)
     for k in range(1, N):
         transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
-        _sparse_rows(F, cols, vals, cnt)
-        _sparse_matvec(cols, vals, cnt, X[k - 1], xn)
+        sparse_rows(F, cols, vals, cnt)
+        sparse_matvec(cols, vals, cnt, X[k - 1], xn)
         for i in range(3):
             for m in range(3):
                 xn[IP + i] += Cen[k - 1, i, m] * dP[k, m]
