@@ -141,5 +141,7 @@ def wrap_roll(grid: pd.DataFrame) -> pd.DataFrame:
         return grid
     g = grid.copy(deep=False)  # copy-on-write (pandas >= 3): the input is never changed
     r = g["roll_deg"].to_numpy(float)
-    g["roll_deg"] = (r + 180.0) % 360.0 - 180.0
+    out = (r < -180.0) | (r >= 180.0)   # in-range values untouched (bit for bit)
+    if out.any():
+        g["roll_deg"] = np.where(out, (r + 180.0) % 360.0 - 180.0, r)
     return g
