@@ -159,3 +159,39 @@ def test_long_results_are_thinned_for_drawing_only():
     assert len(ctx.track) <= ctx.max_track_rows + 1  # every k-th sample and the last
     assert ctx.track["t_s"].iloc[-1] == long["t_s"].iloc[-1]
     assert ctx.grid is grid  # the recorder channels in full
+
+
+def test_map_draws_the_known_positions_with_their_2sd_circles():
+    """Each --fix (summary: flight.fixes) on the map: a marker at its latitude/longitude, a
+    dashed circle of radius 2 sd (to scale: 2 sd in metres north, in degrees of latitude) where
+    an sd is given, a label with its UTC time and one legend entry; none without fixes."""
+    from matplotlib.patches import Ellipse
+
+    from flightrecon.report.plots import ground_track
+    from flightrecon.report.plots.context import ReportContext
+
+    df, summary, grid = synthetic_result()
+    fig = ground_track(ReportContext(df, summary, grid=grid))
+    ax = fig.axes[0]
+    assert not [ln for ln in ax.get_lines() if ln.get_gid() == "known_position"]
+    assert not any("known position" in t.get_text() for t in ax.get_legend().get_texts())
+    fixes = [{"t_s": 120.0, "lat_deg": 40.09, "lon_deg": 50.004, "alt_msl_m": None, "sd_m": 50.0},
+             {"t_s": 400.0, "lat_deg": 40.29, "lon_deg": 50.0, "alt_msl_m": 900.0,
+              "sd_m": 200.0},
+             {"t_s": 500.0, "lat_deg": 40.36, "lon_deg": 49.99, "sd_m": None}]
+    summary["flight"]["fixes"] = fixes
+    fig = ground_track(ReportContext(df, summary, grid=grid))
+    ax = fig.axes[0]
+    marks = [ln for ln in ax.get_lines() if ln.get_gid() == "known_position"]
+    assert [(float(m.get_ydata()[0]), float(m.get_xdata()[0])) for m in marks] == \
+        [(f["lat_deg"], f["lon_deg"]) for f in fixes]
+    circles = [p for p in ax.patches if isinstance(p, Ellipse)
+               and p.get_gid() == "known_position_2sd"]
+    assert len(circles) == 2        # the third fix has no sd
+    for c, f in zip(circles, fixes[:2]):
+        assert c.center == (f["lon_deg"], f["lat_deg"])
+        assert c.height / 2 == pytest.approx(2 * f["sd_m"] / 110540.0, rel=1e-12)
+    labels = [t.get_text() for t in ax.texts if t.get_text().startswith("fix ")]
+    assert labels == ["fix 10:02:00 UTC", "fix 10:06:40 UTC", "fix 10:08:20 UTC"]
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert sum("known positions (--fix, 3)" in t for t in legend) == 1

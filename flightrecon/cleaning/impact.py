@@ -158,34 +158,13 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
     t = grid["t_s"].to_numpy(float)
     nl, nt, nn = (np.asarray(c) for c in cols)
     mag = np.sqrt(nl ** 2 + nt ** 2 + nn ** 2)
-    sat = np.zeros(len(t), bool)
-    for c in LOAD_FACTORS:
-        if f"{c}_saturated" in grid.columns:
-            sat |= grid[f"{c}_saturated"].to_numpy(bool)
     s = settings
     t_end = float(t[-1])
     fin = np.isfinite(mag)
-    # the change of the load vector from the previous sample [g]
-    dev = np.full(len(t), np.nan)
-    dev[1:] = np.sqrt((nl[1:] - nl[:-1]) ** 2 + (nt[1:] - nt[:-1]) ** 2
-                      + (nn[1:] - nn[:-1]) ** 2)
-    big = np.maximum(mag, np.r_[np.nan, mag[:-1]])
-    jolt = (dev >= s.jump_g) & (big >= s.peak_g)
-    last = (t >= t_end - s.end_window_s) & fin
-    cand = np.flatnonzero(last & (jolt | sat))
-    if not len(cand):
-        return None, []
-    k0 = int(cand[0])
     hp = _col(grid, "baro_alt_m")
-    if hp is not None:   # back along a crash sequence: earlier jolts near the same height
-        okh = np.isfinite(hp)
-        hpf = np.interp(t, t[okh], hp[okh])
-        h_last = hpf[int(cand[-1])]
-        near = (jolt | sat) & fin & (np.abs(hpf - h_last) <= s.chain_height_m) \
-            & (t >= t[int(cand[-1])] - s.max_sequence_s)
-        seq = np.append(np.flatnonzero(near[:k0]), k0)
-        brk = np.flatnonzero(np.diff(t[seq]) > s.chain_gap_s)
-        k0 = int(seq[brk[-1] + 1] if len(brk) else seq[0])
+    k0 = _first_jolt(grid, t, (nl, nt, nn), mag, hp, s)
+    if k0 is None:
+        return None, []
     t_imp = float(t[k0])
     pre_sel = (t >= t_imp - s.pre_s - 0.25) & (t < t_imp - 0.25) & fin
     pre = float(np.median(mag[pre_sel])) if pre_sel.any() else float("nan")
@@ -210,33 +189,81 @@ def detect_impact(grid: pd.DataFrame, phases: FlightPhases | None = None,
         return None, [report_entry("phases", "no_impact", why, count=1, t_s=[t_imp],
                                    peak_load_g=peak_end, pre_load_g=pre,
                                    sink_rate_mps=sink, tas_mps=tas, height_above_end_m=h_end)]
-    win = slice(k0, len(t))
+    peaks, satd = _peaks(grid, slice(k0, len(t)), (nl, nt, nn))
+    peak_all = float(np.nanmax(mag[k0:]))
+    imp = Impact(t_s=t_imp, peak_load_g=peak_all, peak_n_long_g=peaks[0], peak_n_lat_g=peaks[1],
+                 peak_n_norm_g=peaks[2], saturated=tuple(satd), pre_load_g=pre,
+                 sink_rate_mps=sink, tas_mps=tas, height_above_end_m=h_end,
+                 record_end_t_s=t_end)
+    return imp, [_impact_entry(imp)]
+
+
+def _first_jolt(grid: pd.DataFrame, t: np.ndarray, loads: tuple[np.ndarray, ...],
+                mag: np.ndarray, hp: np.ndarray | None, s: ImpactSettings) -> int | None:
+    """Index of the impact's first sample (module docstring), ``None`` without a candidate:
+    the first jolt (or saturated load) in the record's last ``end_window_s``, then back along
+    the crash sequence to the earliest chain of jolts near the same pressure altitude."""
+    nl, nt, nn = loads
+    sat = np.zeros(len(t), bool)
+    for c in LOAD_FACTORS:
+        if f"{c}_saturated" in grid.columns:
+            sat |= grid[f"{c}_saturated"].to_numpy(bool)
+    fin = np.isfinite(mag)
+    # the change of the load vector from the previous sample [g]
+    dev = np.full(len(t), np.nan)
+    dev[1:] = np.sqrt((nl[1:] - nl[:-1]) ** 2 + (nt[1:] - nt[:-1]) ** 2
+                      + (nn[1:] - nn[:-1]) ** 2)
+    big = np.maximum(mag, np.r_[np.nan, mag[:-1]])
+    jolt = (dev >= s.jump_g) & (big >= s.peak_g)
+    last = (t >= float(t[-1]) - s.end_window_s) & fin
+    cand = np.flatnonzero(last & (jolt | sat))
+    if not len(cand):
+        return None
+    k0 = int(cand[0])
+    if hp is not None:   # back along a crash sequence: earlier jolts near the same height
+        okh = np.isfinite(hp)
+        hpf = np.interp(t, t[okh], hp[okh])
+        h_last = hpf[int(cand[-1])]
+        near = (jolt | sat) & fin & (np.abs(hpf - h_last) <= s.chain_height_m) \
+            & (t >= t[int(cand[-1])] - s.max_sequence_s)
+        seq = np.append(np.flatnonzero(near[:k0]), k0)
+        brk = np.flatnonzero(np.diff(t[seq]) > s.chain_gap_s)
+        k0 = int(seq[brk[-1] + 1] if len(brk) else seq[0])
+    return k0
+
+
+def _peaks(grid: pd.DataFrame, win: slice,
+           loads: tuple[np.ndarray, ...]) -> tuple[list[float], list[str]]:
+    """Per load factor the reading farthest from its level-flight value (1 g normal, 0 g the
+    others) over ``win`` [g], and the load factors saturated there."""
     peaks = []
     satd = []
-    for c, x in zip(LOAD_FACTORS, (nl, nt, nn)):
+    for c, x in zip(LOAD_FACTORS, loads):
         seg = x[win]
         ref = 1.0 if c == "n_norm_g" else 0.0
         jj = int(np.nanargmax(np.abs(seg - ref)))
         peaks.append(float(seg[jj]))
         if f"{c}_saturated" in grid.columns and grid[f"{c}_saturated"].to_numpy(bool)[win].any():
             satd.append(c)
-    peak_all = float(np.nanmax(mag[win]))
-    imp = Impact(t_s=t_imp, peak_load_g=peak_all, peak_n_long_g=peaks[0], peak_n_lat_g=peaks[1],
-                 peak_n_norm_g=peaks[2], saturated=tuple(satd), pre_load_g=pre,
-                 sink_rate_mps=sink, tas_mps=tas, height_above_end_m=h_end,
-                 record_end_t_s=t_end)
-    sat_txt = (f"; saturated: {', '.join(satd)} (true peak at least the reading)" if satd
-               else "")
-    why = (f"ground impact: load jolt to |n| {peak_all:.2f} g against {pre:.2f} g "
-           f"before{sat_txt}; descent {sink:.1f} m/s, airspeed {tas:.0f} m/s"
+    return peaks, satd
+
+
+def _impact_entry(imp: Impact) -> dict:
+    """The cleaning report's ``impact`` entry for ``imp``."""
+    sat_txt = (f"; saturated: {', '.join(imp.saturated)} (true peak at least the reading)"
+               if imp.saturated else "")
+    h_end = imp.height_above_end_m
+    why = (f"ground impact: load jolt to |n| {imp.peak_load_g:.2f} g against "
+           f"{imp.pre_load_g:.2f} g before{sat_txt}; descent {imp.sink_rate_mps:.1f} m/s, "
+           f"airspeed {imp.tas_mps:.0f} m/s"
            + (f", {h_end:.0f} m above the end point" if np.isfinite(h_end) else "")
-           + f"; record ends {t_end - t_imp:.2f} s later")
-    rep = report_entry("phases", "impact", why, count=1, t_s=[t_imp],
-                       peak_n_long_g=peaks[0], peak_n_lat_g=peaks[1], peak_n_norm_g=peaks[2],
-                       saturated=",".join(satd), record_end_t_s=t_end, peak_load_g=peak_all,
-                       pre_load_g=pre, sink_rate_mps=sink, tas_mps=tas,
-                       height_above_end_m=h_end)
-    return imp, [rep]
+           + f"; record ends {imp.record_end_t_s - imp.t_s:.2f} s later")
+    return report_entry("phases", "impact", why, count=1, t_s=[imp.t_s],
+                        peak_n_long_g=imp.peak_n_long_g, peak_n_lat_g=imp.peak_n_lat_g,
+                        peak_n_norm_g=imp.peak_n_norm_g, saturated=",".join(imp.saturated),
+                        record_end_t_s=imp.record_end_t_s, peak_load_g=imp.peak_load_g,
+                        pre_load_g=imp.pre_load_g, sink_rate_mps=imp.sink_rate_mps,
+                        tas_mps=imp.tas_mps, height_above_end_m=h_end)
 
 
 def with_impact(grid: pd.DataFrame, phases: FlightPhases | None, meta: FlightMeta | None,

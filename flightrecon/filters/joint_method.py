@@ -37,7 +37,7 @@ from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_pl
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
 from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.ingest.priors import wind_aloft_on_grid
-from flightrecon.types import CleanFlight, MethodResult
+from flightrecon.types import CleanFlight, FlightMeta, MethodResult
 
 PREFIX = "joint_"
 
@@ -69,6 +69,64 @@ def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndar
     return out, notes
 
 
+def _loads_in_ned(g: pd.DataFrame, t_in: np.ndarray,
+                  lat_deg: float) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The body-to-NED matrices of the (held) recorded attitude and the kinematic acceleration
+    (NED) [m/s^2] of the loads on the grid ``g``, NaN where a load factor is saturated, with
+    the notes for the summary."""
+    def col(name):
+        return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
+
+    att, notes = _held_attitude(t_in, col("roll_deg"), col("pitch_deg"), col("heading_deg"))
+    Cnb = body_to_ned_matrix(*att)
+    # gravity at the departure latitude (normal gravity changes by 5e-6 m/s^2 per km north)
+    acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
+                                     col("roll_deg"), col("pitch_deg"), col("heading_deg"),
+                                     lat_deg=lat_deg,
+                                     h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
+    sat = saturated_loads(g)   # at the recorder's range: a bound, not a reading (as missing)
+    if sat.any():
+        acc[sat] = np.nan
+        notes.append(f"joint: load factors saturated on {int(sat.sum())} samples; treated as "
+                     "missing (process noise instead of the acceleration)")
+    return Cnb, acc, notes
+
+
+def _gnss_table(gn: pd.DataFrame, meta: FlightMeta) -> pd.DataFrame:
+    """The GNSS fixes as the smoother reads them: ``t_s``, ``lat_deg``, ``lon_deg``, ellipsoidal
+    ``h_m`` (NaN without a height), velocities and per-fix accuracies where recorded."""
+    gnss = pd.DataFrame()
+    if len(gn) and {"gnss_lat_deg", "gnss_lon_deg"} <= set(gn.columns):
+        alt = (gn["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in gn.columns
+               else np.full(len(gn), np.nan))
+        if meta.gnss_alt_datum.lower() == "msl":
+            alt = alt + meta.geoid_undulation_m
+        gnss = pd.DataFrame({"t_s": gn["t_s"].to_numpy(float), "lat_deg": gn["gnss_lat_deg"],
+                             "lon_deg": gn["gnss_lon_deg"], "h_m": alt})
+        if {"gnss_vn_mps", "gnss_ve_mps"} <= set(gn.columns):
+            gnss["vn_mps"] = gn["gnss_vn_mps"].to_numpy(float)
+            gnss["ve_mps"] = gn["gnss_ve_mps"].to_numpy(float)
+        # the receiver's per-fix accuracy (docs/ingest.md, "GNSS as receivers write it")
+        for src, dst in (("gnss_h_sd_m", "h_sd_m"), ("gnss_v_sd_m", "v_sd_m"),
+                         ("gnss_vel_sd_mps", "vel_sd_mps")):
+            if src in gn.columns:
+                gnss[dst] = gn[src].to_numpy(float)
+    return gnss
+
+
+def _radar_table(rd: pd.DataFrame) -> pd.DataFrame:
+    """The radar plots as the smoother reads them: ``t_s``, ``range_m``, ``azimuth_rad``
+    (``elevation_rad`` where recorded); empty without range and azimuth."""
+    radar = pd.DataFrame()
+    if len(rd) and {"arms_range_m", "arms_azimuth_deg"} <= set(rd.columns):
+        radar = pd.DataFrame({"t_s": rd["t_s"].to_numpy(float),
+                              "range_m": rd["arms_range_m"].to_numpy(float),
+                              "azimuth_rad": np.radians(rd["arms_azimuth_deg"].to_numpy(float))})
+        if "arms_elevation_deg" in rd.columns:
+            radar["elevation_rad"] = np.radians(rd["arms_elevation_deg"].to_numpy(float))
+    return radar
+
+
 def joint_inputs(clean: CleanFlight) -> JointInputs:
     """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base)."""
     g = clean.grid
@@ -85,18 +143,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                             "GNSS / radar fix: it anchors the output plane and the latitude of "
                             "normal gravity")
     t_in = g["t_s"].to_numpy(float)
-    att, notes = _held_attitude(t_in, col("roll_deg"), col("pitch_deg"), col("heading_deg"))
-    Cnb = body_to_ned_matrix(*att)
-    # gravity at the departure latitude (normal gravity changes by 5e-6 m/s^2 per km north)
-    acc = kinematic_acceleration_ned(col("n_long_g"), col("n_lat_g"), col("n_norm_g"),
-                                     col("roll_deg"), col("pitch_deg"), col("heading_deg"),
-                                     lat_deg=p0.lat_deg,
-                                     h_m=np.nan_to_num(col("baro_alt_m")), C_nb=Cnb)
-    sat = saturated_loads(g)   # at the recorder's range: a bound, not a reading (as missing)
-    if sat.any():
-        acc[sat] = np.nan
-        notes.append(f"joint: load factors saturated on {int(sat.sum())} samples; treated as "
-                     "missing (process noise instead of the acceleration)")
+    Cnb, acc, notes = _loads_in_ned(g, t_in, p0.lat_deg)
     dep = meta.departure
     if dep is not None:
         h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
@@ -107,31 +154,8 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     wind = None
     if "wind_speed_mps" in g.columns and "wind_from_deg" in g.columns:
         wind = wind_toward_ne(col("wind_speed_mps"), col("wind_from_deg"))
-    gn = clean.gnss
-    gnss = pd.DataFrame()
-    if len(gn) and {"gnss_lat_deg", "gnss_lon_deg"} <= set(gn.columns):
-        alt = (gn["gnss_alt_m"].to_numpy(float) if "gnss_alt_m" in gn.columns
-               else np.full(len(gn), np.nan))
-        if meta.gnss_alt_datum.lower() == "msl":
-            alt = alt + N_und
-        gnss = pd.DataFrame({"t_s": gn["t_s"].to_numpy(float), "lat_deg": gn["gnss_lat_deg"],
-                             "lon_deg": gn["gnss_lon_deg"], "h_m": alt})
-        if {"gnss_vn_mps", "gnss_ve_mps"} <= set(gn.columns):
-            gnss["vn_mps"] = gn["gnss_vn_mps"].to_numpy(float)
-            gnss["ve_mps"] = gn["gnss_ve_mps"].to_numpy(float)
-        # the receiver's per-fix accuracy (docs/ingest.md, "GNSS as receivers write it")
-        for src, dst in (("gnss_h_sd_m", "h_sd_m"), ("gnss_v_sd_m", "v_sd_m"),
-                         ("gnss_vel_sd_mps", "vel_sd_mps")):
-            if src in gn.columns:
-                gnss[dst] = gn[src].to_numpy(float)
-    rd = clean.radar
-    radar = pd.DataFrame()
-    if len(rd) and {"arms_range_m", "arms_azimuth_deg"} <= set(rd.columns):
-        radar = pd.DataFrame({"t_s": rd["t_s"].to_numpy(float),
-                              "range_m": rd["arms_range_m"].to_numpy(float),
-                              "azimuth_rad": np.radians(rd["arms_azimuth_deg"].to_numpy(float))})
-        if "arms_elevation_deg" in rd.columns:
-            radar["elevation_rad"] = np.radians(rd["arms_elevation_deg"].to_numpy(float))
+    gnss = _gnss_table(clean.gnss, meta)
+    radar = _radar_table(clean.radar)
 
     def pos(p):
         if p is None:

@@ -49,7 +49,7 @@ from flightrecon.errors import (
 from flightrecon.fusion.sabziev import KT_MAX, SabzievSolution, air_velocity, fuse
 from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.wind import wind_toward_ne
-from flightrecon.types import CleanFlight, MethodResult, Position, PositionFix
+from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position, PositionFix
 
 __all__ = ["END_FIX_TOLERANCE_S", "REQUIRED_CHANNELS", "end_fix", "field_pressure_altitude_m",
            "run_sabziev"]
@@ -161,108 +161,29 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     ConvergenceError
         ``strict`` and an axis found no root.
     """
-    from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+    from flightrecon.geo.frames import output_plane
 
     meta = clean.meta
     plane = output_plane(meta)  # raises MetadataError without a departure
     grid = clean.grid
-    missing = [c for c in ("t_s", *REQUIRED_CHANNELS) if c not in grid.columns]
-    if missing:
-        raise SchemaError(f"the Sabziev fusion needs {', '.join(missing)}")
-    arr = arrival if arrival is not None else meta.arrival
-    fix_end = end_fix(clean) if arr is None and k is None else None
-    if k is None and arr is None and fix_end is None:
-        raise MetadataError("the Sabziev fusion needs the arrival position (--arrival), a known "
-                            "position at the end of the record (--fix) or the coefficients k "
-                            "(--k / fleet coefficients)")
+    arr, fix_end = _end_sources(clean, arrival, k)
     t_all = grid["t_s"].to_numpy(dtype=np.float64)
     i0, i1, notes = _interval(clean, t_all)
     sl = slice(i0, i1 + 1)
     t = t_all[sl]
     cols = {c: _column(grid, c, sl, notes) for c in REQUIRED_CHANNELS}
-    dep = meta.departure
-    if acceleration_ned is None:
-        from flightrecon.geo.kinematics import kinematic_acceleration_ned
-
-        a_ned = kinematic_acceleration_ned(cols["n_long_g"], cols["n_lat_g"], cols["n_norm_g"],
-                                           cols["roll_deg"], cols["pitch_deg"],
-                                           cols["heading_deg"], lat_deg=dep.lat_deg,
-                                           h_m=cols["baro_alt_m"])
-    else:
-        a_ned = np.asarray(acceleration_ned, dtype=np.float64)
-        if a_ned.shape != (len(t_all), 3):
-            raise ValidationError(f"acceleration_ned must have shape ({len(t_all)}, 3)")
-        a_ned = a_ned[sl]
-    hp_dep = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
-    origin = np.zeros(3)  # lift-off point in the output frame: north, east, up (pressure)
-    if liftoff is not None:
-        e0, n0, _u0 = plane.forward(liftoff.lat_deg, liftoff.lon_deg,
-                                    msl_to_ellipsoid(liftoff.elev_m, meta.geoid_undulation_m))
-        origin = np.array([float(n0), float(e0),
-                           field_pressure_altitude_m(liftoff.elev_m, meta.qnh_departure_hpa)
-                           - hp_dep])
+    a_ned = _acceleration(clean, cols, sl, len(t_all), acceleration_ned)
+    hp_dep = field_pressure_altitude_m(meta.departure.elev_m, meta.qnh_departure_hpa)
+    origin = _liftoff_origin(meta, plane, liftoff, hp_dep)
     h_rel = cols["baro_alt_m"] - hp_dep - origin[2]
     psi = np.radians(cols["heading_deg"])
-    wind = None
-    wind_source = "none"
-    if all(c in grid.columns and np.isfinite(grid[c].to_numpy(dtype=float)[sl]).any()
-           for c in ("wind_speed_mps", "wind_from_deg")):
-        wind = wind_toward_ne(_column(grid, "wind_speed_mps", sl, notes),
-                              _column(grid, "wind_from_deg", sl, notes))
-        wind_source = "recorded"
-    elif meta.wind_aloft:
-        from flightrecon.ingest.priors import wind_aloft_on_grid
-
-        wa = wind_aloft_on_grid(grid.iloc[sl], meta)
-        if wa is not None and np.isfinite(wa[0]).any():
-            ok = np.isfinite(wa[0]).all(axis=1)
-            idx = np.arange(len(ok))
-            wind = np.column_stack([np.interp(idx, idx[ok], wa[0][ok, i]) for i in range(2)])
-            wind_source = "winds_aloft"
-            if not ok.all():
-                notes.append(f"winds aloft: no pressure altitude on {int((~ok).sum())} samples; "
-                             "the wind there is bridged linearly")
-    if meta.fixes:
-        used = 1 if fix_end is not None else 0
-        if len(meta.fixes) > used:
-            notes.append(f"{len(meta.fixes) - used} known position(s) (--fix) inside the "
-                         "interval not used: the boundary-value fusion has no place for them "
-                         "(the joint smoother uses them)")
-    if liftoff_velocity_ned is not None:
-        v0 = np.asarray(liftoff_velocity_ned, dtype=np.float64)
-        if v0.shape != (3,) or not np.all(np.isfinite(v0)):
-            raise ValidationError("liftoff_velocity_ned must be three finite numbers")
-    else:
-        v0 = _liftoff_velocity(clean, t, h_rel, cols, psi, wind, notes)
-    end_ned = None
-    end_info: dict[str, Any] = {}
-    if arr is not None:
-        e, n, _u = plane.forward(arr.lat_deg, arr.lon_deg,
-                                 msl_to_ellipsoid(arr.elev_m, meta.geoid_undulation_m))
-        qnh_arr = meta.qnh_arrival_hpa if meta.qnh_arrival_hpa is not None \
-            else meta.qnh_departure_hpa
-        y_T = field_pressure_altitude_m(arr.elev_m, qnh_arr) - hp_dep
-        end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
-        end_info = {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
-                    "departure_pressure_alt_m": hp_dep,
-                    "liftoff_point_m": [float(x) for x in origin], "source": "arrival"}
-    elif fix_end is not None:
-        # the known position at the end: horizontally the fix; vertically its altitude in
-        # pressure terms, or without one the recorded pressure height there
-        qnh_arr = meta.qnh_arrival_hpa if meta.qnh_arrival_hpa is not None \
-            else meta.qnh_departure_hpa
-        y_T = (float(h_rel[-1] + origin[2]) if fix_end.alt_msl_m is None
-               else field_pressure_altitude_m(fix_end.alt_msl_m, qnh_arr) - hp_dep)
-        # placed in the output plane at its height (without one, the field's elevation plus
-        # the pressure height: the plane's north and east move 1.6 m per km of height at 10 km)
-        h_f = msl_to_ellipsoid(dep.elev_m + y_T if fix_end.alt_msl_m is None
-                               else fix_end.alt_msl_m, meta.geoid_undulation_m)
-        e, n, _u = plane.forward(fix_end.lat_deg, fix_end.lon_deg, h_f)
-        end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
-        end_info = {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
-                    "departure_pressure_alt_m": hp_dep,
-                    "liftoff_point_m": [float(x) for x in origin],
-                    "source": f"fix at t = {fix_end.t_s:g} s"}
+    wind, wind_source = _wind(grid, meta, sl, notes)
+    n_unused = len(meta.fixes) - (1 if fix_end is not None else 0) if meta.fixes else 0
+    if n_unused > 0:
+        notes.append(f"{n_unused} known position(s) (--fix) inside the interval not used: the "
+                     "boundary-value fusion has no place for them (the joint smoother uses them)")
+    v0 = _liftoff_velocity(clean, t, h_rel, cols, psi, wind, notes, liftoff_velocity_ned)
+    end_ned, end_info = _end_point(meta, plane, arr, fix_end, hp_dep, origin, h_rel)
     sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
                vertical_rule=vertical_rule)
@@ -275,7 +196,128 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     return MethodResult(name="sabziev", track=track, summary=summary)
 
 
-def _liftoff_velocity(clean: CleanFlight, t, h_rel, cols, psi, wind, notes) -> np.ndarray:
+def _end_sources(clean: CleanFlight, arrival: Position | None,
+                 k: tuple[float, float, float] | None
+                 ) -> tuple[Position | None, PositionFix | None]:
+    """Check the grid has the required channels and the fusion an end point or ``k``; return
+    the arrival position (``arrival`` over the metadata's) and the known position at the end
+    (:func:`end_fix`, looked for only without an arrival position and ``k``)."""
+    missing = [c for c in ("t_s", *REQUIRED_CHANNELS) if c not in clean.grid.columns]
+    if missing:
+        raise SchemaError(f"the Sabziev fusion needs {', '.join(missing)}")
+    arr = arrival if arrival is not None else clean.meta.arrival
+    fix_end = end_fix(clean) if arr is None and k is None else None
+    if k is None and arr is None and fix_end is None:
+        raise MetadataError("the Sabziev fusion needs the arrival position (--arrival), a known "
+                            "position at the end of the record (--fix) or the coefficients k "
+                            "(--k / fleet coefficients)")
+    return arr, fix_end
+
+
+def _acceleration(clean: CleanFlight, cols: dict[str, np.ndarray], sl: slice, n_all: int,
+                  acceleration_ned: np.ndarray | None) -> np.ndarray:
+    """The kinematic acceleration (north, east, down) [m/s^2] on the fusion interval ``sl``:
+    the given whole-grid ``acceleration_ned`` cut to it, or computed from the loads
+    (:func:`flightrecon.geo.kinematics.kinematic_acceleration_ned`)."""
+    if acceleration_ned is None:
+        from flightrecon.geo.kinematics import kinematic_acceleration_ned
+
+        return kinematic_acceleration_ned(cols["n_long_g"], cols["n_lat_g"], cols["n_norm_g"],
+                                          cols["roll_deg"], cols["pitch_deg"],
+                                          cols["heading_deg"], lat_deg=clean.meta.departure.lat_deg,
+                                          h_m=cols["baro_alt_m"])
+    a_ned = np.asarray(acceleration_ned, dtype=np.float64)
+    if a_ned.shape != (n_all, 3):
+        raise ValidationError(f"acceleration_ned must have shape ({n_all}, 3)")
+    return a_ned[sl]
+
+
+def _liftoff_origin(meta: FlightMeta, plane: Any, liftoff: Position | None,
+                    hp_dep: float) -> np.ndarray:
+    """The lift-off point in the output frame: north, east [m] in the plane and up [m] as the
+    pressure height above the departure airfield (module docstring); zero without ``liftoff``."""
+    from flightrecon.geo.frames import msl_to_ellipsoid
+
+    origin = np.zeros(3)
+    if liftoff is not None:
+        e0, n0, _u0 = plane.forward(liftoff.lat_deg, liftoff.lon_deg,
+                                    msl_to_ellipsoid(liftoff.elev_m, meta.geoid_undulation_m))
+        origin = np.array([float(n0), float(e0),
+                           field_pressure_altitude_m(liftoff.elev_m, meta.qnh_departure_hpa)
+                           - hp_dep])
+    return origin
+
+
+def _wind(grid: pd.DataFrame, meta: FlightMeta, sl: slice,
+          notes: list[str]) -> tuple[np.ndarray | None, str]:
+    """The wind (toward north, east) [m/s] on the interval ``sl`` and where it came from:
+    the recorded wind, else the winds-aloft table at the recorded altitude (docs/wind.md),
+    else ``(None, "none")``."""
+    if all(c in grid.columns and np.isfinite(grid[c].to_numpy(dtype=float)[sl]).any()
+           for c in ("wind_speed_mps", "wind_from_deg")):
+        return (wind_toward_ne(_column(grid, "wind_speed_mps", sl, notes),
+                               _column(grid, "wind_from_deg", sl, notes)), "recorded")
+    if meta.wind_aloft:
+        from flightrecon.ingest.priors import wind_aloft_on_grid
+
+        wa = wind_aloft_on_grid(grid.iloc[sl], meta)
+        if wa is not None and np.isfinite(wa[0]).any():
+            ok = np.isfinite(wa[0]).all(axis=1)
+            idx = np.arange(len(ok))
+            wind = np.column_stack([np.interp(idx, idx[ok], wa[0][ok, i]) for i in range(2)])
+            if not ok.all():
+                notes.append(f"winds aloft: no pressure altitude on {int((~ok).sum())} samples; "
+                             "the wind there is bridged linearly")
+            return wind, "winds_aloft"
+    return None, "none"
+
+
+def _end_point(meta: FlightMeta, plane: Any, arr: Position | None, fix_end: PositionFix | None,
+               hp_dep: float, origin: np.ndarray,
+               h_rel: np.ndarray) -> tuple[np.ndarray | None, dict[str, Any]]:
+    """The boundary-value end point relative to the lift-off point (north, up, east order of
+    :func:`~flightrecon.fusion.sabziev.fuse`'s ``end_ned``: north, east, down) and its summary
+    entry: the arrival position, else the known position at the end (``fix_end``), else none
+    (initial-value mode)."""
+    from flightrecon.geo.frames import msl_to_ellipsoid
+
+    if arr is None and fix_end is None:
+        return None, {}
+    qnh_arr = meta.qnh_arrival_hpa if meta.qnh_arrival_hpa is not None \
+        else meta.qnh_departure_hpa
+    if arr is not None:
+        e, n, _u = plane.forward(arr.lat_deg, arr.lon_deg,
+                                 msl_to_ellipsoid(arr.elev_m, meta.geoid_undulation_m))
+        y_T = field_pressure_altitude_m(arr.elev_m, qnh_arr) - hp_dep
+        source = "arrival"
+    else:
+        assert fix_end is not None
+        # the known position at the end: horizontally the fix; vertically its altitude in
+        # pressure terms, or without one the recorded pressure height there
+        y_T = (float(h_rel[-1] + origin[2]) if fix_end.alt_msl_m is None
+               else field_pressure_altitude_m(fix_end.alt_msl_m, qnh_arr) - hp_dep)
+        # placed in the output plane at its height (without one, the field's elevation plus
+        # the pressure height: the plane's north and east move 1.6 m per km of height at 10 km)
+        h_f = msl_to_ellipsoid(meta.departure.elev_m + y_T if fix_end.alt_msl_m is None
+                               else fix_end.alt_msl_m, meta.geoid_undulation_m)
+        e, n, _u = plane.forward(fix_end.lat_deg, fix_end.lon_deg, h_f)
+        source = f"fix at t = {fix_end.t_s:g} s"
+    end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
+    return end_ned, {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
+                     "departure_pressure_alt_m": hp_dep,
+                     "liftoff_point_m": [float(x) for x in origin], "source": source}
+
+
+def _liftoff_velocity(clean: CleanFlight, t, h_rel, cols, psi, wind, notes,
+                      given: tuple[float, float, float] | None = None) -> np.ndarray:
+    """The ground velocity at lift-off (north, east, down) [m/s]: ``given`` (checked), else
+    the phases' from the ground roll, else the air-derived velocity (plus wind) and the 2 s
+    baro climb rate at the first sample (module docstring)."""
+    if given is not None:
+        v0 = np.asarray(given, dtype=np.float64)
+        if v0.shape != (3,) or not np.all(np.isfinite(v0)):
+            raise ValidationError("liftoff_velocity_ned must be three finite numbers")
+        return v0
     ph = clean.phases
     if ph is not None and not ph.starts_airborne \
             and np.all(np.isfinite(ph.liftoff_velocity_ned_mps)):

@@ -338,92 +338,22 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     """
     nz = settings.noise
     b = (static if static is not None else static_measurements(inp, settings, T)).copy()
-    n = jl.N_STATE
-    t_in = inp.t_in
-
-    def step_of(t):
-        return _nearest(T, t)
-
-    def linear_ned(source, t, comp_vals, sd, kind="pos", ecef=None):
-        """NED components of a position (given in ECEF) or a velocity, with tau terms."""
-        k = step_of(t)
-        tau = t - T[k]
-        for i in range(3 if kind == "pos" else 2):
-            H = np.zeros((len(t), n))
-            if kind == "pos":
-                c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
-                H[:, jl.S_POS] = c
-                H[:, jl.IV + i] = tau
-                z = np.einsum("mj,mj->m", c, ecef)
-            else:
-                H[:, jl.IV + i] = 1.0
-                z = comp_vals[i]
-            b.add(source, jl.LINEAR, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), H)
-
-    # GNSS
-    g = inp.gnss
-    if len(g):
-        tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
-        k = step_of(tg)
-        hg = g["h_m"].to_numpy(float)
-        no_h = ~np.isfinite(hg)
-        if no_h.any():
-            # a fix without height is used horizontally: its north and east components only,
-            # computed at a substitute height (the nominal's, else the field's plus the pressure
-            # height); the north/east projection of the fix moves by (angle between the
-            # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
-            if pnom is not None:
-                h_sub = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
-            else:
-                ii = _nearest(t_in, tg)
-                h_sub = inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
-            hg = np.where(no_h, h_sub, hg)
-        ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
-        ant = np.c_[ex, ey, ez]
-        L = np.asarray(inp.lever_arm, float)
-        v_arm = np.zeros((len(tg), 3))
-        if np.any(L != 0):
-            # attitude at the fix: nearest input sample
-            ii = _nearest(t_in, tg)
-            arm_ned = np.einsum("mij,j->mi", inp.Cnb[ii], L)
-            ant = ant - np.einsum("mij,mj->mi", Cen[k], arm_ned)
-            # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of
-            # yaw): a central difference over +-0.5 s of the recorded attitude (its noise,
-            # 0.05 deg at 8 Hz, then adds under 0.01 m/s)
-            ip, im = _nearest(t_in, tg + 0.5), _nearest(t_in, tg - 0.5)
-            span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
-            v_arm = np.einsum("mij,j->mi", inp.Cnb[ip] - inp.Cnb[im], L) / span
-        # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
-        # else the noise settings; no height: no vertical component
-        sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
-        sd_v = np.where(no_h, np.nan, _per_fix(g, "v_sd_m", nz.gnss_v_m))
-        linear_ned("gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
-        if {"vn_mps", "ve_mps"} <= set(g.columns):
-            sd_vel = _per_fix(g, "vel_sd_mps", nz.gnss_vel_mps)
-            linear_ned("gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
-                                        g["ve_mps"].to_numpy() - v_arm[:, 1]),
-                       (sd_vel, sd_vel), "vel")
+    _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
     # height (then at the substitute height, as a GNSS fix without one)
     if inp.fixes is not None and len(inp.fixes):
         fx = np.asarray(inp.fixes, float)
         tf = fx[:, 0]
-        k = step_of(tf)
         hf = fx[:, 3].copy()
         no_hf = ~np.isfinite(hf)
         if no_hf.any():
-            if pnom is not None:
-                h_sub = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
-            else:
-                ii = _nearest(t_in, tf)
-                h_sub = inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
-            hf = np.where(no_hf, h_sub, hf)
+            hf = np.where(no_hf, _substitute_height(inp, T, tf, pnom), hf)
         ex, ey, ez = geodetic_to_ecef(fx[:, 1], fx[:, 2], hf)
         sd_f = fx[:, 4]
-        linear_ned("fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)), "pos",
-                   np.c_[ex, ey, ez])
+        _add_linear_ned(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
+                        "pos", np.c_[ex, ey, ez])
     if pnom is not None and vnom is not None:
-        _runway_measurements(b, inp, settings, step_of, pnom, vnom, psi_hat)
+        _runway_measurements(b, inp, settings, lambda t: _nearest(T, t), pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -440,29 +370,113 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         roll = refined_roll(inp, T, vnom)
     r0, r1 = roll.rest_t
     if np.isfinite(r0):
+        t_in = inp.t_in
         tt = t_in[_on_ground_mask(inp, settings) & (t_in >= r0) & (t_in <= r1)]
         for i in range(2):
-            H = np.zeros((len(tt), n))
+            H = np.zeros((len(tt), jl.N_STATE))
             H[:, jl.IV + i] = 1.0
             b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
-    # end points (end_points): the runway model along / across the runway and vertically,
-    # the reference model in north, east, down
-    for ep in end_points(inp, nz, roll):
+    _endpoint_measurements(b, inp, settings, T, Cen, roll)
+    return b.build()
+
+
+def _add_linear_ned(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source: str, t, comp_vals,
+                    sd, kind: str = "pos", ecef=None) -> None:
+    """Add the NED components of a position (given in ECEF, ``kind="pos"``: three) or a
+    velocity (``kind="vel"``: north and east) at times ``t`` to ``b``, with the tau terms
+    (time from the nearest state step) of the position rows."""
+    k = _nearest(T, t)
+    tau = t - T[k]
+    for i in range(3 if kind == "pos" else 2):
+        H = np.zeros((len(t), jl.N_STATE))
+        if kind == "pos":
+            c = Cen[k][:, :, i]                  # NED axis i in ECEF at the step
+            H[:, jl.S_POS] = c
+            H[:, jl.IV + i] = tau
+            z = np.einsum("mj,mj->m", c, ecef)
+        else:
+            H[:, jl.IV + i] = 1.0
+            z = comp_vals[i]
+        b.add(source, jl.LINEAR, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), H)
+
+
+def _substitute_height(inp: JointInputs, T: np.ndarray, t: np.ndarray,
+                       pnom: np.ndarray | None) -> np.ndarray:
+    """Ellipsoidal height [m] for a position given without one at times ``t``: the nominal
+    track's at the nearest state step, else the field's plus the recorded pressure height."""
+    if pnom is not None:
+        k = _nearest(T, t)
+        return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+    ii = _nearest(inp.t_in, t)
+    return inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
+
+
+def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
+                       T: np.ndarray, Cen: np.ndarray, clock: dict[str, float],
+                       pnom: np.ndarray | None) -> None:
+    """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities,
+    at their own times shifted by ``clock["gnss"]``, with the receiver's per-fix accuracy."""
+    nz = settings.noise
+    g = inp.gnss
+    if not len(g):
+        return
+    t_in = inp.t_in
+    tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
+    k = _nearest(T, tg)
+    hg = g["h_m"].to_numpy(float)
+    no_h = ~np.isfinite(hg)
+    if no_h.any():
+        # a fix without height is used horizontally: its north and east components only,
+        # computed at a substitute height (the nominal's, else the field's plus the pressure
+        # height); the north/east projection of the fix moves by (angle between the
+        # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
+        hg = np.where(no_h, _substitute_height(inp, T, tg, pnom), hg)
+    ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
+    ant = np.c_[ex, ey, ez]
+    L = np.asarray(inp.lever_arm, float)
+    v_arm = np.zeros((len(tg), 3))
+    if np.any(L != 0):
+        # attitude at the fix: nearest input sample
+        ii = _nearest(t_in, tg)
+        arm_ned = np.einsum("mij,j->mi", inp.Cnb[ii], L)
+        ant = ant - np.einsum("mij,mj->mi", Cen[k], arm_ned)
+        # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of
+        # yaw): a central difference over +-0.5 s of the recorded attitude (its noise,
+        # 0.05 deg at 8 Hz, then adds under 0.01 m/s)
+        ip, im = _nearest(t_in, tg + 0.5), _nearest(t_in, tg - 0.5)
+        span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
+        v_arm = np.einsum("mij,j->mi", inp.Cnb[ip] - inp.Cnb[im], L) / span
+    # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
+    # else the noise settings; no height: no vertical component
+    sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
+    sd_v = np.where(no_h, np.nan, _per_fix(g, "v_sd_m", nz.gnss_v_m))
+    _add_linear_ned(b, T, Cen, "gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
+    if {"vn_mps", "ve_mps"} <= set(g.columns):
+        sd_vel = _per_fix(g, "vel_sd_mps", nz.gnss_vel_mps)
+        _add_linear_ned(b, T, Cen, "gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
+                                                    g["ve_mps"].to_numpy() - v_arm[:, 1]),
+                        (sd_vel, sd_vel), "vel")
+
+
+def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
+                           T: np.ndarray, Cen: np.ndarray, roll: TakeoffRoll) -> None:
+    """The end points (:func:`end_points`): the runway model along / across the runway and
+    vertically, the reference model in north, east, down."""
+    for ep in end_points(inp, settings.noise, roll):
         lat, lon, h = ep["point"]
         pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
         tt = np.array([ep["t_s"]])
         if ep["model"] in ("reference", "last_position"):
-            linear_ned("endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
+            _add_linear_ned(b, T, Cen, "endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
             continue
-        k = step_of(tt)[0]
+        k = _nearest(T, tt)[0]
         tau = tt[0] - T[k]
         psi = ep["runway_rad"]
         Ca = ned_to_ecef_matrix(lat, lon)[0]
         for u, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
                           [0.0, 0.0, 1.0]), ep["sd_m"]):
             u = np.asarray(u)
-            H = np.zeros((1, n))
+            H = np.zeros((1, jl.N_STATE))
             H[0, jl.S_POS] = Ca @ u
             H[0, jl.S_VEL] = u * tau
             b.add("endpoint", jl.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe)
-    return b.build()

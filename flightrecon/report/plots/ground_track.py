@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from datetime import timedelta
 from typing import Any
 
 import matplotlib
@@ -87,8 +88,9 @@ def _fmt_lon(v: float, _pos: Any = None) -> str:
 
 def ground_track(ctx: ReportContext) -> Figure | None:
     """Map: lat/lon grid, scale bar, north arrow, airfields, runways, radar station, GNSS fixes,
-    start/end, numbered events, every method, the default result coloured by its horizontal
-    2-sigma and its 2-sigma ellipses (to scale)."""
+    known positions (``--fix``) with their 2-sd circles, start/end, numbered events, every
+    method, the default result coloured by its horizontal 2-sigma and its 2-sigma ellipses (to
+    scale)."""
     lat, lon = _col(ctx.track, "lat_deg"), _col(ctx.track, "lon_deg")
     if lat is None or lon is None:
         return None
@@ -102,6 +104,7 @@ def ground_track(ctx: ReportContext) -> Figure | None:
     ax.plot(lon[first], lat[first], "o", color="tab:green", ms=8, zorder=6, label="start of record")
     ax.plot(lon[last], lat[last], "s", color="tab:red", ms=8, zorder=6, label="end of record")
     _draw_airfields(ax, ctx, coslat)
+    _draw_known_positions(ax, ctx, coslat)
     _draw_map_events(ax, ctx, lat, lon, ok)
     _finish_map(fig, ax, coslat)
     return fig
@@ -195,6 +198,43 @@ def _draw_airfields(ax, ctx: ReportContext, coslat: float) -> None:
                 label="radar station")
         ax.annotate("radar", (st["lon_deg"], st["lat_deg"]), xytext=(8, 4),
                     textcoords="offset points", fontsize=8, color="tab:purple")
+
+
+def known_positions(ctx: ReportContext) -> list[Mapping[str, Any]]:
+    """The known positions given with ``--fix`` (``t_s``, ``lat_deg``, ``lon_deg``, ``sd_m``):
+    the flight metadata's ``fixes`` in the summary, else the joint smoother's ``fixes`` report."""
+    fixes = ctx.flight.get("fixes")
+    if not fixes:
+        joint = (ctx.summary.get("methods") or {}).get("joint")
+        fixes = joint.get("fixes") if isinstance(joint, Mapping) else None
+    return [f for f in fixes or () if isinstance(f, Mapping) and f.get("lat_deg") is not None
+            and f.get("lon_deg") is not None]
+
+
+def _draw_known_positions(ax, ctx: ReportContext, coslat: float) -> None:
+    """Known positions (``--fix``): a marker each, its 2-sd circle (sd per horizontal axis,
+    to scale) where an sd is given, labelled with its time (UTC where the epoch is known,
+    else seconds from the record start)."""
+    fixes = known_positions(ctx)
+    if not fixes:
+        return
+    for f in fixes:
+        la, lo = float(f["lat_deg"]), float(f["lon_deg"])
+        ax.plot(lo, la, "*", ms=13, mfc="gold", mec="saddlebrown", mew=1.0, zorder=8,
+                gid="known_position")
+        sd = f.get("sd_m")
+        if sd is not None and np.isfinite(float(sd)) and float(sd) > 0:
+            ax.add_patch(Ellipse((lo, la), 4 * float(sd) / (111320.0 * coslat),
+                                 4 * float(sd) / 110540.0, fill=False, color="saddlebrown",
+                                 lw=1.2, ls="--", zorder=8, gid="known_position_2sd"))
+        t = f.get("t_s")
+        if t is not None and np.isfinite(float(t)):
+            when = (f"{ctx.epoch + timedelta(seconds=float(t)):%H:%M:%S} UTC"
+                    if ctx.epoch is not None else f"t = {float(t):.0f} s")
+            ax.annotate(f"fix {when}", (lo, la), xytext=(8, 6), textcoords="offset points",
+                        fontsize=7, color="saddlebrown", zorder=8)
+    ax.plot([], [], "*", ms=11, mfc="gold", mec="saddlebrown",
+            label=f"known positions (--fix, {len(fixes)}), dashed: 2-sd circle")
 
 
 def _draw_map_events(ax, ctx: ReportContext, lat: np.ndarray, lon: np.ndarray,
