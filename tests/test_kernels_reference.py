@@ -419,3 +419,34 @@ def test_latlon_plus_minus():
     back = np.empty(3)
     state_plus_into(LATLON, x, d, h, back)
     assert abs(back[1] - (np.pi + 1e-6)) < 1e-12  # continuous longitude: no wrap on plus
+
+
+def test_eigen_solve_fallback_matches_a_general_solve():
+    """The RTS steps' fallback where a predicted covariance fails its Cholesky factorisation
+    (estimation.linalg.solve_sym_eig_into, in place of np.linalg.solve inside the kernels):
+    on a regular indefinite symmetric matrix it gives the general solve's answer (1e-10
+    relative: Jacobi eigenvalues to round-off of the norm, condition number about 1e2 here);
+    on a singular one the minimum-norm least-squares solution (numpy's lstsq), not an error;
+    a non-finite matrix raises LinAlgError."""
+    import pytest
+
+    from flightrecon.estimation.linalg import solve_sym_eig_into
+
+    rng = np.random.default_rng(11)
+    for n in (5, 24):
+        A = rng.standard_normal((n, n))
+        S = A @ A.T + n * np.eye(n)
+        S[2, 2] = -S[2, 2]                      # indefinite, regular
+        B = rng.standard_normal((n, 3))
+        X = np.empty_like(B)
+        assert solve_sym_eig_into(S, B, 1e-15, X) == n
+        ref = np.linalg.solve(S, B)
+        np.testing.assert_allclose(X, ref, rtol=1e-10, atol=1e-10 * np.abs(ref).max())
+        U = rng.standard_normal((n, n - 2))
+        Ssing = U @ U.T                          # rank n - 2
+        assert solve_sym_eig_into(Ssing, B, 1e-12, X) == n - 2
+        ref = np.linalg.lstsq(Ssing, B, rcond=1e-12)[0]
+        np.testing.assert_allclose(X, ref, rtol=1e-8, atol=1e-8 * np.abs(ref).max())
+    S[0, 0] = np.nan
+    with pytest.raises(np.linalg.LinAlgError):
+        solve_sym_eig_into(S, B, 1e-15, X)

@@ -236,6 +236,53 @@ def _pinv_sym_into(S: np.ndarray, rcond: float, Sp: np.ndarray, A: np.ndarray,
 
 
 @nb.njit(cache=True, nogil=True)
+def solve_sym_eig_into(S: np.ndarray, B: np.ndarray, rcond: float, X: np.ndarray) -> int:
+    """``X = S^+ B`` for a symmetric ``S`` (m, m) that need not be positive definite; ``B``,
+    ``X`` (m, k).  Returns the numerical rank.
+
+    The general-solve fallback where a Cholesky factorisation failed (an indefinite or nearly
+    singular predicted covariance): ``S = V diag(l) V^T`` by :func:`_jacobi_eigh` and
+    ``X = V diag(1/l) V^T B`` over the eigenvalues with ``|l| > rcond max |l|`` (negative ones
+    kept, so that a regular indefinite ``S`` gets its inverse, to round-off the LU solve's
+    answer; the others treated as zero: the minimum-norm solution instead of an error).  In
+    place of ``np.linalg.solve`` inside the kernels: the same answer on a regular matrix without
+    compiling numba's LAPACK bindings into every kernel that has the fallback (seconds of a first
+    run's compilation, docs/performance.md).  Raises ``LinAlgError`` when ``S`` is not finite.
+    """
+    m = S.shape[0]
+    k = B.shape[1]
+    A = np.empty((m, m))
+    V = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            if not np.isfinite(S[i, j]):
+                raise np.linalg.LinAlgError("matrix is not finite")
+            A[i, j] = 0.5 * (S[i, j] + S[j, i])
+    _jacobi_eigh(A, V)
+    lmax = 0.0
+    for i in range(m):
+        lmax = max(lmax, abs(A[i, i]))
+    W = np.zeros((m, k))   # diag(1/l) V^T B
+    rank = 0
+    for e in range(m):
+        lam = A[e, e]
+        if abs(lam) > rcond * lmax and lam != 0.0:
+            rank += 1
+            for c in range(k):
+                v = 0.0
+                for i in range(m):
+                    v += V[i, e] * B[i, c]
+                W[e, c] = v / lam
+    for i in range(m):
+        for c in range(k):
+            v = 0.0
+            for e in range(m):
+                v += V[i, e] * W[e, c]
+            X[i, c] = v
+    return rank
+
+
+@nb.njit(cache=True, nogil=True)
 def pinv_sym(S: np.ndarray, rcond: float):
     """Moore-Penrose pseudo-inverse of a symmetric matrix and its numerical rank.
 

@@ -22,8 +22,10 @@ for smoothers whose gain need not be formed: ``x_s = x_f (+) C y`` with ``C y`` 
 caller in its structure (``P_f (F^T y)`` with a sparse ``F``: O(n^2) instead of O(n^3)).
 
 A predicted covariance whose Cholesky factorisation fails (not positive definite to rounding) is
-solved by LU instead (``np.linalg.solve``, which raises ``LinAlgError`` if it is singular); the
-step returns False so that the caller counts and reports it.  docs/estimation.md, "The RTS
+solved through its symmetric eigen-decomposition instead
+(:func:`~flightrecon.estimation.linalg.solve_sym_eig_into`: the inverse of a regular indefinite
+matrix, as a general solve gives it; the minimum-norm solution of a singular one); the step
+returns False so that the caller counts and reports it.  docs/estimation.md, "The RTS
 backward step".
 """
 
@@ -32,8 +34,15 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flightrecon.estimation.linalg import cholesky_factor, cholesky_solve_columns
+from flightrecon.estimation.linalg import (
+    cholesky_factor,
+    cholesky_solve_columns,
+    solve_sym_eig_into,
+)
 from flightrecon.estimation.manifold import state_minus_into, state_plus_into
+
+#: eigenvalues at or below this fraction of the largest are treated as zero in the fallback
+FALLBACK_RCOND = 1e-15
 
 
 @nb.njit(cache=True, nogil=True)
@@ -41,14 +50,14 @@ def rts_gain_into(CT, Pp, rel_tol, L, GT, G):
     """``G = C P_p^-1`` and ``GT = G^T = P_p^-1 C^T`` from ``CT`` (n, n); ``L`` (n, n) scratch.
 
     Returns False if the Cholesky factorisation of ``Pp`` failed (pivot not positive, or not
-    above ``rel_tol`` times its diagonal entry) and a general solve was used.
+    above ``rel_tol`` times its diagonal entry) and the eigen-decomposition solve was used.
     """
     n = Pp.shape[0]
     ok = cholesky_factor(Pp, L, rel_tol)
     if ok:
         cholesky_solve_columns(L, CT, GT)
     else:
-        GT[:, :] = np.linalg.solve(Pp, CT)
+        solve_sym_eig_into(Pp, CT, FALLBACK_RCOND, GT)
     for i in range(n):
         for j in range(n):
             G[i, j] = GT[j, i]
@@ -128,5 +137,5 @@ def rts_mean_solve(geom, xp, Pp, xs_next, h_next, rel_tol, L, d, y):
     if ok:
         cholesky_solve_columns(L, d.reshape((-1, 1)), y.reshape((-1, 1)))
     else:
-        y[:] = np.linalg.solve(Pp, d)
+        solve_sym_eig_into(Pp, d.reshape((-1, 1)), FALLBACK_RCOND, y.reshape((-1, 1)))
     return ok
