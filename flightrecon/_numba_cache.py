@@ -18,10 +18,18 @@ compiled, and picks the first of:
 
 Steps 3-5 set ``NUMBA_CACHE_DIR`` (or numba's configuration when numba is already
 imported), so child processes use the same cache.
+
+Stale kernels: numba keys a cached kernel on its own source file's time stamp and size, not on
+the functions it calls in other files, so after a change to a called function (an upgrade
+whose unchanged files keep their stamps, a branch switch) it would load the old compiled code,
+silently.  :func:`drop_stale_kernels` keeps a digest of the package's sources beside the
+cache and, when it differs, deletes the package's cached kernels: the next run compiles them
+again (and says so).
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import sys
 import tempfile
@@ -136,4 +144,77 @@ def configure(pkg_dir: Path | None = None) -> dict[str, str | None]:
                       "(installation, user cache and temporary folder are read-only): kernels "
                       "are compiled in every run; set NUMBA_CACHE_DIR to a writable folder",
                       file=sys.stderr)
+    if CHOICE["how"] != "none":
+        drop_stale_kernels(pkg, os.environ.get("NUMBA_CACHE_DIR") or None)
     return dict(CHOICE)
+
+
+#: package folders that hold no compiled kernel and that no kernel calls into: their sources
+#: do not enter the digest (tests/test_numba_cache.py checks that they hold no kernel)
+NO_KERNEL_DIRS = ("cli", "report", "export", "batch", "store", "ingest")
+
+#: the digest's file, in the cache folder of the package's top level
+DIGEST_FILE = "flightrecon-kernel-sources.sha1"
+
+
+def sources_digest(pkg: Path) -> str:
+    """SHA-1 of the package's Python sources (relative paths and contents, sorted), except
+    :data:`NO_KERNEL_DIRS`."""
+    h = hashlib.sha1()
+    for f in sorted(pkg.rglob("*.py")):
+        rel = f.relative_to(pkg)
+        if rel.parts[0] in NO_KERNEL_DIRS or "__pycache__" in rel.parts:
+            continue
+        h.update(str(rel.as_posix()).encode())
+        h.update(b"\0")
+        h.update(f.read_bytes())
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+def kernel_cache_dirs(pkg: Path, cache_dir: str | None) -> list[Path]:
+    """Where numba keeps the cached kernels of each of the package's folders: ``__pycache__``
+    beside the sources, or with ``NUMBA_CACHE_DIR`` its ``<folder>_<sha1 of the folder's
+    path>`` subfolder (numba's ``UserProvidedCacheLocator``).  The top level first."""
+    dirs = [pkg, *sorted(p for p in pkg.rglob("*") if p.is_dir() and p.name != "__pycache__"
+                         and "__pycache__" not in p.parts and (p / "__init__.py").exists())]
+    if cache_dir is None:
+        return [d / "__pycache__" for d in dirs]
+    out = []
+    for d in dirs:
+        path = os.path.abspath(d)
+        out.append(Path(cache_dir) / f"{os.path.split(path)[-1]}_"
+                   f"{hashlib.sha1(path.encode()).hexdigest()}")
+    return out
+
+
+def drop_stale_kernels(pkg: Path, cache_dir: str | None) -> bool:
+    """Delete the package's cached kernels (``*.nbi``, ``*.nbc``) when its sources differ from
+    those they were compiled from (module docstring); returns True when it deleted any.
+
+    The digest is written after the deletion, atomically; any file-system error leaves the
+    cache as it is (numba's own per-file check still applies).
+    """
+    try:
+        dirs = kernel_cache_dirs(pkg, cache_dir)
+        digest = sources_digest(pkg)
+        marker = dirs[0] / DIGEST_FILE
+        if marker.is_file() and marker.read_text().strip() == digest:
+            return False
+        dropped = False
+        for d in dirs:
+            if not d.is_dir():
+                continue
+            for f in [*d.glob("*.nbi"), *d.glob("*.nbc")]:
+                try:
+                    f.unlink()
+                    dropped = True
+                except FileNotFoundError:  # another process dropped it first
+                    pass
+        dirs[0].mkdir(parents=True, exist_ok=True)
+        tmp = dirs[0] / f".{DIGEST_FILE}.{os.getpid()}"
+        tmp.write_text(digest + "\n")
+        os.replace(tmp, marker)
+        return dropped
+    except OSError:
+        return False
