@@ -289,12 +289,26 @@ def _same_roll(a: TakeoffRoll, b: TakeoffRoll) -> bool:
 def _pass_models(fl: _Flight, st: _State) -> _Models:
     """The models of the next pass: about the iterate, with the current clock offsets and the
     take-off roll refined on the iterate (those of the line search's last candidate when they
-    are the same)."""
+    are the same).  The refined roll changes the runway and ground measurements, so the cost
+    itself: it is a block-coordinate update, taken only if it does not raise the iterate's
+    cost (otherwise the roll of the last pass is kept)."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
     if m is not None and m.clock == st.clock and _same_roll(m.roll, roll):
         return m
-    return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
+    new = _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
+    if m is None or st.X is None or _same_roll(m.roll, roll):
+        return new
+    old = m if m.clock == st.clock else _models_at(fl, st.lat, st.lon, st.h, st.vnom,
+                                                      st.psi_hat, st.clock, m.roll)
+
+    def cost(mm: _Models) -> float:
+        if mm is st.models and st.cost is not None and np.array_equal(st.scale, st.cost_scale):
+            return float(st.cost[0]["cost"])
+        return float(_cost(fl, mm, st.X, _scaled_variances(mm, st.scale),
+                           np.ones(len(mm.meas.z)))[0]["cost"])
+
+    return new if cost(new) <= cost(old) else old
 
 
 def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, dict[str, Any]]:
