@@ -101,6 +101,8 @@ def one_run(scenario: str, seed: int) -> dict:
         res["joint_pass_change_m"] = [float(it.get("max_position_change_m", np.nan)) for it in its]
         res["joint_pass_cost"] = [float(it["cost"]) for it in its if "cost" in it]
         res["joint_pass_step"] = [float(it.get("step_size", np.nan)) for it in its]
+        res["joint_pass_cost_start"] = [it.get("cost_start") for it in its]
+        res["joint_pass_params_changed"] = [bool(it.get("parameters_changed")) for it in its]
         res["joint_stop_reason"] = s.get("stop_reason")
         hb = [it.get("heading_bias_deg") for it in its]
         res["joint_pass_heading_bias_deg"] = [None if v is None else float(v) for v in hb]
@@ -126,12 +128,18 @@ def _rms(r: dict, m: str) -> float:
 
 
 def _monotone(r: dict) -> bool | None:
-    """The joint's MAP cost per pass never rose (relative 1e-9 for rounding); None without
-    a cost (runs of the undamped iterations)."""
+    """The joint's MAP cost never rose: within each pass (the accepted iterate against the
+    pass's start) and from pass to pass where the take-off roll, the clock offsets and the
+    noise factors stayed (otherwise the measurements, so the cost function, changed); relative
+    1e-9 for rounding.  None without a cost (runs of the undamped iterations)."""
     c = r.get("joint_pass_cost") or []
-    if not c:
+    c0 = r.get("joint_pass_cost_start") or []
+    ch = r.get("joint_pass_params_changed") or []
+    if not c or len(c0) != len(c):
         return None
-    return bool(all(b <= a * (1 + 1e-9) for a, b in zip(c, c[1:])))
+    ok = all(s is None or b <= s * (1 + 1e-9) for s, b in zip(c0, c))
+    ok &= all(chg or b <= a * (1 + 1e-9) for a, b, chg in zip(c, c0[1:], ch[1:]))
+    return bool(ok)
 
 
 def summarise(rows: list[dict]) -> str:

@@ -289,26 +289,15 @@ def _same_roll(a: TakeoffRoll, b: TakeoffRoll) -> bool:
 def _pass_models(fl: _Flight, st: _State) -> _Models:
     """The models of the next pass: about the iterate, with the current clock offsets and the
     take-off roll refined on the iterate (those of the line search's last candidate when they
-    are the same).  The refined roll changes the runway and ground measurements, so the cost
-    itself: it is a block-coordinate update, taken only if it does not raise the iterate's
-    cost (otherwise the roll of the last pass is kept)."""
+    are the same).  A refined roll changes the runway and ground measurements, a clock offset
+    the GNSS and radar ones: the cost function itself (more measurements, more terms), so
+    costs are compared within a pass, and across passes only where neither changed
+    (``parameters_changed`` in the pass's entry)."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
     if m is not None and m.clock == st.clock and _same_roll(m.roll, roll):
         return m
-    new = _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
-    if m is None or st.X is None or _same_roll(m.roll, roll):
-        return new
-    old = m if m.clock == st.clock else _models_at(fl, st.lat, st.lon, st.h, st.vnom,
-                                                      st.psi_hat, st.clock, m.roll)
-
-    def cost(mm: _Models) -> float:
-        if mm is st.models and st.cost is not None and np.array_equal(st.scale, st.cost_scale):
-            return float(st.cost[0]["cost"])
-        return float(_cost(fl, mm, st.X, _scaled_variances(mm, st.scale),
-                           np.ones(len(mm.meas.z)))[0]["cost"])
-
-    return new if cost(new) <= cost(old) else old
+    return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
 
 
 def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, dict[str, Any]]:
@@ -344,7 +333,11 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
             step = replace(lm, evaluations=step.evaluations + lm.evaluations,
                            gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
+    changed = st.models is not None and (st.models.clock != mdl.clock
+                                         or not _same_roll(st.models.roll, mdl.roll)
+                                         or not np.array_equal(st.scale, st.cost_scale))
     info: dict[str, Any] = {"iteration": it, "max_position_change_m": shift,
+                            "parameters_changed": bool(changed),
                             "roll_start_t_s": mdl.roll.start_t,
                             "cholesky_fallbacks": out.n_fallback, **step.cost,
                             "cost_start": None if start is None else start[0]["cost"],
