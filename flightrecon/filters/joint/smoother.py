@@ -306,7 +306,8 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     s = fl.settings
     mdl = _pass_models(fl, st)
     r = _scaled_variances(mdl, st.scale)
-    if st.weights is None or len(st.weights) != len(mdl.meas.z):
+    reset = st.weights is None or len(st.weights) != len(mdl.meas.z)
+    if reset:
         st.weights = np.ones(len(mdl.meas.z))
     if fl.x0 is None:
         fl.x0, fl.P0 = _initial(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
@@ -322,6 +323,11 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     if st.X is not None:
         same = mdl is st.models and np.array_equal(st.scale, st.cost_scale)
         start = st.cost if same else _cost(fl, mdl, st.X, r, st.weights)
+        if reset:
+            # a new measurement set (a refined take-off roll): its IRLS weights at the iterate,
+            # so that the pass is again a majorise-minimise step (with all weights 1 its
+            # Gauss-Newton step need not lower the robust cost)
+            st.weights = _robust_weights(start[1] / np.sqrt(r), st.weights, s)
     xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
     # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
     # the solution) smooths the states only, the later ones (likely the last) everything
