@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint import noise as joint_noise
 from flightrecon.filters.joint import JointSettings, innovation_loglik
+from flightrecon.filters.joint import noise as joint_noise
 from flightrecon.filters.joint_method import run_joint
 from flightrecon.ingest import load_flight
 
