@@ -101,6 +101,8 @@ def one_run(scenario: str, seed: int) -> dict:
         res["joint_pass_change_m"] = [float(it.get("max_position_change_m", np.nan)) for it in its]
         res["joint_pass_cost"] = [float(it["cost"]) for it in its if "cost" in it]
         res["joint_pass_step"] = [float(it.get("step_size", np.nan)) for it in its]
+        res["joint_pass_cost_start"] = [it.get("cost_start") for it in its]
+        res["joint_pass_params_changed"] = [bool(it.get("parameters_changed")) for it in its]
         res["joint_stop_reason"] = s.get("stop_reason")
         hb = [it.get("heading_bias_deg") for it in its]
         res["joint_pass_heading_bias_deg"] = [None if v is None else float(v) for v in hb]
@@ -126,12 +128,18 @@ def _rms(r: dict, m: str) -> float:
 
 
 def _monotone(r: dict) -> bool | None:
-    """The joint's MAP cost per pass never rose (relative 1e-9 for rounding); None without
-    a cost (runs of the undamped iterations)."""
+    """The joint's MAP cost never rose: within each pass (the accepted iterate against the
+    pass's start) and from pass to pass where the take-off roll, the clock offsets and the
+    noise factors stayed (otherwise the measurements, so the cost function, changed); relative
+    1e-9 for rounding.  None without a cost (runs of the undamped iterations)."""
     c = r.get("joint_pass_cost") or []
-    if not c:
+    c0 = r.get("joint_pass_cost_start") or []
+    ch = r.get("joint_pass_params_changed") or []
+    if not c or len(c0) != len(c):
         return None
-    return bool(all(b <= a * (1 + 1e-9) for a, b in zip(c, c[1:])))
+    ok = all(s is None or b <= s * (1 + 1e-9) for s, b in zip(c0, c))
+    ok &= all(chg or b <= a * (1 + 1e-9) for a, b, chg in zip(c, c0[1:], ch[1:]))
+    return bool(ok)
 
 
 def summarise(rows: list[dict]) -> str:
@@ -203,6 +211,42 @@ def summarise(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _paired_stats(rows: list[dict]) -> str:
+    """converged | geo-mean joint / DR+linear | joint < DR+linear | NEES n / e of ``rows``."""
+    jr = np.array([_rms(r, "joint") for r in rows])
+    dl = np.array([_rms(r, "dr_linear") for r in rows])
+    ok = np.isfinite(jr) & np.isfinite(dl) & (dl > 0)
+    g = float(np.exp(np.mean(np.log(jr[ok] / dl[ok])))) if ok.any() else np.nan
+    conv = sum(bool(r.get("joint_converged")) for r in rows)
+    nn = np.array([r.get("joint", {}).get("nees_n", np.nan) for r in rows], float)
+    ne = np.array([r.get("joint", {}).get("nees_e", np.nan) for r in rows], float)
+    fin = np.isfinite(nn) & np.isfinite(ne)
+    nees = f"{np.mean(nn[fin]):.2f} / {np.mean(ne[fin]):.2f}" if fin.any() else "-"
+    return (f"{conv}/{len(rows)} | {g:.2f} | {int(np.sum(jr[ok] < dl[ok]))}/{int(ok.sum())} | "
+            f"{nees}")
+
+
+def compare(before: list[dict], after: list[dict]) -> str:
+    """Before/after table on the seeds both studies ran (``--before``: the runs of the
+    undamped iterations)."""
+    lines = ["| scenario | runs (seeds) | before: converged | joint / DR+lin (geo. mean) | "
+             "joint < DR+lin | NEES n / e | after: converged | joint / DR+lin (geo. mean) | "
+             "joint < DR+lin | NEES n / e | cost non-increasing |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for sc in SCENARIOS:
+        a = {r["seed"]: r for r in after if r["scenario"] == sc}
+        b = {r["seed"]: r for r in before if r["scenario"] == sc}
+        seeds = sorted(set(a) & set(b))
+        if not seeds:
+            continue
+        mono = [_monotone(a[s]) for s in seeds]
+        lines.append(f"| {sc} | {len(seeds)} ({seeds[0]}-{seeds[-1]}) | "
+                     f"{_paired_stats([b[s] for s in seeds])} | "
+                     f"{_paired_stats([a[s] for s in seeds])} | "
+                     f"{sum(m is True for m in mono)}/{sum(m is not None for m in mono)} |")
+    return "\n".join(lines) + "\n"
+
+
 def figure(rows: list[dict], path: Path) -> None:
     """Joint and Sabziev RMS error against dead reckoning + linear correction, per run."""
     import matplotlib
@@ -250,6 +294,9 @@ def main() -> None:
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--summarise", metavar="RUNS_JSON", nargs="+",
                     help="only rebuild the tables and the figure from runs files")
+    ap.add_argument("--before", metavar="RUNS_JSON", nargs="+",
+                    help="with --summarise: runs of the undamped iterations (same seeds) for a "
+                         "before/after table")
     ap.add_argument("--runs-file", default="jsbsim_mc_runs.json",
                     help="name of the runs file under docs/tables/ (parallel studies of "
                          "different scenarios each write their own; --summarise merges them)")
@@ -274,12 +321,19 @@ def main() -> None:
                     TABLES.mkdir(parents=True, exist_ok=True)
                     runs_file.write_text(json.dumps(rows, indent=1, default=str))
     text = summarise(rows)
+    if a.before:
+        before = [r for f in a.before for r in json.loads(Path(f).read_text())]
+        text += ("\nBefore (the undamped Gauss-Newton iterations: "
+                 f"{', '.join(Path(f).name for f in a.before)}) and after, on the same seeds:"
+                 "\n\n" + compare(before, rows))
     print(text)
     if not a.no_write:
         n = max(sum(r["scenario"] == s for r in rows) for s in SCENARIOS)
         TABLES.mkdir(parents=True, exist_ok=True)
         how = (f"--summarise {' '.join(Path(f).name for f in a.summarise)}" if a.summarise
                else f"--runs {n} --scenarios {a.scenarios}")
+        if a.before:
+            how += f" --before {' '.join(Path(f).name for f in a.before)}"
         (TABLES / "jsbsim_mc.md").write_text(
             f"<!-- generated by scripts/mc_jsbsim.py {how} (at most {n} runs per scenario) "
             "-->\n\n" + text)

@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint import noise as joint_noise
-from flightrecon.filters.joint import smoother as joint_smoother
 from flightrecon.filters.joint import JointSettings, innovation_loglik
+from flightrecon.filters.joint import noise as joint_noise
 from flightrecon.filters.joint_method import run_joint
 from flightrecon.ingest import load_flight
 
@@ -60,7 +59,7 @@ def test_worse_estimate_rejected(clean, monkeypatch):
         gi = list(joint_noise.NOISE_GROUPS.values()).index("gnss_pos")
         return {**{k: 1.0 for k in out}, gi: 50.0}
 
-    monkeypatch.setattr(joint_smoother, "_em_noise_scales", bad)
+    monkeypatch.setattr(joint_noise, "_em_noise_scales", bad)  # called by its _noise_update
     r = run_joint(clean, settings=JointSettings(estimate_noise=True))
     nc = r.summary["noise_check"]
     assert not nc["accepted"] and nc["loglik_estimated"] < nc["loglik_default"]

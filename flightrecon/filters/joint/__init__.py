@@ -15,7 +15,11 @@ and the RTS backward pass, and iterates (Gauss-Newton about the smoothed traject
   --radar-clock-offset`` takes it: a plot stamped t_m that belongs to true time t_m + c has
   residual hdot * c;
 * optionally, a scale factor on each source's noise variance estimated from the flight
-  (variance-component estimation from the normalised residuals).
+  (variance-component estimation from the normalised residuals);
+* every pass damped on the MAP cost (:mod:`~flightrecon.filters.joint.cost`): a backtracking
+  line search along the Gauss-Newton step, a Levenberg-Marquardt step where it fails, the
+  result the lowest-cost iterate and the reason reported when the iterations did not settle
+  (docs/joint.md, "Filter, smoother, iterations").
 
 Frame: position in ECEF, velocity in the local north-east-down frame of the (nominal) aircraft
 position: valid on flights of any length; outputs converted to the departure tangent plane.

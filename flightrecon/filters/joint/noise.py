@@ -3,11 +3,13 @@ the normalised smoothed residuals."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.measurements import Measurements
-from flightrecon.filters.joint.settings import SOURCES
+from flightrecon.filters.joint.settings import SOURCES, JointSettings
 
 NOISE_GROUPS = {("air", jl.TAS): "air_tas", ("air", jl.HEADING): "air_heading",
                 ("baro", jl.BARO): "baro", ("gnss_pos", jl.LINEAR): "gnss_pos",
@@ -53,3 +55,19 @@ def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int
         if sel.sum() >= min_count:
             out[int(gi)] = float(np.mean((res[sel] ** 2 + hph[sel]) / r0[sel]))
     return out
+
+
+def _noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.ndarray,
+                  use: np.ndarray, scale: np.ndarray, settings: JointSettings,
+                  info: dict[str, Any]) -> tuple[np.ndarray, bool]:
+    """EM step of the noise factors (:func:`_em_noise_scales`) on the measurements taken at
+    face value (``use``), bounded by ``noise_factor_bounds``; the new factors into ``info``.
+    Returns them and whether any moved by more than ``noise_tol``."""
+    new_scale = scale.copy()
+    lo_b, hi_b = settings.noise_factor_bounds
+    for gi, c in _em_noise_scales(groups, res, hph, r0, use).items():
+        new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
+    moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
+    info["noise_scale"] = {name: float(new_scale[i]) for i, name in enumerate(NOISE_GROUPS.values())
+                           if np.any(groups == i)}
+    return new_scale, moved

@@ -35,7 +35,7 @@ from flightrecon.filters.joint.linearisation import (
     _with_pseudo,
 )
 from flightrecon.filters.joint.measurements import Measurements
-from flightrecon.filters.joint.noise import NOISE_GROUPS, _em_noise_scales, innovation_loglik
+from flightrecon.filters.joint.noise import NOISE_GROUPS, _noise_update, innovation_loglik
 from flightrecon.filters.joint.nominal import _initial, _nominal_trajectory
 from flightrecon.filters.joint.settings import JointSettings
 from flightrecon.filters.joint.updates import _clock_update, _robust_weights, _stop_reason
@@ -221,23 +221,6 @@ def _lm_step(fl: _Flight, st: _State, mdl: _Models,
     return None
 
 
-def _noise_update(mdl: _Models, out: _Pass, res: np.ndarray, use: np.ndarray,
-                  scale: np.ndarray, settings: JointSettings,
-                  info: dict[str, Any]) -> tuple[np.ndarray, bool]:
-    """EM step of the noise factors (:func:`~flightrecon.filters.joint.noise._em_noise_scales`)
-    on the measurements taken at face value (``use``), bounded; returns the new factors and
-    whether any moved by more than ``noise_tol``."""
-    assert out.hph is not None
-    new_scale = scale.copy()
-    lo_b, hi_b = settings.noise_factor_bounds
-    for gi, c in _em_noise_scales(mdl.groups, res, out.hph, mdl.meas.r, use).items():
-        new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
-    moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
-    info["noise_scale"] = {name: float(new_scale[i]) for i, name in enumerate(NOISE_GROUPS.values())
-                           if np.any(mdl.groups == i)}
-    return new_scale, moved
-
-
 def _settled(it: int, step: _Step, cost0: float | None, psi_moved: float, w_change: float,
              params_still: bool, settings: JointSettings, info: dict[str, Any]) -> bool:
     """Convergence test (docs/joint.md): the MAP cost changed by less than ``cost_tol``
@@ -289,12 +272,32 @@ def _same_roll(a: TakeoffRoll, b: TakeoffRoll) -> bool:
 def _pass_models(fl: _Flight, st: _State) -> _Models:
     """The models of the next pass: about the iterate, with the current clock offsets and the
     take-off roll refined on the iterate (those of the line search's last candidate when they
-    are the same)."""
+    are the same).  A refined roll changes the runway and ground measurements, a clock offset
+    the GNSS and radar ones: the cost function itself (more measurements, more terms), so
+    costs are compared within a pass, and across passes only where neither changed
+    (``parameters_changed`` in the pass's entry)."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
     if m is not None and m.clock == st.clock and _same_roll(m.roll, roll):
         return m
     return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
+
+
+def _start_cost(fl: _Flight, st: _State, mdl: _Models, r: np.ndarray, reset: bool
+                ) -> tuple[dict[str, Any], np.ndarray, np.ndarray] | None:
+    """The iterate's cost, residuals and rates under the pass's models (None before the first
+    pass; the last accepted ones when the models and noise factors are the same).  After a
+    ``reset`` of the weights (a new measurement set: a refined take-off roll) the IRLS weights
+    at the iterate, so that the pass is again a majorise-minimise step (with all weights 1
+    its Gauss-Newton step need not lower the robust cost)."""
+    if st.X is None:
+        return None
+    assert st.weights is not None
+    same = mdl is st.models and np.array_equal(st.scale, st.cost_scale)
+    start = st.cost if same and st.cost is not None else _cost(fl, mdl, st.X, r, st.weights)
+    if reset:
+        st.weights = _robust_weights(start[1] / np.sqrt(r), st.weights, fl.settings)
+    return start
 
 
 def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, dict[str, Any]]:
@@ -303,7 +306,8 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     s = fl.settings
     mdl = _pass_models(fl, st)
     r = _scaled_variances(mdl, st.scale)
-    if st.weights is None or len(st.weights) != len(mdl.meas.z):
+    reset = st.weights is None or len(st.weights) != len(mdl.meas.z)
+    if reset:
         st.weights = np.ones(len(mdl.meas.z))
     if fl.x0 is None:
         fl.x0, fl.P0 = _initial(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
@@ -315,10 +319,7 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
         st.bufs = (np.empty((N, n)), np.empty((N, n, n)), np.empty((N, n)), np.empty((N, n, n)))
     if st.X is None and fl.settings.first_pass == "nominal":
         st.X = _nominal_states(fl, mdl)
-    start = None
-    if st.X is not None:
-        same = mdl is st.models and np.array_equal(st.scale, st.cost_scale)
-        start = st.cost if same else _cost(fl, mdl, st.X, r, st.weights)
+    start = _start_cost(fl, st, mdl, r, reset)
     xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
     # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
     # the solution) smooths the states only, the later ones (likely the last) everything
@@ -330,7 +331,11 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
             step = replace(lm, evaluations=step.evaluations + lm.evaluations,
                            gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
+    changed = st.models is not None and (st.models.clock != mdl.clock
+                                         or not _same_roll(st.models.roll, mdl.roll)
+                                         or not np.array_equal(st.scale, st.cost_scale))
     info: dict[str, Any] = {"iteration": it, "max_position_change_m": shift,
+                            "parameters_changed": bool(changed),
                             "roll_start_t_s": mdl.roll.start_t,
                             "cholesky_fallbacks": out.n_fallback, **step.cost,
                             "cost_start": None if start is None else start[0]["cost"],
@@ -358,7 +363,9 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     if s.estimate_noise:
         # measurements taken at face value in this pass: full weight, not gated
         use = (st.weights >= 1.0) & (w_before >= 1.0) & (out.infl <= 1.0)
-        st.scale, noise_moved = _noise_update(mdl, out, step.res, use, st.scale, s, info)
+        assert out.hph is not None
+        st.scale, noise_moved = _noise_update(mdl.groups, out.hph, mdl.meas.r, step.res, use,
+                                              st.scale, s, info)
     X = step.X
     st.lat, st.lon, st.h = step.models.lat, step.models.lon, step.models.h
     st.vnom, st.psi_hat, st.ba_hat = X[:, jl.S_VEL], psi_new, X[:, jl.S_ACC_BIAS]

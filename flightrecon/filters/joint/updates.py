@@ -60,9 +60,11 @@ def _stop_reason(history: list[dict[str, Any]], settings: JointSettings) -> str:
         return (f"line search failed: no step size down to 1/{2 ** settings.line_search_halvings}"
                 f" of the Gauss-Newton step{lm} lowered the MAP cost (the full step moved the "
                 f"track by {last['gauss_newton_position_change_m']:.0f} m)")
-    if len(history) > 1 and last["cost"] > history[-2]["cost"] * (1.0 + settings.cost_tol):
+    if (len(history) > 1 and last.get("parameters_changed")
+            and last["cost"] > history[-2]["cost"] * (1.0 + settings.cost_tol)):
         return (f"cost rising: {history[-2]['cost']:.6g} -> {last['cost']:.6g} over the last "
-                "pass (the updates between the passes raised it)")
+                "pass (the updates between the passes, of the take-off roll, the clock "
+                "offsets or the noise factors, raised it)")
     return (f"max passes reached ({len(history)}): the last moved the track by "
             f"{last['max_position_change_m']:.1f} m, the cost by "
             f"{last.get('cost_relative_change', float('nan')):.2g} (relative)")
