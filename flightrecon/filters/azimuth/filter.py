@@ -131,6 +131,57 @@ class AzimuthRun:
         return self.nu_z**2 / self.s_z
 
 
+def _checked_events(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack):
+    """The event times, plots, their variances and the tracked range, checked
+    (:func:`azimuth_filter`'s parameters); contiguous float arrays."""
+    t = np.ascontiguousarray(np.asarray(t_s, dtype=np.float64))
+    if t.size < 2:
+        raise ValidationError("the azimuth channel needs at least two events")
+    if not np.all(np.diff(t) > 0):
+        raise ValidationError("event times must be strictly increasing")
+    eps = np.ascontiguousarray(np.asarray(eps_meas_rad, dtype=np.float64))
+    eps_var = np.ascontiguousarray(np.asarray(eps_var_rad2, dtype=np.float64))
+    if not np.isfinite(eps[0]):
+        raise ValidationError("the azimuth channel must start at a radar plot")
+    if not np.all(eps_var[np.isfinite(eps)] > 0):
+        raise ValidationError("azimuth measurement variances must be positive")
+    r = np.ascontiguousarray(range_track.r)
+    if np.any(r <= 0) or not np.all(np.isfinite(r)):
+        raise ValidationError("tracked horizontal range must be positive and finite")
+    return t, eps, eps_var, r
+
+
+def _model_matrices(model, T, r, a_ne, a_ne_cov, a_ne_cov_corr, alpha_m, sigma_m_mps2,
+                    q_jerk_m2ps5):
+    """Transition and process noise of the chosen model on the steps ``T`` (the Singer model's
+    exact matrices, eqs. (1)-(4), or the aided model's random walk in the transverse
+    acceleration, eqs. (5)-(8)), and the on-board acceleration with its covariances checked
+    (none for the Singer model); docs/azimuth.md."""
+    N = T.size
+    if model == "singer":
+        F = singer_transition(alpha_m, T)
+        Q = singer_process_noise(alpha_m, sigma_m_mps2 / r, T)
+        a_ne = np.full((N, 2), np.nan)
+        a_ne_cov = np.zeros((N, 2, 2))
+        a_ne_cov_corr = np.zeros((N, 2, 2))
+    elif model == "aided":
+        if not q_jerk_m2ps5 > 0:
+            raise ValidationError(f"q_jerk_m2ps5 must be > 0, got {q_jerk_m2ps5}")
+        F, Q = random_walk_matrices(q_jerk_m2ps5 / r**2, T)
+        if a_ne is None or a_ne_cov is None:
+            raise ValidationError("the aided model needs the on-board acceleration and its "
+                                  "covariance")
+        a_ne = np.ascontiguousarray(np.asarray(a_ne, dtype=np.float64))
+        a_ne_cov = np.ascontiguousarray(np.asarray(a_ne_cov, dtype=np.float64))
+        a_ne_cov_corr = (np.zeros((N, 2, 2)) if a_ne_cov_corr is None else
+                         np.ascontiguousarray(np.asarray(a_ne_cov_corr, dtype=np.float64)))
+        if a_ne.shape != (N, 2) or a_ne_cov.shape != (N, 2, 2) or a_ne_cov_corr.shape != (N, 2, 2):
+            raise ValidationError("a_ne must be (N, 2), a_ne_cov and a_ne_cov_corr (N, 2, 2)")
+    else:
+        raise ValidationError(f"unknown azimuth model '{model}': choose 'singer' or 'aided'")
+    return F, Q, a_ne, a_ne_cov, a_ne_cov_corr
+
+
 def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, model: str,
                    a_ne=None, a_ne_cov=None, a_ne_cov_corr=None, alpha_m: float = 0.05,
                    sigma_m_mps2: float = 2.0, q_jerk_m2ps5: float = 0.2,
@@ -170,44 +221,10 @@ def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, 
     -------
     AzimuthRun
     """
-    t = np.ascontiguousarray(np.asarray(t_s, dtype=np.float64))
-    N = t.size
-    if N < 2:
-        raise ValidationError("the azimuth channel needs at least two events")
-    dt = np.diff(t)
-    if not np.all(dt > 0):
-        raise ValidationError("event times must be strictly increasing")
-    eps = np.ascontiguousarray(np.asarray(eps_meas_rad, dtype=np.float64))
-    eps_var = np.ascontiguousarray(np.asarray(eps_var_rad2, dtype=np.float64))
-    if not np.isfinite(eps[0]):
-        raise ValidationError("the azimuth channel must start at a radar plot")
-    if not np.all(eps_var[np.isfinite(eps)] > 0):
-        raise ValidationError("azimuth measurement variances must be positive")
-    r = np.ascontiguousarray(range_track.r)
-    if np.any(r <= 0) or not np.all(np.isfinite(r)):
-        raise ValidationError("tracked horizontal range must be positive and finite")
-    T = np.concatenate([[0.0], dt])
-    if model == "singer":
-        F = singer_transition(alpha_m, T)
-        Q = singer_process_noise(alpha_m, sigma_m_mps2 / r, T)
-        a_ne = np.full((N, 2), np.nan)
-        a_ne_cov = np.zeros((N, 2, 2))
-        a_ne_cov_corr = np.zeros((N, 2, 2))
-    elif model == "aided":
-        if not q_jerk_m2ps5 > 0:
-            raise ValidationError(f"q_jerk_m2ps5 must be > 0, got {q_jerk_m2ps5}")
-        F, Q = random_walk_matrices(q_jerk_m2ps5 / r**2, T)
-        if a_ne is None or a_ne_cov is None:
-            raise ValidationError("the aided model needs the on-board acceleration and its "
-                                  "covariance")
-        a_ne = np.ascontiguousarray(np.asarray(a_ne, dtype=np.float64))
-        a_ne_cov = np.ascontiguousarray(np.asarray(a_ne_cov, dtype=np.float64))
-        a_ne_cov_corr = (np.zeros((N, 2, 2)) if a_ne_cov_corr is None else
-                         np.ascontiguousarray(np.asarray(a_ne_cov_corr, dtype=np.float64)))
-        if a_ne.shape != (N, 2) or a_ne_cov.shape != (N, 2, 2) or a_ne_cov_corr.shape != (N, 2, 2):
-            raise ValidationError("a_ne must be (N, 2), a_ne_cov and a_ne_cov_corr (N, 2, 2)")
-    else:
-        raise ValidationError(f"unknown azimuth model '{model}': choose 'singer' or 'aided'")
+    t, eps, eps_var, r = _checked_events(t_s, eps_meas_rad, eps_var_rad2, range_track)
+    T = np.concatenate([[0.0], np.diff(t)])
+    F, Q, a_ne, a_ne_cov, a_ne_cov_corr = _model_matrices(
+        model, T, r, a_ne, a_ne_cov, a_ne_cov_corr, alpha_m, sigma_m_mps2, q_jerk_m2ps5)
     if not (np.isfinite(correlation_time_s) and correlation_time_s >= 0):
         raise ValidationError(f"correlation_time_s must be >= 0, got {correlation_time_s}")
     t_on = t[np.isfinite(a_ne[:, 0])]
