@@ -10,7 +10,7 @@ from typing import Any
 
 
 from flightrecon.errors import StoreError
-from flightrecon.store.records import _finite, _flag, check_sha256, utc_text
+from flightrecon.store.records import _finite, _flag, check_flight_identity
 
 #: the persistent sensor errors the joint smoother estimates (keys of its ``corrections``) that
 #: belong to the aircraft: fused over its flights and, with ``--use-fleet-coefficients``, used as
@@ -121,15 +121,8 @@ class FlightCalibration:
     recorded_at_utc: str | None = None
 
     def __post_init__(self) -> None:
-        for name in ("aircraft_id", "flight_id", "software_version"):
-            v = getattr(self, name)
-            if not isinstance(v, str) or not v.strip():
-                raise StoreError(f"{name}: must be a non-empty string, got {v!r}")
+        check_flight_identity(self)
         set_ = object.__setattr__
-        set_(self, "flight_date_utc", utc_text(self.flight_date_utc, "flight_date_utc"))
-        if self.recorded_at_utc is not None:
-            set_(self, "recorded_at_utc", utc_text(self.recorded_at_utc, "recorded_at_utc"))
-        check_sha256(self.log_sha256)
         est = tuple(self.estimates)
         if not all(isinstance(e, SensorEstimate) for e in est):
             raise StoreError("estimates: expected SensorEstimate records")

@@ -112,6 +112,21 @@ def check_sha256(h: Any) -> None:
         raise StoreError(f"log_sha256: expected 64 lower-case hex digits, got {h!r}")
 
 
+def check_flight_identity(record: Any) -> None:
+    """The identity fields every per-flight record shares, checked and normalised in place (a
+    frozen dataclass): non-empty ``aircraft_id``, ``flight_id`` and ``software_version``, UTC
+    ``flight_date_utc`` (and ``recorded_at_utc`` when set), and ``log_sha256``."""
+    check_sha256(record.log_sha256)
+    for name in ("aircraft_id", "flight_id", "software_version"):
+        v = getattr(record, name)
+        if not isinstance(v, str) or not v.strip():
+            raise StoreError(f"{name}: must be a non-empty string, got {v!r}")
+    set_ = object.__setattr__
+    set_(record, "flight_date_utc", utc_text(record.flight_date_utc, "flight_date_utc"))
+    if record.recorded_at_utc is not None:
+        set_(record, "recorded_at_utc", utc_text(record.recorded_at_utc, "recorded_at_utc"))
+
+
 def _nan_free(d: dict[str, Any]) -> dict[str, Any]:
     """Copy of an :meth:`FlightCoefficients.as_dict` with NaN floats as None (for equality)."""
     return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in d.items()}
@@ -168,15 +183,8 @@ class FlightCoefficients:
     log_sha256: str | None = None
 
     def __post_init__(self) -> None:
-        check_sha256(self.log_sha256)
-        for name in ("aircraft_id", "flight_id", "software_version"):
-            v = getattr(self, name)
-            if not isinstance(v, str) or not v.strip():
-                raise StoreError(f"{name}: must be a non-empty string, got {v!r}")
+        check_flight_identity(self)
         set_ = object.__setattr__
-        set_(self, "flight_date_utc", utc_text(self.flight_date_utc, "flight_date_utc"))
-        if self.recorded_at_utc is not None:
-            set_(self, "recorded_at_utc", utc_text(self.recorded_at_utc, "recorded_at_utc"))
         dur = _finite(self.duration_s, "duration_s")
         if dur <= 0.0:
             raise StoreError(f"duration_s: must be positive, got {dur}")
