@@ -30,6 +30,7 @@ def _setup(rng):
     x[jl.IC] = 0.03
     x[jl.IDW] = 0.01
     x[jl.IDC] = np.radians(0.4)
+    x[jl.S_GUST] = [1.8, -2.4]   # a gust: the air data see v - w - u
     st = (40.3, 49.7, 20.0)
     sx, sy, sz = geodetic_to_ecef(*st)
     pst = np.array([float(sx), float(sy), float(sz)])
@@ -73,8 +74,11 @@ def test_transition_propagates_held_acceleration():
     acc = np.array([[0, 0, 0], [0.4, -0.2, 0.1]])
     Csf = np.zeros((N, 3, 3))
     dz = np.array([0.0, 30.0])        # the nominal climbs 30 m over the step
-    F = jd.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0, dz)
+    x[jl.S_GUST] = [1.5, -0.5]
+    ga = np.array([1.0, 0.9])          # the gust decays by 0.9 over the step
+    F = jd.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0, dz, ga)
     xn = F @ x
+    np.testing.assert_allclose(xn[jl.S_GUST], 0.9 * x[jl.S_GUST], atol=1e-15)
     np.testing.assert_allclose(xn[jl.IP:jl.IP + 3], x[jl.IP:jl.IP + 3] + Cen[0] @ x[3:6] * 0.25,
                                atol=1e-9)
     np.testing.assert_allclose(xn[3:6], x[3:6], atol=1e-12)
@@ -105,7 +109,7 @@ def test_sparse_prediction_equals_dense_products():
     Csf = rng.normal(size=(N, 3, 3))
     acc = rng.normal(size=(N, 3))
     F = jd.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0,
-                      rng.normal(size=N) * 20.0)
+                      rng.normal(size=N) * 20.0, np.array([1.0, 0.8]))
     n = jl.N_STATE
     cols = np.empty((n, n), np.int64)
     vals = np.empty((n, n))
@@ -194,7 +198,7 @@ def test_transition_applies_attitude_biases_with_the_right_sign():
     Jatt = np.zeros((N, 3, 2))
     Jatt[1, :, 1] = [-1.0, 0.0, 0.0]  # level, f = (0, 0, -1) g: dC/dtheta f = (-1, 0, 0)
     F = jd.transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0,
-                      np.zeros(N))
+                      np.zeros(N), np.ones(N))
     y = np.zeros(jl.N_STATE)
     y[jl.IATT + 1] = 1e-3
     # measured pitch too high by 1 mrad tilts the measured specific force backward: the true
@@ -377,10 +381,10 @@ def test_joint_passes_equal_a_dense_numpy_rts_on_the_real_model(captured_passes)
     dyn = b[4]
     xs, Pblk, var = jp.backward(xf, Pf, xp, Pp, *b[4:])[:3]
     xm = jp.backward_mean(xf, Pf, xp, Pp, *b[4:-1])[0]
-    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     ref_x, ref_P = xf.copy(), Pf.copy()
     for k in range(N - 2, -1, -1):
-        F = jd.transition(k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
+        F = jd.transition(k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz, ga)
         C = Pf[k] @ F.T @ np.linalg.inv(Pp[k + 1])
         ref_x[k] = xf[k] + C @ (ref_x[k + 1] - xp[k + 1])
         ref_P[k] = Pf[k] + C @ (ref_P[k + 1] - Pp[k + 1]) @ C.T
@@ -390,3 +394,55 @@ def test_joint_passes_equal_a_dense_numpy_rts_on_the_real_model(captured_passes)
     np.testing.assert_allclose(var / sd**2, 1.0, atol=1e-9)
     blk = sd[:, :6, None] * sd[:, None, :6]
     np.testing.assert_allclose(Pblk / blk, ref_P[:, :6, :6] / blk, atol=1e-9)
+
+
+def test_gust_process_noise_keeps_the_stationary_variance():
+    """Guards the exact discretisation of the first-order Gauss-Markov gust (docs/joint.md,
+    "Wind and turbulence"): from its stationary variance sigma^2, one step of any length keeps
+    sigma^2 (F P F^T + Q = a^2 s^2 + s^2 (1 - a^2)); the other states' noise is unchanged."""
+    from flightrecon.filters.joint.nominal import _q_vector, gust_decay
+    from flightrecon.filters.joint.settings import JointNoise
+    nz = JointNoise(gust_mps=2.5, gust_length_m=400.0)
+    q = _q_vector(nz)
+    rng = np.random.default_rng(5)
+    _, _, Cen, *_ = _setup(rng)
+    for h, v in ((0.25, 60.0), (1.0, 230.0), (5.0, 10.0)):
+        dt = np.array([0.0, h])
+        ga = gust_decay(dt, np.array([np.nan, v]), nz, 30.0)
+        a = np.exp(-h * max(v, 30.0) / 400.0)
+        assert ga[0] == 1.0 and abs(ga[1] - a) < 1e-15
+        N = 2
+        F = jd.transition(1, dt, np.repeat(Cen, N, axis=0), np.repeat(np.eye(3)[None], N, 0),
+                          np.zeros((N, 3, 3)), np.zeros((N, 3, 2)), np.zeros((N, 3)), 3600.0,
+                          np.zeros(N), ga)
+        P = np.zeros((jl.N_STATE, jl.N_STATE))
+        P[jl.S_GUST, jl.S_GUST] = np.eye(2) * 2.5 ** 2
+        P = F @ P @ F.T
+        jd.add_process_noise(P, 1, dt, np.repeat(Cen, N, axis=0), np.zeros(N), np.zeros(N), q, ga)
+        np.testing.assert_allclose(np.diag(P)[jl.S_GUST], 2.5 ** 2, rtol=1e-12)
+        assert P[jl.IGU, jl.IGU + 1] == 0.0
+
+
+def test_gust_is_seen_by_the_air_data_only():
+    """Guards the air-data model with turbulence: TAS and heading see v - w - u (the gust u
+    moves them exactly as the mean wind w does); the ground-referenced Doppler and track do
+    not see it."""
+    rng = np.random.default_rng(8)
+    x, p, Cen, pst, Cst, h = _setup(rng)
+    du = np.array([0.7, -0.3])
+    for mtype, sees in ((jl.TAS, True), (jl.HEADING, True), (jl.DOPPLER, False),
+                        (jl.TRACK, False)):
+        args = (np.array([mtype]), np.zeros(1), np.array([0.0]), np.zeros((1, jl.N_STATE)),
+                np.zeros(1, np.int64), np.zeros(1), Cen, p[None, :], np.array([h]), pst, Cst)
+        hx, H = jo.measure(0, 0, x, *args)
+        gust, wind = x.copy(), x.copy()
+        gust[jl.S_GUST] += du
+        wind[jl.S_WIND] += du
+        h_gust = jo.measure(0, 0, gust, *args)[0]
+        if sees:
+            np.testing.assert_array_equal(H[jl.S_GUST], H[jl.S_WIND])
+            # u and w enter only as their sum
+            assert h_gust == pytest.approx(jo.measure(0, 0, wind, *args)[0], rel=1e-14)
+            assert h_gust != hx
+        else:
+            assert not H[jl.S_GUST].any() and h_gust == hx

@@ -8,7 +8,7 @@ Two entry points of the same propagation ``F P F^T``:
   correlated-noise terms; :func:`flightrecon.estimation.updates.correlated_noise_predict_into`);
 * sparse, :func:`predict_sparse`: ``F`` row-compressed (:func:`sparse_rows`: row ``i`` has
   ``cnt[i]`` nonzeros ``vals[i, :cnt[i]]`` in the columns ``cols[i, :cnt[i]]``), so that the
-  product costs O(n nnz) instead of O(n^3): the joint smoother's 24-state transition, which is the
+  product costs O(n nnz) instead of O(n^3): the joint smoother's 26-state transition, which is the
   identity plus a few blocks (11 nonzeros at most per row).  The process noise is added by the
   caller, touching only its nonzero entries.
 

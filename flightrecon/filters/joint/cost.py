@@ -74,14 +74,14 @@ def robust_loss(u, huber_c, reject_c, robust):
 def _process_term(X, dyn, F, cols, vals, cnt, Q, xn, e):
     """1/2 sum_k e_k^T Q_k^-1 e_k over the steps, and the largest |e_k,i| of the states that
     carry no process noise (module docstring); returns (term, max_constant_change, failures)."""
-    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     N, n = X.shape
     total = 0.0
     const_max = 0.0
     n_fail = 0
     act = np.empty(n, dtype=np.int64)
     for k in range(1, N):
-        transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
+        transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz, ga)
         sparse_rows(F, cols, vals, cnt)
         sparse_matvec(cols, vals, cnt, X[k - 1], xn)
         for i in range(3):
@@ -92,7 +92,7 @@ def _process_term(X, dyn, F, cols, vals, cnt, Q, xn, e):
             e[i] = X[k, i] - xn[i]
             for j in range(n):
                 Q[i, j] = 0.0
-        add_process_noise(Q, k, dt, Cen, dz, qv_extra, q)
+        add_process_noise(Q, k, dt, Cen, dz, qv_extra, q, ga)
         m = 0
         for i in range(n):
             tol = _EPS64 * (abs(X[k, i]) + abs(xn[i]))

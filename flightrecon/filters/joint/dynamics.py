@@ -19,6 +19,7 @@ from flightrecon.filters.joint.layout import (
     IBA,
     IBH,
     IG,
+    IGU,
     IKS,
     IP,
     IPSI,
@@ -34,14 +35,15 @@ def _wrap(a):
 
 
 @nb.njit(cache=True, nogil=True)
-def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
+def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
     """Fill ``F`` (n, n) with the transition matrix F_k from step k-1 to step k (k >= 1).
 
     ``Csf[k]`` is the step mean of C_nb diag(f_body) (the Jacobian of the acceleration in the
     accelerometer scale errors), ``Jatt[k]`` (3, 2) that of dC/dphi f and dC/dtheta f (roll and
     pitch biases), ``dz[k]`` the nominal's height change over the step (the wind moves along
-    its gradient with height).  Only the position, velocity, wind and accelerometer-bias rows
-    differ from the identity (see the module docstring).
+    its gradient with height), ``ga[k]`` the gust's decay over the step.  Only the position,
+    velocity, wind, accelerometer-bias and gust rows differ from the identity (see the module
+    docstring of :mod:`~flightrecon.filters.joint.layout`).
     """
     n = N_STATE
     for i in range(n):
@@ -80,22 +82,25 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
         F[IBA + j, IBA + j] = e
     F[IW, IG] = dz[k]
     F[IW + 1, IG + 1] = dz[k]
+    F[IGU, IGU] = ga[k]
+    F[IGU + 1, IGU + 1] = ga[k]
 
 
 @nb.njit(cache=True, nogil=True)
-def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
+def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
     """Transition matrix F_k from step k-1 to step k (k >= 1); see :func:`transition_into`."""
     F = np.empty((N_STATE, N_STATE))
-    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
+    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga)
     return F
 
 
 @nb.njit(cache=True, nogil=True)
-def add_process_noise(P, k, dt, Cen, dz, qv_extra, q):
+def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
     """P += Q_k in place, touching only the nonzero entries of Q_k.  q = [q_acc, q_wind_t,
-    q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad] (see JointNoise); ``|dz[k]|`` is the height
-    change over the step (wind varies with altitude), ``qv_extra[k]`` extra acceleration PSD
-    where the load factors are missing.  Position-velocity block: white acceleration of PSD q_a
+    q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust] (see JointNoise); ``|dz[k]|`` is
+    the height change over the step (wind varies with altitude), ``qv_extra[k]`` extra
+    acceleration PSD where the load factors are missing, ``ga[k]`` the gust's decay over the
+    step (exact discretisation of the first-order Gauss-Markov gust: var_gust (1 - ga^2)).  Position-velocity block: white acceleration of PSD q_a
     (Q_pp = q_a h^3/3, Q_vv = q_a h, Q_pv = q_a h^2/2 C_en)."""
     h = dt[k]
     qpp, qpv, qvv = white_acceleration_q(q[0] + qv_extra[k], h)
@@ -116,3 +121,6 @@ def add_process_noise(P, k, dt, Cen, dz, qv_extra, q):
     P[IBH, IBH] += q[6] * h
     P[IG, IG] += q[7] * h
     P[IG + 1, IG + 1] += q[7] * h
+    qg = q[8] * (1.0 - ga[k] * ga[k])
+    P[IGU, IGU] += qg
+    P[IGU + 1, IGU + 1] += qg

@@ -5,7 +5,7 @@ The kernels: :mod:`~flightrecon.filters.joint.dynamics` (transition, process noi
 :mod:`~flightrecon.filters.joint.passes` (forward filter, backward smoother); the smoother that
 drives them: :mod:`flightrecon.filters.joint`.
 
-State (n = 24), SI units::
+State (n = 26), SI units::
 
     0:3   p      position, ECEF [m]
     3:6   v      ground velocity, local north-east-down at the nominal position [m/s]
@@ -21,6 +21,8 @@ State (n = 24), SI units::
     20    dphi   roll bias [rad] (measured - true)
     21    dtheta pitch bias [rad] (measured - true)
     22:24 g      wind gradient with height, north, east [(m/s)/m]
+    24:26 u      gust: the horizontal wind's turbulent part, north, east [m/s] (first-order
+                 Gauss-Markov in distance flown: correlation length L, sd sigma_u)
 
 Propagation over one state step of length dt (inputs held between input samples)::
 
@@ -28,6 +30,7 @@ Propagation over one state step of length dt (inputs held between input samples)
     v+ = v + dV_meas + J_v [dpsi, b_a]                       measured kinematic acceleration
     w+ = w + g dz + noise (random walk in time and in altitude)  over the step (exact for held
     g+ = g + noise (random walk in time)                     inputs; dz: the nominal's climb)
+    u+ = a u + noise,  a = exp(-V dt / L), var sigma_u^2 (1 - a^2)   (V: the recorded airspeed)
     b_a+ = exp(-dt/tau) b_a + noise
 
 with J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt, -g0 C_nb diag(f) dt, -g0 dC/dphi f dt,
@@ -43,8 +46,8 @@ minus the step's time (the state is carried to the measurement time by the veloc
 
 * ``LINEAR``: z = H x + d (GNSS position / velocity components, end points, ground constraints)
 * ``RANGE``, ``AZIMUTH``, ``ELEVATION``: radar slant range and angles from the station
-* ``TAS``: (1 + s) |v - w| (three-dimensional air velocity, vertical wind neglected)
-* ``HEADING``: atan2(v_E - w_E, v_N - w_N) + dpsi (innovation wrapped to (-pi, pi])
+* ``TAS``: (1 + s) |v - w - u| (three-dimensional air velocity, vertical wind neglected)
+* ``HEADING``: atan2(v_E - w_E - u_E, v_N - w_N - u_N) + dpsi (innovation wrapped to (-pi, pi])
 * ``BARO``: (1 + c) (h_nom + up . (p - p_nom) - v_D tau) + b_h
 * ``DOPPLER``: (1 + k_W) |v_horizontal|
 * ``TRACK``: heading + drift as recorded = atan2(v_E, v_N) + dpsi + dc (innovation wrapped)
@@ -56,11 +59,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-N_STATE = 24
+N_STATE = 26
 
 
-IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT, IG = (0, 3, 6, 8, 11, 12, 13, 14, 15, 16,
-                                                                17, 20, 22)
+IP, IV, IW, IBA, IPSI, IS, IBH, IC, IDW, IDC, IKS, IATT, IG, IGU = (0, 3, 6, 8, 11, 12, 13, 14, 15,
+                                                                     16, 17, 20, 22, 24)
 
 
 # the state's blocks as slices, named once (the indices above are their first elements)
@@ -71,6 +74,7 @@ S_ACC_BIAS = slice(IBA, IBA + 3)
 S_ACC_SCALE = slice(IKS, IKS + 3)
 S_ATT_BIAS = slice(IATT, IATT + 2)
 S_WIND_GRAD = slice(IG, IG + 2)
+S_GUST = slice(IGU, IGU + 2)   # turbulent part of the horizontal wind, north/east [m/s]
 
 G0 = 9.80665
 
@@ -97,6 +101,7 @@ class Dynamics(NamedTuple):
     dz: np.ndarray        # (N,) height change over each step (wind gradient)
     qv_extra: np.ndarray  # (N,) extra acceleration PSD where the loads are missing
     q: np.ndarray         # process-noise densities and the bias time constant (_q_vector)
+    ga: np.ndarray        # (N,) gust decay over each step, exp(-V_k dt_k / L) (ga[0] = 1)
 
 
 class Scalars(NamedTuple):

@@ -23,6 +23,7 @@ from flightrecon.filters.joint.nominal import (
     _attitude_step_means,
     _increments,
     _q_vector,
+    gust_decay,
     _state_grid,
     relinearised_increments,
 )
@@ -49,6 +50,7 @@ class _Flight:
     Jatt: np.ndarray
     qv_extra: np.ndarray
     q: np.ndarray
+    ga: np.ndarray            # gust decay over each step (nominal.gust_decay)
     static: Any
     pst: np.ndarray
     Cst: np.ndarray
@@ -91,8 +93,10 @@ def _flight(inp: JointInputs, settings: JointSettings) -> _Flight:
         Cst = enu_to_ecef_matrix(inp.station[0], inp.station[1])
         sx, sy, sz = geodetic_to_ecef(*inp.station)
         pst = np.array([float(sx), float(sy), float(sz)])
+    ga = gust_decay(dt, inp.tas[idx], settings.noise, settings.min_airspeed_mps)
     return _Flight(inp, settings, idx, T, dt, acc, dV, dP, Cnb, Csf, Jatt, qv_extra,
-                   _q_vector(settings.noise), static_measurements(inp, settings, T), pst, Cst)
+                   _q_vector(settings.noise), ga, static_measurements(inp, settings, T), pst,
+                   Cst)
 
 
 def _models_at(fl: _Flight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
@@ -112,7 +116,7 @@ def _models_at(fl: _Flight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
     else:
         acc_k, dV_k, dP_k = relinearised_increments(fl.acc, fl.dV, fl.dP, fl.dt, psi_hat)
     dyn = jl.Dynamics(fl.dt, Cen, fl.Cnb, fl.Csf, fl.Jatt, acc_k, dP_k, dV_k, dz, fl.qv_extra,
-                      fl.q)
+                      fl.q, fl.ga)
     geo = jl.Geometry(pnom, h - inp.field_h, fl.pst, fl.Cst)
     return _Models(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock),
                    _noise_groups(meas))

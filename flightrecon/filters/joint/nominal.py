@@ -108,7 +108,23 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
                      nz.wind_shear_mps_per_sqrt_m ** 2, nz.accel_bias_g ** 2, nz.accel_bias_tau_s,
                      np.radians(nz.heading_bias_rw_deg_sqrt_s) ** 2,
                      nz.baro_offset_rw_m_sqrt_s ** 2,
-                     (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2])
+                     (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2, nz.gust_mps ** 2])
+
+
+def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
+               min_airspeed_mps: float) -> np.ndarray:
+    """Decay of the gust state over each step, a_k = exp(-V_k dt_k / L) (docs/joint.md, "Wind
+    and turbulence").
+
+    The gust is a first-order Gauss-Markov process in the distance flown (the frozen-turbulence
+    view of the Dryden model: correlation length L = ``nz.gust_length_m``), so its correlation
+    time is L / V with V the recorded airspeed at the step, held at ``min_airspeed_mps`` where
+    it is lower or missing (on the ground the gust then decorrelates within seconds and no air
+    data are used there).
+    """
+    v = np.where(np.isfinite(tas_mps), tas_mps, 0.0)
+    v = np.maximum(v, min_airspeed_mps)
+    return np.exp(-np.asarray(dt, float) * v / nz.gust_length_m)
 
 
 def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
@@ -135,6 +151,7 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
     P0[jl.S_ACC_SCALE, jl.S_ACC_SCALE] = np.eye(3) * nz.accel_scale ** 2
     P0[jl.S_ATT_BIAS, jl.S_ATT_BIAS] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
     P0[jl.S_WIND_GRAD, jl.S_WIND_GRAD] = np.eye(2) * (nz.wind_gradient_per_km / 1000.0) ** 2
+    P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * nz.gust_mps ** 2
     for name, mean, sd in priors:  # e.g. an aircraft's fleet calibration
         i, f, _ = PRIOR_STATES[name]
         x0[i], P0[i, i] = mean * f, (sd * f) ** 2

@@ -15,6 +15,7 @@ from flightrecon.filters.joint.layout import (
     IC,
     IDC,
     IDW,
+    IGU,
     IP,
     IPSI,
     IS,
@@ -95,8 +96,8 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
             H[IV + m] = s * tau
         return hx
     if t == TAS:
-        an = x[IV] - x[IW]
-        ae = x[IV + 1] - x[IW + 1]
+        an = x[IV] - x[IW] - x[IGU]
+        ae = x[IV + 1] - x[IW + 1] - x[IGU + 1]
         ad = x[IV + 2]
         va = np.sqrt(an * an + ae * ae + ad * ad)
         f = 1.0 + x[IS]
@@ -105,16 +106,20 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
         H[IV + 2] = f * ad / va
         H[IW] = -H[IV]
         H[IW + 1] = -H[IV + 1]
+        H[IGU] = H[IW]
+        H[IGU + 1] = H[IW + 1]
         H[IS] = va
         return f * va
     if t == HEADING:
-        an = x[IV] - x[IW]
-        ae = x[IV + 1] - x[IW + 1]
+        an = x[IV] - x[IW] - x[IGU]
+        ae = x[IV + 1] - x[IW + 1] - x[IGU + 1]
         v2 = an * an + ae * ae
         H[IV] = -ae / v2
         H[IV + 1] = an / v2
         H[IW] = ae / v2
         H[IW + 1] = -an / v2
+        H[IGU] = H[IW]
+        H[IGU + 1] = H[IW + 1]
         H[IPSI] = 1.0
         return np.arctan2(ae, an) + x[IPSI]
     if t == DOPPLER:

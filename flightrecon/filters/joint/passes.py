@@ -66,7 +66,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
     Allocation-free per step: the prediction uses the row-compressed F_k (P <- F P F^T + Q in
     O(n nnz)), the update the nonzero entries of each measurement's gradient.
     """
-    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
     pnom, hnom, pst, Cst = geo
     N = dt.shape[0]
@@ -88,13 +88,13 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
     hnz = np.empty(n, dtype=np.int64)
     for k in range(N):
         if k > 0:
-            _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
+            _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz, ga)
             predict_sparse(x, P, cols, vals, cnt, xn, B)  # x <- F x, P <- F P F^T
             for i in range(3):  # + the control input (the recorded increments) and Q_k
                 for m in range(3):
                     x[IP + i] += Cen[k - 1, i, m] * dP[k, m]
                 x[IV + i] += dV[k, i]
-            add_process_noise(P, k, dt, Cen, dz, qv_extra, q)
+            add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga)
         xp[k] = x
         if Pp.shape[0] > 0:
             Pp[k] = P
@@ -148,24 +148,24 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
 
 
 @nb.njit(cache=True, nogil=True)
-def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz):
+def _transition_rows(F, cols, vals, cnt, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
     """F_k into ``F`` and its row-compressed copy (:func:`transition_into`,
     :func:`~flightrecon.estimation.predict.sparse_rows`)."""
-    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz)
+    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga)
     sparse_rows(F, cols, vals, cnt)
 
 
 @nb.njit(cache=True, nogil=True)
-def _predicted_at(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, buf):
+def _predicted_at(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, ga, buf):
     """P_p[k]: the stored one if the forward pass kept them, else recomputed into ``buf``."""
     if Pp.shape[0] > 0:
         return Pp[k]
-    _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, buf)
+    _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, ga, buf)
     return buf
 
 
 @nb.njit(cache=True, nogil=True)
-def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, out):
+def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, ga, out):
     """P_p[k] = F_k P_f[k-1] F_k^T + Q_k into ``out``, recomputed with the same operations as
     :func:`forward` (``cols``/``vals``/``cnt``: F_k row-compressed), for a forward pass that
     did not store it."""
@@ -174,7 +174,7 @@ def _predicted_cov(k, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q, out)
         for j in range(n):
             out[i, j] = Pf[k - 1, i, j]
     predict_cov_sparse(out, cols, vals, cnt, B)
-    add_process_noise(out, k, dt, Cen, dz, qv_extra, q)
+    add_process_noise(out, k, dt, Cen, dz, qv_extra, q, ga)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -226,7 +226,7 @@ def backward_mean(xf, Pf, xp, Pp, dyn, meas, geo):
     positive definite to rounding: the gain then comes from a general solve, which raises
     LinAlgError only if the matrix is singular; the caller reports the count).
     """
-    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
     pnom, hnom, pst, Cst = geo
     N, n = xf.shape
@@ -252,9 +252,10 @@ def backward_mean(xf, Pf, xp, Pp, dyn, meas, geo):
     n_fallback = 0
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
+            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz,
+                             ga)
             Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q,
-                                Pbuf)
+                                ga, Pbuf)
             # y = P_p^-1 (x_s[k+1] - x_p[k+1]), then x_s[k] = x_f[k] + P_f[k] (F^T y)
             if not rts_mean_solve(EUCLIDEAN, xp[k + 1], Pk1, xs[k + 1], 0.0, 0.0, L, d, y):
                 n_fallback += 1
@@ -282,7 +283,7 @@ def backward(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
     ``residuals`` False the residual outputs stay NaN (the covariances do not need them: this
     pass can then run beside :func:`backward_mean` on another thread).
     """
-    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q = dyn
+    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
     pnom, hnom, pst, Cst = geo
     N, n = xf.shape
@@ -307,10 +308,11 @@ def backward(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
     n_fallback = 0
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz)
+            _transition_rows(F, cols, vals, cnt, k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz,
+                             ga)
             sparse_left_product(cols, vals, cnt, Pf[k], CT)  # C^T = F P_f[k]
             Pk1 = _predicted_at(k + 1, Pf, Pp, cols, vals, cnt, B, dt, Cen, dz, qv_extra, q,
-                                Pbuf)
+                                ga, Pbuf)
             # the core's step, in place on Ps (P_s[k+1] -> P_s[k])
             if not rts_step(EUCLIDEAN, (xf[k], Pf[k]), (xp[k + 1], Pk1), (xs[k + 1], Ps), CT,
                             (0.0, 0.0), 0.0, (xs[k], Ps), work):

@@ -30,6 +30,10 @@ class JointNoise:
     #                                          sd over 1 m of climb
     wind_gradient_per_km: float = 5.0        # prior of the wind's gradient with height [(m/s)/km]
     wind_gradient_rw_per_km_sqrt_s: float = 0.005  # its change with time
+    gust_mps: float = 2.0                    # turbulence: sd of the gust (the wind's turbulent
+    #                                          part), per horizontal axis (light to moderate)
+    gust_length_m: float = 500.0             # its correlation length (the Dryden scale length
+    #                                          above ~500 m): correlation time L / airspeed
     heading_bias_deg: float = 2.0
     attitude_bias_deg: float = 0.5           # roll and pitch biases (attitude reference), each
     heading_bias_rw_deg_sqrt_s: float = 1e-4
@@ -77,7 +81,7 @@ POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_
                   "gnss_vel_mps", "radar_range_m", "radar_azimuth_deg", "radar_elevation_deg",
                   "endpoint_h_m", "endpoint_v_m", "touchdown_sd_m", "roll_start_sd_m",
                   "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
-                  "wind_sensor_mps", "last_position_h_m")
+                  "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m")
 """JointNoise fields that must be positive (a zero would be a measurement without noise)."""
 
 
