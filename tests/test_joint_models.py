@@ -446,3 +446,30 @@ def test_gust_is_seen_by_the_air_data_only():
             assert h_gust != hx
         else:
             assert not H[jl.S_GUST].any() and h_gust == hx
+
+
+def test_heading_kept_only_where_the_nose_is_along_the_air():
+    """Guards the air-data heading's attitude gate (docs/joint.md, "Measurements"): in a
+    spiral dive or a spin the nose is not along the air velocity, and the heading must not be
+    used as its direction; level and moderately banked samples keep it."""
+    from flightrecon.filters.joint.measurements import _nose_along_air
+    from flightrecon.filters.joint.settings import JointSettings
+    from flightrecon.geo.kinematics import body_to_ned_matrix
+
+    roll = np.array([0.0, 30.0, -44.0, 60.0, -75.0, 10.0, 5.0, 170.0])
+    pitch = np.array([0.0, 5.0, -10.0, 0.0, -20.0, -45.0, 29.0, 0.0])
+    C = body_to_ned_matrix(roll, pitch, np.full(8, 123.0))
+    keep = _nose_along_air(np.asarray(C), JointSettings())
+    np.testing.assert_array_equal(keep, [True, True, True, False, False, False, True, False])
+
+
+def test_implausible_sensor_error_is_named():
+    """Guards the joint's health rule against implausible sensor errors: an airspeed scale 25
+    prior sd from its prior is reported (and makes the track unhealthy in run_joint); one at
+    3 sd is not."""
+    from flightrecon.filters.joint_method import _implausible_corrections
+
+    c = {"tas_scale": {"value": 0.75, "sd": 0.01, "prior_mean": 0.0, "prior_sd": 0.03},
+         "heading_bias_deg": {"value": -6.0, "sd": 0.5, "prior_mean": 0.0, "prior_sd": 2.0}}
+    far = _implausible_corrections(c)
+    assert list(far) == ["tas_scale"] and far["tas_scale"] == pytest.approx(25.0)

@@ -319,6 +319,28 @@ def _corrections(run: JointRun, settings: JointSettings | None = None) -> dict[s
     return out
 
 
+IMPLAUSIBLE_PRIOR_SD = 8.0
+"""A sensor error estimated this many prior sd from its prior mean makes the joint track
+unhealthy (docs/joint.md, "Health"): under the prior such a value has a probability below
+1e-15, and where it happened the smoother had used the error to explain a model mismatch
+(JSBSim cross-country without the gust state: an airspeed scale of +26 %; a spin whose loads
+saturate: -82 %)."""
+
+
+def _implausible_corrections(corrections: dict[str, Any],
+                             limit: float = IMPLAUSIBLE_PRIOR_SD) -> dict[str, float]:
+    """The sensor errors estimated more than ``limit`` prior sd from their prior mean, with
+    that distance."""
+    out = {}
+    for name, c in corrections.items():
+        sd = c.get("prior_sd")
+        if sd and np.isfinite(c["value"]):
+            z = abs(c["value"] - c["prior_mean"]) / sd
+            if z > limit:
+                out[name] = float(z)
+    return out
+
+
 def _correction_items(item) -> dict[str, Any]:
     return {
         "heading_bias_deg": item(jl.IPSI, np.degrees(1.0), "deg (measured - true)"),
@@ -461,15 +483,23 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     if verdict.gross:
         warnings.append(f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
                         "noise settings do not fit this flight")
+    corrections = _corrections(run, settings)
+    far = _implausible_corrections(corrections)
+    for name, z in far.items():
+        c = corrections[name]
+        warnings.append(f"joint: {name} estimated at {c['value']:+.4g} (sd {c['sd']:.2g}), "
+                        f"{z:.0f} prior sd from its prior {c['prior_mean']:+.4g} "
+                        f"(sd {c['prior_sd']:.2g}): no such sensor error is physically "
+                        "plausible; the smoother explained something else with it (unhealthy)")
     summary = {
-        "healthy": bool(finite) and not verdict.gross,
+        "healthy": bool(finite) and not verdict.gross and not far,
         "consistency": verdict.as_dict(),
         "converged": bool(finite) and converged,
         "stop_reason": run.stop_reason,
         "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "state_rate_hz": settings.state_rate_hz,
-        "corrections": _corrections(run, settings),
+        "corrections": corrections,
         "clock_offsets_s": {k: {"value": o, "sd": sd}
                             for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,

@@ -256,6 +256,22 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
               -cross @ arp - H[:, jl.IPSI] * ph)
 
 
+def _nose_along_air(Cnb: np.ndarray, settings: JointSettings) -> np.ndarray:
+    """Samples whose attitude lets the heading stand for the air velocity's direction.
+
+    The air velocity in body axes is V (cos a cos b, sin b, sin a cos b) (angle of attack a,
+    sideslip b); its horizontal direction differs from the heading by about a sin(roll) /
+    cos(pitch) plus the sideslip, a few degrees in a 30 deg bank, tens of degrees in a spiral
+    dive or a spin.  Kept: |roll| <= ``heading_max_roll_deg`` and |pitch| <=
+    ``heading_max_pitch_deg`` (roll and pitch from the body-to-NED matrices ``Cnb`` (Ni, 3, 3),
+    C = R_z R_y R_x: C[2, 0] = -sin(pitch), C[2, 1] = cos(pitch) sin(roll)).
+    """
+    pitch = -np.arcsin(np.clip(Cnb[:, 2, 0], -1.0, 1.0))
+    roll = np.arctan2(Cnb[:, 2, 1], Cnb[:, 2, 2])
+    return ((np.abs(roll) <= np.radians(settings.heading_max_roll_deg))
+            & (np.abs(pitch) <= np.radians(settings.heading_max_pitch_deg)))
+
+
 def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
     """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
     recorded wind, the winds-aloft prior, pressure altitude, ground and runway constraints
@@ -277,7 +293,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # the heading is the air velocity's direction only in the air: on the runway the nose
     # follows the runway (a crosswind of 5 m/s at 40 m/s is 7 deg), and the crab is taken up
     # within seconds after lift-off and taken out in the flare; none within crab_s of them
-    air = keep.copy()
+    air = keep & _nose_along_air(inp.Cnb, settings)
     if np.isfinite(inp.liftoff_t):
         air &= t_in > inp.liftoff_t + settings.crab_s
     if np.isfinite(inp.touchdown_t):
