@@ -96,12 +96,13 @@ def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
 
 @nb.njit(cache=True, nogil=True)
 def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
-    """P += Q_k in place, touching only the nonzero entries of Q_k.  q = [q_acc, q_wind_t,
+    """P += Q_k in place, touching only the nonzero entries of Q_k. q = [q_acc, q_wind_t,
     q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust] (see JointNoise); ``|dz[k]|`` is
     the height change over the step (wind varies with altitude), ``qv_extra[k]`` extra
     acceleration PSD where the load factors are missing, ``ga[k]`` the gust's decay over the
-    step (exact discretisation of the first-order Gauss-Markov gust: var_gust (1 - ga^2)).  Position-velocity block: white acceleration of PSD q_a
-    (Q_pp = q_a h^3/3, Q_vv = q_a h, Q_pv = q_a h^2/2 C_en)."""
+    step (exact discretisation of the first-order Gauss-Markov gust: var_gust (1 - ga^2)).
+    Position-velocity block: white acceleration of PSD q_a (Q_pp = q_a h^3/3, Q_vv = q_a h,
+    Q_pv = q_a h^2/2 C_en)."""
     h = dt[k]
     qpp, qpv, qvv = white_acceleration_q(q[0] + qv_extra[k], h)
     for i in range(3):

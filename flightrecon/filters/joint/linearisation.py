@@ -23,8 +23,8 @@ from flightrecon.filters.joint.nominal import (
     _attitude_step_means,
     _increments,
     _q_vector,
-    gust_decay,
     _state_grid,
+    gust_decay,
     relinearised_increments,
 )
 from flightrecon.filters.joint.settings import JointSettings

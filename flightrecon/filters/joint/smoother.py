@@ -14,7 +14,7 @@ passes and held fixed within one (the cost is compared under the same ones).
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -38,6 +38,7 @@ from flightrecon.filters.joint.measurements import Measurements
 from flightrecon.filters.joint.noise import NOISE_GROUPS, _noise_update, innovation_loglik
 from flightrecon.filters.joint.nominal import _initial, _nominal_trajectory
 from flightrecon.filters.joint.settings import JointSettings
+from flightrecon.filters.joint.turbulence import gust_update
 from flightrecon.filters.joint.updates import _clock_update, _robust_weights, _stop_reason
 from flightrecon.geo.frames import ecef_to_geodetic
 
@@ -72,6 +73,7 @@ class JointRun:
     # convergence: the test of docs/joint.md ("Filter, smoother, iterations"), and why not
     converged: bool = False
     stop_reason: str = ""
+    gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
 
 
 @dataclass
@@ -263,6 +265,8 @@ class _State:
     lm_lambda: float = 0.0              # the last accepted Levenberg-Marquardt damping / 10
     converged: bool = False
     reason: str = ""
+    refit: bool = False                 # the models' noise changed (gust sd): a new cost
+    gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
 
 
 def _same_roll(a: TakeoffRoll, b: TakeoffRoll) -> bool:
@@ -331,9 +335,10 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
             step = replace(lm, evaluations=step.evaluations + lm.evaluations,
                            gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
-    changed = st.models is not None and (st.models.clock != mdl.clock
-                                         or not _same_roll(st.models.roll, mdl.roll)
-                                         or not np.array_equal(st.scale, st.cost_scale))
+    changed = st.refit or (st.models is not None and (
+        st.models.clock != mdl.clock or not _same_roll(st.models.roll, mdl.roll)
+        or not np.array_equal(st.scale, st.cost_scale)))
+    st.refit = False
     info: dict[str, Any] = {"iteration": it, "max_position_change_m": shift,
                             "parameters_changed": bool(changed),
                             "roll_start_t_s": mdl.roll.start_t,
@@ -371,6 +376,8 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     st.vnom, st.psi_hat, st.ba_hat = X[:, jl.S_VEL], psi_new, X[:, jl.S_ACC_BIAS]
     st.X, st.models = X, step.models
     st.cost, st.cost_scale = (step.cost, step.res, step.rate), scale_used
+    full = step.alpha == 1.0 and step.lm_lambda == 0.0
+    noise_moved = gust_update(fl, st, out, out.xs if full else X, it) or noise_moved
     info["_settled"] = _settled(it, step, None if start is None else start[0]["cost"],
                                 psi_moved, float(np.max(np.abs(st.weights - w_before),
                                                         initial=0.0)),
@@ -412,7 +419,8 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
             break
     if not st.converged:
         st.reason = _stop_reason(history, settings)
-    return _finish(fl, st, mdl, out, step, history)
+    return replace(_finish(fl, st, mdl, out, step, history),
+                   gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
 
 
 def _finish(fl: _Flight, st: _State, mdl: _Models, out: _Pass, step: _Step,

@@ -1,0 +1,86 @@
+"""The gust state's standard deviation estimated from the flight (docs/joint.md, "Wind and
+turbulence").
+
+The gust ``u`` (layout: ``S_GUST``) is a stationary first-order Gauss-Markov process of variance
+sigma_u^2 per axis. Under the model, the smoothed mean and variance of every sample satisfy
+E[u_hat^2 + var(u | data)] = sigma_u^2 (law of total variance), so
+
+    sigma_u^2 <- mean over the airborne steps and both axes of (u_hat_k^2 + P_uu,k)
+
+is a fixed point at the flight's own gust variance: with sigma_u too large the data shrink u_hat
+and its variance below it, too small they push them above. It is the moment form of the
+expectation-maximisation update of a stationary variance; with ``JointSettings.estimate_gust``
+the smoother applies it after each pass that computed the smoothed covariances
+(:func:`gust_update`), like the noise factors of EM, until it moves by less than ``gust_tol``
+(at most ``gust_rounds`` changes); a change is a new cost function, and the pass after it says
+so (``parameters_changed``). What the gust absorbs besides the turbulence (the sideslip, the
+angle of attack in turns, the airspeed lag) counts into the estimate: it is the air data's
+effective disagreement with a steady wind.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.nominal import _q_vector
+
+if TYPE_CHECKING:
+    from flightrecon.filters.joint.linearisation import _Flight
+    from flightrecon.filters.joint.smoother import _Pass, _State
+
+
+def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> float | None:
+    """sqrt(mean(u_hat^2 + P_uu)) over the steps ``airborne`` and both gust axes (module
+    docstring); None without such a step or with a non-finite value.
+
+    Parameters
+    ----------
+    xs, var : (N, n) smoothed states and their variances.
+    airborne : (N,) bool, the steps whose air data the smoother uses.
+    """
+    if not airborne.any():
+        return None
+    m = float(np.mean(xs[airborne, jl.S_GUST] ** 2 + var[airborne, jl.S_GUST]))
+    return float(np.sqrt(m)) if np.isfinite(m) and m > 0 else None
+
+
+def refit_gust(fl: _Flight, sd_mps: float) -> _Flight:
+    """The flight's models with the gust sd ``sd_mps``: process noise and the prior of x_0
+    (the rest of the prior, its mean included, unchanged)."""
+    noise = replace(fl.settings.noise, gust_mps=float(sd_mps))
+    out = replace(fl, settings=replace(fl.settings, noise=noise), q=_q_vector(noise))
+    if fl.P0 is not None:
+        P0 = fl.P0.copy()
+        P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * float(sd_mps) ** 2
+        out.P0, out.P0inv = P0, np.linalg.inv(P0)
+    return out
+
+
+def gust_update(fl: _Flight, st: _State, out: _Pass, X: np.ndarray, it: int) -> bool:
+    """The gust sd re-estimated from the pass's smoothed track ``X`` (``estimate_gust``;
+    :func:`gust_sd_estimate`), recorded in
+    ``st.gust_rounds``; where it moved by more than ``gust_tol`` the flight's models take it
+    (``fl`` updated in place) and the next pass starts with new models and a new cost.  At
+    most ``gust_rounds`` changes.  Returns whether it changed."""
+    s = fl.settings
+    changes = sum(r["changed"] for r in st.gust_rounds)
+    if not s.estimate_gust or out.var is None or changes >= s.gust_rounds:
+        return False
+    tas = fl.inp.tas[fl.idx]
+    est = gust_sd_estimate(X, out.var, np.isfinite(tas) & (tas >= s.min_airspeed_mps))
+    if est is None:
+        return False
+    est = float(np.clip(est, *s.gust_bounds_mps))
+    used = s.noise.gust_mps
+    moved = abs(est / used - 1.0) > s.gust_tol
+    st.gust_rounds.append({"pass": it, "gust_mps": used, "estimate_mps": est,
+                           "changed": bool(moved)})
+    if moved:
+        new = refit_gust(fl, est)
+        fl.settings, fl.q, fl.P0, fl.P0inv = new.settings, new.q, new.P0, new.P0inv
+        st.models, st.cost, st.refit = None, None, True
+    return moved
