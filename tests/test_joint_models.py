@@ -467,9 +467,9 @@ def test_implausible_sensor_error_is_named():
     """Guards the joint's health rule against implausible sensor errors: an airspeed scale 25
     prior sd from its prior is reported (and makes the track unhealthy in run_joint); one at
     3 sd is not."""
-    from flightrecon.filters.joint_method import _implausible_corrections
+    from flightrecon.filters.joint.diagnostics import implausible_corrections
 
     c = {"tas_scale": {"value": 0.75, "sd": 0.01, "prior_mean": 0.0, "prior_sd": 0.03},
          "heading_bias_deg": {"value": -6.0, "sd": 0.5, "prior_mean": 0.0, "prior_sd": 2.0}}
-    far = _implausible_corrections(c)
+    far = implausible_corrections(c)
     assert list(far) == ["tas_scale"] and far["tas_scale"] == pytest.approx(25.0)

@@ -30,6 +30,11 @@ from flightrecon.filters.joint import (
     takeoff_roll,
 )
 from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.diagnostics import (
+    clock_warnings,
+    far_warning,
+    implausible_corrections,
+)
 from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.filters.joint.measurements import wind_prior_measurements
 from flightrecon.geo.atmosphere import field_pressure_altitude_m
@@ -319,28 +324,6 @@ def _corrections(run: JointRun, settings: JointSettings | None = None) -> dict[s
     return out
 
 
-IMPLAUSIBLE_PRIOR_SD = 8.0
-"""A sensor error estimated this many prior sd from its prior mean makes the joint track
-unhealthy (docs/joint.md, "Health"): under the prior such a value has a probability below
-1e-15, and where it happened the smoother had used the error to explain a model mismatch
-(JSBSim cross-country without the gust state: an airspeed scale of +26 %; a spin whose loads
-saturate: -82 %)."""
-
-
-def _implausible_corrections(corrections: dict[str, Any],
-                             limit: float = IMPLAUSIBLE_PRIOR_SD) -> dict[str, float]:
-    """The sensor errors estimated more than ``limit`` prior sd from their prior mean, with
-    that distance."""
-    out = {}
-    for name, c in corrections.items():
-        sd = c.get("prior_sd")
-        if sd and np.isfinite(c["value"]):
-            z = abs(c["value"] - c["prior_mean"]) / sd
-            if z > limit:
-                out[name] = float(z)
-    return out
-
-
 def _correction_items(item) -> dict[str, Any]:
     return {
         "heading_bias_deg": item(jl.IPSI, np.degrees(1.0), "deg (measured - true)"),
@@ -465,11 +448,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     if not converged:
         warnings.append(f"joint: not converged after {len(run.iterations)} passes: "
                         f"{run.stop_reason}")
-    for name, (o, sd) in run.clock_offsets_s.items():
-        if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05:
-            warnings.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated "
-                            f"and corrected (seconds added to the {name} times, as "
-                            f"`clean --{name}-clock-offset` takes it)")
+    warnings += clock_warnings(run)
     if run.cholesky_fallbacks:
         warnings.append(f"joint: on {run.cholesky_fallbacks} steps the predicted covariance was "
                         "not positive definite to rounding (Cholesky failed); the smoother gain "
@@ -484,13 +463,8 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         warnings.append(f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
                         "noise settings do not fit this flight")
     corrections = _corrections(run, settings)
-    far = _implausible_corrections(corrections)
-    for name, z in far.items():
-        c = corrections[name]
-        warnings.append(f"joint: {name} estimated at {c['value']:+.4g} (sd {c['sd']:.2g}), "
-                        f"{z:.0f} prior sd from its prior {c['prior_mean']:+.4g} "
-                        f"(sd {c['prior_sd']:.2g}): no such sensor error is physically "
-                        "plausible; the smoother explained something else with it (unhealthy)")
+    far = implausible_corrections(corrections)
+    warnings += [far_warning(name, corrections[name], z) for name, z in far.items()]
     summary = {
         "healthy": bool(finite) and not verdict.gross and not far,
         "consistency": verdict.as_dict(),

@@ -1,4 +1,5 @@
-"""Diagnostics of a joint smoother run: per-source residual statistics."""
+"""Diagnostics of a joint smoother run: per-source residual statistics, the estimated clock
+offsets and sensor errors that deserve a word."""
 
 from __future__ import annotations
 
@@ -45,3 +46,40 @@ def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
                      "flagged_inconsistent": bool(big.mean() > flag_fraction),
                      "flagged_spans_s": spans[:50]}
     return out
+
+
+def clock_warnings(run: JointRun) -> list[str]:
+    """A warning per clock offset estimated beyond 3 sd and 0.05 s (it was corrected)."""
+    return [f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated and corrected "
+            f"(seconds added to the {name} times, as `clean --{name}-clock-offset` takes it)"
+            for name, (o, sd) in run.clock_offsets_s.items()
+            if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05]
+
+
+IMPLAUSIBLE_PRIOR_SD = 8.0
+"""A sensor error estimated this many prior sd from its prior mean makes the joint track
+unhealthy (docs/output.md, "Method health"): under the prior such a value has a probability
+below 1e-15, and where it happened the smoother had used the error to explain a model mismatch
+(JSBSim cross-country without the gust state: an airspeed scale of +26 %; a spin whose loads
+saturate: -82 %)."""
+
+
+def implausible_corrections(corrections: dict[str, Any],
+                            limit: float = IMPLAUSIBLE_PRIOR_SD) -> dict[str, float]:
+    """The sensor errors (the summary's ``corrections``: value, prior_mean, prior_sd) estimated
+    more than ``limit`` prior sd from their prior mean, with that distance."""
+    out = {}
+    for name, c in corrections.items():
+        sd = c.get("prior_sd")
+        if sd and np.isfinite(c["value"]):
+            z = abs(c["value"] - c["prior_mean"]) / sd
+            if z > limit:
+                out[name] = float(z)
+    return out
+
+
+def far_warning(name: str, c: dict[str, Any], z: float) -> str:
+    """The warning of an implausible sensor error ``name`` (``c``: its correction entry)."""
+    return (f"joint: {name} estimated at {c['value']:+.4g} (sd {c['sd']:.2g}), {z:.0f} prior "
+            f"sd from its prior {c['prior_mean']:+.4g} (sd {c['prior_sd']:.2g}): no sensor is "
+            "that far off, the smoother explained something else with it (unhealthy)")

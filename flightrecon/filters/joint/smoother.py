@@ -67,8 +67,7 @@ class JointRun:
     end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
     roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
     noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
-    # steps of the last pass whose predicted covariance failed its Cholesky factorisation (the
-    # smoother gain then came from a general solve): reported, never silent
+    # steps of the last pass whose Cholesky failed (gain from a general solve): reported
     cholesky_fallbacks: int = 0
     # convergence: the test of docs/joint.md ("Filter, smoother, iterations"), and why not
     converged: bool = False
@@ -121,24 +120,20 @@ def _gn_pass(fl: _Flight, mdl: _Models, r: np.ndarray, weights: np.ndarray, xlin
     xf, Pf, xp, Pp = bufs
     assert fl.x0 is not None and fl.P0 is not None
     scalars = _scalars(mdl, fl.T, r, weights)
-    # the innovation gate (a robust forward filter far from the solution, before any robust
-    # weights) in the first pass; in the later damped passes, with gate_damped off, the IRLS
-    # weights alone, so that the step is Gauss-Newton on the majoriser of the MAP cost (a
-    # descent direction of it)
+    # the innovation gate in the first pass (before any robust weights); later, with
+    # gate_damped off, the IRLS weights alone: Gauss-Newton on the MAP cost's majoriser
     gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
     if not first and s.line_search and not s.gate_damped:
         gate = 0.0
     innov, innov_var, infl = jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars, mdl.geo,
                                         gate, xlin)
-    # the iterations need the smoothed trajectory only; covariances once, after the last
     kern_args = (mdl.dyn, scalars._replace(r=r * infl), mdl.geo)
     hph = Pblk = var = None
     if s.estimate_noise:
         xs, Pblk, var, _, res, rate, hph, n_fallback = jp.backward(xf, Pf, xp, Pp, *kern_args,
                                                                    True)
     elif with_cov:
-        # the covariance recursion does not need the smoothed states: it runs on a second
-        # thread beside the mean pass (the kernels release the GIL)
+        # the covariance recursion on a second thread (the kernels release the GIL)
         cov: dict[str, Any] = {}
 
         def covariances(*args: Any, cov: dict[str, Any] = cov) -> None:
@@ -267,6 +262,7 @@ class _State:
     reason: str = ""
     refit: bool = False                 # the models' noise changed (gust sd): a new cost
     gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
+    prev_roll: TakeoffRoll | None = None  # the take-off roll of the pass before the last
 
 
 def _same_roll(a: TakeoffRoll, b: TakeoffRoll) -> bool:
@@ -279,9 +275,13 @@ def _pass_models(fl: _Flight, st: _State) -> _Models:
     are the same).  A refined roll changes the runway and ground measurements, a clock offset
     the GNSS and radar ones: the cost function itself (more measurements, more terms), so
     costs are compared within a pass, and across passes only where neither changed
-    (``parameters_changed`` in the pass's entry)."""
+    (``parameters_changed`` in the pass's entry).  A roll that returns to the one of two
+    passes ago (a two-pass cycle between detections one sample apart, which never settles:
+    JSBSim spiral seed 5305) is not taken: the last pass's stays."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
+    if m is not None and st.prev_roll is not None and _same_roll(roll, st.prev_roll):
+        roll = m.roll
     if m is not None and m.clock == st.clock and _same_roll(m.roll, roll):
         return m
     return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
@@ -318,8 +318,7 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
         fl.P0inv = np.linalg.inv(fl.P0)
     if st.bufs is None:  # filter outputs, reused by every pass (allocated and paged in once)
         n, N = jl.N_STATE, len(fl.T)
-        # (an empty Pp would have the backward passes recompute the predicted covariances,
-        # bit-identical: 139 MB less for 10 h of flight but 0.2-0.3 s more per pass)
+        # (an empty Pp: recomputed backward, bit-identical, 139 MB less, 0.2-0.3 s per pass)
         st.bufs = (np.empty((N, n)), np.empty((N, n, n)), np.empty((N, n)), np.empty((N, n, n)))
     if st.X is None and fl.settings.first_pass == "nominal":
         st.X = _nominal_states(fl, mdl)
@@ -374,6 +373,7 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     X = step.X
     st.lat, st.lon, st.h = step.models.lat, step.models.lon, step.models.h
     st.vnom, st.psi_hat, st.ba_hat = X[:, jl.S_VEL], psi_new, X[:, jl.S_ACC_BIAS]
+    st.prev_roll = None if st.models is None else st.models.roll
     st.X, st.models = X, step.models
     st.cost, st.cost_scale = (step.cost, step.res, step.rate), scale_used
     full = step.alpha == 1.0 and step.lm_lambda == 0.0
@@ -396,8 +396,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     """
     fl = _flight(inp, settings)
     lat, lon, h = _nominal_trajectory(inp, fl.idx, settings.noise)
-    # nominal velocity (for the runway constraints' linearisation): air data at first, then
-    # the smoothed velocity
+    # nominal velocity (runway constraints): air data at first, then the smoothed velocity
     tas0 = np.nan_to_num(inp.tas[fl.idx])
     psi0 = np.nan_to_num(inp.heading_rad[fl.idx])
     vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(fl.idx))]
