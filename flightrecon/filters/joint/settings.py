@@ -103,7 +103,7 @@ class JointSettings:
     heading_max_roll_deg: float = 45.0       # no air-data heading beyond these attitudes: the
     heading_max_pitch_deg: float = 30.0      # nose is then not along the air velocity (angle of
     #                                          attack times sin(roll), a spin's sideslip)
-    iterations: int = 30                     # cap on the Gauss-Newton passes
+    iterations: int = 50                     # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
     cost_tol: float = 1e-5                   # relative MAP-cost change that counts as settled
