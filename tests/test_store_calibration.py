@@ -327,7 +327,9 @@ def test_reconstruct_with_fleet_calibration_end_to_end(tmp_path, capsys):
     assert set(used) == set(cal["applied"])
     corr = summary["methods"]["joint"]["corrections"]
     assert corr["tas_scale"]["prior_sd"] == pytest.approx(cal["errors"]["tas_scale"]["sd"])
-    assert corr["tas_scale"]["prior_sd"] < 0.1 * 0.03   # GNSS flights pinned it down
+    # GNSS flights pinned it down: 0.0042 from two circuits against the default 0.03 (the
+    # turbulence's gust state, 2 m/s, takes part of the air data's weight; below 0.003 without)
+    assert corr["tas_scale"]["prior_sd"] < 0.2 * 0.03
     page = (tmp_path / "rep" / "report.html").read_text()
     assert "Fleet calibration" in page and "from <b>2</b> flight(s)" in page
     assert "fleet calibration of" in output

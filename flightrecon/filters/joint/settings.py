@@ -124,9 +124,9 @@ class JointSettings:
     robust: bool = True
     estimate_gust: bool = False              # the gust sd re-estimated from the converged track
     #                                          (turbulence.py) and the iterations continued
-    gust_rounds: int = 4                     # at most this many re-estimates
+    gust_rounds: int = 10                    # at most this many changes of it
     gust_tol: float = 0.1                    # stop when the estimate moves by less (relative)
-    gust_bounds_mps: tuple[float, float] = (0.2, 8.0)   # estimates kept inside
+    gust_bounds_mps: tuple[float, float] = (0.02, 8.0)  # estimates kept inside
     estimate_clock: bool = True
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
