@@ -424,28 +424,32 @@ def test_gust_process_noise_keeps_the_stationary_variance():
 
 
 def test_gust_is_seen_by_the_air_data_only():
-    """Guards the air-data model with turbulence: TAS and heading see v - w - u (the gust u
-    moves them exactly as the mean wind w does); the ground-referenced Doppler and track do
-    not see it."""
+    """Guards the air-data model with turbulence (docs/joint.md, "Wind and turbulence"): the
+    along-track gust adds to the airspeed in m/s whatever the airspeed scale, the cross-track
+    gust turns the heading by u_c / V with V the recorded airspeed (the measurement's d), so
+    neither gets cheaper as the scale error grows; the ground-referenced Doppler and track do
+    not see the gust."""
     rng = np.random.default_rng(8)
     x, p, Cen, pst, Cst, h = _setup(rng)
-    du = np.array([0.7, -0.3])
-    for mtype, sees in ((jl.TAS, True), (jl.HEADING, True), (jl.DOPPLER, False),
-                        (jl.TRACK, False)):
+    V = 57.0
+    for mtype in (jl.TAS, jl.HEADING, jl.DOPPLER, jl.TRACK):
         args = (np.array([mtype]), np.zeros(1), np.array([0.0]), np.zeros((1, jl.N_STATE)),
-                np.zeros(1, np.int64), np.zeros(1), Cen, p[None, :], np.array([h]), pst, Cst)
+                np.zeros(1, np.int64), np.array([V]), Cen, p[None, :], np.array([h]), pst, Cst)
         hx, H = jo.measure(0, 0, x, *args)
-        gust, wind = x.copy(), x.copy()
-        gust[jl.S_GUST] += du
-        wind[jl.S_WIND] += du
-        h_gust = jo.measure(0, 0, gust, *args)[0]
-        if sees:
-            np.testing.assert_array_equal(H[jl.S_GUST], H[jl.S_WIND])
-            # u and w enter only as their sum
-            assert h_gust == pytest.approx(jo.measure(0, 0, wind, *args)[0], rel=1e-14)
-            assert h_gust != hx
+        y = x.copy()
+        y[jl.S_GUST] += [0.7, -0.3]
+        y[jl.IS] += 0.5          # a larger scale error does not change the gust's effect
+        z = x.copy()
+        z[jl.IS] += 0.5
+        d_gust = jo.measure(0, 0, y, *args)[0] - jo.measure(0, 0, z, *args)[0]
+        if mtype == jl.TAS:
+            np.testing.assert_array_equal(H[jl.S_GUST], [1.0, 0.0])
+            assert d_gust == pytest.approx(0.7, rel=1e-12)
+        elif mtype == jl.HEADING:
+            np.testing.assert_allclose(H[jl.S_GUST], [0.0, 1.0 / V], rtol=1e-15)
+            assert d_gust == pytest.approx(-0.3 / V, rel=1e-12)
         else:
-            assert not H[jl.S_GUST].any() and h_gust == hx
+            assert not H[jl.S_GUST].any() and d_gust == 0.0
 
 
 def test_heading_kept_only_where_the_nose_is_along_the_air():

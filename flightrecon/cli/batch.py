@@ -34,9 +34,8 @@ from flightrecon.cli.trim import trim_options
 @click.option("--k", "k_text", metavar="K1,K2,K3",
               help="Sabziev coefficients: initial-value mode, no arrival point needed.")
 @click.option("--estimate-noise", is_flag=True,
-              help="Joint smoother: estimate each source's noise variance and the "
-                   "turbulence's gust sd from the flight itself (expectation-maximisation; "
-                   "docs/joint.md).")
+              help="Joint smoother: estimate each source's noise variance from the flight "
+                   "itself (expectation-maximisation; docs/joint.md).")
 @click.option("--mapping", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Column-mapping TOML for the logs whose sidecar names no mapping (a "
                    "sidecar's [files] mapping wins, as for reconstruct).")

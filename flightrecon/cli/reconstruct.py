@@ -65,9 +65,8 @@ from flightrecon.cli.trim import trim_options
               help="TOML file overriding the joint smoother's sensor error budget "
                    "([joint] table, see docs/joint.md).")
 @click.option("--estimate-noise", is_flag=True,
-              help="Joint smoother: estimate each source's noise variance and the "
-                   "turbulence's gust sd from the flight itself (expectation-maximisation; "
-                   "docs/joint.md).")
+              help="Joint smoother: estimate each source's noise variance from the flight "
+                   "itself (expectation-maximisation; docs/joint.md).")
 @click.option("--store", "store_path", type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Coefficient store (SQLite): the flight's fitted k1..k3 and the joint "
                    "smoother's sensor-error estimates are recorded there under its aircraft id.")

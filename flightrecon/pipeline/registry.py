@@ -48,9 +48,8 @@ class ReconstructSettings:
     joint_noise : overrides of the joint smoother's error budget
         (:class:`flightrecon.filters.joint.JointNoise` field -> value), applied on top of
         ``joint.noise``
-    joint_estimate_noise : scale each source's noise from the flight's own residuals and
-        re-estimate the gust sd from the track (or ``joint.estimate_noise``,
-        ``joint.estimate_gust``)
+    joint_estimate_noise : scale each source's noise from the flight's own residuals (or
+        ``joint.estimate_noise``)
     joint_priors : ``(error, mean, sd)`` priors of the joint smoother's sensor-error states
         (names of :data:`flightrecon.filters.joint.PRIOR_STATES`), e.g. an aircraft's fleet
         calibration (:func:`flightrecon.store.fleet.fleet_settings`); replace ``joint.priors``
@@ -239,8 +238,7 @@ def _joint_kwargs(s: ReconstructSettings) -> dict[str, Any]:
     priors = base.priors if s.joint_priors is None else tuple(tuple(p) for p in s.joint_priors)
     try:
         js = replace(base, noise=noise, priors=priors,
-                     estimate_noise=s.joint_estimate_noise or base.estimate_noise,
-                     estimate_gust=s.joint_estimate_noise or base.estimate_gust)
+                     estimate_noise=s.joint_estimate_noise or base.estimate_noise)
     except ValueError as exc:
         raise MetadataError(str(exc)) from exc
     return {"settings": js}

@@ -21,8 +21,9 @@ State (n = 26), SI units::
     20    dphi   roll bias [rad] (measured - true)
     21    dtheta pitch bias [rad] (measured - true)
     22:24 g      wind gradient with height, north, east [(m/s)/m]
-    24:26 u      gust: the horizontal wind's turbulent part, north, east [m/s] (first-order
-                 Gauss-Markov in distance flown: correlation length L, sd sigma_u)
+    24:26 u      gust: the turbulence's effect on the air data, along and across the air
+                 velocity [m/s] (first-order Gauss-Markov in distance flown: correlation
+                 length L, sd sigma_u)
 
 Propagation over one state step of length dt (inputs held between input samples)::
 
@@ -46,8 +47,10 @@ minus the step's time (the state is carried to the measurement time by the veloc
 
 * ``LINEAR``: z = H x + d (GNSS position / velocity components, end points, ground constraints)
 * ``RANGE``, ``AZIMUTH``, ``ELEVATION``: radar slant range and angles from the station
-* ``TAS``: (1 + s) |v - w - u| (three-dimensional air velocity, vertical wind neglected)
-* ``HEADING``: atan2(v_E - w_E - u_E, v_N - w_N - u_N) + dpsi (innovation wrapped to (-pi, pi])
+* ``TAS``: (1 + s) |v - w| + u_a (three-dimensional air velocity, vertical wind neglected;
+  u_a the along-track gust)
+* ``HEADING``: atan2(v_E - w_E, v_N - w_N) + dpsi + u_c / V (innovation wrapped to (-pi, pi];
+  u_c the cross-track gust, V the recorded airspeed, carried in the measurement's ``d``)
 * ``BARO``: (1 + c) (h_nom + up . (p - p_nom) - v_D tau) + b_h
 * ``DOPPLER``: (1 + k_W) |v_horizontal|
 * ``TRACK``: heading + drift as recorded = atan2(v_E, v_N) + dpsi + dc (innovation wrapped)
@@ -115,7 +118,7 @@ class Scalars(NamedTuple):
     tau: np.ndarray       # (M,) measurement time minus its step's time [s]
     H: np.ndarray         # (K, n) rows of the LINEAR measurements
     row: np.ndarray       # (M,) their row in H (-1 for the others)
-    d: np.ndarray         # (M,) offsets of the LINEAR measurements
+    d: np.ndarray         # (M,) offsets of the LINEAR measurements; recorded TAS of HEADING
 
 
 class Geometry(NamedTuple):

@@ -96,8 +96,8 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
             H[IV + m] = s * tau
         return hx
     if t == TAS:
-        an = x[IV] - x[IW] - x[IGU]
-        ae = x[IV + 1] - x[IW + 1] - x[IGU + 1]
+        an = x[IV] - x[IW]
+        ae = x[IV + 1] - x[IW + 1]
         ad = x[IV + 2]
         va = np.sqrt(an * an + ae * ae + ad * ad)
         f = 1.0 + x[IS]
@@ -106,22 +106,20 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
         H[IV + 2] = f * ad / va
         H[IW] = -H[IV]
         H[IW + 1] = -H[IV + 1]
-        H[IGU] = H[IW]
-        H[IGU + 1] = H[IW + 1]
         H[IS] = va
-        return f * va
+        H[IGU] = 1.0
+        return f * va + x[IGU]
     if t == HEADING:
-        an = x[IV] - x[IW] - x[IGU]
-        ae = x[IV + 1] - x[IW + 1] - x[IGU + 1]
+        an = x[IV] - x[IW]
+        ae = x[IV + 1] - x[IW + 1]
         v2 = an * an + ae * ae
         H[IV] = -ae / v2
         H[IV + 1] = an / v2
         H[IW] = ae / v2
         H[IW + 1] = -an / v2
-        H[IGU] = H[IW]
-        H[IGU + 1] = H[IW + 1]
         H[IPSI] = 1.0
-        return np.arctan2(ae, an) + x[IPSI]
+        H[IGU + 1] = 1.0 / md[j]   # md[j]: the recorded airspeed (a known scale, not a state)
+        return np.arctan2(ae, an) + x[IPSI] + x[IGU + 1] / md[j]
     if t == DOPPLER:
         vn = x[IV]
         ve = x[IV + 1]

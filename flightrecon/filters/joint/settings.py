@@ -122,7 +122,7 @@ class JointSettings:
     innovation_gate: float = 5.0
     reject_c: float = 8.0
     robust: bool = True
-    estimate_gust: bool = False              # the gust sd re-estimated from the converged track
+    estimate_gust: bool = True               # the gust sd re-estimated from each pass's track
     #                                          (turbulence.py) and the iterations continued
     gust_rounds: int = 10                    # at most this many changes of it
     gust_tol: float = 0.1                    # stop when the estimate moves by less (relative)
