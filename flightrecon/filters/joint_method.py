@@ -472,6 +472,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "stop_reason": run.stop_reason,
         "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
+        "gust": run.gust,
         "state_rate_hz": settings.state_rate_hz,
         "corrections": corrections,
         "clock_offsets_s": {k: {"value": o, "sd": sd}

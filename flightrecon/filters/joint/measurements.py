@@ -298,9 +298,8 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
         air &= t_in > inp.liftoff_t + settings.crab_s
     if np.isfinite(inp.touchdown_t):
         air &= t_in < inp.touchdown_t - settings.crab_s
-    # d: the recorded airspeed, which turns the cross-track gust [m/s] into an angle
     b.add("air", jl.HEADING, t_in[air], inp.heading_rad[air], np.radians(nz.heading_deg) ** 2,
-          d=inp.tas[air])
+          d=inp.tas[air])   # d: the recorded airspeed (the cross-track gust's angle u_c / V)
     # Doppler ground speed and drift (track = heading + drift), at the air-data rate
     if inp.doppler_gs is not None:
         okd = np.isfinite(inp.doppler_gs) & (inp.doppler_gs >= settings.min_airspeed_mps)
