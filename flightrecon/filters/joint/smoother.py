@@ -376,12 +376,12 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     st.prev_roll = None if st.models is None else st.models.roll
     st.X, st.models = X, step.models
     st.cost, st.cost_scale = (step.cost, step.res, step.rate), scale_used
-    full = step.alpha == 1.0 and step.lm_lambda == 0.0
-    noise_moved = gust_update(fl, st, out, out.xs if full else X, it) or noise_moved
     info["_settled"] = _settled(it, step, None if start is None else start[0]["cost"],
                                 psi_moved, float(np.max(np.abs(st.weights - w_before),
                                                         initial=0.0)),
                                 st.clock == clock_before and not noise_moved, s, info)
+    if not info["_settled"] and (s.estimate_noise or shift > 10.0 * s.converge_m):
+        gust_update(fl, st, out, out.xs if step.alpha == 1.0 and step.lm_lambda == 0.0 else X, it)
     return mdl, out, step, info
 
 
