@@ -477,3 +477,17 @@ def test_implausible_sensor_error_is_named():
          "heading_bias_deg": {"value": -6.0, "sd": 0.5, "prior_mean": 0.0, "prior_sd": 2.0}}
     far = implausible_corrections(c)
     assert list(far) == ["tas_scale"] and far["tas_scale"] == pytest.approx(25.0)
+
+
+def test_gust_at_its_upper_bound_is_named():
+    """Guards the warning of a gust sd estimated up to its bound (the air data all but
+    dropped); an estimate below it, or no estimate at all, says nothing."""
+    from types import SimpleNamespace
+
+    from flightrecon.filters.joint.diagnostics import gust_warnings
+
+    rounds = [{"pass": 1, "gust_mps": 2.0, "estimate_mps": 9.0, "changed": True}]
+    assert gust_warnings(SimpleNamespace(gust={"sd_mps": 8.0, "rounds": rounds}), 8.0)
+    assert not gust_warnings(SimpleNamespace(gust={"sd_mps": 3.1, "rounds": rounds}), 8.0)
+    assert not gust_warnings(SimpleNamespace(gust={"sd_mps": 8.0, "rounds": []}), 8.0)
+    assert not gust_warnings(SimpleNamespace(gust=None), 8.0)

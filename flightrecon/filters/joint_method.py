@@ -33,6 +33,7 @@ from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.diagnostics import (
     clock_warnings,
     far_warning,
+    gust_warnings,
     implausible_corrections,
 )
 from flightrecon.filters.joint.inputs import _nearest
@@ -448,7 +449,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     if not converged:
         warnings.append(f"joint: not converged after {len(run.iterations)} passes: "
                         f"{run.stop_reason}")
-    warnings += clock_warnings(run)
+    warnings += clock_warnings(run) + gust_warnings(run, settings.gust_bounds_mps[1])
     if run.cholesky_fallbacks:
         warnings.append(f"joint: on {run.cholesky_fallbacks} steps the predicted covariance was "
                         "not positive definite to rounding (Cholesky failed); the smoother gain "

@@ -83,3 +83,17 @@ def far_warning(name: str, c: dict[str, Any], z: float) -> str:
     return (f"joint: {name} estimated at {c['value']:+.4g} (sd {c['sd']:.2g}), {z:.0f} prior "
             f"sd from its prior {c['prior_mean']:+.4g} (sd {c['prior_sd']:.2g}): no sensor is "
             "that far off, the smoother explained something else with it (unhealthy)")
+
+
+def gust_warnings(run: JointRun, upper_mps: float) -> list[str]:
+    """A warning when the estimated gust sd ended at its upper bound ``upper_mps``: the air
+    data then disagree with the rest by more than turbulence explains, and the smoother
+    has all but stopped using them (JSBSim circuit 7009, departure only: 8 m/s, the pressure
+    altitude and the air data both flagged inconsistent, the track unhealthy)."""
+    g = run.gust or {}
+    if g.get("rounds") and g.get("sd_mps", 0.0) >= upper_mps * (1.0 - 1e-9):
+        return [f"joint: the turbulence's gust sd reached its upper bound {upper_mps:g} m/s: "
+                "the air data disagree with the other sources by more than turbulence "
+                "explains and carry little weight (check the airspeed and heading channels, "
+                "their units, and the metadata)"]
+    return []
