@@ -107,6 +107,9 @@ def one_run(scenario: str, seed: int) -> dict:
         hb = [it.get("heading_bias_deg") for it in its]
         res["joint_pass_heading_bias_deg"] = [None if v is None else float(v) for v in hb]
         res["joint_heading_bias_deg"] = s["corrections"].get("heading_bias_deg")
+        res["joint_tas_scale"] = s["corrections"].get("tas_scale")
+        res["tas_scale_truth"] = r.sensor_truth["persistent_errors"]["airspeed_scale"]
+        res["joint_gust"] = s.get("gust")
         res["joint_warnings"] = s["warnings"][:5]
     sab, err = _method(run_method, "sabziev", clean, ReconstructSettings())
     res["sabziev"] = {"error": err} if sab is None else errors(sab.track, "sabziev_", truth,

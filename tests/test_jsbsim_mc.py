@@ -25,5 +25,8 @@ def test_one_circuit_through_the_study():
     assert row["joint_converged"]
     assert j < 0.5 * dl
     assert row["joint"]["coverage"] > 0.95
+    # the airspeed scale with its truth and the gust, recorded per run (docs/jsbsim.md)
+    assert np.isfinite(row["joint_tas_scale"]["value"]) and np.isfinite(row["tas_scale_truth"])
+    assert row["joint_gust"]["sd_mps"] > 0
     text = mc.summarise([row])
     assert "| jsbsim-circuit | 1 | 1/1 |" in text
