@@ -400,8 +400,9 @@ def test_gust_process_noise_keeps_the_stationary_variance():
     """Guards the exact discretisation of the first-order Gauss-Markov gust (docs/joint.md,
     "Wind and turbulence"): from its stationary variance sigma^2, one step of any length keeps
     sigma^2 (F P F^T + Q = a^2 s^2 + s^2 (1 - a^2)); the other states' noise is unchanged."""
-    from flightrecon.filters.joint.nominal import _q_vector, gust_decay
+    from flightrecon.filters.joint.nominal import _q_vector
     from flightrecon.filters.joint.settings import JointNoise
+    from flightrecon.filters.joint.turbulence import gust_decay
     nz = JointNoise(gust_mps=2.5, gust_length_m=400.0)
     q = _q_vector(nz)
     rng = np.random.default_rng(5)

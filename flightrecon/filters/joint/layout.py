@@ -77,7 +77,7 @@ S_ACC_BIAS = slice(IBA, IBA + 3)
 S_ACC_SCALE = slice(IKS, IKS + 3)
 S_ATT_BIAS = slice(IATT, IATT + 2)
 S_WIND_GRAD = slice(IG, IG + 2)
-S_GUST = slice(IGU, IGU + 2)   # turbulent part of the horizontal wind, north/east [m/s]
+S_GUST = slice(IGU, IGU + 2)   # gust's effect on the air data, along / across [m/s]
 
 G0 = 9.80665
 

@@ -24,10 +24,10 @@ from flightrecon.filters.joint.nominal import (
     _increments,
     _q_vector,
     _state_grid,
-    gust_decay,
     relinearised_increments,
 )
 from flightrecon.filters.joint.settings import JointSettings
+from flightrecon.filters.joint.turbulence import gust_decay
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
@@ -50,7 +50,7 @@ class _Flight:
     Jatt: np.ndarray
     qv_extra: np.ndarray
     q: np.ndarray
-    ga: np.ndarray            # gust decay over each step (nominal.gust_decay)
+    ga: np.ndarray            # gust decay over each step (turbulence.gust_decay)
     static: Any
     pst: np.ndarray
     Cst: np.ndarray

@@ -111,22 +111,6 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
                      (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2, nz.gust_mps ** 2])
 
 
-def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
-               min_airspeed_mps: float) -> np.ndarray:
-    """Decay of the gust state over each step, a_k = exp(-V_k dt_k / L) (docs/joint.md, "Wind
-    and turbulence").
-
-    The gust is a first-order Gauss-Markov process in the distance flown (the frozen-turbulence
-    view of the Dryden model: correlation length L = ``nz.gust_length_m``), so its correlation
-    time is L / V with V the recorded airspeed at the step, held at ``min_airspeed_mps`` where
-    it is lower or missing (on the ground the gust then decorrelates within seconds and no air
-    data are used there).
-    """
-    v = np.where(np.isfinite(tas_mps), tas_mps, 0.0)
-    v = np.maximum(v, min_airspeed_mps)
-    return np.exp(-np.asarray(dt, float) * v / nz.gust_length_m)
-
-
 def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
              priors: tuple[tuple[str, float, float], ...] = ()):
     n = jl.N_STATE

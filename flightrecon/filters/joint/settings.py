@@ -30,8 +30,8 @@ class JointNoise:
     #                                          sd over 1 m of climb
     wind_gradient_per_km: float = 5.0        # prior of the wind's gradient with height [(m/s)/km]
     wind_gradient_rw_per_km_sqrt_s: float = 0.005  # its change with time
-    gust_mps: float = 2.0                    # turbulence: sd of the gust (the wind's turbulent
-    #                                          part), per horizontal axis (light to moderate)
+    gust_mps: float = 2.0                    # turbulence: sd of the gust's effect on the air
+    #                                          data, along and across (the estimate's start)
     gust_length_m: float = 500.0             # its correlation length (the Dryden scale length
     #                                          above ~500 m): correlation time L / airspeed
     heading_bias_deg: float = 2.0

@@ -67,8 +67,7 @@ class JointRun:
     end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
     roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
     noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
-    # steps of the last pass whose Cholesky failed (gain from a general solve): reported
-    cholesky_fallbacks: int = 0
+    cholesky_fallbacks: int = 0  # last pass's steps whose Cholesky failed (general solve)
     # convergence: the test of docs/joint.md ("Filter, smoother, iterations"), and why not
     converged: bool = False
     stop_reason: str = ""
@@ -120,8 +119,7 @@ def _gn_pass(fl: _Flight, mdl: _Models, r: np.ndarray, weights: np.ndarray, xlin
     xf, Pf, xp, Pp = bufs
     assert fl.x0 is not None and fl.P0 is not None
     scalars = _scalars(mdl, fl.T, r, weights)
-    # the innovation gate in the first pass (before any robust weights); later, with
-    # gate_damped off, the IRLS weights alone: Gauss-Newton on the MAP cost's majoriser
+    # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
     gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
     if not first and s.line_search and not s.gate_damped:
         gate = 0.0
@@ -218,6 +216,10 @@ def _lm_step(fl: _Flight, st: _State, mdl: _Models,
     return None
 
 
+def _full_step(step: _Step) -> bool:  # the accepted iterate is the pass's own smoothed states
+    return step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
+
+
 def _settled(it: int, step: _Step, cost0: float | None, psi_moved: float, w_change: float,
              params_still: bool, settings: JointSettings, info: dict[str, Any]) -> bool:
     """Convergence test (docs/joint.md): the MAP cost changed by less than ``cost_tol``
@@ -250,8 +252,7 @@ class _State:
     ba_hat: np.ndarray | None = None    # accelerometer biases of the iterate (take-off roll)
     X: np.ndarray | None = None         # the current iterate (None before the first pass)
     models: _Models | None = None       # built about X (reused when nothing else changed)
-    # the cost of X under ``models`` (with the noise factors ``cost_scale``), its residuals
-    # and rates: the next pass's starting cost when its models are these
+    # cost, residuals, rates of X under ``models`` and ``cost_scale``: the next pass's start
     cost: tuple[dict[str, float], np.ndarray, np.ndarray] | None = None
     cost_scale: np.ndarray | None = None
     weights: np.ndarray | None = None
@@ -262,7 +263,7 @@ class _State:
     reason: str = ""
     refit: bool = False                 # the models' noise changed (gust sd): a new cost
     gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
-    prev_roll: TakeoffRoll | None = None  # the take-off roll of the pass before the last
+    prev_roll: TakeoffRoll | None = None  # take-off roll of the pass before the last
 
 
 def _same_roll(a: TakeoffRoll, b: TakeoffRoll) -> bool:
@@ -275,9 +276,8 @@ def _pass_models(fl: _Flight, st: _State) -> _Models:
     are the same).  A refined roll changes the runway and ground measurements, a clock offset
     the GNSS and radar ones: the cost function itself (more measurements, more terms), so
     costs are compared within a pass, and across passes only where neither changed
-    (``parameters_changed`` in the pass's entry).  A roll that returns to the one of two
-    passes ago (a two-pass cycle between detections one sample apart, which never settles:
-    JSBSim spiral seed 5305) is not taken: the last pass's stays."""
+    (``parameters_changed`` in the pass's entry).  A roll back at the one of two passes ago
+    (a cycle that never settles: JSBSim spiral 5305) is not taken: the last pass's stays."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
     if m is not None and st.prev_roll is not None and _same_roll(roll, st.prev_roll):
@@ -381,7 +381,7 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
                                                         initial=0.0)),
                                 st.clock == clock_before and not noise_moved, s, info)
     if not info["_settled"] and (s.estimate_noise or shift > 10.0 * s.converge_m):
-        gust_update(fl, st, out, out.xs if step.alpha == 1.0 and step.lm_lambda == 0.0 else X, it)
+        gust_update(fl, st, out, out.xs if _full_step(step) else X, it)
     return mdl, out, step, info
 
 
@@ -429,7 +429,7 @@ def _finish(fl: _Flight, st: _State, mdl: _Models, out: _Pass, step: _Step,
     s = fl.settings
     assert st.bufs is not None and st.weights is not None
     xf, Pf, xp, Pp = st.bufs
-    full = step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
+    full = _full_step(step)
     xs = out.xs if full else step.X
     res = out.res if full else step.res
     Pblk, var, n_fallback = out.Pblk, out.var, out.n_fallback

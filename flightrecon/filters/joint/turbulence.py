@@ -29,10 +29,27 @@ import numpy as np
 
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.nominal import _q_vector
+from flightrecon.filters.joint.settings import JointNoise
 
 if TYPE_CHECKING:
     from flightrecon.filters.joint.linearisation import _Flight
     from flightrecon.filters.joint.smoother import _Pass, _State
+
+
+def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
+               min_airspeed_mps: float) -> np.ndarray:
+    """Decay of the gust state over each step, a_k = exp(-V_k dt_k / L) (docs/joint.md, "Wind
+    and turbulence").
+
+    The gust is a first-order Gauss-Markov process in the distance flown (the frozen-turbulence
+    view of the Dryden model: correlation length L = ``nz.gust_length_m``), so its correlation
+    time is L / V with V the recorded airspeed at the step, held at ``min_airspeed_mps`` where
+    it is lower or missing (on the ground the gust then decorrelates within seconds and no air
+    data are used there).
+    """
+    v = np.where(np.isfinite(tas_mps), tas_mps, 0.0)
+    v = np.maximum(v, min_airspeed_mps)
+    return np.exp(-np.asarray(dt, float) * v / nz.gust_length_m)
 
 
 def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> float | None:
@@ -50,16 +67,15 @@ def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> f
     return float(np.sqrt(m)) if np.isfinite(m) and m > 0 else None
 
 
-def refit_gust(fl: _Flight, sd_mps: float) -> _Flight:
-    """The flight's models with the gust sd ``sd_mps``: process noise and the prior of x_0
-    (the rest of the prior, its mean included, unchanged)."""
+def set_gust_sd(fl: _Flight, sd_mps: float) -> None:
+    """Give the flight's models the gust sd ``sd_mps`` in place: the settings, the process
+    noise and the prior of x_0 (the rest of the prior, its mean included, unchanged)."""
     noise = replace(fl.settings.noise, gust_mps=float(sd_mps))
-    out = replace(fl, settings=replace(fl.settings, noise=noise), q=_q_vector(noise))
+    fl.settings, fl.q = replace(fl.settings, noise=noise), _q_vector(noise)
     if fl.P0 is not None:
-        P0 = fl.P0.copy()
-        P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * float(sd_mps) ** 2
-        out.P0, out.P0inv = P0, np.linalg.inv(P0)
-    return out
+        fl.P0 = fl.P0.copy()
+        fl.P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * float(sd_mps) ** 2
+        fl.P0inv = np.linalg.inv(fl.P0)
 
 
 def gust_update(fl: _Flight, st: _State, out: _Pass, X: np.ndarray, it: int) -> bool:
@@ -85,7 +101,6 @@ def gust_update(fl: _Flight, st: _State, out: _Pass, X: np.ndarray, it: int) -> 
     st.gust_rounds.append({"pass": it, "gust_mps": used, "estimate_mps": est,
                            "next_mps": nxt, "changed": bool(moved)})
     if moved:
-        new = refit_gust(fl, nxt)
-        fl.settings, fl.q, fl.P0, fl.P0inv = new.settings, new.q, new.P0, new.P0inv
+        set_gust_sd(fl, nxt)
         st.models, st.cost, st.refit = None, None, True
     return moved
