@@ -1,6 +1,8 @@
 """The shared estimation core (flightrecon.estimation): each piece against a reference."""
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from flightrecon.estimation.updates import scalar_update_short
 
@@ -82,3 +84,21 @@ def test_track_columns_rotate_vectors_and_covariances_in_either_order():
     np.testing.assert_allclose(fa["x_ve_sd_mps"].to_numpy()[rows], sd_e, rtol=1e-14)
     assert np.isnan(fa["x_vn_mps"].to_numpy()[[0, K + 1]]).all()
     assert list(fa.columns) == ["t_s", "x_vn_mps", "x_vn_sd_mps", "x_ve_mps", "x_ve_sd_mps"]
+
+
+@settings(max_examples=50, deadline=None)
+@given(n=st.integers(1, 30), seed=st.integers(0, 2**32 - 1))
+def test_packed_covariances_round_trip_exactly(n, seed):
+    """Guards the joint smoother's stored covariances (packed lower triangles, half the
+    memory): pack then unpack gives the symmetric matrix back bit for bit, and the packed
+    length is n (n + 1) / 2."""
+    from flightrecon.estimation.linalg import pack_sym, packed_size, unpack_sym
+
+    A = np.random.default_rng(seed).normal(size=(n, n))
+    P = A @ A.T
+    P = np.tril(P) + np.tril(P, -1).T          # exactly symmetric
+    p = np.empty(packed_size(n))
+    pack_sym(P, p)
+    out = np.full((n, n), np.nan)
+    unpack_sym(p, out)
+    np.testing.assert_array_equal(out, P)

@@ -39,11 +39,13 @@ def _setup(rng):
 
 
 @pytest.mark.parametrize("mtype", [jl.LINEAR, jl.RANGE, jl.AZIMUTH, jl.ELEVATION, jl.TAS,
-                                   jl.HEADING, jl.BARO, jl.DOPPLER, jl.TRACK])
+                                   jl.SIDESLIP, jl.BARO, jl.DOPPLER, jl.TRACK])
 def test_measurement_jacobian_vs_central_differences(mtype):
     rng = np.random.default_rng(mtype)
     x, p, Cen, pst, Cst, h = _setup(rng)
     mH = rng.normal(size=(1, jl.N_STATE))
+    if mtype == jl.SIDESLIP:   # recorded heading, pitch, roll [rad] (a climbing turn), airspeed
+        mH[0, :4] = [2.1, 0.2, 0.5, 55.0]
     args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.zeros(1, np.int64),
             np.array([1.5]), Cen,
             p[None, :], np.array([h - 10.0]), pst, Cst)
@@ -303,8 +305,7 @@ def test_backward_passes_count_cholesky_failures(captured_passes):
     summary as ``cholesky_fallbacks``): zero on the circuit, one after making one P_p[k+1]
     indefinite (one diagonal entry negated), in both the mean and the covariance pass."""
     a = list(captured_passes["fw"])
-    n = jl.N_STATE
-    Pp = np.empty((len(a[0]), n, n))
+    Pp = jp.filter_buffers(len(a[0]))[3]
     a[3] = Pp
     jp.forward(*a)
     b = list(captured_passes["bw"])
@@ -313,7 +314,8 @@ def test_backward_passes_count_cholesky_failures(captured_passes):
     assert jp.backward(a[0], a[1], a[2], Pp, *b[4:])[-1] == 0
     bad = Pp.copy()
     k = len(bad) // 2
-    bad[k, jl.IBH, jl.IBH] = -bad[k, jl.IBH, jl.IBH]
+    i = jl.IBH * (jl.IBH + 1) // 2 + jl.IBH    # (IBH, IBH) in the packed lower triangle
+    bad[k, i] = -bad[k, i]
     assert jp.backward_mean(a[0], a[1], a[2], bad, *b_mean)[-1] == 1
     assert jp.backward(a[0], a[1], a[2], bad, *b[4:-1], False)[-1] == 1
 
@@ -345,16 +347,16 @@ def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypat
     monkeypatch.setattr(jp, "backward", bw)
     J.smooth_joint(inp, J.JointSettings(iterations=1))
     a = list(cap["fw"])
-    n = jl.N_STATE
-    a[3] = np.empty((len(a[0]), n, n))           # store P_p this time
+    a[3] = jp.filter_buffers(len(a[0]))[3]       # store P_p this time
+    no_pp = jp.filter_buffers(len(a[0]), store_predicted=False)[3]
     orig_fw(*a)
     b = list(cap["bw"])
     with_pp = orig_bw(a[0], a[1], a[2], a[3], *b[4:])
-    without = orig_bw(a[0], a[1], a[2], np.empty((0, n, n)), *b[4:])
+    without = orig_bw(a[0], a[1], a[2], no_pp, *b[4:])
     for x, y in zip(with_pp, without):
         np.testing.assert_array_equal(x, y)
     b_mean = b[4:-1]                               # backward_mean has no residuals flag
-    mean = jp.backward_mean(a[0], a[1], a[2], np.empty((0, n, n)), *b_mean)
+    mean = jp.backward_mean(a[0], a[1], a[2], no_pp, *b_mean)
     np.testing.assert_array_equal(mean[0], jp.backward_mean(a[0], a[1], a[2], a[3], *b_mean)[0])
     # the covariance pass with and without residuals: the same covariances
     with_res = orig_bw(a[0], a[1], a[2], a[3], *b[4:-1], True)
@@ -370,17 +372,22 @@ def test_joint_passes_equal_a_dense_numpy_rts_on_the_real_model(captured_passes)
     1e-9 of the smoothed standard deviation (900 steps, condition numbers of P_p up to 1e12: the
     two agree to 4e-12 sd in the states and 5e-11 in the variances; 1e-9 is above that rounding
     and far below any error in the step, e.g. a transposed F or a missed P_p)."""
+    from flightrecon.estimation.linalg import unpack_sym
+
     a = list(captured_passes["fw"])
     n = jl.N_STATE
     N = len(a[0])
-    Pp = np.empty((N, n, n))
-    a[3] = Pp
+    a[3] = jp.filter_buffers(N)[3]
     jp.forward(*a)
-    xf, Pf, xp = a[0], a[1], a[2]
+    xf, Pf_packed, xp, Pp_packed = a[0], a[1], a[2], a[3]
     b = list(captured_passes["bw"])
     dyn = b[4]
-    xs, Pblk, var = jp.backward(xf, Pf, xp, Pp, *b[4:])[:3]
-    xm = jp.backward_mean(xf, Pf, xp, Pp, *b[4:-1])[0]
+    xs, Pblk, var = jp.backward(xf, Pf_packed, xp, Pp_packed, *b[4:])[:3]
+    xm = jp.backward_mean(xf, Pf_packed, xp, Pp_packed, *b[4:-1])[0]
+    Pf, Pp = np.empty((N, n, n)), np.empty((N, n, n))
+    for k in range(N):
+        unpack_sym(Pf_packed[k], Pf[k])
+        unpack_sym(Pp_packed[k], Pp[k])
     dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     ref_x, ref_P = xf.copy(), Pf.copy()
     for k in range(N - 2, -1, -1):
@@ -427,15 +434,17 @@ def test_gust_process_noise_keeps_the_stationary_variance():
 def test_gust_is_seen_by_the_air_data_only():
     """Guards the air-data model with turbulence (docs/joint.md, "Wind and turbulence"): the
     along-track gust adds to the airspeed in m/s whatever the airspeed scale, the cross-track
-    gust turns the heading by u_c / V with V the recorded airspeed (the measurement's d), so
+    gust turns the sideslip by u_c / V with V the recorded airspeed (in the measurement's row), so
     neither gets cheaper as the scale error grows; the ground-referenced Doppler and track do
     not see the gust."""
     rng = np.random.default_rng(8)
     x, p, Cen, pst, Cst, h = _setup(rng)
     V = 57.0
-    for mtype in (jl.TAS, jl.HEADING, jl.DOPPLER, jl.TRACK):
-        args = (np.array([mtype]), np.zeros(1), np.array([0.0]), np.zeros((1, jl.N_STATE)),
-                np.zeros(1, np.int64), np.array([V]), Cen, p[None, :], np.array([h]), pst, Cst)
+    row = np.zeros((1, jl.N_STATE))
+    row[0, :4] = [0.4, 0.05, 0.1, V]
+    for mtype in (jl.TAS, jl.SIDESLIP, jl.DOPPLER, jl.TRACK):
+        args = (np.array([mtype]), np.zeros(1), np.array([0.0]), row,
+                np.zeros(1, np.int64), np.array([0.0]), Cen, p[None, :], np.array([h]), pst, Cst)
         hx, H = jo.measure(0, 0, x, *args)
         y = x.copy()
         y[jl.S_GUST] += [0.7, -0.3]
@@ -446,7 +455,7 @@ def test_gust_is_seen_by_the_air_data_only():
         if mtype == jl.TAS:
             np.testing.assert_array_equal(H[jl.S_GUST], [1.0, 0.0])
             assert d_gust == pytest.approx(0.7, rel=1e-12)
-        elif mtype == jl.HEADING:
+        elif mtype == jl.SIDESLIP:
             np.testing.assert_allclose(H[jl.S_GUST], [0.0, 1.0 / V], rtol=1e-15)
             assert d_gust == pytest.approx(-0.3 / V, rel=1e-12)
         else:

@@ -237,6 +237,10 @@ class TakeoffRoll:
     start_t: float = np.nan
     rest_t: tuple[float, float] = (np.nan, np.nan)
 
+    def same_as(self, other: TakeoffRoll) -> bool:
+        """The same roll start and rest (NaN, not found, equal to NaN)."""
+        return bool(np.array_equal([self.start_t, *self.rest_t],
+                                   [other.start_t, *other.rest_t], equal_nan=True))
 
 
 def takeoff_roll(t_in: np.ndarray, acc_ned: np.ndarray, heading_rad: np.ndarray,

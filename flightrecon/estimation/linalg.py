@@ -353,3 +353,33 @@ def _sym_into(M, out):
             v = 0.5 * (M[i, j] + M[j, i])
             out[i, j] = v
             out[j, i] = v
+
+
+def packed_size(n: int) -> int:
+    """Length of the packed lower triangle of a symmetric (n, n) matrix: n (n + 1) / 2."""
+    return n * (n + 1) // 2
+
+
+@nb.njit(cache=True, nogil=True)
+def pack_sym(P, out):
+    """The lower triangle of the symmetric ``P`` (n, n), row by row, into ``out``
+    (n (n + 1) / 2,): stored covariances in half the memory (docs/estimation.md)."""
+    n = P.shape[0]
+    m = 0
+    for i in range(n):
+        for j in range(i + 1):
+            out[m] = P[i, j]
+            m += 1
+
+
+@nb.njit(cache=True, nogil=True)
+def unpack_sym(p, out):
+    """The symmetric (n, n) matrix whose lower triangle :func:`pack_sym` stored in ``p``, into
+    ``out`` (both triangles)."""
+    n = out.shape[0]
+    m = 0
+    for i in range(n):
+        for j in range(i + 1):
+            out[i, j] = p[m]
+            out[j, i] = p[m]
+            m += 1

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flightrecon.constants import WGS84_A, WGS84_E2
+from flightrecon.constants import WGS84_A, WGS84_E2, WGS84_OMEGA
 from flightrecon.errors import ValidationError
 from flightrecon.geo.ellipsoid import radii_from_sin
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
@@ -37,6 +37,7 @@ __all__ = [
     "north_azimuth_in_plane",
     "radii_of_curvature",
     "transport_rate_ned",
+    "frame_rate_acceleration",
 ]
 
 MAX_ABS_LAT_DEG = 89.9
@@ -137,6 +138,26 @@ def transport_rate_ned(lat_deg, h_m, vn_mps, ve_mps) -> np.ndarray:
     lat = np.radians(lat_deg)
     return np.stack(np.broadcast_arrays(ve / (rn + h), -vn / (rm + h),
                                         -ve * np.tan(lat) / (rn + h)), axis=-1)
+
+
+def frame_rate_acceleration(lat_deg, h_m, v_ned) -> np.ndarray:
+    """The acceleration of an Earth-relative NED velocity that the accelerometers do not
+    sense: ``-(2 omega_ie + omega_en) x v`` [m/s^2], (N, 3) (Coriolis and transport rate).
+
+    With ``omega_ie = Omega (cos(lat), 0, -sin(lat))`` the Earth's rate and ``omega_en`` the
+    transport rate (:func:`transport_rate_ned`), the velocity obeys
+    ``dv/dt = f + g - (2 omega_ie + omega_en) x v`` (Groves eq. 5.54; ``f + g`` is
+    :func:`~flightrecon.geo.kinematics.kinematic_acceleration_ned`).  At 230 m/s and 50 deg
+    latitude the Coriolis part alone is 0.026 m/s^2 (2.6 mg), always to the right of the track in
+    the northern hemisphere: over an hour of cruise, 90 m/s of velocity or, held by an
+    accelerometer bias, that bias wrong by 2.6 mg.
+    """
+    v = np.atleast_2d(np.asarray(v_ned, float))
+    lat_deg = np.broadcast_to(np.asarray(lat_deg, float), (len(v),))
+    w_en = transport_rate_ned(lat_deg, h_m, v[:, 0], v[:, 1])
+    lat = np.radians(lat_deg)
+    w_ie = WGS84_OMEGA * np.c_[np.cos(lat), np.zeros(len(v)), -np.sin(lat)]
+    return -np.cross(2.0 * w_ie + w_en, v)
 
 
 @nb.njit(cache=True, nogil=True)

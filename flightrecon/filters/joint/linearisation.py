@@ -29,7 +29,7 @@ from flightrecon.filters.joint.nominal import (
 from flightrecon.filters.joint.settings import JointSettings
 from flightrecon.filters.joint.turbulence import gust_decay
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
-from flightrecon.geo.navframe import ned_to_ecef_matrix
+from flightrecon.geo.navframe import frame_rate_acceleration, ned_to_ecef_matrix
 
 
 @dataclass
@@ -115,11 +115,27 @@ def _models_at(fl: _Flight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
         acc_k, dV_k, dP_k = fl.acc, fl.dV, fl.dP
     else:
         acc_k, dV_k, dP_k = relinearised_increments(fl.acc, fl.dV, fl.dP, fl.dt, psi_hat)
+    acc_k, dV_k, dP_k = _with_frame_rate(acc_k, dV_k, dP_k, fl.dt, lat, h, vnom)
     dyn = jl.Dynamics(fl.dt, Cen, fl.Cnb, fl.Csf, fl.Jatt, acc_k, dP_k, dV_k, dz, fl.qv_extra,
                       fl.q, fl.ga)
     geo = jl.Geometry(pnom, h - inp.field_h, fl.pst, fl.Cst)
     return _Models(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock),
                    _noise_groups(meas))
+
+
+def _with_frame_rate(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
+                     lat: np.ndarray, h: np.ndarray, vnom: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The step accelerations and increments with the Coriolis and transport-rate acceleration
+    c = -(2 omega_ie + omega_en) x v that the accelerometers do not sense
+    (:func:`~flightrecon.geo.navframe.frame_rate_acceleration`, docs/joint.md, "State and
+    frame"), at the nominal velocity: the mean of its values at the step's two ends, added as
+    c dt and c dt^2 / 2.  The nominal is the iterate, so at convergence c is the solution's own;
+    its dependence on the velocity (1.5e-4 1/s) is left out of the transition matrix."""
+    c = frame_rate_acceleration(lat, h, vnom)
+    c = 0.5 * (c + np.vstack([c[:1], c[:-1]]))
+    return (np.ascontiguousarray(acc + c), np.ascontiguousarray(dV + c * dt[:, None]),
+            np.ascontiguousarray(dP + c * (0.5 * dt * dt)[:, None]))
 
 
 def _in_frame(X: np.ndarray, Cen_from: np.ndarray, Cen_to: np.ndarray) -> np.ndarray:

@@ -184,6 +184,7 @@ def _line_search(fl: _Flight, mdl: _Models, X: np.ndarray | None,
             # no step size lowered the cost: the iterate stays (the lowest-cost one)
             return _Step(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
                          gn_cost)
+        del step, mc   # the rejected candidate's models go before the next one's are built
         alpha *= 0.5
 
 
@@ -266,10 +267,6 @@ class _State:
     prev_roll: TakeoffRoll | None = None  # take-off roll of the pass before the last
 
 
-def _same_roll(a: TakeoffRoll, b: TakeoffRoll) -> bool:
-    return bool(np.array_equal([a.start_t, *a.rest_t], [b.start_t, *b.rest_t], equal_nan=True))
-
-
 def _pass_models(fl: _Flight, st: _State) -> _Models:
     """The models of the next pass: about the iterate, with the current clock offsets and the
     take-off roll refined on the iterate (those of the line search's last candidate when they
@@ -280,9 +277,9 @@ def _pass_models(fl: _Flight, st: _State) -> _Models:
     (a cycle that never settles: JSBSim spiral 5305) is not taken: the last pass's stays."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
-    if m is not None and st.prev_roll is not None and _same_roll(roll, st.prev_roll):
+    if m is not None and st.prev_roll is not None and roll.same_as(st.prev_roll):
         roll = m.roll
-    if m is not None and m.clock == st.clock and _same_roll(m.roll, roll):
+    if m is not None and m.clock == st.clock and m.roll.same_as(roll):
         return m
     return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
 
@@ -317,9 +314,7 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
         fl.x0, fl.P0 = _initial(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
         fl.P0inv = np.linalg.inv(fl.P0)
     if st.bufs is None:  # filter outputs, reused by every pass (allocated and paged in once)
-        n, N = jl.N_STATE, len(fl.T)
-        # (an empty Pp: recomputed backward, bit-identical, 139 MB less, 0.2-0.3 s per pass)
-        st.bufs = (np.empty((N, n)), np.empty((N, n, n)), np.empty((N, n)), np.empty((N, n, n)))
+        st.bufs = jp.filter_buffers(len(fl.T))
     if st.X is None and fl.settings.first_pass == "nominal":
         st.X = _nominal_states(fl, mdl)
     start = _start_cost(fl, st, mdl, r, reset)
@@ -335,7 +330,7 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
                            gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
     changed = st.refit or (st.models is not None and (
-        st.models.clock != mdl.clock or not _same_roll(st.models.roll, mdl.roll)
+        st.models.clock != mdl.clock or not st.models.roll.same_as(mdl.roll)
         or not np.array_equal(st.scale, st.cost_scale)))
     st.refit = False
     info: dict[str, Any] = {"iteration": it, "max_position_change_m": shift,
@@ -406,19 +401,23 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     if settings.estimate_noise:
         n_iter = max(n_iter, settings.noise_iterations)
     history: list[dict[str, Any]] = []
+    last = None
     for it in range(n_iter):
-        mdl, out, step, info = _one_pass(fl, st, it)
+        last = None   # the last pass's models and outputs go before the next pass builds its own
+        last = _one_pass(fl, st, it)
+        info = last[3]
         settled = info.pop("_settled")
         history.append(info)
         if settled:
             info["converged"] = True
             st.converged, st.reason = True, "converged"
             break
-        if not step.ok:
+        if not last[2].ok:
             break
     if not st.converged:
         st.reason = _stop_reason(history, settings)
-    return replace(_finish(fl, st, mdl, out, step, history),
+    assert last is not None
+    return replace(_finish(fl, st, *last[:3], history),
                    gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
 
 
