@@ -39,13 +39,11 @@ def _setup(rng):
 
 
 @pytest.mark.parametrize("mtype", [jl.LINEAR, jl.RANGE, jl.AZIMUTH, jl.ELEVATION, jl.TAS,
-                                   jl.SIDESLIP, jl.BARO, jl.DOPPLER, jl.TRACK])
+                                   jl.HEADING, jl.BARO, jl.DOPPLER, jl.TRACK])
 def test_measurement_jacobian_vs_central_differences(mtype):
     rng = np.random.default_rng(mtype)
     x, p, Cen, pst, Cst, h = _setup(rng)
     mH = rng.normal(size=(1, jl.N_STATE))
-    if mtype == jl.SIDESLIP:   # recorded heading, pitch, roll [rad] (a climbing turn), airspeed
-        mH[0, :4] = [2.1, 0.2, 0.5, 55.0]
     args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.zeros(1, np.int64),
             np.array([1.5]), Cen,
             p[None, :], np.array([h - 10.0]), pst, Cst)
@@ -434,17 +432,15 @@ def test_gust_process_noise_keeps_the_stationary_variance():
 def test_gust_is_seen_by_the_air_data_only():
     """Guards the air-data model with turbulence (docs/joint.md, "Wind and turbulence"): the
     along-track gust adds to the airspeed in m/s whatever the airspeed scale, the cross-track
-    gust turns the sideslip by u_c / V with V the recorded airspeed (in the measurement's row), so
+    gust turns the heading by u_c / V with V the recorded airspeed (the measurement's d), so
     neither gets cheaper as the scale error grows; the ground-referenced Doppler and track do
     not see the gust."""
     rng = np.random.default_rng(8)
     x, p, Cen, pst, Cst, h = _setup(rng)
     V = 57.0
-    row = np.zeros((1, jl.N_STATE))
-    row[0, :4] = [0.4, 0.05, 0.1, V]
-    for mtype in (jl.TAS, jl.SIDESLIP, jl.DOPPLER, jl.TRACK):
-        args = (np.array([mtype]), np.zeros(1), np.array([0.0]), row,
-                np.zeros(1, np.int64), np.array([0.0]), Cen, p[None, :], np.array([h]), pst, Cst)
+    for mtype in (jl.TAS, jl.HEADING, jl.DOPPLER, jl.TRACK):
+        args = (np.array([mtype]), np.zeros(1), np.array([0.0]), np.zeros((1, jl.N_STATE)),
+                np.zeros(1, np.int64), np.array([V]), Cen, p[None, :], np.array([h]), pst, Cst)
         hx, H = jo.measure(0, 0, x, *args)
         y = x.copy()
         y[jl.S_GUST] += [0.7, -0.3]
@@ -455,7 +451,7 @@ def test_gust_is_seen_by_the_air_data_only():
         if mtype == jl.TAS:
             np.testing.assert_array_equal(H[jl.S_GUST], [1.0, 0.0])
             assert d_gust == pytest.approx(0.7, rel=1e-12)
-        elif mtype == jl.SIDESLIP:
+        elif mtype == jl.HEADING:
             np.testing.assert_allclose(H[jl.S_GUST], [0.0, 1.0 / V], rtol=1e-15)
             assert d_gust == pytest.approx(-0.3 / V, rel=1e-12)
         else:

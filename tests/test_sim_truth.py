@@ -76,16 +76,23 @@ def test_profile_derivative_property(steps, t):
 
 def test_truth_gravity_and_loads_agree_with_geo_modules(circuit):
     """The truth uses flightrecon.geo.gravity, and its loads agree with the estimators'
-    flightrecon.geo.kinematics relation (two implementations of METHODS.md "Common ground")."""
+    flightrecon.geo.kinematics relation (two implementations of METHODS.md "Common ground"):
+    the sensed f + g plus the frame's rotation (Coriolis and transport rate,
+    geo.navframe.frame_rate_acceleration) is the truth's dv/dt, to rounding (1e-9 m/s^2; the
+    frame term itself is about 1e-2 here, so leaving it out on either side fails)."""
     from flightrecon.geo.gravity import normal_gravity
     from flightrecon.geo.kinematics import kinematic_acceleration_ned
+    from flightrecon.geo.navframe import frame_rate_acceleration
     tr = circuit.truth
     assert np.array_equal(tr.gravity_mps2, normal_gravity(tr.lat_deg, tr.alt_m))
     a = kinematic_acceleration_ned(tr.n_long_g, tr.n_lat_g, tr.n_norm_g, tr.roll_deg,
                                    tr.pitch_deg, tr.heading_deg, lat_deg=tr.lat_deg,
                                    h_m=tr.alt_m)
+    v = np.column_stack([tr.vn_mps, tr.ve_mps, -tr.vu_mps])
+    c = frame_rate_acceleration(tr.lat_deg, tr.alt_m, v)
     ref = np.column_stack([tr.an_mps2, tr.ae_mps2, -tr.au_mps2])
-    assert np.max(np.abs(a - ref)) < 1e-9
+    assert np.max(np.abs(c)) > 1e-3
+    assert np.max(np.abs(a + c - ref)) < 1e-9
 
 
 def test_velocity_integrates_to_position_independent_solver(circuit_plan):
@@ -159,12 +166,17 @@ def test_acceleration_continuous_on_grid(circuit):
 
 def test_loads_rebuild_acceleration(circuit):
     """METHODS.md "Common ground": C_nb g0 [n_long, n_lat, -n_norm] + [0, 0, g] = a_NED,
-    exactly (rounding only)."""
+    the sensed acceleration, which is the truth's dv/dt less the frame's rotation (Coriolis and
+    transport rate), exactly (rounding only)."""
+    from flightrecon.geo.navframe import frame_rate_acceleration
+
     tr = circuit.truth
     n = tr[["n_long_g", "n_lat_g", "n_norm_g"]].to_numpy()
     a = acceleration_from_loads(n, tr.gravity_mps2.to_numpy(), np.radians(tr.heading_deg),
                                 np.radians(tr.pitch_deg), np.radians(tr.roll_deg))
-    ref = np.column_stack([tr.an_mps2, tr.ae_mps2, -tr.au_mps2])
+    c = frame_rate_acceleration(tr.lat_deg, tr.alt_m,
+                                np.column_stack([tr.vn_mps, tr.ve_mps, -tr.vu_mps]))
+    ref = np.column_stack([tr.an_mps2, tr.ae_mps2, -tr.au_mps2]) - c
     assert np.max(np.abs(a - ref)) < 1e-10
     assert np.max(np.abs(tr.n_lat_g)) < 1e-12  # coordinated flight
 
@@ -186,7 +198,10 @@ def test_noise_free_recorder_equals_truth_loads():
 def test_level_flight_and_coordinated_turn():
     """Level unaccelerated flight: n = (g/g0) (sin pitch, 0, cos pitch).  Level coordinated turn
     without wind and angle of attack: tan(roll) = V psi_dot / g and n_norm = (g/g0)/cos(roll),
-    n_lat = 0 (g/g0 because the load factor's unit is standard gravity)."""
+    n_lat = 0 (g/g0 because the load factor's unit is standard gravity).  To the frame's
+    rotation, which these flat-Earth relations leave out: at 100 m/s and 45 deg, Coriolis and
+    transport rate are below 1.2e-2 m/s^2, 1.2e-3 g (the exact relation, with them:
+    test_loads_rebuild_acceleration); 2e-3 g and, in the turn's 5.2 m/s^2, 3e-3 relative."""
     b = PlanBuilder(lat_deg=45.0, lon_deg=10.0, elev_msl_m=1000.0, track_deg=30.0,
                     wind=WindField(), atmosphere=Atmosphere(), alpha_ref_deg=0.0,
                     airborne_tas_mps=100.0)
@@ -195,22 +210,22 @@ def test_level_flight_and_coordinated_turn():
     tr = simulate_truth(plan, 16.0, TangentPlane(45.0, 10.0, 0.0))
     gr = tr.gravity_mps2 / G0
     level = tr.t_s < 25
-    assert np.allclose(tr.n_norm_g[level], gr[level], atol=1e-12)
-    assert np.allclose(tr.n_long_g[level], 0.0, atol=1e-12)
+    assert np.allclose(tr.n_norm_g[level], gr[level], atol=2e-3)
+    assert np.allclose(tr.n_long_g[level], 0.0, atol=2e-3)
     turning = (tr.t_s > 35) & (tr.t_s < 55)  # constant rate part of the turn
     rate = np.radians(3.0)
     assert np.allclose(np.tan(np.radians(tr.roll_deg[turning])),
-                       100.0 * rate / tr.gravity_mps2[turning], rtol=1e-9)
+                       100.0 * rate / tr.gravity_mps2[turning], rtol=3e-3)
     assert np.allclose(tr.n_norm_g[turning], gr[turning] / np.cos(np.radians(tr.roll_deg[turning])),
-                       rtol=1e-9)
+                       rtol=3e-3)
     # with angle of attack, level flight: n = (g/g0) (sin a, 0, cos a)
     b2 = PlanBuilder(lat_deg=45.0, lon_deg=10.0, elev_msl_m=1000.0, track_deg=30.0,
                      wind=WindField(), atmosphere=Atmosphere(), alpha_ref_deg=4.0,
                      alpha_ref_tas_mps=100.0, airborne_tas_mps=100.0)
     tr2 = simulate_truth(b2.hold(20).plan(), 4.0, TangentPlane(45.0, 10.0, 0.0))
     g2 = tr2.gravity_mps2 / G0
-    assert np.allclose(tr2.n_long_g, g2 * np.sin(np.radians(4.0)), atol=1e-12)
-    assert np.allclose(tr2.n_norm_g, g2 * np.cos(np.radians(4.0)), atol=1e-12)
+    assert np.allclose(tr2.n_long_g, g2 * np.sin(np.radians(4.0)), atol=2e-3)
+    assert np.allclose(tr2.n_norm_g, g2 * np.cos(np.radians(4.0)), atol=2e-3)
 
 
 def test_coordinated_roll_finite_difference_of_lateral_load():

@@ -36,6 +36,7 @@ from flightrecon.constants import WGS84_A, WGS84_E2
 from flightrecon.errors import ValidationError
 from flightrecon.geo.atmosphere import pressure_altitude_m
 from flightrecon.geo.frames import TangentPlane
+from flightrecon.geo.navframe import frame_rate_acceleration
 from flightrecon.geo.gravity import normal_gravity
 from flightrecon.sim.kinematics import coordinated_roll_rad, loads_from_acceleration
 from flightrecon.sim.profiles import SmoothProfile
@@ -267,7 +268,10 @@ def simulate_truth(plan: FlightPlan, rate_hz: float, plane: TangentPlane) -> pd.
              * (plan.alpha_ref_tas_mps / v_for_alpha) ** 2)
     pitch = gamma + alpha
     g = normal_gravity(lat_deg, h_ell)
-    a_ned = np.column_stack([an, ae, -au])
+    # what the accelerometers sense: the velocity's rate less the frame's rotation (Coriolis
+    # and transport rate: dv/dt = f + g - (2 omega_ie + omega_en) x v, docs/simulator.md)
+    a_ned = np.column_stack([an, ae, -au]) - frame_rate_acceleration(
+        lat_deg, h_ell, np.column_stack([vn, ve, -vu]))
     roll = coordinated_roll_rad(a_ned, g, heading, pitch)
     loads = loads_from_acceleration(a_ned, g, heading, pitch, roll)
 

@@ -47,10 +47,10 @@ from flightrecon.filters.joint.layout import (
     AZIMUTH,
     DOPPLER,
     ELEVATION,
+    HEADING,
     IP,
     IV,
     N_STATE,
-    SIDESLIP,
     TAS,
     TRACK,
 )
@@ -180,10 +180,10 @@ def map_cost(X, x0, P0inv, dyn, meas, geo, huber_c, reject_c, robust):
                               pst, Cst)
             t = mtype[j]
             r = mz[j] - hx
-            if t == AZIMUTH or t == ELEVATION or t == TRACK:
+            if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 r = _wrap(r)
             res[j] = r
-            if t == TAS or t == SIDESLIP or t == DOPPLER or t == TRACK:
+            if t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
                 rate[j] = 0.0
             else:
                 rd = 0.0

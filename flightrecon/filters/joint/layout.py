@@ -49,12 +49,8 @@ minus the step's time (the state is carried to the measurement time by the veloc
 * ``RANGE``, ``AZIMUTH``, ``ELEVATION``: radar slant range and angles from the station
 * ``TAS``: (1 + s) |v - w| + u_a (three-dimensional air velocity, vertical wind neglected;
   u_a the along-track gust)
-* ``SIDESLIP``: zero sideslip, z = 0, h = b_y / |a| + u_c / V: b_y the air velocity
-  a = (v_N - w_N, v_E - w_E, v_D) along the body's right wing at the recorded attitude less its
-  biases (dpsi, dtheta, dphi), u_c the cross-track gust, V the recorded airspeed; the recorded
-  heading, pitch, roll and airspeed are the measurement's row of ``H`` (the nose is not along
-  the air velocity's horizontal direction in a turn: the angle of attack tilts it by about
-  alpha sin(roll))
+* ``HEADING``: atan2(v_E - w_E, v_N - w_N) + dpsi + u_c / V (innovation wrapped to (-pi, pi];
+  u_c the cross-track gust, V the recorded airspeed, carried in the measurement's ``d``)
 * ``BARO``: (1 + c) (h_nom + up . (p - p_nom) - v_D tau) + b_h
 * ``DOPPLER``: (1 + k_W) |v_horizontal|
 * ``TRACK``: heading + drift as recorded = atan2(v_E, v_N) + dpsi + dc (innovation wrapped)
@@ -86,10 +82,10 @@ S_GUST = slice(IGU, IGU + 2)   # gust's effect on the air data, along / across [
 G0 = 9.80665
 
 
-LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, SIDESLIP, BARO, DOPPLER, TRACK = 0, 1, 2, 3, 4, 5, 6, 7, 8
+LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO, DOPPLER, TRACK = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
 
-ANGLE_TYPES = (AZIMUTH, ELEVATION, TRACK)
+ANGLE_TYPES = (AZIMUTH, ELEVATION, HEADING, TRACK)
 
 
 # ---- named layouts across the compiled boundary (numba takes NamedTuples of arrays) ----
@@ -120,10 +116,9 @@ class Scalars(NamedTuple):
     r: np.ndarray         # (M,) variances (nominal in the forward pass, inflated backward)
     w: np.ndarray         # (M,) robust weights (the variance used is r / w)
     tau: np.ndarray       # (M,) measurement time minus its step's time [s]
-    H: np.ndarray         # (K, n) rows of the LINEAR measurements (their gradient) and of the
-                          # SIDESLIP ones (recorded heading, pitch, roll [rad], airspeed [m/s])
+    H: np.ndarray         # (K, n) rows of the LINEAR measurements
     row: np.ndarray       # (M,) their row in H (-1 for the others)
-    d: np.ndarray         # (M,) offsets of the LINEAR measurements
+    d: np.ndarray         # (M,) offsets of the LINEAR measurements; recorded TAS of HEADING
 
 
 class Geometry(NamedTuple):

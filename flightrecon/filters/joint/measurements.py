@@ -272,20 +272,6 @@ def _nose_along_air(Cnb: np.ndarray, settings: JointSettings) -> np.ndarray:
             & (np.abs(pitch) <= np.radians(settings.heading_max_pitch_deg)))
 
 
-def _attitude_rows(inp: JointInputs, keep: np.ndarray) -> np.ndarray:
-    """Rows of the ``SIDESLIP`` measurements at the samples ``keep``: recorded heading, pitch,
-    roll [rad] and airspeed [m/s] in the first four columns (layout in
-    :mod:`~flightrecon.filters.joint.layout`); pitch and roll from ``Cnb`` as in
-    :func:`_nose_along_air`."""
-    C = inp.Cnb[keep]
-    rows = np.zeros((len(C), jl.N_STATE))
-    rows[:, 0] = inp.heading_rad[keep]
-    rows[:, 1] = -np.arcsin(np.clip(C[:, 2, 0], -1.0, 1.0))
-    rows[:, 2] = np.arctan2(C[:, 2, 1], C[:, 2, 2])
-    rows[:, 3] = inp.tas[keep]
-    return rows
-
-
 def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
     """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
     recorded wind, the winds-aloft prior, pressure altitude, ground and runway constraints
@@ -312,9 +298,8 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
         air &= t_in > inp.liftoff_t + settings.crab_s
     if np.isfinite(inp.touchdown_t):
         air &= t_in < inp.touchdown_t - settings.crab_s
-    # zero sideslip: z = 0 with the recorded heading, pitch, roll and airspeed as its row
-    b.add("air", jl.SIDESLIP, t_in[air], np.zeros(int(air.sum())),
-          np.radians(nz.heading_deg) ** 2, _attitude_rows(inp, air))
+    b.add("air", jl.HEADING, t_in[air], inp.heading_rad[air], np.radians(nz.heading_deg) ** 2,
+          d=inp.tas[air])   # d: the recorded airspeed (the cross-track gust's angle u_c / V)
     # Doppler ground speed and drift (track = heading + drift), at the air-data rate
     if inp.doppler_gs is not None:
         okd = np.isfinite(inp.doppler_gs) & (inp.doppler_gs >= settings.min_airspeed_mps)

@@ -11,7 +11,7 @@ from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.measurements import Measurements
 from flightrecon.filters.joint.settings import SOURCES, JointSettings
 
-NOISE_GROUPS = {("air", jl.TAS): "air_tas", ("air", jl.SIDESLIP): "air_heading",
+NOISE_GROUPS = {("air", jl.TAS): "air_tas", ("air", jl.HEADING): "air_heading",
                 ("baro", jl.BARO): "baro", ("gnss_pos", jl.LINEAR): "gnss_pos",
                 ("gnss_vel", jl.LINEAR): "gnss_vel", ("radar", jl.RANGE): "radar_range",
                 ("radar", jl.AZIMUTH): "radar_azimuth", ("radar", jl.ELEVATION): "radar_elevation",

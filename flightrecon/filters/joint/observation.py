@@ -10,6 +10,7 @@ from flightrecon.filters.joint.layout import (
     AZIMUTH,
     DOPPLER,
     ELEVATION,
+    HEADING,
     IBH,
     IC,
     IDC,
@@ -23,7 +24,6 @@ from flightrecon.filters.joint.layout import (
     LINEAR,
     N_STATE,
     RANGE,
-    SIDESLIP,
     TAS,
     TRACK,
 )
@@ -109,8 +109,17 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
         H[IS] = va
         H[IGU] = 1.0
         return f * va + x[IGU]
-    if t == SIDESLIP:
-        return _sideslip(H, x, mH[mrow[j]])
+    if t == HEADING:
+        an = x[IV] - x[IW]
+        ae = x[IV + 1] - x[IW + 1]
+        v2 = an * an + ae * ae
+        H[IV] = -ae / v2
+        H[IV + 1] = an / v2
+        H[IW] = ae / v2
+        H[IW + 1] = -an / v2
+        H[IPSI] = 1.0
+        H[IGU + 1] = 1.0 / md[j]   # md[j]: the recorded airspeed (a known scale, not a state)
+        return np.arctan2(ae, an) + x[IPSI] + x[IGU + 1] / md[j]
     if t == DOPPLER:
         vn = x[IV]
         ve = x[IV + 1]
@@ -140,44 +149,3 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
     H[IC] = base
     H[IBH] = 1.0
     return f * base + x[IBH]
-
-
-@nb.njit(cache=True, nogil=True)
-def _sideslip(H, x, row):
-    """The zero-sideslip measurement: h = b_y / |a| + u_c / V and its gradient into ``H``.
-
-    ``a`` = (v_N - w_N, v_E - w_E, v_D) is the air velocity in NED and b_y = c_y . a its
-    component along the body's right wing, c_y = C e_y, C = R_z(psi) R_y(theta) R_x(phi) at the
-    recorded attitude with the heading less its bias (psi = psi_rec - dpsi); u_c is the
-    cross-track gust and V the recorded airspeed.  ``row`` holds psi_rec, theta_rec, phi_rec
-    [rad] and V [m/s] (docs/joint.md, "Air data").  dC/dpsi e_y = e_z x c_y.
-
-    The roll and pitch biases are left out: their effect here (dtheta sin(phi), dphi sin(alpha))
-    has the size and the pattern of a real aircraft's sideslip in turns (JSBSim's jet: 0.2 deg
-    with the sign of the roll), which the pitch bias then absorbed (0.18 deg against a truth of
-    0, the accelerometer x bias moved by g dtheta); they are observed by the loads.
-    """
-    psi = row[0] - x[IPSI]
-    th = row[1]
-    ph = row[2]
-    V = row[3]
-    cps, sps = np.cos(psi), np.sin(psi)
-    cth, sth = np.cos(th), np.sin(th)
-    cph, sph = np.cos(ph), np.sin(ph)
-    an = x[IV] - x[IW]
-    ae = x[IV + 1] - x[IW + 1]
-    ad = x[IV + 2]
-    A = np.sqrt(an * an + ae * ae + ad * ad)
-    cyn = cps * sth * sph - sps * cph
-    cye = sps * sth * sph + cps * cph
-    cyd = cth * sph
-    by = cyn * an + cye * ae + cyd * ad
-    k = by / (A * A * A)
-    H[IV] = cyn / A - k * an
-    H[IV + 1] = cye / A - k * ae
-    H[IV + 2] = cyd / A - k * ad
-    H[IW] = -H[IV]
-    H[IW + 1] = -H[IV + 1]
-    H[IPSI] = (cye * an - cyn * ae) / A
-    H[IGU + 1] = 1.0 / V
-    return by / A + x[IGU + 1] / V

@@ -32,10 +32,10 @@ from flightrecon.filters.joint.layout import (
     AZIMUTH,
     DOPPLER,
     ELEVATION,
+    HEADING,
     IP,
     IV,
     N_STATE,
-    SIDESLIP,
     TAS,
     TRACK,
 )
@@ -120,7 +120,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
                 hx = measure_into(H, j, k, xlin[k], mtype, mz, mtau, mH, mrow, md, Cen, pnom,
                                   hnom, pst, Cst)
                 nu = mz[j] - hx
-                if t == AZIMUTH or t == ELEVATION or t == TRACK:
+                if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                     nu = _wrap(nu)
                 for i in range(n):
                     if H[i] != 0.0:
@@ -129,7 +129,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
                 hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom,
                                   pst, Cst)
                 nu = mz[j] - hx
-                if t == AZIMUTH or t == ELEVATION or t == TRACK:
+                if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                     nu = _wrap(nu)
             nh = 0
             for i in range(n):
@@ -211,12 +211,12 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
             hph[j] = v
         e = mz[j] - hx
         t = mtype[j]
-        if t == AZIMUTH or t == ELEVATION or t == TRACK:
+        if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
             e = _wrap(e)
         res[j] = e
         res_n[j] = e / np.sqrt(mr[j])
         # rate of the predicted measurement with the measurement time: dh/dtau
-        if t == TAS or t == SIDESLIP or t == DOPPLER or t == TRACK:
+        if t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
             rate[j] = 0.0
             continue
         rd = 0.0  # H holds the gradient (for LINEAR, the measurement's row of mH)
