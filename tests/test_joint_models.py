@@ -39,12 +39,15 @@ def _setup(rng):
 
 
 @pytest.mark.parametrize("mtype", [jl.LINEAR, jl.RANGE, jl.AZIMUTH, jl.ELEVATION, jl.TAS,
-                                   jl.HEADING, jl.BARO, jl.DOPPLER, jl.TRACK])
+                                   jl.HEADING, jl.BARO, jl.DOPPLER, jl.TRACK, jl.NED_POS,
+                                   jl.STATE])
 def test_measurement_jacobian_vs_central_differences(mtype):
     rng = np.random.default_rng(mtype)
     x, p, Cen, pst, Cst, h = _setup(rng)
     mH = rng.normal(size=(1, jl.N_STATE))
-    args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.zeros(1, np.int64),
+    # the row index: LINEAR's row of mH, NED_POS's axis (down), STATE's index (east velocity)
+    row = {jl.NED_POS: 2, jl.STATE: jl.IV + 1}.get(mtype, 0)
+    args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.array([row]),
             np.array([1.5]), Cen,
             p[None, :], np.array([h - 10.0]), pst, Cst)
     hx, H = jo.measure(0, 0, x, *args)
@@ -427,6 +430,37 @@ def test_gust_process_noise_keeps_the_stationary_variance():
         jd.add_process_noise(P, 1, dt, np.repeat(Cen, N, axis=0), np.zeros(N), np.zeros(N), q, ga)
         np.testing.assert_allclose(np.diag(P)[jl.S_GUST], 2.5 ** 2, rtol=1e-12)
         assert P[jl.IGU, jl.IGU + 1] == 0.0
+
+
+def test_compact_linear_rows_equal_the_stored_rows():
+    """Guards the compact GNSS rows (docs/performance.md, memory): a NED_POS measurement (axis
+    i, no stored row) gives the same h and gradient as the LINEAR row it replaced,
+    H[p] = column i of C_en at the step, H[v_i] = tau, and a STATE measurement as the unit
+    row of its state, to rounding (the products are of ECEF coordinates, 6e6 m: summed in
+    another order they differ by a few 1e-9 m; 1e-8 m)."""
+    rng = np.random.default_rng(3)
+    x, p, Cen, pst, Cst, h = _setup(rng)
+    for axis in range(3):
+        row = np.zeros((1, jl.N_STATE))
+        row[0, jl.S_POS] = Cen[0][:, axis]
+        row[0, jl.IV + axis] = 0.37
+        common = (np.zeros(1), np.array([0.37]))
+        geo = (np.array([4.5]), Cen, p[None, :], np.array([h]), pst, Cst)
+        lin = jo.measure(0, 0, x, np.array([jl.LINEAR]), *common, row, np.zeros(1, np.int64),
+                         *geo)
+        ned = jo.measure(0, 0, x, np.array([jl.NED_POS]), *common, np.zeros((0, jl.N_STATE)),
+                         np.array([axis]), *geo)
+        assert ned[0] == pytest.approx(lin[0], abs=1e-8)
+        np.testing.assert_allclose(ned[1], lin[1], rtol=0, atol=1e-15)
+    unit = np.zeros((1, jl.N_STATE))
+    unit[0, jl.IV + 1] = 1.0
+    geo = (np.array([0.2]), Cen, p[None, :], np.array([h]), pst, Cst)
+    lin = jo.measure(0, 0, x, np.array([jl.LINEAR]), np.zeros(1), np.zeros(1), unit,
+                     np.zeros(1, np.int64), *geo)
+    st = jo.measure(0, 0, x, np.array([jl.STATE]), np.zeros(1), np.zeros(1),
+                    np.zeros((0, jl.N_STATE)), np.array([jl.IV + 1]), *geo)
+    assert st[0] == lin[0]
+    np.testing.assert_array_equal(st[1], lin[1])
 
 
 def test_gust_is_seen_by_the_air_data_only():

@@ -54,6 +54,10 @@ minus the step's time (the state is carried to the measurement time by the veloc
 * ``BARO``: (1 + c) (h_nom + up . (p - p_nom) - v_D tau) + b_h
 * ``DOPPLER``: (1 + k_W) |v_horizontal|
 * ``TRACK``: heading + drift as recorded = atan2(v_E, v_N) + dpsi + dc (innovation wrapped)
+* ``NED_POS``: a position fix's component along the NED axis i = ``row`` at the step,
+  z = c_i . p_fix, h = c_i . p + v_i tau (c_i: column i of C_en at the step): a ``LINEAR``
+  measurement whose row is built in the kernel instead of stored (GNSS positions, ``--fix``)
+* ``STATE``: one state component, index ``row``: h = x[row] + d (GNSS velocities)
 """
 
 from __future__ import annotations
@@ -83,6 +87,7 @@ G0 = 9.80665
 
 
 LINEAR, RANGE, AZIMUTH, ELEVATION, TAS, HEADING, BARO, DOPPLER, TRACK = 0, 1, 2, 3, 4, 5, 6, 7, 8
+NED_POS, STATE = 9, 10
 
 
 ANGLE_TYPES = (AZIMUTH, ELEVATION, HEADING, TRACK)
@@ -117,7 +122,8 @@ class Scalars(NamedTuple):
     w: np.ndarray         # (M,) robust weights (the variance used is r / w)
     tau: np.ndarray       # (M,) measurement time minus its step's time [s]
     H: np.ndarray         # (K, n) rows of the LINEAR measurements
-    row: np.ndarray       # (M,) their row in H (-1 for the others)
+    row: np.ndarray       # (M,) LINEAR: their row in H; NED_POS: the axis; STATE: the state
+                          # index; -1 for the others
     d: np.ndarray         # (M,) offsets of the LINEAR measurements; recorded TAS of HEADING
 
 

@@ -12,8 +12,8 @@ from flightrecon.filters.joint.measurements import Measurements
 from flightrecon.filters.joint.settings import SOURCES, JointSettings
 
 NOISE_GROUPS = {("air", jl.TAS): "air_tas", ("air", jl.HEADING): "air_heading",
-                ("baro", jl.BARO): "baro", ("gnss_pos", jl.LINEAR): "gnss_pos",
-                ("gnss_vel", jl.LINEAR): "gnss_vel", ("radar", jl.RANGE): "radar_range",
+                ("baro", jl.BARO): "baro", ("gnss_pos", jl.NED_POS): "gnss_pos",
+                ("gnss_vel", jl.STATE): "gnss_vel", ("radar", jl.RANGE): "radar_range",
                 ("radar", jl.AZIMUTH): "radar_azimuth", ("radar", jl.ELEVATION): "radar_elevation",
                 ("doppler", jl.DOPPLER): "doppler_speed", ("doppler", jl.TRACK): "doppler_track"}
 """Sensor error variances that ``estimate_noise`` scales, one factor per group (the end points,

@@ -23,7 +23,9 @@ from flightrecon.filters.joint.layout import (
     IW,
     LINEAR,
     N_STATE,
+    NED_POS,
     RANGE,
+    STATE,
     TAS,
     TRACK,
 )
@@ -43,7 +45,8 @@ def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
 def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
     """h(x) of scalar measurement j at step k (state x at the step); its gradient into ``H``.
 
-    ``LINEAR`` measurements have their row of H in ``mH[mrow[j]]`` (only those rows are stored).
+    ``LINEAR`` measurements have their row of H in ``mH[mrow[j]]`` (only those rows are stored);
+    ``NED_POS`` and ``STATE`` have an axis or a state index in ``mrow[j]`` and no stored row.
     """
     n = N_STATE
     for i in range(n):
@@ -57,6 +60,17 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
         for i in range(n):
             H[i] = mH[row, i]
             hx += mH[row, i] * x[i]
+        return hx
+    if t == STATE:
+        H[mrow[j]] = 1.0
+        return x[mrow[j]] + md[j]
+    if t == NED_POS:   # c_i . p + v_i tau, c_i the NED axis i in ECEF at the step
+        a = mrow[j]
+        hx = md[j] + x[IV + a] * tau
+        for i in range(3):
+            H[IP + i] = C[i, a]
+            hx += C[i, a] * x[IP + i]
+        H[IV + a] = tau
         return hx
     if t == RANGE or t == AZIMUTH or t == ELEVATION:
         pos = np.empty(3)
