@@ -31,6 +31,9 @@ Propagation over one state step of length dt (inputs held between input samples)
     v+ = v + dV_meas + J_v [dpsi, b_a]                       measured kinematic acceleration
     w+ = w + g dz + noise (random walk in time and in altitude)  over the step (exact for held
     g+ = g + noise (random walk in time)                     inputs; dz: the nominal's climb)
+                                                             plus the Coriolis and transport-
+                                                             rate acceleration at the nominal
+                                                             velocity: linearisation.py
     u+ = a u + noise,  a = exp(-V dt / L), var sigma_u^2 (1 - a^2)   (V: the recorded airspeed)
     b_a+ = exp(-dt/tau) b_a + noise
 

@@ -369,7 +369,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             hf = np.where(no_hf, _substitute_height(inp, T, tf, pnom), hf)
         ex, ey, ez = geodetic_to_ecef(fx[:, 1], fx[:, 2], hf)
         sd_f = fx[:, 4]
-        _add_linear_ned(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
+        _add_ned_components(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
                         "pos", np.c_[ex, ey, ez])
     if pnom is not None and vnom is not None:
         _runway_measurements(b, inp, settings, lambda t: _nearest(T, t), pnom, vnom, psi_hat)
@@ -399,11 +399,12 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     return b.build()
 
 
-def _add_linear_ned(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source: str, t, comp_vals,
+def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source: str, t, comp_vals,
                     sd, kind: str = "pos", ecef=None) -> None:
-    """Add the NED components of a position (given in ECEF, ``kind="pos"``: three) or a
-    velocity (``kind="vel"``: north and east) at times ``t`` to ``b``, with the tau terms
-    (time from the nearest state step) of the position rows."""
+    """Add the NED components of a position (given in ECEF, ``kind="pos"``: three ``NED_POS``
+    measurements, whose rows the kernel builds from the step's frame with the tau term) or a
+    velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to
+    ``b``."""
     k = _nearest(T, t)
     for i in range(3 if kind == "pos" else 2):
         r = np.broadcast_to(sd[i] ** 2, (len(t),))
@@ -464,10 +465,10 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     # else the noise settings; no height: no vertical component
     sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
     sd_v = np.where(no_h, np.nan, _per_fix(g, "v_sd_m", nz.gnss_v_m))
-    _add_linear_ned(b, T, Cen, "gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
+    _add_ned_components(b, T, Cen, "gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
     if {"vn_mps", "ve_mps"} <= set(g.columns):
         sd_vel = _per_fix(g, "vel_sd_mps", nz.gnss_vel_mps)
-        _add_linear_ned(b, T, Cen, "gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
+        _add_ned_components(b, T, Cen, "gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
                                                     g["ve_mps"].to_numpy() - v_arm[:, 1]),
                         (sd_vel, sd_vel), "vel")
 
@@ -481,7 +482,7 @@ def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSet
         pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
         tt = np.array([ep["t_s"]])
         if ep["model"] in ("reference", "last_position"):
-            _add_linear_ned(b, T, Cen, "endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
+            _add_ned_components(b, T, Cen, "endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
             continue
         k = _nearest(T, tt)[0]
         tau = tt[0] - T[k]
