@@ -498,13 +498,14 @@ def test_heading_kept_only_where_the_nose_is_along_the_air():
     used as its direction; level and moderately banked samples keep it."""
     from flightrecon.filters.joint.measurements import _nose_along_air
     from flightrecon.filters.joint.settings import JointSettings
-    from flightrecon.geo.kinematics import body_to_ned_matrix
 
-    roll = np.array([0.0, 30.0, -44.0, 60.0, -75.0, 10.0, 5.0, 170.0])
-    pitch = np.array([0.0, 5.0, -10.0, 0.0, -20.0, -45.0, 29.0, 0.0])
-    C = body_to_ned_matrix(roll, pitch, np.full(8, 123.0))
-    keep = _nose_along_air(np.asarray(C), JointSettings())
-    np.testing.assert_array_equal(keep, [True, True, True, False, False, False, True, False])
+    # a roll of 190 deg is -170 deg, a pitch of 151 deg (past the vertical) is 29 deg inverted
+    roll = np.array([0.0, 30.0, -44.0, 60.0, -75.0, 10.0, 5.0, 170.0, 330.0, 190.0, 0.0])
+    pitch = np.array([0.0, 5.0, -10.0, 0.0, -20.0, -45.0, 29.0, 0.0, 0.0, 0.0, 151.0])
+    att = np.c_[roll, pitch, np.full(len(roll), 123.0)]
+    keep = _nose_along_air(att, JointSettings())
+    np.testing.assert_array_equal(keep, [True, True, True, False, False, False, True, False,
+                                         True, False, False])
 
 
 def test_implausible_sensor_error_is_named():

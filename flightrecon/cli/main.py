@@ -79,16 +79,24 @@ def _thp_stalls_on_madvise() -> bool:
     return chosen in ("always", "madvise")
 
 
+#: blocks from this size up are mapped fresh and unmapped when freed (:func:`_tune_memory`)
+MMAP_THRESHOLD_BYTES = 8 * 1024 * 1024
+
+
 def _tune_memory() -> None:
     """Process-level memory settings for a reconstruction (the library never changes them).
 
     * glibc keeps and reuses freed memory instead of returning it to the OS: a
       reconstruction allocates and frees arrays of tens to hundreds of megabytes stage after
       stage, and by default each large block is mapped fresh and unmapped when freed, so every
-      stage pays the kernel's page faults again. Blocks up to 32 MB (glibc's ceiling for this
-      setting) then come from the heap, and the heap is not trimmed. Measured on the 10-hour
-      benchmark flight: minor faults 240-260k -> 178k, about 1 s less system time, peak memory
-      1.43 -> 1.49 GB.
+      stage pays the kernel's page faults again. Blocks below ``MMAP_THRESHOLD_BYTES`` then
+      come from the heap, and the heap is not trimmed. Measured on the 10-hour benchmark
+      flight with 32 MB (glibc's ceiling for this setting): minor faults 240-260k -> 178k,
+      about 1 s less system time, peak memory 1.43 -> 1.49 GB. With 8 MB the blocks of a
+      whole flight's column and larger (a 16 Hz, 10-hour column of pairs is 9.2 MB) are
+      mapped and returned again, while the many smaller ones are still reused: peak 998 ->
+      952 MiB, wall 0.95 (4 alternating pairs; docs/performance.md). With 4 MB every 16 Hz
+      column is mapped: 945 MiB, but 1.15 x the wall time.
     * numpy asks for transparent huge pages for arrays of 4 MB and more; where the kernel then
       compacts memory synchronously on first touch (THP defrag ``always``/``madvise``, as on
       our 2-core VMs) that costs far more than it saves: the estimators on the 10-hour flight
@@ -104,7 +112,7 @@ def _tune_memory() -> None:
 
         libc = ctypes.CDLL("libc.so.6")
         m_trim_threshold, m_mmap_threshold = -1, -3
-        libc.mallopt(m_mmap_threshold, 32 * 1024 * 1024)
+        libc.mallopt(m_mmap_threshold, MMAP_THRESHOLD_BYTES)
         libc.mallopt(m_trim_threshold, 1 << 30)
     except (OSError, AttributeError):  # not glibc
         pass

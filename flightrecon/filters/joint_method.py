@@ -77,7 +77,7 @@ def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndar
 
 def _loads_in_ned(g: pd.DataFrame, t_in: np.ndarray,
                   lat_deg: float) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """The body-to-NED matrices of the (held) recorded attitude and the kinematic acceleration
+    """The (held) recorded attitude (Ni, 3) [deg] and the kinematic acceleration
     (NED) [m/s^2] of the loads on the grid ``g``, NaN where a load factor is saturated, with
     the notes for the summary."""
     def col(name):
@@ -95,7 +95,7 @@ def _loads_in_ned(g: pd.DataFrame, t_in: np.ndarray,
         acc[sat] = np.nan
         notes.append(f"joint: load factors saturated on {int(sat.sum())} samples; treated as "
                      "missing (process noise instead of the acceleration)")
-    return Cnb, acc, notes
+    return np.column_stack(att), acc, notes
 
 
 def _gnss_table(gn: pd.DataFrame, meta: FlightMeta) -> pd.DataFrame:
@@ -149,7 +149,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                             "GNSS / radar fix: it anchors the output plane and the latitude of "
                             "normal gravity")
     t_in = g["t_s"].to_numpy(float)
-    Cnb, acc, notes = _loads_in_ned(g, t_in, p0.lat_deg)
+    att, acc, notes = _loads_in_ned(g, t_in, p0.lat_deg)
     dep = meta.departure
     if dep is not None:
         h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
@@ -176,7 +176,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                           for f in meta.fixes], dtype=float)
     wa = wind_aloft_on_grid(g, meta)
     inp = JointInputs(
-        t_in=t_in, acc_ned=acc, Cnb=Cnb, tas=col("tas_mps"),
+        t_in=t_in, acc_ned=acc, attitude_deg=att, tas=col("tas_mps"),
         heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
         gnss=gnss, radar=radar, station=pos(meta.station), departure=pos(meta.departure),
         arrival=pos(meta.arrival),

@@ -14,6 +14,7 @@ from flightrecon.cleaning.phases import TakeoffRoll, takeoff_roll
 from flightrecon.filters.joint.layout import G0 as G0_MPS2
 from flightrecon.filters.joint.settings import JointNoise
 from flightrecon.geo.frames import offset_latlon
+from flightrecon.geo.kinematics import body_to_ned_matrix
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 
 
@@ -31,7 +32,9 @@ class JointInputs:
     ----------
     t_in : input grid times (Ni,)
     acc_ned : measured kinematic acceleration on the input grid (Ni, 3), NaN where missing
-    Cnb : body-to-NED rotations on the input grid (Ni, 3, 3)
+    attitude_deg : roll, pitch, heading on the input grid, each missing sample held at the
+        nearest recorded one (Ni, 3) [deg]; its body-to-NED rotations: :meth:`body_to_ned`
+        (kept as angles: the (Ni, 3, 3) matrices of a 10-hour flight at 16 Hz are 41 MB)
     tas, heading_rad : airspeed and (unwrapped) true heading on the input grid
     baro_rel_m : pressure altitude minus the departure field's pressure altitude (input grid)
     gnss : DataFrame t_s, lat_deg, lon_deg, h_m (ellipsoidal; NaN: a horizontal-only fix),
@@ -64,7 +67,7 @@ class JointInputs:
 
     t_in: np.ndarray
     acc_ned: np.ndarray
-    Cnb: np.ndarray
+    attitude_deg: np.ndarray
     tas: np.ndarray
     heading_rad: np.ndarray
     baro_rel_m: np.ndarray
@@ -90,6 +93,14 @@ class JointInputs:
     ends_airborne: bool = False
     fixes: np.ndarray | None = None
     wind_aloft: np.ndarray | None = None
+
+    def body_to_ned(self, i: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Body-to-NED rotations C = R_z(heading) R_y(pitch) R_x(roll) of the input samples
+        ``i`` (all by default), shape (len(i), 3, 3), or (3, 3) for one sample
+        (:func:`flightrecon.geo.body_to_ned_matrix`)."""
+        a = self.attitude_deg[i]
+        C = body_to_ned_matrix(a[..., 0], a[..., 1], a[..., 2])
+        return C[0] if a.ndim == 1 else C
 
 
 def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,

@@ -258,18 +258,22 @@ def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetti
               -cross @ arp - H[:, jl.IPSI] * ph)
 
 
-def _nose_along_air(Cnb: np.ndarray, settings: JointSettings) -> np.ndarray:
+def _nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndarray:
     """Samples whose attitude lets the heading stand for the air velocity's direction.
 
     The air velocity in body axes is V (cos a cos b, sin b, sin a cos b) (angle of attack a,
     sideslip b); its horizontal direction differs from the heading by about a sin(roll) /
     cos(pitch) plus the sideslip, a few degrees in a 30 deg bank, tens of degrees in a spiral
     dive or a spin.  Kept: |roll| <= ``heading_max_roll_deg`` and |pitch| <=
-    ``heading_max_pitch_deg`` (roll and pitch from the body-to-NED matrices ``Cnb`` (Ni, 3, 3),
-    C = R_z R_y R_x: C[2, 0] = -sin(pitch), C[2, 1] = cos(pitch) sin(roll)).
+    ``heading_max_pitch_deg``, the angles of the body-to-NED rotation C = R_z R_y R_x of the
+    recorded attitude ``attitude_deg`` (Ni, 3): from its last row C[2] = (-sin(pitch),
+    sin(roll) cos(pitch), cos(roll) cos(pitch)), so that a roll of 190 deg counts as -170 deg
+    and a pitch of 100 deg (inverted) as 80 deg.
     """
-    pitch = -np.arcsin(np.clip(Cnb[:, 2, 0], -1.0, 1.0))
-    roll = np.arctan2(Cnb[:, 2, 1], Cnb[:, 2, 2])
+    phi, theta = np.radians(attitude_deg[:, 0]), np.radians(attitude_deg[:, 1])
+    st, ct = np.sin(theta), np.cos(theta)
+    pitch = -np.arcsin(np.clip(-st, -1.0, 1.0))
+    roll = np.arctan2(np.sin(phi) * ct, np.cos(phi) * ct)
     return ((np.abs(roll) <= np.radians(settings.heading_max_roll_deg))
             & (np.abs(pitch) <= np.radians(settings.heading_max_pitch_deg)))
 
@@ -295,7 +299,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # the heading is the air velocity's direction only in the air: on the runway the nose
     # follows the runway (a crosswind of 5 m/s at 40 m/s is 7 deg), and the crab is taken up
     # within seconds after lift-off and taken out in the flare; none within crab_s of them
-    air = keep & _nose_along_air(inp.Cnb, settings)
+    air = keep & _nose_along_air(inp.attitude_deg, settings)
     if np.isfinite(inp.liftoff_t):
         air &= t_in > inp.liftoff_t + settings.crab_s
     if np.isfinite(inp.touchdown_t):
@@ -453,14 +457,14 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     if np.any(L != 0):
         # attitude at the fix: nearest input sample
         ii = _nearest(t_in, tg)
-        arm_ned = np.einsum("mij,j->mi", inp.Cnb[ii], L)
+        arm_ned = np.einsum("mij,j->mi", inp.body_to_ned(ii), L)
         ant = ant - np.einsum("mij,mj->mi", Cen[k], arm_ned)
         # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of
         # yaw): a central difference over +-0.5 s of the recorded attitude (its noise,
         # 0.05 deg at 8 Hz, then adds under 0.01 m/s)
         ip, im = _nearest(t_in, tg + 0.5), _nearest(t_in, tg - 0.5)
         span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
-        v_arm = np.einsum("mij,j->mi", inp.Cnb[ip] - inp.Cnb[im], L) / span
+        v_arm = np.einsum("mij,j->mi", inp.body_to_ned(ip) - inp.body_to_ned(im), L) / span
     # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
     # else the noise settings; no height: no vertical component
     sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
