@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from flightrecon.estimation import predict as est_predict
 from flightrecon.estimation import rts as est_rts
@@ -496,16 +498,120 @@ def test_heading_kept_only_where_the_nose_is_along_the_air():
     """Guards the air-data heading's attitude gate (docs/joint.md, "Measurements"): in a
     spiral dive or a spin the nose is not along the air velocity, and the heading must not be
     used as its direction; level and moderately banked samples keep it."""
-    from flightrecon.filters.joint.measurements import _nose_along_air
+    from flightrecon.filters.joint.airdata import nose_along_air
     from flightrecon.filters.joint.settings import JointSettings
 
     # a roll of 190 deg is -170 deg, a pitch of 151 deg (past the vertical) is 29 deg inverted
     roll = np.array([0.0, 30.0, -44.0, 60.0, -75.0, 10.0, 5.0, 170.0, 330.0, 190.0, 0.0])
     pitch = np.array([0.0, 5.0, -10.0, 0.0, -20.0, -45.0, 29.0, 0.0, 0.0, 0.0, 151.0])
     att = np.c_[roll, pitch, np.full(len(roll), 123.0)]
-    keep = _nose_along_air(att, JointSettings())
+    keep = nose_along_air(att, JointSettings())
     np.testing.assert_array_equal(keep, [True, True, True, False, False, False, True, False,
                                          True, False, False])
+
+
+@settings(max_examples=60, deadline=None)
+@given(roll=st.floats(-45.0, 45.0), pitch=st.floats(-20.0, 25.0), alpha=st.floats(-4.0, 15.0),
+       heading=st.floats(0.0, 360.0), tas=st.floats(35.0, 250.0))
+def test_nose_offset_is_the_angle_between_nose_and_air_velocity(roll, pitch, alpha, heading,
+                                                                  tas):
+    """Guards the heading's angle-of-attack offset (docs/joint.md, "Measurements"): the
+    offset that :func:`nose_offset` derives from attitude, pressure-altitude rate and airspeed
+    is the angle between the heading and the horizontal direction of the air velocity
+    C (cos a, 0, sin a) V, for any attitude inside the heading's gate (rotation computed
+    independently with :func:`body_to_ned_matrix`)."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.airdata import nose_offset
+    from flightrecon.geo.kinematics import body_to_ned_matrix
+
+    C = body_to_ned_matrix(roll, pitch, heading)[0]
+    a = np.radians(alpha)
+    v = C @ np.array([np.cos(a), 0.0, np.sin(a)]) * tas
+    want = np.angle(np.exp(1j * (np.radians(heading) - np.arctan2(v[1], v[0]))))
+    t = np.arange(0.0, 10.0, 0.0625)
+    n = len(t)
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                      attitude_deg=np.tile([roll, pitch, heading], (n, 1)),
+                      tas=np.full(n, tas), heading_rad=np.full(n, np.radians(heading)),
+                      baro_rel_m=100.0 - v[2] * t, gnss=pd.DataFrame(), radar=pd.DataFrame(),
+                      station=None, departure=None, arrival=None, liftoff_t=np.nan,
+                      touchdown_t=np.nan, field_h=0.0)
+    got = nose_offset(inp)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    # about a sin(roll): the nose points to the inside of the turn's air track by that much
+    assert abs(want - a * np.sin(np.radians(roll))) <= 0.1 * abs(a) + 1e-12
+
+
+def test_nose_offset_left_out_where_the_angle_of_attack_is_not_believable():
+    """Guards the offset's range (docs/joint.md, "Measurements"): a sink that the attitude
+    can only explain with an angle of attack of 30 deg (a stall) gives no offset."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.airdata import nose_offset
+
+    t = np.arange(0.0, 10.0, 0.0625)
+    n = len(t)
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                      attitude_deg=np.tile([20.0, 5.0, 90.0], (n, 1)), tas=np.full(n, 40.0),
+                      heading_rad=np.full(n, np.pi / 2), baro_rel_m=100.0 - 40.0 * 0.45 * t,
+                      gnss=pd.DataFrame(), radar=pd.DataFrame(), station=None, departure=None,
+                      arrival=None, liftoff_t=np.nan, touchdown_t=np.nan, field_h=0.0)
+    assert np.all(nose_offset(inp) == 0.0)
+
+
+def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
+    """Guards the runway rows' common error (docs/joint.md, "Measurements", on the ground):
+    a roll's track is off the runway by one angle for the whole roll (JSBSim: up to 1.7 deg,
+    the nose up to 3.3 deg), so with ``ground_slip_deg`` its m cross-track velocity rows each
+    carry m (s V)^2 on top of the white noise (V: the airspeed at lift-off), whatever the
+    iterate's velocity (the cost function must not move with the linearisation point); at the
+    default 0 the rows are the white noise alone."""
+    from dataclasses import replace
+
+    import pandas as pd
+
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.ground import runway_measurements
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+
+    assert JointSettings().noise.ground_slip_deg == 0.0
+    t = np.arange(0.0, 80.0, 0.25)
+    n = len(t)
+    tas = np.clip(1.5 * t, 0.0, 60.0)
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)), attitude_deg=np.tile([0, 0, 90.0], (n, 1)),
+                      tas=tas, heading_rad=np.full(n, np.pi / 2), baro_rel_m=np.zeros(n),
+                      gnss=pd.DataFrame(), radar=pd.DataFrame(), station=None,
+                      departure=(40.0, 20.0, 100.0), arrival=None, liftoff_t=30.0,
+                      touchdown_t=np.nan, field_h=100.0, runway_rad=(np.pi / 2, None))
+    base = JointSettings()
+    s = replace(base, noise=replace(base.noise, ground_slip_deg=1.5))
+    T = t[::4]
+    rows = []
+    for speed in (10.0, 40.0):
+        b = _MeasBuilder(T)
+        vnom = np.c_[np.zeros(len(T)), np.full(len(T), speed), np.zeros(len(T))]
+        pnom = np.zeros((len(T), 3))
+        runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                             pnom, vnom)
+        rows.append(b.parts[0])
+    ground = rows[0]
+    m = len(ground["t"])
+    assert m == 28   # 1 Hz, more than 2 s before lift-off
+    v_liftoff = 45.0
+    want = s.noise.ground_mps ** 2 + m * (np.radians(s.noise.ground_slip_deg) * v_liftoff) ** 2
+    np.testing.assert_allclose(ground["r"], want, rtol=1e-12)
+    np.testing.assert_array_equal(rows[1]["r"], ground["r"])
+    # the roll's information on a track angle: one angle's worth, not m of them
+    info = float(np.sum(v_liftoff ** 2 / ground["r"]))
+    assert info < 1.0 / np.radians(s.noise.ground_slip_deg) ** 2
+    b = _MeasBuilder(T)
+    runway_measurements(b, inp, base, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                         np.zeros((len(T), 3)), vnom)
+    np.testing.assert_array_equal(b.parts[0]["r"], base.noise.ground_mps ** 2)
 
 
 def test_implausible_sensor_error_is_named():

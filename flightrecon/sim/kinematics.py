@@ -75,3 +75,38 @@ def coordinated_roll_rad(a_ned_mps2, g_mps2, heading_rad, pitch_rad) -> np.ndarr
     f1y = -np.sin(heading_rad) * fn + np.cos(heading_rad) * fe
     f2z = np.sin(pitch_rad) * f1x + np.cos(pitch_rad) * fd
     return np.arctan2(f1y, -f2z)
+
+
+def attitude_from_air(heading_air_rad, gamma_rad, alpha_rad, a_ned_mps2, g_mps2
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heading, pitch and roll of a coordinated aircraft (no sideslip, n_lat = 0) whose air
+    velocity points along ``heading_air_rad`` (its horizontal direction) and ``gamma_rad`` (its
+    flight-path angle), at angle of attack ``alpha_rad``.
+
+    The wind axes: ``x_w`` along the air velocity, banked by ``mu`` about it so that the specific
+    force ``f = a_NED - [0, 0, g]`` has no component along ``y_w`` (``tan mu = -(f . y_h) /
+    (f . z_h)``, ``y_h`` the horizontal right, ``z_h = x_w x y_h``); the body axes are the wind
+    axes pitched up by alpha about ``y_w``: ``x_b = cos a x_w - sin a z_w``, ``y_b = y_w``,
+    ``z_b = sin a x_w + cos a z_w``, so that the air velocity in body axes is
+    ``V (cos a, 0, sin a)``.  In a bank the nose's horizontal direction is then off the air
+    velocity's by about ``alpha sin(roll)`` to the inside of the turn, and the pitch is
+    ``gamma + alpha cos(roll)`` rather than ``gamma + alpha``.
+    """
+    hx, g_ = np.asarray(heading_air_rad, float), np.asarray(gamma_rad, float)
+    al = np.asarray(alpha_rad, float)
+    cg = np.cos(g_)
+    x_w = np.column_stack([cg * np.cos(hx), cg * np.sin(hx), -np.sin(g_)])
+    y_h = np.column_stack([-np.sin(hx), np.cos(hx), np.zeros_like(hx)])
+    z_h = np.cross(x_w, y_h)
+    f = np.asarray(a_ned_mps2, float).copy()
+    f[:, 2] -= g_mps2
+    mu = np.arctan2(np.einsum("ij,ij->i", f, y_h), -np.einsum("ij,ij->i", f, z_h))
+    y_w = np.cos(mu)[:, None] * y_h + np.sin(mu)[:, None] * z_h
+    z_w = np.cross(x_w, y_w)
+    ca, sa = np.cos(al)[:, None], np.sin(al)[:, None]
+    x_b = ca * x_w - sa * z_w
+    z_b = sa * x_w + ca * z_w
+    heading = np.arctan2(x_b[:, 1], x_b[:, 0])
+    pitch = -np.arcsin(np.clip(x_b[:, 2], -1.0, 1.0))
+    roll = np.arctan2(y_w[:, 2], z_b[:, 2])
+    return heading, pitch, roll

@@ -15,10 +15,14 @@ Construction (docs/simulator.md, "Trajectory"; plans are built by
 * Position: ``dlat/dt = v_N / (M + h)``, ``dlon/dt = v_E / ((N + h) cos lat)`` (meridian and
   prime-vertical radii of curvature), classical RK4 with the velocity at half steps (compiled);
   ``h`` is the closed-form integral of ``v_u``.
-* Attitude: heading = air track (``track - drift``: air velocity + wind = ground velocity)
-  except near the ground, where a smooth crab weight blends it to the ground track (no crab on
-  the runway, de-crab in the flare); pitch = air flight-path angle + angle of attack; roll
-  coordinated (:func:`~flightrecon.sim.kinematics.coordinated_roll_rad`, n_lat = 0).
+* Attitude: the body axes of a coordinated aircraft (no sideslip, n_lat = 0) at the angle of
+  attack, about the air velocity (``track - drift``: air velocity + wind = ground velocity)
+  except near the ground, where a smooth crab weight blends its direction to the ground track
+  (no crab on the runway, de-crab in the flare)
+  (:func:`~flightrecon.sim.kinematics.attitude_from_air`): wings level, heading = that
+  direction and pitch = flight-path angle + angle of attack; in a bank the nose is off the air
+  track by about alpha sin(roll), to the inside of the turn (before 2026-12-02 the heading was
+  the air track and the pitch gamma + alpha in every bank, which no aircraft can fly).
 * Load factors from the kinematic acceleration, the attitude and normal gravity
   (:func:`~flightrecon.sim.kinematics.loads_from_acceleration`).  Earth-rate and transport-rate
   terms are not in the project's load-factor relation and are not simulated.
@@ -38,7 +42,7 @@ from flightrecon.geo.atmosphere import pressure_altitude_m
 from flightrecon.geo.frames import TangentPlane
 from flightrecon.geo.navframe import frame_rate_acceleration
 from flightrecon.geo.gravity import normal_gravity
-from flightrecon.sim.kinematics import coordinated_roll_rad, loads_from_acceleration
+from flightrecon.sim.kinematics import attitude_from_air, loads_from_acceleration
 from flightrecon.sim.profiles import SmoothProfile
 from flightrecon.sim.weather import Atmosphere, WindField
 
@@ -266,13 +270,14 @@ def simulate_truth(plan: FlightPlan, rate_hz: float, plane: TangentPlane) -> pd.
     v_for_alpha = np.maximum(tas, 0.6 * plan.alpha_ref_tas_mps)
     alpha = (plan.alpha_weight.value(t) * np.radians(plan.alpha_ref_deg)
              * (plan.alpha_ref_tas_mps / v_for_alpha) ** 2)
-    pitch = gamma + alpha
     g = normal_gravity(lat_deg, h_ell)
     # what the accelerometers sense: the velocity's rate less the frame's rotation (Coriolis
     # and transport rate: dv/dt = f + g - (2 omega_ie + omega_en) x v, docs/simulator.md)
     a_ned = np.column_stack([an, ae, -au]) - frame_rate_acceleration(
         lat_deg, h_ell, np.column_stack([vn, ve, -vu]))
-    roll = coordinated_roll_rad(a_ned, g, heading, pitch)
+    # the body axes: the air velocity's (crabbed on the ground) pitched up by alpha, banked
+    # for no sideslip; in a bank the nose is off the air track by about alpha sin(roll)
+    heading, pitch, roll = attitude_from_air(heading, gamma, alpha, a_ned, g)
     loads = loads_from_acceleration(a_ned, g, heading, pitch, roll)
 
     east, north, up = plane.forward(lat_deg, lon_deg, h_ell)

@@ -8,6 +8,12 @@ import numba as nb
 import numpy as np
 
 from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.airdata import nose_along_air, nose_offset
+from flightrecon.filters.joint.ground import (
+    decimate_mask,
+    on_ground_mask,
+    runway_measurements,
+)
 from flightrecon.filters.joint.inputs import (
     JointInputs,
     TakeoffRoll,
@@ -40,17 +46,6 @@ class Measurements:
     hrow: np.ndarray        # (M,) row of H, -1 where the measurement has none
     d: np.ndarray
     start: np.ndarray       # (N+1,)
-
-
-def _decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -> np.ndarray:
-    """True for the first sample of each 1/rate_hz bin, bins counted from ``origin`` (default
-    the first sample) (keeps each measurement used once)."""
-    if rate_hz <= 0:
-        return np.zeros(len(t), bool)
-    b = np.floor((t - (t[0] if origin is None else origin)) * rate_hz + 1e-9).astype(np.int64)
-    keep = np.ones(len(t), bool)
-    keep[1:] = b[1:] != b[:-1]
-    return keep
 
 
 def _per_fix(g, column: str, default: float) -> np.ndarray:
@@ -187,97 +182,6 @@ def wind_prior_measurements(inp: JointInputs, settings: JointSettings
     return t_in[i], wa[i, :2], sd, rho
 
 
-def _on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
-    """Input samples used for the ground constraints: before lift-off and after touchdown (2 s
-    margins), at the ground-constraint rate, with a heading."""
-    t_in = inp.t_in
-    on_ground = np.zeros(len(t_in), bool)
-    if np.isfinite(inp.liftoff_t):
-        on_ground |= t_in < inp.liftoff_t - 2.0
-    if np.isfinite(inp.touchdown_t):
-        on_ground |= t_in > inp.touchdown_t + 2.0
-    return on_ground & _decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
-
-
-def _runway_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
-                         step_of, pnom: np.ndarray, vnom: np.ndarray,
-                         psi_hat: np.ndarray | None = None) -> None:
-    """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
-    centreline through the airfield reference point.
-
-    The runway's direction is the airfield's ``runway_true_deg`` where the metadata give it
-    (then the ground roll ties the heading reference: the recorded heading minus the heading
-    bias must follow the runway). Otherwise it is the true heading, psi_rec - dpsi (the recorded
-    heading carries the heading bias): c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi
-    a(psi_rec) . v_nom, with c and a the cross- and along-runway unit vectors, linearised at
-    dpsi = 0 and the nominal (the neglected term is dpsi^2 / 2 of the along-track value: 3 mm/s
-    at 1 deg and 70 m/s). Taking the recorded heading as the runway's direction would tell the
-    smoother that the heading bias is zero. ``psi_hat`` (per state step) is the heading bias
-    of the last pass: the linearisation is about it, c(psi_rec - dpsi) . v ~ c(psi') . v +
-    (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec - psi_hat (exact at the solution
-    however large the bias).
-    """
-    nz = settings.noise
-    n = jl.N_STATE
-    t_in = inp.t_in
-    keep = _on_ground_mask(inp, settings)
-    if not keep.any():
-        return
-    for pos, side, rw in ((inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t)
-                                                   else -np.inf), inp.runway_rad[0]),
-                          (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t)
-                                                else np.inf), inp.runway_rad[1])):
-        sel = keep & side
-        if not sel.any():
-            continue
-        known = rw is not None
-        # the direction of the runway (only its line matters: a reversed direction is the same)
-        tt = t_in[sel]
-        k = step_of(tt)
-        ph = np.zeros(len(tt)) if known or psi_hat is None else psi_hat[k]
-        psi = np.full(int(sel.sum()), rw) if known else inp.heading_rad[sel] - ph
-        H = np.zeros((len(tt), n))
-        H[:, jl.IV] = -np.sin(psi)
-        H[:, jl.IV + 1] = np.cos(psi)
-        if not known:
-            H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
-        b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H,
-              -H[:, jl.IPSI] * ph)
-        if pos is None:
-            continue
-        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-        arp = np.array([float(ex), float(ey), float(ez)])
-        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
-        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
-        along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
-        H = np.zeros((len(tt), n))
-        H[:, jl.S_POS] = cross
-        if not known:
-            H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
-        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
-              -cross @ arp - H[:, jl.IPSI] * ph)
-
-
-def _nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndarray:
-    """Samples whose attitude lets the heading stand for the air velocity's direction.
-
-    The air velocity in body axes is V (cos a cos b, sin b, sin a cos b) (angle of attack a,
-    sideslip b); its horizontal direction differs from the heading by about a sin(roll) /
-    cos(pitch) plus the sideslip, a few degrees in a 30 deg bank, tens of degrees in a spiral
-    dive or a spin.  Kept: |roll| <= ``heading_max_roll_deg`` and |pitch| <=
-    ``heading_max_pitch_deg``, the angles of the body-to-NED rotation C = R_z R_y R_x of the
-    recorded attitude ``attitude_deg`` (Ni, 3): from its last row C[2] = (-sin(pitch),
-    sin(roll) cos(pitch), cos(roll) cos(pitch)), so that a roll of 190 deg counts as -170 deg
-    and a pitch of 100 deg (inverted) as 80 deg.
-    """
-    phi, theta = np.radians(attitude_deg[:, 0]), np.radians(attitude_deg[:, 1])
-    st, ct = np.sin(theta), np.cos(theta)
-    pitch = -np.arcsin(np.clip(-st, -1.0, 1.0))
-    roll = np.arctan2(np.sin(phi) * ct, np.cos(phi) * ct)
-    return ((np.abs(roll) <= np.radians(settings.heading_max_roll_deg))
-            & (np.abs(pitch) <= np.radians(settings.heading_max_pitch_deg)))
-
-
 def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
     """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
     recorded wind, the winds-aloft prior, pressure altitude, ground and runway constraints
@@ -290,26 +194,29 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # air data: airspeed and heading, decimated, airborne speeds only
     ok = (np.isfinite(inp.tas) & np.isfinite(inp.heading_rad)
           & (inp.tas >= settings.min_airspeed_mps))
-    keep = ok & _decimate_mask(t_in, settings.airdata_rate_hz)
+    keep = ok & decimate_mask(t_in, settings.airdata_rate_hz)
     # a first-order lag delays a ramp by its time constant: the airspeed recorded at t is the
     # airspeed at t - lag; sampled at the state steps plus the lag, so that it is used at a step
     lag = nz.airspeed_lag_s
-    keep_tas = ok & _decimate_mask(t_in, settings.airdata_rate_hz, t_in[0] + lag) if lag else keep
+    keep_tas = ok & decimate_mask(t_in, settings.airdata_rate_hz, t_in[0] + lag) if lag else keep
     b.add("air", jl.TAS, t_in[keep_tas] - lag, inp.tas[keep_tas], nz.tas_mps ** 2)
     # the heading is the air velocity's direction only in the air: on the runway the nose
     # follows the runway (a crosswind of 5 m/s at 40 m/s is 7 deg), and the crab is taken up
     # within seconds after lift-off and taken out in the flare; none within crab_s of them
-    air = keep & _nose_along_air(inp.attitude_deg, settings)
+    air = keep & nose_along_air(inp.attitude_deg, settings)
     if np.isfinite(inp.liftoff_t):
         air &= t_in > inp.liftoff_t + settings.crab_s
     if np.isfinite(inp.touchdown_t):
         air &= t_in < inp.touchdown_t - settings.crab_s
-    b.add("air", jl.HEADING, t_in[air], inp.heading_rad[air], np.radians(nz.heading_deg) ** 2,
+    psi = inp.heading_rad[air]
+    if settings.heading_attack_offset:
+        psi = psi - nose_offset(inp)[air]
+    b.add("air", jl.HEADING, t_in[air], psi, np.radians(nz.heading_deg) ** 2,
           d=inp.tas[air])   # d: the recorded airspeed (the cross-track gust's angle u_c / V)
     # Doppler ground speed and drift (track = heading + drift), at the air-data rate
     if inp.doppler_gs is not None:
         okd = np.isfinite(inp.doppler_gs) & (inp.doppler_gs >= settings.min_airspeed_mps)
-        okd &= _decimate_mask(t_in, settings.airdata_rate_hz)
+        okd &= decimate_mask(t_in, settings.airdata_rate_hz)
         b.add("doppler", jl.DOPPLER, t_in[okd], inp.doppler_gs[okd], nz.doppler_gs_mps ** 2)
         if inp.drift_rad is not None:
             okc = okd & np.isfinite(inp.drift_rad) & np.isfinite(inp.heading_rad)
@@ -317,7 +224,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
                   np.radians(nz.drift_deg) ** 2 + np.radians(nz.heading_deg) ** 2)
     # recorded (or forecast) wind, sparsely: its errors are correlated over minutes
     if inp.wind_ne is not None:
-        okw = np.isfinite(inp.wind_ne).all(axis=1) & _decimate_mask(t_in, settings.wind_rate_hz)
+        okw = np.isfinite(inp.wind_ne).all(axis=1) & decimate_mask(t_in, settings.wind_rate_hz)
         for i in range(2):
             H = np.zeros((int(okw.sum()), n))
             H[:, jl.IW + i] = 1.0
@@ -329,11 +236,11 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
         H[:, jl.IW + i] = 1.0
         b.add("wind_aloft", jl.LINEAR, tw, ww[:, i], sdw ** 2, H)
     # pressure altitude
-    okb = np.isfinite(inp.baro_rel_m) & _decimate_mask(t_in, settings.baro_rate_hz)
+    okb = np.isfinite(inp.baro_rel_m) & decimate_mask(t_in, settings.baro_rate_hz)
     b.add("baro", jl.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
     # on the ground: zero vertical velocity (the cross-track constraints depend on the heading
     # bias and the nominal, see build_measurements)
-    keep = _on_ground_mask(inp, settings)
+    keep = on_ground_mask(inp, settings)
     if keep.any():
         tt = t_in[keep]
         H = np.zeros((len(tt), n))
@@ -376,7 +283,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         _add_ned_components(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
                         "pos", np.c_[ex, ey, ez])
     if pnom is not None and vnom is not None:
-        _runway_measurements(b, inp, settings, lambda t: _nearest(T, t), pnom, vnom, psi_hat)
+        runway_measurements(b, inp, settings, lambda t: _nearest(T, t), pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -394,7 +301,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     r0, r1 = roll.rest_t
     if np.isfinite(r0):
         t_in = inp.t_in
-        tt = t_in[_on_ground_mask(inp, settings) & (t_in >= r0) & (t_in <= r1)]
+        tt = t_in[on_ground_mask(inp, settings) & (t_in >= r0) & (t_in <= r1)]
         for i in range(2):
             H = np.zeros((len(tt), jl.N_STATE))
             H[:, jl.IV + i] = 1.0

@@ -60,6 +60,9 @@ class JointNoise:
     roll_start_sd_m: float = 100.0           # start of the take-off roll vs the threshold
     ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
     runway_halfwidth_m: float = 25.0         # cross-track offset from the runway centreline
+    ground_slip_deg: float = 0.0             # track vs runway on a roll (steering, tyre slip,
+    #                                          crosswind): one error for the whole roll (0: off;
+    #                                          measured on JSBSim, docs/jsbsim.md)
     doppler_gs_mps: float = 0.5              # Doppler ground-speed noise (used at airdata rate)
     drift_deg: float = 0.3                   # drift-angle noise
     doppler_scale: float = 0.02              # prior of the Doppler scale error
@@ -103,6 +106,9 @@ class JointSettings:
     heading_max_roll_deg: float = 45.0       # no air-data heading beyond these attitudes: the
     heading_max_pitch_deg: float = 30.0      # nose is then not along the air velocity (angle of
     #                                          attack times sin(roll), a spin's sideslip)
+    heading_attack_offset: bool = True       # the heading measures the nose: take out the angle
+    #                                          between it and the air velocity that the angle of
+    #                                          attack makes in a bank (airdata.nose_offset)
     iterations: int = 50                     # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
