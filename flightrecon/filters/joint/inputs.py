@@ -94,7 +94,7 @@ class JointInputs:
     fixes: np.ndarray | None = None
     wind_aloft: np.ndarray | None = None
 
-    def body_to_ned(self, i: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def body_to_ned(self, i: int | np.ndarray | slice = slice(None)) -> np.ndarray:
         """Body-to-NED rotations C = R_z(heading) R_y(pitch) R_x(roll) of the input samples
         ``i`` (all by default), shape (len(i), 3, 3), or (3, 3) for one sample
         (:func:`flightrecon.geo.body_to_ned_matrix`)."""
