@@ -15,13 +15,13 @@ def nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndar
 
     The air velocity in body axes is V (cos a cos b, sin b, sin a cos b) (angle of attack a,
     sideslip b); its horizontal direction differs from the heading by about a sin(roll) /
-    cos(pitch) plus the sideslip: a few degrees in a 30 deg bank (the part :func:`nose_offset`
-    takes out), tens of degrees in a spiral dive or a spin, where neither the offset's
-    no-sideslip geometry nor the pitot holds.  Kept: |roll| <= ``heading_max_roll_deg`` and |pitch| <=
-    ``heading_max_pitch_deg``, the angles of the body-to-NED rotation C = R_z R_y R_x of the
-    recorded attitude ``attitude_deg`` (Ni, 3): from its last row C[2] = (-sin(pitch),
-    sin(roll) cos(pitch), cos(roll) cos(pitch)), so that a roll of 190 deg counts as -170 deg
-    and a pitch of 100 deg (inverted) as 80 deg.
+    cos(pitch) plus the sideslip: a few degrees in a 30 deg bank (the part
+    :func:`nose_offset` takes out), tens of degrees in a spiral dive or a spin, where neither
+    the offset's no-sideslip geometry nor the pitot holds.  Kept: |roll| <=
+    ``heading_max_roll_deg`` and |pitch| <= ``heading_max_pitch_deg``, the angles of the
+    body-to-NED rotation C = R_z R_y R_x of the recorded attitude ``attitude_deg`` (Ni, 3),
+    from its last row C[2] = (-sin(pitch), sin(roll) cos(pitch), cos(roll) cos(pitch)): a
+    roll of 190 deg counts as -170 deg and a pitch of 100 deg (inverted) as 80 deg.
     """
     phi, theta = np.radians(attitude_deg[:, 0]), np.radians(attitude_deg[:, 1])
     st, ct = np.sin(theta), np.cos(theta)
