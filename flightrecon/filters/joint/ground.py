@@ -60,12 +60,11 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
     corrections and a drift across the runway, the tyres' slip angles in a crosswind, a crab
     kept after touchdown): an angle ``ground_slip_deg`` (sd) common to the whole roll, not a
     noise that averages out over its samples.  Each of a roll's ``m`` cross-track velocity rows
-    carries it as the extra variance ``m (s x)^2`` (x: the roll's fastest speed,
-    :func:`roll_speed`: from the data, not the iterate, so that the cost function stays the same
-    from pass to pass), and where the direction is the heading so do the centreline rows (x:
-    the distance along the runway from the reference point), so that the roll as a whole
-    tells the heading bias no more than one such angle's worth (``s^2`` against ``s^2 / m``
-    for independent errors).  JSBSim's rolls
+    carries it as the extra variance ``m (s V)^2`` (V: the roll's fastest speed,
+    :func:`roll_speed`, from the data and not the iterate, so that the cost function stays the
+    same from pass to pass), so that the roll's velocity rows tell the heading bias no more
+    than one such angle's worth (``s^2`` against ``s^2 / m`` for independent errors).  The
+    centreline rows keep their half-width (25 m: 1.4 deg over 1000 m of roll).  JSBSim's rolls
     run up to 1.7 deg off the runway with the nose up to 3.3 deg off it, and without this the
     heading bias follows the nose's angle on the take-off roll; with it the cross-country
     flights lost more than the upsets gained, so the default is 0 (docs/jsbsim.md).
@@ -107,11 +106,9 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
         H = np.zeros((len(tt), n))
         H[:, jl.S_POS] = cross
-        r_p = np.full(len(tt), nz.runway_halfwidth_m ** 2)
         if not known:
             H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
-            r_p = r_p + len(tt) * (slip * H[:, jl.IPSI]) ** 2
-        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_p, H,
+        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
               -cross @ arp - H[:, jl.IPSI] * ph)
 
 
