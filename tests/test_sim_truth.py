@@ -375,3 +375,41 @@ def test_circuit_length_and_touchdown_dispersion():
         # planned point, in calm air as well (seed 4: 262 m for a drawn 272 m, 17 m off the
         # centre line; the smoother's runway prior is 25 m across)
         assert along == pytest.approx(dist, abs=25.0) and abs(cross) < 25.0
+
+
+def test_attitude_from_air_is_coordinated_at_its_angle_of_attack():
+    """Guards the point-mass simulator's attitude (docs/simulator.md): for any air-velocity
+    direction, angle of attack and specific force, the body axes of ``attitude_from_air`` have
+    no lateral load (n_lat = 0), put the air velocity at (cos a, 0, sin a) in body axes, and
+    at a = 0 are the air velocity's own direction (heading, pitch = flight-path angle) with
+    the coordinated roll, tan(roll) = V psi_dot / g in a level turn."""
+    from flightrecon.sim.kinematics import (
+        attitude_from_air,
+        dcm_body_to_ned,
+        loads_from_acceleration,
+    )
+
+    rng = np.random.default_rng(7)
+    n = 300
+    hx, gam = rng.uniform(-3.0, 3.0, n), rng.uniform(-0.2, 0.2, n)
+    alpha = rng.uniform(-0.05, 0.25, n)
+    a = rng.normal(0.0, 3.0, (n, 3))
+    psi, th, ph = attitude_from_air(hx, gam, alpha, a, 9.81)
+    assert np.max(np.abs(loads_from_acceleration(a, 9.81, psi, th, ph)[:, 1])) < 1e-12
+    v = np.einsum("nij,nj->ni", dcm_body_to_ned(psi, th, ph),
+                  np.c_[np.cos(alpha), np.zeros(n), np.sin(alpha)])
+    np.testing.assert_allclose(np.angle(np.exp(1j * (np.arctan2(v[:, 1], v[:, 0]) - hx))), 0.0,
+                               atol=1e-12)
+    np.testing.assert_allclose(-np.arcsin(v[:, 2]), gam, atol=1e-12)
+    # a level turn at 60 m/s and 3 deg/s, no angle of attack: heading along the air velocity,
+    # tan(roll) = V psi_dot / g
+    V, w = 60.0, np.radians(3.0)
+    psi0, th0, ph0 = attitude_from_air(np.array([0.3]), np.zeros(1), np.zeros(1),
+                                       np.array([[-V * w * np.sin(0.3), V * w * np.cos(0.3), 0.0]]),
+                                       9.81)
+    assert psi0[0] == pytest.approx(0.3, abs=1e-12) and th0[0] == pytest.approx(0.0, abs=1e-12)
+    assert np.tan(ph0[0]) == pytest.approx(V * w / 9.81, rel=1e-12)
+    # and at a = 0 in general the roll is coordinated_roll_rad's
+    _, _, ph_c = attitude_from_air(hx, gam, np.zeros(n), a, 9.81)
+    d = ph_c - coordinated_roll_rad(a, 9.81, hx, gam)
+    np.testing.assert_allclose(np.angle(np.exp(1j * d)), 0.0, atol=1e-12)

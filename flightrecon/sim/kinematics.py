@@ -17,6 +17,7 @@ from flightrecon.constants import G0
 
 __all__ = [
     "acceleration_from_loads",
+    "attitude_from_air",
     "coordinated_roll_rad",
     "dcm_body_to_ned",
     "loads_from_acceleration",
@@ -90,7 +91,8 @@ def attitude_from_air(heading_air_rad, gamma_rad, alpha_rad, a_ned_mps2, g_mps2
     ``z_b = sin a x_w + cos a z_w``, so that the air velocity in body axes is
     ``V (cos a, 0, sin a)``.  In a bank the nose's horizontal direction is then off the air
     velocity's by about ``alpha sin(roll)`` to the inside of the turn, and the pitch is
-    ``gamma + alpha cos(roll)`` rather than ``gamma + alpha``.
+    ``gamma + alpha cos(roll)`` rather than ``gamma + alpha``.  At alpha = 0 the roll is
+    :func:`coordinated_roll_rad`'s.
     """
     hx, g_ = np.asarray(heading_air_rad, float), np.asarray(gamma_rad, float)
     al = np.asarray(alpha_rad, float)
