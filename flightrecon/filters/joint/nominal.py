@@ -96,10 +96,13 @@ def _attitude_step_means(Cnb, fb, idx):
                 S_m[k, r, 2] += c2 * f2
                 J_m[k, r, 0] += c0 * r0 + c1 * r1 + c2 * r2
                 J_m[k, r, 1] += c0 * p0 + c1 * p1 + c2 * p2
-        if cnt > 0:
-            C_m[k] /= cnt
-            S_m[k] /= cnt
-            J_m[k] /= cnt
+        if cnt > 0:  # element loops, not C_m[k] /= cnt: no shape-check path to compile
+            for r in range(3):
+                for c in range(3):
+                    C_m[k, r, c] /= cnt
+                    S_m[k, r, c] /= cnt
+                for c in range(2):
+                    J_m[k, r, c] /= cnt
     return C_m, S_m, J_m
 
 

@@ -109,7 +109,8 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
                     x[IP + i] += Cen[k - 1, i, m] * dP[k, m]
                 x[IV + i] += dV[k, i]
             add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga)
-        xp[k] = x
+        for i in range(n):  # element loop, not xp[k] = x: no shape-check path to compile
+            xp[k, i] = x[i]
         if Pp.shape[0] > 0:
             pack_sym(P, Pp[k])
         for j in range(mstart[k], mstart[k + 1]):
@@ -156,7 +157,8 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
             # scalar update with K = PH / S, in place, O(n^2): the short form P - PH PH^T / S
             # (not the Joseph form, which it equals only at this optimal gain, to rounding)
             scalar_update_short(x, P, PH, nu, S)
-        xf[k] = x
+        for i in range(n):
+            xf[k, i] = x[i]
         pack_sym(P, Pf[k])
     return nu_out, s_out, infl
 

@@ -184,8 +184,10 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
     dxb = np.zeros(n)
     c = np.zeros(3)
     for k in range(N):
-        xp[k] = x
-        Pp[k] = P
+        for i in range(n):  # element loops, not xp[k] = x: no shape-check path to compile
+            xp[k, i] = x[i]
+            for j in range(n):
+                Pp[k, i, j] = P[i, j]
         for j in range(3):
             c[j] = x[2 + j]
         # ---- fixes taken during step k: stacked observation
@@ -241,8 +243,10 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
                 xplus[i] = x[i]
                 for j in range(n):
                     Pplus[i, j] = P[i, j]
-        xs[k] = xplus
-        Ps[k] = Pplus
+        for i in range(n):
+            xs[k, i] = xplus[i]
+            for j in range(n):
+                Ps[k, i, j] = Pplus[i, j]
         if k == N - 1:
             break
         # ---- prediction to k+1 with the corrected readings of step k
