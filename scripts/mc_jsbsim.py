@@ -145,7 +145,15 @@ def _monotone(r: dict) -> bool | None:
     return bool(ok)
 
 
+def _flown(rows: list[dict]) -> list[dict]:
+    """The runs whose truth the simulator accepted (a run with ``sim_error`` has none: the
+    autopilot lost the aircraft, or JSBSim's ground model overturned it before take-off)."""
+    return [r for r in rows if "sim_error" not in r]
+
+
 def summarise(rows: list[dict]) -> str:
+    rejected = [r for r in rows if "sim_error" in r]
+    rows = _flown(rows)
     lines = [("| scenario | runs | joint converged | joint RMS [m] (median) | DR + linear [m] | "
              "DR [m] | Sabziev [m] | joint / DR+linear (geo. mean) | joint < DR+linear | "
              "NEES north | NEES east | 95 % band | cost non-increasing |"),
@@ -211,6 +219,10 @@ def summarise(rows: list[dict]) -> str:
             f"{f0(_rms(r, 'dr_linear'))} | {f0(_rms(r, 'dr'))} | {sab_s} | {nees} | "
             f"{hb_s} / {r.get('heading_bias_truth_deg', float('nan')):+.2f} | "
             f"{(r.get('joint_stop_reason') or '-').split(':')[0]} |")
+    if rejected:
+        lines += ["", "Seeds without a flight (the simulator refused its truth; not counted "
+                  "above):", ""]
+        lines += [f"* {r['scenario']} {r['seed']}: {r['sim_error']}" for r in rejected]
     return "\n".join(lines) + "\n"
 
 
@@ -237,8 +249,8 @@ def compare(before: list[dict], after: list[dict]) -> str:
              "joint < DR+lin | NEES n / e | cost non-increasing |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for sc in SCENARIOS:
-        a = {r["seed"]: r for r in after if r["scenario"] == sc}
-        b = {r["seed"]: r for r in before if r["scenario"] == sc}
+        a = {r["seed"]: r for r in _flown(after) if r["scenario"] == sc}
+        b = {r["seed"]: r for r in _flown(before) if r["scenario"] == sc}
         seeds = sorted(set(a) & set(b))
         if not seeds:
             continue

@@ -128,3 +128,22 @@ def test_filled_equals_pandas_interpolation():
             np.testing.assert_array_equal(_filled(grid, "a"), ref)
             np.testing.assert_array_equal(grid["a"].to_numpy(), x)  # input unchanged
     assert _filled(pd.DataFrame({"a": [1.0]}), "b") is None
+
+
+def test_climb_onset_is_the_first_sustained_climb():
+    """Guards the lift-off rule against a climb that pauses in ground effect (JSBSim's Cessna,
+    seed 5104: 0.6 m/s seven seconds after lift-off): the *last* crossing of the threshold put
+    the lift-off there, 7 s late. The onset is the first stretch above it that lasts the hold
+    time or runs to the end (certainly airborne); a shorter excursion (ground noise) is not."""
+    from flightrecon.cleaning.phases import _climb_onset
+
+    dt = 0.0625
+    t = np.arange(0.0, 20.0, dt)
+    v = np.where(t < 5.0, 0.0, 1.5)                      # climb from 5 s ...
+    v = np.where((t >= 11.0) & (t < 12.0), 0.5, v)       # ... pausing below 0.6 m/s at 11 s
+    v = np.where((t >= 2.0) & (t < 3.0), 0.8, v)         # a 1 s excursion on the ground
+    n_hold = int(round(3.0 / dt))
+    assert t[_climb_onset(v, 0.6, n_hold)] == pytest.approx(5.0)
+    # a stretch shorter than the hold counts when it runs to the end of the window
+    assert t[_climb_onset(v[: int(round(6.0 / dt))], 0.6, n_hold)] == pytest.approx(5.0)
+    assert _climb_onset(np.zeros(50), 0.6, n_hold) == -1

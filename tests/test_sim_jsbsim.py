@@ -206,3 +206,30 @@ def test_runway_coordinates_round_trip():
     lat, lon = rw.point(1234.0, -56.0)
     along, cross = rw.coords(lat, lon)
     assert along == pytest.approx(1234.0, abs=0.5) and cross == pytest.approx(-56.0, abs=0.5)
+
+
+def test_lift_off_and_line_up_of_every_airframe(flights):
+    """Guards the phase detector on aircraft that lift off below its 30 m/s "possibly flying"
+    airspeed (the Cessna at 26-30 m/s): it searched for the lift-off only from the first 30 m/s
+    sample, after the real one, and put it 7.6 s late on these flights; the runway heading,
+    taken from the 2 s after that sample, was the airborne crab's, so the line-up came after
+    the lift-off and the joint smoother lost its take-off roll (the departure fell back to the
+    airfield reference at 1500 m). The detector now searches from the last sample below
+    15 m/s. Bound 1.5 s: the knee rule's spread on these flights (-0.9 to +0.9 s, 34 JSBSim
+    flights in docs/jsbsim.md)."""
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.types import Flight
+
+    for name, r in flights.items():
+        clean = clean_flight(Flight(data=r.log, meta=r.meta))
+        truth_lo = r.sensor_truth["events"]["liftoff_t_s"]
+        assert abs(clean.phases.liftoff_t_s - truth_lo) < 1.5, name
+        assert clean.phases.lineup_t_s < truth_lo - 10.0, name   # lined up before the roll
+
+
+def test_an_aircraft_overturned_on_the_ground_is_refused():
+    """Guards the truth itself: on this seed JSBSim's ground reactions tip the Cessna over at
+    rest in a gusty wind (roll 180 deg) and then launch it upwards at 48 m/s. Such a record is
+    not a flight; it was counted as one in the Monte Carlo tables (the joint's 5.7 km)."""
+    with pytest.raises(ValidationError, match="overturned"):
+        simulate("jsbsim-spin", 5406, scale=0.1)

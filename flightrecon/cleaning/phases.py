@@ -6,17 +6,21 @@ the vertical kinematic acceleration ``a_up = -a_D`` from the load factors and at
 (the wheel reaction is part of the measured specific force) and departs from zero when the
 wheels leave or meet the runway:
 
-* On the ground / possibly flying: airspeed below / above ``airborne_speed_mps`` (30 m/s).
+* On the ground / possibly flying: airspeed below / above ``airborne_speed_mps`` (30 m/s);
+  certainly on the ground below ``rolling_speed_mps`` (15 m/s, below any aircraft's lift-off
+  speed: a Cessna 172 lifts off at 26-30 m/s).  The take-off run is searched from its last
+  sample below 15 m/s, before the first at or above 30 m/s.
   The record *starts airborne* (*ends airborne*) when the airspeed over its first (last)
   second is above it.
 * Field level: median pressure altitude over ``ground_window_s`` (20 s) of slow ground run
   before the take-off run (after the landing run).  *Certainly airborne*: more than
   ``airborne_height_m`` (15 m) above field level.
 * Lift-off: the vertical velocity ``v_up`` is integrated from ``a_up`` (minus its mean over the
-  ground window, the accelerometer/attitude bias) from the start of the fast ground run, with
-  ``v_up = 0`` there; a linear drift fitted on the ground part is removed; lift-off is the knee
-  of ``v_up`` (the point farthest below the chord) in the 6 s before ``v_up`` finally exceeds
-  0.6 m/s.
+  ground window, the accelerometer/attitude bias) from the take-off run's last sample below
+  15 m/s, with ``v_up = 0`` there; a linear drift fitted on the ground part is removed;
+  lift-off is the knee of ``v_up`` (the point farthest below the chord) in the 6 s before
+  ``v_up`` exceeds 0.6 m/s for ``climb_hold_s`` (3 s) or until certainly airborne (not its
+  last crossing: a light aircraft can pause in ground effect after lift-off).
 * Touchdown: between the last time the aircraft is certainly airborne and the end of the fast
   landing run, ``a_up`` is smoothed (0.5 s running mean); its quiet level and noise are taken
   from the last ``ground_window_s`` of the fast landing run; touchdown is the falling
@@ -27,7 +31,8 @@ wheels leave or meet the runway:
   run was tried first: over 30-40 s of landing run the integrated noise and speed-dependent
   bias reach 0.3 m/s, the size of a gentle sink rate.)  The report says which rule was used.
 * Taxi and take-off roll (a record that starts at the gate): the runway heading is the circular
-  mean heading over the first 2 s of the fast ground run (airspeed above ``airborne_speed_mps``);
+  mean heading over the 2 s after the take-off run's last sample below ``rolling_speed_mps``
+  (on the ground: after lift-off the aircraft crabs into the crosswind);
   the *line-up* is the start of the last stretch before it whose heading stays within
   ``lineup_deg`` (10 deg) of the runway heading: everything before is taxi (turns onto and
   along taxiways), never "at rest on the runway".  Within the lined-up stretch the ground speed
@@ -69,10 +74,13 @@ class PhaseSettings:
     Attributes
     ----------
     airborne_speed_mps : airspeed below which the aircraft is on the ground [m/s]
+    rolling_speed_mps : airspeed below which the aircraft is certainly on the ground (below
+        any aircraft's lift-off speed): where the take-off run is searched for lift-off [m/s]
     airborne_height_m : pressure height above field level that proves flight [m]
     ground_window_s : ground stretch used for field level and accelerometer bias [s]
     roll_fit_s : end of the ground run used for the lift-off velocity [s]
     v_up_high_mps : vertical speed that proves the climb has begun [m/s]
+    climb_hold_s : for at least this long (or until certainly airborne) [s]
     knee_window_s : window before that crossing searched for the lift-off knee [s]
     sink_mps : vertical speed below which the aircraft is still descending [m/s]
     td_smooth_s : running mean applied to the vertical acceleration at touchdown [s]
@@ -82,10 +90,12 @@ class PhaseSettings:
     """
 
     airborne_speed_mps: float = 30.0
+    rolling_speed_mps: float = 15.0
     airborne_height_m: float = 15.0
     ground_window_s: float = 20.0
     roll_fit_s: float = 10.0
     v_up_high_mps: float = 0.6
+    climb_hold_s: float = 3.0
     knee_window_s: float = 6.0
     sink_mps: float = 0.2
     td_smooth_s: float = 0.5
@@ -127,54 +137,80 @@ def _cumint(a: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
-def _liftoff(t, dt, speed, baro, accel, s: PhaseSettings, rep: list) -> tuple[float, int, int]:
-    """Lift-off time, its index and the index where the fast ground run starts (or NaN, -1).
+def _take_off_run(speed: np.ndarray, s: PhaseSettings) -> tuple[int, int]:
+    """``(i_run, i_fast)``: the last sample below ``rolling_speed_mps`` before the first at or
+    above ``airborne_speed_mps`` (where the take-off run is certainly still on the ground), and
+    that first fast sample; ``(-1, -1)`` where the airspeed never reaches the latter.
 
-    ``accel(lo, hi)`` is the kinematic acceleration NED on grid rows ``lo:hi``."""
+    A light aircraft lifts off below 30 m/s (a Cessna 172 at 26-30 m/s): the fast run's start
+    can be after the lift-off, so the lift-off, the runway heading and the line-up are looked
+    for from ``i_run``, which is on the ground for any aircraft."""
     fast = np.flatnonzero(speed >= s.airborne_speed_mps)
     if len(fast) == 0:
+        return -1, -1
+    i_fast = int(fast[0])
+    slow = np.flatnonzero(speed[:i_fast + 1] < s.rolling_speed_mps)
+    return (int(slow[-1]) if len(slow) else 0), i_fast
+
+
+def _climb_onset(v: np.ndarray, thr: float, n_hold: int) -> int:
+    """First sample of the first stretch of ``v >= thr`` lasting ``n_hold`` samples or running
+    to the end of ``v`` (certainly airborne there), -1 if none; not the last upward crossing,
+    which a light aircraft's pause in ground effect after lift-off made 5-7 s late."""
+    above = np.r_[v >= thr, np.ones(n_hold, dtype=bool)]
+    c = np.r_[0, np.cumsum(above)]
+    ok = np.flatnonzero(c[n_hold:n_hold + len(v)] - c[:len(v)] == n_hold)
+    return int(ok[0]) if len(ok) else -1
+
+
+def _liftoff(t, dt, speed, baro, accel, s: PhaseSettings, rep: list) -> tuple[float, int, int]:
+    """Lift-off time, its index and the index where the take-off run starts (the last sample
+    below ``rolling_speed_mps``, :func:`_take_off_run`), or NaN, -1.
+
+    ``accel(lo, hi)`` is the kinematic acceleration NED on grid rows ``lo:hi``."""
+    i_run, i_fast = _take_off_run(speed, s)
+    if i_fast < 0:
         rep.append(report_entry("phases", "no_liftoff", "airspeed never reaches "
                                 f"{s.airborne_speed_mps:g} m/s", count=0))
         return float("nan"), -1, -1
-    i_fast = int(fast[0])
     ng = max(int(round(s.ground_window_s / dt)), 1)
-    i_b0 = max(i_fast - ng, 0)
-    h_dep = float(np.median(baro[i_b0:i_fast + 1]))
+    i_b0 = max(i_run - ng, 0)
+    h_dep = float(np.median(baro[i_b0:i_run + 1]))
     high = np.flatnonzero((baro[i_fast:] - h_dep) > s.airborne_height_m)
     if len(high) == 0:
         rep.append(report_entry("phases", "no_liftoff", f"pressure altitude never "
                                 f"{s.airborne_height_m:g} m above field level after the "
                                 "take-off run (rejected take-off or ground run only)", count=0))
-        return float("nan"), -1, i_fast
+        return float("nan"), -1, i_run
     i_air = i_fast + int(high[0])
     a_up = -accel(i_b0, i_air + 1)[:, 2]  # rows i_b0 .. i_air
-    bias = float(np.mean(a_up[:i_fast + 1 - i_b0]))
-    v = _cumint(a_up[i_fast - i_b0:] - bias, dt)
-    tt = t[i_fast:i_air + 1]
-    below = np.flatnonzero(v < s.v_up_high_mps)
-    i_hi = int(below[-1]) + 1 if len(below) else 0
+    bias = float(np.mean(a_up[:i_run + 1 - i_b0]))
+    v = _cumint(a_up[i_run - i_b0:] - bias, dt)
+    tt = t[i_run:i_air + 1]
+    n_hold = max(int(round(s.climb_hold_s / dt)), 1)
+    i_hi = max(_climb_onset(v, s.v_up_high_mps, n_hold), 0)
     # remove a linear drift fitted on the ground part (up to 2 s before the climb is certain)
     i_g = max(i_hi - int(round(2.0 / dt)), 0)
     if i_g >= 10:
         coef = np.polyfit(tt[:i_g] - tt[0], v[:i_g], 1)
         v = v - np.polyval(coef, tt - tt[0])
-    below_hi = np.flatnonzero(v < s.v_up_high_mps)
-    if len(below_hi) == 0 or below_hi[-1] + 1 >= len(v):
-        t_lo = float(tt[0])
+    j_hi = _climb_onset(v, s.v_up_high_mps, n_hold)
+    if j_hi <= 0:
+        t_lo = float(t[i_fast])
         method = "start of the fast ground run (vertical speed never crosses the threshold)"
     else:
-        j_hi = int(below_hi[-1]) + 1  # first sample of the final climb above the threshold
         j_w = max(j_hi - int(round(s.knee_window_s / dt)), 0)
         seg_t, seg_v = tt[j_w:j_hi + 1], v[j_w:j_hi + 1]
         chord = seg_v[0] + (seg_v[-1] - seg_v[0]) * (seg_t - seg_t[0]) / max(seg_t[-1] - seg_t[0],
                                                                             dt)
         t_lo = float(seg_t[int(np.argmax(chord - seg_v))])
         method = (f"vertical speed from the loads: knee (largest distance below the chord) in the "
-                  f"{s.knee_window_s:g} s before it exceeds {s.v_up_high_mps:g} m/s")
+                  f"{s.knee_window_s:g} s before it exceeds {s.v_up_high_mps:g} m/s for "
+                  f"{s.climb_hold_s:g} s")
     i_lo = int(np.clip(np.searchsorted(t, t_lo), 0, len(t) - 1))
     rep.append(report_entry("phases", "liftoff", method, count=1, t_s=[t_lo],
                             field_pressure_alt_m=h_dep))
-    return t_lo, i_lo, i_fast
+    return t_lo, i_lo, i_run
 
 
 def speed_integrated_back(a_along: np.ndarray, dt: np.ndarray | float, v_end: float
@@ -187,17 +223,21 @@ def speed_integrated_back(a_along: np.ndarray, dt: np.ndarray | float, v_end: fl
     return v_end - np.r_[np.cumsum(dv[::-1])[::-1], 0.0]
 
 
-def _lineup_and_roll(t, dt, speed, hdg, accel, i_fast: int, s: PhaseSettings, rep: list
+def _lineup_and_roll(t, dt, speed, hdg, accel, i_run: int, s: PhaseSettings, rep: list
                      ) -> tuple[float, float]:
-    """Line-up time and roll-start time before the fast ground run starting at ``i_fast``
-    (module docstring, "Taxi and take-off roll"); NaN each where undecidable."""
-    if hdg is None or i_fast <= 0:
+    """Line-up time and roll-start time before the take-off run that starts at ``i_run``
+    (:func:`_take_off_run`; module docstring, "Taxi and take-off roll"); NaN each where
+    undecidable.  The runway heading is taken on the ground, from ``i_run``: after lift-off
+    the aircraft crabs into the crosswind (10 deg and more for a light aircraft), which would
+    put the line-up after the roll."""
+    if hdg is None or i_run <= 0:
         return float("nan"), float("nan")
     n2 = max(int(round(2.0 / dt)), 1)
     psi = np.radians(hdg)
-    w = psi[i_fast:i_fast + n2]
+    w = psi[i_run:i_run + n2]
     psi_rw = float(np.arctan2(np.mean(np.sin(w)), np.mean(np.cos(w))))
-    off = np.degrees(np.abs(np.angle(np.exp(1j * (psi[:i_fast + 1] - psi_rw)))))
+    off = np.degrees(np.abs(np.angle(np.exp(1j * (psi[:i_run + 1] - psi_rw)))))
+    i_fast = int(np.flatnonzero(speed[i_run:] >= s.airborne_speed_mps)[0]) + i_run
     out = np.flatnonzero(off > s.lineup_deg)
     i_lu = int(out[-1]) + 1 if len(out) else 0
     a_ned = accel(i_lu, i_fast + 1)
@@ -351,13 +391,13 @@ def _touchdown(t, dt, speed, baro, accel, i_from: int, s: PhaseSettings, rep: li
     return t_td
 
 
-def _liftoff_velocity(filled, t, dt, i_lo, i_fast, accel, s: PhaseSettings, rep: list
+def _liftoff_velocity(filled, t, dt, i_lo, i_first, accel, s: PhaseSettings, rep: list
                       ) -> tuple[float, float, float]:
     tas = filled("tas_mps")
     hdg = filled("heading_deg")
     if tas is None or hdg is None or i_lo <= 0:
         return _NAN3
-    i0 = max(i_lo - int(round(s.roll_fit_s / dt)), i_fast, 0)
+    i0 = max(i_lo - int(round(s.roll_fit_s / dt)), i_first, 0)
     if i_lo - i0 < 2:
         i0 = max(i_lo - 2, 0)
     psi = np.radians(float(np.mean(hdg[i0:i_lo + 1])))
@@ -431,14 +471,14 @@ def detect_phases_with_report(grid: pd.DataFrame, settings: PhaseSettings = Phas
         return kinematic_acceleration_ned(*(c[lo:hi] for c in cols), lat_deg=lat_deg,
                                           h_m=baro[lo:hi])
 
-    t_lo, i_lo, i_fast, vel = float("nan"), -1, -1, _NAN3
+    t_lo, i_lo, i_run, vel = float("nan"), -1, -1, _NAN3
     t_lu = t_rs = float("nan")
     if not starts_air:
-        t_lo, i_lo, i_fast = _liftoff(t, dt, speed, baro, accel, settings, rep)
+        t_lo, i_lo, i_run = _liftoff(t, dt, speed, baro, accel, settings, rep)
         if np.isfinite(t_lo):
-            t_lu, t_rs = _lineup_and_roll(t, dt, speed, filled("heading_deg"), accel, i_fast,
+            t_lu, t_rs = _lineup_and_roll(t, dt, speed, filled("heading_deg"), accel, i_run,
                                           settings, rep)
-            vel = _liftoff_velocity(filled, t, dt, i_lo, i_fast, accel, settings, rep)
+            vel = _liftoff_velocity(filled, t, dt, i_lo, i_run + 1, accel, settings, rep)
     t_td = float("nan")
     if not ends_air and (starts_air or np.isfinite(t_lo)):
         t_td = _touchdown(t, dt, speed, baro, accel, max(i_lo, 0), settings, rep)

@@ -152,6 +152,25 @@ def _on_signal(signum: int, frame) -> None:
     raise Interrupted(signum)
 
 
+def _on_unraisable(unraisable: Any) -> None:
+    """An :class:`Interrupted` raised while the main thread ran a C callback (numba's LLVM
+    object cache, while a kernel compiles) is swallowed there and printed as "Exception
+    ignored ... Traceback", and the run would go on: instead it is delivered again, silently,
+    once the callback has returned; anything else goes to the previous hook."""
+    exc = unraisable.exc_value
+    if isinstance(exc, Interrupted):
+        _first_signal.clear()
+        timer = threading.Timer(0.05, signal.pthread_kill,
+                                (threading.main_thread().ident, exc.signum))
+        timer.daemon = True
+        timer.start()
+        return
+    _previous_unraisablehook[0](unraisable)
+
+
+_previous_unraisablehook: list[Any] = [sys.unraisablehook]
+
+
 def install_signal_handlers() -> dict[int, Any]:
     """Handle every catchable terminating signal like SIGINT (:data:`CATCHABLE_SIGNALS`);
     signals the caller chose to ignore (``nohup``: SIGHUP) stay ignored.  Returns the
@@ -161,6 +180,9 @@ def install_signal_handlers() -> dict[int, Any]:
     previous: dict[int, Any] = {}
     if threading.current_thread() is not threading.main_thread():
         return previous
+    if sys.unraisablehook is not _on_unraisable:
+        _previous_unraisablehook[0] = sys.unraisablehook
+        sys.unraisablehook = _on_unraisable
     for s in CATCHABLE_SIGNALS:
         try:
             h = signal.getsignal(s)
@@ -222,6 +244,8 @@ def main(argv: list[str] | None = None) -> None:
         for s, h in previous.items():
             with contextlib.suppress(OSError, ValueError, TypeError):
                 signal.signal(s, h)
+        if previous:
+            sys.unraisablehook = _previous_unraisablehook[0]
         _handlers_installed.clear()
 
 

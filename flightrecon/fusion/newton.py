@@ -262,6 +262,13 @@ def _damped_newton(f: _Counter, k0: float, k_max_pos: float, k_max_neg: float, t
     return None, None, it, overflow
 
 
+ROUNDING_ROOT_M = 1.0
+"""A sign change of F between neighbouring floating-point k with |F| at most this on both sides
+[m] is a root (F's rounding over a long flight reaches centimetres; the end point is known to
+tens of metres); larger jumps there are not (a pole, a discontinuity)."""
+RESOLVED_AT_ROUNDING = "bracket collapsed at floating-point resolution"
+
+
 def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
             history: list) -> tuple[float, float, int, str]:
     """Newton kept inside the bracket [a, b] (bisection otherwise), brentq as the fallback."""
@@ -279,6 +286,11 @@ def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
         else:
             b = k
         if abs(b - a) <= 4e-16 * max(abs(a), abs(b)):
+            if max(abs(Fa), abs(F)) <= ROUNDING_ROOT_M:
+                # F changes sign between neighbouring floats and is small on both sides: the
+                # root to machine precision; what is left of |F| is F's own rounding
+                return k, F, it, (f"{RESOLVED_AT_ROUNDING}: |F| = {abs(F):.3g} m, "
+                                  f"{abs(Fa):.3g} m on the other side")
             return k, F, it, ("bracket collapsed before |F| <= tol: F not resolvable in "
                               "floating point")
         k_new = k - F / dF if dF != 0.0 and np.isfinite(dF) else np.nan
@@ -419,7 +431,8 @@ def _k_search(f: _Counter, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, spa
                 abs(c[0] - root_n) <= 1e-9 * abs(root_n) for c in candidates):
             Fn, _, mn = f(root_n)
             candidates.append((root_n, Fn, mn, "damped Newton from the start value"))
-        good = [c for c in candidates if abs(c[1]) <= tol_m]
+        good = [c for c in candidates
+                if abs(c[1]) <= tol_m or RESOLVED_AT_ROUNDING in c[3]]
         if good:
             if use_rule == "slowest":
                 best = min(good, key=lambda c: abs(c[0]))

@@ -23,6 +23,9 @@ from flightrecon.geo.frames import offset_latlon
 from flightrecon.sim.autopilot import GAINS, Autopilot, leg_geometry, wrap180
 from flightrecon.sim.fdm import Fdm
 
+# roll or pitch beyond this with the wheels on the ground is an overturned aircraft [deg]
+GROUND_TILT_DEG = 30.0
+
 __all__ = ["Approach", "Leg", "Rest", "Runway", "SpiralDive", "StallSpin", "TakeOff", "Wait",
            "fly"]
 
@@ -350,6 +353,12 @@ def fly(fdm: Fdm, schedule: list, steps_per_control: int, controls_per_sample: i
         loads = fdm.mean_loads()
         s["n_long"], s["n_lat"], s["n_norm"] = loads
         record(s)
+        if phase.ground and s["wow"] and max(abs(s["phi"]), abs(s["theta"])) > GROUND_TILT_DEG:
+            # JSBSim's ground reactions can tip a light aircraft over at rest in a gusty wind
+            # and then launch it (seen: roll 180 deg, then 48 m/s upwards): not a flight
+            raise ValidationError(f"JSBSim's ground model overturned the aircraft on the ground: "
+                                  f"roll {s['phi']:.0f} deg, pitch {s['theta']:.0f} deg at "
+                                  f"t = {s['t']:.1f} s in phase {type(phase).__name__}")
         if s["wow"] and not phase.ground:
             if getattr(phase, "upset", False):
                 c.events["impact_t_s"] = s["t"]

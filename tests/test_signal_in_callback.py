@@ -1,0 +1,44 @@
+"""A terminating signal that lands while the main thread runs inside a C callback.
+
+numba's LLVM object cache calls back into Python while a kernel compiles (the first run on a
+cold cache): a signal handled there raised :class:`Interrupted` inside the callback, where
+ctypes swallowed it, printed "Exception ignored ... Traceback" and the run went on (seen in
+``test_fuzz_signal[SIGTERM-4.0s]``).  A ctypes callback of our own stands in for LLVM's.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SCRIPT = """
+import ctypes, os, signal, time
+from flightrecon.cli import main as m
+m.install_signal_handlers()
+def cb():
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.05)   # the handler runs here, inside the callback
+f = ctypes.CFUNCTYPE(None)(cb)
+try:
+    f()
+    time.sleep(2.0)
+    print("not interrupted")
+except m.Interrupted as exc:
+    print("interrupted", exc.signum)
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_a_signal_swallowed_by_a_callback_still_interrupts_the_run():
+    """Guards: the interrupt is delivered again once the callback has returned (the run
+    stops with the signal's exit path), and nothing is printed."""
+    p = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
+                       cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=60)
+    assert p.stdout.strip() == "interrupted 15", p.stdout + p.stderr
+    assert "Traceback" not in p.stderr and "Exception ignored" not in p.stderr, p.stderr
