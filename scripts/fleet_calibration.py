@@ -48,6 +48,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning import clean_flight
+from flightrecon.errors import ValidationError
 from flightrecon.filters.joint import JointNoise, JointSettings
 from flightrecon.filters.joint_method import run_joint
 from flightrecon.fusion.baselines import dead_reckoning
@@ -165,6 +166,24 @@ def _simulate(truth: str, ac, sim_seed: int, accident: bool, **kw):
         jt.persistent_aircraft = orig
 
 
+REFUSED: list[str] = []
+"""Simulation seeds the simulator refused (JSBSim's ground model overturned the aircraft
+before take-off), each replaced by the seed + 1000: listed in the tables."""
+
+
+def _simulate_flown(truth: str, ac, sim_seed: int, accident: bool, **kw):
+    """:func:`_simulate`, with a refused seed replaced by ``seed + 1000`` (up to twice)."""
+    for k in range(3):
+        try:
+            return _simulate(truth, ac, sim_seed + 1000 * k, accident, **kw)
+        except ValidationError as exc:
+            if k == 2:
+                raise
+            REFUSED.append(f"{sim_seed + 1000 * k}: {exc}")
+            print(f"seed {sim_seed + 1000 * k} refused: {exc}", file=sys.stderr)
+    raise AssertionError("unreachable")
+
+
 def run_seed(s: int, n_flights: int, truth: str = "pointmass") -> dict:
     if truth == "pointmass":
         ac = fleet_aircraft(s)
@@ -179,7 +198,7 @@ def run_seed(s: int, n_flights: int, truth: str = "pointmass") -> dict:
         for i in range(n_flights):
             sim_seed = 100 * (s + 1) + i
             t0 = time.perf_counter()
-            sim = _simulate(truth, ac, sim_seed, False, flight_id=f"R{i + 1}",
+            sim = _simulate_flown(truth, ac, sim_seed, False, flight_id=f"R{i + 1}",
                             epoch_utc=f"2026-03-{i + 1:02d}T09:00:00Z")
             clean = clean_flight(Flight(data=sim.log, meta=sim.meta))
             res = run_joint(clean)
@@ -211,7 +230,7 @@ def run_seed(s: int, n_flights: int, truth: str = "pointmass") -> dict:
     out["priors_applied"] = [p[0] for p in priors]
     # the accident flight
     acc_seed = 100 * (s + 1) + 50
-    sim = _simulate(truth, ac, acc_seed, True, flight_id="ACC", epoch_utc=acc_date)
+    sim = _simulate_flown(truth, ac, acc_seed, True, flight_id="ACC", epoch_utc=acc_date)
     meta = replace(sim.meta, arrival=None)
     acc: dict = {}
     table = forecast_table(truth, acc_seed, sim.truth)
@@ -321,6 +340,9 @@ def main() -> None:
                 runs_path.write_text(json.dumps(runs, indent=1))
         n = a.flights
     text = tables(runs, n, a.truth)
+    if REFUSED:
+        text += ("\n\nSimulation seeds refused by the simulator (replaced by the seed + 1000):\n\n"
+                 + "\n".join(f"* {r}" for r in REFUSED) + "\n")
     print(text)
     if not a.no_write:
         table.write_text(text + "\n")

@@ -47,6 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mc_joint import errors, noise_from_sensors  # noqa: E402
 
 from flightrecon.cleaning import clean_flight  # noqa: E402
+from flightrecon.errors import ValidationError  # noqa: E402
 from flightrecon.filters.joint import JointSettings  # noqa: E402
 from flightrecon.filters.joint_method import run_joint  # noqa: E402
 from flightrecon.fusion.baselines import dead_reckoning  # noqa: E402
@@ -106,7 +107,10 @@ def _err(track, prefix, truth, airborne) -> dict:
 
 def one_run(scenario: str, seed: int) -> dict:
     t0 = time.perf_counter()
-    r = simulate(scenario, seed, gnss_hz=0.0)
+    try:
+        r = simulate(scenario, seed, gnss_hz=0.0)
+    except ValidationError as exc:  # the simulator refused the truth: listed, never dropped
+        return {"scenario": scenario, "seed": seed, "sim_error": str(exc)}
     res: dict = {"scenario": scenario, "seed": seed, "sim_time_s": time.perf_counter() - t0,
                  "duration_s": float(r.truth["t_s"].iloc[-1])}
     truth = r.truth
@@ -140,6 +144,8 @@ def gmean(x) -> float:
 
 
 def summarise(rows: list[dict], argv: str) -> str:
+    refused = [r for r in rows if "sim_error" in r]
+    rows = [r for r in rows if "sim_error" not in r]
     sc = rows[0]["scenario"]
     cols = (("joint", "joint, no wind prior"), ("joint_wind", "joint + winds-aloft prior"),
             ("dr", "DR, no wind"), ("dr_wind", "DR + forecast wind"))
@@ -175,6 +181,9 @@ def summarise(rows: list[dict], argv: str) -> str:
     lines += ["", f"Joint with the prior converged on {conv}/{len(rows)} runs; mean runtime per "
               f"joint run {np.mean([r['joint_wind_time_s'] for r in rows]):.1f} s, per simulated "
               f"flight {np.mean([r['sim_time_s'] for r in rows]):.1f} s."]
+    if refused:
+        lines += ["", "Seeds without a flight (the simulator refused its truth; not counted "
+                  "above):", ""] + [f"* {r['seed']}: {r['sim_error']}" for r in refused]
     return "\n".join(lines)
 
 

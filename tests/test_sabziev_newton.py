@@ -182,3 +182,24 @@ def test_find_coefficient_validates_its_arguments():
         find_coefficient(fun, k_ref=1.0, k_max_pos=10.0, k_max_neg=10.0, k0=0.0)
     r = find_coefficient(fun, k_ref=1.0, k_max_pos=10.0, k_max_neg=10.0)
     assert r.converged and r.root == pytest.approx(1.0) and r.branch == "positive"
+
+
+def test_a_root_resolved_to_rounding_is_a_root_a_pole_is_not():
+    """Guards the floating-point end of the bracket refinement: ``F`` that jumps by 12 cm
+    across one float at its sign change (the one-hour ``regional`` sample's north axis: its
+    rounding) was reported as no root, so ``--strict`` failed on a good flight; a jump of
+    metres there (a pole) must still be no root."""
+    k0 = -2.0e-3
+
+    def step(k):      # +-5.9 cm either side of k0, a gentle slope elsewhere
+        return (0.059 if k > k0 else -0.059) + 1e3 * (k - k0) ** 3, 1.0, 0.0
+
+    def pole(k):
+        return 1.0 / (k - k0) if k != k0 else np.inf, -1.0, 0.0
+
+    kw = dict(k_ref=1e-3, k_max_pos=1.0, k_max_neg=1.0, tol_m=1e-3)
+    rep = find_coefficient(step, **kw)
+    assert rep.converged and rep.root == pytest.approx(k0, rel=1e-12)
+    assert abs(rep.residual_m) <= 0.059 + 1e-12
+    assert "floating-point resolution" in rep.reason
+    assert not find_coefficient(pole, **kw).converged

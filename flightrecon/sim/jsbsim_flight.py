@@ -352,13 +352,16 @@ def fly(fdm: Fdm, schedule: list, steps_per_control: int, controls_per_sample: i
             continue
         loads = fdm.mean_loads()
         s["n_long"], s["n_lat"], s["n_norm"] = loads
-        record(s)
         if phase.ground and s["wow"] and max(abs(s["phi"]), abs(s["theta"])) > GROUND_TILT_DEG:
             # JSBSim's ground reactions can tip a light aircraft over at rest in a gusty wind
-            # and then launch it (seen: roll 180 deg, then 48 m/s upwards): not a flight
+            # and then launch it (seen: roll 180 deg, then 48 m/s upwards): before take-off
+            # that is not a flight; after the landing the record ends at the sample before
+            if "touchdown_t_s" in c.events:
+                break
             raise ValidationError(f"JSBSim's ground model overturned the aircraft on the ground: "
                                   f"roll {s['phi']:.0f} deg, pitch {s['theta']:.0f} deg at "
                                   f"t = {s['t']:.1f} s in phase {type(phase).__name__}")
+        record(s)
         if s["wow"] and not phase.ground:
             if getattr(phase, "upset", False):
                 c.events["impact_t_s"] = s["t"]
