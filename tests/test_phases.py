@@ -147,3 +147,18 @@ def test_climb_onset_is_the_first_sustained_climb():
     # a stretch shorter than the hold counts when it runs to the end of the window
     assert t[_climb_onset(v[: int(round(6.0 / dt))], 0.6, n_hold)] == pytest.approx(5.0)
     assert _climb_onset(np.zeros(50), 0.6, n_hold) == -1
+
+
+def test_take_off_run_starts_below_rolling_speed_or_at_the_fast_run():
+    """Guards where the lift-off search starts: at the last sample below 15 m/s before the
+    first at 30 m/s (a Cessna lifts off between the two); a record whose airspeed never reads
+    that low (a strong wind at rest, or a record starting mid-roll) starts at the fast run, as
+    before, instead of at the record's first sample."""
+    from flightrecon.cleaning.phases import PhaseSettings, _take_off_run
+
+    s = PhaseSettings()
+    v = np.r_[np.zeros(10), np.linspace(0.0, 40.0, 41)]      # 1 m/s per sample from index 10
+    assert _take_off_run(v, s) == (24, 40)                     # 14 m/s at 24, 30 m/s at 40
+    windy = np.r_[np.full(10, 18.0), np.linspace(18.0, 40.0, 23)]
+    assert _take_off_run(windy, s) == (22, 22)
+    assert _take_off_run(np.full(20, 10.0), s) == (-1, -1)

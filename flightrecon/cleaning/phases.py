@@ -150,7 +150,8 @@ def _take_off_run(speed: np.ndarray, s: PhaseSettings) -> tuple[int, int]:
         return -1, -1
     i_fast = int(fast[0])
     slow = np.flatnonzero(speed[:i_fast + 1] < s.rolling_speed_mps)
-    return (int(slow[-1]) if len(slow) else 0), i_fast
+    # never that slow (a strong wind at rest): the first fast sample, as before
+    return (int(slow[-1]) if len(slow) else i_fast), i_fast
 
 
 def _climb_onset(v: np.ndarray, thr: float, n_hold: int) -> int:
@@ -230,7 +231,7 @@ def _lineup_and_roll(t, dt, speed, hdg, accel, i_run: int, s: PhaseSettings, rep
     undecidable.  The runway heading is taken on the ground, from ``i_run``: after lift-off
     the aircraft crabs into the crosswind (10 deg and more for a light aircraft), which would
     put the line-up after the roll."""
-    if hdg is None or i_run <= 0:
+    if hdg is None or i_run < 0:
         return float("nan"), float("nan")
     n2 = max(int(round(2.0 / dt)), 1)
     psi = np.radians(hdg)
