@@ -50,12 +50,16 @@ def test_step_means_kernel_equals_the_per_sample_jacobian():
     att = np.array(ATTITUDES)
     C = body_to_ned_matrix(att[:, 0], att[:, 1], att[:, 2])
     fb = np.resize(F_BODY, (len(att), 3))
-    idx = np.arange(len(att), dtype=np.int64)  # one sample per step: the means are the samples
-    C_m, S_m, J_m = _attitude_step_means(np.ascontiguousarray(C), np.ascontiguousarray(fb), idx)
+    idx = np.arange(len(att), dtype=np.int64)  # one sample per step
+    t = np.arange(len(att), dtype=float)
+    C_m, S_m, J_m = _attitude_step_means(np.ascontiguousarray(C), np.ascontiguousarray(fb), idx,
+                                         t)
     J = attitude_jacobian(C, fb)
-    np.testing.assert_allclose(J_m[1:], J[:-1], atol=1e-12)   # step k holds sample k-1
-    np.testing.assert_allclose(C_m[1:], C[:-1], atol=1e-15)
-    np.testing.assert_allclose(S_m[1:], C[:-1] * fb[:-1, None, :], atol=1e-15)
+    # step k holds the second half of sample k-1 and the first half of sample k
+    np.testing.assert_allclose(J_m[1:], 0.5 * (J[:-1] + J[1:]), atol=1e-12)
+    np.testing.assert_allclose(C_m[1:], 0.5 * (C[:-1] + C[1:]), atol=1e-15)
+    S = C * fb[:, None, :]
+    np.testing.assert_allclose(S_m[1:], 0.5 * (S[:-1] + S[1:]), atol=1e-15)
 
 
 @pytest.mark.parametrize("att", ATTITUDES)

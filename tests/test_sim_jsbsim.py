@@ -233,3 +233,17 @@ def test_an_aircraft_overturned_on_the_ground_is_refused():
     not a flight; it was counted as one in the Monte Carlo tables (the joint's 5.7 km)."""
     with pytest.raises(ValidationError, match="overturned"):
         simulate("jsbsim-spin", 5406, scale=0.1)
+
+
+def test_ideal_sensors_put_the_antenna_where_the_sidecar_says():
+    """Guards the sidecar of an ideal-sensor flight: the receiver sits at the centre of mass
+    there, but the sidecar gave the aircraft's lever arm (2, 0, -1) m, so the smoother
+    corrected velocities for an antenna offset that was not in the data (a heading-bias error
+    of about -0.16 deg on a circuit). The sidecar and the sensor truth now say where the
+    receiver is."""
+    r = simulate("jsbsim-circuit", 7, scale=1.0, ideal_sensors=True)
+    assert tuple(r.meta.gnss_lever_arm_m) == (0.0, 0.0, 0.0)
+    assert r.sensor_truth["persistent_errors"]["gnss_lever_arm_m"] == [0.0, 0.0, 0.0]
+    r2 = simulate("jsbsim-circuit", 7, scale=1.0)
+    assert tuple(r2.meta.gnss_lever_arm_m) == tuple(
+        r2.sensor_truth["sensors"]["gnss"]["lever_arm_m"])

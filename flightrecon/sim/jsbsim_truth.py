@@ -157,11 +157,14 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
     aircraft = persistent_aircraft(name, cfg, seed)
     suite = _sensors(cfg, aircraft)
     rec = record_log(truth, suite, seed, cfg.truth_rate_hz, recorder_faults(cfg))
+    # the antenna where the receiver has it (at the centre of mass with ideal sensors)
+    lever = tuple(float(v) for v in (suite.gnss.lever_arm_m if suite.gnss is not None
+                                     else aircraft.gnss_lever_arm_m))
     end_elev = arrival.elev_m
     meta = FlightMeta(
         aircraft_id=aircraft.aircraft_id, flight_id=cfg.flight_id, epoch_utc=cfg.epoch_utc,
         departure=departure, arrival=arrival,
-        gnss_lever_arm_m=tuple(float(v) for v in aircraft.gnss_lever_arm_m),
+        gnss_lever_arm_m=lever,
         gnss_alt_datum="ellipsoid", baro_datum="pressure",
         qnh_departure_hpa=_qnh_hpa(cols["p_pa"][0], rw.elev_m + cols["agl"][0]),
         qnh_arrival_hpa=_qnh_hpa(cols["p_pa"][-1], end_elev + max(cols["agl"][-1], 0.0)),
@@ -176,7 +179,7 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
             "roll_bias_deg": suite.attitude.roll_bias_deg,
             "pitch_bias_deg": suite.attitude.pitch_bias_deg,
             "airspeed_scale": suite.airspeed.scale, "baro_bias_m": suite.baro.bias_m,
-            "gnss_lever_arm_m": list(aircraft.gnss_lever_arm_m)},
+            "gnss_lever_arm_m": list(lever)},
         "sensors": {s.group: json_ready(s) for s in suite.fitted()},
         "weather": json_ready(replace(weather)),
         "events": _truth_events(events, truth),

@@ -86,7 +86,8 @@ def _flight(inp: JointInputs, settings: JointSettings) -> _Flight:
     fb = np.zeros((len(inp.t_in), 3)) if inp.f_body_g is None else np.nan_to_num(inp.f_body_g)
     # the input samples' rotations only for this (41 MB on a 10-hour flight at 16 Hz)
     Cnb, Csf, Jatt = _attitude_step_means(inp.body_to_ned(), np.ascontiguousarray(fb),
-                                          idx.astype(np.int64))
+                                          idx.astype(np.int64),
+                                          np.ascontiguousarray(inp.t_in, dtype=float))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
     Cst = np.eye(3)
     pst = np.zeros(3)

@@ -21,29 +21,49 @@ def _state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
     return idx
 
 
-def _increments(t_in, acc, idx):
-    """Exact velocity and position increments over each state step for held accelerations.
+def _half_holds(t_in: np.ndarray, idx: np.ndarray):
+    """Each input sample i held on [t_i - d_{i-1}/2, t_i + d_i/2) (centred on its own time,
+    d_i = t_{i+1} - t_i): its right half lies in step ``k_r[i]`` (idx[k-1] <= i < idx[k]), its
+    left half in step ``k_l[i] = k_r[i-1]``.  Returns (k_r, k_l, d_r, d_l), the half lengths
+    ``d_r = d_i / 2`` and ``d_l = d_{i-1} / 2`` (0 before the first and after the last sample).
 
-    Over step k (from t_in[idx[k-1]] to t_in[idx[k]]) with accelerations a_i held on
-    [t_i, t_{i+1}): dV = sum a_i d_i, dP = sum a_i d_i (T_k - t_i - d_i / 2).
-    """
+    Not held on [t_i, t_{i+1}): a recorder's sample is its channel at t_i, and a forward
+    hold applies it half an interval late; in a turn the rotated acceleration then lags by
+    omega h / 2 and the heading bias takes that up (0.09 deg at 3 deg/s and 16 Hz, docs/joint.md
+    "Increments")."""
     Ni = len(t_in)
-    d = np.diff(t_in, append=t_in[-1])  # hold of sample i; the last sample holds for 0 s
+    d = np.diff(t_in, append=t_in[-1])
+    k_r = np.searchsorted(idx, np.arange(Ni), side="right")
+    k_l = np.r_[len(idx), k_r[:-1]]              # the first sample has no left half
+    d_r = 0.5 * d
+    d_l = 0.5 * np.r_[0.0, d[:-1]]
+    return k_r, k_l, d_r, d_l
+
+
+def _increments(t_in, acc, idx):
+    """Exact velocity and position increments over each state step for accelerations held on
+    their samples' centred intervals (:func:`_half_holds`).
+
+    Over step k (from t_in[idx[k-1]] to T_k = t_in[idx[k]]) a constant a on [s0, s1) adds
+    a (s1 - s0) to dV and a (s1 - s0)(T_k - (s0 + s1)/2) to dP: the right half of sample i
+    weighs d_r (T_k - t_i - d_r/2), its left half d_l (T_k - t_i + d_l/2).
+    """
     a = np.where(np.isfinite(acc), acc, 0.0)
     missing = (~np.isfinite(acc)).any(axis=1).astype(float)
-    step_of = np.searchsorted(idx, np.arange(Ni), side="right")  # sample i belongs to step k
     N = len(idx)
     T = t_in[idx]
-    Tk = T[np.minimum(step_of, N - 1)]
-    w_p = d * (Tk - t_in - d / 2.0)
+    k_r, k_l, d_r, d_l = _half_holds(t_in, idx)
     dV = np.zeros((N, 3))
     dP = np.zeros((N, 3))
     miss = np.zeros(N)
-    valid = step_of < N
-    for j in range(3):
-        dV[:, j] = np.bincount(step_of[valid], weights=(a[:, j] * d)[valid], minlength=N)[:N]
-        dP[:, j] = np.bincount(step_of[valid], weights=(a[:, j] * w_p)[valid], minlength=N)[:N]
-    miss = np.bincount(step_of[valid], weights=(missing * d)[valid], minlength=N)[:N]
+    for k_h, d_h, sgn in ((k_r, d_r, 1.0), (k_l, d_l, -1.0)):
+        ok = k_h < N
+        Tk = T[np.minimum(k_h, N - 1)]
+        w_p = d_h * (Tk - t_in - sgn * d_h / 2.0)
+        for j in range(3):
+            dV[:, j] += np.bincount(k_h[ok], weights=(a[:, j] * d_h)[ok], minlength=N)[:N]
+            dP[:, j] += np.bincount(k_h[ok], weights=(a[:, j] * w_p)[ok], minlength=N)[:N]
+        miss += np.bincount(k_h[ok], weights=(missing * d_h)[ok], minlength=N)[:N]
     return dV, dP, miss
 
 
@@ -66,10 +86,11 @@ def attitude_jacobian(Cnb: np.ndarray, f_body: np.ndarray) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True)
-def _attitude_step_means(Cnb, fb, idx):
+def _attitude_step_means(Cnb, fb, idx, t_in):
     """Step means of C_nb, C_nb diag(f) and :func:`attitude_jacobian` in one pass over the
-    input samples, without the per-sample intermediate arrays: over the samples i with
-    idx[k-1] <= i < idx[k] (held over step k), the sample idx[0] itself for the first step."""
+    input samples, without the per-sample intermediate arrays, weighted as the increments
+    hold them (:func:`_half_holds`): over step k the samples idx[k-1] .. idx[k], the two ends
+    for half their intervals; the sample idx[0] itself for the first step."""
     N = idx.shape[0]
     Ni = Cnb.shape[0]
     C_m = np.zeros((N, 3, 3))
@@ -77,10 +98,21 @@ def _attitude_step_means(Cnb, fb, idx):
     J_m = np.zeros((N, 3, 2))
     for k in range(N):
         a = idx[k - 1] if k > 0 else idx[0]
-        b = idx[k] if k > 0 else min(idx[0] + 1, Ni)
-        cnt = b - a
+        b = idx[k] + 1 if k > 0 else min(idx[0] + 1, Ni)
+        cnt = 0.0
         for i in range(a, b):
-            f0, f1, f2 = fb[i, 0], fb[i, 1], fb[i, 2]
+            if k == 0:
+                w = 1.0
+            else:
+                w = 0.0
+                if i < b - 1:                       # right half, inside the step
+                    w += 0.5 * (t_in[i + 1] - t_in[i])
+                if i > a:                           # left half, inside the step
+                    w += 0.5 * (t_in[i] - t_in[i - 1])
+            if w == 0.0:
+                continue
+            cnt += w
+            f0, f1, f2 = w * fb[i, 0], w * fb[i, 1], w * fb[i, 2]
             phi = np.arctan2(Cnb[i, 2, 1], Cnb[i, 2, 2])
             uy, uz = np.cos(phi), -np.sin(phi)
             # e_x x f = (0, -f2, f1); u x f = (uy f2 - uz f1, uz f0, -uy f0)
@@ -88,9 +120,9 @@ def _attitude_step_means(Cnb, fb, idx):
             p0, p1, p2 = uy * f2 - uz * f1, uz * f0, -uy * f0
             for r in range(3):
                 c0, c1, c2 = Cnb[i, r, 0], Cnb[i, r, 1], Cnb[i, r, 2]
-                C_m[k, r, 0] += c0
-                C_m[k, r, 1] += c1
-                C_m[k, r, 2] += c2
+                C_m[k, r, 0] += w * c0
+                C_m[k, r, 1] += w * c1
+                C_m[k, r, 2] += w * c2
                 S_m[k, r, 0] += c0 * f0
                 S_m[k, r, 1] += c1 * f1
                 S_m[k, r, 2] += c2 * f2
