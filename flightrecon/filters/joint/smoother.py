@@ -264,7 +264,8 @@ class _State:
     reason: str = ""
     refit: bool = False                 # the models' noise changed (gust sd): a new cost
     gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
-    prev_roll: TakeoffRoll | None = None  # take-off roll of the pass before the last
+    rolls_seen: list[TakeoffRoll] = field(default_factory=list)  # rolls of the passes so far
+    roll_now: TakeoffRoll | None = None   # the last pass's roll (its models may be dropped)
 
 
 def _pass_models(fl: _Flight, st: _State) -> _Models:
@@ -273,12 +274,15 @@ def _pass_models(fl: _Flight, st: _State) -> _Models:
     are the same).  A refined roll changes the runway and ground measurements, a clock offset
     the GNSS and radar ones: the cost function itself (more measurements, more terms), so
     costs are compared within a pass, and across passes only where neither changed
-    (``parameters_changed`` in the pass's entry).  A roll back at the one of two passes ago
-    (a cycle that never settles: JSBSim spiral 5305) is not taken: the last pass's stays."""
+    (``parameters_changed`` in the pass's entry).  A roll back at one an earlier pass had
+    (a cycle that never settles: JSBSim spiral 5305 between two, the fleet study's accident
+    flight of seed 0 among three) is not taken: the last pass's stays."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
-    if m is not None and st.prev_roll is not None and roll.same_as(st.prev_roll):
-        roll = m.roll
+    cur = st.roll_now
+    if cur is not None and not roll.same_as(cur) and any(
+            roll.same_as(r) for r in st.rolls_seen):
+        roll = cur
     if m is not None and m.clock == st.clock and m.roll.same_as(roll):
         return m
     return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
@@ -368,7 +372,9 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     X = step.X
     st.lat, st.lon, st.h = step.models.lat, step.models.lon, step.models.h
     st.vnom, st.psi_hat, st.ba_hat = X[:, jl.S_VEL], psi_new, X[:, jl.S_ACC_BIAS]
-    st.prev_roll = None if st.models is None else st.models.roll
+    if not any(mdl.roll.same_as(r) for r in st.rolls_seen):
+        st.rolls_seen.append(mdl.roll)
+    st.roll_now = mdl.roll
     st.X, st.models = X, step.models
     st.cost, st.cost_scale = (step.cost, step.res, step.rate), scale_used
     info["_settled"] = _settled(it, step, None if start is None else start[0]["cost"],
