@@ -173,15 +173,13 @@ before take-off), each replaced by the seed + 1000: listed in the tables."""
 
 def _simulate_flown(truth: str, ac, sim_seed: int, accident: bool, **kw):
     """:func:`_simulate`, with a refused seed replaced by ``seed + 1000`` (up to twice)."""
-    for k in range(3):
+    for seed in (sim_seed, sim_seed + 1000):
         try:
-            return _simulate(truth, ac, sim_seed + 1000 * k, accident, **kw)
+            return _simulate(truth, ac, seed, accident, **kw)
         except ValidationError as exc:
-            if k == 2:
-                raise
-            REFUSED.append(f"{sim_seed + 1000 * k}: {exc}")
-            print(f"seed {sim_seed + 1000 * k} refused: {exc}", file=sys.stderr)
-    raise AssertionError("unreachable")
+            REFUSED.append(f"{seed}: {exc}")
+            print(f"seed {seed} refused: {exc}", file=sys.stderr)
+    return _simulate(truth, ac, sim_seed + 2000, accident, **kw)
 
 
 def run_seed(s: int, n_flights: int, truth: str = "pointmass") -> dict:

@@ -164,16 +164,16 @@ def _climb_onset(v: np.ndarray, thr: float, n_hold: int) -> int:
     return int(ok[0]) if len(ok) else -1
 
 
-def _liftoff(t, dt, speed, baro, accel, s: PhaseSettings, rep: list) -> tuple[float, int, int]:
-    """Lift-off time, its index and the index where the take-off run starts (the last sample
-    below ``rolling_speed_mps``, :func:`_take_off_run`), or NaN, -1.
+def _liftoff(t, dt, baro, accel, i_run: int, i_fast: int, s: PhaseSettings, rep: list
+             ) -> tuple[float, int]:
+    """Lift-off time and its index, or NaN, -1, searched from the take-off run ``i_run`` ..
+    ``i_fast`` (:func:`_take_off_run`).
 
     ``accel(lo, hi)`` is the kinematic acceleration NED on grid rows ``lo:hi``."""
-    i_run, i_fast = _take_off_run(speed, s)
     if i_fast < 0:
         rep.append(report_entry("phases", "no_liftoff", "airspeed never reaches "
                                 f"{s.airborne_speed_mps:g} m/s", count=0))
-        return float("nan"), -1, -1
+        return float("nan"), -1
     ng = max(int(round(s.ground_window_s / dt)), 1)
     i_b0 = max(i_run - ng, 0)
     h_dep = float(np.median(baro[i_b0:i_run + 1]))
@@ -182,7 +182,7 @@ def _liftoff(t, dt, speed, baro, accel, s: PhaseSettings, rep: list) -> tuple[fl
         rep.append(report_entry("phases", "no_liftoff", f"pressure altitude never "
                                 f"{s.airborne_height_m:g} m above field level after the "
                                 "take-off run (rejected take-off or ground run only)", count=0))
-        return float("nan"), -1, i_run
+        return float("nan"), -1
     i_air = i_fast + int(high[0])
     a_up = -accel(i_b0, i_air + 1)[:, 2]  # rows i_b0 .. i_air
     bias = float(np.mean(a_up[:i_run + 1 - i_b0]))
@@ -211,7 +211,7 @@ def _liftoff(t, dt, speed, baro, accel, s: PhaseSettings, rep: list) -> tuple[fl
     i_lo = int(np.clip(np.searchsorted(t, t_lo), 0, len(t) - 1))
     rep.append(report_entry("phases", "liftoff", method, count=1, t_s=[t_lo],
                             field_pressure_alt_m=h_dep))
-    return t_lo, i_lo, i_run
+    return t_lo, i_lo
 
 
 def speed_integrated_back(a_along: np.ndarray, dt: np.ndarray | float, v_end: float
@@ -224,8 +224,8 @@ def speed_integrated_back(a_along: np.ndarray, dt: np.ndarray | float, v_end: fl
     return v_end - np.r_[np.cumsum(dv[::-1])[::-1], 0.0]
 
 
-def _lineup_and_roll(t, dt, speed, hdg, accel, i_run: int, s: PhaseSettings, rep: list
-                     ) -> tuple[float, float]:
+def _lineup_and_roll(t, dt, speed, hdg, accel, i_run: int, i_fast: int, s: PhaseSettings,
+                     rep: list) -> tuple[float, float]:
     """Line-up time and roll-start time before the take-off run that starts at ``i_run``
     (:func:`_take_off_run`; module docstring, "Taxi and take-off roll"); NaN each where
     undecidable.  The runway heading is taken on the ground, from ``i_run``: after lift-off
@@ -238,7 +238,6 @@ def _lineup_and_roll(t, dt, speed, hdg, accel, i_run: int, s: PhaseSettings, rep
     w = psi[i_run:i_run + n2]
     psi_rw = float(np.arctan2(np.mean(np.sin(w)), np.mean(np.cos(w))))
     off = np.degrees(np.abs(np.angle(np.exp(1j * (psi[:i_run + 1] - psi_rw)))))
-    i_fast = int(np.flatnonzero(speed[i_run:] >= s.airborne_speed_mps)[0]) + i_run
     out = np.flatnonzero(off > s.lineup_deg)
     i_lu = int(out[-1]) + 1 if len(out) else 0
     a_ned = accel(i_lu, i_fast + 1)
@@ -472,13 +471,14 @@ def detect_phases_with_report(grid: pd.DataFrame, settings: PhaseSettings = Phas
         return kinematic_acceleration_ned(*(c[lo:hi] for c in cols), lat_deg=lat_deg,
                                           h_m=baro[lo:hi])
 
-    t_lo, i_lo, i_run, vel = float("nan"), -1, -1, _NAN3
+    t_lo, i_lo, vel = float("nan"), -1, _NAN3
     t_lu = t_rs = float("nan")
     if not starts_air:
-        t_lo, i_lo, i_run = _liftoff(t, dt, speed, baro, accel, settings, rep)
+        i_run, i_fast = _take_off_run(speed, settings)
+        t_lo, i_lo = _liftoff(t, dt, baro, accel, i_run, i_fast, settings, rep)
         if np.isfinite(t_lo):
             t_lu, t_rs = _lineup_and_roll(t, dt, speed, filled("heading_deg"), accel, i_run,
-                                          settings, rep)
+                                          i_fast, settings, rep)
             vel = _liftoff_velocity(filled, t, dt, i_lo, i_run + 1, accel, settings, rep)
     t_td = float("nan")
     if not ends_air and (starts_air or np.isfinite(t_lo)):

@@ -266,12 +266,13 @@ ROUNDING_ROOT_M = 1.0
 """A sign change of F between neighbouring floating-point k with |F| at most this on both sides
 [m] is a root (F's rounding over a long flight reaches centimetres; the end point is known to
 tens of metres); larger jumps there are not (a pole, a discontinuity)."""
-RESOLVED_AT_ROUNDING = "bracket collapsed at floating-point resolution"
 
 
 def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
-            history: list) -> tuple[float, float, int, str]:
-    """Newton kept inside the bracket [a, b] (bisection otherwise), brentq as the fallback."""
+            history: list) -> tuple[float, float, int, str, bool]:
+    """Newton kept inside the bracket [a, b] (bisection otherwise), brentq as the fallback.
+    Returns (k, F, iterations, how, resolved): ``resolved`` when ``|F| <= tol_m`` or the
+    bracket shrank to neighbouring floats with ``|F| <= ROUNDING_ROOT_M`` on both sides."""
     Fa = f.value(a)
     k = 0.5 * (a + b)
     it = 0
@@ -280,7 +281,7 @@ def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
         history.append((k, F))
         it += 1
         if abs(F) <= tol_m:
-            return k, F, it, "Newton in bracket"
+            return k, F, it, "Newton in bracket", True
         if _sign(F) == _sign(Fa):
             a, Fa = k, F
         else:
@@ -289,10 +290,10 @@ def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
             if max(abs(Fa), abs(F)) <= ROUNDING_ROOT_M:
                 # F changes sign between neighbouring floats and is small on both sides: the
                 # root to machine precision; what is left of |F| is F's own rounding
-                return k, F, it, (f"{RESOLVED_AT_ROUNDING}: |F| = {abs(F):.3g} m, "
-                                  f"{abs(Fa):.3g} m on the other side")
+                return k, F, it, (f"bracket collapsed at floating-point resolution: |F| = "
+                                  f"{abs(F):.3g} m, {abs(Fa):.3g} m on the other side"), True
             return k, F, it, ("bracket collapsed before |F| <= tol: F not resolvable in "
-                              "floating point")
+                              "floating point"), False
         k_new = k - F / dF if dF != 0.0 and np.isfinite(dF) else np.nan
         if not (min(a, b) < k_new < max(a, b)):
             k_new = 0.5 * (a + b)
@@ -303,7 +304,7 @@ def _refine(f: _Counter, a: float, b: float, tol_m: float, max_iter: int,
                   maxiter=200)
     F = f(root)[0]
     history.append((root, F))
-    return root, F, it, "brentq fallback"
+    return root, F, it, "brentq fallback", bool(abs(F) <= tol_m)
 
 
 def _polish(f: _Counter, k: float, F: float, history: list, steps: int = 3) -> tuple[float, float]:
@@ -410,7 +411,7 @@ def _k_search(f: _Counter, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, spa
     root_n, bracket_n, it, overflow = _damped_newton(f, start, k_max_pos, k_max_neg, tol_m,
                                                      max_iter, history, 1e-2 * k_lo)
     all_brackets: list = []
-    candidates: list = []  # (root, F, misfit, how)
+    candidates: list = []  # (root, F, misfit, how, resolved)
     for sign, k_hi in ((-1.0, k_max_neg), (1.0, k_max_pos)):
         found = _scan(f, sign, k_lo, k_hi, ppd)
         all_brackets.extend((a, b) for a, b, _ in found)
@@ -424,21 +425,21 @@ def _k_search(f: _Counter, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, spa
             found.sort(key=lambda br: br[2] if np.isfinite(br[2]) else np.inf)
             pick = found[:n_refine]
         for a, b, _ in pick:
-            r, F, it2, how = _refine(f, a, b, tol_m, max_iter, history)
+            r, F, it2, how, resolved = _refine(f, a, b, tol_m, max_iter, history)
             it += it2
-            candidates.append((r, F, f(r)[2], f"scan bracket refined ({how})"))
+            candidates.append((r, F, f(r)[2], f"scan bracket refined ({how})", resolved))
         if root_n is not None and _sign(root_n) == sign and not any(
                 abs(c[0] - root_n) <= 1e-9 * abs(root_n) for c in candidates):
             Fn, _, mn = f(root_n)
-            candidates.append((root_n, Fn, mn, "damped Newton from the start value"))
-        good = [c for c in candidates
-                if abs(c[1]) <= tol_m or RESOLVED_AT_ROUNDING in c[3]]
+            candidates.append((root_n, Fn, mn, "damped Newton from the start value",
+                               bool(abs(Fn) <= tol_m)))
+        good = [c for c in candidates if c[4]]
         if good:
             if use_rule == "slowest":
                 best = min(good, key=lambda c: abs(c[0]))
             else:
                 best = min(good, key=lambda c: c[2] if np.isfinite(c[2]) else np.inf)
-            root, F, mis, how = best
+            root, F, mis, how, _ = best
             root, F = _polish(f, root, F, history)
             branch = "negative" if root < 0 else "positive"
             how = (f"rule '{use_rule}' among {len(good)} root(s) on the {branch} branch; {how}")

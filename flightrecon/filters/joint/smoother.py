@@ -264,8 +264,8 @@ class _State:
     reason: str = ""
     refit: bool = False                 # the models' noise changed (gust sd): a new cost
     gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
-    rolls_seen: list[TakeoffRoll] = field(default_factory=list)  # rolls of the passes so far
-    roll_now: TakeoffRoll | None = None   # the last pass's roll (its models may be dropped)
+    rolls_seen: list[TakeoffRoll] = field(default_factory=list)  # rolls of the passes so far,
+    #                                     the last pass's last (a roll once left is not taken)
 
 
 def _pass_models(fl: _Flight, st: _State) -> _Models:
@@ -279,10 +279,8 @@ def _pass_models(fl: _Flight, st: _State) -> _Models:
     flight of seed 0 among three) is not taken: the last pass's stays."""
     roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
     m = st.models
-    cur = st.roll_now
-    if cur is not None and not roll.same_as(cur) and any(
-            roll.same_as(r) for r in st.rolls_seen):
-        roll = cur
+    if st.rolls_seen and any(roll.same_as(r) for r in st.rolls_seen[:-1]):
+        roll = st.rolls_seen[-1]
     if m is not None and m.clock == st.clock and m.roll.same_as(roll):
         return m
     return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
@@ -374,7 +372,6 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     st.vnom, st.psi_hat, st.ba_hat = X[:, jl.S_VEL], psi_new, X[:, jl.S_ACC_BIAS]
     if not any(mdl.roll.same_as(r) for r in st.rolls_seen):
         st.rolls_seen.append(mdl.roll)
-    st.roll_now = mdl.roll
     st.X, st.models = X, step.models
     st.cost, st.cost_scale = (step.cost, step.res, step.rate), scale_used
     info["_settled"] = _settled(it, step, None if start is None else start[0]["cost"],
