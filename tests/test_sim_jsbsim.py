@@ -215,8 +215,8 @@ def test_lift_off_and_line_up_of_every_airframe(flights):
     taken from the 2 s after that sample, was the airborne crab's, so the line-up came after
     the lift-off and the joint smoother lost its take-off roll (the departure fell back to the
     airfield reference at 1500 m). The detector now searches from the last sample below
-    15 m/s. Bound 1.5 s: the knee rule's spread on these flights (-0.9 to +0.9 s, 34 JSBSim
-    flights in docs/jsbsim.md)."""
+    15 m/s. Bound 1.5 s: the knee rule's spread (-0.9 to +0.4 s on 33 of the 34 JSBSim
+    light flights in docs/jsbsim.md)."""
     from flightrecon.cleaning import clean_flight
     from flightrecon.types import Flight
 
