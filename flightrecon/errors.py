@@ -120,7 +120,13 @@ class ConvergenceError(FlightReconError):
 
 
 class NoResultError(ConvergenceError):
-    """No method produced a finite, physically possible track: there is no result to write."""
+    """No method produced a finite, physically possible track: there is no result to write.
+
+    ``warnings`` holds the run's warnings (the console shows them before the error: a unit
+    used as declared against the physics may be why).
+    """
+
+    warnings: tuple[str, ...] = ()
 
 
 class OutputError(FlightReconError):

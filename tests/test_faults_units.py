@@ -122,19 +122,43 @@ def test_gnss_height_in_feet_in_a_metre_column_is_refused(tmp_path, col, factor)
     assert "ft.csv" in str(ex.value)
 
 
-def test_pressure_altitude_in_feet_declared_metres_in_a_mapping_is_refused(tmp_path):
-    """Pressure altitude declared in metres in a mapping when the export is in feet (63 m
-    median error, exit 0): the pressure altitude's rate against the vertical acceleration
-    from the load factors and attitude says feet."""
+def _foreign_with_altitude_unit(tmp_path: Path, unit_line: str) -> Path:
     for f in ("foreign.csv", "foreign.meta.toml"):
         shutil.copy(SAMPLES / f, tmp_path / f)
     text = (SAMPLES / "foreign.mapping.toml").read_text()
-    bad = text.replace('column = "ALT_FT"\nunit = "ft"', 'column = "ALT_FT"\nunit = "m"')
+    bad = text.replace('column = "ALT_FT"\nunit = "ft"', 'column = "ALT_FT"' + unit_line)
     assert bad != text
     (tmp_path / "m.toml").write_text(bad)
+    return tmp_path / "m.toml"
+
+
+def test_pressure_altitude_in_feet_read_as_metres_by_a_mapping_is_refused(tmp_path):
+    """A mapping maps the feet column without a unit (read in the channel's metres): the
+    pressure altitude's rate against the vertical acceleration says feet with certainty
+    (factor 3.06 +- 0.19, r 0.99): refused, naming the mapping's table and how to confirm."""
+    m = _foreign_with_altitude_unit(tmp_path, "")
     with pytest.raises(ValidationError, match="likely unit ft") as ex:
-        load_quiet(tmp_path / "foreign.csv", mapping=tmp_path / "m.toml")
-    assert "foreign.csv" in str(ex.value) and "ALT_FT" in str(ex.value)
+        load_quiet(tmp_path / "foreign.csv", mapping=m)
+    msg = str(ex.value)
+    assert "foreign.csv" in msg and "ALT_FT" in msg
+    assert "m.toml [channels.baro_alt_m]" in msg and "used as declared" in msg
+
+
+def test_a_unit_declared_in_the_mapping_wins_with_a_loud_warning(tmp_path, capsys):
+    """The user's word wins (issue #34): feet declared as metres explicitly is used as
+    declared, with a warning that names the mapping, the factor and the likely unit; it
+    reaches the console of a reconstruction."""
+    m = _foreign_with_altitude_unit(tmp_path, '\nunit = "m"')
+    fl, warns = load_quiet(tmp_path / "foreign.csv", mapping=m)
+    hit = [w for w in warns if "ALT_FT" in w and "used as declared" in w]
+    assert hit and "likely unit ft" in hit[0] and 'unit = "m"' in hit[0], warns
+    door = {c["check"]: c for c in fl.meta.extra["door"]}
+    assert door["baro_alt_m unit"]["verdict"] == "warned"
+    assert 2.6 < door["baro_alt_m unit"]["figure"] < 3.9
+    # the values are the file's, as declared (not converted from feet)
+    raw = pd.read_csv(tmp_path / "foreign.csv")["ALT_FT"].dropna().to_numpy()
+    got = fl.data["baro_alt_m"].dropna().to_numpy()
+    assert np.allclose(np.sort(got)[[0, -1]], np.sort(raw)[[0, -1]])
 
 
 def test_ten_row_airborne_log_is_refused_with_the_minimum(tmp_path, capsys):

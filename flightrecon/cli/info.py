@@ -53,9 +53,18 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool) -> None:
     from flightrecon.export.writers import to_json
     from flightrecon.ingest import describe_flight, load_flight
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FlightReconWarning)
-        flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
+    from flightrecon.ingest.physics import DoorRefusal
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FlightReconWarning)
+            flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
+    except DoorRefusal as exc:          # the checks up to the refusal, then the error
+        if as_json:
+            click.echo(to_json({"door": [c.as_dict() for c in exc.checks]}))
+        else:
+            _echo_door([c.as_dict() for c in exc.checks])
+        raise
     info = describe_flight(flight)
     if as_json:
         click.echo(to_json(info))
@@ -87,5 +96,18 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool) -> None:
             click.echo(f"  {k}: {v}")
     for n in info["conventions"]["conversions"]:
         click.echo(f"  converted: {n}")
+    _echo_door(info["door"])
     for w in info["warnings"]:
         click.echo(f"warning: {w}", err=True)
+
+
+def _echo_door(checks: list[dict]) -> None:
+    """The door's checks, one line each: check, channel, verdict, figure, evidence
+    (docs/ingest.md, "The door")."""
+    if not checks:
+        return
+    click.echo("door:")
+    click.echo(f"  {'check':22s} {'channel':18s} {'verdict':8s} {'figure':>8s}  evidence")
+    for c in checks:
+        click.echo(f"  {c['check']:22s} {c['channel']:18s} {c['verdict']:8s} "
+                   f"{_fmt(c.get('figure'), '.3g'):>8s}  {c.get('detail', '')}")

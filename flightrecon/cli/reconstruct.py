@@ -110,6 +110,7 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
     """
     from flightrecon.cli.common import check_run_outputs, publish_reconstruction
     from flightrecon.cli.progress import check_format, compile_notice, stage_progress
+    from flightrecon.errors import NoResultError
     from flightrecon.pipeline import ALL_METHODS, ReconstructSettings, reconstruct
 
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
@@ -145,10 +146,16 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
     with (errors_name_file(log, sidecar), compile_notice(quiet),
           stage_progress(quiet, stages, "reconstruct") as stage):
         # the store is written with the outputs (publish_reconstruction), not before them
-        rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-                          meta_overrides=overrides, settings=settings, progress=stage,
-                          store=store_path, use_fleet_coefficients=use_fleet_coefficients,
-                          workers=workers, record=False)
+        try:
+            rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                              meta_overrides=overrides, settings=settings, progress=stage,
+                              store=store_path, use_fleet_coefficients=use_fleet_coefficients,
+                              workers=workers, record=False)
+        except NoResultError as exc:     # the warnings first: they may say why
+            if not quiet:
+                for w in exc.warnings:
+                    click.echo(f"  warning: {w}", err=True)
+            raise
         stage("export")
         page = publish_reconstruction(rec, out, summ, out_fmt, report_dir, store_path,
                                       title=f"flightrecon: {log.name}",
@@ -160,8 +167,6 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
     if report_dir:
         click.echo(f"wrote {page}")
     if not (rec.summary.get("result") or {}).get("method"):
-        from flightrecon.errors import NoResultError
-
         raise NoResultError("no method produced a physically possible track; the unhealthy "
                             f"tracks were written for inspection to {out}")
 

@@ -24,7 +24,7 @@ from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
-from flightrecon.ingest.physics import check_physics
+from flightrecon.ingest.physics import DeclaredUnit, DoorCheck, DoorRefusal, door_checks
 from flightrecon.ingest.timestamps import repair_time_order
 from flightrecon.ingest.sidecar import (
     apply_overrides,
@@ -90,10 +90,13 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
         if path is not None:
             _add_companion(src, group, Path(path), mp, meta, allow_unsorted, warns, notes)
     values = _derived_channels(src, meta, log, warns, notes)
-    data, repairs = _validated_frame(src, values, warns, notes)
+    door: list[DoorCheck] = []
+    data, repairs = _validated_frame(src, values, warns, notes, _declared_units(mp, src),
+                                     door)
     _check_priors(meta, data, warns)
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "ingest_repairs": [r.as_dict() for r in repairs],
+                                            "door": [c.as_dict() for c in door],
                                             "mapping": None if mp is None else mp.file,
                                             "sidecar": None if sc is None else sc.path})
     for w in warns:
@@ -224,11 +227,31 @@ def _derived_channels(src: _Sources, meta: FlightMeta, log: Path, warns: list[st
     return values
 
 
+def _declared_units(mp: Mapping | None, src: _Sources) -> dict[str, DeclaredUnit]:
+    """The unit each mapped channel's column is read in, and whether the mapping wrote it
+    (the user's word: it wins over the door's physics; docs/ingest.md, "The door").  A true
+    airspeed computed from CAS or IAS is judged in its source's unit."""
+    out: dict[str, DeclaredUnit] = {}
+    for m, table in ((mp, "channels"), (getattr(mp, "gnss", None), "gnss.channels"),
+                     (getattr(mp, "radar", None), "radar.channels")):
+        if m is None:
+            continue
+        for spec in m.channels:
+            if spec.unit is not None:
+                out[spec.channel] = DeclaredUnit(spec.unit.name, spec.unit_declared,
+                                                 f"{m.file} [{table}.{spec.channel}]")
+    kind = src.mt.derived.get("tas_mps")
+    if kind is not None and f"{kind}_mps" in out:
+        out["tas_mps"] = out[f"{kind}_mps"]
+    return out
+
+
 def _validated_frame(src: _Sources, values: dict[str, np.ndarray], warns: list[str],
-                     notes: list[str]) -> tuple[pd.DataFrame, list[Any]]:
+                     notes: list[str], declared: dict[str, DeclaredUnit] | None = None,
+                     door: list[DoorCheck] | None = None) -> tuple[pd.DataFrame, list[Any]]:
     """The flight's table: values checked (ranges, polarity, GNSS quality, physics), angles
     wrapped, empty channels dropped, provenance columns ``row`` and ``src_file``; with the
-    repairs made."""
+    repairs made.  The door's checks are appended to ``door``."""
     rows = src.rows
     cols = _own_columns({"t_s": rows.t, **{c.name: values[c.name] for c in CHANNELS
                                            if c.name in values}})
@@ -236,16 +259,27 @@ def _validated_frame(src: _Sources, values: dict[str, np.ndarray], warns: list[s
     data = pd.DataFrame(cols, copy=False)
     prov = Provenance(files=tuple(src.files), src_file=rows.src_file, row=rows.row,
                       source_column=tuple(src.source_cols))
+    door = door if door is not None else []
     w, repairs = check_values(data, prov, rows.nan_text)
     warns += w
+    door.append(_summary_check("values in range", w, f"{len(repairs)} value(s) repaired"))
     for r in {r.channel for r in repairs}:
         cols[r] = data[r].to_numpy()
-    warns += check_polarity(data, prov)
+    w = check_polarity(data, prov)
+    warns += w
+    door.append(_summary_check("load-factor polarity", w, "n_norm_g, n_long_g and the turns' "
+                               "n_lat_g have the schema's signs"))
     w, rq, nq = apply_gnss_quality(cols, rows.t, prov)
     warns += w
     repairs += rq
     notes += nq
-    warns += check_physics(data, prov)   # units and time base against physics
+    try:                                 # units and time base against physics
+        w, checks = door_checks(data, prov, declared)
+    except DoorRefusal as exc:
+        door += exc.checks
+        raise
+    warns += w
+    door += checks
     for name in list(cols):
         ch = BY_NAME.get(name)
         if ch is not None and ch.angle:
@@ -260,6 +294,13 @@ def _validated_frame(src: _Sources, values: dict[str, np.ndarray], warns: list[s
     cols["row"] = np.array(rows.row, copy=True)
     cols["src_file"] = rows.src_file.astype(np.int8)
     return pd.DataFrame(cols, copy=False), repairs
+
+
+def _summary_check(check: str, warns: list[str], ok_text: str) -> DoorCheck:
+    """A door record for a validation step that raises on certainty and warns otherwise."""
+    if warns:
+        return DoorCheck(check, "-", "warned", float(len(warns)), "; ".join(warns))
+    return DoorCheck(check, "-", "passed", None, ok_text)
 
 
 def _check_priors(meta: FlightMeta, data: pd.DataFrame, warns: list[str]) -> None:

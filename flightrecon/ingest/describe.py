@@ -63,6 +63,7 @@ def describe_flight(flight: Flight) -> dict[str, Any]:
             "conversions": list(extra.get("ingest_notes", [])),
         },
         "repairs": list(extra.get("ingest_repairs", [])),
+        "door": list(extra.get("door", [])),
         "mapping": extra.get("mapping"),
         "sidecar": extra.get("sidecar"),
         "warnings": list(flight.warnings),

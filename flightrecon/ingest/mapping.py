@@ -94,6 +94,8 @@ class ChannelSpec:
     offset : added last, in the canonical unit (a normal load factor recorded as nz - 1: 1.0)
     reference : ``"true"`` or ``"magnetic"`` (heading-like channels only)
     derived_from : ``"cas"`` or ``"ias"`` for ``tas_mps`` computed from the air data
+    unit_declared : the unit was written in the mapping (``unit = ...``): the user's word,
+        which wins over the door's physics checks (docs/ingest.md, "The door")
     """
 
     channel: str
@@ -104,6 +106,7 @@ class ChannelSpec:
     derived_from: str | None = None
     scale: float = 1.0
     offset: float = 0.0
+    unit_declared: bool = False
 
 
 @dataclass(frozen=True)
@@ -247,7 +250,8 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
     if scale == 0.0:
         raise MappingError(f"[{where}]: scale must not be zero", file=file, column=col)
     offset = _number(spec, "offset", 0.0, file, where, col)
-    return ChannelSpec(name, col, unit, float(sign), ref, scale=scale, offset=offset)
+    return ChannelSpec(name, col, unit, float(sign), ref, scale=scale, offset=offset,
+                       unit_declared="unit" in spec)
 
 
 def _number(t: dict, key: str, default: float, file: str, where: str, col: str | None

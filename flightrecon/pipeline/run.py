@@ -213,8 +213,10 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     if summary["result"]["method"] is None:
         msg = ("no method produced a physically possible track: " + _reasons(status))
         if not settings.keep_unhealthy:
-            raise NoResultError(msg + "; nothing was written (--keep-unhealthy writes the "
+            exc = NoResultError(msg + "; nothing was written (--keep-unhealthy writes the "
                                 "unhealthy tracks for inspection)")
+            exc.warnings = tuple(warn_list)     # what may explain it (a declared unit...)
+            raise exc
         summary["warnings"].append(msg)
     if fleet is not None:
         summary["fleet_coefficients"] = fleet
