@@ -24,6 +24,7 @@ from flightrecon.cli.main import main
 from flightrecon.errors import ValidationError
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.evidence import double_integral_fit, turn_rate_fit
+from flightrecon.sim.ed112 import ed112_export, ed112_mapping
 
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS = ROOT.parent / "shared" / "corpus"
@@ -182,40 +183,30 @@ def test_time_in_milliseconds_is_refused(tmp_path):
 # ------------------------------------------------------------------ low rates, holes
 
 
-def _ed112(d: pd.DataFrame) -> pd.DataFrame:
-    """The corpus log at the ED-112 minimum rates: vertical load 8 Hz, longitudinal and
-    lateral 4 Hz, pitch 4 Hz, roll 2 Hz, heading 1 Hz, airspeed and pressure altitude 1 Hz
-    (pressure altitude in whole feet)."""
-    t = d["t_s"].to_numpy()
-    out = pd.DataFrame({"t_s": t})
-    rates = {"n_norm_g": 8, "n_long_g": 4, "n_lat_g": 4, "pitch_deg": 4, "roll_deg": 2,
-             "heading_deg": 1, "tas_mps": 1, "baro_alt_m": 1}
-    for c, hz in rates.items():
-        s = d[["t_s", c]].dropna()
-        grid = np.arange(np.ceil(s["t_s"].iloc[0] * hz), np.floor(s["t_s"].iloc[-1] * hz)) / hz
-        idx = np.searchsorted(s["t_s"].to_numpy(), grid)
-        idx = np.clip(idx, 0, len(s) - 1)
-        keep = np.abs(s["t_s"].to_numpy()[idx] - grid) < 1e-6
-        v = np.full(t.size, np.nan)
-        rows = np.searchsorted(t, grid[keep])
-        v[rows] = s[c].to_numpy()[idx[keep]]
-        if c == "baro_alt_m":
-            v = np.round(v / 0.3048)
-            c = "ALT_FT"
-        out[c] = v
-    return out.dropna(how="all", subset=out.columns[1:])
-
-
 def test_low_rate_export_passes_the_door(tmp_path):
-    """The ED-112 minimum rates (loads 8/4 Hz, roll 2 Hz, heading, airspeed and pressure
-    altitude in feet 1 Hz) through a mapping: accepted, no wrong-unit word; the feet refused
-    when declared as metres only where the evidence is certain."""
-    log = _copy(tmp_path, "ed112.parquet", _ed112(_c1(False)))
-    (tmp_path / "m.toml").write_text('[channels.baro_alt_m]\ncolumn = "ALT_FT"\nunit = "ft"\n')
-    fl, warns = load_quiet(log, mapping=tmp_path / "m.toml")
+    """The ED-112 minimum rates (loads 8/4 Hz, roll 2 Hz, magnetic heading, airspeed and
+    pressure altitude in feet 1 Hz, each in its frame slot) through a mapping: accepted, no
+    wrong-unit word; the feet read as metres still refused."""
+    lat, lon, _ = _meta("c1-fdr")["departure"]
+    ex = ed112_export(_c1(False), lat_deg=lat, lon_deg=lon, epoch_utc="2026-01-01T10:00:00Z")
+    assert set(ex.columns) >= {"VRTG", "LONG", "LATG", "PTCH", "ROLL", "HDG_MAG", "ALT_FT"}
+    assert ex["VRTG"].notna().sum() == pytest.approx(8 * 900, abs=16)
+    assert ex["HDG_MAG"].notna().sum() == pytest.approx(900, abs=2)
+    log = tmp_path / "ed112.csv"
+    ex.to_csv(log, index=False)
+    (tmp_path / "m.toml").write_text(ed112_mapping(ex))
+    over = {"epoch_utc": "2026-01-01T10:00:00Z", "departure": f"{lat},{lon},0"}
+    fl, warns = load_quiet(log, mapping=tmp_path / "m.toml", meta_overrides=over)
     assert not [w for w in warns if "unit" in w], warns
     fig = {c["check"]: c for c in fl.meta.extra["door"]}
     assert fig["baro_alt_m unit"]["verdict"] == "passed"
+    assert 0.85 < fig["baro_alt_m unit"]["figure"] < 1.15
+    # the same export with its feet read as metres (the unit left out of the mapping) is
+    # refused: at the minimum rates the evidence is still certain
+    (tmp_path / "n.toml").write_text(ed112_mapping(ex).replace(
+        'column = "ALT_FT"\nunit = "ft"', 'column = "ALT_FT"'))
+    with pytest.raises(ValidationError, match="likely unit ft"):
+        load_quiet(log, mapping=tmp_path / "n.toml", meta_overrides=over)
 
 
 def test_mostly_missing_channel_is_reported(tmp_path):

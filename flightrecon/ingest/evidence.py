@@ -239,13 +239,29 @@ def double_integral_fit(acc: tuple[np.ndarray, np.ndarray],
     return Fit(s, r, n_eff, float(se), what, r_min=r_min)
 
 
+def _heading_from_rates(data: pd.DataFrame) -> tuple[np.ndarray, np.ndarray] | None:
+    """Heading [deg] from the body rates, ``psi_dot = (q sin phi + r cos phi) / cos theta``
+    integrated from 0 (an arbitrary origin: only its rate is used), at ``r_dps``'s times."""
+    q, r = own_samples(data, "q_dps", 32), own_samples(data, "r_dps", 32)
+    roll, pitch = own_samples(data, "roll_deg"), own_samples(data, "pitch_deg")
+    if q is None or r is None or roll is None or pitch is None:
+        return None
+    t = r[0]
+    phi, th = np.radians(_at(t, roll)), np.radians(_at(t, pitch))
+    rate = (_at(t, q) * np.sin(phi) + r[1] * np.cos(phi)) / np.maximum(np.cos(th), 0.1)
+    return t, _cumtrapz(t, rate)
+
+
 def turn_rate_fit(data: pd.DataFrame, half_s: float = 3.0) -> Fit | None:
     """Factor of the true airspeed from coordinated turns: ``psi_dot V / (g0 tan roll)`` over
     the seconds with at least 15 deg of roll and 2 deg/s of turn in the same sense (about 1
     for a right ``tas_mps``; the turn's slip and the wind's gusts scatter it, not bias it).
+    The heading's rate comes from ``heading_deg``, or from the body rates where the log has
+    no heading channel.
 
     ``None`` with fewer than 20 turning seconds."""
-    hd, roll, tas = (own_samples(data, n) for n in ("heading_deg", "roll_deg", "tas_mps"))
+    hd = own_samples(data, "heading_deg") or _heading_from_rates(data)
+    roll, tas = own_samples(data, "roll_deg"), own_samples(data, "tas_mps")
     if hd is None or roll is None or tas is None:
         return None
     th, psi = hd[0], np.unwrap(np.radians(hd[1]))
