@@ -192,11 +192,16 @@ class DoorRefusal(ValidationError):
         self.checks = list(checks or [])
 
 
+#: a channel computed at ingest is named by the column it was computed from
+_COMPUTED_FROM = {"tas_mps": ("cas_mps", "ias_mps")}
+
+
 def _col(prov, name: str) -> str:
     try:
-        for cols in prov.source_column:
-            if name in cols:
-                return cols[name]
+        for n in (name, *_COMPUTED_FROM.get(name, ())):
+            for cols in prov.source_column:
+                if n in cols:
+                    return cols[n] if n == name else f"{cols[n]}' -> '{name}"
     except (AttributeError, TypeError):
         pass
     return name
