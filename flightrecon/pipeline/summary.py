@@ -52,6 +52,8 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
                  "t0_s": float(clean.grid["t_s"].iloc[0]) if len(clean.grid) else None,
                  "t1_s": float(clean.grid["t_s"].iloc[-1]) if len(clean.grid) else None},
         "measurements": {"gnss_fixes": len(clean.gnss), "radar_plots": len(clean.radar)},
+        # every check of the door with its figure and verdict (docs/door.md)
+        "door": list(clean.meta.extra.get("door", [])),
         "phases": None if ph is None else asdict(ph),
         "cleaning": {"actions": len(clean.report), "report": list(clean.report)[:200]},
         "output": {
