@@ -103,10 +103,20 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "ingest_repairs": [r.as_dict() for r in repairs],
                                             "mapping": None if mp is None else mp.file,
+                                            "derived_channels": _derived(src),
                                             "sidecar": None if sc is None else sc.path})
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
     return Flight(data=data, meta=meta, sources=tuple(src.files), warnings=tuple(warns))
+
+
+def _derived(src: _Sources) -> dict[str, str]:
+    """Channels computed at ingest (not recorded) -> how: the estimators widen their error
+    model for them (the joint smoother: ``n_long_g``), the summary says which."""
+    out = {ch: f"from {kind}_mps, sat_degc and baro_alt_m" for ch, kind in src.mt.derived.items()}
+    if src.derive_long:
+        out["n_long_g"] = "(dV/dt)/g0 + sin(pitch) from tas_mps and pitch_deg"
+    return out
 
 
 def _metadata(log: Path, sidecar: PathLike | None, meta_overrides: dict[str, Any] | None,

@@ -140,7 +140,8 @@ def combine_date_time(raw, time_column: str, date_column: str | None,
     separate columns (Garmin exports: ``Lcl Date``, ``Lcl Time``, ``UTCOfst``).
 
     ``UTC = local - offset``: a local time ``10:00`` at offset ``+02:00`` is ``08:00`` UTC.
-    The offset is ``[+-]HH:MM``, ``[+-]HHMM``, ``[+-]H`` or ``Z``, or a number of hours.
+    The offset is ``[+-]HH:MM``, ``[+-]HHMM``, ``[+-]H`` or ``Z``, or a number of hours (a
+    whole number of 100 or more read as ``HHMM``: a CSV reader takes ``+0530`` for 530).
 
     Parameters
     ----------
@@ -172,8 +173,11 @@ def combine_date_time(raw, time_column: str, date_column: str | None,
         return ts
     oc = raw.columns[offset_column]
     if oc.dtype == np.float64:
-        hours = oc
-        bad = ~np.isfinite(hours)
+        # hours (-5, 5.5), or [+-]HHMM read as a number (+0530 -> 530)
+        hhmm = np.isfinite(oc) & (np.abs(oc) >= 100) & (np.mod(np.abs(oc), 1.0) == 0)
+        a = np.abs(oc)
+        hours = np.where(hhmm, np.sign(oc) * (a // 100 + np.mod(a, 100) / 60.0), oc)
+        bad = ~np.isfinite(hours) | (np.abs(hours) > 14.0) | (hhmm & (np.mod(a, 100) >= 60))
         first = "" if not bad.any() else str(oc[int(np.argmax(bad))])
     else:
         otext = _text(oc, "%H:%M")
