@@ -297,3 +297,15 @@ def test_backward_step_beyond_a_few_seconds_is_still_refused():
     with pytest.raises(ValidationError, match="clock reset") as ex:
         repair_time_order(t, rows, {"tas_mps": np.ones(t.size)}, "f.csv", "time")
     assert list(ex.value.rows) == [31]
+
+
+def test_cleaning_report_names_ignored_columns_and_derived_channels(garmin):
+    from flightrecon.cleaning import clean_flight
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rep = clean_flight(garmin[0]).report
+    ign = [e for e in rep if e["action"] == "ignored_columns"]
+    assert len(ign) == 1 and ign[0]["count"] == 60 and "E1 RPM" in ign[0]["columns"]
+    der = [e for e in rep if e["action"] == "derived_channel"]
+    assert [e["channel"] for e in der] == ["n_long_g"]

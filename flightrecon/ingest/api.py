@@ -104,6 +104,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
                                             "ingest_repairs": [r.as_dict() for r in repairs],
                                             "mapping": None if mp is None else mp.file,
                                             "derived_channels": _derived(src),
+                                            "ignored_columns": list(src.ignored),
                                             "sidecar": None if sc is None else sc.path})
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
@@ -146,6 +147,7 @@ class _Sources:
     source_cols: list[dict[str, str]]
     magnetic: dict[str, tuple[str, str]]
     derive_long: bool = False
+    ignored: tuple[str, ...] = ()
 
 
 def _read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorted: bool,
@@ -217,7 +219,7 @@ def _read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsort
                 nan_text={k: v[sel] for k, v in mt.nan_text.items()})
     magnetic = {c: (str(log), mt.source_column[c]) for c in mt.magnetic}
     return _Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic,
-                    derive_long), meta
+                    derive_long, tuple(ignored)), meta
 
 
 def _add_companion(src: _Sources, group: str, path: Path, mp: Mapping | None, meta: FlightMeta,
