@@ -309,3 +309,23 @@ def test_cleaning_report_names_ignored_columns_and_derived_channels(garmin):
     assert len(ign) == 1 and ign[0]["count"] == 60 and "E1 RPM" in ign[0]["columns"]
     der = [e for e in rep if e["action"] == "derived_channel"]
     assert [e["channel"] for e in der] == ["n_long_g"]
+
+
+def test_garmin_export_with_repeated_and_skipped_seconds_is_retimed(tmp_path, garmin):
+    """A 1 Hz logger stamping whole seconds writes t, t, t+2 now and then (728 times in a
+    held-back export of this family: "duplicate timestamps with different values", exit 5).
+    The shipped export with 700 such stamps written in loads to the same time base and values
+    as the export itself, with one warning."""
+    lines = GARMIN.read_bytes().decode().split("\n")
+    data0 = 3 + 2                    # preamble, header, the 2 rows before the clock was set
+    ks = list(range(data0 + 40, data0 + 40 + 4 * 700, 4))
+    for k in ks:
+        f, prev = lines[k].split(","), lines[k - 1].split(",")
+        f[1] = prev[1]               # Lcl Time of the row before: t, t, t+2
+        lines[k] = ",".join(f)
+    log = tmp_path / "skips.csv"
+    log.write_bytes("\n".join(lines).encode())
+    fl, warns = load_quiet(log)
+    w = [x for x in warns if "re-timed onto the missing stamp" in x]
+    assert len(w) == 1 and "700 row(s)" in w[0]
+    pd.testing.assert_frame_equal(fl.data, garmin[0].data)
