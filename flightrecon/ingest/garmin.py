@@ -15,7 +15,7 @@ Conventions, checked on the shipped export ``sample_logs/g1000_sr22_LFQA_2022041
   turns: slope +0.51, correlation +0.65 over 63 turning samples): ``n_lat_g = LatAc``;
 * ``HDG`` and ``TRK`` are magnetic; ``MagVar`` is the magnetic variation, east positive
   (+1.4..+2.0 deg over northern France in 2022, as the WMM gives): the track computed from
-  consecutive GPS positions is ``TRK + MagVar`` (median difference 0.06 deg over the samples
+  consecutive GPS positions is ``TRK + MagVar`` (median difference -0.07 deg over the samples
   above 60 kt, against -1.76 deg for ``TRK`` itself), so ``heading_deg = HDG + MagVar`` and the
   GNSS velocity is ``GndSpd`` along ``TRK + MagVar``;
 * ``AltInd`` is the altimeter's indication at the setting ``BaroA`` (inHg): the pressure
