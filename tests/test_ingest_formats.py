@@ -329,3 +329,22 @@ def test_garmin_export_with_repeated_and_skipped_seconds_is_retimed(tmp_path, ga
     w = [x for x in warns if "re-timed onto the missing stamp" in x]
     assert len(w) == 1 and "700 row(s)" in w[0]
     pd.testing.assert_frame_equal(fl.data, garmin[0].data)
+
+
+def test_garmin_export_with_windows_line_ends_reads_the_same(tmp_path, garmin):
+    log = tmp_path / "crlf.csv"
+    log.write_bytes(GARMIN.read_bytes().replace(b"\n", b"\r\n"))
+    fl, _ = load_quiet(log)
+    pd.testing.assert_frame_equal(fl.data, garmin[0].data)
+
+
+def test_garmin_unit_it_does_not_know_is_a_schema_error_naming_the_column(tmp_path):
+    lines = GARMIN.read_bytes().decode().split("\n")
+    units = lines[1].split(",")
+    units[6] = "   metres"                    # AltInd
+    lines[1] = ",".join(units)
+    log = tmp_path / "u.csv"
+    log.write_bytes("\n".join(lines).encode())
+    with pytest.raises(SchemaError, match="unit 'metres'") as ex:
+        load_quiet(log)
+    assert ex.value.column == "AltInd"
