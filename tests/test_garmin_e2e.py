@@ -87,6 +87,16 @@ def test_reconstruct_with_its_gps_follows_the_gps(tmp_path, capsys, gps):
     summary = json.loads(out.with_name("g.recon.summary.json").read_text())
     assert summary["result"]["method"] == "joint"
     assert any("n_long_g not recorded" in w for w in summary["warnings"])
+    # the sensor errors the smoother finds against the GPS check the export's conventions:
+    # heading 0.15 deg (sd 0.09; MagVar of the wrong sign would be 3.4 deg), TAS scale -0.1 %
+    # (an OAT 3 degC off would be 0.5 %), pressure-altitude scale -0.08 % (feet read as metres:
+    # +228 %) with an offset of -119 m (QNH 1023-1027 hPa and the 45 m geoid: AltGPS is
+    # ellipsoidal)
+    c = summary["methods"]["joint"]["corrections"]
+    assert abs(c["heading_bias_deg"]["value"]) < 1.0
+    assert abs(c["tas_scale"]["value"]) < 0.02
+    assert abs(c["baro_scale"]["value"]) < 0.01
+    assert -160.0 < c["baro_offset_m"]["value"] < -80.0
 
 
 def test_recorder_only_reconstruct_is_finite_and_measured(tmp_path, capsys, gps):
