@@ -1,9 +1,10 @@
 """``load_flight``: read, map, merge and validate a recorder log into a :class:`Flight`.
 
 Order of work (docs/ingest.md): metadata (sidecar, then command-line overrides) -> mapping ->
-recorder log (read, map, time to seconds from the UTC epoch, time order) -> separate GNSS / radar
-files merged at their own times -> derived channels (TAS from IAS/CAS, magnetic -> true) ->
-validation of values and polarity.  Recoverable defects become warnings, both in
+recorder log (read, map (a Garmin export through :mod:`.garmin`), time to seconds from the UTC
+epoch, time order) -> separate GNSS / radar files merged at their own times -> derived channels
+(TAS from IAS/CAS, magnetic -> true, ``n_long_g`` from airspeed and pitch) -> validation of
+values and polarity.  Recoverable defects become warnings, both in
 ``Flight.warnings`` and through :func:`warnings.warn` with :class:`FlightReconWarning`.
 """
 
