@@ -401,7 +401,7 @@ def _string_column(col: pa.Array, valid: np.ndarray) -> tuple[np.ndarray, np.nda
     the first bad text if the column is mostly numbers; an object array of str and ``None`` if
     no cell is a number (timestamps, identifiers).
     """
-    blank = pc.fill_null(pc.match_substring_regex(col, r"^\s*$"), False)
+    blank = pc.fill_null(pc.utf8_is_space(col), False)
     if pc.any(blank).as_py():
         # a cell of spaces only (fixed-width exports pad empty cells) is an empty cell
         col = pc.if_else(blank, pa.scalar(None, pa.string()), col)

@@ -113,13 +113,20 @@ def unset_clock_rows(columns: dict[str, np.ndarray], names: tuple[str, ...]) -> 
     the time, and the date and UTC-offset columns if separate) are empty, up to the first row
     with a complete time: rows written before the recorder's clock was set.  Empty time
     cells after that stay an error (:func:`flightrecon.ingest.mapping.apply_mapping`)."""
-    empty = np.zeros(len(next(iter(columns.values()))) if columns else 0, dtype=bool)
-    for n in names:
-        empty |= _empty_cells(columns[n])
-    if not empty.size or not empty[0]:
-        return np.zeros(0, dtype=np.int64)
-    first_set = int(np.argmin(empty)) if not empty.all() else empty.size
-    return np.arange(first_set, dtype=np.int64)
+    n = len(columns[names[0]]) if names else 0
+    k = 64
+    while True:
+        # a growing prefix: a file whose first row has its time costs one look at 64 rows
+        k = min(k, n)
+        empty = np.zeros(k, dtype=bool)
+        for name in names:
+            empty |= _empty_cells(columns[name][:k])
+        if not k or not empty[0]:
+            return np.zeros(0, dtype=np.int64)
+        if not empty.all() or k == n:
+            first_set = int(np.argmin(empty)) if not empty.all() else k
+            return np.arange(first_set, dtype=np.int64)
+        k *= 4
 
 
 #: a UTC offset: ``+02:00``, ``-0500``, ``+2``, ``Z``
