@@ -215,15 +215,36 @@ def test_five_exactly_repeated_rows_are_dropped_and_reported(tmp_path):
     assert _rows_in(w[0]) == {i + 2 + k for k, i in enumerate(idx)}
 
 
-def test_conflicting_duplicates_are_refused_naming_the_rows(tmp_path):
+def test_conflicting_duplicates_on_a_few_rows_are_merged_and_reported(tmp_path):
+    """One time stamp written twice with different values (issue #39 item 4) was refused:
+    the pair is merged into one row, channel by channel the mean, and reported."""
     d = HANDMADE.copy()
     extra = d.iloc[[500]].copy()
     extra["n_norm_g"] += 0.2
     d = pd.concat([d.iloc[:501], extra, d.iloc[501:]]).reset_index(drop=True)
     p = write(tmp_path, "conf", d)
+    fl, warns = load_quiet(p)
+    assert len(fl.data) == len(HANDMADE)
+    w = [x for x in warns if "written twice with different values" in x]
+    assert len(w) == 1 and "conf.csv" in w[0] and _rows_in(w[0]) == {502}
+    got = fl.data.loc[fl.data["row"] == 501, "n_norm_g"].to_numpy()
+    # the mean of the two values written: the original + 0.1 g (to rounding of the CSV text)
+    assert got == pytest.approx(HANDMADE["n_norm_g"].iloc[500] + 0.1, abs=1e-9)
+
+
+def test_conflicting_duplicates_on_many_rows_are_refused_naming_the_rows(tmp_path):
+    """More than 1 % of the rows repeating a stamp with other values: a time base coarser
+    than the sampling, which no rule recovers (exit 5, rows named)."""
+    d = HANDMADE.copy()
+    idx = list(range(100, 1900, 60))                     # 30 rows of 1921: 1.6 %
+    extra = d.iloc[idx].copy()
+    extra["n_norm_g"] += 0.2
+    d = pd.concat([d, extra]).sort_index(kind="stable").reset_index(drop=True)
+    p = write(tmp_path, "conf", d)
     with pytest.raises(ValidationError, match="duplicate timestamps with different") as ex:
         load_quiet(p)
-    assert ex.value.rows == [502] and ex.value.file.endswith("conf.csv")
+    assert ex.value.rows[0] == 102 and len(ex.value.rows) == 30
+    assert ex.value.file.endswith("conf.csv")
 
 
 def test_clock_reset_is_refused_naming_the_rows(tmp_path):

@@ -145,7 +145,13 @@ def _backward(tmp):
 
 
 def _duplicate_time(tmp):
-    return [write_csv(tmp / "dt.csv", _edit(SAMPLE, "t_s", 50, SAMPLE.t_s[48]))]
+    # time written at a third of the sampling rate (t, t, t, t+3, ...): no missing stamp to
+    # re-time the repeats onto, conflicting values on most rows (a single repeated stamp is
+    # repaired: tests/test_ingest_formats.py)
+    d = SAMPLE.copy()
+    dt = float(np.median(np.diff(d.t_s)))
+    d["t_s"] = np.floor((d.t_s - d.t_s[0]) / (3 * dt) + 1e-9) * 3 * dt + d.t_s[0]
+    return [write_csv(tmp / "dt.csv", d)]
 
 
 def _missing_time(tmp):
@@ -338,7 +344,6 @@ CASES = [
     ("truncated-parquet", _truncated_parquet, 3, ["truncated or corrupt Parquet"]),
     ("corrupt-parquet", _corrupt_parquet, 3, ["corrupt Parquet"]),
     ("csv-named-parquet", _csv_named_parquet, 3, ["not a Parquet file"]),
-    ("truncated-csv", _truncated_csv, 3, ["truncated", f"row {len(SAMPLE)}"]),
     ("ragged-row", _ragged, 3, ["wrong number of fields", "row 10"]),
     ("duplicate-header", _dup_header, 4, ["duplicate column name", "roll_deg"]),
     ("missing-required", _missing_required, 4, ["missing required", "pitch_deg"]),
@@ -346,7 +351,8 @@ CASES = [
     ("empty-required-channel", _empty_channel, 5, ["roll_deg", "no sample"]),
     ("non-numeric", _non_numeric, 5, ["column 'tas_mps'", "row 101", "'fast'"]),
     ("backward-time", _backward, 5, ["backward", "row 50"]),
-    ("duplicate-time", _duplicate_time, 5, ["duplicate timestamps", "row 50"]),
+    ("duplicate-time", _duplicate_time, 5, ["duplicate timestamps", "coarser than the sampling",
+                                            "rows 2, 3"]),
     ("missing-time", _missing_time, 5, ["column 't_s'", "row 7", "missing"]),
     ("no-time-column", _no_time, 4, ["no time column"]),
     ("impossible-value", _impossible, 5, ["column 'tas_mps'", "rows 249", "systematically",
@@ -393,6 +399,24 @@ def test_malformed_input(name, build, code, words, tmp_path, capsys):
 
 def test_at_least_25_kinds():
     assert len({c[0] for c in CASES}) >= 25
+
+
+def test_truncated_last_row_is_dropped_with_a_warning(tmp_path, capsys):
+    """A last row cut short without a line end (a recorder switched off while writing: the
+    shipped Garmin export ends so) was exit 3; it is dropped with a warning naming its row
+    (issue #36), and the rest of the file loads."""
+    (code, err) = run(_truncated_csv(tmp_path), capsys)
+    assert code == 0, err
+    assert "cut short" in err and f"data row {len(SAMPLE)}" in err and "dropped" in err
+
+
+def test_short_row_before_the_end_is_still_refused(tmp_path, capsys):
+    """Only the last row may be short: a short row with rows after it is a broken file."""
+    lines = CSV_TEXT.splitlines()
+    lines[10] = ",".join(lines[10].split(",")[:5])
+    (tmp_path / "s.csv").write_text("\n".join(lines))          # no final line end either
+    code, err = run([tmp_path / "s.csv"], capsys)
+    assert code == 3 and "wrong number of fields" in err and "row 10" in err, err
 
 
 def test_valid_sample_exits_zero(tmp_path, capsys):

@@ -66,6 +66,22 @@ class CleaningSettings:
     end: float | str | None = None
 
 
+def _ingest_notes_entries(extra: dict) -> list[dict]:
+    """Cleaning-report entries for what ingest left out or made up: the log's columns mapped
+    to no channel (``ignored_columns``) and the channels derived, not recorded
+    (``derived_channel``, docs/ingest.md)."""
+    out = []
+    ignored = list(extra.get("ignored_columns") or ())
+    if ignored:
+        out.append(report_entry("*", "ignored_columns", "columns of the log mapped to no "
+                                "channel (not in the schema, not in the mapping): not used",
+                                count=len(ignored), columns=", ".join(ignored)))
+    for ch, how in (extra.get("derived_channels") or {}).items():
+        out.append(report_entry(ch, "derived_channel", f"not recorded: computed at ingest as "
+                                f"{how}", count=0))
+    return out
+
+
 def _repair_entry(r: dict) -> dict:
     """A cleaning-report entry for one validation repair (``flightrecon.ingest.validate.Repair``):
     ``range_clip`` / ``range_mask`` with the file, its source column and 1-based data rows."""
@@ -133,6 +149,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     report.extend(rep)
     # repairs made at validation (values outside the physical range), first in the report
     ingest = [_repair_entry(r) for r in flight.meta.extra.get("ingest_repairs", ())]
+    ingest += _ingest_notes_entries(flight.meta.extra)
     report[:0] = ingest + trim_rep
     tables = _measurement_tables(work, offsets, report)
     meta, rep = with_origin(flight.meta, grid, tables["gnss"], tables["radar"])

@@ -34,6 +34,9 @@ from flightrecon.cli.trim import trim_options
               help="Winds-aloft prior: CSV alt_msl_m,from_deg,speed_mps[,sd_mps]: the joint "
                    "smoother's wind prior by altitude, the wind of Sabziev and dead reckoning "
                    "where the log records none (docs/wind.md).")
+@click.option("--no-gnss", "no_gnss", is_flag=True,
+              help="Withhold GNSS: use none of the log's GNSS channels nor a GNSS file "
+                   "(a recorder-only reconstruction, e.g. to compare with the GNSS track).")
 @click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
 @click.option("--methods", metavar="LIST",
               help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "
@@ -97,8 +100,8 @@ from flightrecon.cli.trim import trim_options
 @trim_options
 @click.pass_context
 def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, departure,
-            arrival, station, fixes, wind_file, aircraft_id, methods, k_text, rate_hz, arms_form,
-            arms_linearisation, azimuth_model, sns_model, sns_form, noise_file, estimate_noise,
+            arrival, station, fixes, wind_file, no_gnss, aircraft_id, methods, k_text, rate_hz,
+            arms_form, arms_linearisation, azimuth_model, sns_model, sns_form, noise_file, estimate_noise,
             store_path, use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt,
             summary_path, report_dir, start=None, end=None) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary.
@@ -122,6 +125,8 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
         overrides["wind_aloft"] = str(wind_file)
     if aircraft_id:
         overrides["aircraft_id"] = aircraft_id
+    if no_gnss:
+        overrides["withhold_gnss"] = True
     settings = ReconstructSettings(
         methods=method_list, rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
         arms_form=arms_form, arms_linearisation=arms_linearisation, azimuth_model=azimuth_model,

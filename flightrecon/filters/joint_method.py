@@ -414,10 +414,30 @@ def _derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> Joint
                                            heading_bias_rw_deg_sqrt_s=rw))
 
 
+#: prior sd of the forward accelerometer's scale error and bias when ``n_long_g`` was not
+#: recorded but derived from airspeed and pitch at ingest (flightrecon/ingest/derive.py): its
+#: error is no sensor's, but the missed angle-of-attack and along-track wind terms (order
+#: 0.01 g, a few per cent of the channel); the sensor budget (0.5 %, 0.003 g) is too tight
+DERIVED_LONG_SCALE_SD = 0.1
+DERIVED_LONG_BIAS_G = 0.01
+
+
+def _derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """Wider priors of the forward accelerometer's scale and bias for a derived ``n_long_g``
+    (ingest's ``derived_channels``); a prior the user gave for them is kept."""
+    if "n_long_g" not in (clean.meta.extra.get("derived_channels") or {}):
+        return settings
+    given = {p[0] for p in settings.priors}
+    extra = tuple(p for p in (("accel_scale_x", 0.0, DERIVED_LONG_SCALE_SD),
+                              ("accel_bias_x_g", 0.0, DERIVED_LONG_BIAS_G)) if p[0] not in given)
+    return replace(settings, priors=(*settings.priors, *extra))
+
+
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
     """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
     settings = settings or JointSettings()
     settings = _derived_heading_noise(clean, settings)
+    settings = _derived_long_priors(clean, settings)
     inp = joint_inputs(clean)
     run = smooth_joint(inp, settings)
     track = joint_track(clean, run)

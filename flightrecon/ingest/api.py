@@ -1,9 +1,10 @@
 """``load_flight``: read, map, merge and validate a recorder log into a :class:`Flight`.
 
 Order of work (docs/ingest.md): metadata (sidecar, then command-line overrides) -> mapping ->
-recorder log (read, map, time to seconds from the UTC epoch, time order) -> separate GNSS / radar
-files merged at their own times -> derived channels (TAS from IAS/CAS, magnetic -> true) ->
-validation of values and polarity.  Recoverable defects become warnings, both in
+recorder log (read, map (a Garmin export through :mod:`.garmin`), time to seconds from the UTC
+epoch, time order) -> separate GNSS / radar files merged at their own times -> derived channels
+(TAS from IAS/CAS, magnetic -> true, ``n_long_g`` from airspeed and pitch) -> validation of
+values and polarity.  Recoverable defects become warnings, both in
 ``Flight.warnings`` and through :func:`warnings.warn` with :class:`FlightReconWarning`.
 """
 
@@ -19,13 +20,14 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
-from flightrecon.ingest.derive import derive_tas, true_from_magnetic
+from flightrecon.ingest.derive import derive_n_long, derive_tas, true_from_magnetic
+from flightrecon.ingest.garmin import apply_garmin_columns, garmin_mapping, merge_with_user
 from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.physics import DeclaredUnit, DoorCheck, DoorRefusal, door_checks
-from flightrecon.ingest.timestamps import repair_time_order
+from flightrecon.ingest.timestamps import repair_time_order, unset_clock_rows
 from flightrecon.ingest.sidecar import (
     apply_overrides,
     discover_sidecar,
@@ -61,7 +63,9 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     mapping : mapping file (TOML, docs/ingest.md); default: the sidecar's ``[files] mapping``
     sidecar : metadata file; default ``<log stem>.meta.toml`` beside the log if it exists
     meta_overrides : metadata from the command line (``FlightMeta`` field names; positions as
-        :class:`Position` or ``"LAT,LON,ELEV_M"``); they win over the sidecar
+        :class:`Position` or ``"LAT,LON,ELEV_M"``); they win over the sidecar.  The key
+        ``withhold_gnss`` (``True``) drops every GNSS channel of the log and its companion
+        files (a recorder-only reconstruction; ``reconstruct --no-gnss``)
     allow_unsorted : sort backward timestamps (and keep duplicates) with a warning instead of
         raising; the cleaning layer then decides what to do with duplicates
 
@@ -80,12 +84,17 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     warns: list[str] = []
     notes: list[str] = []
     log = Path(log)
-    sc, meta, companion = _metadata(log, sidecar, meta_overrides, warns)
+    overrides = dict(meta_overrides or {})
+    withhold_gnss = bool(overrides.pop("withhold_gnss", False))
+    sc, meta, companion = _metadata(log, sidecar, overrides or None, warns)
     gnss = gnss if gnss is not None else companion.get("gnss")
+    if withhold_gnss:
+        gnss = None
+        notes.append("GNSS withheld: the log's GNSS channels and any GNSS file are not used")
     radar = radar if radar is not None else companion.get("radar")
     mapping = mapping if mapping is not None else companion.get("mapping")
     mp: Mapping | None = load_mapping(mapping) if mapping is not None else None
-    src, meta = _read_log(log, mp, meta, allow_unsorted, warns, notes)
+    src, meta = _read_log(log, mp, meta, allow_unsorted, warns, notes, withhold_gnss)
     for group, path in (("gnss", gnss), ("radar", radar)):
         if path is not None:
             _add_companion(src, group, Path(path), mp, meta, allow_unsorted, warns, notes)
@@ -98,10 +107,21 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
                                             "ingest_repairs": [r.as_dict() for r in repairs],
                                             "door": [c.as_dict() for c in door],
                                             "mapping": None if mp is None else mp.file,
+                                            "derived_channels": _derived(src),
+                                            "ignored_columns": list(src.ignored),
                                             "sidecar": None if sc is None else sc.path})
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
     return Flight(data=data, meta=meta, sources=tuple(src.files), warnings=tuple(warns))
+
+
+def _derived(src: _Sources) -> dict[str, str]:
+    """Channels computed at ingest (not recorded) -> how: the estimators widen their error
+    model for them (the joint smoother: ``n_long_g``), the summary says which."""
+    out = {ch: f"from {kind}_mps, sat_degc and baro_alt_m" for ch, kind in src.mt.derived.items()}
+    if src.derive_long:
+        out["n_long_g"] = "(dV/dt)/g0 + sin(pitch) from tas_mps and pitch_deg"
+    return out
 
 
 def _metadata(log: Path, sidecar: PathLike | None, meta_overrides: dict[str, Any] | None,
@@ -130,15 +150,31 @@ class _Sources:
     files: list[str]
     source_cols: list[dict[str, str]]
     magnetic: dict[str, tuple[str, str]]
+    derive_long: bool = False
+    ignored: tuple[str, ...] = ()
 
 
-def _read_log(log: Path, mp: Mapping | None, meta: FlightMeta, allow_unsorted: bool,
-              warns: list[str], notes: list[str]) -> tuple[_Sources, FlightMeta]:
-    """The recorder log through its mapping: schema checks, time base, time order."""
+def _read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorted: bool,
+              warns: list[str], notes: list[str], withhold_gnss: bool = False
+              ) -> tuple[_Sources, FlightMeta]:
+    """The recorder log through its mapping (a Garmin export's built-in one under the user's):
+    schema checks, time base, time order."""
     raw = read_table(log)
+    warns += list(raw.warnings)
+    mp = user_mp
+    garmin_used: tuple[str, ...] = ()
+    if raw.dialect == "garmin":
+        mp = merge_with_user(garmin_mapping(raw), user_mp)
+        garmin_used = tuple(c for c in ("MagVar", "BaroA", "GndSpd", "TRK", "GPSfix")
+                            if c in raw.columns)
+        notes.append(f"{log}: Garmin export ({raw.preamble.get('airframe_name', 'airframe ?')}"
+                     f", software {raw.preamble.get('system_software_part_number', '?')}) read "
+                     "with the built-in mapping" + (" under the user's mapping" if user_mp
+                                                    else ""))
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
                      f"{raw.blank_rows[0]})")
+    raw = _drop_unset_clock(raw, mp, log, warns)
     try:
         mt = apply_mapping(raw, mp)
     except SchemaError as exc:          # no time column: point at a mapping beside the log
@@ -149,7 +185,12 @@ def _read_log(log: Path, mp: Mapping | None, meta: FlightMeta, allow_unsorted: b
                           rows=exc.rows) from None
     if raw.nan_is_missing:
         notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
-    used = set(mt.source_column.values()) | {_time_column(mt, mp, raw.columns)}
+    if raw.dialect == "garmin" and mp is not None:
+        mt = apply_garmin_columns(raw, mt, mp, withhold_gnss)
+    if withhold_gnss:
+        mt = _without_gnss(mt)
+    used = (set(mt.source_column.values()) | set(_time_columns(mp, raw.columns))
+            | set(garmin_used))
     ignored = [c for c in raw.columns if c not in used]
     if ignored:
         shown = ", ".join(ignored[:8]) + (" ..." if len(ignored) > 8 else "")
@@ -160,6 +201,9 @@ def _read_log(log: Path, mp: Mapping | None, meta: FlightMeta, allow_unsorted: b
         present.add("tas_mps")
         mt = dataclasses.replace(mt, derived={**mt.derived, "tas_mps": "cas" if "cas_mps"
                                               in present else "ias"})
+    derive_long = "n_long_g" not in present and {"tas_mps", "pitch_deg"} <= present
+    if derive_long:
+        present.add("n_long_g")
     if "heading_deg" not in present and {"q_dps", "r_dps"} <= present:
         present.add("heading_deg")
         notes.append("no heading channel: the heading is propagated from the body rates at "
@@ -170,15 +214,16 @@ def _read_log(log: Path, mp: Mapping | None, meta: FlightMeta, allow_unsorted: b
     t, meta, epoch_ns, epoch_note = _log_seconds(mt, meta)
     if epoch_note:
         notes.append(epoch_note)
-    order, w = _time_order(t, mt.rows, mt.values, str(log), _time_column(mt, mp, raw.columns),
-                           allow_unsorted)
+    t, tvalues, order, w = _time_order(t, mt.rows, mt.values, str(log),
+                                       _time_column(mt, mp, raw.columns), allow_unsorted)
     warns += w
     sel = order if order is not None else slice(None)
-    rows = Rows(t=t[sel], values={k: v[sel] for k, v in mt.values.items()},
+    rows = Rows(t=t[sel], values={k: v[sel] for k, v in tvalues.items()},
                 src_file=np.zeros(t.size, dtype=np.int64)[sel], row=mt.rows[sel],
                 nan_text={k: v[sel] for k, v in mt.nan_text.items()})
     magnetic = {c: (str(log), mt.source_column[c]) for c in mt.magnetic}
-    return _Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic), meta
+    return _Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic,
+                    derive_long, tuple(ignored)), meta
 
 
 def _add_companion(src: _Sources, group: str, path: Path, mp: Mapping | None, meta: FlightMeta,
@@ -186,6 +231,7 @@ def _add_companion(src: _Sources, group: str, path: Path, mp: Mapping | None, me
     """Merge a separate GNSS or radar file into ``src`` on UTC time (each fix its own row)."""
     sub = getattr(mp, group) if mp is not None else None
     craw = read_table(path)
+    warns += list(craw.warnings)
     cm = apply_mapping(craw, sub, group=group, mapping_file=mp.file if mp else None)
     if not cm.values:
         raise SchemaError(f"no {group} columns ({', '.join(GROUPS[group])}) in the "
@@ -196,7 +242,8 @@ def _add_companion(src: _Sources, group: str, path: Path, mp: Mapping | None, me
         raise SchemaError(f"the log already has {group} data in {', '.join(clash)} and a "
                           f"separate {group} file was given", file=str(path), column=clash[0])
     ct = _companion_seconds(cm, meta, src.epoch_ns)
-    corder, w = _time_order(ct, cm.rows, cm.values, str(path), "time", allow_unsorted)
+    ct, cvalues, corder, w = _time_order(ct, cm.rows, cm.values, str(path), "time",
+                                         allow_unsorted)
     warns += w
     csel = corder if corder is not None else slice(None)
     k = len(src.files)
@@ -205,7 +252,7 @@ def _add_companion(src: _Sources, group: str, path: Path, mp: Mapping | None, me
     for c in cm.magnetic:
         src.magnetic[c] = (str(path), cm.source_column[c])
     notes += list(cm.notes)
-    add = Rows(t=ct[csel], values={c: v[csel] for c, v in cm.values.items()},
+    add = Rows(t=ct[csel], values={c: v[csel] for c, v in cvalues.items()},
                src_file=np.full(ct.size, k, dtype=np.int64), row=cm.rows[csel],
                nan_text={c: v[csel] for c, v in cm.nan_text.items()})
     src.rows = merge_rows(src.rows, add)
@@ -224,6 +271,10 @@ def _derived_channels(src: _Sources, meta: FlightMeta, log: Path, warns: list[st
     for ch, (f, col) in src.magnetic.items():
         values[ch], n = true_from_magnetic(rows.t, values[ch], values, meta, f, col)
         notes += n
+    if src.derive_long:
+        values["n_long_g"], note = derive_n_long(rows.t, values, str(log))
+        notes.append(note)
+        warns.append(note)
     return values
 
 
@@ -347,11 +398,50 @@ def _mapping_hint(log: Path) -> str:
 
 
 def _time_order(t, rows, values, file: str, column: str, allow_unsorted: bool):
-    """Rows in time order: repaired and reported, or refused (:mod:`.timestamps`); with
-    ``allow_unsorted`` the old rule (sort everything, keep duplicates, with a warning)."""
+    """Rows in time order: ``(t, values, selection, warnings)``, repaired and reported, or
+    refused (:mod:`.timestamps`); with ``allow_unsorted`` the old rule (sort everything, keep
+    duplicates, with a warning)."""
     if allow_unsorted:
-        return check_time(t, rows, file, column, allow_unsorted=True)
-    return repair_time_order(t, rows, values, file, column)
+        order, w = check_time(t, rows, file, column, allow_unsorted=True)
+        return t, values, order, w
+    rep = repair_time_order(t, rows, values, file, column)
+    return rep.t, rep.values, rep.selection, rep.warnings
+
+
+def _time_columns(mp: Mapping | None, columns) -> tuple[str, ...]:
+    """Every source column the time is read from (time, and a separate date and offset)."""
+    if mp is not None and mp.time is not None:
+        return tuple(c for c in (mp.time.column, mp.time.date_column,
+                                 mp.time.utc_offset_column) if c is not None)
+    return ("t_s",) if "t_s" in columns else ("time_utc",)
+
+
+def _drop_unset_clock(raw, mp: Mapping | None, log: Path, warns: list[str]):
+    """``raw`` with the rows written before the recorder's clock was set (empty time cells at
+    the start of the file, :func:`.timestamps.unset_clock_rows`) marked to be skipped, and a
+    warning naming them."""
+    names = tuple(c for c in _time_columns(mp, raw.columns) if c in raw.columns)
+    if not names:
+        return raw
+    idx = unset_clock_rows(raw.columns, names)
+    if not idx.size:
+        return raw
+    blank = np.union1d(raw.blank_rows, idx + 1).astype(np.int64)
+    if blank.size >= raw.n_rows:
+        return raw                        # no time at all: apply_mapping names the rows
+    warns.append(f"{log}: {idx.size} row(s) at the start have no time ({', '.join(names)} "
+                 f"empty: written before the recorder's clock was set): dropped (rows "
+                 f"{idx[0] + 1}..{idx[-1] + 1})")
+    return dataclasses.replace(raw, blank_rows=blank)
+
+
+def _without_gnss(mt: MappedTable) -> MappedTable:
+    """``mt`` without its GNSS channels (``withhold_gnss``)."""
+    gn = set(GROUPS["gnss"])
+    return dataclasses.replace(mt, values={k: v for k, v in mt.values.items() if k not in gn},
+                               nan_text={k: v for k, v in mt.nan_text.items() if k not in gn},
+                               source_column={k: v for k, v in mt.source_column.items()
+                                              if k not in gn})
 
 
 def _own_columns(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -6,6 +6,9 @@
   temperature or the altitude is sampled on other rows than the airspeed (multi-rate logs), they
   are interpolated linearly in time to the airspeed rows (they are inputs, not measurements);
   without a temperature channel the ISA temperature at the pressure altitude is used (a warning).
+* Longitudinal load factor from airspeed and pitch, for recorders without a longitudinal
+  accelerometer (Garmin glass cockpits): ``n_long = (dV/dt) / g0 + sin(pitch)``
+  (:func:`derive_n_long`).
 * Magnetic -> true: ``true = magnetic + D`` with the World Magnetic Model declination D at the
   flight date (:mod:`flightrecon.geo.magnetic`), evaluated along the GNSS track when the log has
   GNSS positions, else at the departure airfield.
@@ -15,12 +18,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from flightrecon.constants import G0
 from flightrecon.errors import MetadataError, SchemaError
 from flightrecon.geo.atmosphere import cas_to_tas, isa_temperature_k
 from flightrecon.geo.magnetic import decimal_year, declination_deg, magnetic_to_true
 from flightrecon.types import FlightMeta
 
-__all__ = ["DECLINATION_POINTS", "derive_tas", "true_from_magnetic"]
+__all__ = ["DECLINATION_POINTS", "N_LONG_HALF_WINDOW_S", "derive_n_long", "derive_tas",
+           "true_from_magnetic"]
 
 #: number of points along the GNSS track where the WMM is evaluated (then interpolated in time)
 DECLINATION_POINTS = 48
@@ -65,6 +70,70 @@ def derive_tas(t: np.ndarray, values: dict[str, np.ndarray], source: str,
     tas = np.full(t.size, np.nan)
     tas[rows] = cas_to_tas(spd[rows], h, sat)
     return tas, warns
+
+
+#: half-width of the airspeed difference that gives dV/dt for a derived n_long [s]: a 1 kt
+#: airspeed quantum (0.51 m/s) becomes 0.51 / 6 / g0 = 0.009 g, and a speed change of a
+#: light aircraft (seconds) is still followed
+N_LONG_HALF_WINDOW_S = 3.0
+
+
+def derive_n_long(t: np.ndarray, values: dict[str, np.ndarray], file: str
+                  ) -> tuple[np.ndarray, str]:
+    """Longitudinal load factor [g] for a log with no longitudinal accelerometer.
+
+    Along the body x axis the specific force is the acceleration plus the component of g0 up:
+    ``n_long = (dV/dt) / g0 + sin(theta)`` with ``V`` the true airspeed and ``theta`` the pitch.
+    ``dV/dt`` is the airspeed difference over +-:data:`N_LONG_HALF_WINDOW_S` (a centred
+    difference of the airspeed interpolated linearly in time: the mean derivative over 6 s).
+
+    What it costs against a measured channel: (1) ``dV/dt`` is the acceleration relative to
+    the air: a wind changing along the track by ``dW/dt`` is missed by ``dW/dt / g0`` (gusts,
+    shear: 0.01 g per 1 m/s in 10 s); (2) the exact relation is ``n_long = (dV/dt/g0 + sin(gamma))
+    cos(alpha) + n_norm sin(alpha)`` (gamma the flight-path angle, alpha the angle of attack):
+    with ``theta = gamma + alpha`` it is the formula above to first order in alpha, the rest
+    ``alpha (n_norm - 1)`` and ``alpha^2`` terms, 0.013 g at 30 deg of bank and 5 deg of alpha;
+    (3) the 6 s difference smooths the speed changes and the 1-kt quantum of a Garmin TAS column
+    leaves about 0.009 g of noise.  The joint smoother's accelerometer noise is one figure for
+    the three axes (not per channel), so it is not widened; the airspeed measurement it fuses
+    holds the along-track speed.
+
+    Parameters
+    ----------
+    t : (N,) seconds
+    values : channels on the rows (``tas_mps`` and ``pitch_deg`` needed; NaN where not sampled)
+    file : for the note
+
+    Returns
+    -------
+    n_long : (N,) on the rows where the pitch was sampled, NaN elsewhere [g]
+    note : what was derived (for the ingest notes and the summary's warnings)
+
+    Raises
+    ------
+    SchemaError
+        ``tas_mps`` or ``pitch_deg`` missing or without two samples.
+    """
+    for need in ("tas_mps", "pitch_deg"):
+        if need not in values or np.count_nonzero(~np.isnan(values[need])) < 2:
+            raise SchemaError(f"n_long_g is not recorded and cannot be derived without {need}",
+                              file=file, column=need)
+    v, pitch = values["tas_mps"], values["pitch_deg"]
+    ok = ~np.isnan(v)
+    tv, vv = t[ok], v[ok]
+    at = ~np.isnan(pitch)
+    h = N_LONG_HALF_WINDOW_S
+    lo = np.clip(t[at] - h, tv[0], tv[-1])
+    hi = np.clip(t[at] + h, tv[0], tv[-1])
+    span = hi - lo
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vdot = np.where(span > 0, (np.interp(hi, tv, vv) - np.interp(lo, tv, vv)) / span, 0.0)
+    out = np.full(t.size, np.nan)
+    out[at] = vdot / G0 + np.sin(np.radians(pitch[at]))
+    note = (f"{file}: n_long_g not recorded: derived as (dV/dt)/g0 + sin(pitch) from tas_mps and "
+            f"pitch_deg (dV/dt over +-{h:g} s; misses along-track wind changes and "
+            "angle-of-attack terms of order 0.01 g: docs/ingest.md)")
+    return out, note
 
 
 def true_from_magnetic(t: np.ndarray, mag_deg: np.ndarray, values: dict[str, np.ndarray],

@@ -78,6 +78,10 @@ class TimeSpec:
     column: str
     unit: str
     format: str | None = None
+    #: a separate date column (then ``column`` holds the time of day) and a column of UTC
+    #: offsets (``+02:00``, local time = UTC + offset): :func:`.timestamps.combine_date_time`
+    date_column: str | None = None
+    utc_offset_column: str | None = None
 
 
 @dataclass(frozen=True)
@@ -182,14 +186,21 @@ def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
     time = None
     if "time" in doc:
         t = _table(doc["time"], file, f"{prefix}time")
-        _only(t, {"column", "unit", "format"}, file, f"{prefix}time")
+        _only(t, {"column", "unit", "format", "date_column", "utc_offset_column"}, file,
+              f"{prefix}time")
         col = _str(t, "column", file, f"{prefix}time", required=True)
-        unit = _str(t, "unit", file, f"{prefix}time", required=False) or "s"
+        date_col = _str(t, "date_column", file, f"{prefix}time", required=False)
+        ofs_col = _str(t, "utc_offset_column", file, f"{prefix}time", required=False)
+        unit = _str(t, "unit", file, f"{prefix}time", required=False) or (
+            "timestamp" if date_col or ofs_col else "s")
         if unit not in TIME_UNITS:
             raise MappingError(f"[{prefix}time] unit '{unit}' is not one of {TIME_UNITS}",
                                file=file, column=col)
+        if (date_col or ofs_col) and unit != "timestamp":
+            raise MappingError(f"[{prefix}time] date_column / utc_offset_column need unit = "
+                               "\"timestamp\"", file=file, column=col)
         fmt = _str(t, "format", file, f"{prefix}time", required=False)
-        time = TimeSpec(str(col), unit, fmt)   # required: never None here
+        time = TimeSpec(str(col), unit, fmt, date_col, ofs_col)   # required: never None here
     chans: list[ChannelSpec] = []
     targets = _table(doc.get("channels", {}), file, f"{prefix}channels")
     for name, spec in targets.items():
@@ -394,9 +405,10 @@ def _time_spec(raw: RawTable, mapping: Mapping | None, mfile: str | None) -> Tim
         raise SchemaError("no time column: expected 't_s' (seconds from epoch_utc) or "
                           "'time_utc' (UTC timestamps), or a [time] table in a mapping file",
                           file=raw.file)
-    if tspec.column not in raw.columns:
-        raise MappingError(f"mapping file {mfile}: time column is not in the file", file=raw.file,
-                           column=tspec.column)
+    for c in (tspec.column, tspec.date_column, tspec.utc_offset_column):
+        if c is not None and c not in raw.columns:
+            raise MappingError(f"mapping file {mfile}: time column is not in the file",
+                               file=raw.file, column=c)
     return tspec
 
 
@@ -455,6 +467,11 @@ def _convert_time(raw: RawTable, tspec: TimeSpec, rows: np.ndarray) -> np.ndarra
     """Seconds (float64) or UTC nanoseconds (int64) of every row; missing/bad times raise."""
     col = raw.columns[tspec.column]
     file = raw.file
+    if tspec.date_column is not None or tspec.utc_offset_column is not None:
+        from flightrecon.ingest.timestamps import combine_date_time
+
+        return combine_date_time(raw, tspec.column, tspec.date_column,
+                                 tspec.utc_offset_column, tspec.format, rows)
     if tspec.unit == "s":
         if np.issubdtype(col.dtype, np.datetime64):
             raise ValidationError("time column holds timestamps: set unit = \"timestamp\" in the "

@@ -10,11 +10,17 @@ Numeric columns are float64.  Empty cells (and Parquet nulls and NaN) mean "not 
 row", which is normal in multi-rate logs.  In a CSV that uses empty cells for that, a literal
 ``NaN`` written by the recorder is an invalid value: it is kept apart in
 :attr:`RawTable.nan_text` so that validation can tell it from a missing sample.
-Text cells that are not numbers are kept as text, and validation reports them.
+Text cells that are not numbers are kept as text, and validation reports them; a cell of
+spaces only is an empty cell.  A Garmin glass-cockpit export (``#airframe_info`` first line,
+then a units line, then the header) is read with its units line and airframe line kept
+(:attr:`RawTable.units`, :attr:`RawTable.preamble`).  A last row cut short (fewer fields than
+the header and no line end: the recorder stopped while writing it) is dropped with a warning.
 """
 
 from __future__ import annotations
 
+import csv
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +59,13 @@ class RawTable:
     bad_text : column -> (mask of non-numeric text cells in a numeric column, first such text)
     nan_is_missing : the file marks unsampled cells with NaN (Parquet, or a CSV without any
         empty cell), so ``nan_text`` is empty: NaN cannot tell an invalid value there
+    dialect : ``"garmin"`` for a Garmin glass-cockpit export (``#airframe_info`` first line,
+        then a units line, then the header; :mod:`flightrecon.ingest.garmin`), else ``""``
+    units : source column -> unit text of the file's own units line (Garmin exports)
+    preamble : ``key=value`` pairs of a Garmin ``#airframe_info`` line (aircraft, software)
+    warnings : repairs made while reading (a short last row dropped), each naming its row
+    header_line : 1-based line of the header in the file (data row k is line
+        ``header_line + k``)
     """
 
     file: str
@@ -63,6 +76,11 @@ class RawTable:
     fmt: str = "csv"
     bad_text: dict[str, tuple[np.ndarray, str]] = field(default_factory=dict)
     nan_is_missing: bool = False
+    dialect: str = ""
+    units: dict[str, str] = field(default_factory=dict)
+    preamble: dict[str, str] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+    header_line: int = 1
 
 
 def sniff_format(path: str | os.PathLike) -> str:
@@ -147,6 +165,11 @@ def _decode_check(raw: bytes, file: str) -> int:
     return bom
 
 
+#: first bytes of a Garmin glass-cockpit export (G1000, G3X, Perspective): an airframe line,
+#: a units line starting with ``#``, then the header line
+GARMIN_MAGIC = b"#airframe_info"
+
+
 def _read_csv(p: Path) -> RawTable:
     file = str(p)
     try:
@@ -157,6 +180,19 @@ def _read_csv(p: Path) -> RawTable:
     body = raw[bom:]
     if not body[:65536].strip() and not body.strip():
         raise InputFileError("empty file (no header, no data)", file=file)
+    preamble: list[str] = []
+    if body.startswith(GARMIN_MAGIC):
+        # airframe line and units line before the header (flightrecon/ingest/garmin.py)
+        for _ in range(2):
+            nl = body.find(b"\n")
+            if nl < 0:
+                raise InputFileError("Garmin export with no header line after its "
+                                     "#airframe_info and units lines", file=file)
+            preamble.append(body[:nl].decode("utf-8").rstrip("\r"))
+            body = body[nl + 1:]
+        if not preamble[1].startswith("#"):
+            raise InputFileError("Garmin export: line 2 should be the units line (starting "
+                                 f"with '#'), found: {preamble[1][:60]!r}", file=file)
     first_nl = body.find(b"\n")
     header = body if first_nl < 0 else body[:first_nl]
     if first_nl < 0 or not body[first_nl + 1:first_nl + 65537].strip() \
@@ -165,6 +201,7 @@ def _read_csv(p: Path) -> RawTable:
     delim = _sniff_delimiter(header.decode("utf-8"))
     names = [h.strip().strip('"') for h in header.decode("utf-8").rstrip("\r").split(delim)]
     _check_names(names, file)
+    body, warns = _drop_short_last_row(body, len(names), delim, file, len(preamble) + 1)
     read_opts = pacsv.ReadOptions(column_names=names, skip_rows=1, block_size=1 << 24)
     parse_opts = pacsv.ParseOptions(delimiter=delim, ignore_empty_lines=False)
     conv_opts = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True,
@@ -177,7 +214,45 @@ def _read_csv(p: Path) -> RawTable:
         if "parse error" in str(exc) or "Expected" in str(exc):
             _raise_ragged(buf, names, delim, body, file)
         raise InputFileError(f"cannot parse CSV: {exc}", file=file) from None
-    return _from_arrow(tbl, file, "csv")
+    table = _from_arrow(tbl, file, "csv")
+    extra: dict = {"warnings": tuple(warns), "header_line": len(preamble) + 1}
+    if preamble:
+        units = [u.strip() for u in preamble[1].lstrip("#").split(delim)]
+        extra.update(dialect="garmin", preamble=_airframe_info(preamble[0]),
+                     units={n: (units[i] if i < len(units) else "") for i, n in
+                            enumerate(names)})
+    return dataclasses.replace(table, **extra)
+
+
+def _airframe_info(line: str) -> dict[str, str]:
+    """``key=value`` / ``key="value"`` pairs of a Garmin ``#airframe_info`` line."""
+    out: dict[str, str] = {}
+    for part in line.split(",")[1:]:
+        k, eq, v = part.partition("=")
+        if eq and k.strip():
+            out[k.strip()] = v.strip().strip('"')
+    return out
+
+
+def _drop_short_last_row(body: bytes, n_fields: int, delim: str, file: str,
+                         header_line: int) -> tuple[bytes, list[str]]:
+    """``body`` without a last row cut short (fewer fields than the header and no line end: a
+    recorder switched off while writing), and the warning saying so (data row named).  Any
+    other row with the wrong number of fields stays an error (:func:`_raise_ragged`)."""
+    stripped = body.rstrip(b"\r")
+    if not stripped or stripped.endswith(b"\n"):
+        return body, []
+    nl = stripped.rfind(b"\n")
+    if nl < 0:
+        return body, []
+    last = stripped[nl + 1:].decode("utf-8")
+    got = len(next(csv.reader([last], delimiter=delim), []))
+    if got >= n_fields:
+        return body, []
+    row = body[:nl + 1].count(b"\n")          # data rows before it (header line excluded)
+    return body[:nl + 1], [f"{file}: the last row (data row {row}, line {row + header_line}) "
+                           f"is cut short ({got} of {n_fields} fields, no line end: the "
+                           "recorder stopped while writing it): dropped"]
 
 
 def _sniff_delimiter(header: str) -> str:
@@ -297,7 +372,14 @@ def _from_arrow(tbl: pa.Table, file: str, fmt: str) -> RawTable:
                 if txt.any():
                     nan_text[name] = txt
         else:
-            raise SchemaError(f"unsupported column type {t}", file=file, column=name)
+            # another type (time of day, duration, nested...): kept as text; a column that
+            # is mapped to a channel is then reported as non-numeric, an unmapped one ignored
+            try:
+                txt_col = pc.cast(col, pa.string())
+            except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+                raise SchemaError(f"unsupported column type {t}", file=file,
+                                  column=name) from None
+            cols[name] = np.asarray(txt_col.to_pandas(), dtype=object)
     blank = np.flatnonzero(all_null) + 1 if fmt == "csv" else np.zeros(0, np.int64)
     nan_is_missing = False
     if nan_text and (fmt == "parquet" or not any_null):
@@ -319,6 +401,11 @@ def _string_column(col: pa.Array, valid: np.ndarray) -> tuple[np.ndarray, np.nda
     the first bad text if the column is mostly numbers; an object array of str and ``None`` if
     no cell is a number (timestamps, identifiers).
     """
+    blank = pc.fill_null(pc.utf8_is_space(col), False)
+    if pc.any(blank).as_py():
+        # a cell of spaces only (fixed-width exports pad empty cells) is an empty cell
+        col = pc.if_else(blank, pa.scalar(None, pa.string()), col)
+        valid = valid & ~blank.to_numpy(zero_copy_only=False)
     ok_arr = pc.fill_null(pc.match_substring_regex(col, NUMERIC_RE), True)
     ok = ok_arr.to_numpy(zero_copy_only=False)
     if ok.all():

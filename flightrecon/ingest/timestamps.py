@@ -1,41 +1,61 @@
 """Time-base repair of one file's rows, with a report: what is repaired, what is refused.
 
-A recorder's time column goes wrong in a few recognisable ways.  Two of them have one obvious
-repair, which is applied and reported with the rows it touched; the others have none and are
+A recorder's time column goes wrong in a few recognisable ways.  Most have one obvious repair,
+which is applied and reported with the rows it touched; a time base that cannot be recovered is
 refused, naming the rows (docs/ingest.md, "Repaired, warned, refused"):
 
-* **exact duplicate rows** (the same time stamp and the same value in every channel, a
-  recorder word written twice): the repeats are dropped;
+* **rows before the clock was set** (an empty time cell in the first rows of the file: avionics
+  that log before they have a date): dropped (:func:`unset_clock_rows`);
+* **a short backward step of the clock** (at most :data:`CLOCK_STEP_MAX_S`, the rows after the
+  step repeating the stamps of the rows before it at the logging period: a clock corrected
+  backward while logging): the rows before the step are re-timed earlier by the step plus one
+  period, so that the record runs on at its period (the clock after the step is kept: it is
+  the one that runs to the end of the record);
+* **a repeated stamp next to a missing one** (a logger that stamps whole periods and writes
+  ``t, t, t+2``, or ``t, t+2, t+2``): the row whose neighbours in the file bracket exactly one
+  missing stamp is re-timed onto that stamp;
 * **local swaps** (a row whose time stamp is earlier than the row before it by at most
   :data:`LOCAL_SWAP_PERIODS` nominal sample periods, e.g. two adjacent rows exchanged): the rows
   are sorted back into time order; the order is unambiguous because every displaced row
   belongs within a few rows of where it was written;
+* **exact duplicate rows** (the same time stamp and the same value in every channel, a
+  recorder word written twice): the repeats are dropped;
 * rows sharing a time stamp whose channels **complement** each other (one row has the loads,
   the other the GNSS fix) are kept, and merged by the cleaning layer (``docs/signals.md``);
-* **conflicting duplicates** (one time stamp, rows sharing a channel without being exact
-  repeats, two different values of one channel or a row half repeated): refused, which row is
-  right is not ours to guess;
-* **clock resets** (time stamps going back by more than a few sample periods: a recorder
-  restart, two files appended): refused;
+* **conflicting duplicates** on a few rows (one time stamp, rows sharing a channel with
+  different values, on at most :data:`MERGE_MAX_FRACTION` of the rows): merged into one row,
+  channel by channel the mean of the values written (angles on the circle); on more rows the
+  file's time base is coarser than its sampling and is refused;
+* **clock resets** (time stamps going back by more than a few sample periods and not a short
+  step as above: a recorder restart, two files appended): refused;
 * **clock jumps** (time stamps leaping forward while the aircraft, by its GNSS positions in the
   same file, hardly moved): refused; without GNSS positions a forward jump cannot be told from
   a recording gap and is left to the gap handling of the cleaning layer.
 
-Everything is vectorised over the rows; a file whose time stamps already increase costs one
-``np.diff``.
+Everything but the few repaired rows is vectorised; a file whose time stamps already increase
+costs one ``np.diff``.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+import pandas as pd
 
 from flightrecon.errors import ValidationError
+from flightrecon.schema import BY_NAME
 
 __all__ = [
     "CLOCK_JUMP_MIN_S",
+    "CLOCK_STEP_MAX_S",
     "LOCAL_SWAP_PERIODS",
+    "MERGE_MAX_FRACTION",
+    "TimeRepair",
+    "combine_date_time",
     "nominal_interval_s",
     "repair_time_order",
+    "unset_clock_rows",
 ]
 
 #: a backward step of at most this many nominal sample periods is a local swap (re-sorted);
@@ -47,7 +67,139 @@ CLOCK_JUMP_MIN_S = 60.0
 #: speed implies over the step (GNSS positions either side)
 CLOCK_JUMP_DISTANCE_FRACTION = 0.1
 
+#: a backward step of the clock of at most this many seconds, the rows after it repeating the
+#: stamps before it at the logging period, is a clock correction (re-timed, not refused)
+CLOCK_STEP_MAX_S = 5.0
+#: conflicting duplicate stamps on at most this fraction of the rows are merged; on more the
+#: file's time base is coarser than its sampling (refused)
+MERGE_MAX_FRACTION = 0.01
+#: relative tolerance on "one period" when matching stamps of a regular logger
+_PERIOD_RTOL = 1e-6
+
 _EARTH_R_M = 6_371_000.0
+
+
+@dataclass(frozen=True)
+class TimeRepair:
+    """What :func:`repair_time_order` did to one file's rows.
+
+    Attributes
+    ----------
+    t : (N,) time stamps of every row in file order, re-timed where repaired [s]
+    values : channel -> (N,) values in file order (the input arrays unless rows were merged,
+        then copies with the merged values on the row kept)
+    selection : indices of the rows to keep, in time order (``None``: all, as they are)
+    warnings : the repairs made, each naming its file, column and rows
+    """
+
+    t: np.ndarray
+    values: dict[str, np.ndarray]
+    selection: np.ndarray | None
+    warnings: list[str]
+
+
+def _empty_cells(col: np.ndarray) -> np.ndarray:
+    """Mask of the empty cells of a raw column (NaN, NaT, None or blank text)."""
+    if col.dtype == np.float64:
+        return np.isnan(col)
+    if np.issubdtype(col.dtype, np.datetime64):
+        return np.isnat(col)
+    s = pd.Series(col, dtype=object)
+    return (s.isna() | s.astype(str).str.strip().eq("")).to_numpy()
+
+
+def unset_clock_rows(columns: dict[str, np.ndarray], names: tuple[str, ...]) -> np.ndarray:
+    """0-based indices of the rows at the start of a file whose time cells (any of ``names``:
+    the time, and the date and UTC-offset columns if separate) are empty, up to the first row
+    with a complete time: rows written before the recorder's clock was set.  Empty time
+    cells after that stay an error (:func:`flightrecon.ingest.mapping.apply_mapping`)."""
+    n = len(columns[names[0]]) if names else 0
+    k = 64
+    while True:
+        # a growing prefix: a file whose first row has its time costs one look at 64 rows
+        k = min(k, n)
+        empty = np.zeros(k, dtype=bool)
+        for name in names:
+            empty |= _empty_cells(columns[name][:k])
+        if not k or not empty[0]:
+            return np.zeros(0, dtype=np.int64)
+        if not empty.all() or k == n:
+            first_set = int(np.argmin(empty)) if not empty.all() else k
+            return np.arange(first_set, dtype=np.int64)
+        k *= 4
+
+
+#: a UTC offset: ``+02:00``, ``-0500``, ``+2``, ``Z``
+_OFFSET_RE = r"^\s*(?:(?P<z>[zZ])|(?P<sign>[+-])?(?P<h>\d{1,2})(?::?(?P<m>\d{2}))?)\s*$"
+
+
+def _text(col: np.ndarray, fmt: str) -> pd.Series:
+    """A raw column as stripped text (dates of a date-typed column as ``fmt``)."""
+    if np.issubdtype(col.dtype, np.datetime64):
+        return pd.Series(pd.to_datetime(col).strftime(fmt), dtype=object)
+    return pd.Series(col, dtype=object).astype(str).str.strip()
+
+
+def combine_date_time(raw, time_column: str, date_column: str | None,
+                      offset_column: str | None, fmt: str | None, rows: np.ndarray
+                      ) -> np.ndarray:
+    """UTC time stamps [int64 ns since 1970] of rows whose date, time of day and UTC offset are
+    separate columns (Garmin exports: ``Lcl Date``, ``Lcl Time``, ``UTCOfst``).
+
+    ``UTC = local - offset``: a local time ``10:00`` at offset ``+02:00`` is ``08:00`` UTC.
+    The offset is ``[+-]HH:MM``, ``[+-]HHMM``, ``[+-]H`` or ``Z``, or a number of hours (a
+    whole number of 100 or more read as ``HHMM``: a CSV reader takes ``+0530`` for 530).
+
+    Parameters
+    ----------
+    raw : the file's :class:`~flightrecon.ingest.readers.RawTable`
+    time_column : time of day (``HH:MM:SS[.fff]``), or the whole local time without a date
+    date_column : date (``YYYY-MM-DD``, or as ``fmt`` says), or ``None``
+    offset_column : UTC offset, or ``None`` (the time is UTC)
+    fmt : strptime format of the date and time joined by one space (default ISO-8601)
+    rows : (N,) 1-based data rows (for the messages)
+
+    Raises
+    ------
+    ValidationError
+        An empty or unparsable date, time or offset, naming the column and the rows.
+    """
+    file = raw.file
+    text = _text(raw.columns[time_column], "%H:%M:%S")
+    if date_column is not None:
+        text = _text(raw.columns[date_column], "%Y-%m-%d") + " " + text
+    parsed = pd.to_datetime(text, format=fmt or "ISO8601", errors="coerce")
+    ts = parsed.to_numpy("datetime64[ns]").astype(np.int64)
+    bad = np.isnat(parsed.to_numpy("datetime64[ns]"))
+    if bad.any():
+        col = time_column if date_column is None else f"{date_column}' + '{time_column}"
+        raise ValidationError(f"missing or unparsable date/time ({int(bad.sum())} row(s), "
+                              f"first: '{text.iloc[int(np.argmax(bad))][:40]}')", file=file,
+                              column=col, rows=rows[bad])
+    if offset_column is None:
+        return ts
+    oc = raw.columns[offset_column]
+    if oc.dtype == np.float64:
+        # hours (-5, 5.5), or [+-]HHMM read as a number (+0530 -> 530)
+        hhmm = np.isfinite(oc) & (np.abs(oc) >= 100) & (np.mod(np.abs(oc), 1.0) == 0)
+        a = np.abs(oc)
+        hours = np.where(hhmm, np.sign(oc) * (a // 100 + np.mod(a, 100) / 60.0), oc)
+        bad = ~np.isfinite(hours) | (np.abs(hours) > 14.0) | (hhmm & (np.mod(a, 100) >= 60))
+        first = "" if not bad.any() else str(oc[int(np.argmax(bad))])
+    else:
+        otext = _text(oc, "%H:%M")
+        m = otext.str.extract(_OFFSET_RE)
+        sign = np.where(m["sign"].fillna("+").to_numpy() == "-", -1.0, 1.0)
+        hh = pd.to_numeric(m["h"], errors="coerce").to_numpy(dtype=float)
+        mm = pd.to_numeric(m["m"], errors="coerce").fillna(0.0).to_numpy(dtype=float)
+        hours = np.where(m["z"].notna().to_numpy(), 0.0, sign * (hh + mm / 60.0))
+        bad = ~np.isfinite(hours) | (np.abs(hours) > 14.0) | (mm >= 60.0)
+        first = "" if not bad.any() else str(otext.iloc[int(np.argmax(bad))])
+    if bad.any():
+        raise ValidationError(f"missing or unparsable UTC offset ({int(bad.sum())} row(s), "
+                              f"first: '{first[:20]}'; expected +HH:MM)", file=file,
+                              column=offset_column, rows=rows[bad])
+    return ts - np.round(hours * 3600e9).astype(np.int64)
 
 
 def nominal_interval_s(t: np.ndarray) -> float:
@@ -129,52 +281,146 @@ def _clock_jumps(t: np.ndarray, values: dict[str, np.ndarray], period: float) ->
 
 
 def repair_time_order(t: np.ndarray, rows: np.ndarray, values: dict[str, np.ndarray],
-                      file: str, column: str) -> tuple[np.ndarray | None, list[str]]:
+                      file: str, column: str) -> TimeRepair:
     """Bring one file's rows into time order by the rules of the module docstring.
 
     Parameters
     ----------
     t : (N,) time stamps [s], in file order
     rows : (N,) 1-based data rows of the file (for the messages)
-    values : channel -> (N,) values in file order (NaN where not sampled)
+    values : channel -> (N,) values in file order (NaN where not sampled); not modified
     file, column : the file and its time column (for the messages)
 
     Returns
     -------
-    selection : indices of the rows to keep, in time order (``None`` when nothing changes)
-    warnings : the repairs made, each naming its rows
+    TimeRepair
+        The time stamps (re-timed where repaired), the values (merged where conflicting
+        duplicates were), the rows to keep in time order and the repairs made.
 
     Raises
     ------
     ValidationError
-        Non-finite time stamps, a clock reset, conflicting duplicates or a clock jump, naming
-        the file, the time column and the rows.
+        Non-finite time stamps, a clock reset, conflicting duplicates on too many rows or a
+        clock jump, naming the file, the time column and the rows.
     """
     t = np.asarray(t, dtype=float)
     rows = np.asarray(rows)
     n = t.size
     if n == 0:
-        return None, []
+        return TimeRepair(t, values, None, [])
     bad = ~np.isfinite(t)
     if bad.any():
         raise ValidationError("time stamp missing or not finite", file=file, column=column,
                               rows=rows[bad])
     if n < 2:
-        return None, []
+        return TimeRepair(t, values, None, [])
     dt = np.diff(t)
     if np.all(dt > 0):
         jumps = _clock_jumps(t, values, nominal_interval_s(t))
         if jumps.size:
             _raise_jump(t, rows, jumps, file, column)
-        return None, []
+        return TimeRepair(t, values, None, [])
     warns: list[str] = []
     period = nominal_interval_s(t)
-    sel = _resort_local_swaps(t, rows, dt, period, file, column, warns)
-    sel = _drop_exact_duplicates(t, rows, values, sel, file, column, warns)
+    t = _retime_clock_steps(t, rows, period, file, column, warns)
+    t = _retime_repeats(t, rows, period, file, column, warns)
+    dt = np.diff(t)
+    if np.all(dt > 0):
+        sel = np.arange(n)
+    else:
+        sel = _resort_local_swaps(t, rows, dt, period, file, column, warns)
+        sel, values = _drop_exact_duplicates(t, rows, values, sel, file, column, warns)
     jumps = _clock_jumps(t[sel], {k: v[sel] for k, v in values.items()}, period)
     if jumps.size:
         _raise_jump(t[sel], rows[sel], jumps, file, column)
-    return sel, warns
+    return TimeRepair(t, values, sel, warns)
+
+
+def _regular(t: np.ndarray, period: float) -> bool:
+    """Most intervals (at least half) are one nominal period: a regular logger."""
+    if not np.isfinite(period) or period <= 0:
+        return False
+    dt = np.diff(t)
+    return bool(np.mean(np.abs(dt - period) <= _PERIOD_RTOL * period + 1e-9) >= 0.5)
+
+
+def _retime_clock_steps(t: np.ndarray, rows: np.ndarray, period: float, file: str,
+                        column: str, warns: list[str]) -> np.ndarray:
+    """Short backward steps of the clock re-timed (module docstring): at a step back of ``d``
+    (at most :data:`CLOCK_STEP_MAX_S`) after which the next ``d / period + 1`` rows repeat,
+    at the period, the stamps up to the one before the step, every row before the step is
+    moved ``d + period`` earlier.  Other backward steps are left to the local-swap and reset
+    rules."""
+    back = np.flatnonzero(np.diff(t) < 0) + 1
+    if not back.size or not _regular(t, period):
+        return t
+    t = t.copy()
+    tol = _PERIOD_RTOL * period + 1e-9
+    done = []
+    for i in back:
+        d = t[i - 1] - t[i]
+        if not 0 < d <= CLOCK_STEP_MAX_S:
+            continue
+        m = int(round(d / period)) + 1
+        if i + m > t.size or abs(m - 1 - d / period) > 1e-6:
+            continue
+        after = t[i:i + m]
+        if np.all(np.abs(after - (t[i] + period * np.arange(m))) <= tol) \
+                and abs(after[-1] - t[i - 1]) <= tol:
+            shift = d + period
+            t[:i] -= shift
+            done.append((int(rows[i]), d, shift, i))
+    for r, d, shift, i in done:
+        warns.append(f"{file}: column '{column}': the clock steps back by {d:.6g} s at row {r} "
+                     f"(the {int(round(d / period)) + 1} rows after it repeat the stamps before "
+                     f"it at the logging period of {period:.6g} s: a clock corrected while "
+                     f"logging): the {i} row(s) before it (rows {int(rows[0])}..{int(rows[i - 1])}"
+                     f") re-timed {shift:.6g} s earlier")
+    return t
+
+
+def _retime_repeats(t: np.ndarray, rows: np.ndarray, period: float, file: str, column: str,
+                    warns: list[str]) -> np.ndarray:
+    """Whole-period stamps that repeat next to a missing one re-timed (module docstring): a
+    row whose stamp repeats or goes behind its predecessor's, or repeats in its successor,
+    whose neighbours in the file are two periods apart with no row stamped between them, and
+    whose own stamp is within :data:`LOCAL_SWAP_PERIODS` periods of that missing stamp, is
+    moved onto it."""
+    n = t.size
+    if n < 3 or not _regular(t, period):
+        return t
+    dt = np.diff(t)
+    cand = np.zeros(n, dtype=bool)
+    cand[1:] |= dt <= 0
+    cand[:-1] |= dt == 0
+    cand[0] = cand[-1] = False
+    idx = np.flatnonzero(cand)
+    if not idx.size:
+        return t
+    t = t.copy()
+    tol = _PERIOD_RTOL * period + 1e-9
+    stamps = np.sort(t)
+    filled: list[float] = []
+    moved = []
+    for i in idx:
+        lo, hi = t[i - 1], t[i + 1]
+        if abs(hi - lo - 2 * period) > tol:
+            continue
+        slot = lo + period
+        if abs(t[i] - slot) > LOCAL_SWAP_PERIODS * period + tol:
+            continue
+        k = np.searchsorted(stamps, slot - tol)
+        if (k < stamps.size and stamps[k] <= slot + tol) or any(abs(f - slot) <= tol
+                                                                for f in filled):
+            continue
+        t[i] = slot
+        filled.append(slot)
+        moved.append(i)
+    if moved:
+        warns.append(f"{file}: column '{column}': {len(moved)} row(s) stamped with a repeated "
+                     "time next to a missing one (a logger stamping whole periods writes t, t, "
+                     f"t+2) re-timed onto the missing stamp ({_rows_text(rows[moved])})")
+    return t
 
 
 def _resort_local_swaps(t: np.ndarray, rows: np.ndarray, dt: np.ndarray, period: float,
@@ -211,39 +457,76 @@ def _resort_local_swaps(t: np.ndarray, rows: np.ndarray, dt: np.ndarray, period:
 
 def _drop_exact_duplicates(t: np.ndarray, rows: np.ndarray, values: dict[str, np.ndarray],
                            sel: np.ndarray, file: str, column: str, warns: list[str]
-                           ) -> np.ndarray:
+                           ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """``sel`` without the exact repeats of an earlier row at the same time (complementary
-    rows, each with channels the other lacks, stay).
+    rows, each with channels the other lacks, stay); conflicting duplicates on a few rows
+    merged (:func:`_merge_conflicts`).
 
     Raises
     ------
     ValidationError
-        Duplicates with different values, or neither repeats nor complementary.
+        Conflicting duplicates on more than :data:`MERGE_MAX_FRACTION` of the rows.
     """
     ts = t[sel]
     dup = np.flatnonzero(np.diff(ts) == 0) + 1          # positions in the sorted order
     if not dup.size:
-        return sel
+        return sel, values
     a, b = sel[dup - 1], sel[dup]
     same, complementary, conflict, first = _same_values(values, a, b)
     ambiguous = ~same & ~complementary
     if ambiguous.any():
         pair = np.flatnonzero(ambiguous)
-        what = ("with different values" if conflict[pair].any()
-                else "that are neither exact repeats nor complementary")
-        raise ValidationError(
-            f"duplicate timestamps {what} ({pair.size} time stamp(s); the rows named repeat "
-            f"the time of an earlier row, first row {int(rows[a[pair[0]]])}, and share "
-            f"channel {first} with it): which row is right cannot be told",
-            file=file, column=column, rows=rows[b[pair]].tolist())
-    drop_pos = dup[same]
+        if pair.size > max(1.0, MERGE_MAX_FRACTION * t.size):
+            what = ("with different values" if conflict[pair].any()
+                    else "that are neither exact repeats nor complementary")
+            raise ValidationError(
+                f"duplicate timestamps {what} ({pair.size} time stamp(s), more than "
+                f"{100 * MERGE_MAX_FRACTION:g} % of the {t.size} rows; the rows named repeat the "
+                f"time of an earlier row, first row {int(rows[a[pair[0]]])}, and share channel "
+                f"{first} with it): the time base is coarser than the sampling and which row "
+                "belongs where cannot be told (write the time with more resolution)",
+                file=file, column=column, rows=rows[b[pair]].tolist())
+        starts = np.flatnonzero(np.r_[True, np.diff(ts) != 0])
+        head = sel[starts[np.searchsorted(starts, dup[pair], side="right") - 1]]
+        values = _merge_conflicts(values, head, b[pair])
+        warns.append(f"{file}: column '{column}': {pair.size} time stamp(s) written twice with "
+                     f"different values (first shared channel {first}): each pair merged into "
+                     "its first row, channel by channel the mean (angles on the circle) "
+                     f"({_rows_text(rows[b[pair]])} merged into the row before)")
+    drop_pos = dup[same | ambiguous]
     if drop_pos.size:
-        keep = np.ones(t.size, dtype=bool)
+        keep = np.ones(sel.size, dtype=bool)
         keep[drop_pos] = False
-        warns.append(f"{file}: column '{column}': {drop_pos.size} exact duplicate row(s) "
-                     f"dropped ({_rows_text(rows[sel[drop_pos]])})")
+        n_same = int(same.sum())
+        if n_same:
+            warns.append(f"{file}: column '{column}': {n_same} exact duplicate row(s) "
+                         f"dropped ({_rows_text(rows[sel[dup[same]]])})")
         sel = sel[keep]
-    return sel
+    return sel, values
+
+
+def _merge_conflicts(values: dict[str, np.ndarray], a: np.ndarray, b: np.ndarray
+                     ) -> dict[str, np.ndarray]:
+    """Copies of ``values`` with each row ``b[k]`` merged into row ``a[k]`` (the first row of
+    its run of equal stamps): the mean of the two where both are sampled (angles on the
+    circle), the one sampled otherwise.  A run of more than two rows merges in order, so its
+    values are chained means."""
+    out = {}
+    for name, v in values.items():
+        v = v.copy()
+        ch = BY_NAME.get(name)
+        for i, j in zip(a, b, strict=True):
+            x, y = v[i], v[j]
+            if np.isnan(x):
+                v[i] = y
+            elif not np.isnan(y):
+                if ch is not None and ch.angle:
+                    r = np.radians([x, y])
+                    v[i] = np.degrees(np.arctan2(np.sin(r).sum(), np.cos(r).sum())) % 360.0
+                else:
+                    v[i] = 0.5 * (x + y)
+        out[name] = v
+    return out
 
 
 def _raise_jump(t: np.ndarray, rows: np.ndarray, jumps: np.ndarray, file: str, column: str):

@@ -31,6 +31,7 @@ __all__ = [
     "GROUND_TAS_MPS",
     "NAN_STORM_FRACTION",
     "Provenance",
+    "DERIVABLE",
     "Repair",
     "check_polarity",
     "check_required",
@@ -116,13 +117,20 @@ def check_time(t: np.ndarray, rows: np.ndarray, file: str, column: str, *,
     return None, warns
 
 
+#: required channels that ingest derives when they are not recorded, from these channels
+#: (:func:`flightrecon.ingest.derive.derive_n_long`)
+DERIVABLE: dict[str, tuple[str, ...]] = {"n_long_g": ("tas_mps", "pitch_deg")}
+
+
 def check_required(channels, file: str, other_columns=(), mapping_hint: str = "") -> None:
     """Raise :class:`SchemaError` naming the required channels missing from ``channels``
     (with the closest of ``other_columns``, the file's unused columns, as a hint, and
-    ``mapping_hint``: the mapping files found beside the log)."""
+    ``mapping_hint``: the mapping files found beside the log).  A channel of
+    :data:`DERIVABLE` whose sources are all in ``channels`` is not missing."""
     import difflib
 
-    missing = [c for c in REQUIRED if c != "t_s" and c not in channels]
+    missing = [c for c in REQUIRED if c != "t_s" and c not in channels
+               and not set(DERIVABLE.get(c, ("-",))) <= set(channels)]
     if missing:
         hints = []
         for m in missing:
@@ -132,6 +140,12 @@ def check_required(channels, file: str, other_columns=(), mapping_hint: str = ""
                 hints.append(f"'{close[0]}' -> {m}?")
         hint = f" (similar columns: {', '.join(hints)})" if hints else ""
         how = mapping_hint or "map foreign names with a mapping file (docs/ingest.md)"
+        lacking = [c for m in missing for c in DERIVABLE.get(m, ()) if c not in channels]
+        if "n_long_g" in missing:
+            # many recorders have no longitudinal accelerometer: say what would do instead
+            how += ("; a log without n_long_g is accepted when tas_mps (or ias_mps/cas_mps) "
+                    f"and pitch_deg are there (it is derived from them; missing: "
+                    f"{', '.join(lacking)})")
         raise SchemaError(f"missing required channel(s): {', '.join(missing)}{hint}; {how}",
                           file=file, column=missing[0])
 
