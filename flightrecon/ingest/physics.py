@@ -580,8 +580,18 @@ def _check_baro(door: _Door) -> Fit | None:
             return fit
         door.refuse(check, name, fit.factor, _unit_message(door, name, unit, declared, evidence),
                     file=door.file(name), column=door.col(name))
-    if _plausible(fit):
+    slope = _gnss_baro_slope(door)
+    gnss_agrees = slope is not None and slope[1] > 0.98 and _nearest(slope[0], {"1": 1.0}, 0.3)
+    if _plausible(fit) and fit.good(N_MIN):
         door.record(check, name, "passed", fit.factor, fit.text())
+    elif gnss_agrees and slope is not None:
+        # the acceleration's fit is not decisive; a second witness is
+        door.record(check, name, "passed", fit.factor,
+                    f"{fit.text()}; the GNSS height changes {slope[0]:.3f} times as fast as "
+                    f"it (r {slope[1]:.3f})")
+    elif _plausible(fit):
+        door.record(check, name, "skipped", fit.factor,
+                    f"{fit.text()}: a fit too poor to judge (turbulence, a low rate)")
     elif fit.factor > 0 and _nearest(fit.factor, table, UNIT_BAND):
         door.warn(check, name, fit.factor,
                   f"{door.where(name)}: {evidence}: near the factor of "
@@ -592,8 +602,8 @@ def _check_baro(door: _Door) -> Fit | None:
                   f"{door.where(name)}: {evidence} (expected about 1): check its unit and the "
                   "load factors")
     else:
-        door.record(check, name, "passed", fit.factor,
-                    f"{fit.text()}: too uncertain to judge (turbulence, a low rate)")
+        door.record(check, name, "skipped", fit.factor,
+                    f"{fit.text()}: a fit too poor to judge (turbulence, a low rate)")
     return fit
 
 
