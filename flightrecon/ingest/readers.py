@@ -270,6 +270,8 @@ def _from_arrow(tbl: pa.Table, file: str, fmt: str) -> RawTable:
         else:
             all_null[:] = False
         any_null = any_null or not no_null
+        if pa.types.is_dictionary(col.type):   # categorical columns: their values
+            col = col.dictionary_decode()
         t = col.type
         if pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t) \
                 or pa.types.is_decimal(t) or pa.types.is_null(t):
@@ -297,7 +299,10 @@ def _from_arrow(tbl: pa.Table, file: str, fmt: str) -> RawTable:
                 if txt.any():
                     nan_text[name] = txt
         else:
-            raise SchemaError(f"unsupported column type {t}", file=file, column=name)
+            # a type that holds no number or time (struct, list, map, binary, ...): kept as
+            # text naming its type, so an unused column is ignored like any unknown one (a
+            # warning names it) and a used one is refused as non-numeric naming its rows
+            cols[name] = np.where(valid, f"<{t} column: not read>", None).astype(object)
     blank = np.flatnonzero(all_null) + 1 if fmt == "csv" else np.zeros(0, np.int64)
     nan_is_missing = False
     if nan_text and (fmt == "parquet" or not any_null):
