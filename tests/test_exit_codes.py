@@ -233,6 +233,20 @@ def test_10_store_that_cannot_be_written_before_any_work(tmp_path, capsys, monke
     assert not (tmp_path / "out.parquet").exists()
 
 
+def test_10_batch_store_checked_before_the_cluster_starts(tmp_path, capsys, monkeypatch):
+    """``batch --store`` with a file that is not a store: exit 10 naming it, before Dask."""
+    import flightrecon.batch as fb
+
+    def no_cluster(*a, **k):
+        raise AssertionError("the cluster started before the store was checked")
+
+    monkeypatch.setattr(fb, "open_client", no_cluster)
+    (tmp_path / "notes.sqlite").write_text("notes")
+    code, err = run(["batch", str(SAMPLES / "circuit.parquet"), "--out", str(tmp_path / "b"),
+                     "--store", str(tmp_path / "notes.sqlite")], capsys)
+    assert code == 10 and "notes.sqlite" in err and "not a SQLite" in err, err
+
+
 def test_130_interrupted(monkeypatch, capsys):
     import flightrecon.ingest
 
