@@ -180,13 +180,21 @@ def load_mapping(path: str | os.PathLike) -> Mapping:
         raise
 
 
+class _TableKeyError(MappingError):
+    """A :class:`MappingError` about ``key`` of the TOML table ``table`` (``""``: the top
+    level; ``key`` ``None``: the table itself), so that :func:`load_mapping` can name the line."""
+
+    def __init__(self, message: str, *, file: str, table: str, key: str | None,
+                 column: str | None = None) -> None:
+        super().__init__(message, file=file, column=column)
+        self.table = table
+        self.key = key
+
+
 def _error(message: str, file: str, table: str, key: str | None = None,
            column: str | None = None) -> MappingError:
-    """A :class:`MappingError` about ``key`` of the TOML table ``table`` (``""``: top level),
-    remembering where, so that :func:`load_mapping` can add the line number."""
-    exc = MappingError(message, file=file, column=column)
-    exc.toml_where = (table, key)  # type: ignore[attr-defined]
-    return exc
+    """The error of ``key`` in ``table`` (:class:`_TableKeyError`), to raise."""
+    return _TableKeyError(message, file=file, table=table, key=key, column=column)
 
 
 def _did_you_mean(name: str, choices) -> str:
@@ -200,9 +208,20 @@ _KEY_RE = re.compile(r"""^\s*(?:"([^"]*)"|'([^']*)'|([A-Za-z0-9_.-]+))\s*=""")
 
 
 def line_of(text: str, table: str, key: str | None) -> int | None:
-    """1-based line of ``key`` in the table ``table`` of a TOML text (of the table's header when
-    ``key`` is ``None``), for messages; ``None`` when it cannot be told (inline tables, keys
-    written with dots across tables)."""
+    """Where a key of a mapping file is written, for messages.
+
+    Parameters
+    ----------
+    text : the mapping file's TOML text
+    table : dotted name of the table (``"channels.n_norm_g"``; ``""``: the top level)
+    key : the key in that table; ``None`` for the table's header
+
+    Returns
+    -------
+    int or None
+        The 1-based line of the key (else of a header that names it as a table, else of the
+        table's own header); ``None`` when it cannot be told (an inline table).
+    """
     current = ""
     want = table.replace('"', "").replace("'", "")
     for i, line in enumerate(text.splitlines(), start=1):
@@ -230,10 +249,9 @@ def line_of(text: str, table: str, key: str | None) -> int | None:
 
 def _add_line(exc: MappingError, text: str) -> None:
     """Prefix the message of ``exc`` with the line of the mapping file it is about."""
-    where = getattr(exc, "toml_where", None)
-    if where is None:
+    if not isinstance(exc, _TableKeyError):
         return
-    line = line_of(text, *where)
+    line = line_of(text, exc.table, exc.key)
     if line is not None:
         exc.message = f"line {line}: {exc.message}"
         exc.args = (str(exc),)
@@ -494,10 +512,20 @@ def _check_derivable(specs: list[ChannelSpec], file: str, mfile: str | None) -> 
 
 def mapping_location(mfile: str | None, table: str, key: str | None = None, *,
                      with_file: bool = True) -> str:
-    """``mapping file M line N, [table] key``: where in a mapping file a setting is (the line
-    when the file can be read and the key found), for the messages of errors found while the
-    mapping is applied to a data file; ``with_file=False`` leaves out ``mapping file M`` (for
-    an error that names it as its file)."""
+    """Where in a mapping file a setting is, for the errors found while the mapping is applied
+    to a data file: ``mapping file M line N, [table] key``.
+
+    Parameters
+    ----------
+    mfile : the mapping file (``None``: no file, the table and key only)
+    table, key : as for :func:`line_of`
+    with_file : ``False`` leaves out ``mapping file M`` (for an error whose file it is)
+
+    Returns
+    -------
+    str
+        The location; the line is left out when the file cannot be read or the key found.
+    """
     if mfile is None:
         return f"[{table}]" + (f" {key}" if key else "")
     line = None
