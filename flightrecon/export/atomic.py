@@ -241,7 +241,7 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     target = Path(target)
     folder = _folder_of(target)
     if not folder.is_dir():
-        raise OutputError("output folder does not exist", file=str(folder))
+        raise OutputError(f"the output folder does not exist: {folder}", file=str(target))
     tmp = folder / f".{target.name}{TMP_TAG}{os.getpid()}-{secrets.token_hex(4)}"
     try:
         yield tmp
