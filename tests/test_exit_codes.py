@@ -3,6 +3,7 @@ lists them with these tests)."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -133,6 +134,18 @@ def test_6_mapping_error(tmp_path, capsys):
     assert code == 6 and "bad.mapping.toml" in err
 
 
+def test_6_misspelt_mapping_key(tmp_path, capsys):
+    """A misspelt key of a mapping file names the file, its line, the table, the key and the
+    nearest valid key (it was dropped and the run failed later on the data, exit 5)."""
+    m = tmp_path / "typo.mapping.toml"
+    m.write_text((SAMPLES / "foreign.mapping.toml").read_text().replace("sign = -1",
+                                                                          "sing = -1"))
+    code, err = run(["info", str(SAMPLES / "foreign.csv"), "--mapping", str(m)], capsys)
+    assert code == 6, err
+    assert "typo.mapping.toml" in err and "[channels.n_lat_g]" in err and "'sing'" in err
+    assert "did you mean 'sign'" in err and "line 19" in err
+
+
 def test_7_kml_of_a_csv_without_summary(tmp_path, capsys):
     df = pd.DataFrame({"t_s": [0.0, 1.0, 2.0], "lat_deg": [40.0, 40.001, 40.002],
                        "lon_deg": [50.0, 50.0, 50.0], "alt_m": [100.0, 101.0, 102.0]})
@@ -180,6 +193,58 @@ def test_10_store_error(tmp_path, capsys):
     bad.write_text("garbage")
     code, err = run(["coeffs", "list", "--store", str(bad)], capsys)
     assert code == 10 and "not a flightrecon coefficient store" in err
+
+
+def test_10_store_that_cannot_be_written_before_any_work(tmp_path, capsys, monkeypatch):
+    """A read-only store (``--store PATH``) was reported as "out.parquet: the folder for the
+    result is not writable: ." (exit 9) with a writable result folder: it is a store error
+    (exit 10) naming the store, found before any work.  The same for a store folder that
+    cannot be written and for a file that is not a store (os.access is patched: as root
+    every file is writable)."""
+    import flightrecon.pipeline as pl
+    from flightrecon.store.db import connect
+
+    def no_work(*a, **k):
+        raise AssertionError("the reconstruction ran before the store was checked")
+
+    monkeypatch.setattr(pl, "reconstruct", no_work)
+    con, _, _ = connect(tmp_path / "ro.sqlite")
+    con.close()
+    (tmp_path / "rodir").mkdir()
+    (tmp_path / "notes.sqlite").write_text("notes")
+    real = os.access
+
+    def access(p, mode, *a, **k):
+        if Path(p).name in ("ro.sqlite", "rodir") and mode & os.W_OK:
+            return False
+        return real(p, mode, *a, **k)
+
+    monkeypatch.setattr(os, "access", access)
+    log = str(SAMPLES / "circuit.parquet")
+    for store, words in ((tmp_path / "ro.sqlite", ("ro.sqlite", "read-only")),
+                         (tmp_path / "rodir" / "s.sqlite", ("s.sqlite", "rodir", "not writable")),
+                         (tmp_path / "notes.sqlite", ("notes.sqlite", "not a SQLite")),
+                         (tmp_path / "no" / "s.sqlite", ("s.sqlite", "does not exist"))):
+        code, err = run(["reconstruct", log, "-o", str(tmp_path / "out.parquet"), "--store",
+                         str(store)], capsys)
+        assert code == 10, (store, err)
+        assert all(w in err for w in words), (words, err)
+        assert "out.parquet" not in err, err
+    assert not (tmp_path / "out.parquet").exists()
+
+
+def test_10_batch_store_checked_before_the_cluster_starts(tmp_path, capsys, monkeypatch):
+    """``batch --store`` with a file that is not a store: exit 10 naming it, before Dask."""
+    import flightrecon.batch as fb
+
+    def no_cluster(*a, **k):
+        raise AssertionError("the cluster started before the store was checked")
+
+    monkeypatch.setattr(fb, "open_client", no_cluster)
+    (tmp_path / "notes.sqlite").write_text("notes")
+    code, err = run(["batch", str(SAMPLES / "circuit.parquet"), "--out", str(tmp_path / "b"),
+                     "--store", str(tmp_path / "notes.sqlite")], capsys)
+    assert code == 10 and "notes.sqlite" in err and "not a SQLite" in err, err
 
 
 def test_130_interrupted(monkeypatch, capsys):

@@ -93,3 +93,16 @@ def test_tangent_plane_accepts_numpy_scalars():
     np.testing.assert_allclose(a.forward(40.2, 49.6, 100.0), b.forward(40.2, 49.6, 100.0))
     lat, lon, _ = a.inverse(0.0, 0.0, 0.0)
     assert abs(float(lat) - 40.1) < 1e-9 and abs(float(lon) - 49.5) < 1e-9
+
+
+def test_wgs84_parameters_equal_proj():
+    """flightrecon.geo.wgs84 writes the defining parameters instead of reading them from PROJ at
+    import (so the ingest and ``info`` need no pyproj): they must equal PROJ's to the bit."""
+    from pyproj.crs import Ellipsoid
+
+    from flightrecon.constants import WGS84_A, WGS84_E2, WGS84_F
+
+    e = Ellipsoid.from_name("WGS84")
+    assert WGS84_A == float(e.semi_major_metre)
+    assert WGS84_F == 1.0 / float(e.inverse_flattening)
+    assert WGS84_E2 == WGS84_F * (2.0 - WGS84_F)

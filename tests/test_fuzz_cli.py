@@ -18,6 +18,11 @@ the signals).  Every case must give:
 The list is fixed by ``SEED`` (reproducible in CI); ``FLIGHTRECON_FUZZ_SEED`` gives another
 list of the same size for exploration.  163 in-process cases and 6 signal cases; measured
 56-61 s with ``-n 2`` on a shared 2-core machine (load average 13), warm kernel cache.
+
+The faults of issue #39 (a misspelt mapping key or table, a derived channel without its source,
+impossible mapping combinations, nested Parquet columns, read-only or foreign stores, output
+folders that cannot be written) follow as 23 more cases, each with the exit code it must give
+and the words (file, table, key) its message must hold.
 """
 
 from __future__ import annotations
@@ -60,6 +65,10 @@ class Case:
     seed: int
     out_args: Callable[[Path, Path], list] | None = None      # (folder, log) -> output args
     tags: set[str] = field(default_factory=set)
+    #: exit code the case must give and words its message must hold (the file, the key)
+    expect: tuple[int, tuple[str, ...]] | None = None
+    #: (folder, monkeypatch) -> None: the environment of the case (a read-only store)
+    env: Callable[[Path, pytest.MonkeyPatch], None] | None = None
 
 
 # ------------------------------------------------------------------ builders
@@ -522,7 +531,129 @@ def build_cases(seed: int) -> list[Case]:
     return cases
 
 
+# ------------------------------------------------------------------ issue #39, third round
+# Faults the mutation fuzzer found against main, each with the exit code it must give and the
+# words its message must hold.  Appended after the seeded list, so that list is unchanged.
+
+
+def nested_columns(df: pd.DataFrame, rng: random.Random) -> pd.DataFrame:
+    """An extra struct column and an extra list column (pyarrow writes dicts and lists so)."""
+    n = len(df)
+    return df.assign(extra_struct=[{"a": i, "b": "x"} for i in range(n)],
+                     extra_list=[[1.0, float(i)] for i in range(n)])
+
+
+def o_store_read_only(d, log):
+    """A store the user cannot write (file mode 0444; as root os.access is patched, below)."""
+    from flightrecon.store.db import connect
+
+    con, _, _ = connect(d / "ro.sqlite")   # an empty store of this version
+    con.close()
+    (d / "ro.sqlite").chmod(0o444)
+    return ["-o", d / "out.parquet", "--store", d / "ro.sqlite"]
+
+
+def env_store_read_only(d: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    real = os.access
+
+    def access(p, mode, *a, **k):
+        if Path(p).name == "ro.sqlite" and mode & os.W_OK:
+            return False
+        return real(p, mode, *a, **k)
+
+    monkeypatch.setattr(os, "access", access)
+
+
+def o_store_not_sqlite(d, log):
+    (d / "notes.sqlite").write_text("not a database\n")
+    return ["-o", d / "out.parquet", "--store", d / "notes.sqlite"]
+
+
+def o_store_missing_folder(d, log):
+    return ["-o", d / "out.parquet", "--store", d / "nowhere" / "s.sqlite"]
+
+
+def o_store_folder_read_only(d, log):
+    (d / "rodir").mkdir()
+    return ["-o", d / "out.parquet", "--store", d / "rodir" / "s.sqlite"]
+
+
+def env_folder_read_only(d: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    real = os.access
+
+    def access(p, mode, *a, **k):
+        if Path(p).name == "rodir" and mode & os.W_OK:
+            return False
+        return real(p, mode, *a, **k)
+
+    monkeypatch.setattr(os, "access", access)
+
+
+def o_result_folder_read_only(d, log):
+    (d / "rodir").mkdir()
+    return ["-o", d / "rodir" / "out.parquet"]
+
+
+def o_summary_folder_read_only(d, log):
+    (d / "rodir").mkdir()
+    return ["-o", d / "out.parquet", "--summary", d / "rodir" / "s.json"]
+
+
+def o_report_folder_read_only(d, log):
+    (d / "rodir").mkdir()
+    return ["-o", d / "out.parquet", "--report", d / "rodir"]
+
+
+def _round_three(rng: random.Random) -> list[Case]:
+    sub = "[channels.n_norm_g]\ncolumn = \"VRTG\"\nunit = \"g\"\nsign = 1"
+    mapping = [
+        ("mapping-key-typo", lambda t: t.replace(sub, sub.replace("sign = 1", "sgin = 1")),
+         (6, ("map.toml", "line 9", "[channels.n_norm_g]", "'sgin'", "did you mean 'sign'"))),
+        ("mapping-offset-typo", lambda t: t.replace(sub, sub + "\nofset = 0.0"),
+         (6, ("map.toml", "[channels.n_norm_g]", "'ofset'", "did you mean 'offset'"))),
+        ("mapping-table-typo", lambda t: t.replace("[channels.n_lat_g]", "[chanels.n_lat_g]"),
+         (6, ("map.toml", "'chanels'", "did you mean 'channels'"))),
+        ("mapping-derived-without-source", lambda t: t.replace('from = "ias"', 'from = "cas"'),
+         (6, ("map.toml", "[channels.tas_mps] from", "cas_mps", "foreign.csv",
+              "did you mean from = 'ias'"))),
+        ("mapping-derived-source-unmapped",
+         lambda t: t.replace('[channels.ias_mps]\ncolumn = "IAS_KT"\nunit = "kt"\n', ""),
+         (6, ("map.toml", "[channels.tas_mps] from", "ias_mps"))),
+        ("mapping-time-column-as-channel",
+         lambda t: t.replace('column = "VRTG"', 'column = "TIME"'),
+         (6, ("map.toml", "[channels.n_norm_g]", "TIME"))),
+        ("mapping-channel-of-another-group",
+         lambda t: t + '\n[gnss.channels.n_norm_g]\ncolumn = "NZ"\n',
+         (6, ("map.toml", "[gnss.channels.n_norm_g]", "not a gnss channel"))),
+    ]
+    cases = []
+    for name, fn, expect in mapping:
+        for cmd in ("info", "reconstruct"):
+            cases.append(Case(f"round3-{name}-{cmd}", cmd, mapping_case(fn),
+                              rng.randrange(1 << 30), expect=expect))
+    for cmd in ("info", "reconstruct"):
+        cases.append(Case(f"round3-parquet-nested-columns-{cmd}", cmd,
+                          parquet_frame_case(nested_columns), rng.randrange(1 << 30),
+                          expect=(0, ())))
+    base = frame_case(lambda df, rng: df)
+    for o, env, expect in (
+            (o_store_read_only, env_store_read_only, (10, ("ro.sqlite", "read-only"))),
+            (o_store_not_sqlite, None, (10, ("notes.sqlite", "not a SQLite"))),
+            (o_store_missing_folder, None, (10, ("s.sqlite", "nowhere", "does not exist"))),
+            (o_store_folder_read_only, env_folder_read_only,
+             (10, ("s.sqlite", "rodir", "not writable"))),
+            (o_result_folder_read_only, env_folder_read_only,
+             (9, ("out.parquet", "rodir", "not writable"))),
+            (o_summary_folder_read_only, env_folder_read_only,
+             (9, ("s.json", "rodir", "not writable"))),
+            (o_report_folder_read_only, env_folder_read_only, (9, ("rodir", "cannot be written")))):
+        cases.append(Case(f"round3-outputs-{o.__name__[2:]}-reconstruct", "reconstruct", base,
+                          rng.randrange(1 << 30), out_args=o, expect=expect, env=env))
+    return cases
+
+
 CASES = build_cases(SEED)
+CASES += _round_three(random.Random(SEED + 39))
 
 
 # ------------------------------------------------------------------ the checks
@@ -588,7 +719,7 @@ def _names_a_file(err: str, d: Path, args: list) -> bool:
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
-def test_fuzz_case(case: Case, tmp_path, capsys):
+def test_fuzz_case(case: Case, tmp_path, capsys, monkeypatch):
     d = tmp_path / "case"
     d.mkdir()
     log, extra = case.build(d, random.Random(case.seed))
@@ -602,6 +733,8 @@ def test_fuzz_case(case: Case, tmp_path, capsys):
         outs = []
     args = [case.command, log, *extra, *outs]
     before = _digest(d)
+    if case.env is not None:
+        case.env(d, monkeypatch)
     capsys.readouterr()
     try:
         main(["--quiet", *[str(a) for a in args]])
@@ -622,6 +755,11 @@ def test_fuzz_case(case: Case, tmp_path, capsys):
         _check_outputs(case, d, args)
     if "repairable" in case.tags and case.command != "info":
         assert code == 0, f"a repairable log was refused: {err}"
+    if case.expect is not None:
+        want, words = case.expect
+        assert code == want, f"exit {code}, expected {want}: {err[-2000:]}"
+        missing = [w for w in words if w not in err]
+        assert not missing, f"the message lacks {missing}: {err}"
 
 
 # ------------------------------------------------------------------ signals

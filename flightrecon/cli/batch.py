@@ -54,6 +54,10 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
     from flightrecon.pipeline import ReconstructSettings
 
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    if store_path is not None:   # a store that cannot be used: exit 10 before any cluster starts
+        from flightrecon.store.db import check_store_path
+
+        check_store_path(store_path)
     settings = ReconstructSettings(
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
         rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,

@@ -165,10 +165,13 @@ def check_run_outputs(log: Path, *, gnss=None, radar=None, mapping=None, sidecar
                       store: Path | None = None, store_is_input: bool = False,
                       fmt: str | None = None) -> None:
     """Refuse, before any work, a reconstruction whose outputs (result, summary, report folder,
-    store) would replace one of its inputs or each other, or cannot be written (exit 9).
+    store) would replace one of its inputs or each other, or cannot be written (exit 9), or
+    whose coefficient store cannot be used (exit 10).
 
     The store is an input when it is only read (fleet coefficients) and an output otherwise;
-    either way no other output may be written over it."""
+    either way no other output may be written over it.  A store that is not a flightrecon
+    store, is read-only, or lies in a folder that is missing or cannot be written is a store
+    error naming the store file (:func:`flightrecon.store.db.check_store_path`)."""
     from flightrecon.export.atomic import check_outputs, sweep_leftovers
     from flightrecon.export.writers import format_from_path
 
@@ -182,7 +185,11 @@ def check_run_outputs(log: Path, *, gnss=None, radar=None, mapping=None, sidecar
     elif store is not None:
         outputs["coefficient store"] = store
     check_outputs(outputs, inputs, folders={"report": report}, folder_names=report_file_name,
-                  created_folders=("coefficient store",))
+                  own_checks=("coefficient store",))
+    if store is not None:
+        from flightrecon.store.db import check_store_path
+
+        check_store_path(store, write=not store_is_input)
     for folder in {result.parent, summary.parent} | ({report, report.parent} if report
                                                       else set()):
         sweep_leftovers(folder if str(folder) else Path("."))

@@ -18,7 +18,6 @@ from typing import Any
 
 import click
 
-from flightrecon import __version__
 from flightrecon.errors import FlightReconError
 
 #: subcommand modules; each defines ``command`` (a click command or group)
@@ -46,8 +45,19 @@ class _Group(click.Group):
             raise _PipeClosed() from exc
 
 
+def _print_version(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    """``--version``: the installed version, looked up only when asked for."""
+    if not value or ctx.resilient_parsing:
+        return
+    from flightrecon import __version__
+
+    click.echo(f"flightrecon, version {__version__}")
+    ctx.exit()
+
+
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, prog_name="flightrecon")
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True,
+              callback=_print_version, help="Show the version and exit.")
 @click.option("--debug", is_flag=True, help="Show the full traceback on errors.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars or chatter (for scripts).")
 @click.pass_context

@@ -123,9 +123,9 @@ def check_folder(path: Path) -> None:
 
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
-        raise OutputError("the output folder does not exist", file=str(parent))
+        raise OutputError(f"the output folder does not exist: {parent}", file=str(path))
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError("the output folder is not writable", file=str(parent))
+        raise OutputError(f"the output folder is not writable: {parent}", file=str(path))
     if path.is_dir():
         raise OutputError("the output is a folder, not a file", file=str(path))
 

@@ -96,7 +96,8 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
                   inputs: Mapping[str, str | os.PathLike | None], *,
                   folders: Mapping[str, str | os.PathLike | None] | None = None,
                   folder_names: Callable[[str], bool] | None = None,
-                  created_folders: Iterable[str] = ()) -> None:
+                  created_folders: Iterable[str] = (),
+                  own_checks: Iterable[str] = ()) -> None:
     """Check every output of a run against every input and against the other outputs.
 
     Parameters
@@ -107,8 +108,11 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
     folders : label -> folder the run writes files into (a report folder)
     folder_names : predicate on a file name: True for the names the run writes into
         ``folders`` (an input with such a name inside such a folder would be replaced)
-    created_folders : labels of outputs whose folder is created by their writer (a
-        coefficient store): their folder is not required to exist
+    created_folders : labels of outputs whose folder is created by their writer: their
+        folder is not required to exist
+    own_checks : labels of outputs whose folder and file the caller checks itself, with its
+        own error (a coefficient store: a store error, exit code 10); only the checks against
+        the inputs and the other outputs are made here
 
     Raises
     ------
@@ -127,7 +131,7 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
             if _same(ip, p):
                 raise OutputError(f"refusing to write the {label} over the {ilabel} (an input "
                                   "of this run)", file=str(p))
-        if p.is_dir():
+        if p.is_dir() and label not in own_checks:
             raise OutputError(f"the {label} path is an existing folder", file=str(p))
     labels = list(outs)
     for i, a in enumerate(labels):
@@ -160,6 +164,8 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
             raise OutputError(f"the {label} folder cannot be written ({parent} is not a writable "
                               "folder)", file=str(d))
     for label, p in outs.items():
+        if label in own_checks:
+            continue
         if label not in created_folders or _folder_of(p).exists():
             check_writable_folder(_folder_of(p), label, p)
 
@@ -235,7 +241,7 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     target = Path(target)
     folder = _folder_of(target)
     if not folder.is_dir():
-        raise OutputError("output folder does not exist", file=str(folder))
+        raise OutputError(f"the output folder does not exist: {folder}", file=str(target))
     tmp = folder / f".{target.name}{TMP_TAG}{os.getpid()}-{secrets.token_hex(4)}"
     try:
         yield tmp

@@ -31,7 +31,6 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
-from xml.sax.saxutils import escape
 
 import numpy as np
 import pandas as pd
@@ -40,6 +39,15 @@ import pyarrow.parquet as pq
 
 from flightrecon.errors import OutputError
 from flightrecon.export.atomic import atomic_path
+
+
+def escape(text: str) -> str:
+    """``&``, ``<`` and ``>`` as XML entities (:func:`xml.sax.saxutils.escape`, imported only
+    when a KML is written: it pulls in ``urllib`` and ``ssl``)."""
+    from xml.sax.saxutils import escape as xml_escape
+
+    return xml_escape(text)
+
 
 FORMATS = ("csv", "parquet", "geojson", "kml", "czml")
 _SUFFIX = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet", ".geojson": "geojson",

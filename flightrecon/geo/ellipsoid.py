@@ -1,4 +1,5 @@
-"""The WGS-84 ellipsoid: its parameters from PROJ (through pyproj) and its radii of curvature.
+"""The WGS-84 ellipsoid: its parameters (:mod:`flightrecon.geo.wgs84`, equal to PROJ's) and its
+radii of curvature.
 
 One formula for the radii, compiled with numba so that the kernels call it per sample; on numpy
 arrays it runs element-wise.  With ``w = 1 - e^2 sin^2(lat)``::
@@ -14,16 +15,10 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
-from pyproj.crs import Ellipsoid
 
-_WGS84 = Ellipsoid.from_name("WGS84")
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2, WGS84_F
 
-WGS84_A: float = float(_WGS84.semi_major_metre)
-"""Semi-major axis [m] (PROJ's WGS 84: 6378137)."""
-WGS84_F: float = 1.0 / float(_WGS84.inverse_flattening)
-"""Flattening (PROJ's WGS 84: 1 / 298.257223563)."""
-WGS84_E2: float = WGS84_F * (2.0 - WGS84_F)
-"""First eccentricity squared."""
+__all__ = ["WGS84_A", "WGS84_E2", "WGS84_F", "radii_from_sin"]
 
 _A = WGS84_A
 _E2 = WGS84_E2

@@ -29,13 +29,18 @@ is documented with an example in ``docs/ingest.md``::
     [radar] ...            # and for a separate radar file
 
 Columns of a file that already carry canonical names need no entry.  Everything wrong in the
-mapping itself is a :class:`MappingError` (exit code 6) naming the mapping file and the key.
+mapping itself is a :class:`MappingError` (exit code 6) naming the mapping file, its line, the
+table and the key, with the nearest valid name for a misspelt one ("did you mean ...").  So is a
+combination the mapping asks for that cannot be made: a channel under ``[gnss.channels]`` or
+``[radar.channels]`` that is not of that group, one source column as the time and a channel, a
+derived channel whose source channels are neither mapped nor in the data file.
 """
 
 from __future__ import annotations
 
 import difflib
 import os
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -169,20 +174,103 @@ def load_mapping(path: str | os.PathLike) -> Mapping:
     if not p.is_file():
         raise InputFileError("mapping file not found", file=file)
     try:
-        doc = tomllib.loads(p.read_bytes().decode("utf-8"))
+        text = p.read_bytes().decode("utf-8")
+        doc = tomllib.loads(text)
     except UnicodeDecodeError:
         raise MappingError("mapping file is not UTF-8 text", file=file) from None
     except tomllib.TOMLDecodeError as exc:
         raise MappingError(f"not a valid TOML file: {exc}", file=file) from None
-    return _parse(doc, file, "", allow_sub=True)
+    try:
+        return _parse(doc, file, "", allow_sub=True)
+    except MappingError as exc:
+        _add_line(exc, text)
+        raise
+
+
+class _TableKeyError(MappingError):
+    """A :class:`MappingError` about ``key`` of the TOML table ``table`` (``""``: the top
+    level; ``key`` ``None``: the table itself), so that :func:`load_mapping` can name the line."""
+
+    def __init__(self, message: str, *, file: str, table: str, key: str | None,
+                 column: str | None = None) -> None:
+        super().__init__(message, file=file, column=column)
+        self.table = table
+        self.key = key
+
+
+def _error(message: str, file: str, table: str, key: str | None = None,
+           column: str | None = None) -> MappingError:
+    """The error of ``key`` in ``table`` (:class:`_TableKeyError`), to raise."""
+    return _TableKeyError(message, file=file, table=table, key=key, column=column)
+
+
+def _did_you_mean(name: str, choices) -> str:
+    """`` (did you mean 'x'?)`` for the nearest of ``choices`` (:mod:`difflib`), else ``""``."""
+    close = difflib.get_close_matches(name, sorted(choices), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+_HEADER_RE = re.compile(r"^\s*\[\s*([^\[\]]+?)\s*\]\s*(?:#.*)?$")
+_KEY_RE = re.compile(r"""^\s*(?:"([^"]*)"|'([^']*)'|([A-Za-z0-9_.-]+))\s*=""")
+
+
+def line_of(text: str, table: str, key: str | None) -> int | None:
+    """Where a key of a mapping file is written, for messages.
+
+    Parameters
+    ----------
+    text : the mapping file's TOML text
+    table : dotted name of the table (``"channels.n_norm_g"``; ``""``: the top level)
+    key : the key in that table; ``None`` for the table's header
+
+    Returns
+    -------
+    int or None
+        The 1-based line of the key (else of a header that names it as a table, else of the
+        table's own header); ``None`` when it cannot be told (an inline table).
+    """
+    current = ""
+    want = table.replace('"', "").replace("'", "")
+    for i, line in enumerate(text.splitlines(), start=1):
+        h = _HEADER_RE.match(line)
+        if h:
+            current = ".".join(part.strip().strip('"').strip("'")
+                               for part in h.group(1).split("."))
+            if key is None and (current == want or current.startswith(want + ".")):
+                return i
+            continue
+        if key is None:
+            continue
+        k = _KEY_RE.match(line)
+        if not k:
+            continue
+        name = next(g for g in k.groups() if g is not None).strip()
+        full = ".".join(x for x in (current, name) if x)
+        if full == ".".join(x for x in (want, key) if x):
+            return i
+    if key is not None:   # a table named by its header ([a.b.key], [key.x]), else its own
+        return line_of(text, ".".join(x for x in (table, key) if x), None) or (
+            line_of(text, table, None) if table else None)
+    return None
+
+
+def _add_line(exc: MappingError, text: str) -> None:
+    """Prefix the message of ``exc`` with the line of the mapping file it is about."""
+    if not isinstance(exc, _TableKeyError):
+        return
+    line = line_of(text, exc.table, exc.key)
+    if line is not None:
+        exc.message = f"line {line}: {exc.message}"
+        exc.args = (str(exc),)
 
 
 def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
     allowed = {"time", "channels"} | ({"gnss", "radar"} if allow_sub else set())
     for k in doc:
         if k not in allowed:
-            raise MappingError(f"unknown table or key '{prefix}{k}' (allowed: "
-                               f"{', '.join(sorted(allowed))})", file=file)
+            raise _error(f"unknown table or key '{prefix}{k}'{_did_you_mean(k, allowed)} "
+                         f"(allowed here: {', '.join(sorted(allowed))})", file,
+                         prefix.rstrip("."), k)
     time = None
     if "time" in doc:
         t = _table(doc["time"], file, f"{prefix}time")
@@ -194,22 +282,37 @@ def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
         unit = _str(t, "unit", file, f"{prefix}time", required=False) or (
             "timestamp" if date_col or ofs_col else "s")
         if unit not in TIME_UNITS:
-            raise MappingError(f"[{prefix}time] unit '{unit}' is not one of {TIME_UNITS}",
-                               file=file, column=col)
+            raise _error(f"[{prefix}time] unit '{unit}' is not one of {TIME_UNITS}"
+                         f"{_did_you_mean(unit, TIME_UNITS)}", file, f"{prefix}time", "unit",
+                         column=col)
         if (date_col or ofs_col) and unit != "timestamp":
-            raise MappingError(f"[{prefix}time] date_column / utc_offset_column need unit = "
-                               "\"timestamp\"", file=file, column=col)
+            raise _error(f"[{prefix}time] date_column / utc_offset_column need unit = "
+                         "\"timestamp\"", file, f"{prefix}time", "unit", column=col)
         fmt = _str(t, "format", file, f"{prefix}time", required=False)
         time = TimeSpec(str(col), unit, fmt, date_col, ofs_col)   # required: never None here
     chans: list[ChannelSpec] = []
     targets = _table(doc.get("channels", {}), file, f"{prefix}channels")
+    group = prefix.rstrip(".") or None
     for name, spec in targets.items():
-        chans.append(_parse_channel(name, spec, file, f"{prefix}channels.{name}"))
+        where = f"{prefix}channels.{name}"
+        chans.append(_parse_channel(name, spec, file, where))
+        if group is not None and name not in GROUPS[group]:
+            raise _error(f"[{where}]: {name} is not a {group} channel: only the {group} "
+                         f"channels ({', '.join(GROUPS[group])}) are read from a separate "
+                         f"{group} file; map it under [channels] for the recorder log",
+                         file, where)
     cols = [c.column for c in chans if c.column is not None]
     dup = sorted({c for c in cols if cols.count(c) > 1})
     if dup:
-        raise MappingError(f"source column mapped to several channels: {', '.join(dup)}",
-                           file=file)
+        both = [c.channel for c in chans if c.column == dup[0]]
+        raise _error(f"source column mapped to several channels: {', '.join(dup)} "
+                     f"({' and '.join(f'[{prefix}channels.{b}]' for b in both)})", file,
+                     f"{prefix}channels.{both[-1]}", "column", column=dup[0])
+    if time is not None and time.column in cols:
+        clash = next(c.channel for c in chans if c.column == time.column)
+        raise _error(f"[{prefix}channels.{clash}]: column '{time.column}' is also the time "
+                     f"column of [{prefix}time]: one source column cannot be both", file,
+                     f"{prefix}channels.{clash}", "column", column=time.column)
     sub = {}
     for g in ("gnss", "radar"):
         if allow_sub and g in doc:
@@ -219,9 +322,8 @@ def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
 
 def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
     if name not in BY_NAME or BY_NAME[name].kind == "time":
-        close = difflib.get_close_matches(name, [c for c in BY_NAME if c != "t_s"], n=1)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
-        raise MappingError(f"[{where}]: unknown channel '{name}'{hint}", file=file)
+        hint = _did_you_mean(name, [c for c in BY_NAME if BY_NAME[c].kind != "time"])
+        raise _error(f"[{where}]: unknown channel '{name}'{hint}", file, where)
     spec = _table(spec, file, where)
     _only(spec, {"column", "unit", "sign", "reference", "from", "scale", "offset"}, file, where)
     ch = BY_NAME[name]
@@ -229,37 +331,38 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
         src = spec["from"]
         if not isinstance(src, str) or name not in DERIVED_OK or src not in DERIVED_OK[name]:
             ok = ", ".join(f"{k} from {sorted(v)}" for k, v in DERIVED_OK.items())
-            raise MappingError(f"[{where}]: cannot derive {name} from '{src}' (possible: {ok})",
-                               file=file)
+            raise _error(f"[{where}]: cannot derive {name} from '{src}' (possible: {ok})",
+                         file, where, "from")
         extra = set(spec) - {"from"}
         if extra:
-            raise MappingError(f"[{where}]: a derived channel takes only 'from' (got "
-                               f"{', '.join(sorted(extra))})", file=file)
+            raise _error(f"[{where}]: a derived channel takes only 'from' (got "
+                         f"{', '.join(sorted(extra))}): it has no source column of its own",
+                         file, where, sorted(extra)[0])
         return ChannelSpec(name, None, None, derived_from=src)
     col = _str(spec, "column", file, where, required=True)
     unit_txt = _str(spec, "unit", file, where, required=False) or ch.unit
     unit = lookup_unit(unit_txt)
     if unit is None:
-        raise MappingError(f"[{where}]: unknown unit '{unit_txt}' (known: "
-                           f"{', '.join(UNITS)})", file=file, column=col)
+        raise _error(f"[{where}]: unknown unit '{unit_txt}'{_did_you_mean(unit_txt, UNITS)} "
+                     f"(known: {', '.join(UNITS)})", file, where, "unit", column=col)
     need = CANONICAL_DIMENSION[ch.unit]
     if unit.dimension != need:
-        raise MappingError(f"[{where}]: unit '{unit_txt}' is a {unit.dimension}, channel {name} "
-                           f"needs a {need} unit", file=file, column=col)
+        raise _error(f"[{where}]: unit '{unit_txt}' is a {unit.dimension}, channel {name} "
+                     f"needs a {need} unit", file, where, "unit", column=col)
     sign = spec.get("sign", 1)
     if isinstance(sign, bool) or sign not in (1, -1):
-        raise MappingError(f"[{where}]: sign must be 1 or -1, got {sign!r}", file=file,
-                           column=col)
+        raise _error(f"[{where}]: sign must be 1 or -1, got {sign!r}", file, where, "sign",
+                     column=col)
     ref = spec.get("reference", "true")
     if ref not in ("true", "magnetic"):
-        raise MappingError(f"[{where}]: reference must be 'true' or 'magnetic', got {ref!r}",
-                           file=file, column=col)
+        raise _error(f"[{where}]: reference must be 'true' or 'magnetic', got {ref!r}",
+                     file, where, "reference", column=col)
     if ref == "magnetic" and name not in MAGNETIC_OK:
-        raise MappingError(f"[{where}]: reference = 'magnetic' only applies to "
-                           f"{', '.join(MAGNETIC_OK)}", file=file, column=col)
+        raise _error(f"[{where}]: reference = 'magnetic' only applies to "
+                     f"{', '.join(MAGNETIC_OK)}", file, where, "reference", column=col)
     scale = _number(spec, "scale", 1.0, file, where, col)
     if scale == 0.0:
-        raise MappingError(f"[{where}]: scale must not be zero", file=file, column=col)
+        raise _error(f"[{where}]: scale must not be zero", file, where, "scale", column=col)
     offset = _number(spec, "offset", 0.0, file, where, col)
     return ChannelSpec(name, col, unit, float(sign), ref, scale=scale, offset=offset,
                        unit_declared="unit" in spec)
@@ -269,32 +372,33 @@ def _number(t: dict, key: str, default: float, file: str, where: str, col: str |
             ) -> float:
     v = t.get(key, default)
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-        raise MappingError(f"[{where}]: {key} must be a finite number, got {v!r}", file=file,
-                           column=col)
+        raise _error(f"[{where}]: {key} must be a finite number, got {v!r}", file, where, key,
+                     column=col)
     return float(v)
 
 
 def _table(v, file: str, where: str) -> dict:
     if not isinstance(v, dict):
-        raise MappingError(f"'{where}' must be a table", file=file)
+        table, _, key = where.rpartition(".")
+        raise _error(f"'{where}' must be a table", file, table, key)
     return v
 
 
 def _only(t: dict, keys: set[str], file: str, where: str) -> None:
     for k in t:
         if k not in keys:
-            raise MappingError(f"[{where}]: unknown key '{k}' (allowed: "
-                               f"{', '.join(sorted(keys))})", file=file)
+            raise _error(f"[{where}]: unknown key '{k}'{_did_you_mean(k, keys)} (allowed: "
+                         f"{', '.join(sorted(keys))})", file, where, k)
 
 
 def _str(t: dict, key: str, file: str, where: str, *, required: bool) -> str | None:
     v = t.get(key)
     if v is None:
         if required:
-            raise MappingError(f"[{where}]: missing key '{key}'", file=file)
+            raise _error(f"[{where}]: missing key '{key}'", file, where)
         return None
     if not isinstance(v, str) or not v:
-        raise MappingError(f"[{where}]: '{key}' must be a non-empty string", file=file)
+        raise _error(f"[{where}]: '{key}' must be a non-empty string", file, where, key)
     return v
 
 
@@ -334,7 +438,7 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
     file = raw.file
     mfile = mapping_file or (mapping.file if mapping else None)
     specs = _channel_specs(raw, mapping, group, mfile)
-    tspec = _time_spec(raw, mapping, mfile)
+    tspec = _time_spec(raw, mapping, mfile, group)
     rows = np.arange(1, raw.n_rows + 1, dtype=np.int64)
     if raw.blank_rows.size:
         keep = np.ones(raw.n_rows, dtype=bool)
@@ -374,13 +478,17 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
 def _channel_specs(raw: RawTable, mapping: Mapping | None, group: str | None,
                    mfile: str | None) -> list[ChannelSpec]:
     """The mapping's channel specs (each source column checked to be in the file), the
-    canonical columns not mapped taken as they are, restricted to ``group``'s channels."""
+    canonical columns not mapped taken as they are, restricted to ``group``'s channels; a
+    derived channel whose sources are neither mapped nor in the file is refused here, naming
+    the mapping line that asks for it."""
     specs: list[ChannelSpec] = list(mapping.channels) if mapping else []
+    prefix = f"{group}." if group else ""
     for s in specs:
         if s.column is not None and s.column not in raw.columns:
             close = difflib.get_close_matches(s.column, list(raw.columns), n=1)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
-            raise MappingError(f"mapping file {mfile} maps channel {s.channel} to a column that "
+            where = mapping_location(mfile, f"{prefix}channels.{s.channel}", "column")
+            raise MappingError(f"{where} maps channel {s.channel} to column '{s.column}', which "
                                f"is not in the file{hint}", file=raw.file, column=s.column)
     mapped_cols = {s.column for s in specs if s.column}
     mapped_chans = {s.channel for s in specs}
@@ -388,10 +496,65 @@ def _channel_specs(raw: RawTable, mapping: Mapping | None, group: str | None,
     if group is not None:
         allowed = set(GROUPS[group])
         specs = [s for s in specs if s.channel in allowed]
+    else:
+        _check_derivable(specs, raw.file, mfile)
     return specs
 
 
-def _time_spec(raw: RawTable, mapping: Mapping | None, mfile: str | None) -> TimeSpec:
+def _check_derivable(specs: list[ChannelSpec], file: str, mfile: str | None) -> None:
+    """Refuse a channel the mapping derives (``from = ...``) whose source channels are neither
+    mapped nor canonical columns of ``file``: a mapping error (exit code 6) naming the mapping
+    file, its line, the table and the key, and a source the mapping does provide."""
+    present = {s.channel for s in specs if s.derived_from is None}
+    for s in specs:
+        if s.derived_from is None:
+            continue
+        source = DERIVED_OK[s.channel][s.derived_from]
+        missing = [c for c in (source, "baro_alt_m") if c not in present]
+        if not missing:
+            continue
+        other = [k for k, c in DERIVED_OK[s.channel].items()
+                 if k != s.derived_from and c in present]
+        hint = f" (did you mean from = '{other[0]}'?)" if other and source in missing else ""
+        where = mapping_location(mfile, f"channels.{s.channel}", "from", with_file=False)
+        raise MappingError(f"{where} = '{s.derived_from}': {s.channel} from "
+                           f"{s.derived_from.upper()} needs channel"
+                           f"{'s' if len(missing) > 1 else ''} {' and '.join(missing)}, which "
+                           f"the mapping does not map and the data file {file} does not have"
+                           f"{hint}; map {missing[0]} in a [channels.{missing[0]}] table",
+                           file=mfile or file)
+
+
+def mapping_location(mfile: str | None, table: str, key: str | None = None, *,
+                     with_file: bool = True) -> str:
+    """Where in a mapping file a setting is, for the errors found while the mapping is applied
+    to a data file: ``mapping file M line N, [table] key``.
+
+    Parameters
+    ----------
+    mfile : the mapping file (``None``: no file, the table and key only)
+    table, key : as for :func:`line_of`
+    with_file : ``False`` leaves out ``mapping file M`` (for an error whose file it is)
+
+    Returns
+    -------
+    str
+        The location; the line is left out when the file cannot be read or the key found.
+    """
+    if mfile is None:
+        return f"[{table}]" + (f" {key}" if key else "")
+    line = None
+    try:
+        line = line_of(Path(mfile).read_text(encoding="utf-8"), table, key)
+    except (OSError, UnicodeDecodeError):
+        pass
+    at = f"line {line}, " if line is not None else ""
+    head = f"mapping file {mfile} " if with_file else ""
+    return f"{head}{at}[{table}]" + (f" {key}" if key else "")
+
+
+def _time_spec(raw: RawTable, mapping: Mapping | None, mfile: str | None,
+               group: str | None = None) -> TimeSpec:
     """The time column: the mapping's ``[time]``, else the first default time column found."""
     from flightrecon.errors import SchemaError
 
@@ -405,10 +568,14 @@ def _time_spec(raw: RawTable, mapping: Mapping | None, mfile: str | None) -> Tim
         raise SchemaError("no time column: expected 't_s' (seconds from epoch_utc) or "
                           "'time_utc' (UTC timestamps), or a [time] table in a mapping file",
                           file=raw.file)
-    for c in (tspec.column, tspec.date_column, tspec.utc_offset_column):
+    for key, c in (("column", tspec.column), ("date_column", tspec.date_column),
+                   ("utc_offset_column", tspec.utc_offset_column)):
         if c is not None and c not in raw.columns:
-            raise MappingError(f"mapping file {mfile}: time column is not in the file",
-                               file=raw.file, column=c)
+            table = f"{group}.time" if group else "time"
+            close = difflib.get_close_matches(c, list(raw.columns), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise MappingError(f"{mapping_location(mfile, table, key)}: time column "
+                               f"'{c}' is not in the file{hint}", file=raw.file, column=c)
     return tspec
 
 

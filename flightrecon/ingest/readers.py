@@ -345,6 +345,8 @@ def _from_arrow(tbl: pa.Table, file: str, fmt: str) -> RawTable:
         else:
             all_null[:] = False
         any_null = any_null or not no_null
+        if pa.types.is_dictionary(col.type):   # categorical columns: their values
+            col = col.dictionary_decode()
         t = col.type
         if pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t) \
                 or pa.types.is_decimal(t) or pa.types.is_null(t):
@@ -372,14 +374,16 @@ def _from_arrow(tbl: pa.Table, file: str, fmt: str) -> RawTable:
                 if txt.any():
                     nan_text[name] = txt
         else:
-            # another type (time of day, duration, nested...): kept as text; a column that
-            # is mapped to a channel is then reported as non-numeric, an unmapped one ignored
+            # another type: a time of day, a duration (kept as text: the glass-cockpit
+            # reader parses its time of day), or one that holds no number or time (struct,
+            # list, map, binary: kept as text naming its type); an unused column is ignored
+            # like any unknown one (a warning names it), a used one is refused as non-numeric
+            # naming its rows
             try:
                 txt_col = pc.cast(col, pa.string())
+                cols[name] = np.asarray(txt_col.to_pandas(), dtype=object)
             except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
-                raise SchemaError(f"unsupported column type {t}", file=file,
-                                  column=name) from None
-            cols[name] = np.asarray(txt_col.to_pandas(), dtype=object)
+                cols[name] = np.where(valid, f"<{t} column: not read>", None).astype(object)
     blank = np.flatnonzero(all_null) + 1 if fmt == "csv" else np.zeros(0, np.int64)
     nan_is_missing = False
     if nan_text and (fmt == "parquet" or not any_null):

@@ -254,6 +254,30 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     return Sidecar(path=file, meta=meta, files=files, warnings=tuple(warns))
 
 
+def _ground_distance_m(a: Position, b: Position) -> float:
+    """Horizontal distance [m] from ``a`` to ``b`` on the WGS-84 ellipsoid, for the plausibility
+    check of a runway threshold (a few kilometres at most).
+
+    Offsets north and east at the mean latitude ``lat_m`` of the two points:
+    ``dn = dlat M``, ``de = dlon N cos(lat_m)`` with the meridian and prime-vertical radii
+    ``M``, ``N`` at ``lat_m`` (formula in :mod:`flightrecon.geo.ellipsoid`), at the ellipsoid's
+    surface.  Against the tangent-plane projection (:class:`flightrecon.geo.frames.TangentPlane`)
+    the difference stays below 0.1 m up to 10 km at latitudes up to 80 deg
+    (``tests/test_faults_inputs.py``), without importing pyproj: the ingest and
+    ``flightrecon info`` stay light.
+    """
+    from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
+
+    lat_m = np.radians(0.5 * (a.lat_deg + b.lat_deg))
+    w = 1.0 - WGS84_E2 * np.sin(lat_m) ** 2
+    n_radius = WGS84_A / np.sqrt(w)
+    m_radius = n_radius * (1.0 - WGS84_E2) / w
+    dlon = (b.lon_deg - a.lon_deg + 180.0) % 360.0 - 180.0
+    dn = np.radians(b.lat_deg - a.lat_deg) * m_radius
+    de = np.radians(dlon) * n_radius * np.cos(lat_m)
+    return float(np.hypot(dn, de))
+
+
 def _threshold(t: dict[str, Any], pos: Position, name: str, file: str) -> Position:
     """``pos`` with the runway threshold of table ``[name]`` (both coordinates or neither; the
     runway's direction must be given too; within :data:`THRESHOLD_MAX_M` of the reference)."""
@@ -272,10 +296,7 @@ def _threshold(t: dict[str, Any], pos: Position, name: str, file: str) -> Positi
         raise MetadataError(f"[{name}] a runway threshold needs the runway's direction "
                             "(runway_true_deg)", file=file)
     thr = _position(t[keys[0]], t[keys[1]], pos.elev_m, f"[{name}] threshold", file)
-    from flightrecon.geo.frames import TangentPlane
-
-    e, n, _ = TangentPlane(pos.lat_deg, pos.lon_deg).forward(thr.lat_deg, thr.lon_deg, 0.0)
-    d = float(np.hypot(e, n))
+    d = _ground_distance_m(pos, thr)
     if d > THRESHOLD_MAX_M:
         raise MetadataError(f"[{name}] the runway threshold is {d / 1000:.1f} km from the "
                             f"airfield reference point (more than {THRESHOLD_MAX_M / 1000:.0f} km: "

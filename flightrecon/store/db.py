@@ -372,6 +372,48 @@ def migrate_v2_to_v3(con: sqlite3.Connection) -> None:
 MIGRATIONS = {1: migrate_v1_to_v2, 2: migrate_v2_to_v3}
 
 
+def check_store_path(path: str | os.PathLike, *, write: bool = True) -> None:
+    """Refuse, before any work, a coefficient store that this run could not use (exit code 10).
+
+    Nothing is created or modified: the checks only look at the file system and, for an
+    existing file, at its header through :func:`inspect_existing`.
+
+    Parameters
+    ----------
+    path : the store file (``--store``)
+    write : the run records into the store (``False``: it only reads it, e.g. fleet
+        coefficients; a missing store is then left to the reader's own message)
+
+    Raises
+    ------
+    StoreError
+        Naming the store file: the path is a folder; the file exists but is not a flightrecon
+        store (not SQLite, another application's database, a newer schema) or cannot be read;
+        and for a run that writes: its folder does not exist or cannot be written (SQLite
+        creates its journal beside the store), or the file itself is read-only.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise StoreError("the coefficient store path is a folder; give a file", file=str(path))
+    if path.exists() and path.stat().st_size > 0:
+        inspect_existing(path)
+    if not write:
+        return
+    if not folder.is_dir():
+        what = "is not a folder" if folder.exists() else "does not exist"
+        raise StoreError(f"the folder of the coefficient store {what}: {folder}",
+                         file=str(path))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise StoreError(f"the folder of the coefficient store is not writable: {folder} "
+                         "(SQLite writes its journal beside the store; give a --store in a "
+                         "folder you can write)", file=str(path))
+    if path.exists() and not os.access(path, os.R_OK | os.W_OK):
+        raise StoreError("the coefficient store is read-only (no write permission on the "
+                         "file): this run records the flight in it; make it writable or give "
+                         "another --store", file=str(path))
+
+
 def connect(path: str | os.PathLike | None = None, *,
             busy_timeout_s: float = DEFAULT_BUSY_TIMEOUT_S,
             create: bool = True) -> tuple[sqlite3.Connection, Path, str]:
