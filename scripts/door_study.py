@@ -221,10 +221,11 @@ def main() -> None:
         if args.svv:
             svv_logs(tmp, rows, args.svv)
         if args.garmin:
-            r = {"log": args.garmin.name, "format": "glass-cockpit CSV as recorded",
-                 **door(args.garmin)}
-            rows.append(r)
-            print(f"{args.garmin.name:34s} accepted={r['accepted']}", flush=True)
+            for fmt, kw in (("glass-cockpit CSV as recorded", {}),
+                            ("glass-cockpit CSV, GPS withheld", {"withhold_gnss": True})):
+                r = {"log": args.garmin.name, "format": fmt, **door(args.garmin, **kw)}
+                rows.append(r)
+                print(f"{args.garmin.name:34s} {fmt}: accepted={r['accepted']}", flush=True)
     good = [r for r in rows if "accepted" in r]
     n_ok = sum(r["accepted"] for r in good)
     inj = [v for r in good for v in (r.get("injected_refused") or {}).values()]
