@@ -222,7 +222,8 @@ def main() -> None:
             svv_logs(tmp, rows, args.svv)
         if args.garmin:
             for fmt, kw in (("glass-cockpit CSV as recorded", {}),
-                            ("glass-cockpit CSV, GPS withheld", {"withhold_gnss": True})):
+                            ("glass-cockpit CSV, GPS withheld",
+                             {"meta_overrides": {"withhold_gnss": True}})):
                 r = {"log": args.garmin.name, "format": fmt, **door(args.garmin, **kw)}
                 rows.append(r)
                 print(f"{args.garmin.name:34s} {fmt}: accepted={r['accepted']}", flush=True)
