@@ -85,8 +85,7 @@ def test_every_corpus_log_passes_the_door_without_a_unit_word(log):
     assert 0.8 < fig["baro_alt_m unit"] < 1.2
 
 
-@pytest.mark.parametrize("log", ["c1-fdr.parquet", "c2-gnss.parquet", "c1-rates.parquet",
-                                 "c2-gnss2d.parquet"])
+@pytest.mark.parametrize("log", LOGS)
 def test_corpus_logs_reconstruct_to_a_finite_track(tmp_path, capsys, log):
     """Recorder only, with GNSS, body rates instead of heading, horizontal GNSS: exit 0 and a
     finite default track that ends within 3 km of the truth's last point (the recorder-only
