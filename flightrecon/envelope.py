@@ -206,8 +206,9 @@ class Evidence:
     ----------
     wind_surface_mps, wind_per_km_mps, wind_cap_mps : the largest plausible wind speed at a
         pressure altitude h: ``wind_surface_mps + wind_per_km_mps * h / 1000``, at most
-        ``wind_cap_mps`` (40 m/s at the ground, 60 m/s at 2 km, 120 m/s from 8 km: the
-        strongest jet-stream cores measured are about 100-110 m/s)
+        ``wind_cap_mps`` (40 m/s at the ground, 60 m/s at 2 km, 150 m/s from 11 km: the
+        strongest jet-stream cores measured by radiosondes are about 100 m/s, the highest
+        reports about 150 m/s)
     wind_change_mps, wind_change_window_s, wind_shear_per_s : the wind may change by at most
         ``wind_change_mps`` within ``wind_change_window_s`` plus ``wind_shear_per_s`` times
         the height changed meanwhile (a front, a microburst's outflow, a 50 m/s per km shear)
@@ -235,7 +236,7 @@ class Evidence:
 
     wind_surface_mps: float = 40.0
     wind_per_km_mps: float = 10.0
-    wind_cap_mps: float = 120.0
+    wind_cap_mps: float = 150.0
     wind_change_mps: float = 25.0
     wind_change_window_s: float = 60.0
     wind_shear_per_s: float = 0.05

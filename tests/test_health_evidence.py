@@ -181,7 +181,7 @@ def test_the_bridge_sd_is_zero_at_both_ends_and_q_t32_over_48_half_way():
 
 def test_the_wind_limit_grows_with_height_to_the_jet_stream_cap():
     ev = Evidence()
-    assert ev.wind_limit_mps(np.array([0.0, 2000.0, 20000.0])).tolist() == [40.0, 60.0, 120.0]
+    assert ev.wind_limit_mps(np.array([0.0, 2000.0, 20000.0])).tolist() == [40.0, 60.0, 150.0]
 
 
 def test_a_non_finite_position_is_never_ok(circuit):
