@@ -327,11 +327,28 @@ def errors(t: np.ndarray, n: np.ndarray, e: np.ndarray, tn: np.ndarray, te: np.n
             "final_m": float(d[-1])}
 
 
+def flight_nees(t: np.ndarray, tr: pd.DataFrame, tn: np.ndarray, te: np.ndarray, t0: float,
+                t1: float) -> dict[str, float | None]:
+    """The joint smoother's mean NEES per axis between ``t0`` and ``t1`` and its median
+    reported sd: is it honestly unsure?"""
+    sn, se = tr["joint_north_sd_m"].to_numpy(float), tr["joint_east_sd_m"].to_numpy(float)
+    dn = tr["joint_north_m"].to_numpy(float) - tn
+    de = tr["joint_east_m"].to_numpy(float) - te
+    sel = (t >= t0) & (t <= t1) & np.isfinite(dn) & np.isfinite(de) & (sn > 0) & (se > 0)
+    if not sel.any():
+        return {"nees_north": None, "nees_east": None, "sd_median_m": None}
+    return {"nees_north": float(np.mean((dn[sel] / sn[sel]) ** 2)),
+            "nees_east": float(np.mean((de[sel] / se[sel]) ** 2)),
+            "sd_median_m": float(np.median(np.hypot(sn[sel], se[sel])))}
+
+
 def method_table(rec: Any) -> dict[str, Any]:
     """Every method's status and reason."""
     out = {}
     for m, s in rec.summary["methods"].items():
-        out[m] = {"status": s.get("status"), "reason": s.get("reason")}
+        out[m] = {"status": s.get("status"), "reason": s.get("reason"),
+                  "checks": sorted({str(p.get("check")) for p in
+                                    (s.get("health") or {}).get("problems", [])})}
     return out
 
 
@@ -424,6 +441,8 @@ def run_case(name: str, df: pd.DataFrame, facts: dict[str, Any], work: Path, *,
     if "joint_north_m" in tr.columns:
         errs["joint"] = errors(t, tr["joint_north_m"].to_numpy(float),
                                tr["joint_east_m"].to_numpy(float), tn, te, t_lo, t_td)
+    if "joint_north_sd_m" in tr.columns:
+        errs["joint_nees"] = flight_nees(t, tr, tn, te, t_lo, t_td)
     if res_method is not None:
         errs["result"] = errors(t, tr["north_m"].to_numpy(float), tr["east_m"].to_numpy(float),
                                 tn, te, t_lo, t_td)
@@ -477,29 +496,43 @@ def _fmt(x: Any, unit: str = "", digits: int = 0) -> str:
 
 
 def markdown_table(results: list[dict[str, Any]]) -> str:
-    """The study's table (one row per case)."""
-    rows = ["| case | exit, result | joint status (reason) | joint RMS / max | "
-            "DR no wind RMS | DR + linear RMS | joint heading bias, wind | GNSS gaps: max error,"
-            " NEES n/e |", "|---|---|---|---|---|---|---|---|"]
+    """The study's table (one row per case; the reasons in full are in the JSON)."""
+    rows = ["| case | exit, result from | joint: status (failed checks) | joint RMS / max | "
+            "joint NEES n / e, median sd | other methods: status (checks), RMS | DR no wind | "
+            "DR + linear | joint heading bias, wind | withheld GNSS gaps: max error, NEES n / e |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         if "error" in r:
-            rows.append(f"| {r['case']} | exit {r['exit']}: {r['error'][:120]} | | | | | | |")
+            rows.append(f"| {r['case']} | exit {r['exit']}: {r['error'][:120]} "
+                        "| | | | | | | | |")
             continue
-        j = r["methods"].get("joint", {})
-        reason = (j.get("reason") or "")[:160].replace("|", "/")
         e = r["errors"]
+
+        def status(m: str, r: dict[str, Any] = r) -> str:
+            st = r["methods"].get(m, {})
+            ch = ", ".join(st.get("checks") or [])
+            return f"{st.get('status')}" + (f" ({ch})" if ch else "")
+
         je = e.get("joint", {})
+        jn = e.get("joint_nees", {})
         jf = r.get("joint", {})
         hb = jf.get("heading_bias_deg")
         ws = jf.get("wind_speed_mps_range")
         jtxt = (f"{hb[0]:+.1f} ± {hb[1]:.1f} deg" if hb else "-") + (
-            f", wind {ws[0]:.0f}-{ws[1]:.0f} m/s" if ws else "")
+            f", {ws[0]:.0f}-{ws[1]:.0f} m/s" if ws else "")
+        others = "; ".join(
+            f"{m} {status(m)}, {_fmt(e.get(m, {}).get('rms_m'), 'm')}"
+            for m in ("sabziev", "sns") if r["methods"].get(m, {}).get("status") != "skipped")
+        ntxt = (f"{jn['nees_north']:.1f} / {jn['nees_east']:.1f}, "
+                f"{_fmt(jn['sd_median_m'], 'm')}" if jn.get("nees_north") is not None else "-")
         gtxt = "; ".join(f"{g['length_s']:.0f} s: {_fmt(g['max_error_m'], 'm')}, "
-                         f"{g['nees_north']:.1f}/{g['nees_east']:.1f}" for g in r.get("gaps", []))
+                         f"{g['nees_north']:.1f} / {g['nees_east']:.1f}"
+                         for g in r.get("gaps", []))
         rows.append(
-            f"| {r['case']} | {r['exit']}, {r['result_method'] or 'none'} | "
-            f"{j.get('status')}{' (' + reason + ')' if reason else ''} | "
-            f"{_fmt(je.get('rms_m'), 'm')} / {_fmt(je.get('max_m'), 'm')} | "
+            f"| {r['case']} | {r['exit']}, {r['result_method'] or 'nothing written'} | "
+            f"{status('joint')} | "
+            f"{_fmt(je.get('rms_m'), 'm')} / {_fmt(je.get('max_m'), 'm')} | {ntxt} | "
+            f"{others or '-'} | "
             f"{_fmt(e.get('dr_no_wind', {}).get('rms_m'), 'm')} | "
             f"{_fmt(e.get('dr_linear', {}).get('rms_m'), 'm')} | {jtxt} | {gtxt or '-'} |")
     return "\n".join(rows)
