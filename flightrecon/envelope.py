@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from flightrecon.cleaning.plausibility import time_spans
 from flightrecon.constants import G0
@@ -318,9 +319,10 @@ def evidence_problems(res: MethodResult, clean: CleanFlight, ev: Evidence = Evid
     * ``arrival``: a record that ends on the ground ends farther from the given arrival than
       ``end_k`` combined sd;
     * ``fix``: a known position (``--fix``) missed by more than ``end_k`` combined sd per axis;
-    * ``dead_reckoning``: on a recorder-only flight from the departure to the arrival, the
-      track leaves dead reckoning with its linear end-point correction
-      (:func:`flightrecon.fusion.baselines.dead_reckoning`) by more than ``dr_k`` combined sd.
+    * ``dead_reckoning``: on a flight without GNSS or radar from the departure to a known end
+      (the arrival, or a known position at the record's end), the track leaves dead reckoning
+      with its linear end-point correction (:func:`corrected_dead_reckoning`) by more than
+      ``dr_k`` combined sd for ``dr_span_s``, or by more than ``dr_rms_k`` in RMS.
 
     Returns
     -------
@@ -483,44 +485,82 @@ def _end_checks(res: MethodResult, clean: CleanFlight, t: np.ndarray, north: np.
 
 
 def _recorder_only(clean: CleanFlight) -> bool:
-    """No GNSS position, radar plot or known position in the flight."""
+    """No GNSS position and no radar plot in the flight."""
     g = clean.gnss
     has_gnss = len(g) > 0 and "gnss_lat_deg" in g.columns and bool(
         np.isfinite(g["gnss_lat_deg"].to_numpy(float)).any())
-    has_radar = len(clean.radar) > 0
-    return not (has_gnss or has_radar or bool(clean.meta.fixes))
+    return not (has_gnss or len(clean.radar) > 0)
+
+
+#: a known position this close to the record's end [s] is its end point
+END_FIX_S = 60.0
+
+
+def corrected_dead_reckoning(clean: CleanFlight) -> tuple[pd.DataFrame, float, float] | None:
+    """Dead reckoning from the departure at lift-off, corrected linearly to the known end: the
+    arrival at touchdown (a record that ends on the ground) or a known position (``--fix``)
+    within :data:`END_FIX_S` of the record's end.  Returns the track (``t_s``, ``north_m``,
+    ``east_m``), the end's time and the end point's own sd [m]; ``None`` without both ends."""
+    from flightrecon.fusion.baselines import dead_reckoning
+    from flightrecon.geo.frames import output_plane
+
+    ph = clean.phases
+    meta = clean.meta
+    if (meta.departure is None or ph is None or not np.isfinite(ph.liftoff_t_s)
+            or ph.starts_airborne or np.isfinite(getattr(ph, "impact_t_s", float("nan")))
+            or not {"heading_deg", "tas_mps"} <= set(clean.grid.columns)):
+        return None
+    try:
+        if (meta.arrival is not None and np.isfinite(ph.touchdown_t_s)
+                and not ph.ends_airborne):
+            return dead_reckoning(clean, corrected=True), float(ph.touchdown_t_s), 0.0
+        t_last = float(clean.grid["t_s"].iloc[-1])
+        ends = [f for f in meta.fixes if t_last - END_FIX_S <= f.t_s <= t_last]
+        if not ends:
+            return None
+        fx = ends[-1]
+        dr = dead_reckoning(clean)
+    except (ValueError, KeyError):
+        return None
+    tg = dr["t_s"].to_numpy(float)
+    n, e = dr["north_m"].to_numpy(float).copy(), dr["east_m"].to_numpy(float).copy()
+    fin = np.flatnonzero(np.isfinite(n) & np.isfinite(e))
+    if len(fin) < 2:
+        return None
+    # dead reckoning stops at touchdown: a fix on the landing roll closes it there
+    t_end = min(float(fx.t_s), float(tg[fin[-1]]))
+    n_end = _on_track(tg, n, np.array([t_end]))[0]
+    e_end = _on_track(tg, e, np.array([t_end]))[0]
+    alt = fx.alt_msl_m if fx.alt_msl_m is not None else 0.0
+    ef, nf, _ = output_plane(meta).forward(fx.lat_deg, fx.lon_deg, alt + meta.geoid_undulation_m)
+    frac = np.clip((tg - ph.liftoff_t_s) / max(t_end - ph.liftoff_t_s, 1e-9), 0.0, None)
+    n += frac * (float(nf) - n_end)
+    e += frac * (float(ef) - e_end)
+    return pd.DataFrame({"t_s": tg, "north_m": n, "east_m": e}), t_end, float(fx.sd_m)
 
 
 def _dr_check(res: MethodResult, clean: CleanFlight, t: np.ndarray, north: np.ndarray,
               east: np.ndarray, ev: Evidence) -> list[dict[str, Any]]:
     ph = clean.phases
-    meta = clean.meta
-    if (meta.departure is None or meta.arrival is None or ph is None
-            or not (np.isfinite(ph.liftoff_t_s) and np.isfinite(ph.touchdown_t_s))
-            or ph.starts_airborne or ph.ends_airborne or np.isfinite(
-                getattr(ph, "impact_t_s", float("nan")))
-            or not _recorder_only(clean)
-            or not {"heading_deg", "tas_mps"} <= set(clean.grid.columns)):
+    if ph is None or not _recorder_only(clean):
         return []
-    from flightrecon.fusion.baselines import dead_reckoning
-
-    try:
-        dr = dead_reckoning(clean, corrected=True)
-    except (ValueError, KeyError):
+    got = corrected_dead_reckoning(clean)
+    if got is None:
         return []
+    dr, t_end, sd_end = got
     tg = dr["t_s"].to_numpy(float)
     dn = _on_track(tg, dr["north_m"].to_numpy(float), t)
     de = _on_track(tg, dr["east_m"].to_numpy(float), t)
     tr = res.track
     p = res.name + "_"
     sdn, sde = _sd_or_zero(tr, f"{p}north_sd_m"), _sd_or_zero(tr, f"{p}east_sd_m")
-    sd_dr = np.hypot(ev.dr_floor_m, bridge_sd_m(t, ph.liftoff_t_s, ph.touchdown_t_s,
-                                                ev.dr_walk_mps_per_sqrt_s))
+    sd_dr = np.sqrt(ev.dr_floor_m ** 2 + sd_end ** 2
+                    + bridge_sd_m(t, ph.liftoff_t_s, t_end, ev.dr_walk_mps_per_sqrt_s) ** 2)
     # per axis: each axis of the corrected dead reckoning has sd_dr
     zn = np.abs(north - dn) / np.sqrt(sd_dr ** 2 + sdn ** 2)
     ze = np.abs(east - de) / np.sqrt(sd_dr ** 2 + sde ** 2)
     z = np.fmax(zn, ze)
-    inside = (t >= ph.liftoff_t_s) & (t <= ph.touchdown_t_s)
+    inside = (t >= ph.liftoff_t_s) & (t <= t_end)
     bad = np.isfinite(z) & (z > ev.dr_k) & inside
     dt = np.diff(t, append=t[-1])
     both = inside & np.isfinite(zn) & np.isfinite(ze)

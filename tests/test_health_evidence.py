@@ -212,3 +212,27 @@ def test_a_method_unhealthy_by_its_own_verdict_says_why():
     assert "no measurement reached its filter" in h["problems"][0]["what"]
     h = method_health(MethodResult("sns", tr, {"healthy": False}))
     assert h["problems"][0]["what"] == "it reports itself unhealthy and gives no reason"
+
+
+def test_a_known_position_at_the_end_is_an_end_for_dead_reckoning(recorder_only):
+    """The real 'ref' flight ends airborne; its last GPS position given as a fix left the
+    Sabziev fusion 'ok' at 17 km RMS.  Without an arrival, a fix within 60 s of the record's
+    end closes dead reckoning instead: the truth passes, a 20 km bow does not."""
+    clean, truth = recorder_only
+    last = truth.iloc[-1]
+    fix = PositionFix(float(last["t_s"]), float(last["lat_deg"]), float(last["lon_deg"]), None,
+                      100.0)
+    cl = replace(clean, meta=replace(clean.meta, arrival=None, fixes=(fix,)))
+    tr = _track(truth, "sabziev", wind=False)
+    tr[["sabziev_north_sd_m", "sabziev_east_sd_m"]] = np.nan
+    assert "dead_reckoning" not in _checks(MethodResult("sabziev", tr, {}), cl)
+    ph = clean.phases
+    t = truth["t_s"].to_numpy()
+    s = np.clip((t - ph.liftoff_t_s) / (t[-1] - ph.liftoff_t_s), 0.0, 1.0)
+    tr["sabziev_east_m"] += 20000.0 * 4 * s * (1 - s)
+    assert "dead_reckoning" in _checks(MethodResult("sabziev", tr, {}), cl)
+    # a fix in mid-flight is no end point: nothing to close dead reckoning with
+    mid = truth.iloc[len(truth) // 2]
+    cl_mid = replace(cl, meta=replace(cl.meta, fixes=(PositionFix(
+        float(mid["t_s"]), float(mid["lat_deg"]), float(mid["lon_deg"]), None, 100.0),)))
+    assert "dead_reckoning" not in _checks(MethodResult("sabziev", tr, {}), cl_mid)
