@@ -457,6 +457,12 @@ def run_case(name: str, df: pd.DataFrame, facts: dict[str, Any], work: Path, *,
                                     *truth_ne(rec, df, dr["t_s"].to_numpy()), t_lo, t_td)
         if rec.clean.meta.arrival is not None:
             drc = dead_reckoning(rec.clean, wind=False, corrected=True)
+        else:   # closed at a known position at the record's end, if there is one
+            from flightrecon.envelope import corrected_dead_reckoning
+
+            got = corrected_dead_reckoning(rec.clean)
+            drc = got[0] if got is not None else None
+        if drc is not None:
             errs["dr_linear"] = errors(drc["t_s"].to_numpy(), drc["north_m"].to_numpy(),
                                        drc["east_m"].to_numpy(),
                                        *truth_ne(rec, df, drc["t_s"].to_numpy()), t_lo, t_td)
