@@ -236,3 +236,36 @@ def test_a_known_position_at_the_end_is_an_end_for_dead_reckoning(recorder_only)
     cl_mid = replace(cl, meta=replace(cl.meta, fixes=(PositionFix(
         float(mid["t_s"]), float(mid["lat_deg"]), float(mid["lon_deg"]), None, 100.0),)))
     assert "dead_reckoning" not in _checks(MethodResult("sabziev", tr, {}), cl_mid)
+
+
+def test_a_verdict_reaches_the_console_once_and_the_summary_top(tmp_path, capsys):
+    """End to end on the shipped circuit: an arrival given 30 km from where the flight ends
+    (its GNSS holds the track) makes the joint smoother unhealthy; the reason is on the
+    console on the method's line and in the summary's top-level warnings; nothing healthy:
+    exit 8."""
+    import json
+    import shutil
+
+    from flightrecon.cli.main import main
+
+    for f in SAMPLES.glob("circuit.*"):
+        shutil.copy(f, tmp_path / f.name)
+    out = tmp_path / "r.parquet"
+    # 0.27 deg of latitude north of the field: 30 km
+    args = ["reconstruct", str(tmp_path / "circuit.parquet"), "--methods", "joint",
+            "--arrival", "40.73,50.05,3.0", "--keep-unhealthy", "-o", str(out)]
+    try:
+        main(args)
+        code = 0
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    text = capsys.readouterr()
+    console = text.out + text.err
+    assert code == 8, console
+    # on the method's line, not repeated as a warning of its own (the closing "no method
+    # produced a physically possible track" line lists every method's reason once more)
+    assert "joint    unhealthy: the track ends" in console, console
+    assert "warning: joint unhealthy:" not in console, console
+    summary = json.loads(out.with_name("r.summary.json").read_text())
+    top = [w for w in summary["warnings"] if w.startswith("joint unhealthy:")]
+    assert len(top) == 1 and "from the given arrival" in top[0]
