@@ -132,7 +132,10 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     offsets = check_clock_offsets(settings.clock_offsets_s)
     if not isinstance(flight.data, pd.DataFrame):
         raise ValidationError("flight.data must be a pandas DataFrame")
+    untrimmed = flight.data
     flight, trim_rep = trim_flight(flight, settings.start, settings.end)
+    # the part cut away still tells the gyro biases where the aircraft stood (attitude.py)
+    trimmed = untrimmed if flight.data is not untrimmed else None
     data = flight.data
     if not isinstance(data, pd.DataFrame):
         raise ValidationError("flight.data must be a pandas DataFrame")
@@ -160,7 +163,8 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     grid = saturation_on_grid(wrap_roll(grid), sat_masks)
     why = heading_needed(grid)
     if why is not None:
-        grid, rep = _heading_from_body_rates(grid, tables["gnss"], meta, settings, why)
+        grid, rep = _heading_from_body_rates(grid, tables["gnss"], meta, settings, why,
+                                             trimmed)
         report.extend(rep)
     phases = None
     if settings.phases is not None:
@@ -198,7 +202,8 @@ def _gravity_latitude(meta: FlightMeta) -> float:
 
 
 def _heading_from_body_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
-                             settings: CleaningSettings, why: str
+                             settings: CleaningSettings, why: str,
+                             trimmed: pd.DataFrame | None = None
                              ) -> tuple[pd.DataFrame, list[dict]]:
     """Heading from the body rates: a provisional heading (from 0 deg) lets the phase detector
     find the take-off and landing rolls (its lift-off rule needs the vertical only), then the
@@ -211,4 +216,4 @@ def _heading_from_body_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: Fligh
                                         lat_deg=_gravity_latitude(meta))[0]
     except FlightReconError:
         ph0 = None
-    return heading_from_rates(grid, gnss, meta, ph0, why)
+    return heading_from_rates(grid, gnss, meta, ph0, why, trimmed)

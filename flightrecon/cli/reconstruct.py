@@ -223,8 +223,11 @@ def _print_outcome(summary: dict) -> None:
         if why:
             line += ": " + "; ".join(why)
         click.echo(line, err=True)
+    # the verdicts in the summary's warnings are on the method lines above already
+    verdicts = {f"{name} unhealthy: {st.get('reason')}" for name, st in summary["methods"].items()}
     for w in summary["warnings"]:
-        click.echo(f"  warning: {w}", err=True)
+        if w not in verdicts:
+            click.echo(f"  warning: {w}", err=True)
     res = summary.get("result") or {}
     if res.get("method"):
         click.echo(f"  result from {res['method']}: {res['why']}", err=True)

@@ -1,5 +1,6 @@
 """Health of a method's track: non-finite positions, missing or non-positive sd, its own
-verdicts, and the physical envelope (:mod:`flightrecon.envelope`)."""
+verdicts with their reasons, the physical envelope, the plausibility of its estimated states
+and its agreement with the evidence (:mod:`flightrecon.envelope`)."""
 
 from __future__ import annotations
 
@@ -21,16 +22,39 @@ def _spans(t: np.ndarray, bad: np.ndarray, gap_s: float = 5.0) -> list[list[floa
     return [[float(a), float(b)] for a, b in zip(starts, ends)]
 
 
+def self_verdict_reason(summary: dict[str, Any]) -> str:
+    """Why a method calls itself unhealthy, from its own summary: its ``unhealthy_reason``
+    when it gives one, else its consistency verdict (a gross mean NIS, no measurement used)
+    and its warnings that name the verdict; never an empty reason."""
+    if summary.get("unhealthy_reason"):
+        return str(summary["unhealthy_reason"])
+    why: list[str] = []
+    cons = summary.get("consistency") or {}
+    if cons.get("gross"):
+        why.append(f"its mean NIS per degree of freedom is {float(cons['mean']):.1f} (expected "
+                   "1, at most 5): its noise model does not fit the flight")
+    elif cons and cons.get("count", 1) == 0:
+        why.append("no measurement reached its filter (nothing to check its noise against)")
+    why += [str(w) for w in summary.get("warnings", []) or [] if "(unhealthy)" in str(w)]
+    if not why:
+        why.append("it reports itself unhealthy and gives no reason")
+    return "; ".join(why)
+
+
 def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[str, Any]:
     """Health of a method's track, with the time spans of each problem.
 
-    A method is unhealthy where its position turns non-finite inside its own coverage, where
-    its standard deviation is missing or not positive where it gives a position (a covariance
-    that lost positive definiteness), where it says so itself (``converged`` or ``healthy``
-    false), or, given the cleaned flight, where its track is not physically possible
-    (:func:`flightrecon.envelope.envelope_problems`: speeds, vertical speeds, accelerations
-    beyond the envelope, a height far from the recorded pressure altitude).  Any problem makes
-    it unhealthy: the default result then falls back to the healthy sources, and its
+    A method is unhealthy where its position is non-finite anywhere inside its own coverage
+    (infinite, half missing or missing between finite samples), where its standard deviation
+    is missing or not positive where it gives a position (a covariance that lost positive
+    definiteness), where it says so itself (``converged`` or ``healthy`` false, with the reason
+    it gives: :func:`self_verdict_reason`), or, given the cleaned flight, where its track is not
+    physically possible (:func:`flightrecon.envelope.envelope_problems`: speeds, vertical
+    speeds, accelerations beyond the envelope, a height far from the recorded pressure
+    altitude) or its states are implausible and its track disagrees with the evidence
+    (:func:`flightrecon.envelope.evidence_problems`: wind, ground against air speed, heading
+    bias, the arrival, known positions, dead reckoning between two known ends).  Any problem
+    makes it unhealthy: the default result then falls back to the healthy sources, and its
     coefficients are not stored."""
     tr = res.track
     p = res.name + "_"
@@ -43,26 +67,32 @@ def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[s
             i0, i1 = np.flatnonzero(fin)[[0, -1]]
             inside = np.zeros(len(t), bool)
             inside[i0:i1 + 1] = True
-            holes = inside & ~fin & ~np.isnan(pos).all(axis=1)  # inf or half-missing
+            holes = inside & ~fin
             if holes.any():
                 out["problems"].append({"what": "non-finite position inside the coverage",
-                                        "spans_s": _spans(t, holes)})
+                                        "check": "finite", "spans_s": _spans(t, holes)})
             for c in (f"{p}north_sd_m", f"{p}east_sd_m"):
                 if c in tr.columns:
                     sd = tr[c].to_numpy(float)
                     bad = fin & ~(sd > 0)
                     if bad.any():
                         out["problems"].append({"what": f"{c} missing or not positive",
-                                                "spans_s": _spans(t, bad)})
+                                                "check": "finite", "spans_s": _spans(t, bad)})
+        elif (~np.isnan(pos)).any():
+            out["problems"].append({"what": "no finite position (only infinite values)",
+                                    "check": "finite", "spans_s": []})
     s = res.summary
     if s.get("converged") is False:
-        out["problems"].append({"what": "did not converge", "spans_s": []})
+        out["problems"].append({"what": "did not converge"
+                                + (f" ({s['stop_reason']})" if s.get("stop_reason") else ""),
+                                "check": "converged", "spans_s": []})
     if s.get("healthy") is False:
-        out["problems"].append({"what": "reports itself unhealthy", "spans_s": []})
+        out["problems"].append({"what": self_verdict_reason(s), "check": "self",
+                                "spans_s": []})
     if clean is not None:
-        from flightrecon.envelope import envelope_problems
+        from flightrecon.envelope import envelope_problems, evidence_problems
 
-        for prob in envelope_problems(res, clean):
+        for prob in envelope_problems(res, clean) + evidence_problems(res, clean):
             out["problems"].append({"what": prob["what"], "check": prob["check"],
                                     "spans_s": prob["spans_s"]})
     out["healthy"] = not out["problems"]

@@ -203,6 +203,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                                                    workers=workers)
     warn_list = flight_warnings + [str(w.message) for w in caught
                                   if str(w.message) not in flight_warnings]
+    # a verdict and its reason belong at the top, beside the warnings that led to it
+    warn_list += [f"{m} unhealthy: {s['reason']}" for m, s in status.items()
+                  if s.get("status") == "unhealthy" and s.get("reason")]
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
