@@ -64,6 +64,17 @@ class Envelope:
     alt_min_span_s: float = 30.0
 
 
+
+def _horizontal(res: Any) -> tuple[pd.DataFrame, str, np.ndarray, np.ndarray, np.ndarray] | None:
+    """A method's track, its column prefix, times and horizontal position (north, east), or
+    ``None`` for a track with no position or fewer than 3 samples."""
+    tr = res.track
+    p = res.name + "_"
+    if f"{p}north_m" not in tr.columns or len(tr) < 3:
+        return None
+    return (tr, p, tr["t_s"].to_numpy(float), tr[f"{p}north_m"].to_numpy(float),
+            tr[f"{p}east_m"].to_numpy(float))
+
 def _half_window(t: np.ndarray, window_s: float) -> int:
     """Samples on each side of a centre that span about ``window_s`` (at least one)."""
     if len(t) < 2:
@@ -137,13 +148,10 @@ def envelope_problems(res: MethodResult, clean: CleanFlight,
         One item per violated rule: ``what`` (the rule, the worst value and its limit, in
         words), ``check`` (rule name), ``worst`` and ``limit`` (SI), ``spans_s``.
     """
-    tr = res.track
-    p = res.name + "_"
-    if f"{p}north_m" not in tr.columns or len(tr) < 3:
+    hz = _horizontal(res)
+    if hz is None:
         return []
-    t = tr["t_s"].to_numpy(float)
-    north = tr[f"{p}north_m"].to_numpy(float)
-    east = tr[f"{p}east_m"].to_numpy(float)
+    tr, p, t, north, east = hz
     out: list[dict[str, Any]] = []
     grid = clean.grid
     tas_max = float(np.nanmax(grid["tas_mps"])) if (
@@ -330,13 +338,10 @@ def evidence_problems(res: MethodResult, clean: CleanFlight, ev: Evidence = Evid
         ``check``, ``what`` (in words, with the worst value and the limit), ``worst``,
         ``limit``, ``spans_s``.
     """
-    tr = res.track
-    p = res.name + "_"
-    if f"{p}north_m" not in tr.columns or len(tr) < 3:
+    hz = _horizontal(res)
+    if hz is None:
         return []
-    t = tr["t_s"].to_numpy(float)
-    north = tr[f"{p}north_m"].to_numpy(float)
-    east = tr[f"{p}east_m"].to_numpy(float)
+    tr, p, t, north, east = hz
     out: list[dict[str, Any]] = []
     ph = clean.phases
     t_imp = getattr(ph, "impact_t_s", float("nan")) if ph else float("nan")
