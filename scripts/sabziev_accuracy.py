@@ -127,7 +127,7 @@ def one_flight(scenario: str, overrides: dict, seed: int) -> dict:
     plane = output_plane(meta)
     e, n, _ = plane.forward(meta.arrival.lat_deg, meta.arrival.lon_deg,
                             msl_to_ellipsoid(meta.arrival.elev_m, meta.geoid_undulation_m))
-    y_T = res_a.summary["end_point"]["up_pressure_m"]
+    y_T = res_a.summary["end_point"]["up_m"]
     dr, corr = dead_reckoning(clean, sl, (float(n), float(e), y_T))
     tracks = {}
     for name, res in ((METHODS[0], res_a), (METHODS[1], res_t), (METHODS[2], res_v)):

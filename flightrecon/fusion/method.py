@@ -121,7 +121,8 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
                 k0: tuple[float, float, float] | None = None,
                 hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
                 vertical_rule: str = "baro", kt_max: float = KT_MAX, strict: bool = False,
-                acceleration_ned: np.ndarray | None = None) -> MethodResult:
+                acceleration_ned: np.ndarray | None = None,
+                policy: str = "stable") -> MethodResult:
     """Run the Sabziev fusion on a cleaned flight (docs/sabziev.md; module docstring).
 
     Parameters
@@ -141,6 +142,11 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
         :func:`flightrecon.fusion.sabziev.fuse`
     acceleration_ned : (N, 3) kinematic acceleration on the whole grid, if already computed
         (default: :func:`flightrecon.geo.kinematics.kinematic_acceleration_ned` of the loads)
+    policy : ``stable`` (default) or ``paper``
+        (:data:`flightrecon.fusion.sabziev.solve.POLICIES`; docs/sabziev.md "Root finding" and
+        "The adapter"): with ``stable`` the vertical reference is the pressure height relative
+        to its recorded value at lift-off, made consistent with the end points
+        (:func:`end_consistent_height`)
 
     Returns
     -------
@@ -182,18 +188,140 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     if n_unused > 0:
         notes.append(f"{n_unused} known position(s) (--fix) inside the interval not used: the "
                      "boundary-value fusion has no place for them (the joint smoother uses them)")
+    reference: dict[str, Any] = {"datum": "field pressure altitude under QNH"}
+    if policy == "stable":
+        h_rel, reference = _liftoff_datum(clean, t_all, sl, cols["baro_alt_m"])
+    h_pressure = h_rel
     v0 = _liftoff_velocity(clean, t, h_rel, cols, psi, wind, notes, liftoff_velocity_ned)
-    end_ned, end_info = _end_point(meta, plane, arr, fix_end, hp_dep, origin, h_rel)
+    end_ned, end_info = _end_point(meta, plane, arr, fix_end, hp_dep, origin, h_rel,
+                                   geometric=policy == "stable")
+    if policy == "stable" and end_ned is not None:
+        h_rel, corr = end_consistent_height(t, h_rel, -float(end_ned[2]))
+        reference.update(corr)
     sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
-               vertical_rule=vertical_rule)
+               vertical_rule=vertical_rule, policy=policy)
     warn = list(sol.warnings) + notes
     for w in sol.warnings:
         warnings.warn(f"sabziev: {w}", FlightReconWarning, stacklevel=2)
     track = _track(t_all, sl, sol, k_sd, origin)
     summary = _summary(sol, k, k_sd, t, v0, end_info, warn, hold, vertical_rule)
     summary["wind_source"] = wind_source
+    summary["policy"] = policy
+    summary["vertical_reference"] = reference
+    problems = self_check(sol, t, h_pressure, cols["tas_mps"], reference)
+    summary["healthy"] = not problems
+    summary["health_problems"] = problems
+    for pr in problems:
+        warnings.warn(f"sabziev unhealthy: {pr}", FlightReconWarning, stacklevel=2)
     return MethodResult(name="sabziev", track=track, summary=summary)
+
+
+LIFTOFF_DATUM_S = 2.0
+"""The pressure height's datum is its mean over this long [s] before lift-off (after the first
+sample when the record starts airborne)."""
+
+SCALE_MAX = 0.15
+"""Largest relative pressure-height scale error explained by the air mass
+(:func:`end_consistent_height`: 15 %, an air mass 40 K off the standard atmosphere)."""
+
+
+def _liftoff_datum(clean: CleanFlight, t_all: np.ndarray, sl: slice,
+                   baro: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    """The pressure height relative to its recorded value at lift-off (the paper's ``h``,
+    "relative to the lift-off point"; seed 001 section IV): the mean of the recorded pressure
+    altitude over :data:`LIFTOFF_DATUM_S` before lift-off, or after the first sample of a
+    record that starts airborne.  No QNH is needed: the datum is the aircraft's own reading."""
+    g = clean.grid["baro_alt_m"].to_numpy(dtype=np.float64)
+    t0 = t_all[sl.start]
+    ph = clean.phases
+    if ph is not None and not ph.starts_airborne:
+        win = (t_all >= t0 - LIFTOFF_DATUM_S) & (t_all <= t0)
+    else:
+        win = (t_all >= t0) & (t_all <= t0 + LIFTOFF_DATUM_S)
+    vals = g[win][np.isfinite(g[win])]
+    ref = float(np.mean(vals)) if len(vals) else float(baro[0])
+    return baro - ref, {"datum": "recorded pressure altitude at lift-off",
+                        "liftoff_pressure_alt_m": ref}
+
+
+def end_consistent_height(t: np.ndarray, h: np.ndarray,
+                          y_T: float) -> tuple[np.ndarray, dict[str, Any]]:
+    """The pressure height made consistent with the end point (policy ``stable``).
+
+    The pressure height ``h`` (relative to lift-off) ends at ``h_T`` (mean of the last second),
+    the end point is at ``y_T`` (geometric, relative to lift-off); their difference
+    ``D = y_T - h_T`` is the pressure height's error at the end: an air mass off the standard
+    atmosphere (a scale error, about 3.5 % per 10 K) and the change of sea-level pressure over
+    the flight (a datum drift).  It is removed as
+
+    * a scale error, ``h (1 + D/h_T)``, when the flight ends near its highest point (``|h_T|``
+      at least half the largest ``|h|``) and ``|D| <= SCALE_MAX |h_T|``; or else
+    * a drift linear in time, ``h + D (t - t_0)/T``.
+
+    Without it the undamped baro-inertial loop cannot both follow the pressure height and meet
+    the end point: ``F(k2)`` then has roots only where the loop lets the track stray from
+    ``h`` by ``D`` (docs/sabziev.md, "Signs and branches").
+
+    Parameters
+    ----------
+    t : (N,) grid [s]
+    h : (N,) pressure height relative to lift-off [m]
+    y_T : end height relative to lift-off [m]
+
+    Returns
+    -------
+    h_c : (N,) the corrected reference [m]
+    info : ``end_mismatch_m`` (D), ``model`` (``scale`` or ``drift``), ``scale`` (1 + D/h_T
+        or 1)
+    """
+    n_end = max(1, int(round(1.0 / (t[1] - t[0]))))
+    h_T = float(np.mean(h[-n_end:]))
+    D = float(y_T - h_T)
+    h_max = float(np.max(np.abs(h)))
+    if abs(h_T) >= 0.5 * h_max and abs(h_T) > 0 and abs(D) <= SCALE_MAX * abs(h_T):
+        scale = 1.0 + D / h_T
+        h_c = h * scale
+        # the mean of the last second now ends at y_T; the last sample exactly:
+        h_c = h_c + (y_T - h_c[-1]) * (t - t[0]) / (t[-1] - t[0])
+        return h_c, {"end_mismatch_m": D, "model": "scale", "scale": scale}
+    h_c = h + (y_T - h[-1]) * (t - t[0]) / (t[-1] - t[0])
+    return h_c, {"end_mismatch_m": D, "model": "drift", "scale": 1.0}
+
+
+def self_check(sol: SabzievSolution, t: np.ndarray, h_pressure: np.ndarray, tas: np.ndarray,
+               reference: dict[str, Any]) -> list[str]:
+    """The fusion's own health (docs/sabziev.md, "Health"): what makes its track impossible.
+
+    * a non-finite position or velocity;
+    * a vertical speed above the highest recorded true airspeed plus 30 m/s (the envelope's
+      rule, docs/output.md; from the exact velocity of the recursion);
+    * a height more than 300 m + 15 % of the pressure height from the recorded pressure height
+      (relative to lift-off) for 30 s or more;
+    * an end point that the pressure height misses by more than 300 m + 15 % of the end height
+      (a wrong arrival elevation, QNH or altitude unit: the vertical then cannot be right).
+
+    Returns the problems in words (empty: healthy).
+    """
+    out: list[str] = []
+    if not (np.all(np.isfinite(sol.xyz_m)) and np.all(np.isfinite(sol.vxyz_mps))):
+        out.append("non-finite track")
+        return out
+    vs = float(np.max(np.abs(sol.vxyz_mps[:, 1])))
+    vs_lim = float(np.nanmax(tas)) + 30.0
+    if vs > vs_lim:
+        out.append(f"vertical speed {vs:.0f} m/s beyond the envelope's {vs_lim:.0f}")
+    dt = float(t[1] - t[0])
+    dev = np.abs(sol.xyz_m[:, 1] - h_pressure)
+    bad = dev > 300.0 + 0.15 * np.abs(h_pressure)
+    if bad.sum() * dt >= 30.0:
+        out.append(f"height up to {float(np.max(dev[bad])):.0f} m from the recorded pressure "
+                   f"height for {bad.sum() * dt:.0f} s (tolerance 300 m + 15 %)")
+    D = reference.get("end_mismatch_m")
+    if D is not None and abs(D) > 300.0 + 0.15 * abs(float(sol.xyz_m[-1, 1])):
+        out.append(f"the recorded pressure height ends {D:+.0f} m from the end point's height: "
+                   "a wrong arrival elevation, QNH or altitude unit")
+    return out
 
 
 def _end_sources(clean: CleanFlight, arrival: Position | None,
@@ -273,12 +401,13 @@ def _wind(grid: pd.DataFrame, meta: FlightMeta, sl: slice,
 
 
 def _end_point(meta: FlightMeta, plane: Any, arr: Position | None, fix_end: PositionFix | None,
-               hp_dep: float, origin: np.ndarray,
-               h_rel: np.ndarray) -> tuple[np.ndarray | None, dict[str, Any]]:
+               hp_dep: float, origin: np.ndarray, h_rel: np.ndarray,
+               geometric: bool = False) -> tuple[np.ndarray | None, dict[str, Any]]:
     """The boundary-value end point relative to the lift-off point (north, up, east order of
     :func:`~flightrecon.fusion.sabziev.fuse`'s ``end_ned``: north, east, down) and its summary
     entry: the arrival position, else the known position at the end (``fix_end``), else none
-    (initial-value mode)."""
+    (initial-value mode).  Vertically in pressure terms, or with ``geometric`` (policy
+    ``stable``) the elevation difference itself."""
     from flightrecon.geo.frames import msl_to_ellipsoid
 
     if arr is None and fix_end is None:
@@ -288,13 +417,15 @@ def _end_point(meta: FlightMeta, plane: Any, arr: Position | None, fix_end: Posi
     if arr is not None:
         e, n, _u = plane.forward(arr.lat_deg, arr.lon_deg,
                                  msl_to_ellipsoid(arr.elev_m, meta.geoid_undulation_m))
-        y_T = field_pressure_altitude_m(arr.elev_m, qnh_arr) - hp_dep
+        y_T = (arr.elev_m - meta.departure.elev_m if geometric
+               else field_pressure_altitude_m(arr.elev_m, qnh_arr) - hp_dep)
         source = "arrival"
     else:
         assert fix_end is not None
         # the known position at the end: horizontally the fix; vertically its altitude in
         # pressure terms, or without one the recorded pressure height there
         y_T = (float(h_rel[-1] + origin[2]) if fix_end.alt_msl_m is None
+               else fix_end.alt_msl_m - meta.departure.elev_m if geometric
                else field_pressure_altitude_m(fix_end.alt_msl_m, qnh_arr) - hp_dep)
         # placed in the output plane at its height (without one, the field's elevation plus
         # the pressure height: the plane's north and east move 1.6 m per km of height at 10 km)
@@ -303,7 +434,8 @@ def _end_point(meta: FlightMeta, plane: Any, arr: Position | None, fix_end: Posi
         e, n, _u = plane.forward(fix_end.lat_deg, fix_end.lon_deg, h_f)
         source = f"fix at t = {fix_end.t_s:g} s"
     end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
-    return end_ned, {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
+    return end_ned, {"north_m": float(n), "east_m": float(e), "up_m": float(y_T),
+                     ("up_geometric_m" if geometric else "up_pressure_m"): float(y_T),
                      "departure_pressure_alt_m": hp_dep,
                      "liftoff_point_m": [float(x) for x in origin], "source": source}
 
@@ -373,10 +505,22 @@ def _summary(sol: SabzievSolution, k, k_sd, t, v0, end_info, warn, hold, rule) -
             continue
         d = ax.report.as_dict()
         history[name] = d.pop("history")
+        d["k_used"] = _num(ax.k)
+        d["fallback"] = bool(ax.fallback)
+        d["end_correction_m"] = _num(ax.correction_m)
         axes[name] = d
+        if ax.fallback:
+            warn.append(f"{name}: no root of F in the stable range ({ax.report.reason}); the "
+                        f"stable track with k = {ax.k:.4g} ended {ax.correction_m:+.1f} m "
+                        "from the end point, removed linearly in time")
     res = sol.end_residual_m
     return {
-        "converged": bool(sol.converged),
+        # the boundary-value problem is solved: each axis has a root, or (policy stable) a
+        # finite track whose end miss was removed linearly; roots_found says which
+        "converged": all(a.report is None or a.report.converged or (a.fallback and a.end_met)
+                         for a in sol.axes.values()),
+        "roots_found": bool(sol.converged),
+        "fallback_axes": [n for n, a in sol.axes.items() if a.fallback],
         "mode": "initial-value" if k is not None else "boundary-value",
         "k1": _num(sol.k[0]), "k2": _num(sol.k[1]), "k3": _num(sol.k[2]),
         "k_sd": None if k_sd is None else [float(x) for x in k_sd],
