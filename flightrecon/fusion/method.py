@@ -47,7 +47,7 @@ from flightrecon.errors import (
     ValidationError,
 )
 from flightrecon.fusion.sabziev import KT_MAX, SabzievSolution, air_velocity, fuse
-from flightrecon.geo.atmosphere import field_pressure_altitude_m
+from flightrecon.geo.atmosphere import field_pressure_altitude_m, isa_temperature_k
 from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position, PositionFix
 
@@ -241,8 +241,41 @@ def _liftoff_datum(clean: CleanFlight, t_all: np.ndarray, sl: slice,
         win = (t_all >= t0) & (t_all <= t0 + LIFTOFF_DATUM_S)
     vals = g[win][np.isfinite(g[win])]
     ref = float(np.mean(vals)) if len(vals) else float(baro[0])
-    return baro - ref, {"datum": "recorded pressure altitude at lift-off",
-                        "liftoff_pressure_alt_m": ref}
+    info: dict[str, Any] = {"datum": "recorded pressure altitude at lift-off",
+                            "liftoff_pressure_alt_m": ref, "hypsometric": False}
+    h = baro - ref
+    if "sat_degc" in clean.grid.columns:
+        sat = clean.grid["sat_degc"].to_numpy(dtype=np.float64)[sl]
+        ok = np.isfinite(sat)
+        if ok.sum() >= 0.9 * len(sat):
+            idx = np.arange(len(sat))
+            sat = np.interp(idx, idx[ok], sat[ok])
+            # from the lift-off reading: the first sample's offset from it scaled alike
+            h = hypsometric_height(baro, sat) + (baro[0] - ref) * (sat[0] + 273.15) / float(
+                isa_temperature_k(baro[0]))
+            info["hypsometric"] = True
+    return h, info
+
+
+def hypsometric_height(h_p: np.ndarray, sat_degc: np.ndarray) -> np.ndarray:
+    """Geometric height gained along a record from pressure altitude and static air temperature.
+
+    The hypsometric equation ``dz = (T / T_ISA(h_p)) dh_p`` (the standard atmosphere's pressure
+    altitude scaled by the ratio of the actual to the standard temperature at the same
+    pressure; ICAO Doc 7488), integrated by the trapezoidal rule from the first sample.
+
+    Parameters
+    ----------
+    h_p : (N,) pressure altitude [m] (1013.25 hPa datum)
+    sat_degc : (N,) static air temperature [degC]
+
+    Returns
+    -------
+    (N,) geometric height relative to the first sample [m]
+    """
+    ratio = (np.asarray(sat_degc, dtype=np.float64) + 273.15) / isa_temperature_k(h_p)
+    dz = 0.5 * (ratio[1:] + ratio[:-1]) * np.diff(h_p)
+    return np.concatenate([[0.0], np.cumsum(dz)])
 
 
 def end_consistent_height(t: np.ndarray, h: np.ndarray,

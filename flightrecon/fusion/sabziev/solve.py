@@ -3,7 +3,7 @@ fusion :func:`fuse`."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Any, NamedTuple
 
@@ -41,11 +41,20 @@ stable range only (k1, k3 < 0; k2 < 0 by the ``nearest`` rule) and, where ``F`` 
 there, takes a fixed stable coefficient and removes the remaining end miss linearly in time;
 ``paper`` searches both branches and leaves an axis without a root NaN."""
 
-TAU_FALLBACK_S = 30.0
+TAU_FALLBACK_S = 10.0
 """Time constant [s] of the horizontal complementary filter (``k = -1/TAU_FALLBACK_S``) taken
-when ``F`` has no root on the stable branch (policy ``stable``).  Measured on the corpus and
-JSBSim flights (docs/sabziev.md): any time constant from 3 to 100 s, end miss removed
-linearly, is within about 15 % of dead reckoning with a linear end correction."""
+when ``F`` has no root on the stable branch (policy ``stable``): short enough that attitude
+errors in high-g manoeuvres (spiral dives) do not accumulate into velocity errors (``b tau``),
+long enough to smooth the air data with the accelerometers.  Measured on the corpus and JSBSim
+flights (docs/sabziev.md): with 10 s the worst flight was 1.23 times dead reckoning with a
+linear end correction, with 30 s 1.67 (a spiral dive)."""
+
+TAU_MAX_S = 100.0
+"""Slowest horizontal time constant [s] accepted as a root (policy ``stable``): the velocity
+error a constant accelerometer error ``b`` leaves in the complementary filter is ``b tau``,
+2 m/s for 2 mg at 100 s, the size of the air-data velocity errors (1 % of 200 m/s); a slower
+root makes the track mostly inertial (measured, docs/sabziev.md: roots of 170-800 s gave 1.8
+to 2.7 times the error of dead reckoning with a linear end correction)."""
 
 W_LIMITS = (0.05, 0.5)
 """Bounds [rad/s] of the target loop frequency of the vertical axis (:func:`vertical_target_w`)."""
@@ -201,6 +210,7 @@ def _solve_stable(kind: str, t, a, w, v0: float, s_T: float, fun, fun_many,
     dt = float(t[1] - t[0])
     T = float(t[-1] - t[0])
     k_ref, k_neg = scales
+    span_lo = max(1e-2, 1.0 / (TAU_MAX_S * k_ref))
     if kind == "vertical":
         w_t = vertical_target_w(T)
         w_hi = min(3.0 * w_t, 0.5 / dt)
@@ -210,9 +220,15 @@ def _solve_stable(kind: str, t, a, w, v0: float, s_T: float, fun, fun_many,
         k_fb = -min(w_t, w_hi) ** 2
     else:
         report = find_coefficient(fun, k_ref=k_ref, k_max_pos=k_ref, k_max_neg=k_neg,
-                                  tol_m=tol_m, max_iter=max_iter,
+                                  tol_m=tol_m, max_iter=max_iter, span_lo=span_lo,
+                                  k0=-3.0 * max(k_ref, 1.0 / TAU_MAX_S),
                                   points_per_decade=POINTS_PER_DECADE, fun_many=fun_many,
                                   axis=axis, branches=("negative",))
+        if report.converged and abs(report.root) * TAU_MAX_S < 1.0:
+            report = replace(report, converged=False, branch="none", reason=(
+                f"the only root, k = {report.root:.4g} 1/s (time constant "
+                f"{-1.0 / report.root:.0f} s), is slower than the {TAU_MAX_S:.0f} s limit: "
+                "not taken"))
         k_fb = -1.0 / TAU_FALLBACK_S
     k = report.root if report.converged else k_fb
     coef = vertical_step(k, dt, hold) if kind == "vertical" else horizontal_step(k, dt, hold)
