@@ -201,8 +201,12 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
                vertical_rule=vertical_rule, policy=policy)
-    warn = list(sol.warnings) + notes
-    for w in sol.warnings:
+    fallbacks = [f"{name}: no root of F taken in the stable range ({ax.report.reason}); the "
+                 f"stable track with k = {ax.k:.4g} ended {ax.correction_m:+.1f} m from the end "
+                 "point, removed linearly in time"
+                 for name, ax in sol.axes.items() if ax.fallback and ax.report is not None]
+    warn = list(sol.warnings) + fallbacks + notes
+    for w in list(sol.warnings) + fallbacks:
         warnings.warn(f"sabziev: {w}", FlightReconWarning, stacklevel=2)
     track = _track(t_all, sl, sol, k_sd, origin)
     summary = _summary(sol, k, k_sd, t, v0, end_info, warn, hold, vertical_rule)
@@ -542,10 +546,6 @@ def _summary(sol: SabzievSolution, k, k_sd, t, v0, end_info, warn, hold, rule) -
         d["fallback"] = bool(ax.fallback)
         d["end_correction_m"] = _num(ax.correction_m)
         axes[name] = d
-        if ax.fallback:
-            warn.append(f"{name}: no root of F in the stable range ({ax.report.reason}); the "
-                        f"stable track with k = {ax.k:.4g} ended {ax.correction_m:+.1f} m "
-                        "from the end point, removed linearly in time")
     res = sol.end_residual_m
     return {
         # the boundary-value problem is solved: each axis has a root, or (policy stable) a
