@@ -221,18 +221,20 @@ def test_pipeline_calls_the_adapter():
 def test_liftoff_point_and_velocity_overrides():
     """A lift-off point 1 km north of the departure airfield shifts the whole (initial-value)
     track by 1 km north, output still relative to the departure airfield (ENU round trip of
-    the point ~1e-6 m; tolerance 1e-3 m).  A given lift-off velocity is used as is; a
+    the point ~1e-6 m; tolerance 1e-3 m; the paper's policy, whose boundary-value track is an
+    initial-value track).  A given lift-off velocity is used as is; a
     malformed one is a ValidationError."""
     from flightrecon.errors import ValidationError
 
     clean, f, sl, _ = clean_flight(T=600.0)
-    bv = run_sabziev(clean, liftoff_velocity_ned=tuple(f["v0"]))
+    bv = run_sabziev(clean, liftoff_velocity_ned=tuple(f["v0"]), policy="paper")
     assert bv.summary["liftoff_velocity_ned_mps"] == pytest.approx(list(f["v0"]))
     k = (bv.summary["k1"], bv.summary["k2"], bv.summary["k3"])
     plane = output_plane(clean.meta)
     lat, lon, _ = plane.inverse(0.0, 1000.0, 0.0)
     lift = Position(float(lat), float(lon), DEP.elev_m)
-    iv = run_sabziev(clean, k=k, liftoff=lift, liftoff_velocity_ned=tuple(f["v0"]))
+    iv = run_sabziev(clean, k=k, liftoff=lift, liftoff_velocity_ned=tuple(f["v0"]),
+                     policy="paper")
     d_north = (iv.track["sabziev_north_m"] - bv.track["sabziev_north_m"]).to_numpy()[sl]
     d_east = (iv.track["sabziev_east_m"] - bv.track["sabziev_east_m"]).to_numpy()[sl]
     np.testing.assert_allclose(d_north, 1000.0, atol=1e-3)

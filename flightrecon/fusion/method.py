@@ -201,7 +201,7 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
                vertical_rule=vertical_rule, policy=policy)
-    fallbacks = [f"{name}: no root of F taken in the stable range ({ax.report.reason}); the "
+    fallbacks = [f"{name}: no root of F in the stable range ({ax.report.reason}); the "
                  f"stable track with k = {ax.k:.4g} ended {ax.correction_m:+.1f} m from the end "
                  "point, removed linearly in time"
                  for name, ax in sol.axes.items() if ax.fallback and ax.report is not None]

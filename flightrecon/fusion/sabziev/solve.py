@@ -226,7 +226,7 @@ def _solve_stable(kind: str, t, a, w, v0: float, s_T: float, fun, fun_many,
                                   axis=axis, branches=("negative",))
         if report.converged and abs(report.root) * TAU_MAX_S < 1.0:
             report = replace(report, converged=False, branch="none", reason=(
-                f"the only root, k = {report.root:.4g} 1/s (time constant "
+                f"no root taken: the only root, k = {report.root:.4g} 1/s (time constant "
                 f"{-1.0 / report.root:.0f} s), is slower than the {TAU_MAX_S:.0f} s limit: "
                 "not taken"))
         k_fb = -1.0 / TAU_FALLBACK_S
