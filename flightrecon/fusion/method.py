@@ -191,6 +191,12 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     reference: dict[str, Any] = {"datum": "field pressure altitude under QNH"}
     if policy == "stable":
         h_rel, reference = _liftoff_datum(clean, t_all, sl, cols["baro_alt_m"])
+        if clean.phases is None or clean.phases.starts_airborne:
+            # the first sample is in the air: the track starts at the aircraft's pressure
+            # height above the departure field (under its QNH), not at the field
+            up0 = reference["liftoff_pressure_alt_m"] - hp_dep if liftoff is None else 0.0
+            reference["start_height_m"] = up0
+            origin = origin + np.array([0.0, 0.0, up0])
     h_pressure = h_rel
     v0 = _liftoff_velocity(clean, t, h_rel, cols, psi, wind, notes, liftoff_velocity_ned)
     end_ned, end_info = _end_point(meta, plane, arr, fix_end, hp_dep, origin, h_rel,

@@ -78,7 +78,11 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
     comps = [_float(_get(res, c, "'end_residual_m'")) for c in ("north", "up", "east")]
     residual = math.sqrt(sum(c * c for c in comps))  # NaN if any component is unknown
     t0, t1 = (float(x) for x in _get(summary, "interval_s", "the summary"))
-    converged = bool(_get(summary, "converged", "the summary"))
+    # a fit is converged when every axis found a root; the stable policy's summary says
+    # "converged" when the track meets the end point (a root or the linear end correction of
+    # an axis without one, docs/sabziev.md) and "roots_found" for the fit itself
+    converged = bool(summary["roots_found"] if "roots_found" in summary
+                     else _get(summary, "converged", "the summary"))
     return FlightCoefficients(
         aircraft_id=aircraft_id, flight_id=flight_id, flight_date_utc=flight_date_utc,
         duration_s=t1 - t0, k1=k[0], k2=k[1], k3=k[2], branch=tuple(branch),  # type: ignore[arg-type]
