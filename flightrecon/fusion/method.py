@@ -219,6 +219,9 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     summary["wind_source"] = wind_source
     summary["policy"] = policy
     summary["vertical_reference"] = reference
+    sc, r2, spread = baro_accelerometer_scale(t, -a_ned[:, 2], cols["baro_alt_m"])
+    reference.update({"baro_vs_accelerometer": _num(sc), "baro_vs_accelerometer_r2": _num(r2),
+                      "baro_vs_accelerometer_spread_m": _num(spread)})
     problems = self_check(sol, t, h_pressure, cols["tas_mps"], reference)
     summary["healthy"] = not problems
     summary["health_problems"] = problems
@@ -332,6 +335,49 @@ def end_consistent_height(t: np.ndarray, h: np.ndarray,
     return h_c, {"end_mismatch_m": D, "model": "drift", "scale": 1.0}
 
 
+SCALE_WINDOW_S = 20.0
+"""Window [s] of the second differences compared by :func:`baro_accelerometer_scale`."""
+
+SCALE_BAND = (0.7, 1.4)
+"""Ratio of the pressure height's to the accelerometers' height changes outside which the
+vertical is unhealthy (a unit error: feet read as metres gives 3.28, metres as feet 0.30; an
+air mass 40 K off standard 1.15; measured 0.92-1.06 on the corpus and JSBSim flights)."""
+
+
+def baro_accelerometer_scale(t: np.ndarray, a_y: np.ndarray,
+                             h: np.ndarray, window_s: float = SCALE_WINDOW_S
+                             ) -> tuple[float, float, float]:
+    """How much faster the pressure height changes than the vertical accelerometer says.
+
+    Second differences over ``window_s`` of the pressure height,
+    ``h(t+W) - 2 h(t) + h(t-W)``, against the same of the doubly integrated vertical
+    acceleration (``int int a_y``, trapezoidal), on non-overlapping windows; the least-squares
+    slope with an intercept (a constant accelerometer error ``b`` adds ``b W^2`` to every
+    window).  A correct pressure height gives a slope near 1; an altitude in feet read as
+    metres 3.28.
+
+    Returns
+    -------
+    slope, r2, spread_m : the slope, the fit's coefficient of determination and the standard
+        deviation of the accelerometer's second differences [m] (below a few metres the flight
+        has too little vertical manoeuvring to tell; NaN with fewer than 4 windows)
+    """
+    dt = float(t[1] - t[0])
+    v = np.concatenate([[0.0], np.cumsum(0.5 * (a_y[1:] + a_y[:-1]) * dt)])
+    y = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
+    k = max(1, int(round(window_s / dt)))
+    idx = np.arange(k, len(t) - k, k)
+    if len(idx) < 4:
+        return float("nan"), float("nan"), float("nan")
+    dd_h = h[idx + k] - 2.0 * h[idx] + h[idx - k]
+    dd_a = y[idx + k] - 2.0 * y[idx] + y[idx - k]
+    A = np.column_stack([dd_a, np.ones_like(dd_a)])
+    coef = np.linalg.lstsq(A, dd_h, rcond=None)[0]
+    var = float(np.var(dd_h))
+    r2 = 1.0 - float(np.var(dd_h - A @ coef)) / var if var > 0 else float("nan")
+    return float(coef[0]), r2, float(np.std(dd_a))
+
+
 def self_check(sol: SabzievSolution, t: np.ndarray, h_pressure: np.ndarray, tas: np.ndarray,
                reference: dict[str, Any]) -> list[str]:
     """The fusion's own health (docs/sabziev.md, "Health"): what makes its track impossible.
@@ -342,7 +388,11 @@ def self_check(sol: SabzievSolution, t: np.ndarray, h_pressure: np.ndarray, tas:
     * a height more than 300 m + 15 % of the pressure height from the recorded pressure height
       (relative to lift-off) for 30 s or more;
     * an end point that the pressure height misses by more than 300 m + 15 % of the end height
-      (a wrong arrival elevation, QNH or altitude unit: the vertical then cannot be right).
+      (a wrong arrival elevation, QNH or altitude unit: the vertical then cannot be right);
+    * a pressure height that changes faster or slower than the vertical accelerometer says
+      (:func:`baro_accelerometer_scale` outside :data:`SCALE_BAND`, when the fit is informative:
+      R^2 >= 0.5 and a spread of at least 5 m): an altitude unit error, which the end-point
+      check misses on a flight that lands where it took off.
 
     Returns the problems in words (empty: healthy).
     """
@@ -360,6 +410,12 @@ def self_check(sol: SabzievSolution, t: np.ndarray, h_pressure: np.ndarray, tas:
     if bad.sum() * dt >= 30.0:
         out.append(f"height up to {float(np.max(dev[bad])):.0f} m from the recorded pressure "
                    f"height for {bad.sum() * dt:.0f} s (tolerance 300 m + 15 %)")
+    scale, r2 = reference.get("baro_vs_accelerometer"), reference.get("baro_vs_accelerometer_r2")
+    if (scale is not None and r2 is not None and np.isfinite(scale) and r2 >= 0.5
+            and reference.get("baro_vs_accelerometer_spread_m", 0.0) >= 5.0
+            and not SCALE_BAND[0] <= scale <= SCALE_BAND[1]):
+        out.append(f"the pressure height changes {scale:.2f} times as fast as the vertical "
+                   "accelerometer says (an altitude unit error: feet read as metres is 3.28)")
     D = reference.get("end_mismatch_m")
     if D is not None and abs(D) > 300.0 + 0.15 * abs(float(sol.xyz_m[-1, 1])):
         out.append(f"the recorded pressure height ends {D:+.0f} m from the end point's height: "
