@@ -206,3 +206,36 @@ def test_an_altitude_in_feet_is_unhealthy_even_when_the_ends_agree():
     assert s["healthy"] is False
     assert any("times as fast as the vertical accelerometer" in p
                for p in s["health_problems"])
+
+
+def test_end_consistent_height_scale_and_drift():
+    """A flight ending at its top: the end mismatch is a scale (exact for a pure scale error);
+    one ending low: a drift linear in time; both end exactly on the end height."""
+    from flightrecon.fusion.method import end_consistent_height
+
+    t = np.linspace(0.0, 900.0, 901)
+    truth = 1500.0 * np.sin(0.5 * np.pi * t / 900.0)  # ends at its top
+    h = truth / 1.03  # 3 % pressure-height scale error (a warm air mass)
+    hc, info = end_consistent_height(t, h, float(truth[-1]))
+    assert info["model"] == "scale" and hc[-1] == pytest.approx(truth[-1], abs=1e-9)
+    np.testing.assert_allclose(hc, truth, atol=0.5)  # the last second's mean vs the last sample
+    truth2 = 1500.0 * np.sin(np.pi * t / 900.0)  # back on the ground
+    h2 = truth2 - 20.0 * t / 900.0  # 20 m of pressure drift
+    hc2, info2 = end_consistent_height(t, h2, 0.0)
+    assert info2["model"] == "drift"
+    np.testing.assert_allclose(hc2, truth2, atol=1e-9)
+
+
+def test_hypsometric_height():
+    """At ISA temperature the hypsometric height is the pressure-height difference (exact up
+    to the trapezoidal rule on a linear lapse: 1e-6 m); 10 K warmer it is larger by about
+    10/T (3.5 % near sea level)."""
+    from flightrecon.fusion.method import hypsometric_height
+    from flightrecon.geo.atmosphere import isa_temperature_k
+
+    hp = np.linspace(0.0, 3000.0, 3001)
+    isa = isa_temperature_k(hp) - 273.15
+    np.testing.assert_allclose(hypsometric_height(hp, isa), hp, atol=1e-6)
+    warm = hypsometric_height(hp, isa + 10.0)
+    ratio = warm[-1] / hp[-1]
+    assert 1.034 < ratio < 1.037  # mean of 1 + 10 / T over 288..269 K
