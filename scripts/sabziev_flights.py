@@ -66,20 +66,31 @@ def corpus_flight(i: int) -> TruthFlight:
     return TruthFlight(f"c{i} (corpus)", clean, truth)
 
 
-def jsbsim_flight(scenario: str, seed: int, **overrides: Any) -> TruthFlight:
-    """A JSBSim flight (``flightrecon.sim.simulate``), cleaned, with its truth."""
+def jsbsim_flight(scenario: str, seed: int, *, wind_channel: bool = False,
+                  **overrides: Any) -> TruthFlight:
+    """A JSBSim flight (``flightrecon.sim.simulate``), cleaned, with its truth; with
+    ``wind_channel`` the truth's wind (north, east) is given to the log as recorded wind
+    channels (``wind_speed_mps``, ``wind_from_deg``), as on a recorder that logs wind."""
     from flightrecon.sim import simulate
 
     sim = simulate(scenario, seed, **overrides)
+    tr = sim.truth
+    log = sim.log
+    if wind_channel:
+        log = log.copy()
+        tl = log["t_s"].to_numpy(float)
+        wn = np.interp(tl, tr["t_s"], tr["wind_n_mps"])
+        we = np.interp(tl, tr["t_s"], tr["wind_e_mps"])
+        log["wind_speed_mps"] = np.hypot(wn, we)
+        log["wind_from_deg"] = (np.degrees(np.arctan2(we, wn)) + 180.0) % 360.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        clean = clean_flight(Flight(data=sim.log, meta=sim.meta))
-    tr = sim.truth
+        clean = clean_flight(Flight(data=log, meta=sim.meta))
     truth = _truth_neu(clean, tr["t_s"].to_numpy(float), tr["lat_deg"], tr["lon_deg"],
                        tr["alt_m"])
     scale = overrides.get("scale")
     label = scenario.removeprefix("jsbsim-") + (f" x{scale:g}" if scale else "")
-    return TruthFlight(f"{label} s{seed}", clean, truth)
+    return TruthFlight(f"{label} s{seed}" + (" +wind" if wind_channel else ""), clean, truth)
 
 
 def _rms(x: np.ndarray) -> float:
@@ -132,9 +143,14 @@ FLIGHTS: tuple[tuple[str, int, dict[str, Any]], ...] = (
     *(("jsbsim-jet", s, {"scale": 0.2}) for s in (1, 2, 3)),
     *(("jsbsim-spiral", s, {}) for s in (1, 2, 3)),
     *(("jsbsim-spin", s, {}) for s in (1, 2, 3)),
+    *(("jsbsim-jet", s, {"scale": 0.2, "wind_channel": True}) for s in (1, 2, 3)),
+    ("jsbsim-xc", 1, {"scale": 1.0, "wind_channel": True}),
+    ("jsbsim-jet", 1, {"scale": 1.0, "wind_channel": True}),
 )
 """The independent flights of the study (issue #37): the corpus, JSBSim circuits, cross-country
-flights (scale 0.3), jets (scale 0.2), spiral dives and spins to the ground."""
+flights (scale 0.3), jets (scale 0.2), spiral dives and spins to the ground; then the jets, a
+full cross-country flight (81 min) and a full jet flight (3.2 h) with the true wind given as a
+recorded wind channel."""
 
 
 def one(kind: str, i: int, overrides: dict[str, Any]) -> list[dict[str, Any]]:
