@@ -70,7 +70,11 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
     k, branch, conv, iters = [], [], [], 0
     for name, kname in zip(SUMMARY_AXES, AXES):
         ax = _get(axes, name, "'axes'")
-        k.append(_float(_get(ax, "k", f"axis '{name}' ({kname})")))
+        # the coefficient the track used: the root, or (stable policy, no root taken) the
+        # fixed stable coefficient, recorded with the axis not converged so that it never
+        # enters an average (flightrecon.store.stats uses converged fits only)
+        k.append(_float(ax["k_used"] if "k_used" in ax
+                        else _get(ax, "k", f"axis '{name}' ({kname})")))
         branch.append(_get(ax, "branch", f"axis '{name}' ({kname})"))
         conv.append(bool(_get(ax, "converged", f"axis '{name}' ({kname})")))
         iters += int(_get(ax, "iterations", f"axis '{name}' ({kname})"))
