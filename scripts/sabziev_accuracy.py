@@ -24,6 +24,8 @@ Usage::
 
     python scripts/sabziev_accuracy.py            # full size (5 seeds per variant)
     python scripts/sabziev_accuracy.py --seeds 1  # quick look
+    python scripts/sabziev_accuracy.py --independent  # corpus + JSBSim flights, both policies
+                                                      # (docs/tables/sabziev_independent.md)
 
 Writes ``docs/tables/sabziev_accuracy.md`` and ``docs/figures/sabziev_accuracy.png``,
 ``docs/figures/sabziev_newton.png``.
@@ -127,7 +129,7 @@ def one_flight(scenario: str, overrides: dict, seed: int) -> dict:
     plane = output_plane(meta)
     e, n, _ = plane.forward(meta.arrival.lat_deg, meta.arrival.lon_deg,
                             msl_to_ellipsoid(meta.arrival.elev_m, meta.geoid_undulation_m))
-    y_T = res_a.summary["end_point"]["up_pressure_m"]
+    y_T = res_a.summary["end_point"]["up_m"]
     dr, corr = dead_reckoning(clean, sl, (float(n), float(e), y_T))
     tracks = {}
     for name, res in ((METHODS[0], res_a), (METHODS[1], res_t), (METHODS[2], res_v)):
@@ -244,7 +246,18 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5, help="flights per variant (seeds 1..N)")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs")
+    ap.add_argument("--independent", action="store_true",
+                    help="the independent flights (shared corpus and JSBSim; "
+                    "scripts/sabziev_flights.py) with both policies instead")
     args = ap.parse_args(argv)
+    if args.independent:
+        import sys
+
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from sabziev_flights import study
+
+        study(args.out / "tables")
+        return
     seeds = list(range(1, args.seeds + 1))
     t0 = time.perf_counter()
     results: dict[str, list] = {}

@@ -47,7 +47,7 @@ from flightrecon.errors import (
     ValidationError,
 )
 from flightrecon.fusion.sabziev import KT_MAX, SabzievSolution, air_velocity, fuse
-from flightrecon.geo.atmosphere import field_pressure_altitude_m
+from flightrecon.geo.atmosphere import field_pressure_altitude_m, isa_temperature_k
 from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position, PositionFix
 
@@ -121,7 +121,8 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
                 k0: tuple[float, float, float] | None = None,
                 hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
                 vertical_rule: str = "baro", kt_max: float = KT_MAX, strict: bool = False,
-                acceleration_ned: np.ndarray | None = None) -> MethodResult:
+                acceleration_ned: np.ndarray | None = None,
+                policy: str = "stable", surface: bool = True) -> MethodResult:
     """Run the Sabziev fusion on a cleaned flight (docs/sabziev.md; module docstring).
 
     Parameters
@@ -141,6 +142,14 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
         :func:`flightrecon.fusion.sabziev.fuse`
     acceleration_ned : (N, 3) kinematic acceleration on the whole grid, if already computed
         (default: :func:`flightrecon.geo.kinematics.kinematic_acceleration_ned` of the loads)
+    policy : ``stable`` (default) or ``paper``
+        (:data:`flightrecon.fusion.sabziev.solve.POLICIES`; docs/sabziev.md "Root finding" and
+        "The adapter"): with ``stable`` the vertical reference is the pressure height relative
+        to its recorded value at lift-off, made consistent with the end points
+        (:func:`end_consistent_height`)
+    surface : with policy ``stable`` and an end point, fit in the curvilinear frame
+        (:func:`_surface_fit`: distances along the surface, then the tangent plane); False
+        keeps the paper's flat frame
 
     Returns
     -------
@@ -182,18 +191,346 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     if n_unused > 0:
         notes.append(f"{n_unused} known position(s) (--fix) inside the interval not used: the "
                      "boundary-value fusion has no place for them (the joint smoother uses them)")
+    reference: dict[str, Any] = {"datum": "field pressure altitude under QNH"}
+    if policy == "stable":
+        h_rel, reference = _liftoff_datum(clean, t_all, sl, cols["baro_alt_m"])
+        if clean.phases is None or clean.phases.starts_airborne:
+            # the first sample is in the air: the track starts at the aircraft's pressure
+            # height above the departure field (under its QNH), not at the field
+            up0 = reference["liftoff_pressure_alt_m"] - hp_dep if liftoff is None else 0.0
+            reference["start_height_m"] = up0
+            origin = origin + np.array([0.0, 0.0, up0])
+    h_pressure = h_rel
     v0 = _liftoff_velocity(clean, t, h_rel, cols, psi, wind, notes, liftoff_velocity_ned)
-    end_ned, end_info = _end_point(meta, plane, arr, fix_end, hp_dep, origin, h_rel)
+    end_ned, end_info = _end_point(meta, plane, arr, fix_end, hp_dep, origin, h_rel,
+                                   geometric=policy == "stable")
+    if policy == "stable" and end_ned is not None:
+        h_rel, corr = end_consistent_height(t, h_rel, -float(end_ned[2]))
+        reference.update(corr)
     sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
-               vertical_rule=vertical_rule)
-    warn = list(sol.warnings) + notes
-    for w in sol.warnings:
+               vertical_rule=vertical_rule, policy=policy)
+    frame: dict[str, Any] = {"frame": "flat (tangent plane at the departure airfield)"}
+    if policy == "stable" and surface and end_ned is not None and k is None:
+        sol, frame = _surface_fit(sol, plane, meta, origin, end_ned, dict(
+            t=t, a_ned=a_ned, tas=cols["tas_mps"], heading_rad=psi, h_rel=h_rel, v0_ned=v0,
+            wind_ne=wind), dict(hold=hold, tol_m=tol_m, max_iter=max_iter, kt_max=kt_max,
+                               strict=strict, vertical_rule=vertical_rule, policy=policy))
+    fallbacks = [f"{name}: no root of F in the stable range ({ax.report.reason}); the "
+                 f"stable track with k = {ax.k:.4g} ended {ax.correction_m:+.1f} m from the end "
+                 "point, removed linearly in time"
+                 for name, ax in sol.axes.items() if ax.fallback and ax.report is not None]
+    warn = list(sol.warnings) + fallbacks + notes
+    for w in list(sol.warnings) + fallbacks:
         warnings.warn(f"sabziev: {w}", FlightReconWarning, stacklevel=2)
     track = _track(t_all, sl, sol, k_sd, origin)
     summary = _summary(sol, k, k_sd, t, v0, end_info, warn, hold, vertical_rule)
     summary["wind_source"] = wind_source
+    summary["policy"] = policy
+    summary["frame"] = frame
+    summary["vertical_reference"] = reference
+    sc, r2, spread = baro_accelerometer_scale(t, -a_ned[:, 2], cols["baro_alt_m"])
+    reference.update({"baro_vs_accelerometer": _num(sc), "baro_vs_accelerometer_r2": _num(r2),
+                      "baro_vs_accelerometer_spread_m": _num(spread)})
+    problems = self_check(sol, t, h_pressure, cols["tas_mps"], reference)
+    summary["healthy"] = not problems
+    summary["health_problems"] = problems
+    for pr in problems:
+        warnings.warn(f"sabziev unhealthy: {pr}", FlightReconWarning, stacklevel=2)
     return MethodResult(name="sabziev", track=track, summary=summary)
+
+
+WGS84_A_M = 6378137.0
+"""WGS-84 semi-major axis [m]."""
+
+WGS84_E2 = 6.69437999014e-3
+"""WGS-84 first eccentricity squared."""
+
+SURFACE_TOL_M = 0.1
+"""The curvilinear end point is iterated until it misses the arrival by less than this [m]."""
+
+
+def surface_track(lat0_deg: float, lon0_deg: float, north_m: np.ndarray, east_m: np.ndarray,
+                  h_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Latitude and longitude of a track given as distances flown north and east.
+
+    The fusion integrates local-level north and east velocities (docs/sabziev.md, "Flat frame
+    and a curved Earth"): its ``x``, ``z`` are distances along the meridian and the parallel
+    at the aircraft, ``d phi = dx / (M + h)``, ``d lambda = dz / ((N + h) cos phi)``
+    (WGS-84 radii of curvature ``M``, ``N``), summed along the path with the midpoint
+    latitude (two passes: the radii at the first pass's latitudes).
+
+    Parameters
+    ----------
+    lat0_deg, lon0_deg : start [deg]
+    north_m, east_m : (N,) distances flown north and east from the start [m]
+    h_m : (N,) ellipsoidal height [m]
+
+    Returns
+    -------
+    lat_deg, lon_deg : (N,) arrays
+    """
+    dx = np.diff(north_m)
+    dz = np.diff(east_m)
+    hm = 0.5 * (h_m[1:] + h_m[:-1])
+    phi0 = np.radians(lat0_deg)
+    phi = np.full(len(north_m), phi0)
+    for _ in range(2):
+        pm = 0.5 * (phi[1:] + phi[:-1])
+        w = 1.0 - WGS84_E2 * np.sin(pm) ** 2
+        M = WGS84_A_M * (1.0 - WGS84_E2) / w**1.5
+        phi = phi0 + np.concatenate([[0.0], np.cumsum(dx / (M + hm))])
+    pm = 0.5 * (phi[1:] + phi[:-1])
+    N = WGS84_A_M / np.sqrt(1.0 - WGS84_E2 * np.sin(pm) ** 2)
+    lam = np.radians(lon0_deg) + np.concatenate([[0.0], np.cumsum(dz / ((N + hm) * np.cos(pm)))])
+    return np.degrees(phi), np.degrees(lam)
+
+
+def _surface_fit(sol: SabzievSolution, plane: Any, meta: FlightMeta, origin: np.ndarray,
+                 end_ned: np.ndarray, inputs: dict[str, Any],
+                 opts: dict[str, Any]) -> tuple[SabzievSolution, dict[str, Any]]:
+    """The boundary-value fit in the curvilinear frame (policy ``stable``).
+
+    The flat fit compares distances flown north and east with the arrival's tangent-plane
+    coordinates; over hundreds of kilometres the two differ (chord against arc, meridian
+    convergence: 1.7 km after 170 km, 244 km after 1845 km on JSBSim flights).  Here the
+    track's distances are turned into latitude and longitude (:func:`surface_track`) and then
+    into the output plane, and the horizontal targets of the fit are moved by the remaining
+    miss (in surface metres at the end) until the plane end point is met within
+    :data:`SURFACE_TOL_M` (at most 6 fits; the miss shrinks by the ratio of the path's
+    distortion, ~1e-3 per 100 km).  Returns the solution with its position in plane
+    coordinates relative to the lift-off point and the frame's report."""
+    from dataclasses import replace as dc_replace
+
+    from flightrecon.geo.frames import msl_to_ellipsoid
+
+    h_dep = msl_to_ellipsoid(meta.departure.elev_m, meta.geoid_undulation_m)
+    lat0, lon0, _ = plane.inverse(float(origin[1]), float(origin[0]), 0.0)
+    target = np.array([float(end_ned[0]) + origin[0], float(end_ned[1]) + origin[1]])
+    shift = np.zeros(2)
+    first_miss = float("nan")
+    miss = np.full(2, np.nan)
+    it = 0
+    cur = sol
+    for it in range(1, 7):
+        h_ell = h_dep + origin[2] + cur.up_m
+        lat, lon = surface_track(float(lat0), float(lon0), cur.north_m, cur.east_m, h_ell)
+        e, n, _u = plane.forward(lat, lon, h_ell)
+        miss = np.array([float(n[-1]) - target[0], float(e[-1]) - target[1]])
+        if it == 1:
+            first_miss = float(np.hypot(*miss))
+        if not np.all(np.isfinite(miss)) or np.max(np.abs(miss)) <= SURFACE_TOL_M:
+            break
+        # the miss in surface metres at the end: the plane's axes turn by the convergence
+        gam = -np.radians(float(lon[-1]) - float(lon0)) * np.sin(np.radians(float(lat[-1])))
+        c, s_ = np.cos(gam), np.sin(gam)
+        shift -= np.array([c * miss[0] + s_ * miss[1], -s_ * miss[0] + c * miss[1]])
+        end = np.array([end_ned[0] + shift[0], end_ned[1] + shift[1], end_ned[2]])
+        cur = fuse(inputs["t"], inputs["a_ned"], inputs["tas"], inputs["heading_rad"],
+                   inputs["h_rel"], inputs["v0_ned"], end, inputs["wind_ne"], None, **opts)
+    xyz = cur.xyz_m.copy()
+    xyz[:, 0] = np.asarray(n, dtype=np.float64) - origin[0]
+    xyz[:, 2] = np.asarray(e, dtype=np.float64) - origin[1]
+    res = cur.end_residual_m.copy()
+    res[0], res[2] = miss
+    out = dc_replace(cur, xyz_m=xyz, end_residual_m=res)
+    return out, {"frame": "curvilinear (distances along the surface, then the tangent plane)",
+                 "fits": it, "flat_frame_miss_m": first_miss,
+                 "target_shift_m": [float(x) for x in shift],
+                 "end_miss_m": float(np.hypot(*miss))}
+
+
+LIFTOFF_DATUM_S = 2.0
+"""The pressure height's datum is its mean over this long [s] before lift-off (after the first
+sample when the record starts airborne)."""
+
+SCALE_MAX = 0.15
+"""Largest relative pressure-height scale error explained by the air mass
+(:func:`end_consistent_height`: 15 %, an air mass 40 K off the standard atmosphere)."""
+
+
+def _liftoff_datum(clean: CleanFlight, t_all: np.ndarray, sl: slice,
+                   baro: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    """The pressure height relative to its recorded value at lift-off (the paper's ``h``,
+    "relative to the lift-off point"; seed 001 section IV): the mean of the recorded pressure
+    altitude over :data:`LIFTOFF_DATUM_S` before lift-off, or after the first sample of a
+    record that starts airborne.  No QNH is needed: the datum is the aircraft's own reading."""
+    g = clean.grid["baro_alt_m"].to_numpy(dtype=np.float64)
+    t0 = t_all[sl.start]
+    ph = clean.phases
+    if ph is not None and not ph.starts_airborne:
+        win = (t_all >= t0 - LIFTOFF_DATUM_S) & (t_all <= t0)
+    else:
+        win = (t_all >= t0) & (t_all <= t0 + LIFTOFF_DATUM_S)
+    vals = g[win][np.isfinite(g[win])]
+    ref = float(np.mean(vals)) if len(vals) else float(baro[0])
+    info: dict[str, Any] = {"datum": "recorded pressure altitude at lift-off",
+                            "liftoff_pressure_alt_m": ref, "hypsometric": False}
+    h = baro - ref
+    if "sat_degc" in clean.grid.columns:
+        sat = clean.grid["sat_degc"].to_numpy(dtype=np.float64)[sl]
+        ok = np.isfinite(sat)
+        if ok.sum() >= 0.9 * len(sat):
+            idx = np.arange(len(sat))
+            sat = np.interp(idx, idx[ok], sat[ok])
+            # from the lift-off reading: the first sample's offset from it scaled alike
+            h = hypsometric_height(baro, sat) + (baro[0] - ref) * (sat[0] + 273.15) / float(
+                isa_temperature_k(baro[0]))
+            info["hypsometric"] = True
+    return h, info
+
+
+def hypsometric_height(h_p: np.ndarray, sat_degc: np.ndarray) -> np.ndarray:
+    """Geometric height gained along a record from pressure altitude and static air temperature.
+
+    The hypsometric equation ``dz = (T / T_ISA(h_p)) dh_p`` (the standard atmosphere's pressure
+    altitude scaled by the ratio of the actual to the standard temperature at the same
+    pressure; ICAO Doc 7488), integrated by the trapezoidal rule from the first sample.
+
+    Parameters
+    ----------
+    h_p : (N,) pressure altitude [m] (1013.25 hPa datum)
+    sat_degc : (N,) static air temperature [degC]
+
+    Returns
+    -------
+    (N,) geometric height relative to the first sample [m]
+    """
+    ratio = (np.asarray(sat_degc, dtype=np.float64) + 273.15) / isa_temperature_k(h_p)
+    dz = 0.5 * (ratio[1:] + ratio[:-1]) * np.diff(h_p)
+    return np.concatenate([[0.0], np.cumsum(dz)])
+
+
+def end_consistent_height(t: np.ndarray, h: np.ndarray,
+                          y_T: float) -> tuple[np.ndarray, dict[str, Any]]:
+    """The pressure height made consistent with the end point (policy ``stable``).
+
+    The pressure height ``h`` (relative to lift-off) ends at ``h_T`` (mean of the last second),
+    the end point is at ``y_T`` (geometric, relative to lift-off); their difference
+    ``D = y_T - h_T`` is the pressure height's error at the end: an air mass off the standard
+    atmosphere (a scale error, about 3.5 % per 10 K) and the change of sea-level pressure over
+    the flight (a datum drift).  It is removed as
+
+    * a scale error, ``h (1 + D/h_T)``, when the flight ends near its highest point (``|h_T|``
+      at least half the largest ``|h|``) and ``|D| <= SCALE_MAX |h_T|``; or else
+    * a drift linear in time, ``h + D (t - t_0)/T``.
+
+    Without it the undamped baro-inertial loop cannot both follow the pressure height and meet
+    the end point: ``F(k2)`` then has roots only where the loop lets the track stray from
+    ``h`` by ``D`` (docs/sabziev.md, "Signs and branches").
+
+    Parameters
+    ----------
+    t : (N,) grid [s]
+    h : (N,) pressure height relative to lift-off [m]
+    y_T : end height relative to lift-off [m]
+
+    Returns
+    -------
+    h_c : (N,) the corrected reference [m]
+    info : ``end_mismatch_m`` (D), ``model`` (``scale`` or ``drift``), ``scale`` (1 + D/h_T
+        or 1)
+    """
+    n_end = max(1, int(round(1.0 / (t[1] - t[0]))))
+    h_T = float(np.mean(h[-n_end:]))
+    D = float(y_T - h_T)
+    h_max = float(np.max(np.abs(h)))
+    if abs(h_T) >= 0.5 * h_max and abs(h_T) > 0 and abs(D) <= SCALE_MAX * abs(h_T):
+        scale = 1.0 + D / h_T
+        h_c = h * scale
+        # the mean of the last second now ends at y_T; the last sample exactly:
+        h_c = h_c + (y_T - h_c[-1]) * (t - t[0]) / (t[-1] - t[0])
+        return h_c, {"end_mismatch_m": D, "model": "scale", "scale": scale}
+    h_c = h + (y_T - h[-1]) * (t - t[0]) / (t[-1] - t[0])
+    return h_c, {"end_mismatch_m": D, "model": "drift", "scale": 1.0}
+
+
+SCALE_WINDOW_S = 20.0
+"""Window [s] of the second differences compared by :func:`baro_accelerometer_scale`."""
+
+SCALE_BAND = (0.7, 1.4)
+"""Ratio of the pressure height's to the accelerometers' height changes outside which the
+vertical is unhealthy (a unit error: feet read as metres gives 3.28, metres as feet 0.30; an
+air mass 40 K off standard 1.15; measured 0.92-1.06 on the corpus and JSBSim flights)."""
+
+
+def baro_accelerometer_scale(t: np.ndarray, a_y: np.ndarray,
+                             h: np.ndarray, window_s: float = SCALE_WINDOW_S
+                             ) -> tuple[float, float, float]:
+    """How much faster the pressure height changes than the vertical accelerometer says.
+
+    Second differences over ``window_s`` of the pressure height,
+    ``h(t+W) - 2 h(t) + h(t-W)``, against the same of the doubly integrated vertical
+    acceleration (``int int a_y``, trapezoidal), on non-overlapping windows; the least-squares
+    slope with an intercept (a constant accelerometer error ``b`` adds ``b W^2`` to every
+    window).  A correct pressure height gives a slope near 1; an altitude in feet read as
+    metres 3.28.
+
+    Returns
+    -------
+    slope, r2, spread_m : the slope, the fit's coefficient of determination and the standard
+        deviation of the accelerometer's second differences [m] (below a few metres the flight
+        has too little vertical manoeuvring to tell; NaN with fewer than 4 windows)
+    """
+    dt = float(t[1] - t[0])
+    v = np.concatenate([[0.0], np.cumsum(0.5 * (a_y[1:] + a_y[:-1]) * dt)])
+    y = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
+    k = max(1, int(round(window_s / dt)))
+    idx = np.arange(k, len(t) - k, k)
+    if len(idx) < 4:
+        return float("nan"), float("nan"), float("nan")
+    dd_h = h[idx + k] - 2.0 * h[idx] + h[idx - k]
+    dd_a = y[idx + k] - 2.0 * y[idx] + y[idx - k]
+    A = np.column_stack([dd_a, np.ones_like(dd_a)])
+    coef = np.linalg.lstsq(A, dd_h, rcond=None)[0]
+    var = float(np.var(dd_h))
+    r2 = 1.0 - float(np.var(dd_h - A @ coef)) / var if var > 0 else float("nan")
+    return float(coef[0]), r2, float(np.std(dd_a))
+
+
+def self_check(sol: SabzievSolution, t: np.ndarray, h_pressure: np.ndarray, tas: np.ndarray,
+               reference: dict[str, Any]) -> list[str]:
+    """The fusion's own health (docs/sabziev.md, "Health"): what makes its track impossible.
+
+    * a non-finite position or velocity;
+    * a vertical speed above the highest recorded true airspeed plus 30 m/s (the envelope's
+      rule, docs/output.md; from the exact velocity of the recursion);
+    * a height more than 300 m + 15 % of the pressure height from the recorded pressure height
+      (relative to lift-off) for 30 s or more;
+    * an end point that the pressure height misses by more than 300 m + 15 % of the end height
+      (a wrong arrival elevation, QNH or altitude unit: the vertical then cannot be right);
+    * a pressure height that changes faster or slower than the vertical accelerometer says
+      (:func:`baro_accelerometer_scale` outside :data:`SCALE_BAND`, when the fit is informative:
+      R^2 >= 0.5 and a spread of at least 5 m): an altitude unit error, which the end-point
+      check misses on a flight that lands where it took off.
+
+    Returns the problems in words (empty: healthy).
+    """
+    out: list[str] = []
+    if not (np.all(np.isfinite(sol.xyz_m)) and np.all(np.isfinite(sol.vxyz_mps))):
+        out.append("non-finite track")
+        return out
+    vs = float(np.max(np.abs(sol.vxyz_mps[:, 1])))
+    vs_lim = float(np.nanmax(tas)) + 30.0
+    if vs > vs_lim:
+        out.append(f"vertical speed {vs:.0f} m/s beyond the envelope's {vs_lim:.0f}")
+    dt = float(t[1] - t[0])
+    dev = np.abs(sol.xyz_m[:, 1] - h_pressure)
+    bad = dev > 300.0 + 0.15 * np.abs(h_pressure)
+    if bad.sum() * dt >= 30.0:
+        out.append(f"height up to {float(np.max(dev[bad])):.0f} m from the recorded pressure "
+                   f"height for {bad.sum() * dt:.0f} s (tolerance 300 m + 15 %)")
+    scale, r2 = reference.get("baro_vs_accelerometer"), reference.get("baro_vs_accelerometer_r2")
+    if (scale is not None and r2 is not None and np.isfinite(scale) and r2 >= 0.5
+            and reference.get("baro_vs_accelerometer_spread_m", 0.0) >= 5.0
+            and not SCALE_BAND[0] <= scale <= SCALE_BAND[1]):
+        out.append(f"the pressure height changes {scale:.2f} times as fast as the vertical "
+                   "accelerometer says (an altitude unit error: feet read as metres is 3.28)")
+    D = reference.get("end_mismatch_m")
+    if D is not None and abs(D) > 300.0 + 0.15 * abs(float(sol.xyz_m[-1, 1])):
+        out.append(f"the recorded pressure height ends {D:+.0f} m from the end point's height: "
+                   "a wrong arrival elevation, QNH or altitude unit")
+    return out
 
 
 def _end_sources(clean: CleanFlight, arrival: Position | None,
@@ -273,12 +610,13 @@ def _wind(grid: pd.DataFrame, meta: FlightMeta, sl: slice,
 
 
 def _end_point(meta: FlightMeta, plane: Any, arr: Position | None, fix_end: PositionFix | None,
-               hp_dep: float, origin: np.ndarray,
-               h_rel: np.ndarray) -> tuple[np.ndarray | None, dict[str, Any]]:
+               hp_dep: float, origin: np.ndarray, h_rel: np.ndarray,
+               geometric: bool = False) -> tuple[np.ndarray | None, dict[str, Any]]:
     """The boundary-value end point relative to the lift-off point (north, up, east order of
     :func:`~flightrecon.fusion.sabziev.fuse`'s ``end_ned``: north, east, down) and its summary
     entry: the arrival position, else the known position at the end (``fix_end``), else none
-    (initial-value mode)."""
+    (initial-value mode).  Vertically in pressure terms, or with ``geometric`` (policy
+    ``stable``) the elevation difference itself."""
     from flightrecon.geo.frames import msl_to_ellipsoid
 
     if arr is None and fix_end is None:
@@ -288,13 +626,15 @@ def _end_point(meta: FlightMeta, plane: Any, arr: Position | None, fix_end: Posi
     if arr is not None:
         e, n, _u = plane.forward(arr.lat_deg, arr.lon_deg,
                                  msl_to_ellipsoid(arr.elev_m, meta.geoid_undulation_m))
-        y_T = field_pressure_altitude_m(arr.elev_m, qnh_arr) - hp_dep
+        y_T = (arr.elev_m - meta.departure.elev_m if geometric
+               else field_pressure_altitude_m(arr.elev_m, qnh_arr) - hp_dep)
         source = "arrival"
     else:
         assert fix_end is not None
         # the known position at the end: horizontally the fix; vertically its altitude in
         # pressure terms, or without one the recorded pressure height there
         y_T = (float(h_rel[-1] + origin[2]) if fix_end.alt_msl_m is None
+               else fix_end.alt_msl_m - meta.departure.elev_m if geometric
                else field_pressure_altitude_m(fix_end.alt_msl_m, qnh_arr) - hp_dep)
         # placed in the output plane at its height (without one, the field's elevation plus
         # the pressure height: the plane's north and east move 1.6 m per km of height at 10 km)
@@ -303,7 +643,8 @@ def _end_point(meta: FlightMeta, plane: Any, arr: Position | None, fix_end: Posi
         e, n, _u = plane.forward(fix_end.lat_deg, fix_end.lon_deg, h_f)
         source = f"fix at t = {fix_end.t_s:g} s"
     end_ned = np.array([float(n) - origin[0], float(e) - origin[1], -(y_T - origin[2])])
-    return end_ned, {"north_m": float(n), "east_m": float(e), "up_pressure_m": float(y_T),
+    return end_ned, {"north_m": float(n), "east_m": float(e), "up_m": float(y_T),
+                     ("up_geometric_m" if geometric else "up_pressure_m"): float(y_T),
                      "departure_pressure_alt_m": hp_dep,
                      "liftoff_point_m": [float(x) for x in origin], "source": source}
 
@@ -373,10 +714,18 @@ def _summary(sol: SabzievSolution, k, k_sd, t, v0, end_info, warn, hold, rule) -
             continue
         d = ax.report.as_dict()
         history[name] = d.pop("history")
+        d["k_used"] = _num(ax.k)
+        d["fallback"] = bool(ax.fallback)
+        d["end_correction_m"] = _num(ax.correction_m)
         axes[name] = d
     res = sol.end_residual_m
     return {
-        "converged": bool(sol.converged),
+        # the boundary-value problem is solved: each axis has a root, or (policy stable) a
+        # finite track whose end miss was removed linearly; roots_found says which
+        "converged": all(a.report is None or a.report.converged or (a.fallback and a.end_met)
+                         for a in sol.axes.values()),
+        "roots_found": bool(sol.converged),
+        "fallback_axes": [n for n, a in sol.axes.items() if a.fallback],
         "mode": "initial-value" if k is not None else "boundary-value",
         "k1": _num(sol.k[0]), "k2": _num(sol.k[1]), "k3": _num(sol.k[2]),
         "k_sd": None if k_sd is None else [float(x) for x in k_sd],

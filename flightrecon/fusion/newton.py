@@ -51,7 +51,8 @@ import numpy as np
 
 from flightrecon.errors import ConvergenceError, ValidationError
 
-__all__ = ["PARAMETRISATIONS", "RULES", "ManyEvaluator", "RootReport", "find_coefficient"]
+__all__ = ["PARAMETRISATIONS", "RULES", "ManyEvaluator", "RootReport", "find_coefficient",
+           "find_root_near"]
 
 PARAMETRISATIONS = ("k", "alpha")
 
@@ -354,7 +355,8 @@ def find_coefficient(fun: Evaluator, *, k_ref: float, k_max_pos: float, k_max_ne
                      span_lo: float = 1e-2, points_per_decade: int = 12,
                      parametrisation: str = "k", rule: str = "slowest", n_refine: int = 3,
                      strict: bool = False, axis: str = "",
-                     fun_many: ManyEvaluator | None = None) -> RootReport:
+                     fun_many: ManyEvaluator | None = None,
+                     branches: tuple[str, ...] = ("negative", "positive")) -> RootReport:
     """Find one Sabziev coefficient by the safeguarded Newton iteration and selection rule.
 
     Parameters
@@ -378,6 +380,9 @@ def find_coefficient(fun: Evaluator, *, k_ref: float, k_max_pos: float, k_max_ne
     fun_many : optional ``ks -> (F, misfit)`` for many ``k`` at once (:data:`ManyEvaluator`),
         used by the scan; it must agree with ``fun`` (the Sabziev one is bit-identical).
         Without it the scan calls ``fun`` point by point: same result, slower.
+    branches : the branches searched, in order: ``("negative", "positive")`` (the paper's
+        search, both) or ``("negative",)`` (the stable range only: every exponential of the
+        recursion is then at most 1, docs/sabziev.md "Finite exponentials")
 
     Returns
     -------
@@ -394,18 +399,24 @@ def find_coefficient(fun: Evaluator, *, k_ref: float, k_max_pos: float, k_max_ne
     if parametrisation == "alpha":
         rep = _alpha_newton(f, 1.0 if k0 is None else float(k0), k_max_pos, tol_m, max_iter)
     else:
+        if not branches or any(b not in ("negative", "positive") for b in branches):
+            raise ValidationError(f"branches must name 'negative' and/or 'positive', got "
+                                  f"{branches!r}")
         rep = _k_search(f, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, span_lo,
-                        points_per_decade, rule, n_refine)
+                        points_per_decade, rule, n_refine, branches)
     if strict and not rep.converged:
         raise ConvergenceError(f"Sabziev {axis} axis: {rep.reason}")
     return rep
 
 
 def _k_search(f: _Counter, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, span_lo, ppd,
-              rule, n_refine):
+              rule, n_refine, branches=("negative", "positive")):
     start = -3.0 * k_ref if k0 is None else float(k0)
     if start == 0.0 or not np.isfinite(start):
         raise ValidationError("the start value of k must be finite and non-zero")
+    if "positive" not in branches and start > 0:
+        raise ValidationError("the start value of k must be negative when only the negative "
+                              "branch is searched")
     history: list = []
     k_lo = span_lo * k_ref
     root_n, bracket_n, it, overflow = _damped_newton(f, start, k_max_pos, k_max_neg, tol_m,
@@ -413,6 +424,8 @@ def _k_search(f: _Counter, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, spa
     all_brackets: list = []
     candidates: list = []  # (root, F, misfit, how, resolved)
     for sign, k_hi in ((-1.0, k_max_neg), (1.0, k_max_pos)):
+        if ("negative" if sign < 0 else "positive") not in branches:
+            continue
         found = _scan(f, sign, k_lo, k_hi, ppd)
         all_brackets.extend((a, b) for a, b, _ in found)
         if bracket_n is not None and _sign(bracket_n[0]) == sign:
@@ -451,8 +464,10 @@ def _k_search(f: _Counter, k_ref, k_max_pos, k_max_neg, k0, tol_m, max_iter, spa
         reason = (f"no root resolved to tol {tol_m:g} m: the best bracketed candidate k = "
                   f"{worst[0]:.6g} leaves |F| = {abs(worst[1]):.3g} m ({worst[3]})")
     else:
-        reason = (f"no root: F does not change sign on either branch (|k| from {k_lo:.3g} to "
-                  f"{k_max_neg:.3g} negative, to {k_max_pos:.3g} positive) and Newton did not "
+        where = (f"either branch (|k| from {k_lo:.3g} to {k_max_neg:.3g} negative, to "
+                 f"{k_max_pos:.3g} positive)" if "positive" in branches else
+                 f"the negative branch (|k| from {k_lo:.3g} to {k_max_neg:.3g})")
+        reason = (f"no root: F does not change sign on {where} and Newton did not "
                   f"converge; smallest |F| = {abs(Fb):.3g} m at k = {kb:.6g}")
     return RootReport(False, float("nan"), Fb, it, f.n, "none", reason, tuple(history),
                       tuple(all_brackets), start, "k", overflow, float("nan"), rule)
@@ -486,3 +501,91 @@ def _alpha_newton(f: _Counter, alpha0: float, k_max_pos: float, tol_m: float, ma
     return RootReport(False, float("nan"), F, max_iter, f.n, "none",
                       f"alpha iteration did not converge in {max_iter} iterations "
                       f"(|F| = {abs(F):.3g} m)", tuple(history), (), alpha0, "alpha", False)
+
+
+def find_root_near(fun: Evaluator, *, w_target: float, w_step: float, w_lo: float,
+                   w_hi: float, tol_m: float = 1e-3, max_iter: int = 60, chunk: int = 64,
+                   max_points: int = 1024, fun_many: ManyEvaluator | None = None,
+                   axis: str = "") -> RootReport:
+    """The root of the vertical ``F(k2)``, ``k2 = -w^2``, nearest a target loop frequency.
+
+    On the stable (oscillatory) branch ``F`` has a root about every ``pi/T`` in ``w``
+    (docs/sabziev.md, "Signs and branches"); the root taken is the one nearest ``w_target``
+    (docs/sabziev.md, "Root finding", the ``nearest`` rule).  ``F`` is tabulated outwards
+    from ``w_target`` on both sides in steps of ``w_step`` (a quarter of the root spacing:
+    each oscillation of ``F`` is sampled at least four times), ``chunk`` points per side at a
+    time (one batched pass over the data for both sides), until a sign change is found or
+    ``max_points`` points per side or the limits ``[w_lo, w_hi]`` are reached.  Of the sign
+    changes of one round the one whose bracket is nearest ``w_target`` is refined by Newton
+    steps kept inside the bracket (:func:`_refine`).
+
+    Parameters
+    ----------
+    fun : ``k2 -> (F, dF/dk2, misfit)`` (:data:`Evaluator`)
+    w_target : loop frequency [rad/s] the root should be nearest
+    w_step : scan step in ``w`` [rad/s]
+    w_lo, w_hi : the scan's limits in ``w`` [rad/s]
+    tol_m : convergence: ``|F| <= tol_m`` [m]
+    max_iter : Newton iterations of the refinement
+    chunk : scan points per side and round
+    max_points : scan points per side in all
+    fun_many : batch evaluator ``ks -> (F, misfit)`` (:data:`ManyEvaluator`)
+    axis : axis name for messages
+
+    Returns
+    -------
+    RootReport
+        ``rule = "nearest"``; ``converged`` False (with the smallest ``|F|`` seen and the scan
+        range in ``reason``) when no sign change was found.
+    """
+    if not (0 < w_lo <= w_target <= w_hi and w_step > 0 and tol_m > 0):
+        raise ValidationError("need 0 < w_lo <= w_target <= w_hi and positive w_step, tol_m")
+    f = _Counter(fun, fun_many)
+    history: list = []
+    up: list[tuple[float, float, float]] = []    # (w, F, misfit) from w_target upwards
+    down: list[tuple[float, float, float]] = []  # from w_target downwards
+    j = 0
+    brackets: list[tuple[float, float]] = []
+    while j < max_points:
+        ws_up = w_target + w_step * np.arange(j, j + chunk)
+        ws_up = ws_up[ws_up <= w_hi]
+        ws_dn = w_target - w_step * np.arange(max(j, 1), j + chunk)
+        ws_dn = ws_dn[ws_dn >= w_lo]
+        if len(ws_up) == 0 and len(ws_dn) == 0:
+            break
+        ws = np.concatenate([ws_up, ws_dn])
+        vals = list(f.scan(-ws * ws))
+        for w, (_k, F, m) in zip(ws.tolist(), vals):
+            (up if w >= w_target else down).append((w, F, m))
+        found = []
+        for seq in (up, down):
+            for (w1, F1, _), (w2, F2, _) in zip(seq[:-1], seq[1:]):
+                if np.isfinite(F1) and np.isfinite(F2) and _sign(F1) != _sign(F2):
+                    found.append((min(w1, w2), max(w1, w2)))
+        if up and down and np.isfinite(up[0][1]) and np.isfinite(down[0][1]) \
+                and _sign(up[0][1]) != _sign(down[0][1]):
+            found.append((down[0][0], up[0][0]))
+        if found:
+            brackets = found
+            break
+        j += chunk
+    bk = [(-b * b, -a * a) for a, b in brackets]
+    if not brackets:
+        kb, Fb = f.best
+        reason = (f"no sign change of F within {len(up) + len(down)} points from w = "
+                  f"{min([w for w, _, _ in down] + [w_target]):.4g} to "
+                  f"{max([w for w, _, _ in up] + [w_target]):.4g} rad/s; smallest |F| = "
+                  f"{abs(Fb):.3g} m at k2 = {kb:.6g}")
+        return RootReport(False, float("nan"), Fb, 0, f.n, "none", reason, tuple(history),
+                          (), -w_target**2, "k", False, float("nan"), "nearest")
+    a, b = min(brackets, key=lambda br: abs(0.5 * (br[0] + br[1]) - w_target))
+    k_a, k_b = -b * b, -a * a
+    r, F, it, how, resolved = _refine(f, k_a, k_b, tol_m, max_iter, history)
+    if resolved:
+        r, F = _polish(f, r, F, history)
+    mis = f(r)[2]
+    reason = (f"rule 'nearest': the root nearest w = {w_target:.4g} rad/s (w = "
+              f"{np.sqrt(max(-r, 0.0)):.4g}) of {len(brackets)} bracketed; {how}")
+    return RootReport(bool(resolved), float(r) if resolved else float("nan"), float(F), it,
+                      f.n, "negative" if resolved else "none", reason, tuple(history),
+                      tuple(bk), -w_target**2, "k", False, float(mis), "nearest")

@@ -22,6 +22,9 @@ class SabzievSettings:
     vertical_rule : root selection for k2 on the oscillatory branch (``baro``: the root whose
         track stays closest to the pressure height; ``slowest``); docs/sabziev.md
     kt_max : overflow guard on ``k t`` (:data:`flightrecon.fusion.sabziev.solve.KT_MAX`)
+    policy : ``stable`` (default: roots in the stable range, a fixed stable coefficient with a
+        linear end correction where there is none, the pressure height made consistent with
+        the end points) or ``paper`` (both branches, NaN without a root); docs/sabziev.md
     """
 
     hold: str = "linear"
@@ -29,3 +32,4 @@ class SabzievSettings:
     max_iter: int = 60
     vertical_rule: str = "baro"
     kt_max: float = KT_MAX
+    policy: str = "stable"

@@ -70,7 +70,11 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
     k, branch, conv, iters = [], [], [], 0
     for name, kname in zip(SUMMARY_AXES, AXES):
         ax = _get(axes, name, "'axes'")
-        k.append(_float(_get(ax, "k", f"axis '{name}' ({kname})")))
+        # the coefficient the track used: the root, or (stable policy, no root taken) the
+        # fixed stable coefficient, recorded with the axis not converged so that it never
+        # enters an average (flightrecon.store.stats uses converged fits only)
+        k.append(_float(ax["k_used"] if "k_used" in ax
+                        else _get(ax, "k", f"axis '{name}' ({kname})")))
         branch.append(_get(ax, "branch", f"axis '{name}' ({kname})"))
         conv.append(bool(_get(ax, "converged", f"axis '{name}' ({kname})")))
         iters += int(_get(ax, "iterations", f"axis '{name}' ({kname})"))
@@ -78,7 +82,11 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
     comps = [_float(_get(res, c, "'end_residual_m'")) for c in ("north", "up", "east")]
     residual = math.sqrt(sum(c * c for c in comps))  # NaN if any component is unknown
     t0, t1 = (float(x) for x in _get(summary, "interval_s", "the summary"))
-    converged = bool(_get(summary, "converged", "the summary"))
+    # a fit is converged when every axis found a root; the stable policy's summary says
+    # "converged" when the track meets the end point (a root or the linear end correction of
+    # an axis without one, docs/sabziev.md) and "roots_found" for the fit itself
+    converged = bool(summary["roots_found"] if "roots_found" in summary
+                     else _get(summary, "converged", "the summary"))
     return FlightCoefficients(
         aircraft_id=aircraft_id, flight_id=flight_id, flight_date_utc=flight_date_utc,
         duration_s=t1 - t0, k1=k[0], k2=k[1], k3=k[2], branch=tuple(branch),  # type: ignore[arg-type]

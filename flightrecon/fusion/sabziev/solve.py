@@ -3,14 +3,14 @@ fusion :func:`fuse`."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from flightrecon.errors import ValidationError
-from flightrecon.fusion.newton import RootReport, find_coefficient
+from flightrecon.fusion.newton import RootReport, find_coefficient, find_root_near
 from flightrecon.fusion.sabziev.discrete import (
     StepCoefficients,
     _check_hold,
@@ -35,6 +35,59 @@ cannot be resolved (found on simulated flights at k T ~ 44: residual 8e6 m)."""
 POINTS_PER_DECADE = 12
 """Scan density of the root search in |k| (:mod:`flightrecon.fusion.newton`, step 3)."""
 
+POLICIES = ("stable", "paper")
+"""How a coefficient is chosen (docs/sabziev.md, "Root finding"): ``stable`` searches the
+stable range only (k1, k3 < 0; k2 < 0 by the ``nearest`` rule) and, where ``F`` has no root
+there, takes a fixed stable coefficient and removes the remaining end miss linearly in time;
+``paper`` searches both branches and leaves an axis without a root NaN."""
+
+TAU_FALLBACK_S = 10.0
+"""Time constant [s] of the horizontal complementary filter (``k = -1/TAU_FALLBACK_S``) taken
+when ``F`` has no root on the stable branch (policy ``stable``): short enough that attitude
+errors in high-g manoeuvres (spiral dives) do not accumulate into velocity errors (``b tau``),
+long enough to smooth the air data with the accelerometers.  Measured on the corpus and JSBSim
+flights (docs/sabziev.md): with 10 s the worst flight was 1.23 times dead reckoning with a
+linear end correction, with 30 s 1.67 (a spiral dive)."""
+
+TAU_MAX_S = 100.0
+"""Slowest horizontal time constant [s] accepted as a root (policy ``stable``): the velocity
+error a constant accelerometer error ``b`` leaves in the complementary filter is ``b tau``,
+2 m/s for 2 mg at 100 s, the size of the air-data velocity errors (1 % of 200 m/s); a slower
+root makes the track mostly inertial (measured, docs/sabziev.md: roots of 170-800 s gave 1.8
+to 2.7 times the error of dead reckoning with a linear end correction)."""
+
+W_LIMITS = (0.05, 0.5)
+"""Bounds [rad/s] of the target loop frequency of the vertical axis (:func:`vertical_target_w`)."""
+
+ACC_BIAS_NOMINAL = 0.02
+"""Nominal vertical accelerometer error [m/s^2] (2 mg) of :func:`vertical_target_w`."""
+
+BARO_NOISE_NOMINAL_M = 1.0
+"""Nominal noise of the pressure height [m], correlated over :data:`BARO_NOISE_TIME_S`."""
+
+BARO_NOISE_TIME_S = 0.2
+"""Correlation time [s] of the pressure height noise (a 5 Hz channel's sample interval)."""
+
+
+def vertical_target_w(T: float) -> float:
+    """Target frequency [rad/s] of the undamped baro-inertial loop (policy ``stable``).
+
+    Error of the loop ``e'' + w^2 e = b + w^2 n`` over a flight of length ``T``: a constant
+    accelerometer error ``b`` gives ``|e| <= 2 b / w^2``; white pressure-height noise of
+    standard deviation ``sigma`` and correlation time ``tau`` excites the undamped loop at its
+    own frequency, ``rms(e) ~ w sigma sqrt(tau T / 2)``.  The sum is smallest at
+    ``w* = (4 b / (sigma sqrt(tau T / 2)))^(1/3)``; with the nominal ``b``
+    (:data:`ACC_BIAS_NOMINAL`), ``sigma``, ``tau`` that is 0.20 rad/s at ``T`` = 900 s and
+    0.11 rad/s at 10 h, clipped to :data:`W_LIMITS`.
+
+    Parameters
+    ----------
+    T : duration of the fusion interval [s]
+    """
+    noise = BARO_NOISE_NOMINAL_M * np.sqrt(BARO_NOISE_TIME_S * max(T, 1.0) / 2.0)
+    w = (4.0 * ACC_BIAS_NOMINAL / noise) ** (1.0 / 3.0)
+    return float(np.clip(w, *W_LIMITS))
+
 
 @dataclass(frozen=True)
 class AxisSolution:
@@ -46,6 +99,9 @@ class AxisSolution:
     position_m, velocity_mps : (N,) track and rate along the axis (NaN if no root)
     dposition_dk, dvelocity_dk : (N,) exact sensitivities of the discrete track to ``k``
     report : root-finder report (``None`` in the initial-value mode, ``k`` given)
+    correction_m : end miss [m] of the track with ``k`` removed linearly in time (policy
+        ``stable`` when ``F`` has no root in the stable range; 0 otherwise): the track is
+        ``s(k, t) - correction_m (t - t_0)/T``
     """
 
     k: float
@@ -54,6 +110,15 @@ class AxisSolution:
     dposition_dk: np.ndarray
     dvelocity_dk: np.ndarray
     report: RootReport | None = None
+    correction_m: float = 0.0
+
+    fallback: bool = False
+
+    @property
+    def end_met(self) -> bool:
+        """A finite track (meeting the end point when one was given: a root, or the linear
+        correction of the policy ``stable``)."""
+        return bool(np.isfinite(self.k) and np.all(np.isfinite(self.position_m)))
 
 
 def _arr(name: str, x, n: int) -> np.ndarray:
@@ -77,11 +142,14 @@ class _AxisOptions(NamedTuple):
     kt_max: float
     strict: bool
     rule: str = "slowest"
+    policy: str = "paper"
 
 
 def _solve_axis(kind: str, t, a, w, v0: float, s_T: float | None, k: float | None,
                 k0: float | None, opts: _AxisOptions, axis: str) -> AxisSolution:
-    hold, tol_m, max_iter, parametrisation, kt_max, strict, rule = opts
+    hold, tol_m, max_iter, parametrisation, kt_max, strict, rule, policy = opts
+    if policy not in POLICIES:
+        raise ValidationError(f"policy must be one of {POLICIES}, got {policy!r}")
     dt = check_grid(t)
     n = len(t)
     a = _arr(f"{axis} acceleration", a, n)
@@ -107,6 +175,9 @@ def _solve_axis(kind: str, t, a, w, v0: float, s_T: float | None, k: float | Non
             k_ref, k_pos, k_neg = T**-2, (kt_max / T) ** 2, (0.5 / dt) ** 2
         else:
             k_ref, k_pos, k_neg = 1.0 / T, kt_max / T, 1.0 / dt
+        if policy == "stable":
+            return _solve_stable(kind, t, a, w, v0, s_T, fun, fun_many, opts, axis,
+                                 (k_ref, k_neg))
         report = find_coefficient(fun, k_ref=k_ref, k_max_pos=k_pos, k_max_neg=k_neg, k0=k0,
                                   tol_m=tol_m, max_iter=max_iter,
                                   points_per_decade=POINTS_PER_DECADE, fun_many=fun_many,
@@ -123,10 +194,63 @@ def _solve_axis(kind: str, t, a, w, v0: float, s_T: float | None, k: float | Non
     return AxisSolution(k, Q[:, 0], Q[:, 1], S[:, 0], S[:, 1], report)
 
 
+def _solve_stable(kind: str, t, a, w, v0: float, s_T: float, fun, fun_many,
+                  opts: _AxisOptions, axis: str, scales: tuple[float, float]) -> AxisSolution:
+    """Policy ``stable`` (docs/sabziev.md, "Root finding"): a root in the stable range, else a
+    fixed stable coefficient with its end miss removed linearly in time.
+
+    Horizontal: the slowest root on the negative branch (:func:`find_coefficient` with
+    ``branches=("negative",)``); none: ``k = -1/TAU_FALLBACK_S``.  Vertical: the root nearest
+    the target loop frequency :func:`vertical_target_w` (:func:`find_root_near`, scanned in
+    quarter root spacings ``pi/(4T)``); none: ``k2 = -w*^2``.  The corrected track
+    ``s(k, t) - r (t - t_0)/T`` (``r`` the end miss) meets the end point exactly; its
+    sensitivity to ``k`` is ``ds/dk - (t - t_0)/T ds_N/dk``.
+    """
+    hold, tol_m, max_iter, _p, _kt, _strict, _rule, _policy = opts
+    dt = float(t[1] - t[0])
+    T = float(t[-1] - t[0])
+    k_ref, k_neg = scales
+    span_lo = max(1e-2, 1.0 / (TAU_MAX_S * k_ref))
+    if kind == "vertical":
+        w_t = vertical_target_w(T)
+        w_hi = min(3.0 * w_t, 0.5 / dt)
+        report = find_root_near(fun, w_target=min(w_t, w_hi), w_step=np.pi / (4.0 * T),
+                                w_lo=w_t / 3.0, w_hi=w_hi, tol_m=tol_m, max_iter=max_iter,
+                                fun_many=fun_many, axis=axis)
+        k_fb = -min(w_t, w_hi) ** 2
+    else:
+        report = find_coefficient(fun, k_ref=k_ref, k_max_pos=k_ref, k_max_neg=k_neg,
+                                  tol_m=tol_m, max_iter=max_iter, span_lo=span_lo,
+                                  k0=-3.0 * max(k_ref, 1.0 / TAU_MAX_S),
+                                  points_per_decade=POINTS_PER_DECADE, fun_many=fun_many,
+                                  axis=axis, branches=("negative",))
+        if report.converged and abs(report.root) * TAU_MAX_S < 1.0:
+            report = replace(report, converged=False, branch="none", reason=(
+                f"no root taken: the only root, k = {report.root:.4g} 1/s (time constant "
+                f"{-1.0 / report.root:.0f} s), is slower than the {TAU_MAX_S:.0f} s limit: "
+                "not taken"))
+        k_fb = -1.0 / TAU_FALLBACK_S
+    k = report.root if report.converged else k_fb
+    coef = vertical_step(k, dt, hold) if kind == "vertical" else horizontal_step(k, dt, hold)
+    Q, S = propagate_path(coef, (0.0, v0), a, w, k)
+    if report.converged:
+        return AxisSolution(k, Q[:, 0], Q[:, 1], S[:, 0], S[:, 1], report)
+    # no root taken is not a failure of this policy (the track meets the end point and says
+    # how): ``strict`` does not raise here, it raises where the paper policy leaves no track
+    miss = float(Q[-1, 0] - s_T)
+    frac = (t - t[0]) / T
+    pos = Q[:, 0] - miss * frac
+    vel = Q[:, 1] - miss / T
+    dpos = S[:, 0] - frac * S[-1, 0]
+    dvel = S[:, 1] - S[-1, 0] / T
+    return AxisSolution(k, pos, vel, dpos, dvel, report, miss, True)
+
+
 def solve_axis_y(t, a_y, h, y0: float, y_T: float | None = None, *, k: float | None = None,
                  k0: float | None = None, hold: str = "linear", tol_m: float = 1e-3,
                  max_iter: int = 60, parametrisation: str = "k", kt_max: float = KT_MAX,
-                 strict: bool = False, rule: str = "baro") -> AxisSolution:
+                 strict: bool = False, rule: str = "baro",
+                 policy: str = "paper") -> AxisSolution:
     """Vertical axis: ``y'' - k2 y = a_y - k2 h``, ``y(0) = 0``, ``y'(0) = y0``, ``y(T) = y_T``.
 
     docs/sabziev.md; seed 001 equations (1)-(4).  Either ``y_T`` (boundary-value mode:
@@ -149,9 +273,12 @@ def solve_axis_y(t, a_y, h, y0: float, y_T: float | None = None, *, k: float | N
     strict : raise ConvergenceError when no root is found
     rule : root selection on the oscillatory negative branch: ``"baro"`` (default; the root
         whose track stays closest to ``h`` in RMS) or ``"slowest"`` (smallest ``w``);
-        :mod:`flightrecon.fusion.newton`, step 4
+        :mod:`flightrecon.fusion.newton`, step 4 (policy ``paper``)
+    policy : ``"paper"`` (both branches; NaN without a root) or ``"stable"`` (the root nearest
+        :func:`vertical_target_w` on the stable branch, else ``k2 = -w*^2`` with the end miss
+        removed linearly in time; :data:`POLICIES`, :func:`_solve_stable`)
     """
-    opts = _AxisOptions(hold, tol_m, max_iter, parametrisation, kt_max, strict, rule)
+    opts = _AxisOptions(hold, tol_m, max_iter, parametrisation, kt_max, strict, rule, policy)
     return _solve_axis("vertical", t, a_y, h, float(y0), y_T, k, k0, opts, "y (vertical)")
 
 
@@ -159,7 +286,7 @@ def solve_axis_horizontal(t, a, v_air, v0: float, s_T: float | None = None, *,
                           k: float | None = None, k0: float | None = None,
                           hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
                           kt_max: float = KT_MAX, strict: bool = False,
-                          axis: str = "horizontal") -> AxisSolution:
+                          axis: str = "horizontal", policy: str = "paper") -> AxisSolution:
     """Horizontal axis: ``s'' - k s' = a - k v_air``, ``s(0) = 0``, ``s'(0) = v0``, ``s(T) = s_T``.
 
     docs/sabziev.md; seed 001 section IV (x with k1, z with k3).
@@ -172,10 +299,11 @@ def solve_axis_horizontal(t, a, v_air, v0: float, s_T: float | None = None, *,
     v0 : velocity along the axis at lift-off [m/s]
     s_T : end coordinate relative to the lift-off point [m]
     k : coefficient [1/s] for the initial-value mode
-    k0, hold, tol_m, max_iter, kt_max, strict : as :func:`solve_axis_y`
+    k0, hold, tol_m, max_iter, kt_max, strict, policy : as :func:`solve_axis_y` (policy
+        ``stable``: the slowest negative root, else ``k = -1/TAU_FALLBACK_S`` corrected)
     axis : name for messages
     """
-    opts = _AxisOptions(hold, tol_m, max_iter, "k", kt_max, strict)
+    opts = _AxisOptions(hold, tol_m, max_iter, "k", kt_max, strict, "slowest", policy)
     return _solve_axis("horizontal", t, a, v_air, float(v0), s_T, k, k0, opts, axis)
 
 
@@ -239,6 +367,12 @@ class SabzievSolution:
         return all(a.report is None or a.report.converged for a in self.axes.values())
 
     @property
+    def end_met(self) -> bool:
+        """All three axes have a finite track meeting the end point (a root, or the linear
+        correction of the policy ``stable``; :attr:`AxisSolution.end_met`)."""
+        return all(a.end_met for a in self.axes.values())
+
+    @property
     def north_m(self) -> np.ndarray:
         return self.xyz_m[:, 0]
 
@@ -287,7 +421,7 @@ def air_velocity(tas, heading_rad, climb_rate, wind_ne=None) -> tuple[np.ndarray
 def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, k=None, *,
          k0=None, hold: str = "linear", tol_m: float = 1e-3, max_iter: int = 60,
          parametrisation: str = "k", kt_max: float = KT_MAX, strict: bool = False,
-         vertical_rule: str = "baro") -> SabzievSolution:
+         vertical_rule: str = "baro", policy: str = "paper") -> SabzievSolution:
     """Sabziev boundary-value fusion of loads, airspeed, heading and baro height (docs/sabziev.md).
 
     Solves the vertical axis first (k2), then north (k1) and east (k3), which need ``y'``.
@@ -309,7 +443,8 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
     k0 : start values (k1, k2, k3) of the iterations, or None for the defaults
     hold, tol_m, max_iter, parametrisation, kt_max, strict : as :func:`solve_axis_y`
         (``parametrisation`` applies to k2 only, like the paper)
-    vertical_rule : root selection for k2 (``rule`` of :func:`solve_axis_y`)
+    vertical_rule : root selection for k2 (``rule`` of :func:`solve_axis_y`, policy ``paper``)
+    policy : :data:`POLICIES` (``paper`` here for the library; the adapter uses ``stable``)
 
     Returns
     -------
@@ -323,7 +458,7 @@ def fuse(t, a_ned, tas, heading_rad, h_rel, v0_ned, end_ned=None, wind_ne=None, 
     targets, ks, end = _end_or_coefficients(end_ned, k)
     starts = (None, None, None) if k0 is None else tuple(k0)
     common: dict[str, Any] = {"hold": hold, "tol_m": tol_m, "max_iter": max_iter,
-                              "kt_max": kt_max, "strict": strict}
+                              "kt_max": kt_max, "strict": strict, "policy": policy}
     ax_y = solve_axis_y(t, -a_ned[:, 2], h_rel, -v0[2], targets[1], k=ks[1], k0=starts[1],
                         parametrisation=parametrisation, rule=vertical_rule, **common)
     if np.all(np.isfinite(ax_y.velocity_mps)):
@@ -413,4 +548,8 @@ def _cross_sensitivities(dt, hold, a_ned, tas, psi, v0, climb, dclimb, axes, air
         _, S = propagate_path(zero, (0.0, v0[a_col]), u, dvh * trig, 0.0, dscale=ax.k)
         cross[:, i] = S[:, 0]
         dcross[:, i] = S[:, 1]
+        if ax.fallback:  # the linear end correction removes the end value's sensitivity too
+            frac = np.arange(n) / (n - 1)
+            cross[:, i] -= frac * S[-1, 0]
+            dcross[:, i] -= S[-1, 0] / ((n - 1) * dt)
     return cross, dcross
