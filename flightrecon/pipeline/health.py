@@ -36,6 +36,11 @@ def self_verdict_reason(summary: dict[str, Any]) -> str:
     elif cons and cons.get("count", 1) == 0:
         why.append("no measurement reached its filter (nothing to check its noise against)")
     why += [str(w) for w in summary.get("warnings", []) or [] if "(unhealthy)" in str(w)]
+    # a method's own list of problems (Sabziev's health_problems: text or {"what": ...})
+    for p in summary.get("health_problems", []) or []:
+        text = p.get("what") if isinstance(p, dict) else p
+        if text and str(text) not in why:
+            why.append(str(text))
     if not why:
         why.append("it reports itself unhealthy and gives no reason")
     return "; ".join(why)
