@@ -73,6 +73,13 @@ class AirframeModel:
     Speeds are calibrated airspeeds [m/s]; ``rest_agl_ft`` is the height of the centre of
     gravity above the runway at rest (where the model settles, measured); ``engines`` the number
     of throttles; ``gains`` the autopilot's loop gains (:class:`~flightrecon.sim.autopilot.Gains`).
+    ``circuit_mps`` are the circuit's leg speeds (crosswind and downwind, base, the turn onto
+    final, final intercept) and ``circuit_scale`` scales the circuit's distances (a faster
+    aircraft turns wider); ``sensor_class`` picks the recorder's base performance and the
+    spread of its persistent errors (``"light"`` or ``"jet"``, :mod:`flightrecon.sim.aircraft`).
+    ``aircraft_class`` is a word for the tables (piston single, twin piston, turboprop, ...).
+    ``start_each_engine``: magnetos on and every engine started by its own property (the
+    packaged Cessna 310's piston engines do not run from the global start alone).
     """
 
     model: str
@@ -91,6 +98,11 @@ class AirframeModel:
     gains: str
     brake: float = 0.6
     flare_pitch_deg: float = 5.0
+    circuit_mps: tuple[float, float, float, float] = (40.0, 45.0, 38.0, 36.0)
+    circuit_scale: float = 1.0
+    sensor_class: str = "light"
+    aircraft_class: str = "piston single"
+    start_each_engine: bool = False
 
 
 @dataclass(frozen=True)
@@ -180,6 +192,11 @@ class Fdm:
         f["atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps"] = \
             weather.turbulence_wind_20ft_mps / FT
         f["propulsion/set-running"] = -1
+        if airframe.start_each_engine:
+            f["propulsion/magneto_cmd"] = 3
+            f["propulsion/starter_cmd"] = 1
+            for i in range(airframe.engines):
+                f[f"propulsion/engine[{i}]/set-running"] = 1
         for i in range(airframe.engines):
             sfx = "" if i == 0 else f"[{i}]"
             f[f"fcs/mixture-cmd-norm{sfx}"] = 1.0
