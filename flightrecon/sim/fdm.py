@@ -80,6 +80,10 @@ class AirframeModel:
     ``aircraft_class`` is a word for the tables (piston single, twin piston, turboprop, ...).
     ``start_each_engine``: magnetos on and every engine started by its own property (the
     packaged Cessna 310's piston engines do not run from the global start alone).
+    ``climb_at_climb_speed``: a leg that climbs by more than the autopilot's level-change band
+    flies at ``climb_mps`` until it is within the band (the trainers and jets: holding the
+    pitch on a cruise speed they could not climb at, the level change dived them into the
+    ground; the Cessna and the 737 fly as they always did, their records unchanged).
     """
 
     model: str
@@ -103,6 +107,7 @@ class AirframeModel:
     sensor_class: str = "light"
     aircraft_class: str = "piston single"
     start_each_engine: bool = False
+    climb_at_climb_speed: bool = False
 
 
 @dataclass(frozen=True)
@@ -153,6 +158,7 @@ class Fdm:
         f.set_debug_level(0)
         if not f.load_model(airframe.model):  # pragma: no cover - the packaged models
             raise FlightReconError(f"JSBSim cannot load aircraft {airframe.model!r}")
+        f.disable_output()  # the packaged Global 5000 logs to a CSV in the working directory
         f.set_dt(dt_s)
         self.f = f
         self.dt_s = dt_s

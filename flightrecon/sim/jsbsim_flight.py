@@ -187,8 +187,12 @@ class Leg:
         brg, xt, at, length = leg_geometry(*self.start, self.lat, self.lon, s["lat"], s["lon"])
         track = brg - math.degrees(math.atan2(xt, self.cross_scale_m))
         ail, rud = c.ap.lateral(s, c.dt, track_deg=track)
+        cas = self.cas
+        a = c.fdm.airframe
+        if a.climb_at_climb_speed and self.alt_m - s["h"] > c.ap.gains.level_change_band_m:
+            cas = min(cas, a.climb_mps)
         elev, thr = c.ap.vertical(s, c.dt, alt_m=self.alt_m, vs_max=self.vs_max,
-                                  vs_min=self.vs_min, cas_mps=self.cas)
+                                  vs_min=self.vs_min, cas_mps=cas)
         c.surfaces(ail, elev, rud, thr, flaps=self.flaps)
         if at >= length - self.anticipate_m:
             c.wp = (self.lat, self.lon)
@@ -407,9 +411,10 @@ class Chandelle:
 class Stall:
     """A power-off stall and its recovery: idle, wings level, the nose raised at
     ``pitch_rate_dps`` (to at most ``pitch_deg``) until the speed falls to ``stall_fraction``
-    of the airframe's approach speed (about its clean stall speed), then the nose lowered to
+    of the airframe's approach speed (about its clean stall speed) or it sinks faster than
+    4 m/s, then the nose lowered to
     ``recover_pitch_deg`` at full power until the speed is back to ``recover_fraction`` of the
-    approach speed and the aircraft no longer sinks faster than 2 m/s."""
+    approach speed (the next leg climbs back)."""
 
     ground = False
     upset = False
@@ -427,12 +432,14 @@ class Stall:
         if not self.started:
             self.started = True
             c.events.setdefault("stall_entry_t_s", s["t"])
-        if not self.stalled and s["vc"] < self.frac * a.approach_mps:
+        # the stall: the speed gone, or the aircraft sinking nose-high (a mushing stall at
+        # full aft stick: the T-6 at 45 m/s, 20 deg angle of attack)
+        if not self.stalled and (s["vc"] < self.frac * a.approach_mps or -s["vd"] < -4.0):
             self.stalled = True
             c.events.setdefault("stall_t_s", s["t"])
         ail, rud = c.ap.lateral(s, c.dt, bank_deg=0.0)
         if self.stalled:
-            if s["vc"] > self.recover_frac * a.approach_mps and -s["vd"] > -2.0:
+            if s["vc"] > self.recover_frac * a.approach_mps:
                 _recovered(c, s)
                 return True
             pitch = max(self.recover_pitch, c.ap.pitch_cmd - 5.0 * c.dt)
