@@ -39,6 +39,14 @@ def test_the_command_line_knows_every_airframe_scenario_and_export():
     assert set(EXPORT_NAMES) == set(EXPORT_FORMATS)
 
 
+def test_an_unknown_airframe_is_named():
+    """Guards the look-up: a misspelt aircraft was a bare KeyError deep in the simulator."""
+    from flightrecon.errors import ValidationError
+
+    with pytest.raises(ValidationError, match="unknown JSBSim aircraft 'c310x'.*global5000"):
+        simulate("jsbsim-circuit", 1, airframe="c310x")
+
+
 def _touchdown(r, name: str, airframe: str):
     cfg = jsbsim_config(name, airframe=airframe)
     _, dest, _, _ = schedule(name, cfg)

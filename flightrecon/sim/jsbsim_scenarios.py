@@ -12,7 +12,14 @@ the aircraft on its gear before ``t = 0``), and is flown by the autopilot of
   descent, landing about 2000 km away (about 3 hours);
 * ``jsbsim-spiral``: the Cessna climbs to 1800 m, cruises, then a loss of control in a spiral
   dive to the ground; ``jsbsim-spin``: the same to 1500 m, then a stall and spin to the ground.
-  Both records end at the impact; the wreckage is the sidecar's arrival.
+  Both records end at the impact; the wreckage is the sidecar's arrival;
+* ``jsbsim-airwork``: steep turns at 60 deg, a stall and its recovery, a spiral, chandelles,
+  then the landing; ``jsbsim-holding``: four laps of a racetrack in 20-25 m/s of wind that
+  turns by 50-70 deg, then the landing; ``jsbsim-goaround``: the circuit with a go-around from
+  60 m on the first approach.
+
+Any scenario flies any aircraft of :data:`AIRFRAMES` (``airframe=``): the Cessna, the 737, the
+T-6 Texan II and the PC-7 trainers, the Global 5000 business jet and the 747.
 
 Per seed: the wind (speed, direction, shear, veer, a slow change in time and random walks in
 time and height), JSBSim's turbulence (seeded, light to moderate), the temperature offset, the
@@ -420,7 +427,11 @@ def jsbsim_config(name: str, **overrides: Any) -> JsbsimConfig:
     if name not in JSBSIM_SCENARIOS:
         raise ValidationError(f"unknown JSBSim scenario '{name}'; choose one of "
                               f"{sorted(JSBSIM_SCENARIOS)}")
-    return config_with_overrides(JSBSIM_SCENARIOS[name].config, overrides)
+    cfg = config_with_overrides(JSBSIM_SCENARIOS[name].config, overrides)
+    if cfg.airframe not in AIRFRAMES:
+        raise ValidationError(f"unknown JSBSim aircraft '{cfg.airframe}'; choose one of "
+                              f"{sorted(AIRFRAMES)}")
+    return cfg
 
 
 def config_with_overrides(config: Any, overrides: dict[str, Any]) -> Any:
