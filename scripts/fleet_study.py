@@ -187,6 +187,13 @@ def one_run(airframe: str, scenario: str, overrides: dict, seed: int, tmp: Path)
             row["healthy"] = bool(h["healthy"])
             row["health_problems"] = [p["what"] for p in h["problems"]][:4]
             row["converged"] = bool(j.summary.get("converged"))
+            corr = j.summary.get("corrections", {})
+            row["heading_bias_deg"] = corr.get("heading_bias_deg")
+            row["tas_scale"] = corr.get("tas_scale")
+            pe = r.sensor_truth["persistent_errors"]
+            row["heading_bias_truth_deg"] = pe["heading_bias_deg"]
+            row["tas_scale_truth"] = pe["airspeed_scale"]
+            row["joint_warnings"] = list(j.summary.get("warnings", []))[:5]
             row["ends"] = _end_points(j.track, clean, flight.meta)
         d, err = _attempt(dead_reckoning, clean, corrected=True)
         row["dr_linear"] = {"error": err} if d is None else _interp_errors(d, truth, airborne)
