@@ -139,6 +139,27 @@ def _end_points(track: pd.DataFrame, clean, meta) -> dict[str, float]:
     return out
 
 
+def _touchdown_truth(track: pd.DataFrame, truth: pd.DataFrame, events: dict, meta
+                     ) -> dict[str, float]:
+    """At the true touchdown: how far the given touchdown point (``touchdown_m`` past the
+    arrival threshold) is from where the aircraft touched down, along the runway, and the
+    joint's horizontal error there."""
+    if "touchdown_t_s" not in events or meta.arrival is None or meta.arrival.threshold is None:
+        return {}
+    pos = meta.arrival
+    rw = Runway(pos.threshold_lat_deg, pos.threshold_lon_deg, pos.runway_true_deg, pos.elev_m)
+    along, _ = rw.coords(events["touchdown_lat_deg"], events["touchdown_lon_deg"])
+    t = events["touchdown_t_s"]
+    i = int(np.searchsorted(truth["t_s"].to_numpy(), t - 1e-9))
+    tt = track["t_s"].to_numpy(float)
+    dn = float(np.interp(t, tt, track["joint_north_m"].to_numpy(float))) \
+        - float(truth["north_m"].iloc[i])
+    de = float(np.interp(t, tt, track["joint_east_m"].to_numpy(float))) \
+        - float(truth["east_m"].iloc[i])
+    return {"given_touchdown_off_m": float(along - JointNoise().touchdown_m),
+            "track_error_at_touchdown_m": float(math.hypot(dn, de))}
+
+
 def _attempt(fn, *args, **kw):
     try:
         return fn(*args, **kw), None
@@ -195,6 +216,8 @@ def one_run(airframe: str, scenario: str, overrides: dict, seed: int, tmp: Path)
             row["tas_scale_truth"] = pe["airspeed_scale"]
             row["joint_warnings"] = list(j.summary.get("warnings", []))[:5]
             row["ends"] = _end_points(j.track, clean, flight.meta)
+            row["ends"].update(_touchdown_truth(j.track, truth, r.sensor_truth["events"],
+                                                flight.meta))
         d, err = _attempt(dead_reckoning, clean, corrected=True)
         row["dr_linear"] = {"error": err} if d is None else _interp_errors(d, truth, airborne)
         rows.append(row)
@@ -206,13 +229,19 @@ def _v(r: dict, m: str, k: str) -> float:
     return float(v) if v is not None else math.nan
 
 
+def _ends(rs: list[dict], key: str) -> np.ndarray:
+    return np.array([r.get("ends", {}).get(key, math.nan) for r in rs], float)
+
+
 def summarise(rows: list[dict]) -> str:
     """The per-case table (geometric means over seeds) and the per-run table."""
     flown = [r for r in rows if "sim_error" not in r]
     lines = ["| aircraft | scenario | format | runs | joint / DR+lin (geo. mean) | bar | "
              "meets bar | joint RMS h [m] (median) | DR+lin [m] (median) | RMS v [m] "
-             "(median) | v <= 40 m | NEES n / e (mean) | healthy | end points met |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "(median) | v <= 40 m | NEES n / e (mean) | healthy | end points met | "
+             "given touchdown point off [m] (median abs) | track error at touchdown [m] "
+             "(median) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     keys = []
     for r in flown:
         k = (r["airframe"], r["scenario"], r["format"])
@@ -242,7 +271,8 @@ def summarise(rows: list[dict]) -> str:
             f" | " + (f"{np.mean(nn[fin]):.2f} / {np.mean(ne[fin]):.2f}" if fin.any() else "-")
             + f" | {sum(bool(r.get('healthy')) for r in rs)}/{len(rs)} | "
             f"{sum(e <= 2.0 for e in ends if np.isfinite(e))}/{sum(np.isfinite(e) for e in ends)}"
-            " |")
+            f" | {med(np.abs(_ends(rs, 'given_touchdown_off_m')))}"
+            f" | {med(_ends(rs, 'track_error_at_touchdown_m'))} |")
     lines += ["", "Per run (RMS over the airborne truth samples; end points: the largest of "
               "|along| / sd and |cross| / sd at the line-up and the touchdown, and the track's "
               "last position from the arrival threshold):", "",
