@@ -155,7 +155,8 @@ def test_ed112_export_is_written_and_reads_back(tmp_path):
 def test_ed112_export_reconstructs(tmp_path):
     """The export through ``reconstruct`` with its mapping (the ordinary path): exit 0, a
     finite track, and the joint's horizontal RMS error against the truth below 1.5 km on this
-    7-minute circuit (the fleet study's minimum-rate circuits: 0.1-0.9 km, docs/tables)."""
+    7-minute circuit (the fleet study's minimum-rate circuits: 17-450 m on 46 flights of six
+    aircraft, the Cessna's 33-210 m; docs/tables/fleet_study.md)."""
     log = tmp_path / "c.parquet"
     assert run_cli(["simulate", "jsbsim-circuit", "--seed", "2", "--no-gnss", "--export",
                     "ed112", "-o", str(log)]) == 0
