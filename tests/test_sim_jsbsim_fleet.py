@@ -171,3 +171,16 @@ def test_ed112_export_reconstructs(tmp_path):
     dn = np.interp(t, res["t_s"], res["north_m"]) - truth["north_m"].to_numpy()[air]
     de = np.interp(t, res["t_s"], res["east_m"]) - truth["east_m"].to_numpy()[air]
     assert np.sqrt(np.mean(dn**2 + de**2)) < 1500.0
+
+
+def test_no_jsbsim_output_file_is_left_behind(tmp_path, monkeypatch):
+    """Guards the working directory: the packaged Global 5000 declares a CSV log of its own,
+    and every simulation of it wrote ``global5000.csv`` where it ran (found in the worktree
+    after the tests)."""
+    from flightrecon.sim.fdm import Fdm, FdmWeather
+    from flightrecon.sim.weather import WindField
+
+    monkeypatch.chdir(tmp_path)
+    Fdm(AIRFRAMES["global5000"], FdmWeather(wind=WindField(speed0_mps=0.0)), 40.46, 50.05,
+        3.0, 160.0, 1.0 / 96.0)
+    assert list(tmp_path.iterdir()) == []

@@ -25,6 +25,7 @@ and its standard atmosphere with a temperature offset and a sea-level pressure d
 from __future__ import annotations
 
 import math
+import tempfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -156,9 +157,14 @@ class Fdm:
         self.weather = weather
         f = jsbsim.FGFDMExec(None)
         f.set_debug_level(0)
-        if not f.load_model(airframe.model):  # pragma: no cover - the packaged models
+        # the packaged Global 5000 declares a CSV log of its own, opened (header written) when
+        # the model loads: into a scratch directory, then switched off
+        with tempfile.TemporaryDirectory() as scratch:
+            f.set_output_path(scratch)
+            loaded = f.load_model(airframe.model)
+            f.disable_output()
+        if not loaded:  # pragma: no cover - the packaged models
             raise FlightReconError(f"JSBSim cannot load aircraft {airframe.model!r}")
-        f.disable_output()  # the packaged Global 5000 logs to a CSV in the working directory
         f.set_dt(dt_s)
         self.f = f
         self.dt_s = dt_s
