@@ -62,15 +62,19 @@ ROOT = Path(__file__).resolve().parents[1]
 TABLES = ROOT / "docs" / "tables"
 FORMATS = ("canonical", "ed112")
 CASES = (
-    ("c172p", "jsbsim-circuit", {}), ("737", "jsbsim-circuit", {}),
+    ("c172p", "jsbsim-circuit", {}), ("c310", "jsbsim-circuit", {}),
+    ("737", "jsbsim-circuit", {}),
     ("t6texan2", "jsbsim-circuit", {}), ("pc7", "jsbsim-circuit", {}),
     ("global5000", "jsbsim-circuit", {}), ("B747", "jsbsim-circuit", {}),
     ("c172p", "jsbsim-airwork", {}), ("t6texan2", "jsbsim-airwork", {}),
     ("pc7", "jsbsim-airwork", {}),
-    ("c172p", "jsbsim-holding", {}), ("pc7", "jsbsim-holding", {}),
-    ("c172p", "jsbsim-goaround", {}), ("global5000", "jsbsim-goaround", {}),
+    ("c172p", "jsbsim-holding", {}), ("c310", "jsbsim-holding", {}),
+    ("pc7", "jsbsim-holding", {}),
+    ("c172p", "jsbsim-goaround", {}), ("c310", "jsbsim-goaround", {}),
+    ("global5000", "jsbsim-goaround", {}),
     ("B747", "jsbsim-goaround", {}),
-    ("t6texan2", "jsbsim-xc", {"scale": 0.2}), ("pc7", "jsbsim-xc", {"scale": 0.2}),
+    ("c310", "jsbsim-xc", {"scale": 0.2}), ("t6texan2", "jsbsim-xc", {"scale": 0.2}),
+    ("pc7", "jsbsim-xc", {"scale": 0.2}),
     ("global5000", "jsbsim-jet", {"scale": 0.05}), ("B747", "jsbsim-jet", {"scale": 0.05}),
 )
 """(aircraft, scenario, overrides): each aircraft on the schedules that fit its class (the

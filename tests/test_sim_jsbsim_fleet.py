@@ -19,7 +19,7 @@ from flightrecon.sim import simulate
 from flightrecon.sim.io import EXPORT_FORMATS
 from flightrecon.sim.jsbsim_scenarios import AIRFRAMES, JSBSIM_SCENARIOS, jsbsim_config, schedule
 
-NEW_AIRFRAMES = ("t6texan2", "pc7", "global5000", "B747")
+NEW_AIRFRAMES = ("c310", "t6texan2", "pc7", "global5000", "B747")
 """The aircraft added to the Cessna 172 and the 737 (issue #38)."""
 
 

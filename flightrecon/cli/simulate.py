@@ -11,7 +11,7 @@ SCENARIO_NAMES = ("circuit", "regional", "seed-ads-arms", "landing", "longhaul",
                   "jsbsim-airwork", "jsbsim-holding", "jsbsim-goaround")
 """Point-mass scenarios, then the JSBSim ones (docs/jsbsim.md; need the ``jsbsim`` extra)."""
 
-AIRFRAME_NAMES = ("c172p", "737", "t6texan2", "pc7", "global5000", "B747")
+AIRFRAME_NAMES = ("c172p", "c310", "737", "t6texan2", "pc7", "global5000", "B747")
 """The JSBSim aircraft (``flightrecon.sim.jsbsim_scenarios.AIRFRAMES``; a test keeps the two
 equal: the names are here so that the help needs no simulator import)."""
 

@@ -81,6 +81,10 @@ class AirframeModel:
     ``aircraft_class`` is a word for the tables (piston single, twin piston, turboprop, ...).
     ``start_each_engine``: magnetos on and every engine started by its own property (the
     packaged Cessna 310's piston engines do not run from the global start alone).
+    ``prop_advance``: the propeller levers of a constant-speed propeller (JSBSim's
+    ``fcs/advance-cmd-norm``; the Cessna 310's default 0 is the coarsest pitch: 1900 rpm at
+    full throttle, too little power to climb and accelerate, and the pitch-on-speed loop
+    pumped it into the ground); ``None`` leaves the model's default.
     ``climb_at_climb_speed``: a leg that climbs by more than the autopilot's level-change band
     flies at ``climb_mps`` until it is within the band (the trainers and jets: holding the
     pitch on a cruise speed they could not climb at, the level change dived them into the
@@ -109,6 +113,7 @@ class AirframeModel:
     aircraft_class: str = "piston single"
     start_each_engine: bool = False
     climb_at_climb_speed: bool = False
+    prop_advance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -211,6 +216,8 @@ class Fdm:
                 f[f"propulsion/engine[{i}]/set-running"] = 1
         for i in range(airframe.engines):
             sfx = "" if i == 0 else f"[{i}]"
+            if airframe.prop_advance is not None:
+                f[f"fcs/advance-cmd-norm{sfx}"] = airframe.prop_advance
             f[f"fcs/mixture-cmd-norm{sfx}"] = 1.0
             f[f"fcs/throttle-cmd-norm{sfx}"] = 0.0 if airborne is None else 0.6
         self.t0_s = 0.0

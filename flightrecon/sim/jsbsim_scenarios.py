@@ -18,8 +18,9 @@ the aircraft on its gear before ``t = 0``), and is flown by the autopilot of
   turns by 50-70 deg, then the landing; ``jsbsim-goaround``: the circuit with a go-around from
   60 m on the first approach.
 
-Any scenario flies any aircraft of :data:`AIRFRAMES` (``airframe=``): the Cessna, the 737, the
-T-6 Texan II and the PC-7 trainers, the Global 5000 business jet and the 747.
+Any scenario flies any aircraft of :data:`AIRFRAMES` (``airframe=``): the Cessna 172, the
+Cessna 310 twin, the 737, the T-6 Texan II and the PC-7 trainers, the Global 5000 business jet
+and the 747.
 
 Per seed: the wind (speed, direction, shear, veer, a slow change in time and random walks in
 time and height), JSBSim's turbulence (seeded, light to moderate), the temperature offset, the
@@ -71,6 +72,14 @@ AIRFRAMES = {
                          gains="jet", brake=0.5, flare_pitch_deg=8.0,
                          circuit_mps=(90.0, 90.0, 85.0, 80.0), circuit_scale=2.0,
                          sensor_class="jet", aircraft_class="airliner"),
+    "c310": AirframeModel(model="c310", engines=2, rest_agl_ft=3.32, vr_mps=42.0,
+                          climb_mps=46.0, cruise_mps=75.0, approach_mps=45.0,
+                          rotate_pitch_deg=8.0, takeoff_flaps=0.0, landing_flaps=1.0,
+                          flare_ft=20.0, climb_throttle=1.0, idle_throttle=0.25,
+                          gains="light", brake=0.5, flare_pitch_deg=7.0,
+                          circuit_mps=(55.0, 58.0, 50.0, 48.0), circuit_scale=1.3,
+                          aircraft_class="twin piston", start_each_engine=True,
+                          prop_advance=1.0, climb_at_climb_speed=True),
     "t6texan2": AirframeModel(model="t6texan2", engines=1, rest_agl_ft=6.09, vr_mps=40.0,
                               climb_mps=72.0, cruise_mps=100.0, approach_mps=50.0,
                               rotate_pitch_deg=8.0, takeoff_flaps=0.5, landing_flaps=1.0,
