@@ -29,7 +29,8 @@ from flightrecon.sim.jsbsim_scenarios import (
 )
 
 SHORT = {"jsbsim-circuit": 1.0, "jsbsim-xc": 0.12, "jsbsim-jet": 0.05, "jsbsim-spiral": 0.1,
-         "jsbsim-spin": 0.1}
+         "jsbsim-spin": 0.1, "jsbsim-airwork": 1.0, "jsbsim-holding": 0.25,
+         "jsbsim-goaround": 1.0}
 """Scale of each scenario's short version in these tests."""
 
 

@@ -7,8 +7,16 @@ from pathlib import Path
 import click
 
 SCENARIO_NAMES = ("circuit", "regional", "seed-ads-arms", "landing", "longhaul",
-                  "jsbsim-circuit", "jsbsim-xc", "jsbsim-jet", "jsbsim-spiral", "jsbsim-spin")
+                  "jsbsim-circuit", "jsbsim-xc", "jsbsim-jet", "jsbsim-spiral", "jsbsim-spin",
+                  "jsbsim-airwork", "jsbsim-holding", "jsbsim-goaround")
 """Point-mass scenarios, then the JSBSim ones (docs/jsbsim.md; need the ``jsbsim`` extra)."""
+
+AIRFRAME_NAMES = ("c172p", "c310", "737", "t6texan2", "pc7", "global5000", "B747")
+"""The JSBSim aircraft (``flightrecon.sim.jsbsim_scenarios.AIRFRAMES``; a test keeps the two
+equal: the names are here so that the help needs no simulator import)."""
+
+EXPORT_NAMES = ("ed112",)
+"""Recorder exports written beside the log (``flightrecon.sim.io.EXPORT_FORMATS``)."""
 
 
 @click.command("simulate")
@@ -21,13 +29,21 @@ SCENARIO_NAMES = ("circuit", "regional", "seed-ads-arms", "landing", "longhaul",
 @click.option("--scale", type=click.FloatRange(min=0.01, max=1.0), default=None,
               help="JSBSim scenarios: shorten the en-route legs by this factor (1 = full "
                    "length).")
+@click.option("--airframe", type=click.Choice(AIRFRAME_NAMES), default=None,
+              help="JSBSim scenarios: fly this aircraft instead of the scenario's own "
+                   "(docs/jsbsim.md, \"Fleet\").")
+@click.option("--export", "export", type=click.Choice(EXPORT_NAMES), default=None,
+              help="Also write the log as this recorder export: ed112 = the ED-112 minimum "
+                   "rates (<stem>.ed112.csv, its mapping <stem>.ed112.mapping.toml and "
+                   "sidecar <stem>.ed112.meta.toml; recorder channels only).")
 @click.option("--no-gnss", is_flag=True, help="Record no GNSS (recorder channels only).")
 @click.option("-o", "--output", "output", required=True,
               type=click.Path(dir_okay=False, path_type=Path),
               help="Log file (.parquet or .csv); truth, sidecar and sensor truth beside it.")
 @click.pass_context
 def command(ctx: click.Context, scenario: str, seed: int, fleet_flights: int | None,
-            aircraft_id: str, scale: float | None, no_gnss: bool, output: Path) -> None:
+            aircraft_id: str, scale: float | None, airframe: str | None, export: str | None,
+            no_gnss: bool, output: Path) -> None:
     """Simulate SCENARIO and write its log (-o), <stem>.truth.parquet, <stem>.meta.toml and
     <stem>.sensors.json.
 
@@ -35,6 +51,7 @@ def command(ctx: click.Context, scenario: str, seed: int, fleet_flights: int | N
     docs/jsbsim.md) with the project's recorder model on top."""
     from flightrecon.errors import OutputError
     from flightrecon.sim import simulate, simulate_fleet, write_simulation
+    from flightrecon.sim.io import write_export
 
     if output.suffix.lower() not in (".parquet", ".csv"):
         raise OutputError("the log must end in .parquet or .csv", file=str(output))
@@ -44,6 +61,10 @@ def command(ctx: click.Context, scenario: str, seed: int, fleet_flights: int | N
         if not scenario.startswith("jsbsim-"):
             raise click.UsageError("--scale applies to the jsbsim-* scenarios only")
         overrides["scale"] = scale
+    if airframe is not None:
+        if not scenario.startswith("jsbsim-"):
+            raise click.UsageError("--airframe applies to the jsbsim-* scenarios only")
+        overrides["airframe"] = airframe
     if fleet_flights is None:
         results = [(output, simulate(scenario, seed, **overrides))]
     else:
@@ -53,6 +74,8 @@ def command(ctx: click.Context, scenario: str, seed: int, fleet_flights: int | N
                    for r in flights]
     for path, result in results:
         written = write_simulation(result, path)
+        if export is not None:
+            written.update(write_export(result, path, export))
         if not quiet:
             for p in written.values():
                 click.echo(f"wrote {p}")

@@ -25,6 +25,7 @@ and its standard atmosphere with a temperature offset and a sea-level pressure d
 from __future__ import annotations
 
 import math
+import tempfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,6 +74,21 @@ class AirframeModel:
     Speeds are calibrated airspeeds [m/s]; ``rest_agl_ft`` is the height of the centre of
     gravity above the runway at rest (where the model settles, measured); ``engines`` the number
     of throttles; ``gains`` the autopilot's loop gains (:class:`~flightrecon.sim.autopilot.Gains`).
+    ``circuit_mps`` are the circuit's leg speeds (crosswind and downwind, base, the turn onto
+    final, final intercept) and ``circuit_scale`` scales the circuit's distances (a faster
+    aircraft turns wider); ``sensor_class`` picks the recorder's base performance and the
+    spread of its persistent errors (``"light"`` or ``"jet"``, :mod:`flightrecon.sim.aircraft`).
+    ``aircraft_class`` is a word for the tables (piston single, twin piston, turboprop, ...).
+    ``start_each_engine``: magnetos on and every engine started by its own property (the
+    packaged Cessna 310's piston engines do not run from the global start alone).
+    ``prop_advance``: the propeller levers of a constant-speed propeller (JSBSim's
+    ``fcs/advance-cmd-norm``; the Cessna 310's default 0 is the coarsest pitch: 1900 rpm at
+    full throttle, too little power to climb and accelerate, and the pitch-on-speed loop
+    pumped it into the ground); ``None`` leaves the model's default.
+    ``climb_at_climb_speed``: a leg that climbs by more than the autopilot's level-change band
+    flies at ``climb_mps`` until it is within the band (the trainers and jets: holding the
+    pitch on a cruise speed they could not climb at, the level change dived them into the
+    ground; the Cessna and the 737 fly as they always did, their records unchanged).
     """
 
     model: str
@@ -91,6 +107,13 @@ class AirframeModel:
     gains: str
     brake: float = 0.6
     flare_pitch_deg: float = 5.0
+    circuit_mps: tuple[float, float, float, float] = (40.0, 45.0, 38.0, 36.0)
+    circuit_scale: float = 1.0
+    sensor_class: str = "light"
+    aircraft_class: str = "piston single"
+    start_each_engine: bool = False
+    climb_at_climb_speed: bool = False
+    prop_advance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -139,7 +162,13 @@ class Fdm:
         self.weather = weather
         f = jsbsim.FGFDMExec(None)
         f.set_debug_level(0)
-        if not f.load_model(airframe.model):  # pragma: no cover - the packaged models
+        # the packaged Global 5000 declares a CSV log of its own, opened (header written) when
+        # the model loads: into a scratch directory, then switched off
+        with tempfile.TemporaryDirectory() as scratch:
+            f.set_output_path(scratch)
+            loaded = f.load_model(airframe.model)
+            f.disable_output()
+        if not loaded:  # pragma: no cover - the packaged models
             raise FlightReconError(f"JSBSim cannot load aircraft {airframe.model!r}")
         f.set_dt(dt_s)
         self.f = f
@@ -180,8 +209,15 @@ class Fdm:
         f["atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps"] = \
             weather.turbulence_wind_20ft_mps / FT
         f["propulsion/set-running"] = -1
+        if airframe.start_each_engine:
+            f["propulsion/magneto_cmd"] = 3
+            f["propulsion/starter_cmd"] = 1
+            for i in range(airframe.engines):
+                f[f"propulsion/engine[{i}]/set-running"] = 1
         for i in range(airframe.engines):
             sfx = "" if i == 0 else f"[{i}]"
+            if airframe.prop_advance is not None:
+                f[f"fcs/advance-cmd-norm{sfx}"] = airframe.prop_advance
             f[f"fcs/mixture-cmd-norm{sfx}"] = 1.0
             f[f"fcs/throttle-cmd-norm{sfx}"] = 0.0 if airborne is None else 0.6
         self.t0_s = 0.0

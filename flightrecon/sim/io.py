@@ -7,6 +7,11 @@
 * ``x.meta.toml``: the metadata sidecar (format shared with :mod:`flightrecon.ingest`);
 * ``x.sensors.json``: persistent sensor errors, weather, events and injected faults.
 
+``write_export(result, "x.parquet", "ed112")`` adds the ED-112 minimum-rate export of the same
+log (:mod:`flightrecon.sim.ed112`): ``x.ed112.csv``, the mapping that reads it,
+``x.ed112.mapping.toml``, and its sidecar ``x.ed112.meta.toml`` (the same metadata, so that
+``flightrecon reconstruct x.ed112.csv --mapping x.ed112.mapping.toml`` finds its end points).
+
 Every file is written atomically (:func:`flightrecon.export.atomic.atomic_path`); the same
 result gives byte-identical files.
 """
@@ -23,7 +28,11 @@ from flightrecon.errors import OutputError
 from flightrecon.export.atomic import atomic_path, write_text_atomic
 from flightrecon.types import FlightMeta, Position
 
-__all__ = ["meta_toml", "sibling", "write_frame", "write_simulation"]
+__all__ = ["EXPORT_FORMATS", "meta_toml", "sibling", "write_export", "write_frame",
+           "write_simulation"]
+
+EXPORT_FORMATS = ("ed112",)
+"""Recorder export formats that :func:`write_export` writes beside a simulated log."""
 
 CSV_FLOAT_FORMAT = "%.10g"
 """CSV number format: 10 significant digits (1e-6 deg of latitude is 0.1 m; finer than
@@ -114,4 +123,41 @@ def write_simulation(result, path: str | Path) -> dict[str, Path]:
     out["sensors"] = write_text_atomic(
         sibling(path, ".sensors.json"),
         json.dumps(result.sensor_truth, indent=1, sort_keys=True, allow_nan=False) + "\n")
+    return out
+
+
+def write_export(result, path: str | Path, fmt: str) -> dict[str, Path]:
+    """Write the recorder export ``fmt`` of ``result``'s log beside ``path`` (module
+    docstring).
+
+    Parameters
+    ----------
+    result : :class:`~flightrecon.sim.scenarios.SimResult`
+    path : the simulated log's path (the export's names derive from it)
+    fmt : one of :data:`EXPORT_FORMATS`
+
+    Returns
+    -------
+    dict
+        The written paths by role (``export``, ``mapping``, ``export_meta``).
+
+    Raises
+    ------
+    OutputError
+        An unknown format, or a result without a departure (the magnetic declination of the
+        recorded heading needs a place).
+    """
+    if fmt not in EXPORT_FORMATS:
+        raise OutputError(f"unknown export format {fmt!r}; choose one of {list(EXPORT_FORMATS)}")
+    from flightrecon.sim.ed112 import ed112_export, ed112_mapping
+
+    dep = result.meta.departure
+    if dep is None:
+        raise OutputError("the ED-112 export needs the flight's departure (magnetic heading)")
+    ex = ed112_export(result.log, lat_deg=dep.lat_deg, lon_deg=dep.lon_deg,
+                      epoch_utc=result.meta.epoch_utc)
+    out = {"export": write_frame(ex, sibling(path, f".{fmt}.csv"))}
+    out["mapping"] = write_text_atomic(sibling(path, f".{fmt}.mapping.toml"), ed112_mapping(ex))
+    out["export_meta"] = write_text_atomic(sibling(path, f".{fmt}.meta.toml"),
+                                           meta_toml(result.meta))
     return out

@@ -25,9 +25,12 @@ from flightrecon.sim.fdm import Fdm
 
 # roll or pitch beyond this with the wheels on the ground is an overturned aircraft [deg]
 GROUND_TILT_DEG = 30.0
+# a climb faster than this from the ground on a ground phase is JSBSim's gear springs
+# launching the aircraft (seen: the PC-7 rolling out, 62 m/s upwards in half a second) [m/s]
+GROUND_LAUNCH_MPS = 10.0
 
-__all__ = ["Approach", "Leg", "Rest", "Runway", "SpiralDive", "StallSpin", "TakeOff", "Wait",
-           "fly"]
+__all__ = ["Approach", "Chandelle", "GoAround", "Leg", "Rest", "Runway", "SpiralDive", "Stall", "StallSpin",
+           "SteepTurn", "TakeOff", "Wait", "fly"]
 
 
 @dataclass(frozen=True)
@@ -152,6 +155,19 @@ class TakeOff:
         return False
 
 
+class GoAround(TakeOff):
+    """The climb-out of a go-around: :class:`TakeOff`'s airborne part (climb thrust at once,
+    take-off flaps, the pitch holding the speed, which grows at 1 m/s per second to the climb
+    speed, on the runway's centre line) from where the abandoned approach ends, to ``agl_m``
+    above the runway."""
+
+    ground = False
+
+    def __init__(self, runway: Runway, agl_m: float) -> None:
+        super().__init__(runway, agl_m)
+        self.rotated = True
+
+
 class Leg:
     """Fly from the last waypoint to (``lat``, ``lon``) at ``alt_m`` (MSL) and ``cas_mps``;
     done ``anticipate_m`` before the waypoint (the turn onto the next leg starts there)."""
@@ -171,8 +187,12 @@ class Leg:
         brg, xt, at, length = leg_geometry(*self.start, self.lat, self.lon, s["lat"], s["lon"])
         track = brg - math.degrees(math.atan2(xt, self.cross_scale_m))
         ail, rud = c.ap.lateral(s, c.dt, track_deg=track)
+        cas = self.cas
+        a = c.fdm.airframe
+        if a.climb_at_climb_speed and self.alt_m - s["h"] > c.ap.gains.level_change_band_m:
+            cas = min(cas, a.climb_mps)
         elev, thr = c.ap.vertical(s, c.dt, alt_m=self.alt_m, vs_max=self.vs_max,
-                                  vs_min=self.vs_min, cas_mps=self.cas)
+                                  vs_min=self.vs_min, cas_mps=cas)
         c.surfaces(ail, elev, rud, thr, flaps=self.flaps)
         if at >= length - self.anticipate_m:
             c.wp = (self.lat, self.lon)
@@ -183,12 +203,15 @@ class Leg:
 class Approach:
     """Centre line and a ``glide_deg`` glide path to the aim point ``aim_m`` past the
     threshold, flare at the airframe's flare height, touchdown, roll-out and braking; done at
-    rest."""
+    rest.  With ``go_around_agl_m`` the approach is abandoned when the gear descends through
+    that height (done in the air: the next phase flies the go-around)."""
 
     ground = True
 
-    def __init__(self, runway: Runway, aim_m: float = 300.0, glide_deg: float = 3.0) -> None:
+    def __init__(self, runway: Runway, aim_m: float = 300.0, glide_deg: float = 3.0,
+                 go_around_agl_m: float | None = None) -> None:
         self.runway, self.aim_m, self.glide = runway, aim_m, math.radians(glide_deg)
+        self.go_around_agl_m = go_around_agl_m
         self.stage = "air"
         self.t_td: float | None = None
 
@@ -211,6 +234,11 @@ class Approach:
             return s["gs"] < 0.3
         track = rw.heading_deg - math.degrees(math.atan2(cross, 500.0))
         gear_agl = s["agl"] - a.rest_agl_ft * 0.3048
+        if self.go_around_agl_m is not None and gear_agl < self.go_around_agl_m:
+            # go-around: the approach is abandoned here; the next phase climbs away
+            c.events.setdefault("go_around_t_s", s["t"])
+            c.wp = (s["lat"], s["lon"])
+            return True
         if self.stage == "flare" or gear_agl < a.flare_ft * 0.3048:
             if self.stage != "flare":
                 self.stage, self.flare0 = "flare", (s["theta"], max(gear_agl, 0.5))
@@ -249,15 +277,18 @@ class Rest:
 class SpiralDive:
     """Loss of control in a spiral dive: the bank grows at ``roll_rate_dps`` to ``bank_deg``
     and is held there by the ailerons, the elevator held at ``pull`` above its last trim, the
-    throttle left where it was; until the ground."""
+    throttle left where it was; until the ground, or for ``duration_s`` (then the next phase
+    recovers: airwork)."""
 
     ground = False
     upset = True
 
     def __init__(self, bank_deg: float = 70.0, roll_rate_dps: float = 2.0,
-                 pull: float = 0.05, left: bool = False) -> None:
+                 pull: float = 0.05, left: bool = False,
+                 duration_s: float | None = None) -> None:
         self.bank, self.rate, self.pull = bank_deg, roll_rate_dps, pull
         self.sign = -1.0 if left else 1.0
+        self.duration_s = duration_s
         self.t0: float | None = None
         self.elev0 = 0.0
 
@@ -266,6 +297,9 @@ class SpiralDive:
             self.t0 = s["t"]
             self.elev0 = c.fdm.f["fcs/elevator-cmd-norm"]
             c.events.setdefault("upset_t_s", s["t"])
+        if self.duration_s is not None and s["t"] - self.t0 >= self.duration_s:
+            _recovered(c, s)
+            return True
         bank = self.sign * min(self.bank, self.rate * (s["t"] - self.t0))
         ail, rud = c.ap.lateral(s, c.dt, bank_deg=bank)
         c.surfaces(ail, self.elev0 - self.pull, rud, c.ap.throttle_cmd)
@@ -300,6 +334,119 @@ class StallSpin:
         pitch = min(self.pitch, c.ap.pitch_cmd + self.rate * c.dt)
         ail, rud = c.ap.lateral(s, c.dt, bank_deg=0.0)
         c.surfaces(ail, c.ap.hold_pitch(s, c.dt, pitch), rud, 0.0)
+        return False
+
+
+def _recovered(c: Context, s: dict) -> None:
+    """End of a manoeuvre: the next leg starts here, its loops taking over bumplessly."""
+    c.wp = (s["lat"], s["lon"])
+    c.ap.mode = ""
+    c.ap.pitch_cmd = s["theta"]
+    c.ap._pitch.preset(-c.fdm.f["fcs/elevator-cmd-norm"])
+    c.ap._thr.preset(c.ap.throttle_cmd)
+
+
+class SteepTurn:
+    """A level turn at ``bank_deg`` (negative: left) through ``turn_deg`` of heading at the
+    entry altitude, full power; the speed is what the power gives."""
+
+    ground = False
+    upset = False
+
+    def __init__(self, bank_deg: float = 60.0, turn_deg: float = 360.0) -> None:
+        self.bank, self.turn = bank_deg, turn_deg
+        self.alt: float | None = None
+        self.turned = 0.0
+        self.last = 0.0
+
+    def update(self, c: Context, s: dict) -> bool:
+        if self.alt is None:
+            self.alt, self.last = s["h"], s["psi"]
+            c.events.setdefault("steep_turn_t_s", s["t"])
+            c.ap._vs.preset(c.ap.pitch_cmd)
+        self.turned += abs(wrap180(s["psi"] - self.last))
+        self.last = s["psi"]
+        if self.turned >= self.turn:
+            _recovered(c, s)
+            return True
+        # the bank comes in at 10 deg/s; the pitch holds the altitude
+        bank = math.copysign(min(abs(self.bank), 10.0 * self.turned / 15.0 + 10.0), self.bank)
+        ail, rud = c.ap.lateral(s, c.dt, bank_deg=bank)
+        pitch = c.ap._vs(max(-3.0, min(3.0, 0.1 * (self.alt - s["h"]))) + s["vd"], 0.0, c.dt)
+        c.ap.mode = "vs"
+        c.surfaces(ail, c.ap.elevator(s, c.dt, pitch), rud, c.fdm.airframe.climb_throttle)
+        return False
+
+
+class Chandelle:
+    """A climbing turn through ``turn_deg`` at full power: ``bank_deg`` (negative: left), the
+    nose raised at 1 deg/s to ``pitch_deg``; done at the end of the turn or when the speed
+    has fallen to the approach speed (the next phase rolls out)."""
+
+    ground = False
+    upset = False
+
+    def __init__(self, bank_deg: float = 30.0, pitch_deg: float = 10.0,
+                 turn_deg: float = 180.0) -> None:
+        self.bank, self.pitch, self.turn = bank_deg, pitch_deg, turn_deg
+        self.turned: float | None = None
+        self.last = 0.0
+
+    def update(self, c: Context, s: dict) -> bool:
+        if self.turned is None:
+            self.turned, self.last = 0.0, s["psi"]
+            c.events.setdefault("chandelle_t_s", s["t"])
+        self.turned += abs(wrap180(s["psi"] - self.last))
+        self.last = s["psi"]
+        # done at the turn, or when the speed falls to the approach speed
+        if self.turned >= self.turn or s["vc"] < c.fdm.airframe.approach_mps:
+            _recovered(c, s)
+            return True
+        ail, rud = c.ap.lateral(s, c.dt, bank_deg=self.bank)
+        pitch = min(self.pitch, c.ap.pitch_cmd + 1.0 * c.dt)   # the nose comes up at 1 deg/s
+        c.surfaces(ail, c.ap.hold_pitch(s, c.dt, pitch), rud, c.fdm.airframe.climb_throttle)
+        return False
+
+
+class Stall:
+    """A power-off stall and its recovery: idle, wings level, the nose raised at
+    ``pitch_rate_dps`` (to at most ``pitch_deg``) until the speed falls to ``stall_fraction``
+    of the airframe's approach speed (about its clean stall speed) or it sinks faster than
+    4 m/s, then the nose lowered to
+    ``recover_pitch_deg`` at full power until the speed is back to ``recover_fraction`` of the
+    approach speed (the next leg climbs back)."""
+
+    ground = False
+    upset = False
+
+    def __init__(self, pitch_deg: float = 25.0, pitch_rate_dps: float = 2.0,
+                 stall_fraction: float = 0.75, recover_pitch_deg: float = -5.0,
+                 recover_fraction: float = 1.2) -> None:
+        self.pitch, self.rate, self.frac = pitch_deg, pitch_rate_dps, stall_fraction
+        self.recover_pitch, self.recover_frac = recover_pitch_deg, recover_fraction
+        self.started = False
+        self.stalled = False
+
+    def update(self, c: Context, s: dict) -> bool:
+        a = c.fdm.airframe
+        if not self.started:
+            self.started = True
+            c.events.setdefault("stall_entry_t_s", s["t"])
+        # the stall: the speed gone, or the aircraft sinking nose-high (a mushing stall at
+        # full aft stick: the T-6 at 45 m/s, 20 deg angle of attack)
+        if not self.stalled and (s["vc"] < self.frac * a.approach_mps or -s["vd"] < -4.0):
+            self.stalled = True
+            c.events.setdefault("stall_t_s", s["t"])
+        ail, rud = c.ap.lateral(s, c.dt, bank_deg=0.0)
+        if self.stalled:
+            if s["vc"] > self.recover_frac * a.approach_mps:
+                _recovered(c, s)
+                return True
+            pitch = max(self.recover_pitch, c.ap.pitch_cmd - 5.0 * c.dt)
+            c.surfaces(ail, c.ap.hold_pitch(s, c.dt, pitch), rud, a.climb_throttle)
+            return False
+        pitch = min(self.pitch, c.ap.pitch_cmd + self.rate * c.dt)
+        c.surfaces(ail, c.ap.hold_pitch(s, c.dt, pitch), rud, a.idle_throttle)
         return False
 
 
@@ -352,11 +499,17 @@ def fly(fdm: Fdm, schedule: list, steps_per_control: int, controls_per_sample: i
             continue
         loads = fdm.mean_loads()
         s["n_long"], s["n_lat"], s["n_norm"] = loads
-        if phase.ground and s["wow"] and max(abs(s["phi"]), abs(s["theta"])) > GROUND_TILT_DEG:
+        landed = phase.ground and "touchdown_t_s" in c.events
+        if landed and -s["vd"] > GROUND_LAUNCH_MPS:
+            c.events["rollout_cut_t_s"] = s["t"]
+            break
+        if phase.ground and (s["wow"] or landed) and \
+                max(abs(s["phi"]), abs(s["theta"])) > GROUND_TILT_DEG:
             # JSBSim's ground reactions can tip a light aircraft over at rest in a gusty wind
             # and then launch it (seen: roll 180 deg, then 48 m/s upwards): before take-off
             # that is not a flight; after the landing the record ends at the sample before
             if "touchdown_t_s" in c.events:
+                c.events["rollout_cut_t_s"] = s["t"]
                 break
             raise ValidationError(f"JSBSim's ground model overturned the aircraft on the ground: "
                                   f"roll {s['phi']:.0f} deg, pitch {s['theta']:.0f} deg at "

@@ -359,7 +359,8 @@ def simulate(scenario: str, seed: int = 0, **overrides: Any) -> SimResult:
     ----------
     scenario : ``circuit``, ``regional``, ``seed-ads-arms``, ``landing`` or ``longhaul`` (the
         point-mass truth), or a JSBSim scenario (``jsbsim-circuit``, ``jsbsim-xc``,
-        ``jsbsim-jet``, ``jsbsim-spiral``, ``jsbsim-spin``:
+        ``jsbsim-jet``, ``jsbsim-spiral``, ``jsbsim-spin``, ``jsbsim-airwork``,
+        ``jsbsim-holding``, ``jsbsim-goaround``; ``airframe=`` picks the aircraft:
         :func:`flightrecon.sim.jsbsim_truth.simulate_jsbsim`, needs the ``jsbsim`` extra)
     seed : noise seed (same seed, same numbers, byte-identical files)
     **overrides : :class:`ScenarioConfig` (or
