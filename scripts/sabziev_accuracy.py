@@ -26,6 +26,8 @@ Usage::
     python scripts/sabziev_accuracy.py --seeds 1  # quick look
     python scripts/sabziev_accuracy.py --independent  # corpus + JSBSim flights, both policies
                                                       # (docs/tables/sabziev_independent.md)
+    python scripts/sabziev_accuracy.py --variants     # the same with a forecast / fleet k
+                                                      # (docs/tables/sabziev_variants.md)
 
 Writes ``docs/tables/sabziev_accuracy.md`` and ``docs/figures/sabziev_accuracy.png``,
 ``docs/figures/sabziev_newton.png``.
@@ -249,7 +251,18 @@ def main(argv=None) -> None:
     ap.add_argument("--independent", action="store_true",
                     help="the independent flights (shared corpus and JSBSim; "
                     "scripts/sabziev_flights.py) with both policies instead")
+    ap.add_argument("--variants", action="store_true",
+                    help="the independent flights again with a winds-aloft forecast and, "
+                    "without the arrival, with the fleet k (scripts/sabziev_variants.py)")
     args = ap.parse_args(argv)
+    if args.variants:
+        import sys
+
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from sabziev_variants import study as variants
+
+        variants(args.out / "tables")
+        return
     if args.independent:
         import sys
 

@@ -35,6 +35,7 @@ class TruthFlight:
     name: str
     clean: CleanFlight
     truth_neu: np.ndarray  # (N, 3) north, east, up [m] on the grid, NaN outside the truth
+    truth: pd.DataFrame | None = None  # the simulator's truth (JSBSim flights), else None
 
 
 def _truth_neu(clean: CleanFlight, t_truth, lat, lon, alt_ell) -> np.ndarray:
@@ -90,7 +91,8 @@ def jsbsim_flight(scenario: str, seed: int, *, wind_channel: bool = False,
                        tr["alt_m"])
     scale = overrides.get("scale")
     label = scenario.removeprefix("jsbsim-") + (f" x{scale:g}" if scale else "")
-    return TruthFlight(f"{label} s{seed}" + (" +wind" if wind_channel else ""), clean, truth)
+    return TruthFlight(f"{label} s{seed}" + (" +wind" if wind_channel else ""), clean, truth,
+                       tr)
 
 
 def _rms(x: np.ndarray) -> float:

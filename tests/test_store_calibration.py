@@ -196,11 +196,14 @@ def test_upgrade_from_v2_store_of_the_previous_release(tmp_path):
         assert st.record_flight("4K-AZ02", "F1", "e" * 64, fit=other).action == "disambiguated"
         assert st.aircraft_stats("4K-AZ01").axis("k1").n == 2
     con = sqlite3.connect(path)
-    assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
+    assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
     assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
     after = con.execute("SELECT * FROM flights ORDER BY id").fetchall()
-    assert [r[:-1] for r in after[:3]] == before and all(r[-1] is None for r in after[:3])
-    assert "migrated_to_v3_by" in dict(con.execute("SELECT key, value FROM store_meta"))
+    # v3 appended log_sha256, v4 the roots' conditioning k1_sd..k3_sd: all NULL on old rows
+    assert [r[:-4] for r in after[:3]] == before and all(x is None for r in after[:3]
+                                                          for x in r[-4:])
+    meta = dict(con.execute("SELECT key, value FROM store_meta"))
+    assert "migrated_to_v3_by" in meta and "migrated_to_v4_by" in meta
     con.close()
 
 

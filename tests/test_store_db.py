@@ -33,7 +33,7 @@ def test_new_store_has_identity_schema_and_wal(tmp_path):
         assert store.count() == 0
     con = sqlite3.connect(path)
     assert con.execute("PRAGMA application_id").fetchone()[0] == db.APPLICATION_ID
-    assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
+    assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
     assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     cols = [r[1] for r in con.execute("PRAGMA table_info(flights)")]
     assert tuple(cols[1:]) == db.FLIGHT_COLUMNS
@@ -246,6 +246,7 @@ def test_partial_fit_round_trip_and_sql_checks(tmp_path):
         cols = ", ".join(db.FLIGHT_COLUMNS)
         marks = ", ".join("?" for _ in db.FLIGHT_COLUMNS)
         bad = ("A", "X", "2024-01-01T00:00:00Z", 10.0, -0.1, None, -0.1, "negative", "negative",
-               "negative", 1, 1, 1, 1, 1.0, 3, "0", "{}", "{}", "2024-01-01T00:00:00Z", None)
+               "negative", 1, 1, 1, 1, 1.0, 3, "0", "{}", "{}", "2024-01-01T00:00:00Z", None,
+               None, None, None)
         with pytest.raises(sqlite3.IntegrityError):
             store.con.execute(f"INSERT INTO flights ({cols}) VALUES ({marks})", bad)

@@ -98,8 +98,9 @@ def test_excluded_counts_and_store_round_trip(tmp_path):
     assert st == ref and st.n_flights == 7
     assert st.axis("k3").excluded_counts() == {"not converged": 1,
                                                "branch positive, majority negative": 3}
-    assert fm.k == tuple(a.mean for a in ref.axes) and fm.sd == tuple(a.std for a in ref.axes)
-    assert fm.n == (5, 5, 3) and fm.branch == (N, P, N)
+    # the fleet mean is that of the property over the stable branch (k2: F3 alone, no spread)
+    assert fm.k == tuple(a.prop.k for a in ref.axes) and fm.n == (5, 1, 3)
+    assert fm.branch == (N, N, N) and math.isnan(fm.sd[1]) and fm.missing == ()
 
 
 def test_majority_rule_and_degenerate_cases():

@@ -278,6 +278,10 @@ def average_cmd(store_path: Path | None, aircraft_id: str, as_json: bool, at_utc
     (4 sd from the other flights) excluded, flights before a sensor change left out
     (docs/store.md).  Coefficients: only converged fits on each axis's majority root branch are
     averaged (ties go to the negative, physical branch); the others are listed as excluded.
+    The fleet mean that --use-fleet-coefficients uses follows: the time constant -1/k (k1, k3)
+    or loop frequency sqrt(-k2) (k2) over the fits on the stable branch, weighted by each
+    root's conditioning, with its flight-to-flight spread and chi2/dof (about 1 when the fits
+    scatter as their conditioning says; much more: not one aircraft value).
     """
     from flightrecon.errors import StoreError
 
@@ -315,6 +319,12 @@ def average_cmd(store_path: Path | None, aircraft_id: str, as_json: bool, at_utc
     for a in st.axes:
         for e in a.excluded:
             click.echo(f"  excluded {a.axis} of flight {e.flight_id}: {e.reason}")
+    click.echo("fleet mean (stable branch, weighted by each root's conditioning):")
+    header = ["axis", "quantity", "n", "weighted", "mean", "se", "spread", "chi2_dof", "k"]
+    rows = [[p.axis, p.quantity, str(p.n), "yes" if p.weighted else "no", _num(p.mean),
+             _num(p.se), _num(p.spread), _num(p.chi2_dof, ".3g"), _num(p.k)]
+            for p in (a.prop for a in st.axes) if p is not None]
+    click.echo(_table(header, rows))
 
 
 @command.command("export")

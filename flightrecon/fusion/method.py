@@ -207,6 +207,10 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     if policy == "stable" and end_ned is not None:
         h_rel, corr = end_consistent_height(t, h_rel, -float(end_ned[2]))
         reference.update(corr)
+    k, k_defaults = resolve_coefficients(k, float(t[-1] - t[0]))
+    if k_defaults:
+        notes.append("no fleet coefficient for " + ", ".join(k_defaults) + ": the stable "
+                     "policy's fixed coefficient taken (docs/sabziev.md, 'No root taken')")
     sol = fuse(t, a_ned, cols["tas_mps"], psi, h_rel, v0, end_ned, wind, k, k0=k0, hold=hold,
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
                vertical_rule=vertical_rule, policy=policy)
@@ -223,10 +227,24 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     warn = list(sol.warnings) + fallbacks + notes
     for w in list(sol.warnings) + fallbacks:
         warnings.warn(f"sabziev: {w}", FlightReconWarning, stacklevel=2)
-    track = _track(t_all, sl, sol, k_sd, origin)
+    if k_sd is not None and k_defaults:
+        # a defaulted axis has no fleet spread: a nominal one (FIXED_K_REL_SD), said
+        assert k is not None
+        k_sd = tuple(FIXED_K_REL_SD * abs(k[i]) if (f"k{i + 1}" in k_defaults
+                                                    and not np.isfinite(x)) else float(x)
+                     for i, x in enumerate(k_sd))  # type: ignore[assignment]
+        notes.append(f"track sd of {', '.join(k_defaults)}: a nominal {FIXED_K_REL_SD:.0%} of "
+                     "the fixed coefficient, not a measured spread")
+    origin_sd = LIFTOFF_SD_M if liftoff is None else LIFTOFF_GIVEN_SD_M
+    track = _track(t_all, sl, sol, k_sd, origin, origin_sd)
     summary = _summary(sol, k, k_sd, t, v0, end_info, warn, hold, vertical_rule)
     summary["wind_source"] = wind_source
     summary["policy"] = policy
+    summary["k_defaults"] = k_defaults
+    if k_sd is not None:
+        summary["liftoff_sd_m"] = origin_sd
+    if summary["mode"] == "boundary-value":
+        _conditioning(sol, summary["axes"])
     summary["frame"] = frame
     summary["vertical_reference"] = reference
     sc, r2, spread = baro_accelerometer_scale(t, -a_ned[:, 2], cols["baro_alt_m"])
@@ -673,8 +691,78 @@ def _liftoff_velocity(clean: CleanFlight, t, h_rel, cols, psi, wind, notes,
     return np.array([float(vn[0]), float(ve[0]), -climb])
 
 
-def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray) -> pd.DataFrame:
-    """The output columns, built in one (N, m) float block (one DataFrame block, no copies)."""
+K_SD_END_M = 50.0
+"""End-point uncertainty [m] behind a fit's conditioning ``k_sd = K_SD_END_M / |dF/dk|``
+(summary ``axes.<x|y|z>.k_sd``): the spread of a root that 50 m of end-point uncertainty alone
+gives (docs/sabziev.md, "Is k an aircraft property?"); the store weights fleet means by it."""
+
+
+FIXED_K_REL_SD = 0.5
+"""Nominal relative sd given to a fixed stable coefficient taken for an axis without a fleet
+coefficient (:func:`resolve_coefficients`), for the track's sd columns: not measured (no fit
+of the aircraft says anything about that axis); time constant 10 s +- 5 s."""
+
+
+def resolve_coefficients(k: tuple[float, float, float] | None, duration_s: float
+                         ) -> tuple[tuple[float, float, float] | None, list[str]]:
+    """Coefficients for the initial-value mode with a missing (NaN) axis replaced by the stable
+    policy's fixed coefficient: ``-1/TAU_FALLBACK_S`` for k1, k3 and ``-w*(T)^2`` for k2
+    (:func:`flightrecon.fusion.sabziev.solve.vertical_target_w`).
+
+    Parameters
+    ----------
+    k : (k1, k2, k3), NaN on an axis without a usable fleet coefficient; ``None`` for the
+        boundary-value mode (returned unchanged)
+    duration_s : length T of the fusion interval [s]
+
+    Returns
+    -------
+    k, defaulted
+        the coefficients to use and the names (``"k1"``...) of the axes replaced
+    """
+    if k is None:
+        return None, []
+    from flightrecon.fusion.sabziev.solve import TAU_FALLBACK_S, vertical_target_w
+
+    default = (-1.0 / TAU_FALLBACK_S, -vertical_target_w(duration_s) ** 2,
+               -1.0 / TAU_FALLBACK_S)
+    out, names = [], []
+    for i, x in enumerate(k):
+        x = float(x)
+        if np.isnan(x):
+            out.append(default[i])
+            names.append(f"k{i + 1}")
+        else:
+            out.append(x)
+    return (out[0], out[1], out[2]), names
+
+
+def _conditioning(sol: SabzievSolution, axes: dict[str, Any]) -> None:
+    """Add to each axis with a root its end-point sensitivity ``dF_dk`` (exact, the diagonal of
+    the sensitivity recursion at the end) and ``k_sd = K_SD_END_M / |dF/dk|``."""
+    for name in ("x", "y", "z"):
+        ax = sol.axes[name]
+        if ax.report is None or not ax.report.converged or ax.fallback:
+            continue
+        d = float(np.asarray(ax.dposition_dk)[-1])
+        axes[name]["dF_dk"] = _num(d)
+        axes[name]["k_sd"] = _num(K_SD_END_M / abs(d)) if d != 0.0 else None
+
+
+LIFTOFF_SD_M = 1000.0
+"""Horizontal sd [m] of the lift-off point when it is not given (the departure airfield's
+reference point stands for it: 1-3 km from the real lift-off point on airfields, 800 m in the
+simulator), added in quadrature to the spread from ``k_sd`` in the ``*_sd_m`` columns: without
+it the sd is zero at lift-off, which the pipeline's health check rightly refuses."""
+
+LIFTOFF_GIVEN_SD_M = 10.0
+"""The same when the lift-off point is given (``liftoff=``)."""
+
+
+def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray,
+           origin_sd_m: float = 0.0) -> pd.DataFrame:
+    """The output columns, built in one (N, m) float block (one DataFrame block, no copies);
+    with ``k_sd`` the sd columns, the horizontal ones with ``origin_sd_m`` in quadrature."""
     n = len(t_all)
     names = (("sabziev_north_m", 0), ("sabziev_east_m", 2), ("sabziev_up_m", 1))
     vnames = (("sabziev_vn_mps", 0), ("sabziev_ve_mps", 2), ("sabziev_vu_mps", 1))
@@ -695,7 +783,8 @@ def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray) -> pd.Data
         psd = sol.position_sd_m(k_sd)
         vsd = sol.velocity_sd_mps(k_sd)
         for j in range(3):
-            block[sl, 7 + 2 * j] = psd[:, j]
+            floor = origin_sd_m if j != 1 else 0.0  # horizontal (north 0, east 2) only
+            block[sl, 7 + 2 * j] = np.hypot(psd[:, j], floor)
             block[sl, 8 + 2 * j] = vsd[:, j]
     return pd.DataFrame(block, columns=cols, copy=False)
 

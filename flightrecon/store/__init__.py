@@ -27,12 +27,12 @@ from flightrecon.store.calibration import (PERSISTENT, AircraftCalibration, Flig
 from flightrecon.store.identity import Identity
 from flightrecon.store.db import SCHEMA_VERSION, default_store_path
 from flightrecon.store.records import (AXES, BRANCHES, NO_ROOT, AircraftStats, AxisStats,
-                                       Exclusion, FleetMean, FlightCoefficients)
+                                       Exclusion, FleetMean, FlightCoefficients, PropertyStats)
 
 __all__ = [
     "CALIBRATION_CSV_COLUMNS", "PERSISTENT", "AircraftCalibration", "FlightCalibration",
     "Identity", "QuantityCalibration", "SensorChange", "SensorEstimate", "from_joint_summary",
     "AXES", "BRANCHES", "CSV_COLUMNS", "NO_ROOT", "SCHEMA_VERSION", "AircraftStats", "AxisStats",
     "CoefficientStore", "Exclusion", "FleetMean", "FlightCoefficients", "default_store_path",
-    "from_sabziev_summary",
+    "from_sabziev_summary", "PropertyStats",
 ]

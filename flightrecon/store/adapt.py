@@ -67,7 +67,7 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
         raise StoreError(f"the Sabziev run was in {mode} mode: its coefficients were given, not "
                          "fitted on this flight, so there is nothing to record")
     axes = _get(summary, "axes", "the summary")
-    k, branch, conv, iters = [], [], [], 0
+    k, branch, conv, iters, k_sd = [], [], [], 0, []
     for name, kname in zip(SUMMARY_AXES, AXES):
         ax = _get(axes, name, "'axes'")
         # the coefficient the track used: the root, or (stable policy, no root taken) the
@@ -78,6 +78,7 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
         branch.append(_get(ax, "branch", f"axis '{name}' ({kname})"))
         conv.append(bool(_get(ax, "converged", f"axis '{name}' ({kname})")))
         iters += int(_get(ax, "iterations", f"axis '{name}' ({kname})"))
+        k_sd.append(_float(ax.get("k_sd")))  # the root's conditioning (absent: unknown)
     res = _get(summary, "end_residual_m", "the summary")
     comps = [_float(_get(res, c, "'end_residual_m'")) for c in ("north", "up", "east")]
     residual = math.sqrt(sum(c * c for c in comps))  # NaN if any component is unknown
@@ -92,7 +93,8 @@ def from_sabziev_summary(summary: Mapping[str, Any], *, aircraft_id: str, flight
         duration_s=t1 - t0, k1=k[0], k2=k[1], k3=k[2], branch=tuple(branch),  # type: ignore[arg-type]
         converged=converged, residual_m=residual, iterations=iters,
         software_version=software_version, settings=dict(settings or {}),
-        input_hashes=dict(input_hashes or {}), axis_converged=tuple(conv))  # type: ignore[arg-type]
+        input_hashes=dict(input_hashes or {}), axis_converged=tuple(conv),  # type: ignore[arg-type]
+        k_sd=(k_sd[0], k_sd[1], k_sd[2]))
 
 
 def flight_conditions(clean: Any) -> dict[str, Any]:

@@ -100,7 +100,15 @@ def _to_row(fc: FlightCoefficients) -> tuple:
             _null(fc.k1), _null(fc.k2), _null(fc.k3), fc.branch[0], fc.branch[1], fc.branch[2],
             int(fc.converged), int(ac[0]), int(ac[1]), int(ac[2]), _null(fc.residual_m),
             fc.iterations, fc.software_version, settings, hashes, fc.recorded_at_utc,
-            fc.log_sha256)
+            fc.log_sha256, *(_null(x) for x in (fc.k_sd or (math.nan,) * 3)))
+
+
+_STAMP = FLIGHT_COLUMNS.index("recorded_at_utc")
+
+
+def _stamped(row: tuple, stamp: str) -> tuple:
+    """A row of :func:`_to_row` with its ``recorded_at_utc`` set to ``stamp``."""
+    return row[:_STAMP] + (stamp,) + row[_STAMP + 1:]
 
 
 def _null(x: float) -> float | None:
@@ -110,7 +118,7 @@ def _null(x: float) -> float | None:
 
 def _from_row(row: tuple) -> FlightCoefficients:
     (aircraft_id, flight_id, date, duration, k1, k2, k3, b1, b2, b3, converged, c1, c2, c3,
-     residual, iterations, version, settings, hashes, recorded, log_sha256) = row
+     residual, iterations, version, settings, hashes, recorded, log_sha256, sd1, sd2, sd3) = row
     try:
         settings, hashes = json.loads(settings), json.loads(hashes)
     except ValueError as exc:
@@ -121,7 +129,7 @@ def _from_row(row: tuple) -> FlightCoefficients:
         k1=k1, k2=k2, k3=k3, branch=(b1, b2, b3), converged=bool(converged),
         residual_m=residual, iterations=iterations, software_version=version,
         settings=settings, input_hashes=hashes, axis_converged=(bool(c1), bool(c2), bool(c3)),
-        recorded_at_utc=recorded, log_sha256=log_sha256)
+        recorded_at_utc=recorded, log_sha256=log_sha256, k_sd=(sd1, sd2, sd3))
 
 
 class CoefficientStore:
@@ -198,8 +206,7 @@ class CoefficientStore:
                 for fit in fits:
                     if not isinstance(fit, FlightCoefficients):
                         raise StoreError(f"expected FlightCoefficients, got {type(fit).__name__}")
-                    row = _to_row(fit)
-                    row = row[:-2] + (stamp, row[-1])
+                    row = _stamped(_to_row(fit), stamp)
                     con.execute(_UPSERT, row)
                     out.append(_from_row(row))
             return out
@@ -253,8 +260,7 @@ class CoefficientStore:
                 stamp = now_utc_text()
                 if fit is not None:
                     f = replace(fit, flight_id=ident.flight_id, log_sha256=log_sha256)
-                    row = _to_row(f)
-                    con.execute(_UPSERT, row[:-2] + (stamp, row[-1]))
+                    con.execute(_UPSERT, _stamped(_to_row(f), stamp))
                 if calibration is not None:
                     c = replace(calibration, flight_id=ident.flight_id, log_sha256=log_sha256)
                     self._write_calibration(con, c, stamp)
@@ -454,10 +460,12 @@ class CoefficientStore:
                              file=str(self.path))
         return _stats.aircraft_stats(aircraft_id, records)
 
-    def fleet_mean(self, aircraft_id: str, min_flights: int = 1) -> FleetMean:
-        """Mean coefficients, their flight-to-flight spread and counts, for the initial-value
+    def fleet_mean(self, aircraft_id: str, min_flights: int = 1, *,
+                   allow_missing: bool = False) -> FleetMean:
+        """Fleet coefficients, their flight-to-flight spread and counts, for the initial-value
         mode (see :func:`flightrecon.store.stats.fleet_mean`)."""
-        return _stats.fleet_mean(self.aircraft_stats(aircraft_id), min_flights=min_flights)
+        return _stats.fleet_mean(self.aircraft_stats(aircraft_id), min_flights=min_flights,
+                                 allow_missing=allow_missing)
 
     # -- export ------------------------------------------------------------------------------
     def export_csv(self, path: str | os.PathLike, aircraft_id: str | None = None) -> int:

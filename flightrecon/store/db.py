@@ -38,7 +38,7 @@ APPLICATION_ID: int = int.from_bytes(b"FRCS", "big")
 #: value of ``store_meta.application``
 APPLICATION_NAME = "flightrecon-coefficients"
 #: current schema version (``PRAGMA user_version``)
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 #: environment variable that overrides the default location
 ENV_VAR = "FLIGHTRECON_STORE"
 #: seconds a connection waits for another process's lock before giving up
@@ -180,6 +180,15 @@ SCHEMA_V3_DDL: tuple[str, ...] = (
     *_V3_TABLES,
 )
 
+#: columns added by schema v4: each root's conditioning, ``50 m / |dF/dk|`` (NULL: unknown),
+#: which weights the fleet means (docs/store.md, "The averaging rule")
+_V4_COLUMNS: tuple[str, ...] = tuple(
+    f"ALTER TABLE flights ADD COLUMN {c} REAL CHECK ({c} IS NULL OR {c} > 0)"
+    for c in ("k1_sd", "k2_sd", "k3_sd"))
+
+#: schema v4 (current): v3 and the roots' conditioning
+SCHEMA_V4_DDL: tuple[str, ...] = SCHEMA_V3_DDL + _V4_COLUMNS
+
 #: columns of ``calibration_flights``, in order, without ``id``
 CALIBRATION_COLUMNS: tuple[str, ...] = (
     "aircraft_id", "flight_id", "flight_date_utc", "log_sha256", "configuration", "sources",
@@ -193,6 +202,7 @@ FLIGHT_COLUMNS: tuple[str, ...] = (
     "branch_k1", "branch_k2", "branch_k3", "converged", "converged_k1", "converged_k2",
     "converged_k3", "residual_m", "iterations",
     "software_version", "settings_json", "input_hashes_json", "recorded_at_utc", "log_sha256",
+    "k1_sd", "k2_sd", "k3_sd",
 )
 
 
@@ -369,7 +379,22 @@ def migrate_v2_to_v3(con: sqlite3.Connection) -> None:
 
 
 #: from-version -> function that upgrades it by one version (inside a write transaction)
-MIGRATIONS = {1: migrate_v1_to_v2, 2: migrate_v2_to_v3}
+def migrate_v3_to_v4(con: sqlite3.Connection) -> None:
+    """Upgrade a v3 store to v4 inside the caller's write transaction.
+
+    v4 adds ``flights.k1_sd``, ``k2_sd``, ``k3_sd``: each root's conditioning (the spread of k
+    that 50 m of end-point uncertainty gives, docs/sabziev.md).  An old row's conditioning was
+    not recorded and stays NULL; the averages then weight that aircraft's fits equally
+    (docs/store.md).  No existing value is changed.
+    """
+    for stmt in _V4_COLUMNS:
+        con.execute(stmt)
+    con.execute("INSERT OR REPLACE INTO store_meta (key, value) VALUES (?, ?)",
+                ("migrated_to_v4_by", f"flightrecon {__version__}"))
+    con.execute("PRAGMA user_version = 4")
+
+
+MIGRATIONS = {1: migrate_v1_to_v2, 2: migrate_v2_to_v3, 3: migrate_v3_to_v4}
 
 
 def check_store_path(path: str | os.PathLike, *, write: bool = True) -> None:
@@ -488,7 +513,7 @@ def _initialise(con: sqlite3.Connection, path: Path) -> None:
         app_id = con.execute("PRAGMA application_id").fetchone()[0]
         version = con.execute("PRAGMA user_version").fetchone()[0]
         if n_objects == 0 and app_id == 0 and version == 0:
-            create_schema(con, SCHEMA_V3_DDL, SCHEMA_VERSION)
+            create_schema(con, SCHEMA_V4_DDL, SCHEMA_VERSION)
             return
         marker = None
         if app_id == APPLICATION_ID and con.execute(

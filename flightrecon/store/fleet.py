@@ -25,8 +25,10 @@ def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
     The calibration (:meth:`flightrecon.store.CoefficientStore.calibration`, at ``at_utc``, the
     flight's date; of its ``configuration`` if given) supplies mean and sd of every persistent
     sensor error observed on at least one flight.  The Sabziev mean
-    (:meth:`~flightrecon.store.CoefficientStore.fleet_mean`, at least two fits per axis) runs
-    the Sabziev fusion in its initial-value mode, its spread propagated into the track's sd.
+    (:meth:`~flightrecon.store.CoefficientStore.fleet_mean`: the weighted mean time
+    constant or loop frequency over at least two stable-branch fits per axis; an axis with fewer
+    takes the stable policy's fixed coefficient, ``k_default_axes`` in the info) runs the
+    Sabziev fusion in its initial-value mode, its spread propagated into the track's sd.
     Either may be missing (said in the returned info); with neither, StoreError.
 
     Returns
@@ -47,7 +49,7 @@ def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
     fm = cal = None
     with CoefficientStore(store_path, create=False) as store:
         try:
-            fm = store.fleet_mean(aircraft_id, min_flights=2)
+            fm = store.fleet_mean(aircraft_id, min_flights=2, allow_missing=True)
         except StoreError as exc:
             info["k_missing"] = str(exc)
         try:
@@ -59,8 +61,11 @@ def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
                          f"Sabziev coefficients in the store ({info['k_missing']}; "
                          f"{info['calibration_missing']})", file=str(store_path))
     if fm is not None:
-        info.update({"k": list(fm.k), "sd": list(fm.sd), "flights": list(fm.n),
-                     "branch": list(fm.branch)})
+        # an axis with fewer than two stable-branch fits is NaN: the Sabziev adapter takes
+        # the stable policy's fixed coefficient there (docs/store.md)
+        info.update({"k": [None if k != k else k for k in fm.k],
+                     "sd": [None if x != x else x for x in fm.sd], "flights": list(fm.n),
+                     "branch": list(fm.branch), "k_default_axes": list(fm.missing)})
         settings = replace(settings, k=(fm.k[0], fm.k[1], fm.k[2]),
                            k_sd=(fm.sd[0], fm.sd[1], fm.sd[2]))
     else:

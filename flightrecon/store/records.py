@@ -162,6 +162,9 @@ class FlightCoefficients:
     recorded_at_utc : when the row was written (set by the store; ``None`` before recording)
     log_sha256 : SHA-256 (hex) of the flight's log, its content identity (``None``: unknown, as
         for rows upgraded from a v2 store)
+    k_sd : conditioning of each root, ``50 m / |dF/dk|`` (the spread of k that 50 m of end-point
+        uncertainty alone gives; docs/sabziev.md), for (k1, k2, k3); NaN where unknown (an axis
+        without a root, rows upgraded from a v3 store); ``None`` means all NaN
     """
 
     aircraft_id: str
@@ -181,10 +184,18 @@ class FlightCoefficients:
     axis_converged: tuple[bool, bool, bool] | None = None
     recorded_at_utc: str | None = None
     log_sha256: str | None = None
+    k_sd: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         check_flight_identity(self)
         set_ = object.__setattr__
+        sds = (math.nan,) * 3 if self.k_sd is None else tuple(self.k_sd)
+        if len(sds) != 3:
+            raise StoreError(f"k_sd: expected three values for (k1, k2, k3), got {sds!r}")
+        sds = tuple(_number_or_nan(x, "k_sd") for x in sds)
+        if any(x <= 0.0 for x in sds if math.isfinite(x)):
+            raise StoreError(f"k_sd: must be positive where known, got {sds!r}")
+        set_(self, "k_sd", sds)
         dur = _finite(self.duration_s, "duration_s")
         if dur <= 0.0:
             raise StoreError(f"duration_s: must be positive, got {dur}")
@@ -251,7 +262,7 @@ class FlightCoefficients:
             "residual_m": self.residual_m, "iterations": self.iterations,
             "software_version": self.software_version, "settings": self.settings,
             "input_hashes": self.input_hashes, "recorded_at_utc": self.recorded_at_utc,
-            "log_sha256": self.log_sha256,
+            "log_sha256": self.log_sha256, "k_sd": list(self.k_sd or ()),
         }
 
 
@@ -263,6 +274,51 @@ class Exclusion:
     flight_id: str
     axis: str
     reason: str
+
+
+@dataclass(frozen=True, eq=False)
+class PropertyStats:
+    """The candidate aircraft property behind one coefficient, averaged over the fits on the
+    stable branch (:func:`flightrecon.store.stats.property_stats`; docs/store.md).
+
+    Attributes
+    ----------
+    axis : ``"k1"``, ``"k2"`` or ``"k3"``
+    quantity : ``"tau_s"`` (time constant ``-1/k`` of k1, k3 [s]) or ``"w_radps"`` (loop
+        frequency ``sqrt(-k2)`` [rad/s])
+    n : fits used (converged on the axis, on the stable branch ``negative``)
+    weighted : True when every fit used carries its conditioning and the mean is weighted by
+        the inverse variance of the transform; False: equal weights
+    mean : weighted mean of the transform (NaN if n == 0)
+    se : its standard error from the fits' conditioning, ``1 / sqrt(sum w)`` (weighted), or
+        ``spread / sqrt(n)`` (equal weights; NaN if n < 2)
+    spread : sample standard deviation of the transform over the fits (ddof 1; NaN if n < 2):
+        the flight-to-flight spread
+    chi2_dof : ``sum w (p - mean)^2 / (n - 1)`` (weighted, n >= 2; else NaN): about 1 when the
+        fits scatter as their conditioning says, much larger when the flights differ more than
+        their conditioning (then the transform is not one aircraft value)
+    k, k_sd : the coefficient of the mean (``-1/tau`` or ``-w^2``) and the flight-to-flight
+        spread carried into k to first order (``spread / tau^2`` or ``2 w spread``)
+    """
+
+    axis: str
+    quantity: str
+    n: int
+    weighted: bool
+    mean: float
+    se: float
+    spread: float
+    chi2_dof: float
+    k: float
+    k_sd: float
+
+    def __eq__(self, other: object) -> bool:
+        """Field-wise equality in which NaN equals NaN (a spread unknown from one fit)."""
+        if not isinstance(other, PropertyStats):
+            return NotImplemented
+        return _nan_free(self.__dict__) == _nan_free(other.__dict__)
+
+    __hash__ = None  # type: ignore[assignment]
 
 
 @dataclass(frozen=True)
@@ -281,6 +337,8 @@ class AxisStats:
     drift_se_per_day : its standard error, sqrt(s^2 / Sxx) with s^2 = SSR / (n - 2)
         (NaN if n < 3 or the slope is NaN)
     excluded : the fits left out, each with its reason
+    prop : the transformed coefficient over the stable-branch fits (:class:`PropertyStats`):
+        what the fleet mean uses
     """
 
     axis: str
@@ -292,6 +350,7 @@ class AxisStats:
     drift_per_day: float
     drift_se_per_day: float
     excluded: tuple[Exclusion, ...] = ()
+    prop: PropertyStats | None = None
 
     def excluded_counts(self) -> dict[str, int]:
         """``{reason: count}`` of the excluded fits."""
@@ -320,9 +379,12 @@ class AircraftStats:
 class FleetMean:
     """Averaged coefficients of one aircraft for the initial-value mode of the Sabziev method.
 
-    ``k`` are the per-axis means over the usable fits, ``sd`` their sample standard deviations
-    (the spread from flight to flight, NaN when an axis has one fit), ``n`` the fits used per
-    axis and ``branch`` the branch each mean was taken on.
+    ``k`` are the per-axis coefficients of the weighted mean time constant (k1, k3) or loop
+    frequency (k2) over the fits on the stable branch (:class:`PropertyStats`), ``sd`` the
+    flight-to-flight spread carried into k (NaN when an axis has one fit), ``n`` the fits used
+    per axis and ``branch`` the branch each mean was taken on (``"negative"``).  An axis without
+    enough fits (allowed with ``fleet_mean(..., allow_missing=True)``) has ``k`` and ``sd`` NaN,
+    ``branch`` ``"none"``, and is named in ``missing``.
     """
 
     aircraft_id: str
@@ -330,3 +392,4 @@ class FleetMean:
     sd: tuple[float, float, float]
     n: tuple[int, int, int]
     branch: tuple[str, str, str]
+    missing: tuple[str, ...] = ()
