@@ -26,6 +26,8 @@ Usage::
     python scripts/sabziev_accuracy.py --seeds 1  # quick look
     python scripts/sabziev_accuracy.py --independent  # corpus + JSBSim flights, both policies
                                                       # (docs/tables/sabziev_independent.md)
+    python scripts/sabziev_accuracy.py --fleet        # the JSBSim fleet's other aircraft and
+                                                      # schedules (docs/tables/sabziev_fleet.md)
     python scripts/sabziev_accuracy.py --variants     # the same with a forecast / fleet k
                                                       # (docs/tables/sabziev_variants.md)
 
@@ -254,7 +256,18 @@ def main(argv=None) -> None:
     ap.add_argument("--variants", action="store_true",
                     help="the independent flights again with a winds-aloft forecast and, "
                     "without the arrival, with the fleet k (scripts/sabziev_variants.py)")
+    ap.add_argument("--fleet", action="store_true",
+                    help="the JSBSim fleet's other aircraft and schedules (airwork, holding, "
+                    "go-around), both policies (docs/tables/sabziev_fleet.md)")
     args = ap.parse_args(argv)
+    if args.fleet:
+        import sys
+
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from sabziev_flights import FLEET_FLIGHTS, study
+
+        study(args.out / "tables", FLEET_FLIGHTS, "sabziev_fleet")
+        return
     if args.variants:
         import sys
 

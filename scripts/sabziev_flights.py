@@ -25,7 +25,8 @@ from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
 from flightrecon.types import CleanFlight, Flight, MethodResult, Position
 
-SHARED = Path(os.environ.get("FLIGHTRECON_SHARED", "/work/shared"))
+SHARED = Path(os.environ.get("FLIGHTRECON_SHARED",
+                              Path(__file__).resolve().parents[2] / "shared"))
 
 
 @dataclass
@@ -91,6 +92,9 @@ def jsbsim_flight(scenario: str, seed: int, *, wind_channel: bool = False,
                        tr["alt_m"])
     scale = overrides.get("scale")
     label = scenario.removeprefix("jsbsim-") + (f" x{scale:g}" if scale else "")
+    if overrides.get("airframe"):
+        label = f"{overrides['airframe']} {label}"
+
     return TruthFlight(f"{label} s{seed}" + (" +wind" if wind_channel else ""), clean, truth,
                        tr)
 
@@ -154,6 +158,17 @@ flights (scale 0.3), jets (scale 0.2), spiral dives and spins to the ground; the
 full cross-country flight (81 min) and a full jet flight (3.2 h) with the true wind given as a
 recorded wind channel."""
 
+FLEET_FLIGHTS: tuple[tuple[str, int, dict[str, Any]], ...] = (
+    *(("jsbsim-circuit", 1, {"airframe": a}) for a in ("c310", "t6texan2", "pc7",
+                                                       "global5000", "B747")),
+    *(("jsbsim-airwork", 1, {"airframe": a}) for a in ("c172p", "t6texan2", "pc7")),
+    *(("jsbsim-holding", 1, {"airframe": a}) for a in ("c172p", "c310", "pc7")),
+    *(("jsbsim-goaround", 1, {"airframe": a}) for a in ("c172p", "c310", "global5000",
+                                                        "B747")),
+)
+"""The JSBSim fleet of issue #38 (docs/jsbsim.md, "Fleet"): other aircraft and the airwork,
+holding and go-around schedules, one seed each (``--fleet``)."""
+
 
 def one(kind: str, i: int, overrides: dict[str, Any]) -> list[dict[str, Any]]:
     """Both policies on one flight: :func:`evaluate` plus the health verdict of the pipeline
@@ -195,10 +210,11 @@ def _root(ev: dict[str, Any]) -> str:
     return "/".join(out)
 
 
-def write_tables(rows: list[dict[str, Any]], out: Path, elapsed: float) -> None:
-    """``docs/tables/sabziev_independent.md`` and ``.json`` (module docstring)."""
+def write_tables(rows: list[dict[str, Any]], out: Path, elapsed: float,
+                 name: str = "sabziev_independent") -> None:
+    """``docs/tables/<name>.md`` and ``.json`` (module docstring)."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "sabziev_independent.json").write_text(json.dumps(rows, indent=1, default=str))
+    (out / f"{name}.json").write_text(json.dumps(rows, indent=1, default=str))
     head = ("| flight | min | policy | finite | end miss [m] | hor RMS [m] | DR+lin [m] | ratio "
             "| up RMS [m] | k1 | k2 | k3 | roots x/y/z | health |")
     lines = ["# Sabziev fusion on independent flights (issue #37)", "",
@@ -239,20 +255,22 @@ def write_tables(rows: list[dict[str, Any]], out: Path, elapsed: float) -> None:
 
     lines += ["", f"**stable** (default): {summ(st)}.", "",
               f"**paper** (both branches, NaN without a root): {summ(pa)}.", ""]
-    (out / "sabziev_independent.md").write_text("\n".join(lines))
+    (out / f"{name}.md").write_text("\n".join(lines))
 
 
-def study(out: Path) -> list[dict[str, Any]]:
-    """Run :data:`FLIGHTS` with both policies and write the tables into ``out``."""
+def study(out: Path, flights: tuple[tuple[str, int, dict[str, Any]], ...] = FLIGHTS,
+          name: str = "sabziev_independent") -> list[dict[str, Any]]:
+    """Run ``flights`` (default :data:`FLIGHTS`) with both policies and write the tables
+    ``<name>.md`` and ``.json`` into ``out``."""
     import time
 
     t0 = time.perf_counter()
     rows: list[dict[str, Any]] = []
-    for kind, i, ov in FLIGHTS:
+    for kind, i, ov in flights:
         for ev in one(kind, i, ov):
             rows.append(ev)
             print(f"{ev['flight']:16s} {ev['policy']:6s} finite={ev['finite']} ratio="
                   f"{ev['ratio_drl']:.2f} up={ev['up_rms_m']:.1f} miss={ev['end_miss_m']:.1e} "
                   f"{_root(ev)} {ev['health'][:60]}", flush=True)
-    write_tables(rows, out, time.perf_counter() - t0)
+    write_tables(rows, out, time.perf_counter() - t0, name)
     return rows
