@@ -433,12 +433,62 @@ def _derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSe
     return replace(settings, priors=(*settings.priors, *extra))
 
 
+#: fewest airborne sample-to-sample differences of the loads for :func:`sampled_loads_noise`
+MIN_LOAD_DIFFERENCES = 60
+
+
+def sampled_loads_noise(inp: JointInputs, settings: JointSettings) -> JointSettings:
+    """The white-acceleration PSD per NED axis that the loads' own sampling implies.
+
+    The smoother integrates the recorded acceleration a_k over each input interval dt as
+    a_k dt.  Of a record sampled slower than the aircraft's accelerations vary (a 1 Hz
+    glass-cockpit export: turbulence, control inputs, an attitude and a load factor not taken
+    at the same instant) the part that changes from one sample to the next is not resolved:
+    if it is w_k, uncorrelated from sample to sample with variance s^2, the velocity
+    increment over each interval is wrong by w_k dt, a velocity random walk of PSD
+
+        q_s = s^2 dt,    s^2 = E[(a_{k+1} - a_k)^2] / 2
+
+    (the difference of two independent samples has twice their variance; the slow part of the
+    acceleration adds little to it at the record's rate and makes q_s an upper bound).  It
+    also holds the sensor's own white noise, so q_s replaces the budget
+    ``accel_noise_mps2_sqrt_hz`` where it is larger: the extra PSD per axis is
+    max(0, q_s - q_acc) (``JointNoise.accel_sampling_mps2_sqrt_hz``, its square root).
+    Measured over the airborne steps (lift-off to touchdown, or the whole record), on the
+    NED acceleration the smoother is given; a record of recorder rate (8 Hz and more) gives
+    q_s below the budget and is left as it is.  Fewer than ``MIN_LOAD_DIFFERENCES``
+    differences, or an extra set by the user: unchanged.
+    """
+    nz = settings.noise
+    if any(v > 0 for v in nz.accel_sampling_mps2_sqrt_hz):
+        return settings
+    t = inp.t_in
+    air = np.ones(len(t), bool)
+    if np.isfinite(inp.liftoff_t):
+        air &= t >= inp.liftoff_t
+    if np.isfinite(inp.touchdown_t):
+        air &= t <= inp.touchdown_t
+    a = inp.acc_ned
+    ok = air[1:] & air[:-1] & np.isfinite(a[1:]).all(axis=1) & np.isfinite(a[:-1]).all(axis=1)
+    if ok.sum() < MIN_LOAD_DIFFERENCES:
+        return settings
+    dt = np.diff(t)[ok]
+    d = np.diff(a, axis=0)[ok]
+    q_s = np.mean(d ** 2 * dt[:, None], axis=0) / 2.0   # s^2 dt per axis, dt-weighted
+    extra = np.sqrt(np.maximum(q_s - nz.accel_noise_mps2_sqrt_hz ** 2, 0.0))
+    if not np.all(np.isfinite(extra)) or not np.any(extra > 0):
+        return settings
+    return replace(settings, noise=replace(
+        nz, accel_sampling_mps2_sqrt_hz=(float(extra[0]), float(extra[1]), float(extra[2]))))
+
+
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
     """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
     settings = settings or JointSettings()
     settings = _derived_heading_noise(clean, settings)
     settings = _derived_long_priors(clean, settings)
     inp = joint_inputs(clean)
+    settings = sampled_loads_noise(inp, settings)
     run = smooth_joint(inp, settings)
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
