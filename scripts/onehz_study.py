@@ -5,9 +5,10 @@ against its own GPS fixes (SBAS, about 8-10 m), which are the reference:
 
 * **recorder only** (every GNSS channel withheld, the departure and arrival stands taken from the
   first and last GPS fix as in ``tests/test_garmin_e2e.py``, MSL, with the geoid's 45.1 m
-  there from the export's own AltGPS - AltMSL so that heights compare on one datum): horizontal and vertical RMS over
-  the airborne fixes, against dead reckoning (TAS along the heading, no wind) with a linear
-  end-point correction (:func:`flightrecon.fusion.baselines.dead_reckoning`,
+  there from the export's own AltGPS - AltMSL so that heights compare on one datum):
+  horizontal and vertical RMS over the airborne fixes, against dead reckoning (TAS along the
+  heading, no wind) with a linear end-point correction
+  (:func:`flightrecon.fusion.baselines.dead_reckoning`,
   ``corrected=True``); mean NEES per axis (north, east, up).
 * **GNSS gaps**: the GPS used except in windows of 600, 300 and 120 s in the cruise (the GNSS
   columns masked in a copy of the flight; one run, the gaps separated by at least 240 s of GPS).
@@ -66,14 +67,16 @@ def load(withhold: bool) -> Flight:
                                                 "withhold_gnss": withhold})
 
 
-def gps_reference(flight: Flight, clean: CleanFlight) -> pd.DataFrame:
-    """The export's GPS fixes in the output plane (t_s, n, e, u), airborne only."""
+def gps_reference(flight: Flight, clean: CleanFlight, latency_s: float = 0.0) -> pd.DataFrame:
+    """The export's GPS fixes in the output plane (t_s, n, e, u), airborne only, each at its
+    time stamp plus the receiver's latency ``latency_s`` (the time the position was the
+    aircraft's: the joint's GNSS clock offset estimated with all the fixes)."""
     g = flight.data.dropna(subset=["gnss_lat_deg", "gnss_lon_deg", "gnss_alt_m"])
     g = g[g.gnss_quality > 0]
     e, n, u = output_plane(clean.meta).forward(g.gnss_lat_deg.to_numpy(float),
                                                g.gnss_lon_deg.to_numpy(float),
                                                g.gnss_alt_m.to_numpy(float))
-    ref = pd.DataFrame({"t_s": g.t_s.to_numpy(float), "n": n, "e": e, "u": u,
+    ref = pd.DataFrame({"t_s": g.t_s.to_numpy(float) + latency_s, "n": n, "e": e, "u": u,
                         "vn": g.gnss_vn_mps.to_numpy(float), "ve": g.gnss_ve_mps.to_numpy(float)})
     ph = clean.phases
     return ref[(ref.t_s > ph.liftoff_t_s) & (ref.t_s < ph.touchdown_t_s)].reset_index(drop=True)
@@ -107,10 +110,16 @@ def corrections(summary_: dict) -> dict[str, float]:
                      "pitch_bias_deg") and v.get("value") is not None}
 
 
-def recorder_only() -> dict:
+def gps_latency_s() -> float:
+    """The GPS fixes' latency [s]: the joint's GNSS clock offset with every fix used."""
+    j = run_joint(clean_flight(load(False)))
+    return float(j.summary["clock_offsets_s"]["gnss"]["value"])
+
+
+def recorder_only(latency_s: float) -> dict:
     flight = load(True)
     clean = clean_flight(flight)
-    ref = gps_reference(load(False), clean)
+    ref = gps_reference(load(False), clean, latency_s)
     t0 = time.perf_counter()
     j = run_joint(clean)
     err = joint_errors(j.track, ref)
@@ -170,10 +179,10 @@ def dr_in_gap(clean: CleanFlight, ref: pd.DataFrame, a: float, b: float) -> np.n
     return np.hypot(dn, de).to_numpy()
 
 
-def gnss_gaps() -> dict:
+def gnss_gaps(latency_s: float) -> dict:
     full = load(False)
     clean_full = clean_flight(full)
-    ref = gps_reference(full, clean_full)
+    ref = gps_reference(full, clean_full, latency_s)
     gaps = gap_windows(ref)
     clean = clean_flight(with_gaps(full, gaps))
     t0 = time.perf_counter()
@@ -199,12 +208,15 @@ def markdown(r: dict) -> str:
     ro = r["recorder_only"]
     j = ro["joint"]
     lines = ["# 1 Hz glass-cockpit export: recorder only and GNSS gaps",
-             "", f"`{LOG.relative_to(ROOT)}`, against its own GPS (`scripts/onehz_study.py`).", "",
+             "", f"`{LOG.relative_to(ROOT)}`, against its own GPS (`scripts/onehz_study.py`; "
+             f"fixes taken {r['gps_latency_s']:.3f} s after their stamps: the joint's GNSS clock "
+             "offset with every fix).", "",
              "## Recorder only (GPS withheld, both stands from the GPS)", "",
              "| | horizontal RMS (max) [m] | vertical RMS (mean) [m] | NEES n / e / u |",
              "|---|---|---|---|",
              f"| joint | {j['rms_h_m']:.0f} ({j['max_h_m']:.0f}) | {j['rms_v_m']:.1f} "
-             f"({j['mean_v_m']:+.1f}) | {j['nees_n']:.2f} / {j['nees_e']:.2f} / {j['nees_u']:.2f} |",
+             f"({j['mean_v_m']:+.1f}) | {j['nees_n']:.2f} / {j['nees_e']:.2f} / "
+             f"{j['nees_u']:.2f} |",
              f"| dead reckoning, linear end correction | {ro['dr_linear']['rms_h_m']:.0f} "
              f"({ro['dr_linear']['max_h_m']:.0f}) | | |", "",
              f"joint / dead reckoning: **{ro['ratio_to_dr']:.2f}**; joint's sensor corrections: "
@@ -229,17 +241,18 @@ def main() -> None:
     ap.add_argument("--tag", default="", help="suffix of the output files (onehz_<tag>.json)")
     ap.add_argument("--only", choices=("recorder", "gaps"), default=None)
     args = ap.parse_args()
-    r: dict = {}
+    lat = gps_latency_s()
+    r: dict = {"gps_latency_s": lat}
     if args.only in (None, "recorder"):
-        r["recorder_only"] = recorder_only()
+        r["recorder_only"] = recorder_only(lat)
         print(json.dumps(r["recorder_only"], indent=1))
     if args.only in (None, "gaps"):
-        r["gaps"] = gnss_gaps()
+        r["gaps"] = gnss_gaps(lat)
         print(json.dumps(r["gaps"], indent=1))
     name = "onehz" + (f"_{args.tag}" if args.tag else "")
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / f"{name}.json").write_text(json.dumps(r, indent=1) + "\n")
-    if len(r) == 2:
+    if len(r) == 3:
         (OUT / f"{name}.md").write_text(markdown(r))
 
 

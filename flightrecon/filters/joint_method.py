@@ -133,6 +133,32 @@ def _radar_table(rd: pd.DataFrame) -> pd.DataFrame:
     return radar
 
 
+def baro_field_reference_m(meta: FlightMeta) -> float:
+    """What ``baro_alt_m`` reads on the ground at the departure field, by its datum
+    (``meta.baro_datum``, docs/ingest.md): the reference of the smoother's ``baro_rel_m``.
+
+    * ``"pressure"`` (1013.25 hPa): the field's pressure altitude under the departure QNH,
+      :func:`flightrecon.geo.atmosphere.field_pressure_altitude_m` (its elevation where the
+      QNH is not known, the offset state taking the difference, 8.3 m per hPa);
+    * ``"qnh"``: an altimeter set to the field's QNH reads its elevation (MSL) on the ground,
+      whatever the QNH: the elevation itself (converting it as if it were a pressure altitude
+      would put the offset 8.3 m per hPa of QNH - 1013.25 off);
+    * ``"qfe"``: an altimeter set to the field's pressure reads 0 on the ground.
+
+    Above the field all three differ from the height above it by the same temperature scale
+    (the hypsometric equation; to 0.3 % for a QNH 10 hPa from standard), the smoother's
+    ``baro_scale`` state.  ``meta.departure`` must be set.
+    """
+    dep = meta.departure
+    if dep is None:
+        raise MetadataError("the baro channel's field reference needs the departure airfield")
+    if meta.baro_datum == "qnh":
+        return float(dep.elev_m)
+    if meta.baro_datum == "qfe":
+        return 0.0
+    return float(field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa))
+
+
 def joint_inputs(clean: CleanFlight) -> JointInputs:
     """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base)."""
     g = clean.grid
@@ -152,7 +178,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     att, acc, notes = _loads_in_ned(g, t_in, p0.lat_deg)
     dep = meta.departure
     if dep is not None:
-        h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
+        h_pf = baro_field_reference_m(meta)
         field_h = float(msl_to_ellipsoid(dep.elev_m, N_und))
     else:
         h_pf = 0.0

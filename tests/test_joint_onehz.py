@@ -1,0 +1,128 @@
+"""The joint smoother on 1 Hz glass-cockpit exports (issue #36, items 4-5; docs/joint.md,
+"1 Hz records"): each defect found on the shipped Garmin export, reproduced synthetically.
+
+* the loads sampled at 1 Hz: the smoother took the recorded acceleration for the whole
+  second's and, its velocity random walk being the sensor's (0.05 m/s^2/sqrt(Hz)), preferred a
+  pressure-altitude scale error of -17 % and a heading bias of +3.9 deg to the climb the
+  accelerations did not show (``sampled_loads_noise`` and the per-axis process noise);
+* a baro channel on the QNH or QFE datum was referred to the field's pressure altitude
+  (``baro_field_reference_m``).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any, cast
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from flightrecon.filters.joint import JointSettings
+from flightrecon.filters.joint import dynamics as jd
+from flightrecon.filters.joint import layout as jl
+from flightrecon.filters.joint.nominal import _q_vector
+from flightrecon.filters.joint.settings import JointNoise
+from flightrecon.filters.joint_method import baro_field_reference_m, sampled_loads_noise
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
+from flightrecon.types import FlightMeta, Position
+
+
+def _cen(lat: float, lon: float) -> np.ndarray:
+    """NED -> ECEF rotation at (lat, lon) [rad]: columns N, E, D."""
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    return np.array([[-sl * co, -so, -cl * co],
+                     [-sl * so, co, -cl * so],
+                     [cl, 0.0, -sl]])
+
+
+def _van_loan_q(C: np.ndarray, qa: np.ndarray, h: float) -> np.ndarray:
+    """Exact discrete noise of p' = C v (ECEF), v' = w (NED), E[w w^T] = diag(qa) delta(t),
+    by Van Loan's matrix exponential (Van Loan 1978): Q = Phi22^T Phi12."""
+    A = np.zeros((6, 6))
+    A[0:3, 3:6] = C
+    Qc = np.zeros((6, 6))
+    Qc[3:6, 3:6] = np.diag(qa)
+    M = np.block([[-A, Qc], [np.zeros((6, 6)), A.T]]) * h
+    E = expm(M)
+    return E[6:, 6:].T @ E[0:6, 6:]
+
+
+@pytest.mark.parametrize("extra", [(0.0, 0.0, 0.0), (0.1, 0.07, 0.35)])
+def test_per_axis_white_acceleration_is_the_exact_discretisation(extra):
+    """The position-velocity block of Q_k equals Van Loan's exact integral of the continuous
+    model for any per-axis PSD (docs/joint.md, "1 Hz records"), and with no extra it is the
+    former isotropic q (h^3/3, h^2/2 C, h); to 1e-12 relative (matrix exponential rounding)."""
+    nz = JointNoise(accel_sampling_mps2_sqrt_hz=extra)
+    q = _q_vector(nz)
+    C = _cen(np.radians(49.3), np.radians(4.1))
+    for h in (0.25, 1.0, 4.0):
+        dt = np.array([0.0, h])
+        Cen = np.repeat(C[None], 2, axis=0)
+        P = np.zeros((jl.N_STATE, jl.N_STATE))
+        jd.add_process_noise(P, 1, dt, Cen, np.zeros(2), np.zeros(2), q, np.ones(2))
+        idx = np.r_[jl.IP:jl.IP + 3, jl.IV:jl.IV + 3]
+        qa = nz.accel_noise_mps2_sqrt_hz ** 2 + np.square(extra)
+        ref = _van_loan_q(C, qa, h)
+        scale = np.sqrt(np.outer(np.diag(ref), np.diag(ref)))
+        np.testing.assert_allclose(P[np.ix_(idx, idx)] / scale, ref / scale, atol=1e-12)
+        if not any(extra):
+            q0 = nz.accel_noise_mps2_sqrt_hz ** 2
+            np.testing.assert_allclose(P[jl.IP:jl.IP + 3, jl.IP:jl.IP + 3],
+                                       np.eye(3) * q0 * h ** 3 / 3, rtol=1e-12, atol=1e-18)
+
+
+def _inputs(rate_hz: float, sd: tuple[float, float, float], seed: int, T: float = 3000.0):
+    """Stand-in JointInputs (the fields sampled_loads_noise reads): a slow manoeuvre (0.3 m/s^2
+    over minutes) plus white acceleration of sd ``sd`` per sample on each NED axis."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, T, 1.0 / rate_hz)
+    slow = 0.3 * np.sin(2 * np.pi * t / 240.0)[:, None] * np.array([1.0, 0.5, 0.2])
+    acc = slow + rng.standard_normal((len(t), 3)) * np.asarray(sd)
+    return cast(Any, SimpleNamespace(t_in=t, acc_ned=acc, liftoff_t=100.0, touchdown_t=T - 100.0))
+
+
+def test_sampled_loads_noise_of_a_1hz_record():
+    """A 1 Hz record whose loads carry white errors of 0.1 / 0.1 / 0.35 m/s^2 per sample (the
+    shipped export's sample-to-sample scatter): the velocity error per second is that sd, a
+    random walk of PSD s^2 * 1 s; the extra over the 0.05 budget is sqrt(s^2 - 0.05^2).
+    2800 differences estimate s^2 to about 3 % (sd of a variance from correlated differences,
+    sqrt(3/N)), and the slow manoeuvre adds 1e-5 (m/s^2)^2: 10 % on the extra."""
+    sd = (0.1, 0.1, 0.35)
+    st = sampled_loads_noise(_inputs(1.0, sd, 1), JointSettings())
+    got = np.array(st.noise.accel_sampling_mps2_sqrt_hz)
+    want = np.sqrt(np.square(sd) - 0.05 ** 2)
+    np.testing.assert_allclose(got, want, rtol=0.1)
+
+
+def test_sampled_loads_noise_leaves_a_recorder_rate_record_alone():
+    """An 8 Hz record whose white noise is the budget's (PSD 0.05^2: sd 0.05 sqrt(8) per
+    sample): q_s = s^2 dt is the budget to a few per cent, so the extra is at most a fraction
+    of it (sqrt(0.1) of 0.05 for a 10 % excess: 0.016); a settings' own extra is kept."""
+    st = sampled_loads_noise(_inputs(8.0, (0.05 * np.sqrt(8.0),) * 3, 2), JointSettings())
+    assert max(st.noise.accel_sampling_mps2_sqrt_hz) < 0.016
+    mine = JointSettings(noise=JointNoise(accel_sampling_mps2_sqrt_hz=(0.0, 0.0, 0.2)))
+    assert sampled_loads_noise(_inputs(1.0, (0.3, 0.3, 0.3), 3), mine) is mine
+
+
+def test_accel_sampling_setting_is_checked():
+    with pytest.raises(ValueError, match="accel_sampling"):
+        JointNoise(accel_sampling_mps2_sqrt_hz=(0.0, -1.0, 0.0))
+
+
+@pytest.mark.parametrize("datum,qnh,want", [
+    ("pressure", 1027.1, field_pressure_altitude_m(89.3, 1027.1)),
+    ("pressure", None, 89.3),
+    ("qnh", 1027.1, 89.3),     # an altimeter at QNH reads the elevation on the ground
+    ("qnh", None, 89.3),
+    ("qfe", 1027.1, 0.0),
+])
+def test_baro_reference_follows_the_datum(datum, qnh, want):
+    """The baro channel's reading at the departure field by its datum: a QNH altitude was
+    referred to the field's pressure altitude (-114 m at 1027.1 hPa: the offset 114 m off, two
+    prior sd); the pressure datum's reference is unchanged."""
+    meta = FlightMeta(departure=Position(49.2, 4.15, 89.3), baro_datum=datum,
+                      qnh_departure_hpa=qnh)
+    assert baro_field_reference_m(meta) == pytest.approx(want, abs=1e-9)
+    if datum == "pressure" and qnh is not None:
+        assert want < 89.3 - 100.0     # the pressure reference does differ at this QNH
