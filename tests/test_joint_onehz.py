@@ -126,3 +126,26 @@ def test_baro_reference_follows_the_datum(datum, qnh, want):
     assert baro_field_reference_m(meta) == pytest.approx(want, abs=1e-9)
     if datum == "pressure" and qnh is not None:
         assert want < 89.3 - 100.0     # the pressure reference does differ at this QNH
+
+
+def test_runway_rows_leave_the_taxi_out():
+    """A record from stand to stand: the centreline rows (a line through the airfield's
+    reference along the runway) hold from the line-up to lift-off and from touchdown to the
+    first heading 10 deg off the landing roll's, not on the taxiways (before: every ground
+    sample, 233 m off at lift-off on the Garmin export with a 24 m sd)."""
+    from flightrecon.filters.joint.ground import on_runway_mask
+    t = np.arange(0.0, 200.0)
+    psi = np.radians(np.r_[np.full(30, 180.0), np.full(40, 70.0),     # taxi, then runway 07
+                           np.full(60, 70.0),                          # airborne
+                           np.full(8, 250.0), np.full(10, 252.0),      # landing roll on 25
+                           np.full(52, 340.0)])                        # turned off: taxi in
+    inp = cast(Any, SimpleNamespace(t_in=t, heading_rad=psi, lineup_t=30.0, liftoff_t=70.0,
+                                    touchdown_t=130.0))
+    dep = on_runway_mask(inp, True)
+    assert not dep[:30].any() and dep[30:70].all()
+    arr = on_runway_mask(inp, False)
+    assert arr[130:148].all() and not arr[148:].any()
+    # no line-up known, no turn-off: the whole record, as before
+    inp2 = cast(Any, SimpleNamespace(t_in=t, heading_rad=np.full(200, 1.0), lineup_t=np.nan,
+                                     liftoff_t=70.0, touchdown_t=130.0))
+    assert on_runway_mask(inp2, True).all() and on_runway_mask(inp2, False).all()
