@@ -149,3 +149,19 @@ def test_runway_rows_leave_the_taxi_out():
     inp2 = cast(Any, SimpleNamespace(t_in=t, heading_rad=np.full(200, 1.0), lineup_t=np.nan,
                                      liftoff_t=70.0, touchdown_t=130.0))
     assert on_runway_mask(inp2, True).all() and on_runway_mask(inp2, False).all()
+
+
+def test_derived_long_load_is_not_used_where_the_airspeed_comes_alive():
+    """An airspeed that reads 0 below its floor and jumps to 14.9 m/s (the Garmin export at
+    654 s): the derived n_long_g's +-3 s difference spans the jump on the 6 samples from 3 s
+    before the first live reading to 2 s after it, and at the landing roll's end likewise;
+    nowhere else (at rest, all dead; in flight, all alive)."""
+    from flightrecon.filters.joint_method import airspeed_floor_windows
+    t = np.arange(0.0, 100.0)
+    tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))
+    tas[80:] = 0.0
+    tas[50] = np.nan                                  # a missing sample changes nothing
+    bad = airspeed_floor_windows(t, tas)
+    np.testing.assert_array_equal(np.flatnonzero(bad), np.r_[7:13, 77:83])
+    assert not airspeed_floor_windows(t, np.full(100, 60.0)).any()
+    assert not airspeed_floor_windows(t, np.zeros(100)).any()

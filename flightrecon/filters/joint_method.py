@@ -42,6 +42,7 @@ from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
 from flightrecon.geo.wind import wind_toward_ne
+from flightrecon.ingest.derive import N_LONG_HALF_WINDOW_S
 from flightrecon.ingest.priors import wind_aloft_on_grid
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult
 
@@ -225,7 +226,49 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         inp = replace(inp, roll=takeoff_roll(
             inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
             not_before_t=inp.lineup_t))
+    if "n_long_g" in (meta.extra.get("derived_channels") or {}):
+        dead = airspeed_floor_windows(inp.t_in, inp.tas)
+        if dead.any():
+            acc = inp.acc_ned.copy()
+            acc[dead] = np.nan
+            inp = replace(inp, acc_ned=acc, notes=(*inp.notes, (
+                f"joint: n_long_g derived from an airspeed that reads 0 below its floor: the "
+                f"loads of {int(dead.sum())} sample(s) where it comes alive or dies "
+                "(the derivative's window holds both) are taken as missing")))
     return inp
+
+
+#: a recorded airspeed at most this is "below the air-data computer's floor" [m/s] (1 kt: the
+#: rounding of an airspeed recorded in whole knots that reads 0)
+AIRSPEED_DEAD_MPS = 0.52
+
+
+def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
+                           half_window_s: float = N_LONG_HALF_WINDOW_S) -> np.ndarray:
+    """Samples whose derived ``n_long_g`` spans an airspeed coming alive or dying.
+
+    An air-data computer reads 0 below its floor (about 30 kt on the Garmin export) and jumps
+    to the floor one sample into the take-off roll (0 to 14.9 m/s in 1 s there).  The derived
+    channel, ``(dV/dt)/g0 + sin(pitch)`` with ``dV/dt`` the centred difference over
+    ``+-half_window_s`` (flightrecon/ingest/derive.py), turns the jump into an acceleration
+    (0.25-0.38 g for 6 s where the GPS ground speed shows 0.15 g): the integrated roll then
+    has the lift-off ground speed wrong by the airspeed at the floor less the ground speed
+    there (the headwind, about 5 m/s), which the smoother takes out of the airspeed scale and
+    the wind.  True where the window ``[t - h, t + h]`` holds both an airspeed at most
+    :data:`AIRSPEED_DEAD_MPS` and one above it: there the acceleration is not known, and
+    the smoother's missing-loads process noise applies.
+    """
+    ok = np.isfinite(tas)
+    out = np.zeros(len(t), bool)
+    if ok.sum() < 2:
+        return out
+    tv, dead = t[ok], (tas[ok] <= AIRSPEED_DEAD_MPS).astype(float)
+    # fraction of dead samples within the window (cumulative counts)
+    cum = np.r_[0.0, np.cumsum(dead)]
+    lo = np.searchsorted(tv, t - half_window_s - 1e-9, side="left")
+    hi = np.searchsorted(tv, t + half_window_s + 1e-9, side="right")
+    n_dead = cum[hi] - cum[lo]
+    return (n_dead > 0) & (n_dead < hi - lo)
 
 
 @nb.njit(cache=True, nogil=True)
