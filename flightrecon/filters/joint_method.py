@@ -222,19 +222,21 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
         notes=tuple(notes), ends_airborne=bool(ph is not None and ph.ends_airborne),
         fixes=fixes, wind_aloft=None if wa is None else np.c_[wa[0], wa[1]])
-    if not (ph is not None and ph.starts_airborne):
-        inp = replace(inp, roll=takeoff_roll(
-            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
-            not_before_t=inp.lineup_t))
     if "n_long_g" in (meta.extra.get("derived_channels") or {}):
         dead = airspeed_floor_windows(inp.t_in, inp.tas)
         if dead.any():
+            # before the take-off roll's search: its rest is found by integrating the
+            # acceleration back from lift-off, which through these samples is not known
             acc = inp.acc_ned.copy()
             acc[dead] = np.nan
             inp = replace(inp, acc_ned=acc, notes=(*inp.notes, (
                 f"joint: n_long_g derived from an airspeed that reads 0 below its floor: the "
                 f"loads of {int(dead.sum())} sample(s) where it comes alive or dies "
                 "(the derivative's window holds both) are taken as missing")))
+    if not (ph is not None and ph.starts_airborne):
+        inp = replace(inp, roll=takeoff_roll(
+            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
+            not_before_t=inp.lineup_t))
     return inp
 
 
