@@ -42,6 +42,7 @@ from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
 from flightrecon.geo.wind import wind_toward_ne
+from flightrecon.ingest.derive import N_LONG_HALF_WINDOW_S
 from flightrecon.ingest.priors import wind_aloft_on_grid
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult
 
@@ -133,6 +134,32 @@ def _radar_table(rd: pd.DataFrame) -> pd.DataFrame:
     return radar
 
 
+def baro_field_reference_m(meta: FlightMeta) -> float:
+    """What ``baro_alt_m`` reads on the ground at the departure field, by its datum
+    (``meta.baro_datum``, docs/ingest.md): the reference of the smoother's ``baro_rel_m``.
+
+    * ``"pressure"`` (1013.25 hPa): the field's pressure altitude under the departure QNH,
+      :func:`flightrecon.geo.atmosphere.field_pressure_altitude_m` (its elevation where the
+      QNH is not known, the offset state taking the difference, 8.3 m per hPa);
+    * ``"qnh"``: an altimeter set to the field's QNH reads its elevation (MSL) on the ground,
+      whatever the QNH: the elevation itself (converting it as if it were a pressure altitude
+      would put the offset 8.3 m per hPa of QNH - 1013.25 off);
+    * ``"qfe"``: an altimeter set to the field's pressure reads 0 on the ground.
+
+    Above the field all three differ from the height above it by the same temperature scale
+    (the hypsometric equation; to 0.3 % for a QNH 10 hPa from standard), the smoother's
+    ``baro_scale`` state.  ``meta.departure`` must be set.
+    """
+    dep = meta.departure
+    if dep is None:
+        raise MetadataError("the baro channel's field reference needs the departure airfield")
+    if meta.baro_datum == "qnh":
+        return float(dep.elev_m)
+    if meta.baro_datum == "qfe":
+        return 0.0
+    return float(field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa))
+
+
 def joint_inputs(clean: CleanFlight) -> JointInputs:
     """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base)."""
     g = clean.grid
@@ -152,7 +179,7 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
     att, acc, notes = _loads_in_ned(g, t_in, p0.lat_deg)
     dep = meta.departure
     if dep is not None:
-        h_pf = field_pressure_altitude_m(dep.elev_m, meta.qnh_departure_hpa)
+        h_pf = baro_field_reference_m(meta)
         field_h = float(msl_to_ellipsoid(dep.elev_m, N_und))
     else:
         h_pf = 0.0
@@ -195,11 +222,55 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
         notes=tuple(notes), ends_airborne=bool(ph is not None and ph.ends_airborne),
         fixes=fixes, wind_aloft=None if wa is None else np.c_[wa[0], wa[1]])
+    if "n_long_g" in (meta.extra.get("derived_channels") or {}):
+        dead = airspeed_floor_windows(inp.t_in, inp.tas)
+        if dead.any():
+            # before the take-off roll's search: its rest is found by integrating the
+            # acceleration back from lift-off, which through these samples is not known
+            acc = inp.acc_ned.copy()
+            acc[dead] = np.nan
+            inp = replace(inp, acc_ned=acc, notes=(*inp.notes, (
+                f"joint: n_long_g derived from an airspeed that reads 0 below its floor: the "
+                f"loads of {int(dead.sum())} sample(s) where it comes alive or dies "
+                "(the derivative's window holds both) are taken as missing")))
     if not (ph is not None and ph.starts_airborne):
         inp = replace(inp, roll=takeoff_roll(
             inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
             not_before_t=inp.lineup_t))
     return inp
+
+
+#: a recorded airspeed at most this is "below the air-data computer's floor" [m/s] (1 kt: the
+#: rounding of an airspeed recorded in whole knots that reads 0)
+AIRSPEED_DEAD_MPS = 0.52
+
+
+def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
+                           half_window_s: float = N_LONG_HALF_WINDOW_S) -> np.ndarray:
+    """Samples whose derived ``n_long_g`` spans an airspeed coming alive or dying.
+
+    An air-data computer reads 0 below its floor (about 30 kt on the Garmin export) and jumps
+    to the floor one sample into the take-off roll (0 to 14.9 m/s in 1 s there).  The derived
+    channel, ``(dV/dt)/g0 + sin(pitch)`` with ``dV/dt`` the centred difference over
+    ``+-half_window_s`` (flightrecon/ingest/derive.py), turns the jump into an acceleration
+    (0.25-0.38 g for 6 s where the GPS ground speed shows 0.15 g): the integrated roll then
+    has the lift-off ground speed wrong by the airspeed at the floor less the ground speed
+    there (the headwind, about 5 m/s), which the smoother takes out of the airspeed scale and
+    the wind.  True where the window ``[t - h, t + h]`` holds both an airspeed at most
+    :data:`AIRSPEED_DEAD_MPS` and one above it: there the acceleration is not known, and
+    the smoother's missing-loads process noise applies.
+    """
+    ok = np.isfinite(tas)
+    out = np.zeros(len(t), bool)
+    if ok.sum() < 2:
+        return out
+    tv, dead = t[ok], (tas[ok] <= AIRSPEED_DEAD_MPS).astype(float)
+    # fraction of dead samples within the window (cumulative counts)
+    cum = np.r_[0.0, np.cumsum(dead)]
+    lo = np.searchsorted(tv, t - half_window_s - 1e-9, side="left")
+    hi = np.searchsorted(tv, t + half_window_s + 1e-9, side="right")
+    n_dead = cum[hi] - cum[lo]
+    return (n_dead > 0) & (n_dead < hi - lo)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -433,12 +504,62 @@ def _derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSe
     return replace(settings, priors=(*settings.priors, *extra))
 
 
+#: fewest airborne sample-to-sample differences of the loads for :func:`sampled_loads_noise`
+MIN_LOAD_DIFFERENCES = 60
+
+
+def sampled_loads_noise(inp: JointInputs, settings: JointSettings) -> JointSettings:
+    """The white-acceleration PSD per NED axis that the loads' own sampling implies.
+
+    The smoother integrates the recorded acceleration a_k over each input interval dt as
+    a_k dt.  Of a record sampled slower than the aircraft's accelerations vary (a 1 Hz
+    glass-cockpit export: turbulence, control inputs, an attitude and a load factor not taken
+    at the same instant) the part that changes from one sample to the next is not resolved:
+    if it is w_k, uncorrelated from sample to sample with variance s^2, the velocity
+    increment over each interval is wrong by w_k dt, a velocity random walk of PSD
+
+        q_s = s^2 dt,    s^2 = E[(a_{k+1} - a_k)^2] / 2
+
+    (the difference of two independent samples has twice their variance; the slow part of the
+    acceleration adds little to it at the record's rate and makes q_s an upper bound).  It
+    also holds the sensor's own white noise, so q_s replaces the budget
+    ``accel_noise_mps2_sqrt_hz`` where it is larger: the extra PSD per axis is
+    max(0, q_s - q_acc) (``JointNoise.accel_sampling_mps2_sqrt_hz``, its square root).
+    Measured over the airborne steps (lift-off to touchdown, or the whole record), on the
+    NED acceleration the smoother is given; a record of recorder rate (8 Hz and more) gives
+    q_s below the budget and is left as it is.  Fewer than ``MIN_LOAD_DIFFERENCES``
+    differences, or an extra set by the user: unchanged.
+    """
+    nz = settings.noise
+    if any(v > 0 for v in nz.accel_sampling_mps2_sqrt_hz):
+        return settings
+    t = inp.t_in
+    air = np.ones(len(t), bool)
+    if np.isfinite(inp.liftoff_t):
+        air &= t >= inp.liftoff_t
+    if np.isfinite(inp.touchdown_t):
+        air &= t <= inp.touchdown_t
+    a = inp.acc_ned
+    ok = air[1:] & air[:-1] & np.isfinite(a[1:]).all(axis=1) & np.isfinite(a[:-1]).all(axis=1)
+    if ok.sum() < MIN_LOAD_DIFFERENCES:
+        return settings
+    dt = np.diff(t)[ok]
+    d = np.diff(a, axis=0)[ok]
+    q_s = np.mean(d ** 2 * dt[:, None], axis=0) / 2.0   # s^2 dt per axis, dt-weighted
+    extra = np.sqrt(np.maximum(q_s - nz.accel_noise_mps2_sqrt_hz ** 2, 0.0))
+    if not np.all(np.isfinite(extra)) or not np.any(extra > 0):
+        return settings
+    return replace(settings, noise=replace(
+        nz, accel_sampling_mps2_sqrt_hz=(float(extra[0]), float(extra[1]), float(extra[2]))))
+
+
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
     """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
     settings = settings or JointSettings()
     settings = _derived_heading_noise(clean, settings)
     settings = _derived_long_priors(clean, settings)
     inp = joint_inputs(clean)
+    settings = sampled_loads_noise(inp, settings)
     run = smooth_joint(inp, settings)
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)

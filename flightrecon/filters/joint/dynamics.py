@@ -97,19 +97,37 @@ def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
 @nb.njit(cache=True, nogil=True)
 def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
     """P += Q_k in place, touching only the nonzero entries of Q_k. q = [q_acc, q_wind_t,
-    q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust] (see JointNoise); ``|dz[k]|`` is
+    q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust, dq_n, dq_e, dq_d] (see
+    JointNoise and :func:`flightrecon.filters.joint.nominal._q_vector`); ``|dz[k]|`` is
     the height change over the step (wind varies with altitude), ``qv_extra[k]`` extra
     acceleration PSD where the load factors are missing, ``ga[k]`` the gust's decay over the
     step (exact discretisation of the first-order Gauss-Markov gust: var_gust (1 - ga^2)).
-    Position-velocity block: white acceleration of PSD q_a (Q_pp = q_a h^3/3, Q_vv = q_a h,
-    Q_pv = q_a h^2/2 C_en)."""
+
+    Position-velocity block: white acceleration along each NED axis a of PSD
+    q_a = q_acc + qv_extra[k] + dq_a (dq_a the sampling part of a low-rate load record,
+    docs/joint.md, "1 Hz records"), position in ECEF through C = C_en (NED -> ECEF) at step
+    k - 1, exact for a constant C over the step (Bar-Shalom et al. 2001, eq. 6.2.2-12, axis by
+    axis):
+
+        Q_pp = h^3/3 C diag(q) C^T,   Q_pv = h^2/2 C diag(q),   Q_vv = h diag(q);
+
+    with dq = 0 this is the isotropic q_acc (h^3/3, h^2/2 C, h) of one white acceleration."""
     h = dt[k]
-    qpp, qpv, qvv = white_acceleration_q(q[0] + qv_extra[k], h)
+    base = q[0] + qv_extra[k]
+    qa = np.empty(3)
+    for a in range(3):
+        qa[a] = base + q[9 + a]
+    qpp, qpv, qvv = white_acceleration_q(1.0, h)
+    C = Cen[k - 1]
     for i in range(3):
-        P[IP + i, IP + i] += qpp
-        P[IV + i, IV + i] += qvv
+        for m in range(3):
+            s = 0.0
+            for a in range(3):
+                s += C[i, a] * qa[a] * C[m, a]
+            P[IP + i, IP + m] += qpp * s
+        P[IV + i, IV + i] += qvv * qa[i]
         for j in range(3):
-            v = qpv * Cen[k - 1, i, j]
+            v = qpv * C[i, j] * qa[j]
             P[IP + i, IV + j] += v
             P[IV + j, IP + i] += v
     qw = q[1] * h + q[2] * abs(dz[k])

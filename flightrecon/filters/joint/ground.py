@@ -38,6 +38,44 @@ def on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
     return on_ground & decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
 
 
+#: heading change that ends a landing roll [deg] (the phases' line-up rule, 10 deg)
+RUNWAY_EXIT_DEG = 10.0
+
+
+def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_EXIT_DEG
+                   ) -> np.ndarray:
+    """Input samples that can be on the departure (``departure``) or arrival runway.
+
+    Departure: from the line-up (``inp.lineup_t``, the cleaning phases': the start of the last
+    stretch within 10 deg of the take-off run's heading), the whole record before lift-off
+    where it is not known.  Arrival: from touchdown to the runway exit, the first sample after
+    which the heading is more than ``exit_deg`` from the landing roll's (its circular mean
+    from 2 to 6 s after touchdown, when the crab is gone), to the end where it does not turn
+    off.  Before, the record could start at the stand and end there: the runway's centreline
+    rows then held the taxi (issue #36: 233 m off at lift-off on the Garmin export with a
+    24 m sd).
+    """
+    t = inp.t_in
+    if departure:
+        if np.isfinite(inp.lineup_t):
+            return t >= inp.lineup_t
+        return np.ones(len(t), bool)
+    m = np.ones(len(t), bool)
+    td = inp.touchdown_t
+    psi = inp.heading_rad
+    if not np.isfinite(td):
+        return m
+    w = (t >= td + 2.0) & (t <= td + 6.0) & np.isfinite(psi)
+    if not w.any():
+        return m
+    psi_rw = float(np.arctan2(np.mean(np.sin(psi[w])), np.mean(np.cos(psi[w]))))
+    off = np.degrees(np.abs(np.angle(np.exp(1j * (psi - psi_rw)))))
+    out = np.flatnonzero((t > td + 2.0) & np.isfinite(psi) & (off > exit_deg))
+    if len(out):
+        m &= t < t[out[0]]
+    return m
+
+
 def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
                          step_of, pnom: np.ndarray, vnom: np.ndarray,
                          psi_hat: np.ndarray | None = None) -> None:
@@ -76,15 +114,22 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
     keep = on_ground_mask(inp, settings)
     if not keep.any():
         return
-    for pos, side, rw, t_edge in (
+    for dep_end, (pos, side, rw, t_edge) in enumerate((
             (inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t) else -np.inf),
              inp.runway_rad[0], inp.liftoff_t),
             (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t) else np.inf),
-             inp.runway_rad[1], inp.touchdown_t)):
+             inp.runway_rad[1], inp.touchdown_t))):
+        known = rw is not None
+        # a record from stand to stand: the taxi before the line-up and after the runway exit
+        # is on no runway; its rows along the heading (cross-track velocity zero) stay where
+        # the runway's direction is not known: they hold on any taxiway
+        on_rw = on_runway_mask(inp, dep_end == 0)
+        cl_side = side & on_rw
+        if known:
+            side = cl_side
         sel = keep & side
         if not sel.any():
             continue
-        known = rw is not None
         # the direction of the runway (only its line matters: a reversed direction is the same)
         tt = t_in[sel]
         k = step_of(tt)
@@ -99,6 +144,10 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
         if pos is None:
             continue
+        on_cl = cl_side[sel]
+        if not on_cl.any():
+            continue
+        tt, k, psi, ph = tt[on_cl], k[on_cl], psi[on_cl], ph[on_cl]
         ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
         arp = np.array([float(ex), float(ey), float(ez)])
         Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]

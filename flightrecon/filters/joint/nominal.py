@@ -143,7 +143,8 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
                      nz.wind_shear_mps_per_sqrt_m ** 2, nz.accel_bias_g ** 2, nz.accel_bias_tau_s,
                      np.radians(nz.heading_bias_rw_deg_sqrt_s) ** 2,
                      nz.baro_offset_rw_m_sqrt_s ** 2,
-                     (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2, nz.gust_mps ** 2])
+                     (nz.wind_gradient_rw_per_km_sqrt_s / 1000.0) ** 2, nz.gust_mps ** 2,
+                     *(np.square(np.asarray(nz.accel_sampling_mps2_sqrt_hz, dtype=float)))])
 
 
 def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,

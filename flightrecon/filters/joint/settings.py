@@ -24,6 +24,10 @@ class JointNoise:
     accel_bias_g: float = 0.003              # accelerometer bias, Gauss-Markov sigma
     accel_bias_tau_s: float = 3600.0
     accel_scale: float = 0.005               # accelerometer scale errors, prior per axis
+    accel_sampling_mps2_sqrt_hz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #                                          extra white acceleration per NED axis (added in
+    #                                          PSD to accel_noise): the loads' sampling, set
+    #                                          from the record (joint_method.sampled_loads_noise)
     wind_prior_mps: float = 15.0
     wind_rw_mps_sqrt_s: float = 0.05         # wind change with time
     wind_shear_mps_per_sqrt_m: float = 0.05  # wind change with altitude beyond the gradient:
@@ -72,6 +76,10 @@ class JointNoise:
     init_vel_mps: float = 30.0
 
     def __post_init__(self) -> None:
+        acs = self.accel_sampling_mps2_sqrt_hz
+        if len(acs) != 3 or not all(np.isfinite(v) and v >= 0 for v in acs):
+            raise ValueError("joint noise setting 'accel_sampling_mps2_sqrt_hz' must be three "
+                             f"non-negative numbers (north, east, down), got {acs!r}")
         for name in POSITIVE_NOISE:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
