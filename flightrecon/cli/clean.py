@@ -79,7 +79,7 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
 
 
 @click.command("clean")
-@click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("log", type=click.Path(path_type=Path))
 @input_options
 @click.option("-o", "--output", "out", required=True, type=NonEmptyPath(dir_okay=False,
               path_type=Path), help="Cleaned grid (.parquet or .csv); the measurements and the "

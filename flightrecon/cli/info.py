@@ -40,7 +40,7 @@ def position_text(p) -> str:
 
 
 @click.command("info")
-@click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("log", type=click.Path(path_type=Path))
 @input_options
 @click.option("--json", "as_json", is_flag=True,
               help="Machine-readable output: standard JSON (no NaN) on stdout.")

@@ -20,7 +20,7 @@ from flightrecon.cli.trim import trim_options
 
 
 @click.command("reconstruct")
-@click.argument("log", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("log", type=click.Path(path_type=Path))
 @input_options
 @click.option("--departure", metavar="LAT,LON,ELEV_M", help="Departure airfield (MSL elevation).")
 @click.option("--arrival", metavar="LAT,LON,ELEV_M", help="Arrival airfield / touchdown point.")

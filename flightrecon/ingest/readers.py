@@ -55,7 +55,7 @@ class RawTable:
     n_rows : number of data rows
     nan_text : column -> boolean mask of cells the file wrote as NaN (not empty)
     blank_rows : 1-based data rows that were empty lines (dropped by validation with a warning)
-    fmt : ``"csv"`` or ``"parquet"``
+    fmt : ``"csv"``, ``"parquet"`` or ``"folder"`` (one-column files, named by their stems)
     bad_text : column -> (mask of non-numeric text cells in a numeric column, first such text)
     nan_is_missing : the file marks unsampled cells with NaN (Parquet, or a CSV without any
         empty cell), so ``nan_text`` is empty: NaN cannot tell an invalid value there
@@ -118,7 +118,8 @@ def sniff_format(path: str | os.PathLike) -> str:
 
 
 def read_table(path: str | os.PathLike) -> RawTable:
-    """Read ``path`` (CSV or Parquet, see :func:`sniff_format`) into a :class:`RawTable`.
+    """Read ``path`` (CSV or Parquet, see :func:`sniff_format`; a folder of one-column files,
+    :mod:`flightrecon.ingest.folder`) into a :class:`RawTable`.
 
     Raises
     ------
@@ -128,6 +129,12 @@ def read_table(path: str | os.PathLike) -> RawTable:
     SchemaError
         Duplicate or empty column names.
     """
+    if Path(path).is_dir():          # a folder of one-column files (:mod:`.folder`)
+        from flightrecon.ingest.folder import read_folder
+
+        cols, n, warns = read_folder(path)
+        return RawTable(file=str(path), columns=cols, n_rows=n, fmt="folder",
+                        nan_is_missing=True, warnings=tuple(warns))
     fmt = sniff_format(path)
     table = _read_parquet(Path(path)) if fmt == "parquet" else _read_csv(Path(path))
     return table
