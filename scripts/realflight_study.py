@@ -5,24 +5,35 @@ PH-LAB (public repository ``SybrenBootsma/SVV-flight-dynamics-B22``, no licence:
 never copied into this repository; docs/realflights.md says how to fetch them).  Each flight is
 a folder of header-less one-column CSV files at 10 Hz (``time.csv`` and one file per channel).
 
-For each flight the script assembles what an analyst would feed ``flightrecon reconstruct``:
+The tool reads each flight's folder itself (:mod:`flightrecon.ingest.folder`: one column per
+file, named by its stem), as ``flightrecon reconstruct FOLDER --sidecar CASE.meta.toml`` would;
+nothing is assembled.  What the script writes per case, into a scratch folder (``--work``,
+default a temporary folder), never into the repository nor the data's folder, is what the
+analyst gives beside the data:
 
-* a recorder log (CSV: the loads, roll and pitch, the body rates, pressure altitude and true
-  airspeed) with a mapping file for the names and units (``Ahrs1_bNormAcc`` is ``nz - 1``:
-  ``offset = 1.0``; the true-heading channel ``Fms1_trueHeading`` is dead, zero throughout, so
-  the heading is propagated from the body rates at cleaning);
-* a sidecar with the UTC epoch (``GPS_date``, ``GPS_utcSec``), the QNH (from the pressure
-  altitude at rest against the airfield's elevation), the departure and arrival points (the GPS
-  position at the first and last sample: what an analyst knows from the flight's paperwork), the
-  take-off runway's direction and threshold (from the GPS over the take-off roll);
-* for the GNSS cases, a file of 1 Hz GPS fixes with two gaps withheld.
+* a mapping naming the files (``Ahrs1_bNormAcc`` is ``nz - 1``: ``offset = 1.0``; the
+  true-heading channel ``Fms1_trueHeading`` is dead, zero throughout, and is not mapped: the
+  heading is propagated from the body rates at cleaning); in the GNSS cases the GPS position
+  files (``Gps_lat``, ``GPS_long`` / ``Gps_long``, spelt as in each folder) as
+  ``gnss_lat_deg`` / ``gnss_lon_deg`` too;
+* a sidecar (naming the mapping in its ``[files]``) with the analyst's inputs, computed here
+  from the files as an analyst would by hand: the UTC epoch (``GPS_date``, ``GPS_utcSec``),
+  the QNH (from the pressure altitude at rest against the airfield's elevation), the departure
+  and arrival points (the GPS position at the first and last sample: what an analyst knows
+  from the flight's paperwork), the take-off runway's direction and threshold (from the GPS
+  over the take-off roll); and the ``--start`` at the line-up.  These figures are read from
+  the folder with the tool's own folder reader.
 
-It writes these into a scratch folder (``--work``, default a temporary folder), never into the
-repository, runs the cases through :func:`flightrecon.pipeline.reconstruct` (the CLI's own
-path) with ``keep_unhealthy`` so that an unhealthy track can still be measured, and measures
-against the GPS: horizontal RMS and maximum error of the joint smoother, of the default result
-and of the dead-reckoning baselines (:func:`flightrecon.fusion.baselines.dead_reckoning`),
-the mean NEES per withheld gap and axis, and every method's status with its reason.
+The GNSS cases' set-up (:func:`gnss_case`): of the GPS position the tool read at 10 Hz, the
+fixes at whole seconds are kept (1 Hz), two gaps are withheld and each fix is given an sd of
+:data:`GPS_FIX_SD_M` per axis; it blanks fixes of the table ``load_flight`` returned, nothing
+else.
+
+Each case runs through :func:`flightrecon.pipeline.reconstruct` (the CLI's own path) with
+``keep_unhealthy`` so that an unhealthy track can still be measured, and is measured against
+the GPS: horizontal RMS and maximum error of the joint smoother, of the default result and of
+the dead-reckoning baselines (:func:`flightrecon.fusion.baselines.dead_reckoning`), the mean
+NEES per withheld gap and axis, and every method's status with its reason.
 
 Only numbers are written: ``docs/tables/realflights.json`` and the table of
 ``docs/realflights.md`` (between its ``<!-- table -->`` markers).
@@ -35,12 +46,14 @@ Run::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
 import json
 import re
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -64,81 +77,67 @@ GPS_FIX_SD_M = 35.0
 #: the withheld GNSS gaps: (start after lift-off [s], length [s])
 GAPS: tuple[tuple[float, float], ...] = ((900.0, 300.0), (1800.0, 600.0))
 
-MAPPING = """# flightrecon mapping of the assembled PH-LAB record (scripts/realflight_study.py)
-[time]
-column = "time"
-unit = "s"
-
-[channels.n_long_g]
-column = "Ahrs1_bLongAcc"
-unit = "g"
-
-[channels.n_lat_g]
-column = "Ahrs1_bLatAcc"
-unit = "g"
-
-[channels.n_norm_g]
-column = "Ahrs1_bNormAcc"
-unit = "g"
-offset = 1.0
-
-[channels.roll_deg]
-column = "Ahrs1_Roll"
-unit = "deg"
-
-[channels.pitch_deg]
-column = "Ahrs1_Pitch"
-unit = "deg"
-
-[channels.p_dps]
-column = "Ahrs1_bRollRate"
-unit = "deg/s"
-
-[channels.q_dps]
-column = "Ahrs1_bPitchRate"
-unit = "deg/s"
-
-[channels.r_dps]
-column = "Ahrs1_bYawRate"
-unit = "deg/s"
-
-[channels.baro_alt_m]
-column = "Dadc1_alt"
-unit = "ft"
-
-[channels.tas_mps]
-column = "Dadc1_tas"
-unit = "kt"
-
-[channels.sat_degc]
-column = "Dadc1_sat"
-unit = "degC"
-"""
-
-LOG_COLUMNS = ("time", "Ahrs1_bLongAcc", "Ahrs1_bLatAcc", "Ahrs1_bNormAcc", "Ahrs1_Roll",
-               "Ahrs1_Pitch", "Ahrs1_bRollRate", "Ahrs1_bPitchRate", "Ahrs1_bYawRate",
-               "Dadc1_alt", "Dadc1_tas", "Dadc1_sat")
+#: the recorder channels: canonical channel -> (file stem, unit, extra keys); the stems are
+#: matched whatever their case in the folder (``Gps_long.csv`` in one, ``GPS_long.csv`` in the
+#: other), the mapping names each file as it is spelt there
+RECORDER_CHANNELS: tuple[tuple[str, str, str, str], ...] = (
+    ("n_long_g", "Ahrs1_bLongAcc", "g", ""),
+    ("n_lat_g", "Ahrs1_bLatAcc", "g", ""),
+    ("n_norm_g", "Ahrs1_bNormAcc", "g", "offset = 1.0\n"),
+    ("roll_deg", "Ahrs1_Roll", "deg", ""),
+    ("pitch_deg", "Ahrs1_Pitch", "deg", ""),
+    ("p_dps", "Ahrs1_bRollRate", "deg/s", ""),
+    ("q_dps", "Ahrs1_bPitchRate", "deg/s", ""),
+    ("r_dps", "Ahrs1_bYawRate", "deg/s", ""),
+    ("baro_alt_m", "Dadc1_alt", "ft", ""),
+    ("tas_mps", "Dadc1_tas", "kt", ""),
+    ("sat_degc", "Dadc1_sat", "degC", ""),
+)
+#: the GPS position, mapped as GNSS fixes in the GNSS cases only
+GNSS_CHANNELS: tuple[tuple[str, str, str, str], ...] = (
+    ("gnss_lat_deg", "Gps_lat", "deg", ""),
+    ("gnss_lon_deg", "Gps_long", "deg", ""),
+)
+#: the files the analyst's figures and the truth are computed from (besides the mapped ones)
+ANALYST_FILES = ("time", "Gps_lat", "Gps_long", "GPS_utcSec", "GPS_date", "Dadc1_alt",
+                 "Dadc1_tas", "Ahrs1_bLongAcc", "Ahrs1_bYawRate")
 
 
 # -- assembling a flight ----------------------------------------------------------------------
 
-def read_folder(folder: Path) -> pd.DataFrame:
-    """One table from a folder of header-less one-column CSV files (one channel each, named
-    after the file; names as in :data:`LOG_COLUMNS`, whatever their case in the folder)."""
-    canon = {c.lower(): c for c in LOG_COLUMNS + ("Gps_lat", "Gps_long", "GPS_utcSec",
-                                                  "GPS_date")}
-    cols: dict[str, np.ndarray] = {}
-    for f in sorted(folder.glob("*.csv")):
-        key = f.stem.lower()
-        if key in canon:
-            cols[canon[key]] = pd.read_csv(f, header=None).iloc[:, 0].to_numpy(float)
-    missing = sorted(set(canon.values()) - set(cols))
+def analyst_table(folder: Path) -> tuple[pd.DataFrame, dict[str, str]]:
+    """The files the analyst's figures and the truth are computed from, read with the tool's
+    folder reader (:func:`flightrecon.ingest.folder.read_folder`, what ``flightrecon`` reads the
+    folder with), and the stem of each file as spelt in the folder.
+
+    Returns
+    -------
+    table : one column per file of :data:`ANALYST_FILES`, named as there
+    stems : name as in :data:`ANALYST_FILES`, :data:`RECORDER_CHANNELS` and
+        :data:`GNSS_CHANNELS` -> the file's stem in this folder (``GPS_long`` or ``Gps_long``)
+    """
+    from flightrecon.ingest.folder import read_folder
+
+    cols, _, _ = read_folder(folder)
+    by_lower = {k.lower(): k for k in cols}
+    wanted = set(ANALYST_FILES) | {c[1] for c in RECORDER_CHANNELS + GNSS_CHANNELS}
+    missing = sorted(w for w in wanted if w.lower() not in by_lower)
     if missing:
         raise SystemExit(f"{folder}: missing channel file(s) {', '.join(missing)}")
-    lengths = {len(v) for v in cols.values()}
-    if len(lengths) != 1:
-        raise SystemExit(f"{folder}: channel files of different lengths {sorted(lengths)}")
-    return pd.DataFrame(cols)
+    stems = {w: by_lower[w.lower()] for w in wanted}
+    return pd.DataFrame({w: cols[stems[w]] for w in ANALYST_FILES}), stems
+
+
+def mapping_text(stems: dict[str, str], gnss: bool) -> str:
+    """The mapping of the flight's folder: every channel names its file (its stem as spelt in
+    this folder); with ``gnss`` the GPS position files as GNSS fixes too."""
+    out = ["# flightrecon mapping of a PH-LAB flight-test folder (scripts/realflight_study.py)",
+           "[time]", 'column = "time"', 'unit = "s"', ""]
+    for ch, name, unit, extra in RECORDER_CHANNELS + (GNSS_CHANNELS if gnss else ()):
+        out += [f"[channels.{ch}]", f'column = "{stems[name]}"', f'unit = "{unit}"']
+        out += [extra.strip()] if extra else []
+        out.append("")
+    return "\n".join(out)
 
 
 def _local_ne(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float
@@ -244,15 +243,14 @@ def _toml_position(name: str, lat: float, lon: float, runway: float | None = Non
     return s
 
 
-def write_flight(df: pd.DataFrame, facts: dict[str, Any], folder: Path, stem: str, *,
-                 arrival: str) -> Path:
-    """The log, its mapping and its sidecar in ``folder``; ``arrival`` is ``"none"``,
-    ``"last_fix"`` (the GPS's last position, with the runway when the record ends on the
-    ground) or ``"departure"`` (the departure airfield: where the flight was planned to end)."""
+def write_case(facts: dict[str, Any], stems: dict[str, str], folder: Path, stem: str, *,
+               arrival: str, gnss: bool) -> Path:
+    """The mapping and the sidecar of one case in ``folder`` (the scratch folder: never the
+    data's); returns the sidecar.  ``arrival`` is ``"none"``, ``"last_fix"`` (the GPS's last
+    position, with the runway when the record ends on the ground) or ``"departure"`` (the
+    departure airfield: where the flight was planned to end)."""
     folder.mkdir(parents=True, exist_ok=True)
-    log = folder / f"{stem}.csv"
-    df[list(LOG_COLUMNS)].to_csv(log, index=False)
-    (folder / f"{stem}.mapping.toml").write_text(MAPPING)
+    (folder / f"{stem}.mapping.toml").write_text(mapping_text(stems, gnss))
     lat0, lon0 = facts["first_fix"]
     side = ("[flight]\naircraft_id = \"PH-LAB\"\n"
             f"flight_id = \"{stem}\"\n"
@@ -274,27 +272,49 @@ def write_flight(df: pd.DataFrame, facts: dict[str, Any], folder: Path, stem: st
         side += "\n" + _toml_position("arrival", lat0, lon0, facts["runway_true_deg"],
                                       facts["threshold"])
     side += f"\n[files]\nmapping = \"{stem}.mapping.toml\"\n"
-    (folder / f"{stem}.meta.toml").write_text(side)
-    return log
+    path = folder / f"{stem}.meta.toml"
+    path.write_text(side)
+    return path
 
 
-def write_gnss(df: pd.DataFrame, facts: dict[str, Any], folder: Path, stem: str
-               ) -> tuple[Path, list[tuple[float, float]]]:
-    """1 Hz GPS fixes (every whole second of ``time``) with the gaps of :data:`GAPS` withheld;
-    returns the file and the gaps as (start, end) in ``time``."""
-    t = df["time"].to_numpy()
-    whole = np.flatnonzero(np.abs(t - np.round(t)) < 1e-6)
-    gaps = [(facts["liftoff_s"] + a, facts["liftoff_s"] + a + n) for a, n in GAPS]
-    keep = np.ones(len(whole), bool)
-    for a, b in gaps:
-        keep &= ~((t[whole] > a) & (t[whole] < b))
-    idx = whole[keep]
-    g = pd.DataFrame({"t_s": t[idx], "gnss_lat_deg": df["Gps_lat"].to_numpy()[idx],
-                      "gnss_lon_deg": df["Gps_long"].to_numpy()[idx],
-                      "gnss_h_sd_m": GPS_FIX_SD_M})
-    path = folder / f"{stem}.gnss.csv"
-    g.to_csv(path, index=False)
-    return path, gaps
+def gnss_gaps(facts: dict[str, Any]) -> list[tuple[float, float]]:
+    """The withheld gaps of :data:`GAPS` as (start, end) in ``time`` [s]."""
+    return [(facts["liftoff_s"] + a, facts["liftoff_s"] + a + n) for a, n in GAPS]
+
+
+@contextlib.contextmanager
+def gnss_case(gaps: list[tuple[float, float]]) -> Iterator[None]:
+    """The GNSS cases' set-up, applied to what the tool read: of the GPS position read at 10 Hz
+    from the folder, the fixes at whole seconds of ``time`` are kept (1 Hz: the export's five
+    significant digits do not make ten independent fixes a second), those inside ``gaps`` are
+    withheld, and each kept fix is given the sd :data:`GPS_FIX_SD_M` per axis.
+
+    The reading is the tool's (``load_flight`` of the folder with the mapping); this only
+    blanks fixes of the table it returns, as a GNSS file of those 1 Hz fixes would have left
+    them out.
+    """
+    import flightrecon.ingest as ingest
+
+    load = ingest.load_flight
+
+    def load_and_withhold(*args: Any, **kwargs: Any) -> Any:
+        flight = load(*args, **kwargs)
+        d = flight.data
+        t = d["t_s"].to_numpy(float)
+        keep = np.abs(t - np.round(t)) < 1e-6
+        for a, b in gaps:
+            keep &= ~((t > a) & (t < b))
+        cols = [c for c in d.columns if c.startswith("gnss_")]
+        d.loc[~keep, cols] = np.nan
+        d["gnss_h_sd_m"] = np.where(np.isfinite(d["gnss_lat_deg"].to_numpy(float)),
+                                    GPS_FIX_SD_M, np.nan)
+        return flight
+
+    ingest.load_flight = load_and_withhold
+    try:
+        yield
+    finally:
+        ingest.load_flight = load
 
 
 # -- measuring --------------------------------------------------------------------------------
@@ -393,20 +413,17 @@ def gap_nees(t: np.ndarray, n: np.ndarray, e: np.ndarray, sdn: np.ndarray, sde: 
     return out
 
 
-def run_case(name: str, df: pd.DataFrame, facts: dict[str, Any], work: Path, *,
-             arrival: str, start: bool, gnss: bool = False,
-             last_fix_as_fix: bool = False) -> dict[str, Any]:
-    """One case: assemble, reconstruct, measure."""
+def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
+             facts: dict[str, Any], work: Path, *, arrival: str, start: bool,
+             gnss: bool = False, last_fix_as_fix: bool = False) -> dict[str, Any]:
+    """One case: its mapping and sidecar, the tool reading the flight's folder ``data``,
+    measuring against the GPS of ``df``."""
     from flightrecon.errors import FlightReconError
     from flightrecon.fusion.baselines import dead_reckoning
     from flightrecon.pipeline import ReconstructSettings, reconstruct
 
-    folder = work / name
-    log = write_flight(df, facts, folder, name, arrival=arrival)
-    gaps: list[tuple[float, float]] = []
-    gnss_path = None
-    if gnss:
-        gnss_path, gaps = write_gnss(df, facts, folder, name)
+    sidecar = write_case(facts, stems, work / name, name, arrival=arrival, gnss=gnss)
+    gaps = gnss_gaps(facts) if gnss else []
     over: dict[str, Any] = {}
     if last_fix_as_fix:
         lat1, lon1 = facts["last_fix"]
@@ -417,8 +434,9 @@ def run_case(name: str, df: pd.DataFrame, facts: dict[str, Any], work: Path, *,
     out: dict[str, Any] = {"case": name, "arrival": arrival, "start_s": settings.start,
                            "gnss": gnss, "fix_at_end": last_fix_as_fix}
     try:
-        rec = reconstruct(log, gnss=gnss_path, meta_overrides=over or None, settings=settings,
-                          record=False)
+        with gnss_case(gaps) if gnss else contextlib.nullcontext():
+            rec = reconstruct(data, sidecar=sidecar, meta_overrides=over or None,
+                              settings=settings, record=False)
     except FlightReconError as exc:
         out.update({"exit": exc.exit_code, "error": str(exc)[:500]})
         return out
@@ -549,13 +567,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data", type=Path, required=True,
                     help="the fetched 'matlab' folder (flight 'ref'; 'Our-data' inside: B22)")
     ap.add_argument("--work", type=Path, default=None,
-                    help="scratch folder for the assembled inputs (default: a temporary folder)")
+                    help="scratch folder for the cases' mappings and sidecars "
+                    "(default: a temporary folder)")
     ap.add_argument("--cases", nargs="*", default=None, help="run only these cases")
     ap.add_argument("--no-write", action="store_true", help="print, do not write the tables")
     a = ap.parse_args(argv)
     flights = {"ref": a.data, "b22": a.data / "Our-data"}
-    frames = {k: read_folder(v) for k, v in flights.items()}
-    facts = {k: flight_facts(v) for k, v in frames.items()}
+    read = {k: analyst_table(v) for k, v in flights.items()}
+    facts = {k: flight_facts(df) for k, (df, _) in read.items()}
     for k, f in facts.items():
         print(k, json.dumps({x: f[x] for x in ("epoch_utc", "qnh_departure_hpa",
                                                "qnh_arrival_hpa", "runway_true_deg",
@@ -568,7 +587,8 @@ def main(argv: list[str] | None = None) -> int:
         if a.cases and name not in a.cases:
             continue
         print(f"== {name}", flush=True)
-        r = run_case(name, frames[flight], facts[flight], work, **kw)
+        df, stems = read[flight]
+        r = run_case(name, flights[flight], df, stems, facts[flight], work, **kw)
         print(json.dumps(r, indent=1, default=str), flush=True)
         results.append(r)
     if tmp is not None:
