@@ -296,9 +296,11 @@ def gnss_case(gaps: list[tuple[float, float]]) -> Iterator[None]:
     import flightrecon.ingest as ingest
 
     load = ingest.load_flight
+    used = []
 
     def load_and_withhold(*args: Any, **kwargs: Any) -> Any:
         flight = load(*args, **kwargs)
+        used.append(True)
         d = flight.data
         t = d["t_s"].to_numpy(float)
         keep = np.abs(t - np.round(t)) < 1e-6
@@ -315,6 +317,9 @@ def gnss_case(gaps: list[tuple[float, float]]) -> Iterator[None]:
         yield
     finally:
         ingest.load_flight = load
+    if not used:    # the pipeline no longer loads through flightrecon.ingest.load_flight
+        raise RuntimeError("the GNSS cases' set-up was not applied: the fixes were not "
+                           "withheld")
 
 
 # -- measuring --------------------------------------------------------------------------------
