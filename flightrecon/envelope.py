@@ -356,7 +356,10 @@ def evidence_problems(res: MethodResult, clean: CleanFlight, ev: Evidence = Evid
             we = tr[f"{p}wind_e_mps"].to_numpy(float)
             out += _wind_checks(t, wn, we, h, w_lim, flight, ev)
         if tas is not None:
-            out += _air_ground(t, north, east, h, tas, w_lim, flight, ev)
+            vel = None
+            if f"{p}vn_mps" in tr.columns and f"{p}ve_mps" in tr.columns:
+                vel = (tr[f"{p}vn_mps"].to_numpy(float), tr[f"{p}ve_mps"].to_numpy(float))
+            out += _air_ground(t, north, east, h, tas, w_lim, flight, ev, vel)
         out += _corrections_check(res, ev)
         out += _end_checks(res, clean, t, north, east, ev)
         out += _dr_check(res, clean, t, north, east, ev)
@@ -396,9 +399,16 @@ def _wind_checks(t: np.ndarray, wn: np.ndarray, we: np.ndarray, h: np.ndarray,
 
 
 def _air_ground(t: np.ndarray, north: np.ndarray, east: np.ndarray, h: np.ndarray,
-                tas: np.ndarray, w_lim: np.ndarray, flight: np.ndarray, ev: Evidence
-                ) -> list[dict[str, Any]]:
-    gs = np.hypot(central_rate(t, north, ev.smooth_s), central_rate(t, east, ev.smooth_s))
+                tas: np.ndarray, w_lim: np.ndarray, flight: np.ndarray, ev: Evidence,
+                vel: tuple[np.ndarray, np.ndarray] | None = None) -> list[dict[str, Any]]:
+    # the ground speed from the method's own local-level velocity where it has one: the rate of
+    # the tangent-plane position is not the ground speed far from the plane's origin (8000 km
+    # out on a 10-hour flight the plane's north moved at 150 m/s where the aircraft flew 224)
+    if vel is not None and np.isfinite(vel[0]).any():
+        k = _half_window(t, ev.smooth_s)
+        gs = _moving_mean(np.hypot(*vel), k)
+    else:
+        gs = np.hypot(central_rate(t, north, ev.smooth_s), central_rate(t, east, ev.smooth_s))
     vz = central_rate(t, h, ev.smooth_s)
     tas_h = np.sqrt(np.maximum(tas ** 2 - np.nan_to_num(vz) ** 2, 0.0))
     lim = w_lim + ev.air_ground_margin_mps
@@ -413,6 +423,17 @@ def _air_ground(t: np.ndarray, north: np.ndarray, east: np.ndarray, h: np.ndarra
         f"ground speed {gs[i]:.0f} m/s against a horizontal airspeed of {tas_h[i]:.0f} m/s at "
         f"t = {t[i]:.0f} s: no plausible wind (at most {w_lim[i]:.0f} m/s there) makes up the "
         "difference", time_spans(t, bad), diff[i], lim[i])]
+
+
+def _moving_mean(x: np.ndarray, k: int) -> np.ndarray:
+    """Centred mean over 2 k + 1 samples (NaN where the window leaves the record or holds a
+    NaN): the velocity on the same footing as :func:`central_rate`'s position difference."""
+    if k <= 0 or len(x) <= 2 * k:
+        return x.copy()
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    out = np.full(len(x), np.nan)
+    out[k:-k] = (c[2 * k + 1:] - c[:-2 * k - 1]) / (2 * k + 1)
+    return out
 
 
 def _corrections_check(res: MethodResult, ev: Evidence) -> list[dict[str, Any]]:

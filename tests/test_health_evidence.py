@@ -269,3 +269,23 @@ def test_a_verdict_reaches_the_console_once_and_the_summary_top(tmp_path, capsys
     summary = json.loads(out.with_name("r.summary.json").read_text())
     top = [w for w in summary["warnings"] if w.startswith("joint unhealthy:")]
     assert len(top) == 1 and "from the given arrival" in top[0]
+
+
+def test_the_ground_speed_is_the_methods_own_velocity_far_from_the_plane_origin(circuit):
+    """8000 km out on a 10-hour flight the tangent plane's north moved at 150 m/s where the
+    aircraft flew 224 (the benchmark's longhaul flight, GNSS-aided, was refused by the
+    air-ground check): a method's own local-level velocity is its ground speed. Reproduced on
+    the circuit: its plane positions stretched three times (a plane rate no wind explains),
+    its velocities true."""
+    clean, truth = circuit
+    tr = _track(truth, "joint")
+    vn = np.gradient(truth["north_m"].to_numpy(), truth["t_s"].to_numpy())
+    ve = np.gradient(truth["east_m"].to_numpy(), truth["t_s"].to_numpy())
+    tr["joint_vn_mps"], tr["joint_ve_mps"] = vn, ve
+    squeezed = tr.copy()
+    squeezed["joint_north_m"] *= 3.0
+    squeezed["joint_east_m"] *= 3.0
+    assert "air_ground" not in _checks(MethodResult("joint", squeezed, {}), clean)
+    # without the velocity the plane's rate is all there is: the check fires
+    bare = squeezed.drop(columns=["joint_vn_mps", "joint_ve_mps"])
+    assert "air_ground" in _checks(MethodResult("joint", bare, {}), clean)
