@@ -28,8 +28,8 @@ standard deviation (the truth has none).  A consistent smoother gives 1 per axis
 measured as they are, nothing tuned.
 
 Writes ``docs/tables/onehz_fleet.json`` and ``docs/tables/onehz_fleet.md`` (``--tag`` appends a
-suffix).  About 2 minutes on a 2-core machine once the kernels are compiled and the JSBSim
-flights cached (4 minutes with ``--steps``).
+suffix).  About 2 minutes on a 2-core machine once the kernels are compiled
+(4 minutes with ``--steps``).
 
 ``--steps`` adds, recorder only, the simulated log thinned to its whole seconds with and
 without ``n_long_g``: what each step from the native log to the export costs.
