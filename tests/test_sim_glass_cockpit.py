@@ -133,3 +133,25 @@ def test_missing_fixes_are_written_as_no_solution(circuit):
     assert (ex[~gap] == whole[~gap]).all().all()
     text = glass_cockpit_text(ex)
     assert text.count("NoSoln") == int((ex["GPSfix"] == "NoSoln").sum()) > int(gap.sum()) - 1
+
+
+def test_fleet_study_on_one_circuit(tmp_path):
+    """``scripts/onehz_fleet_study.py`` at reduced size: one circuit, recorder only and a
+    120-s gap, within the bars of issue #36 item 5 (docs/tables/onehz_fleet.md: 0.71, gap 0.12,
+    NEES at most 1.8)."""
+    pytest.importorskip("jsbsim")
+    from tests._scripts import load_script
+
+    study = load_script("onehz_fleet_study")
+    r = study.one_flight("jsbsim-circuit", "c172p", 1, tmp_path)
+    ro = r["recorder_only"]
+    assert ro["health"]["healthy"]
+    assert ro["ratio_to_dr"] < study.BAR_RECORDER
+    assert max(ro["joint"][f"nees_{a}"] for a in "neu") < study.BAR_NEES
+    assert [g["length_s"] for g in r["gaps"]] == [120.0]  # 402 s airborne: no room for 300 s
+    g = r["gaps"][0]
+    assert g["ratio_to_dr"] < study.BAR_GAP
+    assert max(g[f"nees_{a}"] for a in "neu") < study.BAR_NEES
+    assert g["with_gps"]["rms_h_m"] < 5.0
+    md = study.markdown([r], [1])
+    assert "jsbsim-circuit c172p s1 | 402 |" in md and " **x** |" not in md
