@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 import time
 import warnings
@@ -62,6 +63,9 @@ from flightrecon.pipeline.health import method_health
 from flightrecon.sim import simulate, write_simulation
 from flightrecon.sim.glass_cockpit import write_glass_cockpit
 from flightrecon.types import CleanFlight, Flight
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from onehz_study import dr_in_gap  # noqa: E402  (the study of the real export)
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "tables"
@@ -148,31 +152,6 @@ def gnss_ne(flight: Flight, clean: CleanFlight) -> pd.DataFrame:
                          "ve": g.gnss_ve_mps.to_numpy(float)})
 
 
-def dr_in_gap(clean: CleanFlight, fixes: pd.DataFrame, ref: pd.DataFrame, a: float,
-              b: float) -> np.ndarray:
-    """Dead reckoning through the gap [a, b] from the last fix before it with the wind of the
-    minute before it (mean GPS velocity minus TAS vector); horizontal error against the truth
-    at the gap's seconds."""
-    g = clean.grid
-    t = g.t_s.to_numpy(float)
-    psi = np.radians(g.heading_deg.to_numpy(float))
-    tas = g.tas_mps.to_numpy(float)
-    va = np.c_[tas * np.cos(psi), tas * np.sin(psi)]
-    before = fixes[(fixes.t_s >= a - 60.0) & (fixes.t_s < a)]
-    air = np.c_[np.interp(before.t_s, t, va[:, 0]), np.interp(before.t_s, t, va[:, 1])]
-    w = np.nanmean(np.c_[before.vn, before.ve] - air, axis=0)
-    last = fixes[fixes.t_s < a].iloc[-1]
-    k = (t >= last.t_s) & (t <= b + 1.0)
-    tk = t[k]
-    v = va[k] + w
-    pos = np.c_[last.n + np.r_[0.0, np.cumsum(0.5 * (v[1:, 0] + v[:-1, 0]) * np.diff(tk))],
-                last.e + np.r_[0.0, np.cumsum(0.5 * (v[1:, 1] + v[:-1, 1]) * np.diff(tk))]]
-    inside = ref[(ref.t_s >= a) & (ref.t_s <= b)]
-    dn = np.interp(inside.t_s, tk, pos[:, 0]) - inside.n
-    de = np.interp(inside.t_s, tk, pos[:, 1]) - inside.e
-    return np.hypot(dn, de).to_numpy()
-
-
 def with_gap(flight: Flight, a: float, b: float) -> Flight:
     d = flight.data.copy()
     cols = [c for c in d.columns if c.startswith("gnss_")]
@@ -195,7 +174,7 @@ def gnss_gap(path: Path, truth: pd.DataFrame, length_s: float) -> dict[str, Any]
     err = joint_errors(j.track, ref)
     m = ((ref.t_s >= a) & (ref.t_s <= b)).to_numpy()
     s = summary(err, m)
-    h_dr = dr_in_gap(clean_full, gnss_ne(full, clean_full), ref, a, b)
+    h_dr = dr_in_gap(clean_full, ref, a, b, fixes=gnss_ne(full, clean_full))
     s["dr_wind_rms_h_m"] = float(np.sqrt(np.mean(h_dr ** 2)))
     s["ratio_to_dr"] = s["rms_h_m"] / s["dr_wind_rms_h_m"]
     return {"length_s": length_s, "t0_s": a, "t1_s": b, **s,

@@ -156,18 +156,23 @@ def with_gaps(flight: Flight, gaps: list[tuple[float, float]]) -> Flight:
     return replace(flight, data=d)
 
 
-def dr_in_gap(clean: CleanFlight, ref: pd.DataFrame, a: float, b: float) -> np.ndarray:
+def dr_in_gap(clean: CleanFlight, ref: pd.DataFrame, a: float, b: float,
+              fixes: pd.DataFrame | None = None) -> np.ndarray:
     """Dead reckoning through a gap from the last fix before it, with the wind of the minute
-    before it (mean of GPS velocity minus TAS vector); horizontal error at the gap's fixes."""
+    before it (mean of GPS velocity minus TAS vector); horizontal error against ``ref`` (the
+    truth: columns ``t_s``, ``n``, ``e``, and ``vn``, ``ve`` where ``fixes`` is not given) at
+    its samples inside the gap.  ``fixes``: the GNSS fixes the wind and the start come from
+    (default ``ref``, when the truth is the GPS itself)."""
+    fixes = ref if fixes is None else fixes
     g = clean.grid
     t = g.t_s.to_numpy(float)
     psi = np.radians(g.heading_deg.to_numpy(float))
     tas = g.tas_mps.to_numpy(float)
     va = np.c_[tas * np.cos(psi), tas * np.sin(psi)]
-    before = ref[(ref.t_s >= a - 60.0) & (ref.t_s < a)]
+    before = fixes[(fixes.t_s >= a - 60.0) & (fixes.t_s < a)]
     air = np.c_[np.interp(before.t_s, t, va[:, 0]), np.interp(before.t_s, t, va[:, 1])]
     w = np.nanmean(np.c_[before.vn, before.ve] - air, axis=0)
-    last = ref[ref.t_s < a].iloc[-1]
+    last = fixes[fixes.t_s < a].iloc[-1]
     k = (t >= last.t_s) & (t <= b + 1.0)
     tk = t[k]
     v = va[k] + w

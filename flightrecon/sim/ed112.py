@@ -23,9 +23,9 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.constants import FOOT_M, KNOT_MPS
-from flightrecon.errors import ValidationError
 from flightrecon.geo.atmosphere import tas_to_cas
 from flightrecon.geo.magnetic import decimal_year, declination_deg
+from flightrecon.sim.recorder import channel_samples
 
 __all__ = ["ED112_PARAMETERS", "Ed112Parameter", "ed112_export", "ed112_mapping"]
 
@@ -59,11 +59,7 @@ ED112_PARAMETERS = (
 
 
 def _own(log: pd.DataFrame, c: str) -> tuple[np.ndarray, np.ndarray]:
-    v = log[c].to_numpy(dtype=float)
-    ok = np.isfinite(v)
-    if ok.sum() < 2:
-        raise ValidationError("the ED-112 export needs this channel sampled", column=c)
-    return log["t_s"].to_numpy(dtype=float)[ok], v[ok]
+    return channel_samples(log, c, "the ED-112 export")
 
 
 def _interp_angle(t: np.ndarray, ts: np.ndarray, v: np.ndarray) -> np.ndarray:

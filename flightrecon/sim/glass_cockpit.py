@@ -42,6 +42,7 @@ from flightrecon.constants import FOOT_M, KNOT_MPS
 from flightrecon.errors import ValidationError
 from flightrecon.geo.atmosphere import P0_PA, isa_pressure_pa, pressure_altitude_m, tas_to_cas
 from flightrecon.geo.magnetic import decimal_year, declination_deg
+from flightrecon.sim.recorder import channel_samples
 from flightrecon.types import FlightMeta
 
 __all__ = [
@@ -98,11 +99,7 @@ def indicated_from_pressure_altitude(pressure_alt_m: np.ndarray, setting_pa: np.
 
 
 def _own(log: pd.DataFrame, c: str) -> tuple[np.ndarray, np.ndarray]:
-    v = log[c].to_numpy(dtype=float)
-    ok = np.isfinite(v)
-    if ok.sum() < 2:
-        raise ValidationError("the glass-cockpit export needs this channel sampled", column=c)
-    return log["t_s"].to_numpy(dtype=float)[ok], v[ok]
+    return channel_samples(log, c, "the glass-cockpit export")
 
 
 def _at(t: np.ndarray, log: pd.DataFrame, c: str, angle: bool = False) -> np.ndarray:

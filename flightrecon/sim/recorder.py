@@ -19,7 +19,8 @@ from flightrecon.errors import ValidationError
 from flightrecon.schema import CHANNELS
 from flightrecon.sim.sensors import Faults, SensorSuite
 
-__all__ = ["STREAM_KEYS", "Recording", "record_log", "sample_rows", "stream"]
+__all__ = ["STREAM_KEYS", "Recording", "channel_samples", "record_log", "sample_rows",
+           "stream"]
 
 STREAM_KEYS = {"loads": 1, "attitude": 2, "airspeed": 3, "baro": 4, "gnss": 5, "radar": 6,
                "doppler": 7, "wind": 8, "faults": 20, "airdata": 21, "wind_gm": 22,
@@ -141,3 +142,20 @@ def record_log(truth: pd.DataFrame, suite: SensorSuite, seed: int, truth_rate_hz
         any_value |= np.isfinite(log[c].to_numpy())
     log = log.loc[any_value].reset_index(drop=True)
     return Recording(log=log, truth_extra=extra, faults=tuple(events))
+
+
+def channel_samples(log: pd.DataFrame, channel: str, what: str = "this export"
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Times and values of ``channel`` at its own samples in a multi-rate canonical log (the
+    rows where it is not NaN), for the exports that resample a log.
+
+    Raises
+    ------
+    ValidationError
+        Fewer than two samples of the channel.
+    """
+    v = log[channel].to_numpy(dtype=float)
+    ok = np.isfinite(v)
+    if ok.sum() < 2:
+        raise ValidationError(f"{what} needs this channel sampled", column=channel)
+    return log["t_s"].to_numpy(dtype=float)[ok], v[ok]
