@@ -65,7 +65,7 @@ from flightrecon.sim.glass_cockpit import write_glass_cockpit
 from flightrecon.types import CleanFlight, Flight
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from onehz_study import dr_in_gap  # noqa: E402  (the study of the real export)
+from onehz_study import dr_in_gap, joint_errors  # noqa: E402  (the real export's study)
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "tables"
@@ -96,14 +96,6 @@ def truth_reference(truth: pd.DataFrame, clean: CleanFlight) -> pd.DataFrame:
     e, n, u = output_plane(clean.meta).forward(cols["lat_deg"], cols["lon_deg"], cols["alt_m"])
     ref = pd.DataFrame({"t_s": t, "n": n, "e": e, "u": u})
     return ref[air].reset_index(drop=True)
-
-
-def joint_errors(track: pd.DataFrame, ref: pd.DataFrame) -> dict[str, np.ndarray]:
-    out = {}
-    for ax, c in (("n", "north"), ("e", "east"), ("u", "up")):
-        out[ax] = np.interp(ref.t_s, track.t_s, track[f"joint_{c}_m"]) - ref[ax].to_numpy()
-        out["sd_" + ax] = np.interp(ref.t_s, track.t_s, track[f"joint_{c}_sd_m"])
-    return out
 
 
 def summary(err: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, float]:
