@@ -12,6 +12,18 @@
     (``sqrt(-2 ln 0.05)``); NACp 0 (unknown) gives no figure.
 
   A fix without a figure gets the estimator's default noise.
+* **Positions recorded in steps.**  An export that keeps few digits writes the latitude in
+  steps (five significant digits: 0.001 deg, 111 m): the rounding error is uniform over a step,
+  sd ``step / sqrt(12)`` (32 m), and dwarfs the receiver's.  A step is detected when 95 % of
+  the fixes' latitudes (longitudes) are whole multiples of their smallest difference and that
+  step is at least :data:`MIN_STEP_M`; the rounding sd of the coarser axis is then added, in
+  quadrature, to ``gnss_h_sd_m`` (to :data:`UERE_M` where the log has no figure), and a note
+  says so.
+* **A fix repeated at the recorder's rate.**  A recorder sampling its GNSS faster than the
+  receiver updates writes each fix several times (a 1 Hz receiver on a 10 Hz frame: runs of
+  ten identical positions).  Where fixes come faster than 1.5 Hz and the median run of
+  identical consecutive positions is 3 or longer, only the first of each run is kept (a
+  measurement is used once); the repeats are masked and reported.
 * **Fix quality** (``gnss_quality``, the NMEA GGA code): 0 (invalid), 6 (estimated / dead
   reckoning), 7 (manual input) and 8 (simulation) are not measurements of the aircraft's
   position: those fixes are masked (position, height and velocity set missing) and the masking
@@ -24,7 +36,8 @@ import numpy as np
 
 from flightrecon.ingest.validate import Provenance, Repair
 
-__all__ = ["EPU_BY_NACP_M", "UERE_M", "accuracy_from_dop", "apply_gnss_quality"]
+__all__ = ["EPU_BY_NACP_M", "MIN_STEP_M", "UERE_M", "accuracy_from_dop", "apply_gnss_quality",
+           "recording_step"]
 
 #: user-equivalent range error used with the HDOP [m]
 UERE_M = 3.0
@@ -35,6 +48,10 @@ EPU_BY_NACP_M = {1: 18520.0, 2: 7408.0, 3: 3704.0, 4: 1852.0, 5: 926.0, 6: 555.6
 R95_PER_SD = float(np.sqrt(-2.0 * np.log(0.05)))
 #: NMEA GGA fix-quality codes that are not a measured position
 BAD_QUALITY = (0, 6, 7, 8)
+#: a recording step of the position smaller than this is not worth a word [m]
+MIN_STEP_M = 2.0
+#: metres per degree of latitude (mean; enough for a rounding step)
+M_PER_DEG = 111_320.0
 _FIX_COLUMNS = ("gnss_lat_deg", "gnss_lon_deg", "gnss_alt_m", "gnss_vn_mps", "gnss_ve_mps")
 
 
@@ -53,9 +70,96 @@ def accuracy_from_dop(hdop: np.ndarray | None, nacp: np.ndarray | None, n: int) 
     return out
 
 
+def recording_step(values: np.ndarray) -> float | None:
+    """The step in which ``values`` were recorded (module docstring), or ``None`` when they
+    are not whole multiples of one step (or too few to tell)."""
+    v = values[np.isfinite(values)]
+    u = np.unique(v)
+    if u.size < 10:
+        return None
+    d = np.diff(u)
+    step = float(d.min())
+    if step <= 0.0:
+        return None
+    r = v / step
+    on = np.abs(r - np.round(r)) < 0.01
+    return step if float(on.mean()) >= 0.95 else None
+
+
+def _repeated_fixes(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provenance
+                    ) -> tuple[list[str], list[Repair]]:
+    """Mask the repeats of a fix written at the recorder's rate (module docstring)."""
+    lat, lon = cols.get("gnss_lat_deg"), cols.get("gnss_lon_deg")
+    if lat is None or lon is None:
+        return [], []
+    idx = np.flatnonzero(np.isfinite(lat) & np.isfinite(lon))
+    if idx.size < 20:
+        return [], []
+    rate = (idx.size - 1) / max(float(t[idx[-1]] - t[idx[0]]), 1e-9)
+    same = (lat[idx[1:]] == lat[idx[:-1]]) & (lon[idx[1:]] == lon[idx[:-1]])
+    starts = np.flatnonzero(np.r_[True, ~same])
+    runs = np.diff(np.r_[starts, idx.size])
+    if rate <= 1.5 or float(np.median(runs)) < 3:
+        return [], []
+    repeat = np.ones(idx.size, bool)
+    repeat[starts] = False
+    bad = np.zeros(len(t), bool)
+    bad[idx[repeat]] = True
+    for c in _FIX_COLUMNS:
+        if c in cols:
+            v = cols[c].copy()
+            v[bad] = np.nan
+            cols[c] = v
+    warns, repairs = [], []
+    for f in np.unique(prov.src_file[bad]):
+        m = bad & (prov.src_file == f)
+        col = prov.source_column[int(f)].get("gnss_lat_deg", "gnss_lat_deg")
+        rep = Repair(file=prov.files[int(f)], column=col, channel="gnss_lat_deg",
+                     rows=tuple(int(r) for r in prov.row[m]), count=int(m.sum()),
+                     action="masked", first_value=float(lat[m][0]), bound=(-90.0, 90.0),
+                     t_s=tuple(float(x) for x in t[m]),
+                     why=f"the same position written again at the recorder's {rate:.3g} Hz "
+                         f"(median run of {float(np.median(runs)):.0f} identical fixes): "
+                         "each fix used once, at its first row")
+        repairs.append(rep)
+        warns.append(rep.message())
+    return warns, repairs
+
+
+def _quantised_positions(cols: dict[str, np.ndarray]) -> list[str]:
+    """Add the rounding of positions recorded in steps to ``gnss_h_sd_m`` (module
+    docstring); returns the note."""
+    lat, lon = cols.get("gnss_lat_deg"), cols.get("gnss_lon_deg")
+    if lat is None or lon is None or np.isfinite(lat).sum() < 20:
+        return []
+    coslat = float(np.cos(np.radians(np.nanmedian(lat))))
+    steps = {}
+    for name, v, scale in (("latitude", lat, M_PER_DEG), ("longitude", lon,
+                                                          M_PER_DEG * coslat)):
+        st = recording_step(v)
+        if st is not None and st * scale >= MIN_STEP_M:
+            steps[name] = (st, st * scale)
+    if not steps:
+        return []
+    q_m = max(m for _, m in steps.values())
+    sd_round = q_m / np.sqrt(12.0)
+    have = cols.get("gnss_h_sd_m")
+    base = np.full(len(lat), UERE_M) if have is None else np.where(np.isfinite(have), have,
+                                                                    UERE_M)
+    fix = np.isfinite(lat)
+    sd = np.where(fix, np.hypot(base, sd_round), np.nan if have is None else have)
+    cols["gnss_h_sd_m"] = sd
+    shown = "; ".join(f"{k} in steps of {st:.3g} deg ({m:.0f} m)" for k, (st, m)
+                      in steps.items())
+    return [f"GNSS positions recorded in steps ({shown}): the rounding, sd {sd_round:.0f} m "
+            "(step / sqrt(12)), added to gnss_h_sd_m"
+            + ("" if have is not None else f" (receiver {UERE_M:g} m where none is recorded)")]
+
+
 def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provenance
                        ) -> tuple[list[str], list[Repair], list[str]]:
-    """Derive ``gnss_h_sd_m`` where missing and mask bad-quality fixes, in ``cols`` (in place).
+    """Derive ``gnss_h_sd_m`` where missing, mask bad-quality and repeated fixes and add the
+    rounding of positions recorded in steps, in ``cols`` (in place; module docstring).
 
     Returns
     -------
@@ -98,4 +202,8 @@ def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provena
                                  "8 simulation): not a measured position")
                 repairs.append(rep)
                 warns.append(rep.message())
+    w, r = _repeated_fixes(cols, t, prov)
+    warns += w
+    repairs += r
+    notes += _quantised_positions(cols)
     return warns, repairs, notes
