@@ -56,7 +56,6 @@ import pandas as pd
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.filters.joint_method import run_joint
-from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
 from flightrecon.pipeline.health import method_health
@@ -65,7 +64,13 @@ from flightrecon.sim.glass_cockpit import write_glass_cockpit
 from flightrecon.types import CleanFlight, Flight
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from onehz_study import dr_in_gap, joint_errors  # noqa: E402  (the real export's study)
+from onehz_study import (  # noqa: E402  (the real export's study)
+    corrections,
+    dr_in_gap,
+    dr_linear_errors,
+    joint_errors,
+    with_gaps,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "tables"
@@ -123,12 +128,7 @@ def recorder_only(path: Path, truth: pd.DataFrame) -> dict[str, Any]:
     res: dict[str, Any] = {"joint": summary(err, np.ones(len(ref), bool)),
                            "time_s": time.perf_counter() - t0, "health": health(j, clean),
                            "corrections": corrections(j.summary)}
-    dr = dead_reckoning(clean, corrected=True)
-    ok = np.isfinite(dr.north_m.to_numpy(float))
-    dn = np.interp(ref.t_s, dr.t_s[ok], dr.north_m[ok]) - ref.n
-    de = np.interp(ref.t_s, dr.t_s[ok], dr.east_m[ok]) - ref.e
-    h = np.hypot(dn, de)
-    res["dr_linear"] = {"rms_h_m": float(np.sqrt(np.mean(h ** 2))), "max_h_m": float(np.max(h))}
+    res["dr_linear"] = dr_linear_errors(clean, ref)
     res["ratio_to_dr"] = res["joint"]["rms_h_m"] / res["dr_linear"]["rms_h_m"]
     return res
 
@@ -144,13 +144,6 @@ def gnss_ne(flight: Flight, clean: CleanFlight) -> pd.DataFrame:
                          "ve": g.gnss_ve_mps.to_numpy(float)})
 
 
-def with_gap(flight: Flight, a: float, b: float) -> Flight:
-    d = flight.data.copy()
-    cols = [c for c in d.columns if c.startswith("gnss_")]
-    d.loc[(d.t_s >= a) & (d.t_s <= b), cols] = np.nan
-    return replace(flight, data=d)
-
-
 def gnss_gap(path: Path, truth: pd.DataFrame, length_s: float) -> dict[str, Any] | None:
     full = load(path, False)
     clean_full = clean_flight(full)
@@ -160,7 +153,7 @@ def gnss_gap(path: Path, truth: pd.DataFrame, length_s: float) -> dict[str, Any]
         return None
     a = 0.5 * (t_air[0] + t_air[-1]) - 0.5 * length_s
     b = a + length_s
-    clean = clean_flight(with_gap(full, a, b))
+    clean = clean_flight(with_gaps(full, [(a, b)]))
     t0 = time.perf_counter()
     j = run_joint(clean)
     err = joint_errors(j.track, ref)
@@ -172,13 +165,6 @@ def gnss_gap(path: Path, truth: pd.DataFrame, length_s: float) -> dict[str, Any]
     return {"length_s": length_s, "t0_s": a, "t1_s": b, **s,
             "with_gps": summary(err, ~m), "time_s": time.perf_counter() - t0,
             "health": health(j, clean)}
-
-
-def corrections(summary_: dict[str, Any]) -> dict[str, float]:
-    c = summary_.get("corrections", {})
-    return {k: float(v["value"]) for k, v in c.items()
-            if k in ("baro_scale", "baro_offset_m", "heading_bias_deg", "tas_scale",
-                     "pitch_bias_deg") and v.get("value") is not None}
 
 
 def native(path: Path, truth: pd.DataFrame) -> dict[str, Any]:

@@ -125,14 +125,21 @@ def recorder_only(latency_s: float) -> dict:
     err = joint_errors(j.track, ref)
     res = {"joint": summary(err, np.ones(len(ref), bool)),
            "time_s": time.perf_counter() - t0, "corrections": corrections(j.summary)}
+    res["dr_linear"] = dr_linear_errors(clean, ref)
+    res["ratio_to_dr"] = res["joint"]["rms_h_m"] / res["dr_linear"]["rms_h_m"]
+    return res
+
+
+def dr_linear_errors(clean: CleanFlight, ref: pd.DataFrame) -> dict[str, float]:
+    """RMS and largest horizontal error of dead reckoning with its linear end correction
+    (:func:`flightrecon.fusion.baselines.dead_reckoning`) against ``ref`` (``t_s``, ``n``,
+    ``e``)."""
     dr = dead_reckoning(clean, corrected=True)
     ok = np.isfinite(dr.north_m.to_numpy(float))
     dn = np.interp(ref.t_s, dr.t_s[ok], dr.north_m[ok]) - ref.n
     de = np.interp(ref.t_s, dr.t_s[ok], dr.east_m[ok]) - ref.e
     h = np.hypot(dn, de)
-    res["dr_linear"] = {"rms_h_m": float(np.sqrt(np.mean(h ** 2))), "max_h_m": float(np.max(h))}
-    res["ratio_to_dr"] = res["joint"]["rms_h_m"] / res["dr_linear"]["rms_h_m"]
-    return res
+    return {"rms_h_m": float(np.sqrt(np.mean(h ** 2))), "max_h_m": float(np.max(h))}
 
 
 def gap_windows(ref: pd.DataFrame) -> list[tuple[float, float]]:
