@@ -313,7 +313,9 @@ def wind_triangle_fit(data: pd.DataFrame, segment_s: float = 600.0) -> Fit | Non
     v = _at(t, tas)
     air = v[:, None] * np.column_stack([np.cos(psi), np.sin(psi)])
     seg = ((t - t[0]) // segment_s).astype(int)
-    rows_s, rows_w, rhs, segs_used = [], [], [], 0
+    # a wind per segment and axis is a nuisance parameter: profiled out by centring each
+    # segment's air and ground velocities (Frisch-Waugh), ``s`` is then one ratio
+    xs, ys, raw = [], [], []
     for k in np.unique(seg):
         m = seg == k
         if m.sum() < 16:
@@ -324,27 +326,19 @@ def wind_triangle_fit(data: pd.DataFrame, segment_s: float = 600.0) -> Fit | Non
         ev = np.linalg.eigvalsh(d.T @ d / m.sum())
         if np.sqrt(max(ev[0], 0.0)) < 0.1 * float(np.mean(v[m])):
             continue
-        segs_used += 1
-        for j in (0, 1):
-            rows_s.append(air[m, j])
-            w = np.zeros((int(m.sum()), 2 * int(seg.max() + 1)))
-            w[:, 2 * k + j] = 1.0
-            rows_w.append(w)
-            rhs.append(g[m, j])
-    if not segs_used:
+        xs.append(d.ravel())
+        ys.append((g[m] - g[m].mean(axis=0)).ravel())
+        raw.append(g[m].ravel())
+    if not xs:
         return None
-    A = np.column_stack([np.concatenate(rows_s), np.concatenate(rows_w)])
-    A = A[:, np.concatenate([[True], np.abs(A[:, 1:]).sum(axis=0) > 0])]
-    y = np.concatenate(rhs)
-    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-    res = y - A @ coef
-    s = float(coef[0])
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    sxx = float(x @ x)
+    s = float(x @ y) / sxx
     if s <= 0:
         return None
-    sigma = float(np.std(res))
-    cov = sigma ** 2 * np.linalg.pinv(A.T @ A)
+    sigma = float(np.std(y - s * x))
     # correlated fixes: about one independent residual per 10 s
-    n_eff = A.shape[0] / 2 / 10.0
-    se_s = float(np.sqrt(cov[0, 0] * 10.0))
-    r = float(max(0.0, 1.0 - sigma / max(float(np.std(y)), 1e-9)))
+    n_eff = x.size / 2 / 10.0
+    se_s = float(np.sqrt(sigma ** 2 / sxx * 10.0))
+    r = float(max(0.0, 1.0 - sigma / max(float(np.std(np.concatenate(raw))), 1e-9)))
     return Fit(1.0 / s, r, n_eff, se_s / s ** 2, "10 s of GNSS velocity", r_min=0.75)

@@ -45,6 +45,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 from dataclasses import asdict, dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pandas as pd
@@ -164,6 +165,15 @@ class _Door:
 
     def where(self, name: str) -> str:
         return f"{self.file(name)}: column '{self.col(name)}'"
+
+    @cached_property
+    def _slope(self) -> tuple[float, float] | None:
+        return _gnss_baro_slope(self)
+
+    def gnss_baro_slope(self) -> tuple[float, float] | None:
+        """GNSS height against pressure altitude (:func:`_gnss_baro_slope`), computed once
+        for the checks that use it."""
+        return self._slope
 
     def unit_of(self, name: str, canonical: str) -> DeclaredUnit:
         return self.declared.get(name, DeclaredUnit(canonical))
@@ -568,7 +578,7 @@ def _check_baro(door: _Door) -> Fit | None:
                 f"acceleration from the load factors and attitude integrates ({fit.text()})")
     if unit is not None:
         # a second witness: the GNSS height must not say the pressure altitude is right
-        slope = _gnss_baro_slope(door)
+        slope = door.gnss_baro_slope()
         if slope is not None and _nearest(slope[0], {"1": 1.0}, 0.3):
             door.warn(check, name, fit.factor,
                       f"{door.where(name)}: {evidence}, which suggests {unit}, but the GNSS "
@@ -580,7 +590,7 @@ def _check_baro(door: _Door) -> Fit | None:
             return fit
         door.refuse(check, name, fit.factor, _unit_message(door, name, unit, declared, evidence),
                     file=door.file(name), column=door.col(name))
-    slope = _gnss_baro_slope(door)
+    slope = door.gnss_baro_slope()
     gnss_agrees = slope is not None and slope[1] > 0.98 and _nearest(slope[0], {"1": 1.0}, 0.3)
     if _plausible(fit) and fit.good(N_MIN):
         door.record(check, name, "passed", fit.factor, fit.text())
@@ -636,7 +646,7 @@ def _check_gnss_height(door: _Door, baro_fit: Fit | None) -> None:
     """GNSS height against pressure altitude: a factor of a unit is one of them in feet; the
     vertical acceleration (fitted to each) says which."""
     check = "gnss_alt_m unit"
-    slope = _gnss_baro_slope(door)
+    slope = door.gnss_baro_slope()
     if slope is None:
         if "gnss_alt_m" in door.data.columns and "baro_alt_m" in door.data.columns:
             door.record(check, "gnss_alt_m", "skipped", None,
