@@ -10,20 +10,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _cli import run_cli
 
-from flightrecon.cli.main import main
 from flightrecon.export.writers import read_parquet_metadata
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "sample_logs"
-
-
-def run_cli(args: list[str]) -> int:
-    try:
-        main(["--quiet", *args])
-    except SystemExit as exc:
-        return int(exc.code or 0)
-    return 0
 
 
 def sample_logs() -> list[Path]:

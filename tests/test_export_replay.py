@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _cli import run_cli
 
-from flightrecon.cli.main import main
 from flightrecon.errors import MetadataError, OutputError
 from flightrecon.events import Event, events_table
 from flightrecon.export.writers import format_from_path, track_angles, write_kml, write_track
@@ -24,14 +24,6 @@ SAMPLES = ROOT / "sample_logs"
 KML = "{http://www.opengis.net/kml/2.2}"
 GX = "{http://www.google.com/kml/ext/2.2}"
 EPOCH = "2026-01-01T10:00:00Z"
-
-
-def run_cli(args: list[str]) -> int:
-    try:
-        main(["--quiet", *args])
-    except SystemExit as exc:
-        return int(exc.code or 0)
-    return 0
 
 
 def track(n=400, dt=0.5):

@@ -15,8 +15,8 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from _cli import run_cli
 
-from flightrecon.cli.main import main
 from flightrecon.sim import simulate, write_simulation
 
 POSITION = re.compile(r"(^|_)((north|east|up)_m|lat_deg|lon_deg|alt_m)$")
@@ -38,14 +38,6 @@ for _name, _scale, _slow in (("jsbsim-circuit", 1.0, False), ("jsbsim-xc", 0.12,
             _name, {"scale": _scale, "gnss_hz": _gnss},
             id=f"{_name}-{'gnss' if _gnss else 'recorder-only'}",
             marks=[SLOW] if _slow else []))
-
-
-def run_cli(args: list[str]) -> int:
-    try:
-        main(["--quiet", *args])
-    except SystemExit as exc:
-        return int(exc.code or 0)
-    return 0
 
 
 @pytest.mark.parametrize(("scenario", "overrides"), CASES)

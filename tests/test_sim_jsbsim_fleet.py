@@ -13,7 +13,8 @@ import pytest
 
 pytest.importorskip("jsbsim")
 
-from flightrecon.cli.main import main
+from _cli import run_cli
+
 from flightrecon.cli.simulate import AIRFRAME_NAMES, EXPORT_NAMES, SCENARIO_NAMES
 from flightrecon.sim import simulate
 from flightrecon.sim.io import EXPORT_FORMATS
@@ -21,14 +22,6 @@ from flightrecon.sim.jsbsim_scenarios import AIRFRAMES, JSBSIM_SCENARIOS, jsbsim
 
 NEW_AIRFRAMES = ("c310", "t6texan2", "pc7", "global5000", "B747")
 """The aircraft added to the Cessna 172 and the 737 (issue #38)."""
-
-
-def run_cli(args: list[str]) -> int:
-    try:
-        main(["--quiet", *args])
-    except SystemExit as exc:
-        return int(exc.code or 0)
-    return 0
 
 
 def test_the_command_line_knows_every_airframe_scenario_and_export():
