@@ -173,3 +173,25 @@ def test_combine_assembles_the_result_table():
     out.loc[0, "t_s"] = -1.0
     assert results["sns"].track["sns_north_m"].iloc[0] == north[0] + 1.0
     assert grid["t_s"].iloc[0] == 0.0
+
+
+def test_a_position_without_a_height_keeps_its_latitude_and_longitude():
+    """No departure airfield for the pressure altitude and no healthy height (the joint
+    unhealthy): the default result had NaN latitude and longitude under a finite north/east.
+    Now they are the plane's position at its own height; alt_m stays unknown."""
+    from flightrecon.pipeline import combine
+    from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position
+
+    n = 200
+    t = np.arange(n) * 0.5
+    meta = FlightMeta(origin=Position(40.0, 49.0, 10.0))
+    grid = pd.DataFrame({"t_s": t, "baro_alt_m": 500.0 + t})
+    clean = CleanFlight(grid=grid, rate_hz=2.0, gnss=pd.DataFrame({"t_s": []}),
+                        radar=pd.DataFrame({"t_s": []}), meta=meta)
+    tr = pd.DataFrame({"t_s": t, "sns_north_m": 60.0 * t, "sns_east_m": 10.0 * t,
+                       "sns_north_sd_m": 5.0, "sns_east_sd_m": 5.0})
+    out = combine(clean, {"sns": MethodResult("sns", tr, {})}, healthy={"sns": True})
+    assert np.isfinite(out[["lat_deg", "lon_deg"]].to_numpy()).all()
+    assert out["alt_m"].isna().all()
+    # 6 km north of the origin: 0.054 deg of latitude
+    assert abs(out["lat_deg"].iloc[-1] - (40.0 + 60.0 * t[-1] / 111_000.0)) < 2e-3

@@ -91,6 +91,14 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
         up_source[j_ok] = 3
         extra = _joint_extra(tj)
         lat, lon, alt = plane.inverse(east, north, up)
+    miss = ~np.isfinite(up) & np.isfinite(east) & np.isfinite(north)
+    if miss.any():
+        # a position without a height (no departure airfield for the pressure altitude, no
+        # healthy height): its latitude and longitude at the plane's own height (a height error
+        # h moves them by about d h / R: 16 m at 100 km and 1 km); alt_m stays unknown
+        la, lo, _ = plane.inverse(east[miss], north[miss], np.zeros(int(miss.sum())))
+        lat, lon = np.array(lat, dtype=float), np.array(lon, dtype=float)
+        lat[miss], lon[miss] = la, lo
     out: dict[str, Any] = {"t_s": t, **cols, "up_m": up, "up_sd_m": up_sd, "vu_mps": vu,
                            "lat_deg": lat, "lon_deg": lon, "alt_m": alt,
                            "source": _text_column(source, source_names),
