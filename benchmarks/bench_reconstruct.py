@@ -49,8 +49,14 @@ def _child(hours: float, workdir: str) -> dict:
     from flightrecon.export.writers import write_summary, write_track
     from flightrecon.geo.kinematics import kinematic_acceleration_ned
     from flightrecon.ingest import load_flight
-    from flightrecon.pipeline import (ALL_METHODS, ReconstructSettings, available_methods,
-                                      build_summary, combine, run_method)
+    from flightrecon.pipeline import (
+        ALL_METHODS,
+        ReconstructSettings,
+        available_methods,
+        build_summary,
+        combine,
+        run_method,
+    )
     from flightrecon.sim import simulate, write_simulation
 
     work = Path(workdir)

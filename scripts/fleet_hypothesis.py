@@ -96,7 +96,8 @@ def main() -> None:
             print(rows[-1])
     df = pd.DataFrame(rows)
     lines = ["| aircraft | flight | own k1, k2, k3 (converged) | fleet-mean k1, k2, k3 (flights) | "
-             "RMS fleet mean [m] | RMS own k [m] | RMS dead reckoning [m] | reported sd (fleet) [m] |",
+             "RMS fleet mean [m] | RMS own k [m] | RMS dead reckoning [m] | "
+             "reported sd (fleet) [m] |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         ko = ", ".join("-" if x is None else f"{x:.3g}" for x in r["k_own"])

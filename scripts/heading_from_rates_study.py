@@ -20,7 +20,8 @@ heading against the truth, with its reported sd.
 
 Usage::
 
-    python scripts/heading_from_rates_study.py --runs 10      # writes docs/tables/heading_from_rates.md
+    # writes docs/tables/heading_from_rates.md:
+    python scripts/heading_from_rates_study.py --runs 10
     python scripts/heading_from_rates_study.py --runs 2 --no-write
 """
 

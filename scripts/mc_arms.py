@@ -78,7 +78,8 @@ def _joint_nees(sc, runs, smoothed, linearisation="ekf"):
     M, N = runs, len(sc.t_s)
     nees = np.zeros(N)
     for i in range(M):
-        run = A.run_joint_model(*_inputs(sc, i), MODEL, linearisation=linearisation, smooth=smoothed)
+        run = A.run_joint_model(*_inputs(sc, i), MODEL, linearisation=linearisation,
+                                smooth=smoothed)
         src = run.smooth if smoothed else run.filt
         truth = np.column_stack([sc.pos[i, :, 0], sc.vel[i, :, 0], sc.pos[i, :, 1],
                                  sc.vel[i, :, 1], sc.dv[i]])
@@ -159,8 +160,10 @@ def main(argv=None) -> None:
         "",
         "| joint | mean NEES (t >= 60 s) | epochs inside band |",
         "|---|---|---|",
-        f"| filter | {nees_f[late].mean():.3f} | {np.mean((nees_f[late] > lo) & (nees_f[late] < hi)):.1%} |",
-        f"| smoother | {nees_s[late].mean():.3f} | {np.mean((nees_s[late] > lo) & (nees_s[late] < hi)):.1%} |",
+        f"| filter | {nees_f[late].mean():.3f} | "
+        f"{np.mean((nees_f[late] > lo) & (nees_f[late] < hi)):.1%} |",
+        f"| smoother | {nees_s[late].mean():.3f} | "
+        f"{np.mean((nees_s[late] > lo) & (nees_s[late] < hi)):.1%} |",
         "",
     ]
     table1 = "\n".join(lines)

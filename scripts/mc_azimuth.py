@@ -346,7 +346,8 @@ def monte_carlo(n_runs: int, seed: int, cfg: SensorConfig, params: FilterParams,
                 e = x[pos] - xt
                 e[:, 0] = wrap_pi(e[:, 0])
                 err[(m, kind)][j] = e
-                nees[(m, kind)][j] = np.einsum("ki,ki->k", e, np.linalg.solve(P[pos], e[..., None])[..., 0])
+                w = np.linalg.solve(P[pos], e[..., None])[..., 0]
+                nees[(m, kind)][j] = np.einsum("ki,ki->k", e, w)
     return MCResult(truth.t[out_idx], err, nees, truth.manoeuvre[:, out_idx], truth.turn1)
 
 

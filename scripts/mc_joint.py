@@ -146,7 +146,8 @@ def noise_from_sensors(sensor_truth: dict) -> JointNoise:
         # the horizontal acceleration (the one the position needs): the longitudinal and lateral
         # load factors' noise (RMS of the two), and gravity tilted by the roll / pitch noise
         sa = g0 * float(np.sqrt(np.mean(np.square(loads["noise_sd_g"][:2]))))
-        sth = g0 * np.radians(max(att.get("roll_noise_sd_deg", 0), att.get("pitch_noise_sd_deg", 0)))
+        sth = g0 * np.radians(max(att.get("roll_noise_sd_deg", 0),
+                                  att.get("pitch_noise_sd_deg", 0)))
         psd = sa**2 / loads["rate_hz"] + (sth**2 / att["rate_hz"] if att else 0.0)
         kw["accel_noise_mps2_sqrt_hz"] = float(np.sqrt(psd))
     if att:
@@ -244,7 +245,8 @@ def one_run(case: str, seed: int) -> dict:
     j = run_joint(clean, settings=JointSettings(noise=noise_from_sensors(r.sensor_truth)))
     res["joint_time_s"] = time.perf_counter() - t0
     res["joint"] = errors(j.track, "joint_", truth, airborne)
-    res["joint_sources"] = {k: {a: v[a] for a in ("count", "beyond_5_sigma", "flagged_inconsistent")}
+    keys = ("count", "beyond_5_sigma", "flagged_inconsistent")
+    res["joint_sources"] = {k: {a: v[a] for a in keys}
                             for k, v in j.summary["sources"].items()}
     res["joint_clock"] = j.summary["clock_offsets_s"]
     res["joint_noise_scale"] = j.summary["noise_scale"]
@@ -273,7 +275,8 @@ def summarise(rows: list[dict]) -> str:
         M = len(rs)
         methods = [k for k in rs[0] if isinstance(rs[0][k], dict) and "rms_h_m" in rs[0][k]]
         lines += [f"### {case} ({M} runs)", "",
-                  "| method | mean RMS horizontal [m] | median | mean max [m] | runs where joint is better |",
+                  "| method | mean RMS horizontal [m] | median | mean max [m] | "
+                  "runs where joint is better |",
                   "|---|---|---|---|---|"]
         jr = np.array([r["joint"]["rms_h_m"] for r in rs])
         for m in methods:
@@ -310,8 +313,9 @@ def summarise(rows: list[dict]) -> str:
             if case == "corrupt_radar":
                 off = np.array([r["joint_clock"]["radar"]["value"] for r in rs])
                 lines.append(f"radar clock offset estimated: mean {off.mean():+.2f} s, "
-                             f"sd over runs {off.std(ddof=1) if M > 1 else 0:.2f} s (truth -2.00 s: the radar is "
-                             "stamped 2 s late, the offset is what is added to its times)")
+                             f"sd over runs {off.std(ddof=1) if M > 1 else 0:.2f} s "
+                             "(truth -2.00 s: the radar is stamped 2 s late, the offset is "
+                             "what is added to its times)")
         lines.append("")
     return "\n".join(lines)
 
@@ -325,7 +329,8 @@ def main() -> None:
                     help="keep the other cases' runs of docs/tables/joint_mc_runs.json (re-run "
                          "some cases only)")
     ap.add_argument("--summarise", metavar="RUNS_JSON",
-                    help="only rebuild the tables from a runs file (docs/tables/joint_mc_runs.json)")
+                    help="only rebuild the tables from a runs file "
+                         "(docs/tables/joint_mc_runs.json)")
     a = ap.parse_args()
     if a.summarise:
         rows = json.loads(Path(a.summarise).read_text())
@@ -339,7 +344,7 @@ def main() -> None:
                 "joint_mc_runs.json with --summarise) -->\n\n" + text + "\n")
         return
     rows = []
-    for ci, case in enumerate(CASES):
+    for case in CASES:
         if case not in a.cases.split(","):
             continue
         # the no-runway variant flies the recorder case's flights (a paired comparison)

@@ -138,14 +138,17 @@ def run(seeds: int, out_dir: Path) -> None:
                      f"{f('liftoff_gs_err_mps')} | {g['clean_s'].mean():.2f} |")
     lines += ["", "Lift-off ground-speed errors include the simulated airspeed scale error "
               "(2 %) and, in `circuit` (no wind channel), the unmodelled headwind component.", "",
-              "## Despiking (spikes of 10-50 x noise at 0.2 % of samples, plus the simulator's fault spikes)", "",
+              "## Despiking (spikes of 10-50 x noise at 0.2 % of samples, "
+              "plus the simulator's fault spikes)", "",
               "| channel | injected | caught | caught [%] | clean samples | removed clean | "
               "removed clean [%] |", "|---|---|---|---|---|---|---|"]
     for c, g in sp.groupby("channel", sort=False):
-        inj, cau, fal, cl = g["injected"].sum(), g["caught"].sum(), g["false"].sum(), g["clean"].sum()
+        inj, cau = g["injected"].sum(), g["caught"].sum()
+        fal, cl = g["false"].sum(), g["clean"].sum()
         lines.append(f"| {c} | {inj} | {cau} | {100 * cau / inj:.1f} | {cl} | {fal} | "
                      f"{100 * fal / cl:.3f} |")
-    inj, cau, fal, cl = sp["injected"].sum(), sp["caught"].sum(), sp["false"].sum(), sp["clean"].sum()
+    inj, cau = sp["injected"].sum(), sp["caught"].sum()
+    fal, cl = sp["false"].sum(), sp["clean"].sum()
     lines.append(f"| **all** | {inj} | {cau} | {100 * cau / inj:.1f} | {cl} | {fal} | "
                  f"{100 * fal / cl:.3f} |")
     (out_dir / "tables").mkdir(parents=True, exist_ok=True)
