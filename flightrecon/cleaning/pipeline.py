@@ -79,6 +79,20 @@ def _ingest_notes_entries(extra: dict) -> list[dict]:
     for ch, how in (extra.get("derived_channels") or {}).items():
         out.append(report_entry(ch, "derived_channel", f"not recorded: computed at ingest as "
                                 f"{how}", count=0))
+    use = extra.get("gnss_use") or {}
+    if use.get("options"):
+        opts = use["options"]
+        said = "; ".join(t for t in (
+            "every GNSS channel withheld" if opts.get("withhold") else "",
+            (f"at most one fix every {opts['interval_s']:g} s ({use.get('interval_dropped', 0)} "
+             "fixes dropped)") if opts.get("interval_s") is not None else "",
+            ", ".join(f"withheld {w['start_s']:g}..{w['end_s']:g} s ({w['fixes_withheld']} "
+                      "fixes)" for w in use.get("withheld_windows", [])),
+            ", ".join(f"receiver {k} {opts[k]:g} m" for k in ("h_sd_m", "v_sd_m")
+                      if opts.get(k) is not None)) if t)
+        out.append(report_entry("gnss", "gnss_use", f"the analyst's GNSS options: {said}",
+                                count=int(use.get("fixes_read", 0)) - int(use.get("fixes_used",
+                                                                                  0))))
     return out
 
 
