@@ -21,6 +21,7 @@ import pytest
 from flightrecon.errors import SchemaError, ValidationError
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.garmin import INHG_PA, pressure_altitude_from_indicated
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.timestamps import combine_date_time, repair_time_order
 from tests.test_ingest_support import handmade_frame
@@ -137,7 +138,7 @@ def test_garmin_derived_long_load_at_rest_is_sin_pitch(garmin):
 
 
 def test_garmin_gnss_withheld(garmin):
-    fl, _ = load_quiet(GARMIN, meta_overrides={"withhold_gnss": True})
+    fl, _ = load_quiet(GARMIN, gnss_use=GnssUse(withhold=True))
     assert not [c for c in fl.data.columns if c.startswith("gnss_")]
     assert any("GNSS withheld" in n for n in fl.meta.extra["ingest_notes"])
     # everything else as with the GNSS
