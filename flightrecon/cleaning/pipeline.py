@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from flightrecon.cleaning.arrival_end import arrival_not_end
 from flightrecon.cleaning.attitude import (
     heading_from_rates,
     heading_needed,
@@ -189,6 +190,9 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
             rep = [report_entry("phases", "not_detected", str(exc), count=0)]
         report.extend(rep)
         phases, rep = with_impact(grid, phases, meta)   # an accident record's end
+        report.extend(rep)
+        # an arrival given for a record cut in the air is not its end point (arrival_end.py)
+        meta, rep = arrival_not_end(grid, phases, meta, settings.phases.airborne_speed_mps)
         report.extend(rep)
     return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
                        meta=meta, report=tuple(report), phases=phases)
