@@ -21,9 +21,10 @@ The evidence (:func:`arrival_not_end`), over the record's last second (the grid 
 
 Both hold: the arrival is dropped from the flight's metadata (no estimator uses it), kept in
 ``meta.extra["arrival_not_end"]`` with the evidence, and a warning and a cleaning-report entry
-(``arrival_not_end``) name it.  The airspeed holds but not the height (a record ending on short
-final, in a low pass or on a fast landing roll): the arrival is kept as the end point, with a
-warning saying that the record ends fast that close to it.  The record's end is then not pinned anywhere: the
+(``arrival_not_end``) name it.  The airspeed holds but not the height: the arrival is kept as the
+end point, with a warning.  That is an arrival given at the aircraft's own height, where the
+record ends (a radar hand-off: the joint smoother's ``last_position`` end point, docs/joint.md),
+or an airfield on short final, in a low pass or on a fast landing roll.  The record's end is then not pinned anywhere: the
 estimators end where their own evidence takes them (as without an arrival).
 """
 
@@ -87,9 +88,10 @@ def arrival_not_end(grid: pd.DataFrame, phases: FlightPhases | None, meta: Fligh
                 f"{height:.0f} m above the arrival field ({qtxt}) over the last second, at "
                 f"t = {t_end:.1f} s")
     if not np.isfinite(height) or height < margin:
-        msg = (f"the record ends fast ({evidence}): still flying low or rolling out; the "
-               "arrival given is taken as the track's end point at the last sample; if the "
-               "record ends before reaching it, give no arrival")
+        msg = (f"the record ends fast ({evidence}): the arrival given is taken as the "
+               "aircraft's position at the last sample (a hand-off point at its height, or the "
+               "airfield on short final or a fast roll-out); if the record ends elsewhere, "
+               "give no arrival")
         warnings.warn(msg, FlightReconWarning, stacklevel=3)
         return meta, [report_entry("arrival", "arrival_end_airborne", msg, count=1,
                                    t_s=[t_end])]

@@ -21,7 +21,12 @@ import pandas as pd
 
 from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
 from flightrecon.ingest.derive import derive_n_long, derive_tas, true_from_magnetic
-from flightrecon.ingest.garmin import apply_garmin_columns, garmin_mapping, merge_with_user
+from flightrecon.ingest.garmin import (
+    altimeter_settings_hpa,
+    apply_garmin_columns,
+    garmin_mapping,
+    merge_with_user,
+)
 from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
@@ -202,6 +207,7 @@ def _read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsort
         notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
     if raw.dialect == "garmin" and mp is not None:
         mt = apply_garmin_columns(raw, mt, mp, withhold_gnss)
+        meta = _qnh_from_setting(meta, altimeter_settings_hpa(raw, mt), notes)
     if withhold_gnss:
         mt = _without_gnss(mt)
     used = (set(mt.source_column.values()) | set(_time_columns(mp, raw.columns))
@@ -452,6 +458,27 @@ def _drop_unset_clock(raw, mp: Mapping | None, log: Path, warns: list[str]):
                  f"empty: written before the recorder's clock was set): dropped (rows "
                  f"{idx[0] + 1}..{idx[-1] + 1})")
     return dataclasses.replace(raw, blank_rows=blank)
+
+
+def _qnh_from_setting(meta: FlightMeta, settings: tuple[float, float] | None,
+                      notes: list[str]) -> FlightMeta:
+    """The recorded altimeter setting at the take-off / landing
+    (:func:`.garmin.altimeter_settings_hpa`) as the departure's / arrival's QNH where the
+    sidecar and the command line give none (theirs wins; a note gives both)."""
+    if settings is None:
+        return meta
+    out: dict[str, Any] = {}
+    for key, val, where in (("qnh_departure_hpa", settings[0], "take-off"),
+                            ("qnh_arrival_hpa", settings[1], "landing")):
+        given = getattr(meta, key)
+        if given is None:
+            out[key] = round(val, 2)
+            notes.append(f"{key} = {val:.1f} hPa: the altimeter setting BaroA in use at the "
+                         f"{where} (the sidecar and the command line give none)")
+        elif abs(given - val) >= 0.5:
+            notes.append(f"{key} = {given:.1f} hPa as given (sidecar or command line); the "
+                         f"altimeter setting BaroA in use at the {where} is {val:.1f} hPa")
+    return dataclasses.replace(meta, **out) if out else meta
 
 
 def _without_gnss(mt: MappedTable) -> MappedTable:

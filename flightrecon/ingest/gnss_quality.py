@@ -195,7 +195,7 @@ def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provena
     repairs: list[Repair] = []
     notes: list[str] = []
     n = len(t)
-    had_sd = {c: "recorded" for c in ("gnss_h_sd_m", "gnss_v_sd_m")
+    had_sd: dict[str, str] = {c: "recorded" for c in ("gnss_h_sd_m", "gnss_v_sd_m")
               if c in cols and np.isfinite(cols[c]).any()}
     hdop, nacp = cols.get("gnss_hdop"), cols.get("gnss_nacp")
     if hdop is not None or nacp is not None:
