@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -298,8 +297,3 @@ def _said(use: GnssUse) -> str:
     if use.h_sd_m is not None or use.v_sd_m is not None:
         parts.append("receiver sd")
     return ", ".join(parts)
-
-
-def windows_text(windows: Sequence[tuple[float, float]]) -> str:
-    """``a..b s, ...`` for messages."""
-    return ", ".join(f"{a:g}..{b:g} s" for a, b in windows)
