@@ -72,6 +72,13 @@ def arrival_not_end(grid: pd.DataFrame, phases: FlightPhases | None, meta: Fligh
     phases : the detected phases (``ends_airborne``, ``impact_t_s``)
     meta : the flight's metadata (``arrival``, ``qnh_arrival_hpa``, ``qnh_departure_hpa``)
     airborne_speed_mps : the phase detector's airborne threshold [m/s]
+
+    Returns
+    -------
+    meta, report
+        ``meta`` without ``arrival`` (and with ``extra["arrival_not_end"]``) when the evidence
+        holds, else ``meta`` itself; the cleaning-report entries (``arrival_not_end`` or
+        ``arrival_end_airborne``; none when the record does not end fast with an arrival).
     """
     arr = meta.arrival
     if arr is None or phases is None or not phases.ends_airborne \
