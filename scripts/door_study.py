@@ -41,6 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from flightrecon.errors import FlightReconError  # noqa: E402
 from flightrecon.ingest import load_flight  # noqa: E402
+from flightrecon.ingest.gnss_use import GnssUse  # noqa: E402
 from flightrecon.sim.ed112 import ed112_export, ed112_mapping  # noqa: E402
 
 CORPUS = ROOT.parent / "shared" / "corpus"
@@ -223,7 +224,7 @@ def main() -> None:
         if args.garmin:
             for fmt, kw in (("glass-cockpit CSV as recorded", {}),
                             ("glass-cockpit CSV, GPS withheld",
-                             {"meta_overrides": {"withhold_gnss": True}})):
+                             {"gnss_use": GnssUse(withhold=True)})):
                 r = {"log": args.garmin.name, "format": fmt, **door(args.garmin, **kw)}
                 rows.append(r)
                 print(f"{args.garmin.name:34s} {fmt}: accepted={r['accepted']}", flush=True)

@@ -58,6 +58,7 @@ from flightrecon.cleaning import clean_flight
 from flightrecon.filters.joint_method import run_joint
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.pipeline.health import method_health
 from flightrecon.sim import simulate, write_simulation
 from flightrecon.sim.glass_cockpit import write_glass_cockpit
@@ -87,7 +88,7 @@ BAR_RECORDER, BAR_GAP, BAR_NEES = 1.0, 0.5, 5.0
 def load(path: Path, withhold: bool) -> Flight:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return load_flight(path, meta_overrides={"withhold_gnss": withhold})
+        return load_flight(path, gnss_use=GnssUse(withhold=withhold))
 
 
 def truth_reference(truth: pd.DataFrame, clean: CleanFlight) -> pd.DataFrame:

@@ -44,6 +44,7 @@ from flightrecon.filters.joint_method import run_joint
 from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.types import CleanFlight, Flight
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,8 +64,8 @@ def load(withhold: bool) -> Flight:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return load_flight(LOG, meta_overrides={"departure": DEPARTURE, "arrival": ARRIVAL,
-                                                "geoid_undulation_m": GEOID_M,
-                                                "withhold_gnss": withhold})
+                                                "geoid_undulation_m": GEOID_M},
+                           gnss_use=GnssUse(withhold=withhold))
 
 
 def gps_reference(flight: Flight, clean: CleanFlight, latency_s: float = 0.0) -> pd.DataFrame:

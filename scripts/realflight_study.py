@@ -24,10 +24,12 @@ analyst gives beside the data:
   over the take-off roll); and the ``--start`` at the line-up.  These figures are read from
   the folder with the tool's own folder reader.
 
-The GNSS cases' set-up (:func:`gnss_case`): of the GPS position the tool read at 10 Hz, the
-fixes at whole seconds are kept (1 Hz), two gaps are withheld and each fix is given an sd of
-:data:`GPS_FIX_SD_M` per axis; it blanks fixes of the table ``load_flight`` returned, nothing
-else.
+The GNSS cases' set-up is the sidecar's ``[gnss]`` table (:func:`gnss_table`, the tool's own
+options, docs/ingest.md "Using the GNSS"): two gaps withheld (``withhold_s``), at most one fix
+a second (``interval_s = 1``: the fixes at whole seconds of the 10 Hz frame) and the receiver's
+sd :data:`GPS_RECEIVER_SD_M` per axis (``h_sd_m``), to which the tool adds the export's
+rounding (sd 32 m): 35 m per axis.  The case ``b22-gnss-as-recorded`` withholds the two gaps
+only: every 10 Hz fix with the tool's own sd, the export as written.
 
 Each case runs through :func:`flightrecon.pipeline.reconstruct` (the CLI's own path) with
 ``keep_unhealthy`` so that an unhealthy track can still be measured, and is measured against
@@ -46,14 +48,12 @@ Run::
 from __future__ import annotations
 
 import argparse
-import contextlib
 import datetime as dt
 import json
 import re
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -69,11 +69,20 @@ FIELD_ELEV_M = -4.5
 #: geoid undulation (EGM96) about Rotterdam, m
 GEOID_UNDULATION_M = 43.0
 KT = 1852.0 / 3600.0
+#: metres per degree of latitude, as the tool converts a recording step (gnss_quality.py)
+M_PER_DEG = 111_320.0
 FT = 0.3048
-#: sd per axis given to the 1 Hz GPS fixes: the export keeps five significant digits, so the
+#: sd per axis of the 1 Hz GPS fixes: the export keeps five significant digits, so the
 #: latitude steps by 0.001 deg (111 m; a uniform rounding error of sd 32 m) and the longitude by
 #: 0.0001 deg (7 m); the receiver's own error and its latency (a few metres) are below that
 GPS_FIX_SD_M = 35.0
+#: the latitude's recording step [deg] (five significant digits at 51.9 N)
+GPS_LAT_STEP_DEG = 0.001
+#: the receiver's sd per axis given to the tool (``[gnss] h_sd_m``), the part of
+#: :data:`GPS_FIX_SD_M` that is not the rounding the tool adds itself (``step / sqrt(12)``,
+#: flightrecon/ingest/gnss_quality.py): 13.9 m, so that each fix keeps 35 m per axis
+GPS_RECEIVER_SD_M = float(np.sqrt(GPS_FIX_SD_M ** 2
+                                  - (GPS_LAT_STEP_DEG * M_PER_DEG) ** 2 / 12.0))
 #: the withheld GNSS gaps: (start after lift-off [s], length [s])
 GAPS: tuple[tuple[float, float], ...] = ((900.0, 300.0), (1800.0, 600.0))
 
@@ -244,7 +253,7 @@ def _toml_position(name: str, lat: float, lon: float, runway: float | None = Non
 
 
 def write_case(facts: dict[str, Any], stems: dict[str, str], folder: Path, stem: str, *,
-               arrival: str, gnss: bool) -> Path:
+               arrival: str, gnss: bool, gnss_text: str = "") -> Path:
     """The mapping and the sidecar of one case in ``folder`` (the scratch folder: never the
     data's); returns the sidecar.  ``arrival`` is ``"none"``, ``"last_fix"`` (the GPS's last
     position, with the runway when the record ends on the ground) or ``"departure"`` (the
@@ -271,6 +280,8 @@ def write_case(facts: dict[str, Any], stems: dict[str, str], folder: Path, stem:
     elif arrival == "departure":
         side += "\n" + _toml_position("arrival", lat0, lon0, facts["runway_true_deg"],
                                       facts["threshold"])
+    if gnss_text:
+        side += "\n" + gnss_text
     side += f"\n[files]\nmapping = \"{stem}.mapping.toml\"\n"
     path = folder / f"{stem}.meta.toml"
     path.write_text(side)
@@ -282,44 +293,15 @@ def gnss_gaps(facts: dict[str, Any]) -> list[tuple[float, float]]:
     return [(facts["liftoff_s"] + a, facts["liftoff_s"] + a + n) for a, n in GAPS]
 
 
-@contextlib.contextmanager
-def gnss_case(gaps: list[tuple[float, float]]) -> Iterator[None]:
-    """The GNSS cases' set-up, applied to what the tool read: of the GPS position read at 10 Hz
-    from the folder, the fixes at whole seconds of ``time`` are kept (1 Hz: the export's five
-    significant digits do not make ten independent fixes a second), those inside ``gaps`` are
-    withheld, and each kept fix is given the sd :data:`GPS_FIX_SD_M` per axis.
-
-    The reading is the tool's (``load_flight`` of the folder with the mapping); this only
-    blanks fixes of the table it returns, as a GNSS file of those 1 Hz fixes would have left
-    them out.
-    """
-    import flightrecon.ingest as ingest
-
-    load = ingest.load_flight
-    used = []
-
-    def load_and_withhold(*args: Any, **kwargs: Any) -> Any:
-        flight = load(*args, **kwargs)
-        used.append(True)
-        d = flight.data
-        t = d["t_s"].to_numpy(float)
-        keep = np.abs(t - np.round(t)) < 1e-6
-        for a, b in gaps:
-            keep &= ~((t > a) & (t < b))
-        cols = [c for c in d.columns if c.startswith("gnss_")]
-        d.loc[~keep, cols] = np.nan
-        d["gnss_h_sd_m"] = np.where(np.isfinite(d["gnss_lat_deg"].to_numpy(float)),
-                                    GPS_FIX_SD_M, np.nan)
-        return flight
-
-    ingest.load_flight = load_and_withhold
-    try:
-        yield
-    finally:
-        ingest.load_flight = load
-    if not used:    # the pipeline no longer loads through flightrecon.ingest.load_flight
-        raise RuntimeError("the GNSS cases' set-up was not applied: the fixes were not "
-                           "withheld")
+def gnss_table(gaps: list[tuple[float, float]], as_recorded: bool) -> str:
+    """The sidecar's ``[gnss]`` table of a GNSS case (docs/ingest.md, "Using the GNSS"): the
+    ``gaps`` withheld; unless ``as_recorded``, at most one fix a second (1 Hz from the 10 Hz
+    frame: the export's five significant digits do not make ten independent fixes a second)
+    and the receiver's sd :data:`GPS_RECEIVER_SD_M` (the tool adds the export's rounding)."""
+    out = ["[gnss]", "withhold_s = [" + ", ".join(f"[{a!r}, {b!r}]" for a, b in gaps) + "]"]
+    if not as_recorded:
+        out += ["interval_s = 1.0", f"h_sd_m = {GPS_RECEIVER_SD_M!r}"]
+    return "\n".join(out) + "\n"
 
 
 # -- measuring --------------------------------------------------------------------------------
@@ -420,15 +402,19 @@ def gap_nees(t: np.ndarray, n: np.ndarray, e: np.ndarray, sdn: np.ndarray, sde: 
 
 def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
              facts: dict[str, Any], work: Path, *, arrival: str, start: bool,
-             gnss: bool = False, last_fix_as_fix: bool = False) -> dict[str, Any]:
+             gnss: bool = False, gnss_as_recorded: bool = False,
+             last_fix_as_fix: bool = False) -> dict[str, Any]:
     """One case: its mapping and sidecar, the tool reading the flight's folder ``data``,
-    measuring against the GPS of ``df``."""
+    measuring against the GPS of ``df``.  With ``gnss`` the GPS position is mapped and the
+    sidecar's ``[gnss]`` table withholds the gaps (:func:`gnss_table`; thinned to 1 Hz with the
+    receiver's sd unless ``gnss_as_recorded``)."""
     from flightrecon.errors import FlightReconError
     from flightrecon.fusion.baselines import dead_reckoning
     from flightrecon.pipeline import ReconstructSettings, reconstruct
 
-    sidecar = write_case(facts, stems, work / name, name, arrival=arrival, gnss=gnss)
     gaps = gnss_gaps(facts) if gnss else []
+    sidecar = write_case(facts, stems, work / name, name, arrival=arrival, gnss=gnss,
+                         gnss_text=gnss_table(gaps, gnss_as_recorded) if gnss else "")
     over: dict[str, Any] = {}
     if last_fix_as_fix:
         lat1, lon1 = facts["last_fix"]
@@ -437,11 +423,11 @@ def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
                                    keep_unhealthy=True)
     t_wall = time.time()
     out: dict[str, Any] = {"case": name, "arrival": arrival, "start_s": settings.start,
-                           "gnss": gnss, "fix_at_end": last_fix_as_fix}
+                           "gnss": gnss, "gnss_as_recorded": gnss_as_recorded,
+                           "fix_at_end": last_fix_as_fix}
     try:
-        with gnss_case(gaps) if gnss else contextlib.nullcontext():
-            rec = reconstruct(data, sidecar=sidecar, meta_overrides=over or None,
-                              settings=settings, record=False)
+        rec = reconstruct(data, sidecar=sidecar, meta_overrides=over or None,
+                          settings=settings, record=False)
     except FlightReconError as exc:
         out.update({"exit": exc.exit_code, "error": str(exc)[:500]})
         return out
@@ -453,6 +439,8 @@ def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
     out["warnings_top"] = [w for w in rec.summary.get("warnings", []) if "unhealthy" in w
                            or "implausible" in w][:10]
     out["joint"] = joint_figures(rec)
+    if gnss:
+        out["gnss_use"] = rec.summary["measurements"].get("gnss_use")
     tr = rec.track
     t = tr["t_s"].to_numpy(float)
     tn, te = truth_ne(rec, df, t)
@@ -513,6 +501,8 @@ CASES: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("b22-whole-record", "b22", {"arrival": "last_fix", "start": False}),
     ("ref-gnss-gaps", "ref", {"arrival": "none", "start": True, "gnss": True}),
     ("b22-gnss-gaps", "b22", {"arrival": "last_fix", "start": True, "gnss": True}),
+    ("b22-gnss-as-recorded", "b22", {"arrival": "last_fix", "start": True, "gnss": True,
+                                     "gnss_as_recorded": True}),
 )
 
 

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.pipeline import ReconstructSettings, reconstruct
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
@@ -46,12 +47,12 @@ def test_derived_long_load_costs_little(logs, withhold):
     within 15 % recorder-only (dead reckoning on the air data, where the along-track force
     matters most; measured +4 %)."""
     truth = pd.read_parquet(SAMPLES / "circuit.truth.parquet")
-    over = {"withhold_gnss": True} if withhold else {}
+    use = GnssUse(withhold=withhold)
     settings = ReconstructSettings(methods=("joint",))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        full = reconstruct(logs / "full.parquet", meta_overrides=over, settings=settings)
-        derived = reconstruct(logs / "nolong.parquet", meta_overrides=over, settings=settings)
+        full = reconstruct(logs / "full.parquet", gnss_use=use, settings=settings)
+        derived = reconstruct(logs / "nolong.parquet", gnss_use=use, settings=settings)
     assert derived.summary["result"]["method"] == "joint"
     # the forward accelerometer's priors widened for the derived channel, not for the recorded
     prior = derived.results["joint"].summary["corrections"]["accel_scale_x"]["prior_sd"]

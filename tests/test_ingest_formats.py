@@ -21,6 +21,7 @@ import pytest
 from flightrecon.errors import SchemaError, ValidationError
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.garmin import INHG_PA, pressure_altitude_from_indicated
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.timestamps import combine_date_time, repair_time_order
 from tests.test_ingest_support import handmade_frame
@@ -137,7 +138,7 @@ def test_garmin_derived_long_load_at_rest_is_sin_pitch(garmin):
 
 
 def test_garmin_gnss_withheld(garmin):
-    fl, _ = load_quiet(GARMIN, meta_overrides={"withhold_gnss": True})
+    fl, _ = load_quiet(GARMIN, gnss_use=GnssUse(withhold=True))
     assert not [c for c in fl.data.columns if c.startswith("gnss_")]
     assert any("GNSS withheld" in n for n in fl.meta.extra["ingest_notes"])
     # everything else as with the GNSS
@@ -348,3 +349,28 @@ def test_garmin_unit_it_does_not_know_is_a_schema_error_naming_the_column(tmp_pa
     with pytest.raises(SchemaError, match="unit 'metres'") as ex:
         load_quiet(log)
     assert ex.value.column == "AltInd"
+
+
+def test_garmin_altimeter_setting_is_the_qnh_unless_given(garmin):
+    """BaroA in use at the take-off (30.18 inHg, set on the apron after the previous flight's
+    30.33) and at the landing (30.21 inHg) becomes the departure's and the arrival's QNH, as
+    the sidecar's would: the field's elevation under it (the stand's 89.3 m from the GPS) is
+    the recorded pressure altitude at rest before the take-off within 3 m (measured 0.5 m; the
+    stale 30.33 inHg would be 41 m off).  A QNH given by the user wins, with a note."""
+    from flightrecon.geo.atmosphere import field_pressure_altitude_m
+
+    fl = garmin[0]
+    assert fl.meta.qnh_departure_hpa == pytest.approx(30.18 * INHG_PA / 100.0, abs=0.01)
+    assert fl.meta.qnh_arrival_hpa == pytest.approx(30.21 * INHG_PA / 100.0, abs=0.01)
+    d = fl.data
+    t = d.t_s.to_numpy()
+    rest = float(np.nanmedian(d.baro_alt_m.to_numpy()[t < t[0] + 20.0]))
+    assert field_pressure_altitude_m(89.3, fl.meta.qnh_departure_hpa) == pytest.approx(
+        rest, abs=3.0)
+    assert any(n.startswith("qnh_departure_hpa = 1022.0 hPa: the altimeter setting BaroA")
+               for n in fl.meta.extra["ingest_notes"])
+    mine, _ = load_quiet(GARMIN, meta_overrides={"qnh_departure_hpa": 1013.0})
+    assert mine.meta.qnh_departure_hpa == 1013.0
+    assert mine.meta.qnh_arrival_hpa == fl.meta.qnh_arrival_hpa
+    assert any("1013.0 hPa as given" in n and "1022.0 hPa" in n
+               for n in mine.meta.extra["ingest_notes"])

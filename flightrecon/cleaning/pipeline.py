@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from flightrecon.cleaning.arrival_end import arrival_not_end
 from flightrecon.cleaning.attitude import (
     heading_from_rates,
     heading_needed,
@@ -79,6 +80,20 @@ def _ingest_notes_entries(extra: dict) -> list[dict]:
     for ch, how in (extra.get("derived_channels") or {}).items():
         out.append(report_entry(ch, "derived_channel", f"not recorded: computed at ingest as "
                                 f"{how}", count=0))
+    use = extra.get("gnss_use") or {}
+    if use.get("options"):
+        opts = use["options"]
+        said = "; ".join(t for t in (
+            "every GNSS channel withheld" if opts.get("withhold") else "",
+            (f"at most one fix every {opts['interval_s']:g} s ({use.get('interval_dropped', 0)} "
+             "fixes dropped)") if opts.get("interval_s") is not None else "",
+            ", ".join(f"withheld {w['start_s']:g}..{w['end_s']:g} s ({w['fixes_withheld']} "
+                      "fixes)" for w in use.get("withheld_windows", [])),
+            ", ".join(f"receiver {k} {opts[k]:g} m" for k in ("h_sd_m", "v_sd_m")
+                      if opts.get(k) is not None)) if t)
+        out.append(report_entry("gnss", "gnss_use", f"the analyst's GNSS options: {said}",
+                                count=int(use.get("fixes_read", 0)) - int(use.get("fixes_used",
+                                                                                  0))))
     return out
 
 
@@ -175,6 +190,9 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
             rep = [report_entry("phases", "not_detected", str(exc), count=0)]
         report.extend(rep)
         phases, rep = with_impact(grid, phases, meta)   # an accident record's end
+        report.extend(rep)
+        # an arrival given for a record cut in the air is not its end point (arrival_end.py)
+        meta, rep = arrival_not_end(grid, phases, meta, settings.phases.airborne_speed_mps)
         report.extend(rep)
     return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
                        meta=meta, report=tuple(report), phases=phases)

@@ -37,6 +37,17 @@ from flightrecon.cli.trim import trim_options
 @click.option("--no-gnss", "no_gnss", is_flag=True,
               help="Withhold GNSS: use none of the log's GNSS channels nor a GNSS file "
                    "(a recorder-only reconstruction, e.g. to compare with the GNSS track).")
+@click.option("--withhold-gnss", "withhold_gnss", metavar="START:END", multiple=True,
+              help="Withhold the GNSS fixes from START to END (seconds of the log's time, as "
+                   "--start/--end); repeatable; reported in the summary (docs/ingest.md, "
+                   "'Using the GNSS').")
+@click.option("--gnss-interval", "gnss_interval", type=float, metavar="S",
+              help="Use at most one GNSS fix every S seconds (the first of each S-second slot "
+                   "of the log's time; e.g. 1 for 1 Hz from a 10 Hz frame).")
+@click.option("--gnss-sd", "gnss_sd", metavar="H[:V]",
+              help="The GNSS receiver's sd in metres, horizontal per axis [and vertical], in "
+                   "place of the log's figure; the rounding of positions recorded in steps is "
+                   "still added on top.")
 @click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
 @click.option("--methods", metavar="LIST",
               help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "
@@ -100,7 +111,8 @@ from flightrecon.cli.trim import trim_options
 @trim_options
 @click.pass_context
 def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, departure,
-            arrival, station, fixes, wind_file, no_gnss, aircraft_id, methods, k_text, rate_hz,
+            arrival, station, fixes, wind_file, no_gnss, withhold_gnss, gnss_interval,
+            gnss_sd, aircraft_id, methods, k_text, rate_hz,
             arms_form, arms_linearisation, azimuth_model, sns_model, sns_form, noise_file, estimate_noise,
             store_path, use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt,
             summary_path, report_dir, start=None, end=None) -> None:
@@ -125,8 +137,7 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
         overrides["wind_aloft"] = str(wind_file)
     if aircraft_id:
         overrides["aircraft_id"] = aircraft_id
-    if no_gnss:
-        overrides["withhold_gnss"] = True
+    gnss_use = _gnss_use(no_gnss, withhold_gnss, gnss_interval, gnss_sd)
     settings = ReconstructSettings(
         methods=method_list, rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
         arms_form=arms_form, arms_linearisation=arms_linearisation, azimuth_model=azimuth_model,
@@ -155,7 +166,7 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
             rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                               meta_overrides=overrides, settings=settings, progress=stage,
                               store=store_path, use_fleet_coefficients=use_fleet_coefficients,
-                              workers=workers, record=False)
+                              workers=workers, record=False, gnss_use=gnss_use)
         except NoResultError as exc:     # the warnings first: they may say why
             if not quiet:
                 for w in exc.warnings:
@@ -174,6 +185,25 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
     if not (rec.summary.get("result") or {}).get("method"):
         raise NoResultError("no method produced a physically possible track; the unhealthy "
                             f"tracks were written for inspection to {out}")
+
+
+def _gnss_use(no_gnss: bool, windows: tuple[str, ...], interval: float | None,
+              sd: str | None):
+    """The GNSS options as :class:`flightrecon.ingest.gnss_use.GnssUse` (a bad value: a usage
+    error naming the option, exit 2)."""
+    from flightrecon.errors import MetadataError
+    from flightrecon.ingest.gnss_use import GnssUse, parse_gnss_sd, parse_window
+
+    hint = "--withhold-gnss"
+    try:
+        wins = tuple(parse_window(w) for w in windows)
+        hint = "--gnss-sd"
+        h, v = parse_gnss_sd(sd) if sd is not None else (None, None)
+        hint = "--gnss-interval"
+        return GnssUse(withhold=no_gnss, withhold_s=wins, interval_s=interval, h_sd_m=h,
+                       v_sd_m=v)
+    except MetadataError as exc:
+        raise click.BadParameter(exc.message, param_hint=hint) from None
 
 
 def _method_list(methods: str | None) -> tuple[str, ...] | None:

@@ -4,7 +4,8 @@ read flight metadata and validate everything into a :class:`flightrecon.types.Fl
 Public API::
 
     load_flight(log, *, gnss=None, radar=None, mapping=None, sidecar=None,
-                meta_overrides=None, allow_unsorted=False) -> Flight
+                meta_overrides=None, allow_unsorted=False, gnss_use=None) -> Flight
+    GnssUse(withhold=, withhold_s=, interval_s=, h_sd_m=, v_sd_m=)   (how the GNSS is used)
     parse_position("LAT,LON,ELEV_M") -> Position
     load_sidecar(path) -> Sidecar;  discover_sidecar(log) -> Path | None
     load_mapping(path) -> Mapping
@@ -14,6 +15,7 @@ Public API::
 
 from flightrecon.ingest.api import load_flight
 from flightrecon.ingest.describe import describe_flight
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.mapping import Mapping, load_mapping
 from flightrecon.ingest.readers import RawTable, read_table
 from flightrecon.ingest.sidecar import (
@@ -25,6 +27,7 @@ from flightrecon.ingest.sidecar import (
 )
 
 __all__ = [
+    "GnssUse",
     "Mapping",
     "RawTable",
     "Sidecar",

@@ -21,8 +21,14 @@ import pandas as pd
 
 from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
 from flightrecon.ingest.derive import derive_n_long, derive_tas, true_from_magnetic
-from flightrecon.ingest.garmin import apply_garmin_columns, garmin_mapping, merge_with_user
+from flightrecon.ingest.garmin import (
+    altimeter_settings_hpa,
+    apply_garmin_columns,
+    garmin_mapping,
+    merge_with_user,
+)
 from flightrecon.ingest.gnss_quality import apply_gnss_quality
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
@@ -52,7 +58,7 @@ PathLike = str | os.PathLike
 def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike | None = None,
                 mapping: PathLike | None = None, sidecar: PathLike | None = None,
                 meta_overrides: dict[str, Any] | None = None,
-                allow_unsorted: bool = False) -> Flight:
+                allow_unsorted: bool = False, gnss_use: GnssUse | None = None) -> Flight:
     """Load and validate a flight.
 
     Parameters
@@ -63,11 +69,15 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     mapping : mapping file (TOML, docs/ingest.md); default: the sidecar's ``[files] mapping``
     sidecar : metadata file; default ``<log stem>.meta.toml`` beside the log if it exists
     meta_overrides : metadata from the command line (``FlightMeta`` field names; positions as
-        :class:`Position` or ``"LAT,LON,ELEV_M"``); they win over the sidecar.  The key
-        ``withhold_gnss`` (``True``) drops every GNSS channel of the log and its companion
-        files (a recorder-only reconstruction; ``reconstruct --no-gnss``)
+        :class:`Position` or ``"LAT,LON,ELEV_M"``); they win over the sidecar.  The former key
+        ``withhold_gnss`` still works, with a :class:`DeprecationWarning`: use ``gnss_use``
     allow_unsorted : sort backward timestamps (and keep duplicates) with a warning instead of
         raising; the cleaning layer then decides what to do with duplicates
+    gnss_use : how the GNSS fixes are used (:class:`flightrecon.ingest.gnss_use.GnssUse`:
+        ``withhold`` drops every GNSS channel of the log and its companion files, as
+        ``reconstruct --no-gnss``; ``withhold_s`` windows, ``interval_s`` thinning,
+        ``h_sd_m`` / ``v_sd_m`` the receiver's sd); each option given wins over the
+        sidecar's ``[gnss]`` table (docs/ingest.md, "Using the GNSS")
 
     Returns
     -------
@@ -85,8 +95,15 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     notes: list[str] = []
     log = Path(log)
     overrides = dict(meta_overrides or {})
-    withhold_gnss = bool(overrides.pop("withhold_gnss", False))
+    use = gnss_use or GnssUse()
+    if "withhold_gnss" in overrides:
+        warnings.warn("load_flight: meta_overrides['withhold_gnss'] is deprecated; use "
+                      "gnss_use=GnssUse(withhold=True)", DeprecationWarning, stacklevel=2)
+        if bool(overrides.pop("withhold_gnss")):
+            use = dataclasses.replace(use, withhold=True)
     sc, meta, companion = _metadata(log, sidecar, overrides or None, warns)
+    use = use.over(sc.gnss if sc is not None else None)
+    withhold_gnss = use.withhold
     gnss = gnss if gnss is not None else companion.get("gnss")
     if withhold_gnss:
         gnss = None
@@ -100,8 +117,9 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
             _add_companion(src, group, Path(path), mp, meta, allow_unsorted, warns, notes)
     values = _derived_channels(src, meta, log, warns, notes)
     door: list[DoorCheck] = []
+    gnss_rec: dict[str, Any] = {}
     data, repairs = _validated_frame(src, values, warns, notes, _declared_units(mp, src),
-                                     door)
+                                     door, use, gnss_rec)
     _check_priors(meta, data, warns)
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "ingest_repairs": [r.as_dict() for r in repairs],
@@ -109,6 +127,8 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
                                             "mapping": None if mp is None else mp.file,
                                             "derived_channels": _derived(src),
                                             "ignored_columns": list(src.ignored),
+                                            "gnss_use": gnss_rec or ({"options": use.as_dict()}
+                                                                     if use.any else {}),
                                             "sidecar": None if sc is None else sc.path})
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
@@ -187,6 +207,7 @@ def _read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsort
         notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
     if raw.dialect == "garmin" and mp is not None:
         mt = apply_garmin_columns(raw, mt, mp, withhold_gnss)
+        meta = _qnh_from_setting(meta, altimeter_settings_hpa(raw, mt), notes)
     if withhold_gnss:
         mt = _without_gnss(mt)
     used = (set(mt.source_column.values()) | set(_time_columns(mp, raw.columns))
@@ -299,10 +320,12 @@ def _declared_units(mp: Mapping | None, src: _Sources) -> dict[str, DeclaredUnit
 
 def _validated_frame(src: _Sources, values: dict[str, np.ndarray], warns: list[str],
                      notes: list[str], declared: dict[str, DeclaredUnit] | None = None,
-                     door: list[DoorCheck] | None = None) -> tuple[pd.DataFrame, list[Any]]:
-    """The flight's table: values checked (ranges, polarity, GNSS quality, physics), angles
-    wrapped, empty channels dropped, provenance columns ``row`` and ``src_file``; with the
-    repairs made.  The door's checks are appended to ``door``."""
+                     door: list[DoorCheck] | None = None, use: GnssUse | None = None,
+                     gnss_rec: dict[str, Any] | None = None) -> tuple[pd.DataFrame, list[Any]]:
+    """The flight's table: values checked (ranges, polarity, GNSS quality and the analyst's
+    GNSS options ``use``, physics), angles wrapped, empty channels dropped, provenance columns
+    ``row`` and ``src_file``; with the repairs made.  The door's checks are appended to
+    ``door``, what the GNSS options did and the rounding added to ``gnss_rec``."""
     rows = src.rows
     cols = _own_columns({"t_s": rows.t, **{c.name: values[c.name] for c in CHANNELS
                                            if c.name in values}})
@@ -320,7 +343,9 @@ def _validated_frame(src: _Sources, values: dict[str, np.ndarray], warns: list[s
     warns += w
     door.append(_summary_check("load-factor polarity", w, "n_norm_g, n_long_g and the turns' "
                                "n_lat_g have the schema's signs"))
-    w, rq, nq = apply_gnss_quality(cols, rows.t, prov)
+    w, rq, nq, rec = apply_gnss_quality(cols, rows.t, prov, use)
+    if gnss_rec is not None:
+        gnss_rec.update(rec)
     warns += w
     repairs += rq
     notes += nq
@@ -435,8 +460,29 @@ def _drop_unset_clock(raw, mp: Mapping | None, log: Path, warns: list[str]):
     return dataclasses.replace(raw, blank_rows=blank)
 
 
+def _qnh_from_setting(meta: FlightMeta, settings: tuple[float, float] | None,
+                      notes: list[str]) -> FlightMeta:
+    """The recorded altimeter setting at the take-off / landing
+    (:func:`.garmin.altimeter_settings_hpa`) as the departure's / arrival's QNH where the
+    sidecar and the command line give none (theirs wins; a note gives both)."""
+    if settings is None:
+        return meta
+    out: dict[str, Any] = {}
+    for key, val, where in (("qnh_departure_hpa", settings[0], "take-off"),
+                            ("qnh_arrival_hpa", settings[1], "landing")):
+        given = getattr(meta, key)
+        if given is None:
+            out[key] = round(val, 2)
+            notes.append(f"{key} = {val:.1f} hPa: the altimeter setting BaroA in use at the "
+                         f"{where} (the sidecar and the command line give none)")
+        elif abs(given - val) >= 0.5:
+            notes.append(f"{key} = {given:.1f} hPa as given (sidecar or command line); the "
+                         f"altimeter setting BaroA in use at the {where} is {val:.1f} hPa")
+    return dataclasses.replace(meta, **out) if out else meta
+
+
 def _without_gnss(mt: MappedTable) -> MappedTable:
-    """``mt`` without its GNSS channels (``withhold_gnss``)."""
+    """``mt`` without its GNSS channels (``GnssUse.withhold``)."""
     gn = set(GROUPS["gnss"])
     return dataclasses.replace(mt, values={k: v for k, v in mt.values.items() if k not in gn},
                                nan_text={k: v for k, v in mt.nan_text.items() if k not in gn},

@@ -21,7 +21,10 @@ Conventions, checked on the shipped export ``sample_logs/g1000_sr22_LFQA_2022041
 * ``AltInd`` is the altimeter's indication at the setting ``BaroA`` (inHg): the pressure
   altitude is the ISA height of the static pressure that setting implies
   (:func:`pressure_altitude_from_indicated`).  The QNH altitude itself has no canonical channel
-  and is not kept;
+  and is not kept.  The setting in use at the take-off and at the landing roll is the
+  departure's and the arrival's QNH (``qnh_departure_hpa``, ``qnh_arrival_hpa``) where the sidecar and the command
+  line give none (:func:`altimeter_settings_hpa`; theirs wins, and a note gives the recorded
+  one);
 * ``AltGPS`` ("ft wgs") is the GPS height above the WGS-84 ellipsoid (``AltMSL`` is the same
   less the geoid, 148 ft there): ``gnss_alt_m``; ``GPSfix`` (``NoSoln``, ``2D``, ``3D``,
   ``3DDiff``) gives ``gnss_quality`` (0, 1, 1, 2: NMEA codes);
@@ -50,6 +53,7 @@ from flightrecon.ingest.units import lookup_unit
 __all__ = [
     "GARMIN_COLUMNS",
     "INHG_PA",
+    "altimeter_settings_hpa",
     "apply_garmin_columns",
     "garmin_mapping",
     "merge_with_user",
@@ -81,6 +85,8 @@ GARMIN_UNITS = {"ft": "ft", "ft msl": "ft", "ft wgs": "ft", "kt": "kt", "fpm": "
 #: GPSfix text -> NMEA fix quality (0 invalid, 1 GPS, 2 differential: SBAS)
 GPS_FIX_QUALITY = {"nosoln": 0.0, "2d": 1.0, "3d": 1.0, "2ddiff": 2.0, "3ddiff": 2.0}
 TIME_COLUMNS = ("Lcl Time", "Lcl Date", "UTCOfst")
+#: a speed only the take-off and landing rolls and the flight reach (a fast taxi is 20 kt) [kt]
+ROLL_SPEED_KT = 30.0
 
 
 def garmin_mapping(raw: RawTable) -> Mapping:
@@ -141,6 +147,39 @@ def pressure_altitude_from_indicated(alt_ind_m: np.ndarray, setting_pa: np.ndarr
     """
     p = isa_pressure_pa(alt_ind_m) * (np.asarray(setting_pa, dtype=float) / P0_PA)
     return np.asarray(pressure_altitude_m(p), dtype=float)
+
+
+def altimeter_settings_hpa(raw: RawTable, mt: MappedTable) -> tuple[float, float] | None:
+    """The altimeter setting ``BaroA`` [hPa] in use when the aircraft first and last moved
+    faster than :data:`ROLL_SPEED_KT` (``IAS``, else ``GndSpd``: the take-off and the landing
+    roll), or at the first and last rows that record one when it never did; ``None`` without
+    the column.
+
+    The pilot sets the departure's QNH before the take-off and the arrival's before the
+    landing: on the shipped export the first rows still hold the previous flight's 30.33 inHg,
+    set to 30.18 inHg on the apron before the take-off (the pressure altitude at rest then
+    matches the field's elevation under it within 1 m; under 30.33, 41 m off).  A QFE setting
+    would read as the field's elevation lower; a record cut in the air may end on the standard
+    29.92 inHg.
+    """
+    col = raw.columns.get("BaroA")
+    if col is None or col.dtype != np.float64 or not mt.rows.size:
+        return None
+    order = np.argsort(mt.time, kind="stable")
+    v = col[mt.rows - 1][order]
+    ok = np.isfinite(v) & (v > 0.0)
+    if not ok.any():
+        return None
+    speed = None
+    for name in ("IAS", "GndSpd"):
+        c = raw.columns.get(name)
+        if c is not None and c.dtype == np.float64 and (c > ROLL_SPEED_KT).any():
+            speed = c[mt.rows - 1][order]
+            break
+    fast = (np.flatnonzero(ok & (speed > ROLL_SPEED_KT)) if speed is not None
+            else np.zeros(0, dtype=np.int64))
+    idx = fast if fast.size else np.flatnonzero(ok)
+    return float(v[idx[0]]) * INHG_PA / 100.0, float(v[idx[-1]]) * INHG_PA / 100.0
 
 
 def _filled(t: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -18,7 +18,9 @@
   the fixes' latitudes (longitudes) are whole multiples of their smallest difference and that
   step is at least :data:`MIN_STEP_M`; the rounding sd of the coarser axis is then added, in
   quadrature, to ``gnss_h_sd_m`` (to :data:`UERE_M` where the log has no figure), and a note
-  says so.
+  says so.  A GNSS height recorded in steps of :data:`MIN_STEP_M` or more (whole tens of feet)
+  adds its own rounding to ``gnss_v_sd_m`` the same way: each axis its own.  The rounding is
+  added after the analyst's options (:mod:`.gnss_use`), on top of a receiver's sd given there.
 * **A fix repeated at the recorder's rate.**  A recorder sampling its GNSS faster than the
   receiver updates writes each fix several times (a 1 Hz receiver on a 10 Hz frame: runs of
   ten identical positions).  Where fixes come faster than 1.5 Hz and the median run of
@@ -32,8 +34,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from flightrecon.ingest.gnss_use import GnssUse, apply_gnss_use
 from flightrecon.ingest.validate import Provenance, Repair
 
 __all__ = ["EPU_BY_NACP_M", "MIN_STEP_M", "UERE_M", "accuracy_from_dop", "apply_gnss_quality",
@@ -126,49 +131,72 @@ def _repeated_fixes(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provenance
     return warns, repairs
 
 
-def _quantised_positions(cols: dict[str, np.ndarray]) -> list[str]:
-    """Add the rounding of positions recorded in steps to ``gnss_h_sd_m`` (module
-    docstring); returns the note."""
+def _quantised_positions(cols: dict[str, np.ndarray], rec: dict | None = None) -> list[str]:
+    """Add the rounding of positions recorded in steps to ``gnss_h_sd_m`` and of heights
+    recorded in steps to ``gnss_v_sd_m``, each axis its own (module docstring); returns the
+    notes, and records the rounding sd added per axis in ``rec`` (``rounding_h_sd_m``,
+    ``rounding_v_sd_m``)."""
     lat, lon = cols.get("gnss_lat_deg"), cols.get("gnss_lon_deg")
     if lat is None or lon is None or np.isfinite(lat).sum() < 20:
         return []
     coslat = float(np.cos(np.radians(np.nanmedian(lat))))
+    notes = []
     steps = {}
     for name, v, scale in (("latitude", lat, M_PER_DEG), ("longitude", lon,
                                                           M_PER_DEG * coslat)):
         st = recording_step(v)
         if st is not None and st * scale >= MIN_STEP_M:
             steps[name] = (st, st * scale)
-    if not steps:
-        return []
-    q_m = max(m for _, m in steps.values())
-    sd_round = q_m / np.sqrt(12.0)
-    have = cols.get("gnss_h_sd_m")
-    base = np.full(len(lat), UERE_M) if have is None else np.where(np.isfinite(have), have,
-                                                                    UERE_M)
-    fix = np.isfinite(lat)
-    sd = np.where(fix, np.hypot(base, sd_round), np.nan if have is None else have)
-    cols["gnss_h_sd_m"] = sd
-    shown = "; ".join(f"{k} in steps of {st:.3g} deg ({m:.0f} m)" for k, (st, m)
-                      in steps.items())
-    return [f"GNSS positions recorded in steps ({shown}): the rounding, sd {sd_round:.0f} m "
-            "(step / sqrt(12)), added to gnss_h_sd_m"
-            + ("" if have is not None else f" (receiver {UERE_M:g} m where none is recorded)")]
+    if steps:
+        q_m = max(m for _, m in steps.values())
+        shown = "; ".join(f"{k} in steps of {st:.3g} deg ({m:.0f} m)" for k, (st, m)
+                          in steps.items())
+        notes.append(_add_rounding(cols, "gnss_h_sd_m", np.isfinite(lat), q_m, shown, rec))
+    alt = cols.get("gnss_alt_m")
+    if alt is not None and np.isfinite(alt).sum() >= 20:
+        st = recording_step(alt)
+        if st is not None and st >= MIN_STEP_M:
+            notes.append(_add_rounding(cols, "gnss_v_sd_m", np.isfinite(alt), st,
+                                       f"height in steps of {st:.3g} m", rec))
+    return notes
 
 
-def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provenance
-                       ) -> tuple[list[str], list[Repair], list[str]]:
-    """Derive ``gnss_h_sd_m`` where missing, mask bad-quality and repeated fixes and add the
-    rounding of positions recorded in steps, in ``cols`` (in place; module docstring).
+def _add_rounding(cols: dict[str, np.ndarray], ch: str, fix: np.ndarray, step_m: float,
+                  shown: str, rec: dict | None) -> str:
+    """``ch`` on the fixes ``fix`` with the rounding sd ``step_m / sqrt(12)`` added in
+    quadrature (to :data:`UERE_M` where there is no figure); returns the note."""
+    sd_round = step_m / np.sqrt(12.0)
+    have = cols.get(ch)
+    base = np.full(len(fix), UERE_M) if have is None else np.where(np.isfinite(have), have,
+                                                                   UERE_M)
+    cols[ch] = np.where(fix, np.hypot(base, sd_round), np.nan if have is None else have)
+    if rec is not None:
+        rec[ch.replace("gnss_", "rounding_")] = float(sd_round)
+    return (f"GNSS {'positions' if ch == 'gnss_h_sd_m' else 'heights'} recorded in steps "
+            f"({shown}): the rounding, sd {sd_round:.0f} m (step / sqrt(12)), added to {ch}"
+            + ("" if have is not None else f" (receiver {UERE_M:g} m where none is recorded)"))
+
+
+def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provenance,
+                       use: GnssUse | None = None
+                       ) -> tuple[list[str], list[Repair], list[str], dict[str, Any]]:
+    """Derive ``gnss_h_sd_m`` where missing, mask bad-quality and repeated fixes, apply the
+    analyst's GNSS options (:func:`.gnss_use.apply_gnss_use`: interval, withheld windows,
+    receiver's sd) and add the rounding of positions recorded in steps, in ``cols`` (in place;
+    module docstring).
 
     Returns
     -------
-    warnings, repairs, notes
+    warnings, repairs, notes, record
+        ``record``: what the options did and the rounding added per axis (empty when neither
+        applies), for ``FlightMeta.extra["gnss_use"]``.
     """
     warns: list[str] = []
     repairs: list[Repair] = []
     notes: list[str] = []
     n = len(t)
+    had_sd: dict[str, str] = {c: "recorded" for c in ("gnss_h_sd_m", "gnss_v_sd_m")
+              if c in cols and np.isfinite(cols[c]).any()}
     hdop, nacp = cols.get("gnss_hdop"), cols.get("gnss_nacp")
     if hdop is not None or nacp is not None:
         sd = accuracy_from_dop(hdop, nacp, n)
@@ -179,6 +207,8 @@ def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provena
         if fill.any():
             cols["gnss_h_sd_m"] = np.where(fill, sd, have)
             src = " and ".join(s for s, v in (("HDOP", hdop), ("NACp", nacp)) if v is not None)
+            had_sd["gnss_h_sd_m"] = ("recorded and " if "gnss_h_sd_m" in had_sd else "") \
+                + f"from the {src}"
             notes.append(f"gnss_h_sd_m from the {src} on {int(fill.sum())} fixes (HDOP x "
                          f"{UERE_M:g} m / sqrt(2); NACp: EPU / {R95_PER_SD:.3f})")
     q = cols.get("gnss_quality")
@@ -205,5 +235,8 @@ def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provena
     w, r = _repeated_fixes(cols, t, prov)
     warns += w
     repairs += r
-    notes += _quantised_positions(cols)
-    return warns, repairs, notes
+    w, nu, rec = apply_gnss_use(cols, t, use, had_sd)
+    warns += w
+    notes += nu
+    notes += _quantised_positions(cols, rec)
+    return warns, repairs, notes, rec

@@ -21,6 +21,10 @@ Format (docs/schema.md, "Metadata"; the simulator writes the same)::
     threshold_lon_deg = 50.04           #   threshold (start of the roll, landing threshold)
     [arrival]                           # same keys
     [station]                           # same keys (ground radar)
+    [gnss]                              # optional: how the GNSS is used (ingest/gnss_use.py)
+    withhold_s = [[900.0, 1200.0]]      #   windows withheld, s of the log's time
+    interval_s = 1.0                    #   at most one fix a second
+    h_sd_m = 14.0                       #   the receiver's sd per axis (v_sd_m: vertical)
     [files]                             # optional companions, relative to the sidecar's folder
     gnss = "x_gnss.csv"
     radar = "x_radar.csv"
@@ -45,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from flightrecon.errors import MetadataError
+from flightrecon.ingest.gnss_use import GnssUse, gnss_use_from_table
 from flightrecon.types import FlightMeta, Position
 
 __all__ = [
@@ -77,6 +82,7 @@ class Sidecar:
     meta: FlightMeta
     files: dict[str, Path]
     warnings: tuple[str, ...] = ()
+    gnss: GnssUse | None = None
 
 
 def parse_position(text: str, *, what: str = "position") -> Position:
@@ -247,11 +253,15 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
                 raise MetadataError(f"[files] unknown key '{k}' (allowed: {', '.join(FILE_KEYS)})",
                                     file=file)
             files[k] = _confined(p.parent, v, k, file)
+    gnss = None
+    if "gnss" in doc:
+        gnss, w = gnss_use_from_table(doc["gnss"], file)
+        warns += w
     for k, v in doc.items():
-        if k not in ("flight", "departure", "arrival", "station", "files"):
+        if k not in ("flight", "departure", "arrival", "station", "files", "gnss"):
             extra[k] = v
     meta = FlightMeta(**kw, extra=extra)
-    return Sidecar(path=file, meta=meta, files=files, warnings=tuple(warns))
+    return Sidecar(path=file, meta=meta, files=files, warnings=tuple(warns), gnss=gnss)
 
 
 def _ground_distance_m(a: Position, b: Position) -> float:

@@ -210,6 +210,12 @@ def _sabziev_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
 
     if clean.meta.arrival is not None or s.k is not None or end_fix(clean) is not None:
         return None
+    if "arrival_not_end" in clean.meta.extra:    # given, but the record ends in the air
+        r = clean.meta.extra["arrival_not_end"]
+        return (f"the arrival given is not where the record ends (it ends in the air, "
+                f"{r['height_above_field_m']:.0f} m above that field at "
+                f"{r['tas_mps']:.0f} m/s) and no coefficients are given: give a --fix at the "
+                "end of the record, or --k / fleet coefficients")
     return ("no arrival point and no coefficients (give --arrival, a --fix at the end of the "
             "record, or --k / fleet coefficients)")
 

@@ -8,7 +8,7 @@ import warnings
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -34,6 +34,9 @@ from flightrecon.pipeline.registry import (
 )
 from flightrecon.pipeline.summary import build_summary, result_choice
 from flightrecon.types import CleanFlight, Flight, MethodResult
+
+if TYPE_CHECKING:
+    from flightrecon.ingest.gnss_use import GnssUse
 
 NUMERICAL_FAILURES: tuple[type[BaseException], ...] = (
     FlightReconError, ValueError, ArithmeticError, np.linalg.LinAlgError)
@@ -166,7 +169,8 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                 settings: ReconstructSettings = ReconstructSettings(),
                 progress: Callable[[str], None] | None = None,
                 store: str | Path | None = None, use_fleet_coefficients: bool = False,
-                record: bool = True, workers: int | None = None) -> Reconstruction:
+                record: bool = True, workers: int | None = None,
+                gnss_use: GnssUse | None = None) -> Reconstruction:
     """Load, validate, clean and reconstruct a flight from its recorder log.
 
     Parameters
@@ -184,6 +188,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         and its fleet-mean Sabziev coefficients (initial-value mode: no arrival point needed)
     workers : threads for the estimators (default :func:`default_workers`; the result does
         not depend on it)
+    gnss_use : how the GNSS fixes are used (withheld, windows, interval, receiver's sd;
+        :class:`flightrecon.ingest.gnss_use.GnssUse`, the keyword of
+        :func:`flightrecon.ingest.load_flight`)
 
     Returns
     -------
@@ -198,7 +205,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         flight_warnings, clean, settings, fleet, findings = _load_and_clean(
             log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
             meta_overrides=meta_overrides, settings=settings, stage=stage, store=store,
-            use_fleet_coefficients=use_fleet_coefficients)
+            use_fleet_coefficients=use_fleet_coefficients, gnss_use=gnss_use)
         track, results, status = reconstruct_clean(clean, settings, progress=stage,
                                                    workers=workers)
     warn_list = flight_warnings + [str(w.message) for w in caught
@@ -237,7 +244,7 @@ def _load_and_clean(log: str | Path, *, gnss: str | Path | None, radar: str | Pa
                     mapping: str | Path | None, sidecar: str | Path | None,
                     meta_overrides: dict[str, Any] | None, settings: ReconstructSettings,
                     stage: Callable[[str], None], store: str | Path | None,
-                    use_fleet_coefficients: bool
+                    use_fleet_coefficients: bool, gnss_use: GnssUse | None = None
                     ) -> tuple[list[str], CleanFlight, ReconstructSettings,
                                dict[str, Any] | None, list[dict[str, Any]]]:
     """Ingest, the fleet's settings (if asked), cleaning and the plausibility checks (each
@@ -252,7 +259,7 @@ def _load_and_clean(log: str | Path, *, gnss: str | Path | None, radar: str | Pa
 
     stage("ingest")
     flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-                                 meta_overrides=meta_overrides)
+                                 meta_overrides=meta_overrides, gnss_use=gnss_use)
     check_reconstructable(flight)   # a log too short: refused with the minimum
     fleet = None
     if use_fleet_coefficients:

@@ -51,7 +51,9 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
         "grid": {"rate_hz": clean.rate_hz, "samples": len(clean.grid),
                  "t0_s": float(clean.grid["t_s"].iloc[0]) if len(clean.grid) else None,
                  "t1_s": float(clean.grid["t_s"].iloc[-1]) if len(clean.grid) else None},
-        "measurements": {"gnss_fixes": len(clean.gnss), "radar_plots": len(clean.radar)},
+        "measurements": {"gnss_fixes": len(clean.gnss), "radar_plots": len(clean.radar),
+                         # the analyst's GNSS options and the rounding added (ingest/gnss_use.py)
+                         "gnss_use": dict(clean.meta.extra.get("gnss_use") or {})},
         # every check of the door with its figure and verdict (docs/door.md)
         "door": list(clean.meta.extra.get("door", [])),
         "phases": None if ph is None else asdict(ph),
