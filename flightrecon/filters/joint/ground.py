@@ -79,33 +79,34 @@ def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_E
 def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
                          step_of, pnom: np.ndarray, vnom: np.ndarray,
                          psi_hat: np.ndarray | None = None) -> None:
-    """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
-    centreline through the airfield reference point.
+    """Rolling on the runway: zero velocity across the nose, and zero cross-track offset from
+    the centreline through the airfield reference point.
 
-    The runway's direction is the airfield's ``runway_true_deg`` where the metadata give it
-    (then the ground roll ties the heading reference: the recorded heading minus the heading
-    bias must follow the runway). Otherwise it is the true heading, psi_rec - dpsi (the recorded
-    heading carries the heading bias): c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi
-    a(psi_rec) . v_nom, with c and a the cross- and along-runway unit vectors, linearised at
-    dpsi = 0 and the nominal (the neglected term is dpsi^2 / 2 of the along-track value: 3 mm/s
-    at 1 deg and 70 m/s). Taking the recorded heading as the runway's direction would tell the
-    smoother that the heading bias is zero. ``psi_hat`` (per state step) is the heading bias
-    of the last pass: the linearisation is about it, c(psi_rec - dpsi) . v ~ c(psi') . v +
-    (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec - psi_hat (exact at the solution
-    however large the bias).
+    The velocity rows: the wheels roll where the nose points (the tyres' slip angles are a
+    fraction of a degree), so the velocity across the *true heading* psi_rec - dpsi is zero
+    (the recorded heading carries the heading bias): c(psi_rec - dpsi) . v ~ c(psi_rec) . v +
+    dpsi a(psi_rec) . v_nom, with c and a the cross- and along-heading unit vectors, linearised
+    at dpsi = 0 and the nominal (the neglected term is dpsi^2 / 2 of the along-track value:
+    3 mm/s at 1 deg and 70 m/s). ``psi_hat`` (per state step) is the heading bias of the last
+    pass: the linearisation is about it, c(psi_rec - dpsi) . v ~ c(psi') . v + (dpsi - psi_hat)
+    a(psi') . v_nom with psi' = psi_rec - psi_hat (exact at the solution however large the
+    bias).  Taking the recorded heading itself would tell the smoother that the heading bias
+    is zero.  The nose, not the runway: a roll's track leaves the runway's direction by the
+    pilot's steering (JSBSim's Cessna 310 swerves 5-14 deg on its take-off roll, 1-3 m/s across
+    the runway), and rows holding the velocity along the runway made the heading bias take up
+    the swerve (docs/jsbsim.md, "Fleet study": 4.9 +- 0.4 deg for a true -0.6).
 
-    Neither the track nor the nose is exactly along the runway on the ground (steering
-    corrections and a drift across the runway, the tyres' slip angles in a crosswind, a crab
-    kept after touchdown): an angle ``ground_slip_deg`` (sd) common to the whole roll, not a
-    noise that averages out over its samples.  Each of a roll's ``m`` cross-track velocity rows
+    The centreline rows: the cross-track offset from the line through the airfield reference
+    point along the runway's direction, the airfield's ``runway_true_deg`` where the metadata
+    give it (then the roll's positions tie the heading reference: a rotation of the track by
+    the heading bias moves the roll off the centreline, 25 m over 1000 m of roll is 1.4 deg),
+    else the true heading as above.
+
+    ``ground_slip_deg`` (default 0): an angle between track and nose common to the whole roll,
+    not a noise that averages out over its samples.  Each of a roll's ``m`` velocity rows
     carries it as the extra variance ``m (s V)^2`` (V: the roll's fastest speed,
     :func:`roll_speed`, from the data and not the iterate, so that the cost function stays the
-    same from pass to pass), so that the roll's velocity rows tell the heading bias no more
-    than one such angle's worth (``s^2`` against ``s^2 / m`` for independent errors).  The
-    centreline rows keep their half-width (25 m: 1.4 deg over 1000 m of roll).  JSBSim's rolls
-    run up to 1.7 deg off the runway with the nose up to 3.3 deg off it, and without this the
-    heading bias follows the nose's angle on the take-off roll; with it the cross-country
-    flights lost more than the upsets gained, so the default is 0 (docs/jsbsim.md).
+    same from pass to pass).
     """
     nz = settings.noise
     slip = np.radians(nz.ground_slip_deg)
@@ -130,24 +131,30 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         sel = keep & side
         if not sel.any():
             continue
-        # the direction of the runway (only its line matters: a reversed direction is the same)
+        # the wheels roll along the nose: the true heading, psi_rec - dpsi, linearised about
+        # the last pass's bias (docstring)
         tt = t_in[sel]
         k = step_of(tt)
-        ph = np.zeros(len(tt)) if known or psi_hat is None else psi_hat[k]
-        psi = np.full(int(sel.sum()), rw) if known else inp.heading_rad[sel] - ph
+        ph = np.zeros(len(tt)) if psi_hat is None else psi_hat[k]
+        psi = inp.heading_rad[sel] - ph
         H = np.zeros((len(tt), n))
         H[:, jl.IV] = -np.sin(psi)
         H[:, jl.IV + 1] = np.cos(psi)
         r_v = nz.ground_mps ** 2 + len(tt) * (slip * roll_speed(inp, settings, t_edge)) ** 2
-        if not known:
-            H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
+        H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
         b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
         if pos is None:
             continue
         on_cl = cl_side[sel]
         if not on_cl.any():
             continue
-        tt, k, psi, ph = tt[on_cl], k[on_cl], psi[on_cl], ph[on_cl]
+        # the centreline: the runway's direction where known (only its line matters: a
+        # reversed direction is the same), else the true heading
+        tt, k, ph = tt[on_cl], k[on_cl], ph[on_cl]
+        if known:
+            psi, ph = np.full(len(tt), rw), np.zeros(len(tt))
+        else:
+            psi = psi[on_cl]
         ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
         arp = np.array([float(ex), float(ey), float(ez)])
         Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
