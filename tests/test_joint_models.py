@@ -622,6 +622,108 @@ def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
     np.testing.assert_array_equal(b.parts[0]["r"], base.noise.ground_mps ** 2)
 
 
+def test_lined_up_at_rest_the_heading_gives_its_bias():
+    """Guards the line-up row (docs/joint.md, "The heading reference"): lined up at rest before
+    the roll the recorded heading minus the runway's direction is the heading bias, one row
+    for the rest (the circular mean of its samples) with the sd ``lineup_heading_deg``; the
+    runway given in the opposite direction is the same line; without the runway's direction
+    there is no row."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.ground import lineup_heading
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 60.0, 0.25)
+    n = len(t)
+    rng = np.random.default_rng(4)
+    psi = np.radians(160.0 + 1.5 + rng.normal(0.0, 0.2, n))   # 1.5 deg bias, 0.2 deg noise
+    s = JointSettings()
+
+    def row(rw):
+        inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                          attitude_deg=np.c_[np.zeros(n), np.zeros(n), np.degrees(psi)],
+                          tas=np.zeros(n), heading_rad=psi, baro_rel_m=np.zeros(n),
+                          gnss=pd.DataFrame(), radar=pd.DataFrame(), station=None,
+                          departure=(40.0, 20.0, 100.0), arrival=None, liftoff_t=50.0,
+                          touchdown_t=np.nan, field_h=100.0, runway_rad=(rw, None))
+        b = _MeasBuilder(t[::4])
+        lineup_heading(b, inp, s, t[(t >= 5.0) & (t <= 35.0)])
+        return b
+    for rw in (np.radians(160.0), np.radians(340.0)):
+        b = row(rw)
+        (p,) = b.parts
+        H = b.H[0]
+        assert len(p["t"]) == 1 and H[0, jl.IPSI] == 1.0 and np.count_nonzero(H) == 1
+        # the mean of 121 samples of 0.2 deg noise: 0.02 deg sd, bound 4 sd
+        assert np.degrees(p["z"][0]) == pytest.approx(1.5, abs=0.08)
+        assert p["r"][0] == pytest.approx(np.radians(s.noise.lineup_heading_deg) ** 2)
+    assert row(None).parts == []
+    # the same row with the velocity rows along the nose
+    s = JointSettings(roll_velocity="nose")
+    assert row(np.radians(160.0)).parts[0]["z"] == pytest.approx(b.parts[0]["z"], abs=1e-15)
+
+
+def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
+    """Guards the steering term of the runway rows (docs/joint.md, "The heading reference"):
+    where the recorded heading swings 8 deg off the heading lined up at rest, the track
+    follows the nose, so those cross-track velocity rows carry (V sin 8 deg)^2 on top of the
+    white noise (V: the lift-off airspeed), and the rows where the nose stays lined up (and
+    the rest itself) keep the white noise alone; without a rest the reference is the roll's
+    mean heading."""
+    import pandas as pd
+
+    from flightrecon.cleaning.phases import TakeoffRoll
+    from flightrecon.filters.joint.ground import runway_measurements, steering_variance
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 80.0, 0.25)
+    n = len(t)
+    hdg = np.full(n, 90.0)
+    swing = (t >= 22.0) & (t < 26.0)
+    hdg[swing] += 8.0
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                      attitude_deg=np.c_[np.zeros(n), np.zeros(n), hdg],
+                      tas=np.clip(1.5 * (t - 12.0), 0.0, 60.0), heading_rad=np.radians(hdg),
+                      baro_rel_m=np.zeros(n), gnss=pd.DataFrame(), radar=pd.DataFrame(),
+                      station=None, departure=(40.0, 20.0, 100.0), arrival=None,
+                      liftoff_t=42.0, touchdown_t=np.nan, field_h=100.0,
+                      runway_rad=(np.pi / 2, None), roll=TakeoffRoll(12.0, (0.0, 10.0)))
+    s = JointSettings()
+    T = t[::4]
+    b = _MeasBuilder(T)
+    vnom = np.c_[np.zeros(len(T)), np.full(len(T), 20.0), np.zeros(len(T))]
+    runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                        np.zeros((len(T), 3)), vnom)
+    g = b.parts[0]
+    v_lo = 1.5 * (42.0 - 12.0)          # the airspeed at lift-off: 45 m/s
+    in_swing = (g["t"] >= 22.0) & (g["t"] < 26.0)
+    assert in_swing.sum() == 4 and len(g["t"]) == 40
+    np.testing.assert_allclose(g["r"][in_swing], s.noise.ground_mps ** 2
+                               + (v_lo * np.sin(np.radians(8.0))) ** 2, rtol=1e-9)
+    np.testing.assert_allclose(g["r"][~in_swing], s.noise.ground_mps ** 2, rtol=1e-12)
+    # no rest: the reference is the roll's circular mean (4 of 40 samples 8 deg off: 0.8 deg)
+    d = np.radians(np.array([8.0, 0.0]))
+    r = steering_variance(d, 45.0)
+    mean = np.arctan2(np.sin(d).mean(), np.cos(d).mean())
+    np.testing.assert_allclose(r, (45.0 * np.sin(d - mean)) ** 2, rtol=1e-12)
+    assert steering_variance(np.zeros(0), 45.0).size == 0
+    # roll_velocity="nose": the rows across the recorded heading (less the bias), white noise
+    b = _MeasBuilder(T)
+    runway_measurements(b, inp, JointSettings(roll_velocity="nose"),
+                        lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                        np.zeros((len(T), 3)), vnom)
+    g, H = b.parts[0], b.H[0]
+    psi = np.radians(np.interp(g["t"], t, hdg))
+    np.testing.assert_allclose(H[:, jl.IV:jl.IV + 2], np.c_[-np.sin(psi), np.cos(psi)],
+                               atol=1e-12)
+    np.testing.assert_allclose(H[:, jl.IPSI], 20.0 * np.sin(psi), atol=1e-12)
+    np.testing.assert_allclose(g["r"], s.noise.ground_mps ** 2, rtol=1e-12)
+
+
 def test_implausible_sensor_error_is_named():
     """Guards the joint's health rule against implausible sensor errors: an airspeed scale 25
     prior sd from its prior is reported (and makes the track unhealthy in run_joint); one at

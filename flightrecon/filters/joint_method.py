@@ -24,6 +24,7 @@ from flightrecon.filters.joint import (
     JointInputs,
     JointRun,
     JointSettings,
+    TakeoffRoll,
     prior_of,
     smooth_joint,
     source_report,
@@ -234,10 +235,29 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                 f"loads of {int(dead.sum())} sample(s) where it comes alive or dies "
                 "(the derivative's window holds both) are taken as missing")))
     if not (ph is not None and ph.starts_airborne):
-        inp = replace(inp, roll=takeoff_roll(
-            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
-            not_before_t=inp.lineup_t))
+        roll = takeoff_roll(inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
+                            inp.wind_ne, not_before_t=inp.lineup_t)
+        if not np.isfinite(roll.start_t) and ph is not None:
+            roll = phases_roll(ph)
+        inp = replace(inp, roll=roll)
     return inp
+
+
+def phases_roll(ph: Any, settle_s: float = 10.0) -> TakeoffRoll:
+    """The take-off roll of the cleaning's phases (``roll_start_t_s`` after ``lineup_t_s``:
+    the ground speed integrated back from the fast run on the cleaning's grid), where the
+    joint's own search finds none: it integrates the acceleration back from lift-off, which a
+    1 Hz record whose ``n_long_g`` is derived from an airspeed that reads 0 below its floor
+    does not have through the roll's first seconds (:func:`airspeed_floor_windows`).  The rest
+    is the line-up to ``settle_s`` before the roll start, as in
+    :func:`flightrecon.cleaning.phases.takeoff_roll`; none where the phases found a rolling
+    take-off (the roll starting at the line-up)."""
+    start = float(getattr(ph, "roll_start_t_s", np.nan))
+    lineup = float(getattr(ph, "lineup_t_s", np.nan))
+    if not (np.isfinite(start) and np.isfinite(lineup) and start > lineup):
+        return TakeoffRoll()
+    end = start - settle_s
+    return TakeoffRoll(start, (lineup, end) if end > lineup else (np.nan, np.nan))
 
 
 #: a recorded airspeed at most this is "below the air-data computer's floor" [m/s] (1 kt: the
