@@ -750,6 +750,41 @@ def test_gust_at_its_upper_bound_is_named():
     assert not gust_warnings(SimpleNamespace(gust=None), 8.0)
 
 
+def test_a_wind_that_turns_faster_than_its_random_walk_is_named():
+    """Guards the wind's process-model check (diagnostics.wind_walk_check): a wind drawn from
+    the model itself (random walk 0.05 m/s/sqrt(s) for 40 minutes, and a climb of 1500 m
+    through a gradient of 10 (m/s)/km that the gradient state carries) passes; 22 m/s turning
+    100 deg in 30 minutes at a constant height (JSBSim's holding) is named, its worst
+    10-minute window's change (about 13 m/s) against the 1.2 m/s sd the walk allows."""
+    from types import SimpleNamespace
+
+    from flightrecon.filters.joint.diagnostics import wind_walk_check, wind_walk_warning
+
+    t = np.arange(0.0, 2400.0, 1.0)
+    n = len(t)
+    q = 0.05
+    rng = np.random.default_rng(11)
+    h = np.clip(t, 0.0, 1500.0)                        # 1 m/s climb to 1500 m, then level
+    g = np.full((n, 2), [0.010, -0.004])               # (m/s)/m
+    w = g * h[:, None] + np.cumsum(rng.normal(0.0, q, (n, 2)), axis=0)
+
+    def run(wind):
+        x = np.zeros((n, jl.N_STATE))
+        x[:, jl.S_WIND] = wind
+        x[:, jl.S_WIND_GRAD] = g
+        return SimpleNamespace(t=t, x=x, h_m=h + 100.0)
+    assert wind_walk_check(run(w), q, 0.05) is None
+    ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
+    turning = 22.0 * np.c_[np.cos(ang), np.sin(ang)]
+    flat = SimpleNamespace(t=t, x=run(turning).x, h_m=np.full(n, 1600.0))
+    c = wind_walk_check(flat, q, 0.05)
+    assert c is not None and c["z2"] > c["limit"]
+    # the chord of 33.3 deg of a 22 m/s circle in 600 s: 12.6 m/s; sd sqrt(0.05^2 600) m/s
+    assert c["change_mps"] == pytest.approx(2 * 22.0 * np.sin(np.radians(100.0 / 6)), rel=1e-6)
+    assert c["model_sd_mps"] == pytest.approx(np.sqrt(q ** 2 * 600.0), rel=1e-9)
+    assert "(unhealthy)" in wind_walk_warning(c)
+
+
 def test_increments_do_not_lag_a_turning_acceleration():
     """Guards the increments' hold: a recorder sample is its channel at its own time, so it is
     held on the interval centred there. Held forward on [t_i, t_i+1) it was applied half an

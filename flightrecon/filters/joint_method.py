@@ -36,6 +36,8 @@ from flightrecon.filters.joint.diagnostics import (
     far_warning,
     gust_warnings,
     implausible_corrections,
+    wind_walk_check,
+    wind_walk_warning,
 )
 from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.filters.joint.measurements import wind_prior_measurements
@@ -627,8 +629,12 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     corrections = _corrections(run, settings)
     far = implausible_corrections(corrections)
     warnings += [far_warning(name, corrections[name], z) for name, z in far.items()]
+    wind_walk = wind_walk_check(run, settings.noise.wind_rw_mps_sqrt_s,
+                                settings.noise.wind_shear_mps_per_sqrt_m)
+    if wind_walk is not None:
+        warnings.append(wind_walk_warning(wind_walk))
     summary = {
-        "healthy": bool(finite) and not verdict.gross and not far,
+        "healthy": bool(finite) and not verdict.gross and not far and wind_walk is None,
         "consistency": verdict.as_dict(),
         "converged": bool(finite) and converged,
         "stop_reason": run.stop_reason,
