@@ -785,6 +785,47 @@ def test_a_wind_that_turns_faster_than_its_random_walk_is_named():
     assert "(unhealthy)" in wind_walk_warning(c)
 
 
+def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
+    """Guards the wind walk's rounds (joint_method._wind_walk_rounds): the turning wind of the
+    test above, chi-square 106 on its worst 10-minute window against the default walk, gets
+    the walk 0.05 sqrt(106 / 2) = 0.364 m/s/sqrt(s) in one round, after which the same wind
+    is a typical one (chi-square 2.0); a steady wind keeps the default and no round; with
+    ``wind_rounds`` = 0 nothing is re-estimated.  The smoother is a stand-in returning the
+    given wind (the rounds' arithmetic, not the smoother's answer, is under test); the dead
+    reckoning's sd in the health evidence takes twice the re-estimated walk."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    import flightrecon.filters.joint_method as jm
+    from flightrecon.envelope import Evidence, _dr_walk
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 2400.0, 1.0)
+    n = len(t)
+    ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
+
+    def fake_run(wind):
+        x = np.zeros((n, jl.N_STATE))
+        x[:, jl.S_WIND] = wind
+        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
+    turning = fake_run(22.0 * np.c_[np.cos(ang), np.sin(ang)])
+    calls = []
+    monkeypatch.setattr(jm, "smooth_joint", lambda inp, s: calls.append(s) or turning)
+    run, s, rounds = jm._wind_walk_rounds(None, JointSettings(), turning)
+    chord = 2 * 22.0 * np.sin(np.radians(100.0 / 6))
+    z2 = chord ** 2 / (0.05 ** 2 * 600.0)
+    assert len(rounds) == 1 and len(calls) == 1 and rounds[0]["z2"] == pytest.approx(z2)
+    assert s.noise.wind_rw_mps_sqrt_s == pytest.approx(0.05 * np.sqrt(z2 / 2.0))
+    steady = fake_run(np.tile([5.0, -3.0], (n, 1)))
+    assert jm._wind_walk_rounds(None, JointSettings(), steady)[2] == []
+    assert jm._wind_walk_rounds(None, replace(JointSettings(), wind_rounds=0), turning)[2] == []
+    res = SimpleNamespace(summary={"wind_walk": {"wind_rw_mps_sqrt_s": 0.364,
+                                                 "rounds": rounds}})
+    assert _dr_walk(res, Evidence()) == pytest.approx(0.728)
+    res.summary["wind_walk"] = {"wind_rw_mps_sqrt_s": 0.05, "rounds": []}
+    assert _dr_walk(res, Evidence()) == Evidence().dr_walk_mps_per_sqrt_s
+
+
 def test_increments_do_not_lag_a_turning_acceleration():
     """Guards the increments' hold: a recorder sample is its channel at its own time, so it is
     held on the interval centred there. Held forward on [t_i, t_i+1) it was applied half an

@@ -149,6 +149,11 @@ class JointSettings:
     gust_rounds: int = 10                    # at most this many changes of it
     gust_tol: float = 0.1                    # stop when the estimate moves by less (relative)
     gust_bounds_mps: tuple[float, float] = (0.02, 8.0)  # estimates kept inside
+    wind_rounds: int = 4                     # where the smoothed wind moves faster than its
+    #                                          random walk allows (diagnostics.wind_walk_check):
+    #                                          at most this many re-estimates of the walk (0: the
+    #                                          track is then unhealthy)
+    wind_rw_max_mps_sqrt_s: float = 1.0      # the re-estimated walk kept below this
     estimate_clock: bool = True
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
