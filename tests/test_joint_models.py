@@ -622,6 +622,108 @@ def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
     np.testing.assert_array_equal(b.parts[0]["r"], base.noise.ground_mps ** 2)
 
 
+def test_lined_up_at_rest_the_heading_gives_its_bias():
+    """Guards the line-up row (docs/joint.md, "The heading reference"): lined up at rest before
+    the roll the recorded heading minus the runway's direction is the heading bias, one row
+    for the rest (the circular mean of its samples) with the sd ``lineup_heading_deg``; the
+    runway given in the opposite direction is the same line; without the runway's direction
+    there is no row."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.ground import lineup_heading
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 60.0, 0.25)
+    n = len(t)
+    rng = np.random.default_rng(4)
+    psi = np.radians(160.0 + 1.5 + rng.normal(0.0, 0.2, n))   # 1.5 deg bias, 0.2 deg noise
+    s = JointSettings()
+
+    def row(rw):
+        inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                          attitude_deg=np.c_[np.zeros(n), np.zeros(n), np.degrees(psi)],
+                          tas=np.zeros(n), heading_rad=psi, baro_rel_m=np.zeros(n),
+                          gnss=pd.DataFrame(), radar=pd.DataFrame(), station=None,
+                          departure=(40.0, 20.0, 100.0), arrival=None, liftoff_t=50.0,
+                          touchdown_t=np.nan, field_h=100.0, runway_rad=(rw, None))
+        b = _MeasBuilder(t[::4])
+        lineup_heading(b, inp, s, t[(t >= 5.0) & (t <= 35.0)])
+        return b
+    for rw in (np.radians(160.0), np.radians(340.0)):
+        b = row(rw)
+        (p,) = b.parts
+        H = b.H[0]
+        assert len(p["t"]) == 1 and H[0, jl.IPSI] == 1.0 and np.count_nonzero(H) == 1
+        # the mean of 121 samples of 0.2 deg noise: 0.02 deg sd, bound 4 sd
+        assert np.degrees(p["z"][0]) == pytest.approx(1.5, abs=0.08)
+        assert p["r"][0] == pytest.approx(np.radians(s.noise.lineup_heading_deg) ** 2)
+    assert row(None).parts == []
+    # the same row with the velocity rows along the nose
+    s = JointSettings(roll_velocity="nose")
+    assert row(np.radians(160.0)).parts[0]["z"] == pytest.approx(b.parts[0]["z"], abs=1e-15)
+
+
+def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
+    """Guards the steering term of the runway rows (docs/joint.md, "The heading reference"):
+    where the recorded heading swings 8 deg off the heading lined up at rest, the track
+    follows the nose, so those cross-track velocity rows carry (V sin 8 deg)^2 on top of the
+    white noise (V: the lift-off airspeed), and the rows where the nose stays lined up (and
+    the rest itself) keep the white noise alone; without a rest the reference is the roll's
+    mean heading."""
+    import pandas as pd
+
+    from flightrecon.cleaning.phases import TakeoffRoll
+    from flightrecon.filters.joint.ground import runway_measurements, steering_variance
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 80.0, 0.25)
+    n = len(t)
+    hdg = np.full(n, 90.0)
+    swing = (t >= 22.0) & (t < 26.0)
+    hdg[swing] += 8.0
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                      attitude_deg=np.c_[np.zeros(n), np.zeros(n), hdg],
+                      tas=np.clip(1.5 * (t - 12.0), 0.0, 60.0), heading_rad=np.radians(hdg),
+                      baro_rel_m=np.zeros(n), gnss=pd.DataFrame(), radar=pd.DataFrame(),
+                      station=None, departure=(40.0, 20.0, 100.0), arrival=None,
+                      liftoff_t=42.0, touchdown_t=np.nan, field_h=100.0,
+                      runway_rad=(np.pi / 2, None), roll=TakeoffRoll(12.0, (0.0, 10.0)))
+    s = JointSettings()
+    T = t[::4]
+    b = _MeasBuilder(T)
+    vnom = np.c_[np.zeros(len(T)), np.full(len(T), 20.0), np.zeros(len(T))]
+    runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                        np.zeros((len(T), 3)), vnom)
+    g = b.parts[0]
+    v_lo = 1.5 * (42.0 - 12.0)          # the airspeed at lift-off: 45 m/s
+    in_swing = (g["t"] >= 22.0) & (g["t"] < 26.0)
+    assert in_swing.sum() == 4 and len(g["t"]) == 40
+    np.testing.assert_allclose(g["r"][in_swing], s.noise.ground_mps ** 2
+                               + (v_lo * np.sin(np.radians(8.0))) ** 2, rtol=1e-9)
+    np.testing.assert_allclose(g["r"][~in_swing], s.noise.ground_mps ** 2, rtol=1e-12)
+    # no rest: the reference is the roll's circular mean (4 of 40 samples 8 deg off: 0.8 deg)
+    d = np.radians(np.array([8.0, 0.0]))
+    r = steering_variance(d, 45.0)
+    mean = np.arctan2(np.sin(d).mean(), np.cos(d).mean())
+    np.testing.assert_allclose(r, (45.0 * np.sin(d - mean)) ** 2, rtol=1e-12)
+    assert steering_variance(np.zeros(0), 45.0).size == 0
+    # roll_velocity="nose": the rows across the recorded heading (less the bias), white noise
+    b = _MeasBuilder(T)
+    runway_measurements(b, inp, JointSettings(roll_velocity="nose"),
+                        lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                        np.zeros((len(T), 3)), vnom)
+    g, H = b.parts[0], b.H[0]
+    psi = np.radians(np.interp(g["t"], t, hdg))
+    np.testing.assert_allclose(H[:, jl.IV:jl.IV + 2], np.c_[-np.sin(psi), np.cos(psi)],
+                               atol=1e-12)
+    np.testing.assert_allclose(H[:, jl.IPSI], 20.0 * np.sin(psi), atol=1e-12)
+    np.testing.assert_allclose(g["r"], s.noise.ground_mps ** 2, rtol=1e-12)
+
+
 def test_implausible_sensor_error_is_named():
     """Guards the joint's health rule against implausible sensor errors: an airspeed scale 25
     prior sd from its prior is reported (and makes the track unhealthy in run_joint); one at
@@ -646,6 +748,82 @@ def test_gust_at_its_upper_bound_is_named():
     assert not gust_warnings(SimpleNamespace(gust={"sd_mps": 3.1, "rounds": rounds}), 8.0)
     assert not gust_warnings(SimpleNamespace(gust={"sd_mps": 8.0, "rounds": []}), 8.0)
     assert not gust_warnings(SimpleNamespace(gust=None), 8.0)
+
+
+def test_a_wind_that_turns_faster_than_its_random_walk_is_named():
+    """Guards the wind's process-model check (diagnostics.wind_walk_check): a wind drawn from
+    the model itself (random walk 0.05 m/s/sqrt(s) for 40 minutes, and a climb of 1500 m
+    through a gradient of 10 (m/s)/km that the gradient state carries) passes; 22 m/s turning
+    100 deg in 30 minutes at a constant height (JSBSim's holding) is named, its worst
+    10-minute window's change (about 13 m/s) against the 1.2 m/s sd the walk allows."""
+    from types import SimpleNamespace
+
+    from flightrecon.filters.joint.diagnostics import wind_walk_check, wind_walk_warning
+
+    t = np.arange(0.0, 2400.0, 1.0)
+    n = len(t)
+    q = 0.05
+    rng = np.random.default_rng(11)
+    h = np.clip(t, 0.0, 1500.0)                        # 1 m/s climb to 1500 m, then level
+    g = np.full((n, 2), [0.010, -0.004])               # (m/s)/m
+    w = g * h[:, None] + np.cumsum(rng.normal(0.0, q, (n, 2)), axis=0)
+
+    def run(wind):
+        x = np.zeros((n, jl.N_STATE))
+        x[:, jl.S_WIND] = wind
+        x[:, jl.S_WIND_GRAD] = g
+        return SimpleNamespace(t=t, x=x, h_m=h + 100.0)
+    assert wind_walk_check(run(w), q, 0.05) is None
+    ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
+    turning = 22.0 * np.c_[np.cos(ang), np.sin(ang)]
+    flat = SimpleNamespace(t=t, x=run(turning).x, h_m=np.full(n, 1600.0))
+    c = wind_walk_check(flat, q, 0.05)
+    assert c is not None and c["z2"] > c["limit"]
+    # the chord of 33.3 deg of a 22 m/s circle in 600 s: 12.6 m/s; sd sqrt(0.05^2 600) m/s
+    assert c["change_mps"] == pytest.approx(2 * 22.0 * np.sin(np.radians(100.0 / 6)), rel=1e-6)
+    assert c["model_sd_mps"] == pytest.approx(np.sqrt(q ** 2 * 600.0), rel=1e-9)
+    assert "(unhealthy)" in wind_walk_warning(c)
+
+
+def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
+    """Guards the wind walk's rounds (joint_method._wind_walk_rounds): the turning wind of the
+    test above, chi-square 106 on its worst 10-minute window against the default walk, gets
+    the walk 0.05 sqrt(106 / 2) = 0.364 m/s/sqrt(s) in one round, after which the same wind
+    is a typical one (chi-square 2.0); a steady wind keeps the default and no round; with
+    ``wind_rounds`` = 0 nothing is re-estimated.  The smoother is a stand-in returning the
+    given wind (the rounds' arithmetic, not the smoother's answer, is under test); the dead
+    reckoning's sd in the health evidence takes twice the re-estimated walk."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    import flightrecon.filters.joint_method as jm
+    from flightrecon.envelope import Evidence, _dr_walk
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 2400.0, 1.0)
+    n = len(t)
+    ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
+
+    def fake_run(wind):
+        x = np.zeros((n, jl.N_STATE))
+        x[:, jl.S_WIND] = wind
+        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
+    turning = fake_run(22.0 * np.c_[np.cos(ang), np.sin(ang)])
+    calls = []
+    monkeypatch.setattr(jm, "smooth_joint", lambda inp, s: calls.append(s) or turning)
+    run, s, rounds = jm._wind_walk_rounds(None, JointSettings(), turning)
+    chord = 2 * 22.0 * np.sin(np.radians(100.0 / 6))
+    z2 = chord ** 2 / (0.05 ** 2 * 600.0)
+    assert len(rounds) == 1 and len(calls) == 1 and rounds[0]["z2"] == pytest.approx(z2)
+    assert s.noise.wind_rw_mps_sqrt_s == pytest.approx(0.05 * np.sqrt(z2 / 2.0))
+    steady = fake_run(np.tile([5.0, -3.0], (n, 1)))
+    assert jm._wind_walk_rounds(None, JointSettings(), steady)[2] == []
+    assert jm._wind_walk_rounds(None, replace(JointSettings(), wind_rounds=0), turning)[2] == []
+    res = SimpleNamespace(summary={"wind_walk": {"wind_rw_mps_sqrt_s": 0.364,
+                                                 "rounds": rounds}})
+    assert _dr_walk(res, Evidence()) == pytest.approx(0.728)
+    res.summary["wind_walk"] = {"wind_rw_mps_sqrt_s": 0.05, "rounds": []}
+    assert _dr_walk(res, Evidence()) == Evidence().dr_walk_mps_per_sqrt_s
 
 
 def test_increments_do_not_lag_a_turning_acceleration():

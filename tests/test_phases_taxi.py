@@ -28,11 +28,19 @@ def _segments():
             (1.0, 0.0, 0.0), (30.0, 0.0, 0.0), (35.0, 70.0, 0.0), (20.0, 75.0, 0.0)]
 
 
-def ground_grid():
+def _swerving_segments():
+    """:func:`_segments` with a swerve on the take-off roll: 3 deg/s to the right for the first
+    6 s (0 to 12 m/s), back at 1.5 deg/s for 4 s and 0.6 deg/s for 10 s, the rest straight
+    (JSBSim's Cessna 310 on seed 6030: 18 deg at 1-12 m/s)."""
+    return _segments()[:10] + [(6.0, 12.0, 3.0), (4.0, 20.0, -1.5), (10.0, 40.0, -0.6),
+                               (15.0, 70.0, 0.0), (20.0, 75.0, 0.0)]
+
+
+def ground_grid(segments=None, liftoff_segment: int = 10):
     """The grid and the true times: line-up, roll start, lift-off."""
     v, psi, t = [0.0], [70.0], [0.0]
     marks = {}
-    for k, (dur, v_end, rate) in enumerate(_segments()):
+    for k, (dur, v_end, rate) in enumerate(segments or _segments()):
         n = int(round(dur / DT))
         v0 = v[-1]
         for i in range(1, n + 1):
@@ -43,7 +51,7 @@ def ground_grid():
             marks["lineup"] = t[-1]
         if k == 9:
             marks["roll"] = t[-1]
-        if k == 10:
+        if k == liftoff_segment:
             marks["liftoff"] = t[-1]
     t, v, psi = np.array(t), np.array(v), np.array(psi)
     a_al = np.gradient(v, DT)
@@ -63,6 +71,24 @@ def ground_grid():
                          "n_norm_g": (g_loc + a_up) / G0, "roll_deg": 0.0, "pitch_deg": 0.0,
                          "heading_deg": psi % 360.0, "tas_mps": v, "baro_alt_m": h})
     return grid, marks, psi
+
+
+def test_a_swerve_on_the_roll_is_not_taken_for_the_line_up():
+    """A swerve of 18 deg in the first seconds of the roll: the runway heading taken 2 s into
+    the fast run is 16 deg off the lined-up heading, so the stretch within 10 deg of it began
+    on the roll (2 s in, at 4 m/s) and no rest was left before it ("rolling take-off").  The
+    aircraft was at rest (ground speed integrated back along its own heading, at most
+    3 m/s) with no taxi speed in between: the roll starts there, 1.5 s after the true start
+    at 2 m/s^2 as on a straight roll, and the line-up is back on the turn onto the runway
+    (within 10 deg of the heading at the roll start, 4.5 deg into the swerve: 2.75 s before the
+    end of the 2 deg/s turn onto the runway)."""
+    grid, marks, _ = ground_grid(_swerving_segments(), liftoff_segment=13)
+    ph, rep = detect_phases_with_report(grid, lat_deg=45.0)
+    assert ph.liftoff_t_s == pytest.approx(marks["liftoff"], abs=1.0)
+    assert ph.roll_start_t_s == pytest.approx(marks["roll"] + 1.5, abs=0.3)
+    assert ph.lineup_t_s == pytest.approx(marks["lineup"] - 2.75, abs=0.3)
+    (rs,) = [e for e in rep if e["action"] == "roll_start"]
+    assert "swerve" in rs["why"]
 
 
 def test_lineup_and_roll_start_found():

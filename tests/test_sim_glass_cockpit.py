@@ -135,6 +135,38 @@ def test_missing_fixes_are_written_as_no_solution(circuit):
     assert text.count("NoSoln") == int((ex["GPSfix"] == "NoSoln").sum()) > int(gap.sum()) - 1
 
 
+def test_simulate_writes_the_garmin_export_beside_the_log(tmp_path):
+    """``flightrecon simulate --export garmin`` writes ``<stem>.garmin.csv`` and its sidecar
+    beside the log, byte for byte :func:`write_glass_cockpit` of the same flight, and the
+    export reads back through ``load_flight`` without a mapping with the sidecar's runways:
+    one row a whole second over the log, the heading back to the log's within the two 0.1-deg
+    roundings (magnetic in the file, the variation written beside it).  The point-mass
+    circuit: no JSBSim needed."""
+    from _cli import run_cli
+
+    from flightrecon.sim import simulate
+
+    log = tmp_path / "c.parquet"
+    assert run_cli(["simulate", "circuit", "--seed", "3", "--export", "garmin",
+                    "-o", str(log)]) == 0
+    ex, side = tmp_path / "c.garmin.csv", tmp_path / "c.garmin.meta.toml"
+    assert ex.exists() and side.exists()
+    r = simulate("circuit", 3)
+    write_glass_cockpit(r, tmp_path / "direct.csv")
+    assert ex.read_bytes() == (tmp_path / "direct.csv").read_bytes()
+    assert side.read_bytes() == (tmp_path / "direct.meta.toml").read_bytes()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        flight = load_flight(ex)
+    t = flight.data["t_s"].to_numpy(float)
+    assert np.all(np.diff(t) == 1.0) and t[-1] == np.floor(r.log["t_s"].max())
+    assert flight.meta.departure is not None and flight.meta.departure.runway_true_deg == \
+        r.meta.departure.runway_true_deg
+    dh = (flight.data["heading_deg"].to_numpy(float) - _log_at(r.log, t, "heading_deg")
+          + 180.0) % 360.0 - 180.0
+    assert np.nanmax(np.abs(dh)) <= 0.11
+
+
 def test_fleet_study_on_one_circuit(tmp_path):
     """``scripts/onehz_fleet_study.py`` at reduced size: one circuit, recorder only and a
     120-s gap, within the bars of issue #36 item 5 (docs/tables/onehz_fleet.md: 0.71, gap 0.12,

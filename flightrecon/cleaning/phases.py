@@ -38,8 +38,12 @@ wheels leave or meet the runway:
   along taxiways), never "at rest on the runway".  Within the lined-up stretch the ground speed
   is integrated back from the fast run's start, ``v(t) = V_fast - int_t a_along``, with the
   along-heading kinematic acceleration; the *roll start* is the last sample with
-  ``v <= rest_mps`` (3 m/s), or the line-up itself for a rolling take-off.  The joint smoother
-  takes its "at rest, lined up" stretch only after the line-up.
+  ``v <= rest_mps`` (3 m/s), or the line-up itself for a rolling take-off.  A "rolling
+  take-off" that is a swerve (the heading swinging more than ``lineup_deg`` in the roll's first
+  seconds): where the speed integrated back along each sample's own heading was at most
+  ``rest_mps`` before the line-up found, and no faster than ``taxi_mps`` (10 m/s) since, the
+  roll starts there and the line-up is the stretch within ``lineup_deg`` of the heading there.
+  The joint smoother takes its "at rest, lined up" stretch only after the line-up.
 * Lift-off ground velocity: the runway direction is the mean heading over the last 10 s of the
   ground run; airspeed over those 10 s is fitted as ``V(t) = c + integral of a_along`` (the
   along-runway kinematic acceleration), which averages the airspeed noise with the
@@ -87,6 +91,8 @@ class PhaseSettings:
     td_accel_mps2 : smallest touchdown excursion of the vertical acceleration [m/s^2]
     lineup_deg : heading within this of the take-off runway's heading counts as lined up [deg]
     rest_mps : ground speed at or below which the aircraft is at rest (roll start) [m/s]
+    taxi_mps : ground speed above which a heading change is a swerve on the take-off roll, not
+        a turn onto the runway [m/s]
     """
 
     airborne_speed_mps: float = 30.0
@@ -102,6 +108,7 @@ class PhaseSettings:
     td_accel_mps2: float = 0.2
     lineup_deg: float = 10.0
     rest_mps: float = 3.0
+    taxi_mps: float = 10.0
 
 
 def _filled(grid: pd.DataFrame, name: str) -> np.ndarray | None:
@@ -251,6 +258,12 @@ def _lineup_and_roll(t, dt, speed, hdg, accel, i_run: int, i_fast: int, s: Phase
     else:
         i_rs = i_lu
         how = "rolling take-off: the roll starts at the line-up"
+        swerve = _swerve_start(dt, speed, psi, accel, i_lu, i_fast, s)
+        if swerve is not None:
+            i_lu, i_rs = swerve
+            how = (f"a swerve on the roll: the last time the ground speed integrated back "
+                   f"along each sample's heading is <= {s.rest_mps:g} m/s, lined up with the "
+                   "heading there")
     t_lu, t_rs = float(t[i_lu]), float(t[i_rs])
     taxi_s = t_lu - float(t[0])
     rep.append(report_entry("phases", "lineup", f"start of the last stretch within "
@@ -261,6 +274,31 @@ def _lineup_and_roll(t, dt, speed, hdg, accel, i_run: int, i_fast: int, s: Phase
                             taxi_s=taxi_s))
     rep.append(report_entry("phases", "roll_start", how, count=1, t_s=[t_rs]))
     return t_lu, t_rs
+
+
+def _swerve_start(dt, speed, psi, accel, i_lu: int, i_fast: int, s: PhaseSettings
+                  ) -> tuple[int, int] | None:
+    """``(i_lu, i_rs)`` where the "rolling take-off" of :func:`_lineup_and_roll` is a swerve:
+    the aircraft was at rest (ground speed integrated back from the fast run along each
+    sample's own heading, the wheels rolling where the nose points, at most ``rest_mps``)
+    before the line-up found, and no faster than ``taxi_mps`` from there to it (no taxi turn
+    in between), so that the heading left the runway heading on the roll, not on a turn onto
+    the runway (JSBSim's Cessna 310 swings 18 deg at 1-12 m/s: the line-up fell 2 s into the
+    roll and the rest before it was lost).  The roll starts at the last such sample and the
+    line-up is the start of the last stretch before it within ``lineup_deg`` of the heading
+    there.  ``None`` where no rest is that close."""
+    a = accel(0, i_fast + 1)
+    p = psi[:i_fast + 1]
+    a_own = np.where(np.isfinite(a[:, 0]) & np.isfinite(a[:, 1]),
+                     a[:, 0] * np.cos(p) + a[:, 1] * np.sin(p), 0.0)
+    v_own = speed_integrated_back(a_own, dt, float(speed[i_fast]))
+    rest = np.flatnonzero(v_own[:i_lu + 1] <= s.rest_mps)
+    if not len(rest) or np.any(v_own[int(rest[-1]):i_lu + 1] > s.taxi_mps):
+        return None
+    i_rs = int(rest[-1])
+    off = np.degrees(np.abs(np.angle(np.exp(1j * (p[:i_rs + 1] - p[i_rs])))))
+    out = np.flatnonzero(off > s.lineup_deg)
+    return (int(out[-1]) + 1 if len(out) else 0), i_rs
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ AIRFRAME_NAMES = ("c172p", "c310", "737", "t6texan2", "pc7", "global5000", "B747
 """The JSBSim aircraft (``flightrecon.sim.jsbsim_scenarios.AIRFRAMES``; a test keeps the two
 equal: the names are here so that the help needs no simulator import)."""
 
-EXPORT_NAMES = ("ed112",)
+EXPORT_NAMES = ("ed112", "garmin")
 """Recorder exports written beside the log (``flightrecon.sim.io.EXPORT_FORMATS``)."""
 
 
@@ -35,7 +35,9 @@ EXPORT_NAMES = ("ed112",)
 @click.option("--export", "export", type=click.Choice(EXPORT_NAMES), default=None,
               help="Also write the log as this recorder export: ed112 = the ED-112 minimum "
                    "rates (<stem>.ed112.csv, its mapping <stem>.ed112.mapping.toml and "
-                   "sidecar <stem>.ed112.meta.toml; recorder channels only).")
+                   "sidecar <stem>.ed112.meta.toml; recorder channels only); garmin = a "
+                   "Garmin glass-cockpit CSV at 1 Hz (<stem>.garmin.csv, read as recorded "
+                   "without a mapping, and its sidecar <stem>.garmin.meta.toml).")
 @click.option("--no-gnss", is_flag=True, help="Record no GNSS (recorder channels only).")
 @click.option("-o", "--output", "output", required=True,
               type=click.Path(dir_okay=False, path_type=Path),

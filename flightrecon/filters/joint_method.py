@@ -24,6 +24,7 @@ from flightrecon.filters.joint import (
     JointInputs,
     JointRun,
     JointSettings,
+    TakeoffRoll,
     prior_of,
     smooth_joint,
     source_report,
@@ -35,6 +36,8 @@ from flightrecon.filters.joint.diagnostics import (
     far_warning,
     gust_warnings,
     implausible_corrections,
+    wind_walk_check,
+    wind_walk_warning,
 )
 from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.filters.joint.measurements import wind_prior_measurements
@@ -234,10 +237,29 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                 f"loads of {int(dead.sum())} sample(s) where it comes alive or dies "
                 "(the derivative's window holds both) are taken as missing")))
     if not (ph is not None and ph.starts_airborne):
-        inp = replace(inp, roll=takeoff_roll(
-            inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t, inp.wind_ne,
-            not_before_t=inp.lineup_t))
+        roll = takeoff_roll(inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
+                            inp.wind_ne, not_before_t=inp.lineup_t)
+        if not np.isfinite(roll.start_t) and ph is not None:
+            roll = phases_roll(ph)
+        inp = replace(inp, roll=roll)
     return inp
+
+
+def phases_roll(ph: Any, settle_s: float = 10.0) -> TakeoffRoll:
+    """The take-off roll of the cleaning's phases (``roll_start_t_s`` after ``lineup_t_s``:
+    the ground speed integrated back from the fast run on the cleaning's grid), where the
+    joint's own search finds none: it integrates the acceleration back from lift-off, which a
+    1 Hz record whose ``n_long_g`` is derived from an airspeed that reads 0 below its floor
+    does not have through the roll's first seconds (:func:`airspeed_floor_windows`).  The rest
+    is the line-up to ``settle_s`` before the roll start, as in
+    :func:`flightrecon.cleaning.phases.takeoff_roll`; none where the phases found a rolling
+    take-off (the roll starting at the line-up)."""
+    start = float(getattr(ph, "roll_start_t_s", np.nan))
+    lineup = float(getattr(ph, "lineup_t_s", np.nan))
+    if not (np.isfinite(start) and np.isfinite(lineup) and start > lineup):
+        return TakeoffRoll()
+    end = start - settle_s
+    return TakeoffRoll(start, (lineup, end) if end > lineup else (np.nan, np.nan))
 
 
 #: a recorded airspeed at most this is "below the air-data computer's floor" [m/s] (1 kt: the
@@ -553,6 +575,35 @@ def sampled_loads_noise(inp: JointInputs, settings: JointSettings) -> JointSetti
         nz, accel_sampling_mps2_sqrt_hz=(float(extra[0]), float(extra[1]), float(extra[2]))))
 
 
+def _wind_walk_rounds(inp: JointInputs, settings: JointSettings, run: JointRun
+                      ) -> tuple[JointRun, JointSettings, list[dict[str, Any]]]:
+    """Where the smoothed wind moved faster than its random walk allows
+    (:func:`~flightrecon.filters.joint.diagnostics.wind_walk_check`), the walk re-estimated
+    from the flight and the smoother run again, at most ``settings.wind_rounds`` times.
+
+    Each round scales the walk's variance so that the check's worst window would be a
+    typical one, its chi-square at the mean 2 of chi-square(2): ``wind_rw_mps_sqrt_s`` times
+    ``sqrt(z^2 / 2)`` (the smoothed change of a walk shrinks towards zero by the data's
+    weight, so an estimate can be low and the rounds climb), kept below
+    ``wind_rw_max_mps_sqrt_s``, until the smoothed wind is within the walk (docs/joint.md,
+    "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30 minutes).
+    Returns the last run, its settings and the rounds (the walk each started from, the
+    check's chi-square and limit)."""
+    rounds: list[dict[str, Any]] = []
+    for _ in range(max(0, settings.wind_rounds)):
+        nz = settings.noise
+        c = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m)
+        if c is None or nz.wind_rw_mps_sqrt_s >= settings.wind_rw_max_mps_sqrt_s:
+            break
+        rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
+                       "limit": c["limit"]})
+        q = min(nz.wind_rw_mps_sqrt_s * float(np.sqrt(c["z2"] / 2.0)),
+                settings.wind_rw_max_mps_sqrt_s)
+        settings = replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=q))
+        run = smooth_joint(inp, settings)
+    return run, settings, rounds
+
+
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
     """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.filters.joint`)."""
     settings = settings or JointSettings()
@@ -561,6 +612,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     inp = joint_inputs(clean)
     settings = sampled_loads_noise(inp, settings)
     run = smooth_joint(inp, settings)
+    run, settings, wind_rounds = _wind_walk_rounds(inp, settings, run)
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
@@ -607,14 +659,26 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     corrections = _corrections(run, settings)
     far = implausible_corrections(corrections)
     warnings += [far_warning(name, corrections[name], z) for name, z in far.items()]
+    wind_walk = wind_walk_check(run, settings.noise.wind_rw_mps_sqrt_s,
+                                settings.noise.wind_shear_mps_per_sqrt_m)
+    if wind_rounds and wind_walk is None:
+        warnings.append(
+            f"joint: the wind changed faster than its default random walk "
+            f"({wind_rounds[0]['wind_rw_mps_sqrt_s']:g} m/s/sqrt(s)); the walk re-estimated from "
+            f"the smoothed wind in {len(wind_rounds)} round(s): "
+            f"{settings.noise.wind_rw_mps_sqrt_s:.3g} m/s/sqrt(s)")
+    if wind_walk is not None:
+        warnings.append(wind_walk_warning(wind_walk))
     summary = {
-        "healthy": bool(finite) and not verdict.gross and not far,
+        "healthy": bool(finite) and not verdict.gross and not far and wind_walk is None,
         "consistency": verdict.as_dict(),
         "converged": bool(finite) and converged,
         "stop_reason": run.stop_reason,
         "cholesky_fallbacks": run.cholesky_fallbacks,
         "iterations": run.iterations,
         "gust": run.gust,
+        "wind_walk": {"wind_rw_mps_sqrt_s": settings.noise.wind_rw_mps_sqrt_s,
+                      "rounds": wind_rounds},
         "state_rate_hz": settings.state_rate_hz,
         "corrections": corrections,
         "clock_offsets_s": {k: {"value": o, "sd": sd}

@@ -12,6 +12,10 @@ log (:mod:`flightrecon.sim.ed112`): ``x.ed112.csv``, the mapping that reads it,
 ``x.ed112.mapping.toml``, and its sidecar ``x.ed112.meta.toml`` (the same metadata, so that
 ``flightrecon reconstruct x.ed112.csv --mapping x.ed112.mapping.toml`` finds its end points).
 
+``write_export(result, "x.parquet", "garmin")`` adds the log as a Garmin glass-cockpit CSV
+export at 1 Hz (:mod:`flightrecon.sim.glass_cockpit`): ``x.garmin.csv``, read as recorded with
+no mapping, and its sidecar ``x.garmin.meta.toml`` (airfields with their runways, QNH, geoid).
+
 Every file is written atomically (:func:`flightrecon.export.atomic.atomic_path`); the same
 result gives byte-identical files.
 """
@@ -31,7 +35,7 @@ from flightrecon.types import FlightMeta, Position
 __all__ = ["EXPORT_FORMATS", "meta_toml", "sibling", "write_export", "write_frame",
            "write_simulation"]
 
-EXPORT_FORMATS = ("ed112",)
+EXPORT_FORMATS = ("ed112", "garmin")
 """Recorder export formats that :func:`write_export` writes beside a simulated log."""
 
 CSV_FLOAT_FORMAT = "%.10g"
@@ -139,16 +143,24 @@ def write_export(result, path: str | Path, fmt: str) -> dict[str, Path]:
     Returns
     -------
     dict
-        The written paths by role (``export``, ``mapping``, ``export_meta``).
+        The written paths by role (``export``, ``mapping`` (ED-112 only), ``export_meta``).
 
     Raises
     ------
     OutputError
-        An unknown format, or a result without a departure (the magnetic declination of the
-        recorded heading needs a place).
+        An unknown format, or an ED-112 export of a result without a departure (the magnetic
+        declination of the recorded heading needs a place).
+    ValidationError
+        A Garmin export of a log without a recorder channel it needs, or without
+        ``epoch_utc`` (:func:`flightrecon.sim.glass_cockpit.glass_cockpit_export`).
     """
     if fmt not in EXPORT_FORMATS:
         raise OutputError(f"unknown export format {fmt!r}; choose one of {list(EXPORT_FORMATS)}")
+    if fmt == "garmin":
+        from flightrecon.sim.glass_cockpit import write_glass_cockpit
+
+        g = write_glass_cockpit(result, sibling(path, f".{fmt}.csv"))
+        return {"export": g["export"], "export_meta": g["meta"]}
     from flightrecon.sim.ed112 import ed112_export, ed112_mapping
 
     dep = result.meta.departure

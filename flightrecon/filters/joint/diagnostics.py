@@ -97,3 +97,72 @@ def gust_warnings(run: JointRun, upper_mps: float) -> list[str]:
                 "explains and carry little weight (check the airspeed and heading channels, "
                 "their units, and the metadata)"]
     return []
+
+
+def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt_m: float,
+                    window_s: float = 600.0, p_false: float = 0.01) -> dict[str, float] | None:
+    """Whether the smoothed wind moved faster than the wind's process model allows.
+
+    The model (docs/joint.md, "Wind and turbulence"): over a stretch the wind changes by its
+    gradient times the climb, g dz, plus a random walk of variance
+    ``q_t L + q_h sum|dz|`` per component (``q_t`` = ``wind_rw_mps_sqrt_s``^2 over the time L,
+    ``q_h`` = ``shear_mps_per_sqrt_m``^2 over the height flown through).  The smoothed change
+    of a Gaussian random walk, E[dw | data], has at most that variance (the variance of the
+    true change less the posterior's), so ``z^2 = |dw - g dz|^2 / (q_t L + q_h sum|dz|)`` over
+    the two components is at most chi-square with 2 degrees of freedom.  Windows of
+    ``window_s`` (the record if shorter) every tenth of it; the limit is the chi-square(2)
+    tail ``-2 ln(p_false / n)`` with ``n`` the number of disjoint windows in the record
+    (Bonferroni).  A wind that turns 100 deg in 30 minutes at 22 m/s (JSBSim's holding) gives
+    z^2 near 50 against a limit of 12; the fleet's other flights at most 1.3: the sds then
+    rest on a steadier wind than the one flown through.
+
+    Returns
+    -------
+    dict or None
+        ``z2`` (the worst window's), ``limit``, ``t0_s``, ``t1_s`` (that window), ``change_mps``
+        (its wind change less the gradient's part, magnitude), ``model_sd_mps`` (its random
+        walk's sd per component); None where the worst window is within the limit.
+    """
+    from flightrecon.filters.joint import layout as jl
+
+    t = np.asarray(run.t, dtype=float)
+    if len(t) < 3 or not (wind_rw_mps_sqrt_s > 0):
+        return None
+    w = run.x[:, jl.S_WIND]
+    g = run.x[:, jl.S_WIND_GRAD]
+    h = np.asarray(run.h_m, dtype=float)
+    dz = np.diff(h)
+    # the gradient's part, sum g dz, and the height flown through, as running sums
+    grad = np.vstack([np.zeros(2), np.cumsum(0.5 * (g[1:] + g[:-1]) * dz[:, None], axis=0)])
+    climb = np.r_[0.0, np.cumsum(np.abs(dz))]
+    span = float(t[-1] - t[0])
+    L = min(window_s, span)
+    if not L > 0:
+        return None
+    starts = np.arange(t[0], t[-1] - L + 1e-9, L / 10.0)
+    i = np.searchsorted(t, starts)
+    j = np.minimum(np.searchsorted(t, t[i] + L), len(t) - 1)
+    ok = j > i
+    i, j = i[ok], j[ok]
+    if not len(i):
+        return None
+    dw = (w[j] - w[i]) - (grad[j] - grad[i])
+    var = (wind_rw_mps_sqrt_s ** 2 * (t[j] - t[i])
+           + shear_mps_per_sqrt_m ** 2 * (climb[j] - climb[i]))
+    z2 = np.sum(dw ** 2, axis=1) / var
+    k = int(np.argmax(z2))
+    limit = -2.0 * np.log(p_false / max(1.0, span / L))
+    if not z2[k] > limit:
+        return None
+    return {"z2": float(z2[k]), "limit": float(limit), "t0_s": float(t[i[k]]),
+            "t1_s": float(t[j[k]]), "change_mps": float(np.hypot(*dw[k])),
+            "model_sd_mps": float(np.sqrt(var[k]))}
+
+
+def wind_walk_warning(check: dict[str, float]) -> str:
+    """The warning of :func:`wind_walk_check`'s finding."""
+    return (f"joint: the wind changed by {check['change_mps']:.1f} m/s between t = "
+            f"{check['t0_s']:.0f} and {check['t1_s']:.0f} s beyond its gradient with height, "
+            f"against {check['model_sd_mps']:.1f} m/s (sd per component) that the wind's random "
+            f"walk allows (chi-square {check['z2']:.0f} > {check['limit']:.0f}): the standard "
+            "deviations assume a steadier wind than the one flown through (unhealthy)")

@@ -82,30 +82,37 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
     """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
     centreline through the airfield reference point.
 
-    The runway's direction is the airfield's ``runway_true_deg`` where the metadata give it
-    (then the ground roll ties the heading reference: the recorded heading minus the heading
-    bias must follow the runway). Otherwise it is the true heading, psi_rec - dpsi (the recorded
-    heading carries the heading bias): c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi
-    a(psi_rec) . v_nom, with c and a the cross- and along-runway unit vectors, linearised at
-    dpsi = 0 and the nominal (the neglected term is dpsi^2 / 2 of the along-track value: 3 mm/s
-    at 1 deg and 70 m/s). Taking the recorded heading as the runway's direction would tell the
-    smoother that the heading bias is zero. ``psi_hat`` (per state step) is the heading bias
-    of the last pass: the linearisation is about it, c(psi_rec - dpsi) . v ~ c(psi') . v +
-    (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec - psi_hat (exact at the solution
-    however large the bias).
+    ``settings.roll_velocity`` = "runway" (the default): the velocity rows hold the velocity
+    along the runway's direction, the airfield's ``runway_true_deg`` where the metadata give
+    it (then the ground roll ties the heading reference: the recorded heading minus the
+    heading bias must follow the runway).  Otherwise, and with ``roll_velocity`` = "nose",
+    along the true heading, psi_rec - dpsi (the recorded heading carries the heading bias;
+    the wheels roll where the nose points, the tyres' slip angles a fraction of a degree):
+    c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi a(psi_rec) . v_nom, with c and a the cross-
+    and along-heading unit vectors, linearised at dpsi = 0 and the nominal (the neglected term
+    is dpsi^2 / 2 of the along-track value: 3 mm/s at 1 deg and 70 m/s). Taking the recorded
+    heading itself would tell the smoother that the heading bias is zero. ``psi_hat`` (per
+    state step) is the heading bias of the last pass: the linearisation is about it,
+    c(psi_rec - dpsi) . v ~ c(psi') . v + (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec -
+    psi_hat (exact at the solution however large the bias).  With "nose" the runway's
+    direction reaches the bias through the centreline rows and the line-up
+    (:func:`lineup_heading`) only: a roll's track leaves the runway's direction where the
+    aircraft is steered (JSBSim's Cessna 310 swerves 5-14 deg on its take-off roll, 1-3 m/s
+    across the runway), and the runway rows then make the heading bias take up the swerve
+    (docs/jsbsim.md, "Fleet study": 4.9 +- 0.4 deg for a true -0.6); measured on the fleet,
+    the nose rows cost the long flights more than they gave the circuits, so the default
+    stays "runway".
 
-    Neither the track nor the nose is exactly along the runway on the ground (steering
-    corrections and a drift across the runway, the tyres' slip angles in a crosswind, a crab
-    kept after touchdown): an angle ``ground_slip_deg`` (sd) common to the whole roll, not a
-    noise that averages out over its samples.  Each of a roll's ``m`` cross-track velocity rows
-    carries it as the extra variance ``m (s V)^2`` (V: the roll's fastest speed,
-    :func:`roll_speed`, from the data and not the iterate, so that the cost function stays the
-    same from pass to pass), so that the roll's velocity rows tell the heading bias no more
-    than one such angle's worth (``s^2`` against ``s^2 / m`` for independent errors).  The
-    centreline rows keep their half-width (25 m: 1.4 deg over 1000 m of roll).  JSBSim's rolls
-    run up to 1.7 deg off the runway with the nose up to 3.3 deg off it, and without this the
-    heading bias follows the nose's angle on the take-off roll; with it the cross-country
-    flights lost more than the upsets gained, so the default is 0 (docs/jsbsim.md).
+    ``ground_slip_deg`` (default 0): an angle between track and runway common to the whole
+    roll (steering corrections, the tyres' slip angles in a crosswind, a crab kept after
+    touchdown), not a noise that averages out over its samples.  Each of a roll's ``m``
+    cross-track velocity rows carries it as the extra variance ``m (s V)^2`` (V: the roll's
+    fastest speed, :func:`roll_speed`, from the data and not the iterate, so that the cost
+    function stays the same from pass to pass), so that the roll's velocity rows tell the
+    heading bias no more than one such angle's worth (``s^2`` against ``s^2 / m`` for
+    independent errors).  The centreline rows keep their half-width (25 m: 1.4 deg over
+    1000 m of roll).  With it the cross-country flights lost more than the upsets gained, so
+    the default is 0 (docs/jsbsim.md).
     """
     nz = settings.noise
     slip = np.radians(nz.ground_slip_deg)
@@ -130,24 +137,36 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         sel = keep & side
         if not sel.any():
             continue
-        # the direction of the runway (only its line matters: a reversed direction is the same)
+        # along the runway's direction (only its line matters: a reversed direction is the
+        # same), or the true heading psi_rec - dpsi linearised about the last pass's bias
         tt = t_in[sel]
         k = step_of(tt)
-        ph = np.zeros(len(tt)) if known or psi_hat is None else psi_hat[k]
-        psi = np.full(int(sel.sum()), rw) if known else inp.heading_rad[sel] - ph
+        nose = not known or settings.roll_velocity == "nose"
+        ph = np.zeros(len(tt)) if psi_hat is None or not nose else psi_hat[k]
+        psi = inp.heading_rad[sel] - ph if nose else np.full(len(tt), rw)
         H = np.zeros((len(tt), n))
         H[:, jl.IV] = -np.sin(psi)
         H[:, jl.IV + 1] = np.cos(psi)
-        r_v = nz.ground_mps ** 2 + len(tt) * (slip * roll_speed(inp, settings, t_edge)) ** 2
-        if not known:
+        v_roll = roll_speed(inp, settings, t_edge)
+        r_v = nz.ground_mps ** 2 + len(tt) * (slip * v_roll) ** 2
+        if nose:
             H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
+        else:
+            r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll,
+                                          rest_heading(inp) if dep_end == 0 else None)
         b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
         if pos is None:
             continue
         on_cl = cl_side[sel]
         if not on_cl.any():
             continue
-        tt, k, psi, ph = tt[on_cl], k[on_cl], psi[on_cl], ph[on_cl]
+        # the centreline: the runway's direction where known (only its line matters: a
+        # reversed direction is the same), else the true heading
+        tt, k, ph = tt[on_cl], k[on_cl], ph[on_cl]
+        if known:
+            psi, ph = np.full(len(tt), rw), np.zeros(len(tt))
+        else:
+            psi = psi[on_cl]
         ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
         arp = np.array([float(ex), float(ey), float(ez)])
         Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
@@ -159,6 +178,76 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
             H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
         b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
               -cross @ arp - H[:, jl.IPSI] * ph)
+
+
+def rest_heading(inp: JointInputs) -> float | None:
+    """The circular mean recorded heading [rad] over the rest before the take-off roll
+    (``inp.roll.rest_t``), None where no rest was found."""
+    r0, r1 = inp.roll.rest_t
+    if not (np.isfinite(r0) and np.isfinite(r1)):
+        return None
+    m = (inp.t_in >= r0) & (inp.t_in <= r1) & np.isfinite(inp.heading_rad)
+    if not m.any():
+        return None
+    h = inp.heading_rad[m]
+    return float(np.arctan2(np.mean(np.sin(h)), np.mean(np.cos(h))))
+
+
+def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
+                      ref_rad: float | None = None) -> np.ndarray:
+    """Variance [m^2/s^2] of the velocity across the runway that steering makes at each of a
+    roll's samples: the wheels roll where the nose points, so where the recorded heading
+    leaves the lined-up heading ``ref_rad`` (at rest before the roll: :func:`rest_heading`;
+    else the roll's own mean) by d, the heading bias dropping out of the difference, the
+    track leaves the runway by about d: ``(V sin d)^2``, V the roll's fastest speed
+    (:func:`roll_speed`, from the data and not the iterate; at least the speed at the sample,
+    so never less than the swerve's cross-track velocity).  JSBSim's Cessna 310 swings 5-14 deg
+    on its take-off roll and its velocity rows then held the heading bias 4.9 +- 0.4 deg off
+    (docs/jsbsim.md, "Fleet study").
+
+    Parameters
+    ----------
+    heading_rad : recorded headings of the roll's samples [rad]
+    v_roll_mps : the roll's fastest speed [m/s]
+    ref_rad : the lined-up heading [rad]; None: the samples' circular mean
+    """
+    h = np.asarray(heading_rad, dtype=float)
+    if h.size == 0:
+        return np.zeros(0)
+    ref = (float(np.arctan2(np.mean(np.sin(h)), np.mean(np.cos(h)))) if ref_rad is None
+           else float(ref_rad))
+    d = np.angle(np.exp(1j * (h - ref)))
+    return (v_roll_mps * np.sin(d)) ** 2
+
+
+def lineup_heading(b: Any, inp: JointInputs, settings: JointSettings, t_rest: np.ndarray
+                   ) -> None:
+    """Lined up at rest before the take-off roll, the nose points along the departure runway:
+    one row on the heading bias, dpsi = mean(psi_rec - psi_rw) (the circular mean over the
+    rest's samples ``t_rest``, wrapped to the runway's line: a reversed direction is the same
+    runway), sd ``lineup_heading_deg`` (how straight an aircraft is lined up).  Only where the
+    metadata give the runway's direction and ``settings.roll_velocity`` is "nose".
+
+    The "nose" velocity rows of :func:`runway_measurements` hold the roll's velocity along
+    the nose, which says nothing about the bias; the runway's direction reaches it through the
+    centreline rows and this row.  At rest the heading is what the line-up left, before any
+    steering on the roll (JSBSim's aircraft: along the runway at rest, 2-8 deg off it for
+    10-20 s of their rolls, docs/jsbsim.md).
+    """
+    rw = inp.runway_rad[0]
+    if rw is None or len(t_rest) == 0:
+        return
+    psi = np.interp(t_rest, inp.t_in, np.unwrap(np.where(np.isfinite(inp.heading_rad),
+                                                         inp.heading_rad, 0.0)))
+    ok = np.interp(t_rest, inp.t_in, np.isfinite(inp.heading_rad).astype(float)) > 0.999
+    if not ok.any():
+        return
+    d = psi[ok] - rw
+    mean = 0.5 * float(np.arctan2(np.mean(np.sin(2.0 * d)), np.mean(np.cos(2.0 * d))))
+    H = np.zeros((1, jl.N_STATE))
+    H[0, jl.IPSI] = 1.0
+    b.add("runway", jl.LINEAR, [float(np.mean(t_rest[ok]))], [mean],
+          np.radians(settings.noise.lineup_heading_deg) ** 2, H)
 
 
 def roll_speed(inp: JointInputs, settings: JointSettings, t_edge: float) -> float:

@@ -109,7 +109,7 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
     with the along-track component of the nominal (smoothed) ground velocity ``vnom`` (N, 3) at
     lift-off on the state grid ``T`` as the lift-off speed, and the smoothed forward
     accelerometer bias ``accel_bias_g`` (N, 3) [g] at lift-off as its ``accel_bias_mps2``;
-    ``inp.roll`` without a nominal or without a roll."""
+    ``inp.roll`` without a nominal, without a roll, or where the refined search finds none."""
     roll = inp.roll
     if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):
         return roll
@@ -119,10 +119,13 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
     if not np.isfinite(psi_lo):
         return roll
     bias = 0.0 if accel_bias_g is None else G0_MPS2 * float(accel_bias_g[k_lo, 0])
-    return takeoff_roll(t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
-                        v_lo_mps=float(vnom[k_lo, 0] * np.cos(psi_lo)
-                                       + vnom[k_lo, 1] * np.sin(psi_lo)),
-                        accel_bias_mps2=bias, not_before_t=inp.lineup_t)
+    refined = takeoff_roll(t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
+                           v_lo_mps=float(vnom[k_lo, 0] * np.cos(psi_lo)
+                                          + vnom[k_lo, 1] * np.sin(psi_lo)),
+                           accel_bias_mps2=bias, not_before_t=inp.lineup_t)
+    # a refinement that finds no roll keeps the one found before (the phases' where the
+    # recorded loads do not reach back through the roll: joint_method.phases_roll)
+    return refined if np.isfinite(refined.start_t) else roll
 
 
 def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,

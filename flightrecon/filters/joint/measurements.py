@@ -11,6 +11,7 @@ from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.airdata import nose_along_air, nose_offset
 from flightrecon.filters.joint.ground import (
     decimate_mask,
+    lineup_heading,
     on_ground_mask,
     runway_measurements,
 )
@@ -306,6 +307,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
             H = np.zeros((len(tt), jl.N_STATE))
             H[:, jl.IV + i] = 1.0
             b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+        lineup_heading(b, inp, settings, tt)
     _endpoint_measurements(b, inp, settings, T, Cen, roll)
     return b.build()
 

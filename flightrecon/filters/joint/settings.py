@@ -62,6 +62,9 @@ class JointNoise:
     touchdown_m: float = 400.0               # touchdown distance past the runway threshold
     touchdown_sd_m: float = 150.0            # its dispersion
     roll_start_sd_m: float = 100.0           # start of the take-off roll vs the threshold
+    lineup_heading_deg: float = 1.0          # the nose vs the runway, lined up at rest before
+    #                                          the take-off roll (ground.lineup_heading; with
+    #                                          JointSettings.roll_velocity "nose")
     ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
     runway_halfwidth_m: float = 25.0         # cross-track offset from the runway centreline
     ground_slip_deg: float = 0.0             # track vs runway on a roll (steering, tyre slip,
@@ -91,6 +94,7 @@ class JointNoise:
 POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_h_m", "gnss_v_m",
                   "gnss_vel_mps", "radar_range_m", "radar_azimuth_deg", "radar_elevation_deg",
                   "endpoint_h_m", "endpoint_v_m", "touchdown_sd_m", "roll_start_sd_m",
+                  "lineup_heading_deg",
                   "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
                   "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m")
 """JointNoise fields that must be positive (a zero would be a measurement without noise)."""
@@ -110,6 +114,10 @@ class JointSettings:
     #   in correlation lengths (docs/wind.md, "The prior in the joint smoother")
     ground_rate_hz: float = 1.0
     min_airspeed_mps: float = 30.0
+    roll_velocity: str = "runway"            # the ground roll's velocity rows: along the
+    #                                          runway's direction where known ("runway"), or
+    #                                          along the true heading with a line-up row on the
+    #                                          heading bias ("nose"; ground.runway_measurements)
     crab_s: float = 10.0                     # no air-data heading this close to the runway
     heading_max_roll_deg: float = 45.0       # no air-data heading beyond these attitudes: the
     heading_max_pitch_deg: float = 30.0      # nose is then not along the air velocity (angle of
@@ -141,6 +149,11 @@ class JointSettings:
     gust_rounds: int = 10                    # at most this many changes of it
     gust_tol: float = 0.1                    # stop when the estimate moves by less (relative)
     gust_bounds_mps: tuple[float, float] = (0.02, 8.0)  # estimates kept inside
+    wind_rounds: int = 4                     # where the smoothed wind moves faster than its
+    #                                          random walk allows (diagnostics.wind_walk_check):
+    #                                          at most this many re-estimates of the walk (0: the
+    #                                          track is then unhealthy)
+    wind_rw_max_mps_sqrt_s: float = 1.0      # the re-estimated walk kept below this
     estimate_clock: bool = True
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
@@ -154,6 +167,8 @@ class JointSettings:
                                                 for v in self.wind_prior):
             raise ValueError(f"wind_prior must be three positive numbers (correlation time "
                              f"[s], height [m], spacing), got {self.wind_prior!r}")
+        if self.roll_velocity not in ("runway", "nose"):
+            raise ValueError(f"joint roll_velocity {self.roll_velocity!r}: 'runway' or 'nose'")
         if self.first_pass not in ("ekf", "nominal"):
             raise ValueError(f"joint first_pass {self.first_pass!r}: 'ekf' or 'nominal'")
         for name, mean, sd in self.priors:
