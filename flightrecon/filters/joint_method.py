@@ -202,11 +202,22 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
                            np.nan if f.alt_msl_m is None else f.alt_msl_m + N_und, f.sd_m]
                           for f in meta.fixes], dtype=float)
     wa = wind_aloft_on_grid(g, meta)
+    arr = meta.arrival
+    if ph is not None and ph.ends_airborne and arr is not None and arr.runway_true_deg is not None:
+        # an airfield (it has a runway) given as the arrival of a record that ends in the air is
+        # where the flight was to land, not where the record ends: no end point (a last known
+        # position, a radar hand-off or the wreckage, has no runway: --fix or an arrival
+        # without one)
+        notes.append(f"joint: the record ends in the air (t = {float(t_in[-1]):.0f} s), so the "
+                     f"arrival airfield given (runway {arr.runway_true_deg:g} deg) is not its end "
+                     "point: not used (give the last known position without a runway, or as "
+                     "--fix)")
+        arr = None
     inp = JointInputs(
         t_in=t_in, acc_ned=acc, attitude_deg=att, tas=col("tas_mps"),
         heading_rad=np.radians(col("heading_deg")), baro_rel_m=col("baro_alt_m") - h_pf,
         gnss=gnss, radar=radar, station=pos(meta.station), departure=pos(meta.departure),
-        arrival=pos(meta.arrival),
+        arrival=pos(arr),
         liftoff_t=float(ph.liftoff_t_s) if ph is not None else np.nan,
         touchdown_t=float(ph.touchdown_t_s) if ph is not None else np.nan,
         field_h=field_h, lever_arm=tuple(meta.gnss_lever_arm_m), wind_ne=wind,
@@ -215,10 +226,10 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
         f_body_g=np.c_[col("n_long_g"), col("n_lat_g"), -col("n_norm_g")],
         runway_rad=tuple(None if p is None or p.runway_true_deg is None
                          else float(np.radians(p.runway_true_deg))
-                         for p in (meta.departure, meta.arrival)),
+                         for p in (meta.departure, arr)),
         thresholds=tuple(None if p is None or p.threshold is None
                          else (*p.threshold, float(msl_to_ellipsoid(p.elev_m, N_und)))
-                         for p in (meta.departure, meta.arrival)),
+                         for p in (meta.departure, arr)),
         lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
         notes=tuple(notes), ends_airborne=bool(ph is not None and ph.ends_airborne),
         fixes=fixes, wind_aloft=None if wa is None else np.c_[wa[0], wa[1]])
