@@ -8,10 +8,10 @@ towards a wrong vertical, and after the manoeuvre it re-erects with its time con
 ``delta`` of the recorded roll and pitch turns part of the specific force into the horizontal:
 an acceleration error ``g delta`` that the smoother's constant roll and pitch biases cannot
 follow.  On the PH-LAB flights (docs/realflights.md) the recorded loads integrated through the
-recorded attitude leave the GPS velocity by at most 7 m/s per minute in level flight and turns
-(``| |f| - 1 |`` below 0.2 g), by 15-39 m/s per minute in zero-g parabolas (0.7 g) and by
-28, 15, 4.5 m/s in the three minutes after them: a tilt of about 3 deg decaying with a time
-constant of about a minute.
+recorded attitude leave the GPS velocity by 1-2 m/s per minute in quiet cruise, 3-12 m/s per
+minute in turns and climbs (``| |f| - 1 |`` below 0.3 g), 15-39 m/s per minute in zero-g
+parabolas (0.7 g) and 28, 15, 4.5 m/s in the three minutes after them: a tilt of about 3 deg
+decaying with a time constant of about a minute.
 
 The model: the load's departure from 1 g, ``u(t) = | |f(t)| - 1 |`` [g] (``f`` the measured
 specific force), remembered over the erection time constant ``tau``::
@@ -28,10 +28,10 @@ white acceleration on the velocity, with the same velocity error over a window o
 added to the accelerometer noise of every step (``JointNoise.accel_noise_mps2_sqrt_hz``; the
 velocity random walk of ``layout.py``).  ``c`` = 1 m/s^2 per g is the PH-LAB figure above
 (39 m/s over a minute at D of about 0.6 g), given in the ``[joint]`` table of a noise file
-(``flightrecon reconstruct --noise FILE``: ``ahrs_tilt_mps2_per_g = 1.0``).  The default is 0: an attitude from an
-inertial reference has no erection on the accelerometers, nor has the simulator's (JSBSim:
-with c = 1 the joint smoother's RMS error on two circuits went from 158 and 100 m to 291 and
-228 m, docs/realflights.md).
+(``flightrecon reconstruct --noise FILE``: ``ahrs_tilt_mps2_per_g = 1.0``).  The default is
+0: an attitude from an inertial reference has no erection on the accelerometers, nor has the
+simulator's (JSBSim: with c = 1 the joint smoother's RMS error on two circuits went from 158
+and 100 m to 291 and 228 m, docs/realflights.md).
 """
 
 from __future__ import annotations
