@@ -851,3 +851,51 @@ def test_increments_do_not_lag_a_turning_acceleration():
     a = np.c_[np.cos(w * tt), np.sin(w * tt)] * 2.6
     ref = np.trapezoid(a * (T[5] - tt)[:, None], tt, axis=0)
     assert np.abs(dP[5, :2] - ref).max() < 5e-5 * np.abs(ref).max()
+
+
+def test_runway_centreline_runs_through_the_threshold():
+    """Regression (issue #35, the PH-LAB flights): with the runway's threshold given, the
+    centreline rows pass through the threshold, not through the airfield's reference point.
+    The analyst's departure point of the real flights is the apron, 650 m beside runway 24:
+    the centreline through it was parallel to the runway and 650 m off, and it overruled the
+    threshold's own cross-track row (26 sd, rejected by the robust loss).  Here the reference
+    point lies 650 m to the left of a runway heading 237 deg: the threshold meets every
+    centreline row to rounding (ECEF coordinates of 6.4e6 m: 1 mm), the reference point misses
+    each by its 650 m offset."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.ground import runway_measurements
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+    from flightrecon.geo.frames import offset_latlon
+
+    rw = np.radians(237.0)
+    thr = (51.9627, 4.4548, 38.5)
+    # 650 m to the left of the runway (across it, towards heading - 90 deg)
+    arp_lat, arp_lon = offset_latlon(thr[0], thr[1], 650.0 * np.cos(rw - np.pi / 2),
+                                     650.0 * np.sin(rw - np.pi / 2))
+    t = np.arange(0.0, 80.0, 0.25)
+    n = len(t)
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                      attitude_deg=np.tile([0.0, 0.0, 237.0], (n, 1)),
+                      tas=np.clip(1.5 * t, 0.0, 60.0), heading_rad=np.full(n, rw),
+                      baro_rel_m=np.zeros(n), gnss=pd.DataFrame(), radar=pd.DataFrame(),
+                      station=None, departure=(arp_lat, arp_lon, thr[2]), arrival=None,
+                      liftoff_t=30.0, touchdown_t=np.nan, field_h=thr[2],
+                      runway_rad=(rw, None), thresholds=(thr, None))
+    T = t[::4]
+    b = _MeasBuilder(T)
+    runway_measurements(b, inp, JointSettings(),
+                        lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                        np.zeros((len(T), 3)), np.zeros((len(T), 3)))
+    src = [int(p["source"][0]) for p in b.parts]
+    from flightrecon.filters.joint.settings import SOURCES
+
+    k = src.index(SOURCES.index("runway"))
+    H, d = b.H[k], b.parts[k]["d"]
+    assert len(d) == 28   # the centreline rows: 1 Hz, more than 2 s before lift-off
+    p_thr = np.array(geodetic_to_ecef(*thr), float).reshape(3)
+    p_arp = np.array(geodetic_to_ecef(arp_lat, arp_lon, thr[2]), float).reshape(3)
+    np.testing.assert_allclose(H[:, jl.S_POS] @ p_thr + d, 0.0, atol=1e-3)
+    np.testing.assert_allclose(np.abs(H[:, jl.S_POS] @ p_arp + d), 650.0, atol=0.5)

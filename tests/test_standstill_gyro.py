@@ -14,6 +14,7 @@ import dataclasses
 import warnings
 
 import numpy as np
+import pytest
 from _scripts import load_script
 
 from flightrecon.cleaning import clean_flight
@@ -87,3 +88,28 @@ def test_a_trimmed_standstill_still_counts():
     rep = next(e for e in clean.report if e["action"] == "heading_from_rates")
     assert rep["standstill_s"] > rest_end - 15.0
     assert abs(rep["gyro_bias_r_dps"] - bias[2]) < 3.0 * rep["gyro_bias_sd_dps"]
+
+
+def test_the_propagated_heading_is_announced_with_its_growing_sd():
+    """Issue #35 item 4: a heading propagated from the body rates is announced on the console
+    with or without a standstill, with what anchors it (the take-off roll aligned with the
+    runway) and how its sd grows away from the anchors; the summary's cleaning report holds
+    the roll's alignment."""
+    flight, _, _ = _flight(quiet_rest=False)
+    rep, warned = _report(flight)
+    (msg,) = [w for w in warned if w.startswith("heading from the body rates")]
+    rolls = rep["runway_rolls"]
+    assert [r["which"] for r in rolls] == ["departure"]
+    rw = flight.meta.departure.runway_true_deg
+    assert rolls[0]["runway_true_deg"] == pytest.approx(rw % 360.0, abs=1e-9)
+    # one anchor and two biases with a prior: the fit meets the roll's mean heading to well
+    # within the roll's own sd (RUNWAY_SD_DEG, 1 deg)
+    assert abs(rolls[0]["residual_deg"]) < 0.1
+    assert f"departure roll aligned with runway {rw % 360.0:.1f} deg" in msg
+    assert f"at most {rep['heading_sd_max_deg']:.1f} deg" in msg
+    assert f"median {rep['heading_sd_median_deg']:.1f}" in msg
+    assert "gyro biases calibrated on" not in msg
+    # with the standstill the same message says what it calibrated
+    quiet, warned_q = _report(_flight(quiet_rest=True)[0])
+    (msg_q,) = [w for w in warned_q if w.startswith("heading from the body rates")]
+    assert "gyro biases calibrated on" in msg_q

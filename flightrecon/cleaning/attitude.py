@@ -198,19 +198,32 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
     x, s2, Cfull = _fit_offset_and_biases(residuals, npar)
     psi = psi_int + x[0] - x[1] * Q - x[2] * R
     sd = _heading_sd(t, psi_int, Q, R, Cfull, anchor_t, tri is not None)
-    extra: dict[str, float] = {}
+    rolls = [{"which": which, "runway_true_deg": float(np.degrees(val) % 360.0),
+              "t_s": [float(t[w > 0][0]), float(t[w > 0][-1])],
+              "residual_deg": float(np.degrees(np.angle(np.exp(1j * (np.sum(w * psi) - val)))))}
+             for w, val, _, which in rows_psi]
+    extra: dict[str, Any] = {"runway_rolls": rolls}
+    calibrated = ""
     if rest_row is not None:
         t_rest = rest_row[4]
         used.append(f"the gyro biases at rest on the ground ({t_rest:.0f} s)")
-        extra = {"standstill_s": t_rest,
-                 "standstill_yaw_rate_dps": float(np.degrees(rest_row[0] / max(rest_row[2],
-                                                                               1e-9)))}
-        # announced: it changes what the heading rests on (docs/signals.md)
-        warnings.warn(
-            f"heading from the body rates: gyro biases calibrated on {t_rest:.0f} s at rest on "
-            f"the ground (yaw-rate bias {np.degrees(x[2]):+.4f} deg/s, sd "
-            f"{np.degrees(np.sqrt(max(Cfull[2, 2], 0.0))):.4f}); heading sd at most "
-            f"{float(np.max(sd)):.1f} deg", FlightReconWarning, stacklevel=2)
+        extra.update(standstill_s=t_rest,
+                     standstill_yaw_rate_dps=float(np.degrees(rest_row[0]
+                                                              / max(rest_row[2], 1e-9))))
+        calibrated = (f"; gyro biases calibrated on {t_rest:.0f} s at rest on the ground "
+                      f"(yaw-rate bias {np.degrees(x[2]):+.4f} deg/s, sd "
+                      f"{np.degrees(np.sqrt(max(Cfull[2, 2], 0.0))):.4f})")
+    # announced: the heading is no measurement but an integral whose error grows away from
+    # its anchors (docs/signals.md, "Heading from the body rates")
+    aligned = "; ".join(f"the {r['which']} roll aligned with runway {r['runway_true_deg']:.1f} "
+                        f"deg (mean heading over it {r['residual_deg']:+.2f} deg off after the "
+                        f"fit)" for r in rolls)
+    warnings.warn(
+        f"heading from the body rates ({why}): anchored by {'; '.join(used)}"
+        + (f"; {aligned}" if aligned else "") + calibrated
+        + f"; its sd grows away from the anchors: {float(np.min(sd)):.1f} deg at them, "
+        f"median {float(np.median(sd)):.1f}, at most {float(np.max(sd)):.1f} deg "
+        f"(t = {float(t[int(np.argmax(sd))]):.0f} s)", FlightReconWarning, stacklevel=2)
     g = grid.copy()
     g["heading_deg"] = np.degrees(psi)
     g["heading_valid"] = True

@@ -127,6 +127,10 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
             (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t) else np.inf),
              inp.runway_rad[1], inp.touchdown_t))):
         known = rw is not None
+        if known and inp.thresholds[dep_end] is not None:
+            # the centreline runs through the threshold; the airfield's reference point is
+            # where the analyst put it (an apron, between two runways)
+            pos = inp.thresholds[dep_end]
         # a record from stand to stand: the taxi before the line-up and after the runway exit
         # is on no runway; its rows along the heading (cross-track velocity zero) stay where
         # the runway's direction is not known: they hold on any taxiway

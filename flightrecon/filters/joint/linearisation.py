@@ -27,6 +27,7 @@ from flightrecon.filters.joint.nominal import (
     relinearised_increments,
 )
 from flightrecon.filters.joint.settings import JointSettings
+from flightrecon.filters.joint.tilt import tilt_psd
 from flightrecon.filters.joint.turbulence import gust_decay
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import frame_rate_acceleration, ned_to_ecef_matrix
@@ -89,6 +90,8 @@ def _flight(inp: JointInputs, settings: JointSettings) -> _Flight:
                                           idx.astype(np.int64),
                                           np.ascontiguousarray(inp.t_in, dtype=float))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
+    # the attitude reference's tilt after sustained loads (tilt.py, eq. 2)
+    qv_extra = qv_extra + tilt_psd(inp.t_in, inp.f_body_g, idx, settings.noise)
     Cst = np.eye(3)
     pst = np.zeros(3)
     if inp.station is not None:

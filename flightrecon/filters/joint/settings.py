@@ -24,6 +24,12 @@ class JointNoise:
     accel_bias_g: float = 0.003              # accelerometer bias, Gauss-Markov sigma
     accel_bias_tau_s: float = 3600.0
     accel_scale: float = 0.005               # accelerometer scale errors, prior per axis
+    ahrs_tilt_mps2_per_g: float = 0.0         # attitude reference's erection error after
+    #                                          sustained loads: acceleration error per g of
+    #                                          the load's departure from 1 g (tilt.py; 0: an
+    #                                          inertial attitude, the default; 1.0 measured on
+    #                                          the PH-LAB AHRS, docs/realflights.md)
+    ahrs_tilt_tau_s: float = 60.0            # its erection time constant (memory of the load)
     accel_sampling_mps2_sqrt_hz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #                                          extra white acceleration per NED axis (added in
     #                                          PSD to accel_noise): the loads' sampling, set
@@ -83,6 +89,9 @@ class JointNoise:
         if len(acs) != 3 or not all(np.isfinite(v) and v >= 0 for v in acs):
             raise ValueError("joint noise setting 'accel_sampling_mps2_sqrt_hz' must be three "
                              f"non-negative numbers (north, east, down), got {acs!r}")
+        if not (np.isfinite(self.ahrs_tilt_mps2_per_g) and self.ahrs_tilt_mps2_per_g >= 0):
+            raise ValueError("joint noise setting 'ahrs_tilt_mps2_per_g' must be a "
+                             f"non-negative number, got {self.ahrs_tilt_mps2_per_g!r}")
         for name in POSITIVE_NOISE:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
@@ -96,7 +105,8 @@ POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_
                   "endpoint_h_m", "endpoint_v_m", "touchdown_sd_m", "roll_start_sd_m",
                   "lineup_heading_deg",
                   "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
-                  "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m")
+                  "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m",
+                  "ahrs_tilt_tau_s")
 """JointNoise fields that must be positive (a zero would be a measurement without noise)."""
 
 

@@ -1,0 +1,90 @@
+"""The attitude reference's tilt after sustained loads as extra acceleration noise of the joint
+smoother (flightrecon/filters/joint/tilt.py; issue #35: the PH-LAB flights' zero-g parabolas
+left the loads integrated through the recorded attitude 15-39 m/s per minute off the GPS)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flightrecon.cleaning import clean_flight
+from flightrecon.filters.joint.linearisation import _flight
+from flightrecon.filters.joint.settings import JointNoise, JointSettings
+from flightrecon.filters.joint.tilt import load_departure_g, remembered, tilt_psd
+from flightrecon.filters.joint_method import joint_inputs
+from flightrecon.ingest import load_flight
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+
+
+def test_load_departure_is_the_distance_of_the_load_from_one_g():
+    f = np.array([[0.0, 0.0, -1.0],            # level flight: 1 g, no departure
+                  [0.0, 0.0, 0.0],             # zero g (a parabola's top)
+                  [0.6, 0.0, -0.8],            # 1 g along a tilted axis: none
+                  [0.0, 0.0, -2.0],            # a 2 g pull-up
+                  [np.nan, 0.0, -1.0]])        # a missing component: left to qv_extra
+    np.testing.assert_allclose(load_departure_g(f), [0.0, 1.0, 0.0, 1.0, 0.0], atol=1e-15)
+
+
+def test_the_memory_is_the_exponential_mean_of_eq_1():
+    """A departure of 1 g from t = 0 to 60 s: D rises as 1 - exp(-t / tau) and decays as
+    exp(-(t - 60) / tau) after; the recursion is exact for held samples, up to the first
+    sample's weight (1 - a) instead of a ramp: dt / tau = 1/600 relative."""
+    tau = 60.0
+    t = np.arange(0.0, 300.0, 0.1)
+    u = ((t > 0.0) & (t <= 60.0)).astype(float)
+    D = remembered(t, u, tau)
+    i60, i120 = np.searchsorted(t, [60.0, 120.0])
+    assert D[i60] == pytest.approx(1.0 - np.exp(-1.0), rel=2e-3)
+    assert D[i120] == pytest.approx((1.0 - np.exp(-1.0)) * np.exp(-1.0), rel=4e-3)
+    assert D[0] == 0.0 and np.all(np.diff(D[i60:]) < 0)
+
+
+def test_psd_is_eq_2_and_off_at_zero():
+    t = np.arange(0.0, 200.0, 0.1)
+    f = np.tile([0.0, 0.0, -1.0], (len(t), 1))
+    f[(t >= 50.0) & (t < 110.0)] = [0.0, 0.0, 0.0]     # a minute at zero g
+    idx = np.arange(0, len(t), 10)
+    assert JointNoise().ahrs_tilt_mps2_per_g == 0.0      # off by default (inertial attitude)
+    nz = JointNoise(ahrs_tilt_mps2_per_g=1.0)
+    q = tilt_psd(t, f, idx, nz)
+    D = remembered(t, load_departure_g(f), nz.ahrs_tilt_tau_s)[idx]
+    np.testing.assert_allclose(q, (nz.ahrs_tilt_mps2_per_g * D) ** 2 * nz.ahrs_tilt_tau_s,
+                               rtol=1e-12)
+    assert q[idx < 500].max() == 0.0
+    # a minute at zero g: D = 1 - 1/e, a_e = 0.63 m/s^2, q = 24 (m/s^2)^2/Hz (sd of the
+    # velocity error over a minute: sqrt(q 60) = 38 m/s, the parabolas' 15-39 m/s)
+    k = int(np.searchsorted(t[idx], 110.0))
+    assert q[k] == pytest.approx((1.0 - np.exp(-1.0)) ** 2 * 60.0, rel=5e-3)
+    off = dataclasses.replace(nz, ahrs_tilt_mps2_per_g=0.0)
+    assert not tilt_psd(t, f, idx, off).any()
+    assert not tilt_psd(t, None, idx, nz).any()
+    with pytest.raises(ValueError, match="ahrs_tilt_mps2_per_g"):
+        JointNoise(ahrs_tilt_mps2_per_g=-1.0)
+
+
+def test_the_smoother_takes_the_tilt_noise_where_the_loads_left_one_g():
+    """Wiring: the joint smoother's per-step extra acceleration PSD holds eq. (2) of the
+    recorded loads: a 20 s zero-g stretch put into a shipped flight's loads raises it there
+    and for a few erection time constants after, by exactly the tilt term."""
+    inp = joint_inputs(clean_flight(load_flight(SAMPLES / "circuit.parquet")))
+    f = np.array(inp.f_body_g, float)
+    t = inp.t_in
+    mid = float(t[len(t) // 2])
+    f[(t >= mid) & (t < mid + 20.0)] = 0.0
+    settings = JointSettings(noise=JointNoise(ahrs_tilt_mps2_per_g=1.0))
+    base = _flight(dataclasses.replace(inp, f_body_g=np.array(inp.f_body_g)), settings)
+    fl = _flight(dataclasses.replace(inp, f_body_g=f), settings)
+    extra = fl.qv_extra - base.qv_extra
+    want = (tilt_psd(t, f, fl.idx, settings.noise)
+            - tilt_psd(t, np.array(inp.f_body_g), fl.idx, settings.noise))
+    np.testing.assert_allclose(extra, want, rtol=1e-9, atol=1e-12)
+    # the default (0) adds nothing
+    assert np.array_equal(_flight(dataclasses.replace(inp, f_body_g=f), JointSettings()).qv_extra,
+                          _flight(inp, JointSettings()).qv_extra)
+    k = int(np.searchsorted(fl.T, mid + 20.0))
+    assert extra[k] > 1.0          # (1 - exp(-1/3))^2 * 60 = 4.8 (m/s^2)^2/Hz at its end
+    assert np.all(extra[fl.T < mid - 1.0] == 0.0)
