@@ -191,13 +191,20 @@ def test_default_result_says_where_it_comes_from_and_keeps_every_track(landing, 
 
 
 def test_seed_sample_sabziev_is_unhealthy_by_its_height():
-    """'seed-ads-arms': Sabziev's converged track oscillates 1000 m about the pressure altitude
-    (the sidecar's airfields are at sea level, the aircraft cruises at 1000 m): unhealthy."""
+    """'seed-ads-arms' with its arrival put at sea level under the aircraft cruising at 1000 m
+    (how the sample's sidecar had it; the cleaning now drops such an arrival, docs/signals.md,
+    so it is set on the cleaned flight here): Sabziev's converged track oscillates 1000 m about
+    the pressure altitude: unhealthy by the envelope's pressure-altitude check."""
+    from dataclasses import replace
+
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
     from flightrecon.pipeline import method_health, run_method, ReconstructSettings
 
     clean = clean_flight(load_flight(SAMPLES / "seed-ads-arms.parquet"))
+    assert clean.meta.arrival is not None and clean.meta.arrival.elev_m == 1000.0
+    sea = replace(clean.meta, arrival=replace(clean.meta.arrival, elev_m=0.0))
+    clean = replace(clean, meta=sea)
     res = run_method("sabziev", clean, ReconstructSettings())
     h = method_health(res, clean)
     assert not h["healthy"]
@@ -206,6 +213,26 @@ def test_seed_sample_sabziev_is_unhealthy_by_its_height():
     checks = [p.get("check") for p in h["problems"] if p.get("check")]
     assert [c for c in checks if c != "self"] == ["pressure_altitude"]
     assert "self" in checks
+
+
+def test_seed_sample_arrival_at_sea_level_is_not_its_end():
+    """The same arrival at sea level through the cleaning: the record ends 1000 m above it at
+    100 m/s, so the arrival is not its end point (dropped, with the evidence)."""
+    import warnings
+    from dataclasses import replace
+
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.ingest import load_flight
+
+    flight = load_flight(SAMPLES / "seed-ads-arms.parquet")
+    sea = replace(flight.meta, arrival=replace(flight.meta.arrival, elev_m=0.0))
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        clean = clean_flight(replace(flight, meta=sea))
+    assert clean.meta.arrival is None
+    ev = clean.meta.extra["arrival_not_end"]
+    assert 950.0 < ev["height_above_field_m"] < 1050.0
+    assert any("not where this record ends" in str(x.message) for x in w)
 
 
 def test_the_crash_sequence_after_a_detected_impact_is_not_checked():

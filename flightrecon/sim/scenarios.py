@@ -317,7 +317,7 @@ def _events(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> dict[str, An
 def _arrival(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> Position:
     """The arrival airfield: reference point ``ARP_OFFSET_M`` down the landing runway (its
     direction the track at touchdown, its threshold ``touchdown_m`` behind the touchdown), or
-    the last position of a record that ends airborne."""
+    the last position (and height) of a record that ends airborne."""
     if np.isfinite(plan.touchdown_s):
         t = truth["t_s"].to_numpy()
         i = int(np.searchsorted(t, plan.touchdown_s))
@@ -330,8 +330,11 @@ def _arrival(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> Position:
         return Position(lat, lon, cfg.arrival_elev_m,
                         runway_true_deg=float(np.degrees(trk) % 360.0),
                         threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
+    # a record that ends in the air ends at the aircraft's own position, its height included
+    # (a last known position, as a radar hand-off gives it: docs/signals.md, "An arrival for a
+    # record that ends airborne")
     last = truth.iloc[-1]
-    return Position(float(last["lat_deg"]), float(last["lon_deg"]), float(cfg.arrival_elev_m))
+    return Position(float(last["lat_deg"]), float(last["lon_deg"]), float(last["alt_msl_m"]))
 
 
 def _airdata_error(cfg: ScenarioConfig, truth: pd.DataFrame, seed: int
