@@ -172,17 +172,27 @@ def test_sparse_threshold_gives_the_same_candidates_and_spikes():
     assert sum(hampel_candidates(x, s)[0].sum() for x in cases) > 50  # the test has spikes
 
 
-def test_median_at_equals_running_median():
+def test_median_at_equals_running_median(monkeypatch):
     """The pointwise window median equals the running median at the same samples, ends
-    (truncated, even-length windows) included."""
-    from flightrecon.cleaning.despike import _median_at_kernel, _running_median
+    (truncated, even-length windows) included, whole windows sorted in one block or several;
+    a read-only channel gives the same running median as a writable copy."""
+    from flightrecon.cleaning import despike
+    from flightrecon.cleaning.despike import _median_at, _running_median
 
     rng = np.random.default_rng(12)
-    for n in (1, 2, 9, 15, 16, 200):
-        x = np.round(rng.normal(0, 1, n), 1)
-        idx = np.arange(n)
-        for w in (0, 1, 7):
-            np.testing.assert_array_equal(_median_at_kernel(x, idx, w), _running_median(x, w))
+    for block in (65536, 3):
+        monkeypatch.setattr(despike, "_MEDIAN_BLOCK", block)
+        for n in (1, 2, 9, 15, 16, 200):
+            x = np.round(rng.normal(0, 1, n), 1)
+            idx = np.arange(n)
+            for w in (0, 1, 7):
+                np.testing.assert_array_equal(_median_at(x, idx, w), _running_median(x, w))
+                some = rng.permutation(n)[: n // 2]
+                np.testing.assert_array_equal(_median_at(x, some, w), _running_median(x, w)[some])
+    x = rng.normal(0, 1, 50)
+    ro = x.copy()
+    ro.flags.writeable = False
+    np.testing.assert_array_equal(_running_median(ro, 7), _running_median(x, 7))
 
 
 def test_estimate_quantum_equals_distinct_value_spacing():

@@ -52,6 +52,18 @@ def test_the_child_is_used_only_when_it_helps(monkeypatch):
     assert coldstart.child_methods(["joint", "sabziev", "sns"], 2) == []  # turned off
 
 
+def test_the_child_is_used_only_with_a_core_to_spare(monkeypatch):
+    """Unforced, the child runs only while the load leaves a core beside the parent's."""
+    monkeypatch.delenv("FLIGHTRECON_COMPILE_IN_CHILD", raising=False)
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m == "joint")
+    monkeypatch.setattr(coldstart.os, "cpu_count", lambda: 2)
+    for load, used in ((0.4, True), (0.99, True), (1.0, False), (4.2, False)):
+        monkeypatch.setattr(coldstart.os, "getloadavg", lambda v=load: (v, v, v))
+        assert coldstart.child_methods(["joint", "sns"], 2) == (["sns"] if used else []), load
+    monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "1")  # forced: whatever the load
+    assert coldstart.child_methods(["joint", "sns"], 2) == ["sns"]
+
+
 def test_methods_in_the_child_give_the_results_of_one_process(clean, monkeypatch):
     t1, r1, s1 = reconstruct_clean(clean, ReconstructSettings(), workers=1)
     sent = []

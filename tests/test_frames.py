@@ -171,3 +171,15 @@ def test_frame_rate_acceleration_closes_the_ecef_kinematics(lat0):
     inner = slice(10, -10)
     assert np.max(np.abs(c[inner])) > 1e-3          # the term is there to be checked
     np.testing.assert_allclose(vdot[inner], (fg + c)[inner], atol=2e-5)
+
+
+def test_radii_of_arrays_are_the_compiled_scalar_radii_to_the_bit():
+    """radii_of_curvature runs the formula in numpy on arrays (no array specialisation of the
+    kernel to compile); each element must be the compiled kernel's scalar result exactly."""
+    from flightrecon.geo.ellipsoid import radii_from_sin
+
+    lat = np.concatenate([np.linspace(-90.0, 90.0, 721), [0.0, 1e-9, 45.123456789, 89.9999]])
+    rm, rn = radii_of_curvature(lat)
+    for k, phi in enumerate(lat):
+        m, n = radii_from_sin(float(np.sin(np.radians(phi))))
+        assert rm[k] == m and rn[k] == n, phi

@@ -122,27 +122,51 @@ def _running_median_kernel(x, w):
 
 
 def _running_median(x: np.ndarray, half_window: int) -> np.ndarray:
-    """Centred running median of finite samples over ``2 half_window + 1`` (compiled)."""
-    return _running_median_kernel(np.ascontiguousarray(x, dtype=np.float64), int(half_window))
+    """Centred running median of finite samples over ``2 half_window + 1`` (compiled).
+
+    A read-only array is copied first: the kernel is then compiled for writable arrays only
+    (one specialisation instead of two on a cold cache).
+    """
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    if not x.flags.writeable:
+        x = x.copy()
+    return _running_median_kernel(x, int(half_window))
 
 
-@nb.njit(cache=True)
-def _median_at_kernel(x, idx, w):
-    """Median of ``x`` over ``[i - w, i + w]`` (truncated at the ends) at each ``i`` of ``idx``:
-    the same windows, and the same middle element or mean of the two middle elements, as
-    :func:`_running_median_kernel`, so the values are identical."""
+#: windows sorted at a time by :func:`_median_at` (15 samples each at the default window:
+#: 7.9 MB of sorted copies at most)
+_MEDIAN_BLOCK = 65536
+
+
+def _median_at(x: np.ndarray, idx: np.ndarray, w: int) -> np.ndarray:
+    """Median of ``x`` over ``[i - w, i + w]`` (truncated at the ends) at each ``i`` of ``idx``.
+
+    The same windows, and the same middle element or mean of the two middle elements, as
+    :func:`_running_median_kernel`, so the values are identical.  Plain numpy (the whole
+    windows sorted row by row, blocks of :data:`_MEDIAN_BLOCK`; the truncated ones at the ends
+    one by one): ``idx`` is usually a handful of samples, and a compiled kernel with its sort
+    cost 1.2 s of compilation on a cold cache (docs/performance.md).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    idx = np.asarray(idx, dtype=np.int64)
     n = x.shape[0]
     out = np.empty(idx.shape[0])
-    for k in range(idx.shape[0]):
-        i = idx[k]
+    if idx.shape[0] == 0:
+        return out
+    whole = (idx >= w) & (idx + w < n)
+    k_whole = np.flatnonzero(whole)
+    if k_whole.size:
+        windows = np.lib.stride_tricks.sliding_window_view(x, 2 * w + 1)
+        for b in range(0, k_whole.size, _MEDIAN_BLOCK):
+            kb = k_whole[b:b + _MEDIAN_BLOCK]
+            out[kb] = np.sort(windows[idx[kb] - w], axis=1)[:, w]  # odd length: the middle
+    for k in np.flatnonzero(~whole):
+        i = int(idx[k])
         lo = max(0, i - w)
         hi = min(n, i + w + 1)
         buf = np.sort(x[lo:hi])
         m = hi - lo
-        if m % 2 == 1:
-            out[k] = buf[m // 2]
-        else:
-            out[k] = 0.5 * (buf[m // 2 - 1] + buf[m // 2])
+        out[k] = buf[m // 2] if m % 2 == 1 else 0.5 * (buf[m // 2 - 1] + buf[m // 2])
     return out
 
 
@@ -187,7 +211,7 @@ def hampel_candidates(x: np.ndarray, settings: DespikeSettings = DespikeSettings
     else:
         thr = np.full(n, settings.n_sigma * floor)
         idx = np.flatnonzero(dev > thr)
-        mad = _median_at_kernel(np.ascontiguousarray(dev), idx, int(w))
+        mad = _median_at(dev, idx, int(w))
         thr[idx] = settings.n_sigma * np.maximum(_MAD_TO_SIGMA * mad, floor)
         cand = dev > thr
     if floor == 0.0:  # a constant channel: nothing can be an outlier of it

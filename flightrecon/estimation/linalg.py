@@ -258,7 +258,10 @@ def solve_sym_eig_into(S: np.ndarray, B: np.ndarray, rcond: float, X: np.ndarray
             if not np.isfinite(S[i, j]):
                 raise np.linalg.LinAlgError("matrix is not finite")
             A[i, j] = 0.5 * (S[i, j] + S[j, i])
-    _jacobi_eigh(A, V)
+    # views of any layout ('A'), as the SNS filter's sliced buffers reach it through
+    # _pinv_sym_into: one compiled specialisation of the eigen-decomposition instead of two
+    # (0.4 s of a cold start; the same arithmetic)
+    _jacobi_eigh(A[:, :], V[:, :])
     lmax = 0.0
     for i in range(m):
         lmax = max(lmax, abs(A[i, i]))

@@ -10,9 +10,10 @@ The results are the same as in one process (the same functions on the same input
 warnings are re-issued in the parent), so only the first run's wall time changes.  Anything
 that goes wrong with the child itself (it cannot start, a result cannot be sent back) falls back
 to running that method in the parent.  A warm cache changes nothing: the methods run on
-threads as before.  ``FLIGHTRECON_COMPILE_IN_CHILD=0`` in the environment turns the child
-off (the test suite does, so that a test's monkeypatched method runs where the test put it,
-whatever the state of the cache).
+threads as before, and so does a busy machine (no core to spare: :func:`spare_core`).
+``FLIGHTRECON_COMPILE_IN_CHILD=0`` in the environment turns the child off (the test suite
+does, so that a test's monkeypatched method runs where the test put it, whatever the state of
+the cache); ``=1`` uses it whatever the machine's load.
 """
 
 from __future__ import annotations
@@ -52,16 +53,33 @@ def kernels_cached(method: str) -> bool:
         return True
 
 
+def spare_core() -> bool:
+    """True when the machine has a core that nobody else uses: the one-minute load average
+    below the number of cores less one (the parent's own).  A child on a busy machine only adds
+    work: it imports the package and compiles the shared kernels a second time, on a core it
+    must share (docs/performance.md: 75 s against 61 s in one process at a load of 4-5 on two
+    cores).  True where the load cannot be read."""
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return True
+    return load < (os.cpu_count() or 1) - 1
+
+
 def child_methods(chosen: list[str], workers: int) -> list[str]:
     """The methods to run in a child process: every chosen method but the joint smoother, when
-    two workers are allowed, the joint smoother is among ``chosen`` (it keeps the parent busy)
-    and at least one of the others is not compiled yet; otherwise none."""
+    two workers are allowed, the joint smoother is among ``chosen`` (it keeps the parent busy),
+    at least one of the others is not compiled yet and the machine has a :func:`spare_core`;
+    otherwise none.  ``FLIGHTRECON_COMPILE_IN_CHILD``: ``0`` never, ``1`` whatever the load."""
     others = [m for m in chosen if m != "joint"]
-    if os.environ.get("FLIGHTRECON_COMPILE_IN_CHILD", "1").strip() == "0":
+    mode = os.environ.get("FLIGHTRECON_COMPILE_IN_CHILD", "").strip()
+    if mode == "0":
         return []
     if workers < 2 or "joint" not in chosen or not others:
         return []
     if all(kernels_cached(m) for m in others):
+        return []
+    if mode != "1" and not spare_core():
         return []
     return others
 
