@@ -86,6 +86,10 @@ class FlightMeta:
     geoid_undulation_m : ellipsoidal height minus MSL height in the area of the flight (one value
         per flight; no geoid grid is shipped, so 0 unless given)
     fixes : known positions at given times (:class:`PositionFix`, ``--fix``), sorted by time
+    attitude_source : what measured roll and pitch: ``"ahrs"`` (an attitude and heading
+        reference that erects on the accelerometers, wrong after sustained loads), ``"inertial"``
+        (an inertial reference, or the simulator's truth), ``None`` undeclared (taken as
+        inertial, with a warning where the loads make it matter; docs/joint.md)
     wind_aloft : winds-aloft prior by altitude (:class:`WindLevel`, ``--wind``), sorted
     origin : origin of the output frame when no departure is given: the first GNSS fix (or radar
         plot) of the record, set by the cleaning layer (MSL elevation); never an airfield
@@ -103,6 +107,7 @@ class FlightMeta:
     qnh_departure_hpa: float | None = None
     qnh_arrival_hpa: float | None = None
     geoid_undulation_m: float = 0.0
+    attitude_source: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     fixes: tuple[PositionFix, ...] = ()
     wind_aloft: tuple[WindLevel, ...] = ()

@@ -57,7 +57,8 @@ def windows(data: Path, flight: str, window_s: float, start_s: float | None = No
             ) -> pd.DataFrame:
     """One row per window (from ``start_s``, default 30 s after lift-off): start, end [s],
     INS minus GPS velocity change north, east and its magnitude [m/s], rms of the load's
-    departure from 1 g [g]."""
+    departure from 1 g [g] and of the kinematic acceleration's magnitude [g] (the two drivers
+    of ``flightrecon/filters/joint/tilt.py``)."""
     from flightrecon.cleaning import CleaningSettings, clean_flight
     from flightrecon.filters.joint_method import joint_inputs
     from flightrecon.ingest import load_flight
@@ -84,6 +85,9 @@ def windows(data: Path, flight: str, window_s: float, start_s: float | None = No
     In, Ie = _cumulative(t, inp.acc_ned[:, 0]), _cumulative(t, inp.acc_ned[:, 1])
     f = np.asarray(inp.f_body_g, float)
     dev = np.abs(np.linalg.norm(np.nan_to_num(f), axis=1) - 1.0)
+    # the aircraft's own acceleration [g]: the specific force's departure from gravity alone,
+    # in magnitude and direction (a coordinated turn: tan(roll); a zero-g parabola: 1)
+    acc_g = np.linalg.norm(np.nan_to_num(inp.acc_ned), axis=1) / 9.80665
     ph = clean.phases
     t0 = ph.liftoff_t_s + 30.0 if start_s is None else max(start_s, ph.liftoff_t_s)
     t1 = (ph.touchdown_t_s if np.isfinite(ph.touchdown_t_s) else t[-1]) - 30.0
@@ -96,7 +100,8 @@ def windows(data: Path, flight: str, window_s: float, start_s: float | None = No
         de = (Ie[j] - Ie[i]) - (ve[j] - ve[i])
         rows.append({"start_s": float(t[i]), "end_s": float(t[j]), "dv_north_mps": dn,
                      "dv_east_mps": de, "dv_mps": float(np.hypot(dn, de)),
-                     "load_departure_rms_g": float(np.sqrt(np.mean(dev[i:j] ** 2)))})
+                     "load_departure_rms_g": float(np.sqrt(np.mean(dev[i:j] ** 2))),
+                     "acceleration_rms_g": float(np.sqrt(np.mean(acc_g[i:j] ** 2)))})
     return pd.DataFrame(rows)
 
 
@@ -116,6 +121,9 @@ def main(argv: list[str] | None = None) -> int:
         if sel.any():
             print(f"load departure {lo:g}-{hi:g} g: {int(sel.sum())} windows, |dv| median "
                   f"{w['dv_mps'][sel].median():.1f} m/s, largest {w['dv_mps'][sel].max():.1f}")
+    for col in ("load_departure_rms_g", "acceleration_rms_g"):
+        rho = w["dv_mps"].corr(w[col], method="spearman")
+        print(f"rank correlation of |dv| with {col}: {rho:.2f}")
     return 0
 
 

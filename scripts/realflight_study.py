@@ -403,7 +403,8 @@ def gap_nees(t: np.ndarray, n: np.ndarray, e: np.ndarray, sdn: np.ndarray, sde: 
 def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
              facts: dict[str, Any], work: Path, *, arrival: str, start: bool,
              gnss: bool = False, gnss_as_recorded: bool = False,
-             last_fix_as_fix: bool = False) -> dict[str, Any]:
+             last_fix_as_fix: bool = False,
+             joint_noise: dict[str, float] | None = None) -> dict[str, Any]:
     """One case: its mapping and sidecar, the tool reading the flight's folder ``data``,
     measuring against the GPS of ``df``.  With ``gnss`` the GPS position is mapped and the
     sidecar's ``[gnss]`` table withholds the gaps (:func:`gnss_table`; thinned to 1 Hz with the
@@ -420,7 +421,7 @@ def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
         lat1, lon1 = facts["last_fix"]
         over["fixes"] = [f"{facts['t_end_s']:.1f},{lat1:.6f},{lon1:.6f}"]
     settings = ReconstructSettings(start=facts["lineup_s"] if start else None,
-                                   keep_unhealthy=True)
+                                   keep_unhealthy=True, joint_noise=joint_noise or None)
     t_wall = time.time()
     out: dict[str, Any] = {"case": name, "arrival": arrival, "start_s": settings.start,
                            "gnss": gnss, "gnss_as_recorded": gnss_as_recorded,
@@ -566,7 +567,14 @@ def main(argv: list[str] | None = None) -> int:
                     "(default: a temporary folder)")
     ap.add_argument("--cases", nargs="*", default=None, help="run only these cases")
     ap.add_argument("--no-write", action="store_true", help="print, do not write the tables")
+    ap.add_argument("--joint-noise", nargs="*", default=[], metavar="NAME=VALUE",
+                    help="joint noise settings for every case (what a noise file's [joint] "
+                    "table gives), e.g. ahrs_tilt_mps2_per_g=1.0; with any, the tables are "
+                    "not written")
     a = ap.parse_args(argv)
+    joint_noise = {k: float(v) for k, v in (x.split("=", 1) for x in a.joint_noise)}
+    if joint_noise:
+        a.no_write = True
     flights = {"ref": a.data, "b22": a.data / "Our-data"}
     read = {k: analyst_table(v) for k, v in flights.items()}
     facts = {k: flight_facts(df) for k, (df, _) in read.items()}
@@ -583,7 +591,8 @@ def main(argv: list[str] | None = None) -> int:
             continue
         print(f"== {name}", flush=True)
         df, stems = read[flight]
-        r = run_case(name, flights[flight], df, stems, facts[flight], work, **kw)
+        r = run_case(name, flights[flight], df, stems, facts[flight], work, **kw,
+                     joint_noise=joint_noise)
         print(json.dumps(r, indent=1, default=str), flush=True)
         results.append(r)
     if tmp is not None:

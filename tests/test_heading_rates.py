@@ -78,3 +78,33 @@ def test_dead_heading_replaced():
     cf = clean_flight(Flight(data=log, meta=r.meta))
     assert any(e["action"] == "heading_from_rates" and "dead" in e["why"] for e in cf.report)
     assert np.ptp(cf.grid["heading_deg"]) > 90.0
+
+
+def test_heading_reference_grid_with_runways_only_true_with_gnss():
+    """A heading propagated from the rates and anchored by runway rolls only is referred to the
+    departure's meridian (the rates carry no transport rate): the report says "grid", and the
+    Sabziev adapter then integrates in the flat frame; a GNSS track anchors it to the local
+    north along the flight ("true")."""
+    from flightrecon.fusion.method import heading_reference, run_sabziev
+
+    cf = clean_flight(_rates_flight(with_gnss=False, runway=True))
+    assert heading_reference(cf) == "grid"
+    assert run_sabziev(cf).summary["frame"]["frame"].startswith("flat")
+    assert heading_reference(clean_flight(_rates_flight(with_gnss=True, runway=False))) == "true"
+
+
+def test_meridian_convergence_of_an_arrival_runway():
+    """gamma = dlambda sin(phi): an arrival 1 deg of longitude east of the departure at 45 deg
+    latitude has its true runway direction 0.7071 deg larger than its grid bearing; the
+    departure itself and an arrival on the same field have none."""
+    from flightrecon.cleaning.attitude import _convergence_rad
+    from flightrecon.types import FlightMeta, Position
+
+    dep = Position(lat_deg=45.0, lon_deg=10.0, elev_m=0.0)
+    arr = Position(lat_deg=45.0, lon_deg=11.0, elev_m=0.0)
+    meta = FlightMeta(departure=dep, arrival=arr)
+    assert np.degrees(_convergence_rad(meta, arr)) == pytest.approx(np.sin(np.radians(45.0)),
+                                                                    rel=1e-12)
+    assert _convergence_rad(meta, dep) == 0.0
+    west = Position(lat_deg=45.0, lon_deg=9.0, elev_m=0.0)
+    assert np.degrees(_convergence_rad(meta, west)) == pytest.approx(-np.sin(np.radians(45.0)))

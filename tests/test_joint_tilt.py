@@ -88,3 +88,70 @@ def test_the_smoother_takes_the_tilt_noise_where_the_loads_left_one_g():
     k = int(np.searchsorted(fl.T, mid + 20.0))
     assert extra[k] > 1.0          # (1 - exp(-1/3))^2 * 60 = 4.8 (m/s^2)^2/Hz at its end
     assert np.all(extra[fl.T < mid - 1.0] == 0.0)
+
+
+def test_the_erection_driver_of_a_coordinated_turn_eq_1b():
+    """A level coordinated turn at 30 deg of bank: the load is 1/cos(30) = 1.1547 g along the
+    body's z axis, the aircraft accelerates horizontally by g tan(30) = 0.5774 g.  Eq. (1b)
+    with the horizontal share 0 is the load's departure alone, 0.1547 g; with share 1 the whole
+    acceleration, sqrt(0.1547^2 + 0.5774^2) = 0.5977 g; without ``acc_ned`` the share is
+    ignored."""
+    from flightrecon.constants import G0
+    from flightrecon.filters.joint.tilt import erection_driver_g
+
+    phi = np.radians(30.0)
+    f = np.array([[0.0, 0.0, -1.0 / np.cos(phi)]])
+    acc = np.array([[0.0, G0 * np.tan(phi), 0.0]])
+    dep = 1.0 / np.cos(phi) - 1.0
+    assert erection_driver_g(f, acc, 0.0)[0] == pytest.approx(dep, rel=1e-12)
+    assert erection_driver_g(f, acc, 1.0)[0] == pytest.approx(np.hypot(dep, np.tan(phi)),
+                                                              rel=1e-12)
+    assert erection_driver_g(f, acc, 0.5)[0] == pytest.approx(
+        np.sqrt(dep ** 2 + 0.5 * np.tan(phi) ** 2), rel=1e-12)
+    assert erection_driver_g(f, None, 1.0)[0] == pytest.approx(dep, rel=1e-12)
+    with pytest.raises(ValueError, match="ahrs_tilt_horizontal"):
+        JointNoise(ahrs_tilt_horizontal=-0.5)
+
+
+def test_the_declared_attitude_source_switches_the_tilt_noise(tmp_path):
+    """``[flight] attitude_source``: "ahrs" turns the tilt noise on at the PH-LAB figure
+    (1 m/s^2 per g, horizontal share 1) unless the settings give it; "inertial" leaves it
+    off; undeclared it stays off and, with a minute at zero g in the loads (remembered
+    departure 0.63 g, above the 0.1 g threshold), the note says the source was taken as
+    inertial; a wrong value is refused."""
+    from flightrecon.errors import MetadataError
+    from flightrecon.filters.joint_method import (
+        AHRS_TILT_HORIZONTAL,
+        AHRS_TILT_MPS2_PER_G,
+        UNDECLARED_TILT_WARN_G,
+        attitude_source_noise,
+    )
+    from flightrecon.ingest.sidecar import load_sidecar
+
+    clean = clean_flight(load_flight(SAMPLES / "circuit.parquet"))
+    inp = joint_inputs(clean)
+    f = np.array(inp.f_body_g, float)
+    t = inp.t_in
+    mid = float(t[len(t) // 2])
+    f[(t >= mid) & (t < mid + 60.0)] = 0.0
+    zero_g = dataclasses.replace(inp, f_body_g=f)
+    meta = clean.meta
+    ahrs = dataclasses.replace(clean, meta=dataclasses.replace(meta, attitude_source="ahrs"))
+    ins = dataclasses.replace(clean, meta=dataclasses.replace(meta, attitude_source="inertial"))
+    s, note = attitude_source_noise(ahrs, zero_g, JointSettings())
+    assert s.noise.ahrs_tilt_mps2_per_g == AHRS_TILT_MPS2_PER_G == 1.0 and note is None
+    assert s.noise.ahrs_tilt_horizontal == AHRS_TILT_HORIZONTAL == 1.0
+    given = JointSettings(noise=JointNoise(ahrs_tilt_mps2_per_g=0.5))
+    assert attitude_source_noise(ahrs, zero_g, given)[0] == given
+    assert attitude_source_noise(ins, zero_g, JointSettings()) == (JointSettings(), None)
+    s, note = attitude_source_noise(clean, zero_g, JointSettings())
+    assert s == JointSettings() and note is not None and "not declared" in note
+    assert float(note.split("by ")[1].split(" g")[0]) == pytest.approx(1.0 - np.exp(-1.0),
+                                                                       abs=0.02)
+    assert UNDECLARED_TILT_WARN_G == 0.1
+    side = tmp_path / "x.meta.toml"
+    side.write_text('[flight]\nattitude_source = "ahrs"\n')
+    assert load_sidecar(side).meta.attitude_source == "ahrs"
+    side.write_text('[flight]\nattitude_source = "gyro"\n')
+    with pytest.raises(MetadataError, match="attitude_source"):
+        load_sidecar(side)

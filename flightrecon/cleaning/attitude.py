@@ -203,6 +203,11 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
               "residual_deg": float(np.degrees(np.angle(np.exp(1j * (np.sum(w * psi) - val)))))}
              for w, val, _, which in rows_psi]
     extra: dict[str, Any] = {"runway_rolls": rolls}
+    # the Euler kinematics integrate the heading against a fixed direction: without the
+    # transport rate (dlambda/dt sin phi) it stays referred to the anchor's meridian, i.e. the
+    # grid north of the departure's tangent plane (docs/signals.md, "Heading from the body
+    # rates"); a GNSS track anchors it to the local north along the flight instead
+    extra["heading_reference"] = ("grid" if tri is None and rows_psi else "true")
     calibrated = ""
     if rest_row is not None:
         t_rest = rest_row[4]
@@ -335,6 +340,18 @@ def _standstill_rows(grid: pd.DataFrame, t: np.ndarray, tas: np.ndarray,
 _Anchor = tuple[np.ndarray, float, float, str]   # (weights over the grid, value, sd, which)
 
 
+def _convergence_rad(meta: FlightMeta, pos: Any) -> float:
+    """Meridian convergence ``gamma = dlambda sin(phi)`` [rad] at ``pos`` against the departure's
+    meridian (mean latitude): a true bearing ``psi`` there is the grid bearing ``psi - gamma``
+    of the departure's tangent plane, the frame in which the rates propagate the heading
+    (module docstring); 0 at the departure and at an arrival on the same field."""
+    dep = meta.departure
+    if dep is None or pos is dep:
+        return 0.0
+    dlon = np.radians((pos.lon_deg - dep.lon_deg + 180.0) % 360.0 - 180.0)
+    return float(dlon * np.sin(np.radians(0.5 * (pos.lat_deg + dep.lat_deg))))
+
+
 def _runway_anchors(meta: FlightMeta, t: np.ndarray, tas: np.ndarray,
                     phases: FlightPhases | None) -> tuple[list[_Anchor], list[str], list[float]]:
     """Runway rolls as anchors (mean heading over the roll = the runway direction): the rows,
@@ -350,8 +367,8 @@ def _runway_anchors(meta: FlightMeta, t: np.ndarray, tas: np.ndarray,
         if sel is None:
             continue
         w = sel / sel.sum()
-        rows_psi.append((w, float(np.radians(pos.runway_true_deg)), np.radians(RUNWAY_SD_DEG),
-                         which))
+        rows_psi.append((w, float(np.radians(pos.runway_true_deg)) - _convergence_rad(meta, pos),
+                         np.radians(RUNWAY_SD_DEG), which))
         used.append(f"{which} runway {pos.runway_true_deg:g} deg")
         anchor_t += [float(t[sel][0]), float(t[sel][-1])]
     return rows_psi, used, anchor_t

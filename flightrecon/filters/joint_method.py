@@ -9,6 +9,7 @@ per-source innovation statistics.
 
 from __future__ import annotations
 
+import warnings as _warnings
 from dataclasses import asdict, replace
 from typing import Any
 
@@ -17,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning.saturation import saturated_loads
-from flightrecon.errors import MetadataError, ValidationError
+from flightrecon.errors import FlightReconWarning, MetadataError, ValidationError
 from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.joint import (
     SOURCES,
@@ -488,6 +489,51 @@ def _wind_prior_report(inp: JointInputs, settings: JointSettings,
             "sd_mps": [float(x) for x in sd], "rho": [float(x) for x in rho]}
 
 
+#: the attitude reference's tilt noise for an attitude declared ``attitude_source = "ahrs"``
+#: (filters/joint/tilt.py eq. 2: 1 m/s^2 per g of the erection driver, measured on the PH-LAB
+#: AHRS; docs/realflights.md)
+AHRS_TILT_MPS2_PER_G = 1.0
+
+#: and the horizontal acceleration's share of its driver (tilt.py eq. 1b): 1, the aircraft's
+#: whole acceleration (PH-LAB reference flight recorder only: 19.7 km RMS with the load's
+#: departure alone, 3.8 km with it; docs/realflights.md)
+AHRS_TILT_HORIZONTAL = 1.0
+
+#: the remembered erection driver [g] (tilt.py eq. 1) above which an undeclared attitude source
+#: is announced: below it the tilt noise would be a few tenths of m/s per minute
+UNDECLARED_TILT_WARN_G = 0.1
+
+
+def attitude_source_noise(clean: CleanFlight, inp: JointInputs,
+                          settings: JointSettings) -> tuple[JointSettings, str | None]:
+    """The tilt noise from the flight's declared attitude source (docs/joint.md, "The attitude
+    reference after sustained loads"): ``"ahrs"`` turns it on at :data:`AHRS_TILT_MPS2_PER_G`
+    with the horizontal share :data:`AHRS_TILT_HORIZONTAL` unless the settings already give
+    it; ``"inertial"`` leaves the settings; undeclared, the attitude is taken as inertial (the
+    default, off) and the returned note says so where the loads' remembered departure (tilt.py
+    eq. 1) exceeds :data:`UNDECLARED_TILT_WARN_G` (a guess warns)."""
+    from flightrecon.filters.joint.tilt import erection_driver_g, remembered
+
+    nz = settings.noise
+    src = clean.meta.attitude_source
+    if src == "ahrs" and nz.ahrs_tilt_mps2_per_g == 0.0:
+        return replace(settings, noise=replace(
+            nz, ahrs_tilt_mps2_per_g=AHRS_TILT_MPS2_PER_G,
+            ahrs_tilt_horizontal=nz.ahrs_tilt_horizontal or AHRS_TILT_HORIZONTAL)), None
+    if src is not None or nz.ahrs_tilt_mps2_per_g > 0.0 or inp.f_body_g is None:
+        return settings, None
+    D = remembered(inp.t_in, erection_driver_g(inp.f_body_g, inp.acc_ned,
+                                               nz.ahrs_tilt_horizontal), nz.ahrs_tilt_tau_s)
+    i = int(np.argmax(D)) if len(D) else 0
+    if not len(D) or D[i] <= UNDECLARED_TILT_WARN_G:
+        return settings, None
+    return settings, (f"joint: attitude source not declared, taken as inertial (no tilt noise); "
+                      f"the loads depart from 1 g by {D[i]:.2f} g over a minute at "
+                      f"t = {inp.t_in[i]:.0f} s, where an attitude and heading reference "
+                      "erects wrongly: declare [flight] attitude_source = \"ahrs\" or "
+                      "\"inertial\" in the sidecar (docs/joint.md)")
+
+
 def _derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
     """A heading propagated from the body rates (``heading_sd_deg`` on the grid, cleaning's
     ``heading_from_rates``) has a slowly varying error (anchor offset, gyro-bias drift): the
@@ -611,12 +657,15 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     settings = _derived_long_priors(clean, settings)
     inp = joint_inputs(clean)
     settings = sampled_loads_noise(inp, settings)
+    settings, attitude_note = attitude_source_noise(clean, inp, settings)
+    if attitude_note:
+        _warnings.warn(attitude_note, FlightReconWarning, stacklevel=2)
     run = smooth_joint(inp, settings)
     run, settings, wind_rounds = _wind_walk_rounds(inp, settings, run)
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
-    warnings = list(inp.notes)
+    warnings = list(inp.notes) + ([attitude_note] if attitude_note else [])
     for name, st in sources.items():
         if st["flagged_inconsistent"]:
             warnings.append(f"joint: source '{name}' inconsistent with the others in "

@@ -215,7 +215,12 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
                tol_m=tol_m, max_iter=max_iter, kt_max=kt_max, strict=strict,
                vertical_rule=vertical_rule, policy=policy)
     frame: dict[str, Any] = {"frame": "flat (tangent plane at the departure airfield)"}
-    if policy == "stable" and surface and end_ned is not None and k is None:
+    grid_heading = heading_reference(clean) == "grid"
+    if grid_heading:
+        frame["why"] = ("the heading propagated from the body rates is a grid heading (north of "
+                        "the departure's tangent plane), whose frame is flat")
+    if (policy == "stable" and surface and not grid_heading and end_ned is not None
+            and k is None):
         sol, frame = _surface_fit(sol, plane, meta, origin, end_ned, dict(
             t=t, a_ned=a_ned, tas=cols["tas_mps"], heading_rad=psi, h_rel=h_rel, v0_ned=v0,
             wind_ne=wind), dict(hold=hold, tol_m=tol_m, max_iter=max_iter, kt_max=kt_max,
@@ -256,6 +261,16 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     for pr in problems:
         warnings.warn(f"sabziev unhealthy: {pr}", FlightReconWarning, stacklevel=2)
     return MethodResult(name="sabziev", track=track, summary=summary)
+
+
+def heading_reference(clean: CleanFlight) -> str:
+    """What the grid's ``heading_deg`` is measured from: ``"grid"`` when the cleaning propagated
+    it from the body rates anchored by runway rolls only (the report's ``heading_reference``;
+    docs/sabziev.md, "Flat frame and a curved Earth"), else ``"true"`` (a recorded heading)."""
+    for r in clean.report:
+        if r.get("action") == "heading_from_rates":
+            return str(r.get("heading_reference", "true"))
+    return "true"
 
 
 WGS84_A_M = 6378137.0

@@ -64,7 +64,8 @@ __all__ = [
 
 LOG_SUFFIXES = (".csv", ".txt", ".tsv", ".parquet", ".pq", ".parq")
 FLIGHT_KEYS = {"aircraft_id", "flight_id", "epoch_utc", "gnss_alt_datum", "baro_datum",
-               "geoid_undulation_m", "gnss_lever_arm_m", "qnh_departure_hpa", "qnh_arrival_hpa"}
+               "geoid_undulation_m", "gnss_lever_arm_m", "qnh_departure_hpa", "qnh_arrival_hpa",
+               "attitude_source"}
 POSITION_KEYS = ("lat_deg", "lon_deg", "elev_m", "runway_true_deg", "threshold_lat_deg",
                  "threshold_lon_deg")
 THRESHOLD_MAX_M = 10_000.0
@@ -72,6 +73,8 @@ THRESHOLD_MAX_M = 10_000.0
 FILE_KEYS = ("gnss", "radar", "mapping")
 GNSS_DATUMS = ("ellipsoid", "msl")
 BARO_DATUMS = ("pressure", "qnh", "qfe")
+ATTITUDE_SOURCES = ("ahrs", "inertial")
+"""Values of ``[flight] attitude_source`` (:class:`flightrecon.types.FlightMeta`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -330,6 +333,11 @@ def _flight_value(k: str, v: Any, file: str) -> Any:
         if v not in BARO_DATUMS:
             raise MetadataError(f"[flight] baro_datum must be one of {BARO_DATUMS}, got {v!r}",
                                 file=file)
+        return v
+    if k == "attitude_source":
+        if v not in ATTITUDE_SOURCES:
+            raise MetadataError(f"[flight] attitude_source must be one of {ATTITUDE_SOURCES}, "
+                                f"got {v!r}", file=file)
         return v
     if k == "gnss_lever_arm_m":
         if not isinstance(v, list) or len(v) != 3:

@@ -71,6 +71,7 @@ def meta_toml(meta: FlightMeta) -> str:
         "baro_datum": meta.baro_datum, "geoid_undulation_m": meta.geoid_undulation_m,
         "gnss_lever_arm_m": [float(x) for x in meta.gnss_lever_arm_m],
         "qnh_departure_hpa": meta.qnh_departure_hpa, "qnh_arrival_hpa": meta.qnh_arrival_hpa,
+        "attitude_source": meta.attitude_source,
     }
     lines = ["[flight]"]
     lines += [f"{k} = {_toml_value(v)}" for k, v in flight.items() if v is not None]

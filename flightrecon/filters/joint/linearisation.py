@@ -91,7 +91,7 @@ def _flight(inp: JointInputs, settings: JointSettings) -> _Flight:
                                           np.ascontiguousarray(inp.t_in, dtype=float))
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
     # the attitude reference's tilt after sustained loads (tilt.py, eq. 2)
-    qv_extra = qv_extra + tilt_psd(inp.t_in, inp.f_body_g, idx, settings.noise)
+    qv_extra = qv_extra + tilt_psd(inp.t_in, inp.f_body_g, idx, settings.noise, inp.acc_ned)
     Cst = np.eye(3)
     pst = np.zeros(3)
     if inp.station is not None:

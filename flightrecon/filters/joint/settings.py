@@ -30,6 +30,10 @@ class JointNoise:
     #                                          inertial attitude, the default; 1.0 measured on
     #                                          the PH-LAB AHRS, docs/realflights.md)
     ahrs_tilt_tau_s: float = 60.0            # its erection time constant (memory of the load)
+    ahrs_tilt_horizontal: float = 0.0        # share of the horizontal acceleration in the
+    #                                          erection's driver (tilt.py eq. 1b; 0: the load's
+    #                                          departure from 1 g alone; 1: the aircraft's
+    #                                          whole acceleration, tan(roll) in a turn)
     accel_sampling_mps2_sqrt_hz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #                                          extra white acceleration per NED axis (added in
     #                                          PSD to accel_noise): the loads' sampling, set
@@ -92,6 +96,9 @@ class JointNoise:
         if not (np.isfinite(self.ahrs_tilt_mps2_per_g) and self.ahrs_tilt_mps2_per_g >= 0):
             raise ValueError("joint noise setting 'ahrs_tilt_mps2_per_g' must be a "
                              f"non-negative number, got {self.ahrs_tilt_mps2_per_g!r}")
+        if not (np.isfinite(self.ahrs_tilt_horizontal) and self.ahrs_tilt_horizontal >= 0):
+            raise ValueError("joint noise setting 'ahrs_tilt_horizontal' must be a "
+                             f"non-negative number, got {self.ahrs_tilt_horizontal!r}")
         for name in POSITIVE_NOISE:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):

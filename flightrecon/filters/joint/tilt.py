@@ -18,6 +18,17 @@ specific force), remembered over the erection time constant ``tau``::
 
     D(t) = (1 / tau) int_{-inf}^{t} u(s) exp(-(t - s) / tau) ds                    (1)
 
+An AHRS erects towards the specific force's direction, and in a coordinated turn the specific
+force is tilted from the vertical by the bank angle while its magnitude departs from 1 g only
+by ``1/cos(roll) - 1`` (0.15 g at 30 deg): the horizontal acceleration ``g tan(roll)`` is the
+larger driver there.  With the share ``s`` (``ahrs_tilt_horizontal``) of the horizontal
+kinematic acceleration ``a_h`` [g]::
+
+    u(t) = sqrt( ( |f(t)| - 1 )^2 + s a_h(t)^2 )                                  (1b)
+
+(``s`` = 1: the aircraft's whole acceleration, the specific force's departure from gravity
+alone; ``s`` = 0, the default: the load's departure above).  Either
+
 gives an acceleration error of sd ``a_e(t) = c D(t)`` (``c`` = ``ahrs_tilt_mps2_per_g``, the
 horizontal acceleration error per g of sustained departure), correlated over ``tau``.  As a
 white acceleration on the velocity, with the same velocity error over a window of ``tau``
@@ -39,6 +50,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
+from flightrecon.constants import G0 as G0_MPS2
 from flightrecon.filters.joint.settings import JointNoise
 
 
@@ -63,12 +75,27 @@ def remembered(t: np.ndarray, u: np.ndarray, tau_s: float) -> np.ndarray:
     return lfilter([1.0 - a], [1.0, -a], np.asarray(u, float))
 
 
+def erection_driver_g(f_body_g: np.ndarray, acc_ned: np.ndarray | None,
+                      horizontal: float) -> np.ndarray:
+    """Eq. (1b) per sample [g]: the load's departure from 1 g combined with the share
+    ``horizontal`` of the horizontal kinematic acceleration ``acc_ned[:, :2]`` [m/s^2] (missing
+    samples count 0)."""
+    u = load_departure_g(f_body_g)
+    if acc_ned is None or horizontal <= 0.0:
+        return u
+    a = np.asarray(acc_ned, float)
+    ah = np.hypot(np.nan_to_num(a[:, 0]), np.nan_to_num(a[:, 1])) / G0_MPS2
+    return np.sqrt(u ** 2 + horizontal * ah ** 2)
+
+
 def tilt_psd(t_in: np.ndarray, f_body_g: np.ndarray | None, idx: np.ndarray,
-             nz: JointNoise) -> np.ndarray:
-    """Eq. (2) at the state steps ``idx`` of the input grid ``t_in`` [(m/s^2)^2/Hz]; zeros
-    without loads or with ``ahrs_tilt_mps2_per_g`` = 0."""
+             nz: JointNoise, acc_ned: np.ndarray | None = None) -> np.ndarray:
+    """Eq. (2) at the state steps ``idx`` of the input grid ``t_in`` [(m/s^2)^2/Hz], with the
+    driver of eq. (1b) (``acc_ned``: the kinematic acceleration on ``t_in``, north, east,
+    down [m/s^2]); zeros without loads or with ``ahrs_tilt_mps2_per_g`` = 0."""
     c = nz.ahrs_tilt_mps2_per_g
     if f_body_g is None or c <= 0.0:
         return np.zeros(len(idx))
-    D = remembered(t_in, load_departure_g(f_body_g), nz.ahrs_tilt_tau_s)
+    D = remembered(t_in, erection_driver_g(f_body_g, acc_ned, nz.ahrs_tilt_horizontal),
+                   nz.ahrs_tilt_tau_s)
     return (c * D[idx]) ** 2 * nz.ahrs_tilt_tau_s
