@@ -18,22 +18,16 @@ from flightrecon.ingest import load_flight
 from flightrecon.ingest.gnss_quality import M_PER_DEG
 from flightrecon.ingest.gnss_use import (
     GnssUse,
-    _slots,
+    interval_slots,
     parse_gnss_sd,
     parse_window,
 )
 from tests._cli import run_cli
+from tests.test_ingest_support import load_quiet
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
 #: 'circuit': one GNSS fix a second at t = 0, 1, ..., 900 s (901 fixes)
 CIRCUIT = SAMPLES / "circuit.csv"
-
-
-def _load(path, **kw):
-    with warnings.catch_warnings(record=True) as w:
-        warnings.simplefilter("always")
-        fl = load_flight(path, **kw)
-    return fl, [str(x.message) for x in w]
 
 
 def _fix_times(fl) -> np.ndarray:
@@ -46,7 +40,7 @@ def test_slots_keep_the_whole_seconds_of_a_10_hz_frame_summed_in_floats():
     1 ms early) still keep exactly the fixes nearest each whole second, one per second."""
     t = np.cumsum(np.full(1000, 0.1)) - 0.1          # 0, 0.1, ... as a recorder adds them
     assert not np.all(np.abs(t - np.round(t)) == 0.0)   # the float sum is not exact
-    keep = _slots(t, np.ones(t.size, bool), 1.0)
+    keep = interval_slots(t, np.ones(t.size, bool), 1.0)
     kept = t[keep]
     assert kept.size == 100
     np.testing.assert_allclose(kept, np.arange(100.0), atol=1e-9)
@@ -56,7 +50,7 @@ def test_interval_windows_and_record_on_circuit():
     """Every 2 s: the fixes at even seconds (451 of 901); a window 100..200 s then withholds
     the 51 even seconds inside it (ends included); the record says so, count by count."""
     use = GnssUse(withhold_s=((100.0, 200.0),), interval_s=2.0)
-    fl, _ = _load(CIRCUIT, gnss_use=use)
+    fl, _ = load_quiet(CIRCUIT, gnss_use=use)
     tf = _fix_times(fl)
     expect = np.array([s for s in range(0, 901, 2) if not 100 <= s <= 200], float)
     np.testing.assert_array_equal(tf, expect)
@@ -72,7 +66,7 @@ def test_interval_windows_and_record_on_circuit():
 def test_a_window_without_fixes_warns_and_withholds_nothing():
     """A window outside the record is a mistake the tool can only guess at: a warning, no
     refusal, every fix kept."""
-    fl, warns = _load(CIRCUIT, gnss_use=GnssUse(withhold_s=((5000.0, 6000.0),)))
+    fl, warns = load_quiet(CIRCUIT, gnss_use=GnssUse(withhold_s=((5000.0, 6000.0),)))
     assert _fix_times(fl).size == 901
     assert any("5000..6000 s" in w and "no fix lies there" in w for w in warns)
 
@@ -95,7 +89,7 @@ def test_receiver_sd_given_and_the_rounding_added_per_axis(tmp_path):
     sd 0.88 m): horizontal hypot(14, 32.1), vertical hypot(20, 0.88), on every fix; the
     record names what was given and what was added."""
     log = _rounded_copy(tmp_path)
-    fl, _ = _load(log, gnss_use=GnssUse(h_sd_m=14.0, v_sd_m=20.0))
+    fl, _ = load_quiet(log, gnss_use=GnssUse(h_sd_m=14.0, v_sd_m=20.0))
     d = fl.data
     fix = np.isfinite(d["gnss_lat_deg"].to_numpy())
     r_h = 0.001 * M_PER_DEG / np.sqrt(12.0)
@@ -111,7 +105,7 @@ def test_receiver_sd_given_and_the_rounding_added_per_axis(tmp_path):
     assert rec["rounding_h_sd_m"] == pytest.approx(r_h, rel=1e-6)
     assert rec["rounding_v_sd_m"] == pytest.approx(r_v, rel=1e-6)
     # without the option: the rounding on the tool's default receiver figure (3 m)
-    fl0, _ = _load(log)
+    fl0, _ = load_quiet(log)
     np.testing.assert_allclose(fl0.data["gnss_h_sd_m"].to_numpy()[fix], np.hypot(3.0, r_h),
                                rtol=1e-6)
 
@@ -124,7 +118,7 @@ def test_user_sd_wins_over_the_log_figure_with_a_note(tmp_path):
     log = tmp_path / "withsd.csv"
     df.to_csv(log, index=False)
     shutil.copy(SAMPLES / "circuit.meta.toml", tmp_path / "withsd.meta.toml")
-    fl, _ = _load(log, gnss_use=GnssUse(h_sd_m=7.0))
+    fl, _ = load_quiet(log, gnss_use=GnssUse(h_sd_m=7.0))
     sd = fl.data["gnss_h_sd_m"].dropna().to_numpy()
     assert sd.size == 901 and np.all(sd == 7.0)
     assert any("in place of the log's (recorded) on 901" in n
@@ -137,15 +131,15 @@ def test_sidecar_gnss_table_and_the_keyword_wins_option_by_option(tmp_path):
     shutil.copy(CIRCUIT, tmp_path / "c.csv")
     side = (SAMPLES / "circuit.meta.toml").read_text()
     (tmp_path / "c.meta.toml").write_text(side + "\n[gnss]\ninterval_s = 2.0\nh_sd_m = 50.0\n")
-    fl, _ = _load(tmp_path / "c.csv")
+    fl, _ = load_quiet(tmp_path / "c.csv")
     assert _fix_times(fl).size == 451
     assert set(fl.data["gnss_h_sd_m"].dropna()) == {50.0}
-    fl, _ = _load(tmp_path / "c.csv", gnss_use=GnssUse(h_sd_m=7.0))
+    fl, _ = load_quiet(tmp_path / "c.csv", gnss_use=GnssUse(h_sd_m=7.0))
     assert _fix_times(fl).size == 451
     assert set(fl.data["gnss_h_sd_m"].dropna()) == {7.0}
     (tmp_path / "c.meta.toml").write_text(side + "\n[gnss]\ninterval_s = -1\n")
     with pytest.raises(MetadataError, match="interval_s"):
-        _load(tmp_path / "c.csv")
+        load_quiet(tmp_path / "c.csv")
 
 
 def test_old_withhold_key_still_works_with_a_deprecation_warning():

@@ -19,22 +19,14 @@ import pyarrow.parquet as pq
 import pytest
 
 from flightrecon.errors import SchemaError, ValidationError
-from flightrecon.ingest import load_flight
 from flightrecon.ingest.garmin import INHG_PA, pressure_altitude_from_indicated
 from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.timestamps import combine_date_time, repair_time_order
-from tests.test_ingest_support import handmade_frame
+from tests.test_ingest_support import handmade_frame, load_quiet
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
 GARMIN = SAMPLES / "g1000_sr22_LFQA_20220417.csv"
-
-
-def load_quiet(path, **kw):
-    with warnings.catch_warnings(record=True) as w:
-        warnings.simplefilter("always")
-        fl = load_flight(path, **kw)
-    return fl, [str(x.message) for x in w]
 
 
 @pytest.fixture(scope="module")

@@ -96,3 +96,15 @@ if __name__ == "__main__":  # regenerate the sample log: python tests/test_inges
     out = Path(__file__).resolve().parents[1] / "sample_logs" / "handmade.csv"
     handmade_frame().to_csv(out, index=False, na_rep="")
     print(f"wrote {out}")
+
+
+def load_quiet(path, **kw):
+    """``load_flight`` with its warnings caught: the flight and the warnings' texts."""
+    import warnings
+
+    from flightrecon.ingest import load_flight
+
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        fl = load_flight(path, **kw)
+    return fl, [str(x.message) for x in w]

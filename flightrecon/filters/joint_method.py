@@ -42,6 +42,7 @@ from flightrecon.filters.joint.diagnostics import (
 )
 from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.filters.joint.measurements import wind_prior_measurements
+from flightrecon.filters.joint.tilt import erection_driver_g, remembered
 from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
@@ -512,8 +513,6 @@ def attitude_source_noise(clean: CleanFlight, inp: JointInputs,
     it; ``"inertial"`` leaves the settings; undeclared, the attitude is taken as inertial (the
     default, off) and the returned note says so where the loads' remembered departure (tilt.py
     eq. 1) exceeds :data:`UNDECLARED_TILT_WARN_G` (a guess warns)."""
-    from flightrecon.filters.joint.tilt import erection_driver_g, remembered
-
     nz = settings.noise
     src = clean.meta.attitude_source
     if src == "ahrs" and nz.ahrs_tilt_mps2_per_g == 0.0:

@@ -44,7 +44,7 @@ import numpy as np
 
 from flightrecon.errors import MetadataError
 
-__all__ = ["GnssUse", "SLOT_TOLERANCE_S", "apply_gnss_use", "gnss_use_from_table",
+__all__ = ["GnssUse", "SLOT_TOLERANCE_S", "apply_gnss_use", "gnss_use_from_table", "interval_slots",
            "parse_gnss_sd", "parse_window"]
 
 #: a slot of ``interval_s`` starts this much early: clock values written as ``k - 1e-9``
@@ -198,7 +198,7 @@ def gnss_use_from_table(t: Any, file: str) -> tuple[GnssUse, list[str]]:
     return use, warns
 
 
-def _slots(t: np.ndarray, fix: np.ndarray, interval_s: float) -> np.ndarray:
+def interval_slots(t: np.ndarray, fix: np.ndarray, interval_s: float) -> np.ndarray:
     """The fixes kept by the interval: the first fix of each slot (module docstring, 1)."""
     idx = np.flatnonzero(fix)
     keep = np.zeros(len(t), bool)
@@ -242,7 +242,7 @@ def apply_gnss_use(cols: dict[str, np.ndarray], t: np.ndarray, use: GnssUse | No
         return warns, notes, rec
     drop = np.zeros(len(t), bool)
     if use.interval_s is not None:
-        keep = _slots(t, fix, use.interval_s)
+        keep = interval_slots(t, fix, use.interval_s)
         thin = fix & ~keep
         drop |= thin
         rec["interval_dropped"] = int(thin.sum())

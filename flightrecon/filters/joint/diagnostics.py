@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.settings import SOURCES
 from flightrecon.filters.joint.smoother import JointRun
 
@@ -123,8 +124,6 @@ def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt
         (its wind change less the gradient's part, magnitude), ``model_sd_mps`` (its random
         walk's sd per component); None where the worst window is within the limit.
     """
-    from flightrecon.filters.joint import layout as jl
-
     t = np.asarray(run.t, dtype=float)
     if len(t) < 3 or not (wind_rw_mps_sqrt_s > 0):
         return None
