@@ -269,8 +269,9 @@ def standstill(grid: pd.DataFrame, t: np.ndarray, tas: np.ndarray,
             ok &= sd_c < STANDSTILL_LOAD_SD_G
     ok &= ~(tas > STANDSTILL_TAS_MPS)
     if phases is not None:
-        first = min(v for v in (phases.roll_start_t_s, phases.liftoff_t_s, np.inf)
-                    if np.isfinite(v))
+        # a record that starts airborne (``--start`` after the lift-off) has neither
+        first = min((v for v in (phases.roll_start_t_s, phases.liftoff_t_s) if np.isfinite(v)),
+                    default=np.inf)
         ok &= ~((t >= first) & ~(t > phases.touchdown_t_s)) if np.isfinite(first) else ok
         if phases.starts_airborne:
             ok &= t > phases.touchdown_t_s

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning.saturation import saturated_loads
+from flightrecon.constants import G0 as G0_MPS2
 from flightrecon.errors import FlightReconWarning, MetadataError, ValidationError
 from flightrecon.estimation.consistency import chi_square_verdict
 from flightrecon.filters.joint import (
@@ -42,7 +43,7 @@ from flightrecon.filters.joint.diagnostics import (
 )
 from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.filters.joint.measurements import wind_prior_measurements
-from flightrecon.filters.joint.tilt import erection_driver_g, remembered
+from flightrecon.filters.joint.tilt import erection_driver_g, remembered, tilt_evidence
 from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
@@ -504,23 +505,84 @@ AHRS_TILT_HORIZONTAL = 1.0
 #: is announced: below it the tilt noise would be a few tenths of m/s per minute
 UNDECLARED_TILT_WARN_G = 0.1
 
+#: a tilt gain measured by the GNSS below this [m/s^2 per g] is not used: JSBSim's attitude with
+#: its sensors' errors (constant biases and scale factors, lags) gives 0.06-0.17 on airwork,
+#: holding, go-around and circuit flights, the PH-LAB AHRS 0.28 and 0.41 (docs/joint.md, "The
+#: attitude reference after sustained loads"); with 0.2 on JSBSim's airwork the tracks in a
+#: withheld 300 s gap went from 2 to 24 m RMS
+TILT_GAIN_MIN_MPS2_PER_G = 0.25
 
-def attitude_source_noise(clean: CleanFlight, inp: JointInputs,
-                          settings: JointSettings) -> tuple[JointSettings, str | None]:
-    """The tilt noise from the flight's declared attitude source (docs/joint.md, "The attitude
-    reference after sustained loads"): ``"ahrs"`` turns it on at :data:`AHRS_TILT_MPS2_PER_G`
-    with the horizontal share :data:`AHRS_TILT_HORIZONTAL` unless the settings already give
-    it; ``"inertial"`` leaves the settings; undeclared, the attitude is taken as inertial (the
-    default, off) and the returned note says so where the loads' remembered departure (tilt.py
-    eq. 1) exceeds :data:`UNDECLARED_TILT_WARN_G` (a guess warns)."""
+
+def gnss_tilt_evidence(clean: CleanFlight, inp: JointInputs,
+                       settings: JointSettings) -> dict | None:
+    """:func:`flightrecon.filters.joint.tilt.tilt_evidence` on the flight's GNSS fixes (those
+    the smoother uses: withheld ones are not in ``inp.gnss``) between 30 s after the lift-off
+    and 30 s before the touchdown (or the record's end); ``None`` without loads, fixes or a
+    lift-off."""
+    g = inp.gnss
+    ph = clean.phases
+    if (inp.f_body_g is None or g is None or len(g) < 10 or ph is None
+            or not np.isfinite(ph.liftoff_t_s)):
+        return None
+    e, n, _ = output_plane(clean.meta).forward(g["lat_deg"].to_numpy(float),
+                                               g["lon_deg"].to_numpy(float),
+                                               np.zeros(len(g)))
+    ok = np.isfinite(e) & np.isfinite(n)
+    t_end = ph.touchdown_t_s if np.isfinite(ph.touchdown_t_s) else float(inp.t_in[-1])
+    nz = settings.noise
+    f = np.nan_to_num(np.asarray(inp.f_body_g, float)) * G0_MPS2
+    C = inp.body_to_ned()
+    f_ned_h = C[:, :2, :] * f[:, None, :]
+    return tilt_evidence(inp.t_in, inp.acc_ned, inp.f_body_g, inp.heading_rad, f_ned_h,
+                         g["t_s"].to_numpy(float)[ok], np.asarray(n)[ok], np.asarray(e)[ok],
+                         ph.liftoff_t_s + 30.0, t_end - 30.0, tau_s=nz.ahrs_tilt_tau_s,
+                         window_s=nz.ahrs_tilt_tau_s,
+                         horizontal=nz.ahrs_tilt_horizontal or AHRS_TILT_HORIZONTAL)
+
+
+_MEASURE: dict = {}
+"""Sentinel of :func:`attitude_source_noise`: measure the GNSS evidence there."""
+
+
+def attitude_source_noise(clean: CleanFlight, inp: JointInputs, settings: JointSettings,
+                          evidence: dict | None = _MEASURE
+                          ) -> tuple[JointSettings, str | None]:
+    """The tilt noise from the flight's declared attitude source and its GNSS (docs/joint.md,
+    "The attitude reference after sustained loads").
+
+    Settings that give the tilt gain win.  ``"inertial"`` leaves the settings (no tilt).
+    Otherwise, where the GNSS fixes measure the gain (:func:`gnss_tilt_evidence`: the loads
+    integrated through the attitude against the fixes' velocity, the constant biases removed),
+    that gain is used, at most :data:`AHRS_TILT_MPS2_PER_G`, with the horizontal share
+    :data:`AHRS_TILT_HORIZONTAL`, and the returned note says so (undeclared: only from
+    :data:`TILT_GAIN_MIN_MPS2_PER_G`; below it the attitude is taken as inertial without a
+    note, the fixes having shown it holds); ``"ahrs"`` without that
+    evidence takes :data:`AHRS_TILT_MPS2_PER_G`.  Undeclared and unmeasured, the attitude is
+    taken as inertial (off) and the note says so where the loads' remembered departure
+    (tilt.py eq. 1) exceeds :data:`UNDECLARED_TILT_WARN_G` (a guess warns).  ``evidence``:
+    :func:`gnss_tilt_evidence` already measured (``None``: none), measured here by default."""
     nz = settings.noise
     src = clean.meta.attitude_source
-    if src == "ahrs" and nz.ahrs_tilt_mps2_per_g == 0.0:
+    if src == "inertial" or nz.ahrs_tilt_mps2_per_g > 0.0 or inp.f_body_g is None:
+        return settings, None
+    ev = gnss_tilt_evidence(clean, inp, settings) if evidence is _MEASURE else evidence
+    if ev is not None:
+        c = min(ev["gain_mps2_per_g"], AHRS_TILT_MPS2_PER_G)
+        if c < TILT_GAIN_MIN_MPS2_PER_G and src is None:
+            return settings, None  # the fixes show no load-driven error worth the noise
+        note = (f"joint: the GNSS measures the attitude's load-driven error: the loads "
+                f"integrated through the recorded attitude leave the fixes by "
+                f"{ev['gain_mps2_per_g']:.2f} m/s^2 per g of sustained load ({ev['busy_windows']} "
+                f"of {ev['windows']} windows of {ev['window_s']:.0f} s under load, constant "
+                f"biases removed); the tilt noise is set to {c:.2f} m/s^2 per g "
+                f"(attitude source {src or 'not declared'}; docs/joint.md)")
+        return replace(settings, noise=replace(
+            nz, ahrs_tilt_mps2_per_g=c,
+            ahrs_tilt_horizontal=nz.ahrs_tilt_horizontal or AHRS_TILT_HORIZONTAL)), note
+    if src == "ahrs":
         return replace(settings, noise=replace(
             nz, ahrs_tilt_mps2_per_g=AHRS_TILT_MPS2_PER_G,
             ahrs_tilt_horizontal=nz.ahrs_tilt_horizontal or AHRS_TILT_HORIZONTAL)), None
-    if src is not None or nz.ahrs_tilt_mps2_per_g > 0.0 or inp.f_body_g is None:
-        return settings, None
     D = remembered(inp.t_in, erection_driver_g(inp.f_body_g, inp.acc_ned,
                                                nz.ahrs_tilt_horizontal), nz.ahrs_tilt_tau_s)
     i = int(np.argmax(D)) if len(D) else 0
@@ -656,10 +718,11 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     settings = _derived_long_priors(clean, settings)
     inp = joint_inputs(clean)
     settings = sampled_loads_noise(inp, settings)
-    settings, attitude_note = attitude_source_noise(clean, inp, settings)
+    tilt_ev = gnss_tilt_evidence(clean, inp, settings)
+    settings, attitude_note = attitude_source_noise(clean, inp, settings, tilt_ev)
+    run = smooth_joint(inp, settings)
     if attitude_note:
         _warnings.warn(attitude_note, FlightReconWarning, stacklevel=2)
-    run = smooth_joint(inp, settings)
     run, settings, wind_rounds = _wind_walk_rounds(inp, settings, run)
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
@@ -728,6 +791,9 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         "wind_walk": {"wind_rw_mps_sqrt_s": settings.noise.wind_rw_mps_sqrt_s,
                       "rounds": wind_rounds},
         "state_rate_hz": settings.state_rate_hz,
+        "attitude_tilt": {"source": clean.meta.attitude_source,
+                          "gain_mps2_per_g": settings.noise.ahrs_tilt_mps2_per_g,
+                          "gnss_evidence": tilt_ev},
         "corrections": corrections,
         "clock_offsets_s": {k: {"value": o, "sd": sd}
                             for k, (o, sd) in run.clock_offsets_s.items()},

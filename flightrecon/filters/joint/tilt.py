@@ -99,3 +99,101 @@ def tilt_psd(t_in: np.ndarray, f_body_g: np.ndarray | None, idx: np.ndarray,
     D = remembered(t_in, erection_driver_g(f_body_g, acc_ned, nz.ahrs_tilt_horizontal),
                    nz.ahrs_tilt_tau_s)
     return (c * D[idx]) ** 2 * nz.ahrs_tilt_tau_s
+
+
+def _gnss_velocity_ne(gnss_t: np.ndarray, north_m: np.ndarray, east_m: np.ndarray,
+                      tq: np.ndarray, half_s: float, min_fixes: int = 8) -> np.ndarray:
+    """Velocity (north, east) [m/s] at the times ``tq``: the derivative at ``tq`` of a cubic
+    fitted by least squares to the fix positions within ``half_s`` of it (a straight line's
+    slope over a turn is biased: over +-15 s of a 3 deg/s turn by 6 %, 4 m/s at 60 m/s; a
+    cubic leaves the fifth-order term, 0.1 %).  NaN where fewer than ``min_fixes`` fixes or
+    they do not reach ``half_s / 2`` on both sides."""
+    t = np.asarray(gnss_t, float)
+    xy = np.column_stack([north_m, east_m])
+    out = np.full((len(tq), 2), np.nan)
+    lo = np.searchsorted(t, np.asarray(tq, float) - half_s, side="left")
+    hi = np.searchsorted(t, np.asarray(tq, float) + half_s, side="right")
+    for q, (i, j) in enumerate(zip(lo, hi)):
+        if j - i < min_fixes:
+            continue
+        s = (t[i:j] - tq[q]) / half_s
+        if s[0] > -0.5 or s[-1] < 0.5:
+            continue
+        V = np.vander(s, 4, increasing=True)
+        coef = np.linalg.lstsq(V, xy[i:j], rcond=None)[0]
+        out[q] = coef[1] / half_s
+    return out
+
+
+def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
+                  heading_rad: np.ndarray, f_ned_h: np.ndarray | None, gnss_t: np.ndarray, gnss_north_m: np.ndarray,
+                  gnss_east_m: np.ndarray, t0_s: float, t1_s: float, *,
+                  window_s: float = 60.0, half_s: float = 15.0, tau_s: float = 60.0,
+                  horizontal: float = 1.0, busy_g: float = 0.1) -> dict | None:
+    """What the GNSS says of the attitude reference: the tilt gain ``c`` of eq. (2) that the
+    recorded loads, integrated through the recorded attitude, need to meet the GNSS velocity.
+
+    Over consecutive windows of ``window_s`` between ``t0_s`` and ``t1_s``: the change of
+    velocity the loads give (``acc_ned`` integrated, trapezoidal) minus the change of the GNSS
+    velocity (least-squares slope of the fixes over ``2 half_s``), a 2-vector per window.  The
+    errors that stay constant over the flight are fitted to it by least squares and removed: a
+    heading bias (the window's integrated horizontal acceleration turned by 90 deg), a
+    horizontal acceleration bias in north-east axes, the roll and pitch biases (``g`` along
+    the body's lateral and forward axes, turned by the heading, integrated) and, with
+    ``f_ned_h`` (N, 2, 3: the horizontal north-east part of each body axis's specific force
+    [m/s^2]), the three accelerometers' scale errors (a 1 % error of the normal load in a 2 g,
+    60 deg turn: 10 m/s per minute).  What is left,
+    ``r`` [m/s] per window, against the rms over the window of the remembered driver ``D``
+    (eq. 1, 1b) [g]: ``r0`` the lower quartile of ``r`` (the GNSS slope's noise and what the
+    constants do not take), and each window with ``D >= busy_g`` gives
+    ``c_i = sqrt(max(r^2 - r0^2, 0)) / (D window_s)`` [m/s^2 per g], the gain that explains its
+    excess; ``c`` is their median.  An attitude whose errors are constant biases (an inertial
+    reference, the simulator's sensors) gives ``c`` near 0; the PH-LAB AHRS about 0.5
+    (docs/realflights.md).  ``None`` with fewer than three busy windows or ten windows in all.
+    """
+    t = np.asarray(t_in, float)
+    if len(t) < 2 or len(gnss_t) < 10:
+        return None
+    a = np.nan_to_num(np.asarray(acc_ned, float)[:, :2])
+    psi = np.nan_to_num(np.asarray(heading_rad, float))
+    # integrands of the constant errors' effect (north, east) per regressor
+    cols = [np.column_stack([-a[:, 1], a[:, 0]]),                      # heading bias [rad]
+            np.column_stack([np.ones(len(t)), np.zeros(len(t))]),      # north bias [m/s^2]
+            np.column_stack([np.zeros(len(t)), np.ones(len(t))]),      # east bias [m/s^2]
+            G0_MPS2 * np.column_stack([np.cos(psi), np.sin(psi)]),     # pitch bias [rad]
+            G0_MPS2 * np.column_stack([-np.sin(psi), np.cos(psi)])]    # roll bias [rad]
+    if f_ned_h is not None:  # scale errors: each body axis's specific force, its horizontal part
+        cols += [np.nan_to_num(np.asarray(f_ned_h, float)[:, :, k]) for k in range(3)]
+    starts = np.arange(t0_s, t1_s - window_s, window_s)
+    if len(starts) < 10:
+        return None
+    ends = starts + window_s
+    dt = np.diff(t)[:, None]
+
+    def window_integral(x: np.ndarray) -> np.ndarray:
+        cum = np.zeros((len(t), 2))
+        cum[1:] = np.cumsum(0.5 * (x[1:] + x[:-1]) * dt, axis=0)
+        return np.column_stack([np.interp(ends, t, cum[:, k]) - np.interp(starts, t, cum[:, k])
+                                for k in range(2)])
+
+    vg = _gnss_velocity_ne(np.asarray(gnss_t, float), np.asarray(gnss_north_m, float),
+                           np.asarray(gnss_east_m, float), np.r_[starts, ends], half_s)
+    m = len(starts)
+    y = window_integral(a) - (vg[m:] - vg[:m])
+    X = np.stack([window_integral(c) for c in cols], axis=-1)      # (m, 2, 5)
+    D = remembered(t, erection_driver_g(f_body_g, acc_ned, horizontal), tau_s)
+    csum = np.r_[0.0, np.cumsum(D ** 2)]
+    i, j = np.searchsorted(t, starts), np.searchsorted(t, ends)
+    d_rms = np.sqrt((csum[j] - csum[i]) / np.maximum(j - i, 1))
+    ok = np.isfinite(y).all(axis=1) & (j > i)
+    busy = ok & (d_rms >= busy_g)
+    if ok.sum() < 10 or busy.sum() < 3:
+        return None
+    beta = np.linalg.lstsq(X[ok].reshape(-1, X.shape[-1]), y[ok].reshape(-1), rcond=None)[0]
+    r = np.full(m, np.nan)
+    r[ok] = np.hypot(*(y[ok] - X[ok] @ beta).T)
+    r0 = float(np.percentile(r[ok], 25))
+    ci = np.sqrt(np.maximum(r[busy] ** 2 - r0 ** 2, 0.0)) / (d_rms[busy] * window_s)
+    return {"gain_mps2_per_g": float(np.median(ci)), "floor_mps": r0,
+            "windows": int(ok.sum()), "busy_windows": int(busy.sum()),
+            "heading_bias_deg": float(np.degrees(beta[0])), "window_s": window_s}
