@@ -234,11 +234,15 @@ def test_tilt_evidence_recovers_the_gain_of_a_simulated_tilt(gain):
     part of an error that is present in most windows).  In a coordinated turn the normal axis
     carries the whole horizontal acceleration: its scale error's regressor."""
     from flightrecon.filters.joint.tilt import tilt_evidence
+    from flightrecon.geo.navframe import radii_of_curvature
 
     t, a, f, psi, tg, fx = _turning_flight(gain)
     f_ned_h = np.zeros((len(t), 2, 3))
     f_ned_h[:, :, 2] = a[:, :2]
-    ev = tilt_evidence(t, a, f, psi, f_ned_h, tg, fx[:, 0], fx[:, 1], 60.0, 2940.0)
+    rm, rn = radii_of_curvature(0.0)   # the flight near (0, 0): no Coriolis term
+    lat = np.degrees(fx[:, 0] / rm)
+    lon = np.degrees(fx[:, 1] / (rn * np.cos(np.radians(lat))))
+    ev = tilt_evidence(t, a, f, psi, f_ned_h, tg, lat, lon, 60.0, 2940.0)
     assert ev is not None and ev["busy_windows"] >= 10
     if gain == 0.0:
         assert ev["gain_mps2_per_g"] < 0.1

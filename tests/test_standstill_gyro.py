@@ -113,3 +113,26 @@ def test_the_propagated_heading_is_announced_with_its_growing_sd():
     quiet, warned_q = _report(_flight(quiet_rest=True)[0])
     (msg_q,) = [w for w in warned_q if w.startswith("heading from the body rates")]
     assert "gyro biases calibrated on" in msg_q
+
+
+def test_a_record_that_starts_airborne_has_no_standstill_and_does_not_fail():
+    """A record cut after the lift-off (``--start`` in the air: neither a roll nor a lift-off
+    in it) has no standstill; the search returned an error (``min()`` of nothing) on the real
+    reference flight started at 1000 s instead of the clear refusal of a heading with nothing
+    to anchor it."""
+    import pandas as pd
+
+    from flightrecon.cleaning.attitude import standstill
+    from flightrecon.types import FlightPhases
+
+    t = np.arange(0.0, 120.0, 0.1)
+    grid = pd.DataFrame({"t_s": t, "r_dps": np.zeros(len(t)), "n_long_g": np.zeros(len(t)),
+                         "n_lat_g": np.zeros(len(t))})
+    nan = float("nan")
+    airborne = FlightPhases(liftoff_t_s=nan, touchdown_t_s=nan, starts_airborne=True,
+                            ends_airborne=True, liftoff_velocity_ned_mps=(nan, nan, nan))
+    assert not standstill(grid, t, np.full(len(t), 60.0), airborne).any()
+    # at 0 m/s with quiet rates and loads and no lift-off it is at rest (the guard, not the
+    # phases, decides)
+    parked = dataclasses.replace(airborne, starts_airborne=False, ends_airborne=False)
+    assert standstill(grid, t, np.zeros(len(t)), parked).all()

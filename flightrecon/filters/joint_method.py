@@ -524,17 +524,15 @@ def gnss_tilt_evidence(clean: CleanFlight, inp: JointInputs,
     if (inp.f_body_g is None or g is None or len(g) < 10 or ph is None
             or not np.isfinite(ph.liftoff_t_s)):
         return None
-    e, n, _ = output_plane(clean.meta).forward(g["lat_deg"].to_numpy(float),
-                                               g["lon_deg"].to_numpy(float),
-                                               np.zeros(len(g)))
-    ok = np.isfinite(e) & np.isfinite(n)
+    lat, lon = g["lat_deg"].to_numpy(float), g["lon_deg"].to_numpy(float)
+    ok = np.isfinite(lat) & np.isfinite(lon)
     t_end = ph.touchdown_t_s if np.isfinite(ph.touchdown_t_s) else float(inp.t_in[-1])
     nz = settings.noise
     f = np.nan_to_num(np.asarray(inp.f_body_g, float)) * G0_MPS2
     C = inp.body_to_ned()
     f_ned_h = C[:, :2, :] * f[:, None, :]
     return tilt_evidence(inp.t_in, inp.acc_ned, inp.f_body_g, inp.heading_rad, f_ned_h,
-                         g["t_s"].to_numpy(float)[ok], np.asarray(n)[ok], np.asarray(e)[ok],
+                         g["t_s"].to_numpy(float)[ok], lat[ok], lon[ok],
                          ph.liftoff_t_s + 30.0, t_end - 30.0, tau_s=nz.ahrs_tilt_tau_s,
                          window_s=nz.ahrs_tilt_tau_s,
                          horizontal=nz.ahrs_tilt_horizontal or AHRS_TILT_HORIZONTAL)

@@ -101,16 +101,23 @@ def tilt_psd(t_in: np.ndarray, f_body_g: np.ndarray | None, idx: np.ndarray,
     return (c * D[idx]) ** 2 * nz.ahrs_tilt_tau_s
 
 
-def _gnss_velocity_ne(gnss_t: np.ndarray, north_m: np.ndarray, east_m: np.ndarray,
-                      tq: np.ndarray, half_s: float, min_fixes: int = 8) -> np.ndarray:
-    """Velocity (north, east) [m/s] at the times ``tq``: the derivative at ``tq`` of a cubic
-    fitted by least squares to the fix positions within ``half_s`` of it (a straight line's
-    slope over a turn is biased: over +-15 s of a 3 deg/s turn by 6 %, 4 m/s at 60 m/s; a
-    cubic leaves the fifth-order term, 0.1 %).  NaN where fewer than ``min_fixes`` fixes or
-    they do not reach ``half_s / 2`` on both sides."""
+def _gnss_fit_ne(gnss_t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
+                 tq: np.ndarray, half_s: float, min_fixes: int = 8
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Position (latitude, longitude [rad]) and local-level velocity (north, east [m/s]) at the
+    times ``tq``: a cubic fitted by least squares to the fixes within ``half_s`` of each, its
+    derivative scaled by the WGS-84 radii of curvature there (the velocity in the local north
+    and east, not in a map plane whose north turns by the meridian convergence: 6 deg over
+    700 km, 50 m/s on a 180 deg turn at 250 m/s).  A straight line's slope is biased over a
+    turn (over +-15 s of a 3 deg/s turn by 6 %, 4 m/s at 60 m/s); the cubic leaves the
+    fifth-order term, 0.1 %.  NaN where fewer than ``min_fixes`` fixes or they do not reach
+    ``half_s / 2`` on both sides."""
+    from flightrecon.geo.navframe import radii_of_curvature
+
     t = np.asarray(gnss_t, float)
-    xy = np.column_stack([north_m, east_m])
-    out = np.full((len(tq), 2), np.nan)
+    ll = np.radians(np.column_stack([lat_deg, lon_deg]))
+    pos = np.full((len(tq), 2), np.nan)
+    vel = np.full((len(tq), 2), np.nan)
     lo = np.searchsorted(t, np.asarray(tq, float) - half_s, side="left")
     hi = np.searchsorted(t, np.asarray(tq, float) + half_s, side="right")
     for q, (i, j) in enumerate(zip(lo, hi)):
@@ -119,15 +126,19 @@ def _gnss_velocity_ne(gnss_t: np.ndarray, north_m: np.ndarray, east_m: np.ndarra
         s = (t[i:j] - tq[q]) / half_s
         if s[0] > -0.5 or s[-1] < 0.5:
             continue
-        V = np.vander(s, 4, increasing=True)
-        coef = np.linalg.lstsq(V, xy[i:j], rcond=None)[0]
-        out[q] = coef[1] / half_s
-    return out
+        ref = ll[i]
+        coef = np.linalg.lstsq(np.vander(s, 4, increasing=True), ll[i:j] - ref, rcond=None)[0]
+        pos[q] = coef[0] + ref
+        vel[q] = coef[1] / half_s
+    rm, rn = radii_of_curvature(np.degrees(pos[:, 0]))
+    vel[:, 0] *= rm
+    vel[:, 1] *= rn * np.cos(pos[:, 0])
+    return pos, vel
 
 
 def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
-                  heading_rad: np.ndarray, f_ned_h: np.ndarray | None, gnss_t: np.ndarray, gnss_north_m: np.ndarray,
-                  gnss_east_m: np.ndarray, t0_s: float, t1_s: float, *,
+                  heading_rad: np.ndarray, f_ned_h: np.ndarray | None, gnss_t: np.ndarray,
+                  gnss_lat_deg: np.ndarray, gnss_lon_deg: np.ndarray, t0_s: float, t1_s: float, *,
                   window_s: float = 60.0, half_s: float = 15.0, tau_s: float = 60.0,
                   horizontal: float = 1.0, busy_g: float = 0.1) -> dict | None:
     """What the GNSS says of the attitude reference: the tilt gain ``c`` of eq. (2) that the
@@ -135,7 +146,9 @@ def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
 
     Over consecutive windows of ``window_s`` between ``t0_s`` and ``t1_s``: the change of
     velocity the loads give (``acc_ned`` integrated, trapezoidal) minus the change of the GNSS
-    velocity (least-squares slope of the fixes over ``2 half_s``), a 2-vector per window.  The
+    velocity (a cubic fitted to the fixes over ``2 half_s``, in the local north and east:
+    :func:`_gnss_fit_ne`), the loads' share with the Coriolis and transport-rate terms added, a
+    2-vector per window.  The
     errors that stay constant over the flight are fitted to it by least squares and removed: a
     heading bias (the window's integrated horizontal acceleration turned by 90 deg), a
     horizontal acceleration bias in north-east axes, the roll and pitch biases (``g`` along
@@ -176,10 +189,23 @@ def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
         return np.column_stack([np.interp(ends, t, cum[:, k]) - np.interp(starts, t, cum[:, k])
                                 for k in range(2)])
 
-    vg = _gnss_velocity_ne(np.asarray(gnss_t, float), np.asarray(gnss_north_m, float),
-                           np.asarray(gnss_east_m, float), np.r_[starts, ends], half_s)
+    pg, vg = _gnss_fit_ne(np.asarray(gnss_t, float), np.asarray(gnss_lat_deg, float),
+                          np.asarray(gnss_lon_deg, float), np.r_[starts, ends], half_s)
     m = len(starts)
-    y = window_integral(a) - (vg[m:] - vg[:m])
+    # the Coriolis and transport-rate terms the loads do not hold, horizontal part
+    # (Groves eq. 5.54 without the vertical velocity's): dv_n += -k v_e, dv_e += k v_n with
+    # k = 2 Omega sin(lat) + v_e tan(lat) / R_N, integrated over the window: k times the
+    # window's displacement (east, north) [m]
+    from flightrecon.constants import WGS84_OMEGA
+    from flightrecon.geo.navframe import radii_of_curvature
+
+    lat_mid = 0.5 * (pg[:m, 0] + pg[m:, 0])
+    rm, rn = radii_of_curvature(np.degrees(lat_mid))
+    d_n = (pg[m:, 0] - pg[:m, 0]) * rm
+    d_e = (pg[m:, 1] - pg[:m, 1]) * rn * np.cos(lat_mid)
+    k = 2.0 * WGS84_OMEGA * np.sin(lat_mid) + (d_e / window_s) * np.tan(lat_mid) / rn
+    rot = np.column_stack([-k * d_e, k * d_n])
+    y = window_integral(a) + rot - (vg[m:] - vg[:m])
     X = np.stack([window_integral(c) for c in cols], axis=-1)      # (m, 2, 5)
     D = remembered(t, erection_driver_g(f_body_g, acc_ned, horizontal), tau_s)
     csum = np.r_[0.0, np.cumsum(D ** 2)]
