@@ -528,10 +528,22 @@ def gnss_tilt_evidence(clean: CleanFlight, inp: JointInputs,
     ok = np.isfinite(lat) & np.isfinite(lon)
     t_end = ph.touchdown_t_s if np.isfinite(ph.touchdown_t_s) else float(inp.t_in[-1])
     nz = settings.noise
-    f = np.nan_to_num(np.asarray(inp.f_body_g, float)) * G0_MPS2
-    C = inp.body_to_ned()
-    f_ned_h = C[:, :2, :] * f[:, None, :]
-    return tilt_evidence(inp.t_in, inp.acc_ned, inp.f_body_g, inp.heading_rad, f_ned_h,
+    # on block means of about half a second (the windows are a minute long; a 10-hour, 16 Hz
+    # record's regressors at full rate would be 150 MB)
+    t = inp.t_in
+    k = max(int(round(0.5 / float(np.median(np.diff(t))))), 1) if len(t) > 1 else 1
+    nb = len(t) // k
+
+    def blocks(x: np.ndarray) -> np.ndarray:  # NaN where a sample of the block is missing
+        x = np.asarray(x, float)[:nb * k]
+        return x.reshape((nb, k) + x.shape[1:]).mean(axis=1)
+
+    tb, acc, fb = blocks(t), blocks(inp.acc_ned), blocks(inp.f_body_g)
+    att = blocks(inp.attitude_deg[:, :2])
+    psi = blocks(inp.heading_rad)
+    C = body_to_ned_matrix(att[:, 0], att[:, 1], np.degrees(psi))
+    f_ned_h = C[:, :2, :] * (fb * G0_MPS2)[:, None, :]
+    return tilt_evidence(tb, acc, fb, psi, f_ned_h,
                          g["t_s"].to_numpy(float)[ok], lat[ok], lon[ok],
                          ph.liftoff_t_s + 30.0, t_end - 30.0, tau_s=nz.ahrs_tilt_tau_s,
                          window_s=nz.ahrs_tilt_tau_s,
