@@ -136,6 +136,43 @@ def _gnss_fit_ne(gnss_t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
     return pos, vel
 
 
+def _constant_error_integrands(acc_h: np.ndarray, heading_rad: np.ndarray,
+                               f_ned_h: np.ndarray | None) -> list[np.ndarray]:
+    """Per constant error of the loads' integration, its effect on the north-east acceleration
+    per unit error (N, 2): a heading bias [rad] (the horizontal acceleration ``acc_h`` turned by
+    90 deg), north and east acceleration biases [m/s^2], pitch and roll biases [rad] (``g``
+    along the body's forward and lateral axes, turned by the heading) and, with ``f_ned_h``
+    (N, 2, 3: the north-east part of each body axis's specific force [m/s^2]), the three
+    accelerometers' scale errors."""
+    n = len(acc_h)
+    psi = np.nan_to_num(np.asarray(heading_rad, float))
+    cols = [np.column_stack([-acc_h[:, 1], acc_h[:, 0]]),
+            np.column_stack([np.ones(n), np.zeros(n)]),
+            np.column_stack([np.zeros(n), np.ones(n)]),
+            G0_MPS2 * np.column_stack([np.cos(psi), np.sin(psi)]),
+            G0_MPS2 * np.column_stack([-np.sin(psi), np.cos(psi)])]
+    if f_ned_h is not None:
+        cols += [np.nan_to_num(np.asarray(f_ned_h, float)[:, :, k]) for k in range(3)]
+    return cols
+
+
+def _rotation_terms(pos_start: np.ndarray, pos_end: np.ndarray, window_s: float) -> np.ndarray:
+    """The Coriolis and transport-rate terms the loads do not hold, horizontal part, integrated
+    over each window (m, 2) [m/s]: ``dv_n += -k v_e``, ``dv_e += k v_n`` with
+    ``k = 2 Omega sin(lat) + v_e tan(lat) / R_N`` (Groves eq. 5.54 without the vertical
+    velocity's terms), integrated: ``k`` times the window's displacement (east, north);
+    ``pos_*`` latitude and longitude [rad] at the windows' ends."""
+    from flightrecon.constants import WGS84_OMEGA
+    from flightrecon.geo.navframe import radii_of_curvature
+
+    lat_mid = 0.5 * (pos_start[:, 0] + pos_end[:, 0])
+    rm, rn = radii_of_curvature(np.degrees(lat_mid))
+    d_n = (pos_end[:, 0] - pos_start[:, 0]) * rm
+    d_e = (pos_end[:, 1] - pos_start[:, 1]) * rn * np.cos(lat_mid)
+    k = 2.0 * WGS84_OMEGA * np.sin(lat_mid) + (d_e / window_s) * np.tan(lat_mid) / rn
+    return np.column_stack([-k * d_e, k * d_n])
+
+
 def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
                   heading_rad: np.ndarray, f_ned_h: np.ndarray | None, gnss_t: np.ndarray,
                   gnss_lat_deg: np.ndarray, gnss_lon_deg: np.ndarray, t0_s: float, t1_s: float, *,
@@ -145,40 +182,25 @@ def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
     recorded loads, integrated through the recorded attitude, need to meet the GNSS velocity.
 
     Over consecutive windows of ``window_s`` between ``t0_s`` and ``t1_s``: the change of
-    velocity the loads give (``acc_ned`` integrated, trapezoidal) minus the change of the GNSS
-    velocity (a cubic fitted to the fixes over ``2 half_s``, in the local north and east:
-    :func:`_gnss_fit_ne`), the loads' share with the Coriolis and transport-rate terms added, a
-    2-vector per window.  The
-    errors that stay constant over the flight are fitted to it by least squares and removed: a
-    heading bias (the window's integrated horizontal acceleration turned by 90 deg), a
-    horizontal acceleration bias in north-east axes, the roll and pitch biases (``g`` along
-    the body's lateral and forward axes, turned by the heading, integrated) and, with
-    ``f_ned_h`` (N, 2, 3: the horizontal north-east part of each body axis's specific force
-    [m/s^2]), the three accelerometers' scale errors (a 1 % error of the normal load in a 2 g,
-    60 deg turn: 10 m/s per minute).  What is left,
-    ``r`` [m/s] per window, against the rms over the window of the remembered driver ``D``
-    (eq. 1, 1b) [g]: ``r0`` the lower quartile of ``r`` (the GNSS slope's noise and what the
-    constants do not take), and each window with ``D >= busy_g`` gives
+    velocity the loads give (``acc_ned`` integrated, trapezoidal, with the Coriolis and
+    transport-rate terms: :func:`_rotation_terms`) minus the change of the GNSS velocity (a
+    cubic fitted to the fixes over ``2 half_s``, in the local north and east:
+    :func:`_gnss_fit_ne`), a 2-vector per window.  The errors that stay constant over the
+    flight (:func:`_constant_error_integrands`: heading, acceleration, roll and pitch biases,
+    with ``f_ned_h`` the accelerometers' scale errors, a 1 % error of the normal load in a
+    2 g, 60 deg turn being 10 m/s per minute) are fitted to it by least squares and removed.
+    What is left, ``r`` [m/s] per window, against the rms over the window of the remembered
+    driver ``D`` (eq. 1, 1b) [g]: ``r0`` the lower quartile of ``r`` (the GNSS slope's noise
+    and what the constants do not take), and each window with ``D >= busy_g`` gives
     ``c_i = sqrt(max(r^2 - r0^2, 0)) / (D window_s)`` [m/s^2 per g], the gain that explains its
-    excess; ``c`` is their median.  An attitude whose errors are constant biases (an inertial
-    reference, the simulator's sensors) gives ``c`` near 0; the PH-LAB AHRS about 0.5
-    (docs/realflights.md).  ``None`` with fewer than three busy windows or ten windows in all.
+    excess; ``c`` is their median.  An attitude whose errors are constant (an inertial
+    reference, the simulator's sensors) gives ``c`` near 0 (JSBSim: 0.04-0.18); the PH-LAB
+    AHRS 0.27-0.40 (docs/joint.md).  ``None`` with fewer than three busy windows or ten windows
+    in all.
     """
     t = np.asarray(t_in, float)
-    if len(t) < 2 or len(gnss_t) < 10:
-        return None
-    a = np.nan_to_num(np.asarray(acc_ned, float)[:, :2])
-    psi = np.nan_to_num(np.asarray(heading_rad, float))
-    # integrands of the constant errors' effect (north, east) per regressor
-    cols = [np.column_stack([-a[:, 1], a[:, 0]]),                      # heading bias [rad]
-            np.column_stack([np.ones(len(t)), np.zeros(len(t))]),      # north bias [m/s^2]
-            np.column_stack([np.zeros(len(t)), np.ones(len(t))]),      # east bias [m/s^2]
-            G0_MPS2 * np.column_stack([np.cos(psi), np.sin(psi)]),     # pitch bias [rad]
-            G0_MPS2 * np.column_stack([-np.sin(psi), np.cos(psi)])]    # roll bias [rad]
-    if f_ned_h is not None:  # scale errors: each body axis's specific force, its horizontal part
-        cols += [np.nan_to_num(np.asarray(f_ned_h, float)[:, :, k]) for k in range(3)]
     starts = np.arange(t0_s, t1_s - window_s, window_s)
-    if len(starts) < 10:
+    if len(t) < 2 or len(gnss_t) < 10 or len(starts) < 10:
         return None
     ends = starts + window_s
     dt = np.diff(t)[:, None]
@@ -189,24 +211,14 @@ def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
         return np.column_stack([np.interp(ends, t, cum[:, k]) - np.interp(starts, t, cum[:, k])
                                 for k in range(2)])
 
+    a = np.nan_to_num(np.asarray(acc_ned, float)[:, :2])
     pg, vg = _gnss_fit_ne(np.asarray(gnss_t, float), np.asarray(gnss_lat_deg, float),
                           np.asarray(gnss_lon_deg, float), np.r_[starts, ends], half_s)
     m = len(starts)
-    # the Coriolis and transport-rate terms the loads do not hold, horizontal part
-    # (Groves eq. 5.54 without the vertical velocity's): dv_n += -k v_e, dv_e += k v_n with
-    # k = 2 Omega sin(lat) + v_e tan(lat) / R_N, integrated over the window: k times the
-    # window's displacement (east, north) [m]
-    from flightrecon.constants import WGS84_OMEGA
-    from flightrecon.geo.navframe import radii_of_curvature
-
-    lat_mid = 0.5 * (pg[:m, 0] + pg[m:, 0])
-    rm, rn = radii_of_curvature(np.degrees(lat_mid))
-    d_n = (pg[m:, 0] - pg[:m, 0]) * rm
-    d_e = (pg[m:, 1] - pg[:m, 1]) * rn * np.cos(lat_mid)
-    k = 2.0 * WGS84_OMEGA * np.sin(lat_mid) + (d_e / window_s) * np.tan(lat_mid) / rn
-    rot = np.column_stack([-k * d_e, k * d_n])
-    y = window_integral(a) + rot - (vg[m:] - vg[:m])
-    X = np.stack([window_integral(c) for c in cols], axis=-1)      # (m, 2, 5)
+    y = (window_integral(a) + _rotation_terms(pg[:m], pg[m:], window_s)
+         - (vg[m:] - vg[:m]))
+    X = np.stack([window_integral(c) for c in _constant_error_integrands(a, heading_rad,
+                                                                         f_ned_h)], axis=-1)
     D = remembered(t, erection_driver_g(f_body_g, acc_ned, horizontal), tau_s)
     csum = np.r_[0.0, np.cumsum(D ** 2)]
     i, j = np.searchsorted(t, starts), np.searchsorted(t, ends)
