@@ -179,3 +179,51 @@ def test_cli_options_reach_the_summary(tmp_path):
     assert any(e["action"] == "gnss_use" for e in summ["cleaning"]["report"])
     assert run_cli(["reconstruct", str(CIRCUIT), "--withhold-gnss", "400:300",
                     "-o", str(tmp_path / "x.csv")]) == 2
+
+
+def test_clean_and_info_take_the_same_gnss_options(tmp_path, capsys):
+    """clean and info read the log with the same options as reconstruct: --gnss-interval 2 and
+    a withheld window leave 400 of the 901 fixes in the cleaned GNSS table and in info's
+    count; --no-gnss none; a bad --gnss-sd is a usage error (exit 2)."""
+    out = tmp_path / "c.parquet"
+    assert run_cli(["clean", str(CIRCUIT), "--withhold-gnss", "300:400", "--gnss-interval",
+                    "2", "-o", str(out)]) == 0
+    assert len(pd.read_parquet(tmp_path / "c.gnss.parquet")) == 400
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert run_cli(["clean", str(CIRCUIT), "--no-gnss", "-o",
+                        str(tmp_path / "n.parquet")]) == 0
+    assert not (tmp_path / "n.gnss.parquet").exists() or len(
+        pd.read_parquet(tmp_path / "n.gnss.parquet")) == 0
+    # the withheld columns are not "ignored columns not in the schema"
+    assert not any("not in the schema" in str(w.message) for w in caught)
+    capsys.readouterr()
+    assert run_cli(["info", str(CIRCUIT), "--json", "--withhold-gnss", "300:400",
+                    "--gnss-interval", "2"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["channels"]["gnss_lat_deg"]["samples"] == 400
+    assert run_cli(["info", str(CIRCUIT), "--gnss-sd", "-1"]) == 2
+
+
+def test_batch_gnss_options_reach_every_flight_and_its_key(tmp_path):
+    """batch --no-gnss reconstructs each flight without its fixes (the summary's measurements
+    say 0 used) and the settings' key changes with the GNSS options (a re-run with other
+    options redoes the flights), not with the default options."""
+    from flightrecon.batch.manifest import settings_key
+    from flightrecon.pipeline import ReconstructSettings
+
+    s = ReconstructSettings()
+    assert settings_key(s, "csv", None, GnssUse()) == settings_key(s, "csv", None)
+    assert settings_key(s, "csv", None, GnssUse(withhold=True)) != settings_key(s, "csv", None)
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    shutil.copy(CIRCUIT, logs / "circuit.csv")
+    shutil.copy(SAMPLES / "circuit.meta.toml", logs / "circuit.meta.toml")
+    out = tmp_path / "out"
+    assert run_cli(["-q", "batch", str(logs), "--out", str(out), "--workers", "1",
+                    "--methods", "sabziev", "--no-gnss", "--format", "csv"]) == 0
+    summ = json.loads(next(out.rglob("*.summary.json")).read_text())
+    assert summ["measurements"]["gnss_fixes"] == 0
+    assert summ["measurements"]["gnss_use"]["options"]["withhold"] is True
+    assert summ["methods"]["sns"]["reason"].startswith("the GNSS withheld")
+    assert summ["methods"]["joint"]["reason"].startswith("not among the methods asked for")

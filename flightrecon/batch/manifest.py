@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from flightrecon import __version__
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.pipeline import ReconstructSettings, sha256_file
 
 MANIFEST_VERSION = 1
@@ -39,10 +40,15 @@ def input_hashes(log: Path, sidecar: Path | None, mapping: Path | None = None
     return {str(Path(p).resolve()): sha256_file(p) for p in paths}
 
 
-def settings_key(settings: ReconstructSettings, fmt: str, store: Path | None) -> str:
-    """SHA-256 of everything besides the inputs that changes a flight's outputs or store row."""
+def settings_key(settings: ReconstructSettings, fmt: str, store: Path | None,
+                 gnss_use: GnssUse | None = None) -> str:
+    """SHA-256 of everything besides the inputs that changes a flight's outputs or store row
+    (``gnss_use``: the batch's :class:`flightrecon.ingest.gnss_use.GnssUse`, ``None``: the
+    logs' GNSS as recorded)."""
     doc = {"settings": asdict(settings), "format": fmt, "version": __version__,
            "store": None if store is None else str(Path(store).resolve())}
+    if gnss_use is not None and gnss_use != GnssUse():
+        doc["gnss_use"] = gnss_use.as_dict()
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 

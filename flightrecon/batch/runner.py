@@ -28,6 +28,7 @@ from flightrecon.batch.manifest import (
     write_manifest,
 )
 from flightrecon.errors import FlightReconError, OutputError
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.pipeline import ReconstructSettings
 
 FORMATS: tuple[str, ...] = ("parquet", "csv", "geojson", "kml")
@@ -191,7 +192,8 @@ def _average_rows(stats_list) -> list[dict[str, Any]]:
 def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = None,
           settings: ReconstructSettings = ReconstructSettings(), store: str | Path | None = None,
           force: bool = False, progress: Callable[[FlightOutcome, int], None] | None = None,
-          fmt: str = "parquet", mapping: str | Path | None = None) -> BatchResult:
+          fmt: str = "parquet", mapping: str | Path | None = None,
+          gnss_use: GnssUse | None = None) -> BatchResult:
     """Reconstruct many flights on a Dask cluster; record their coefficients; summarise.
 
     Parameters
@@ -209,6 +211,10 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
         the number of flights in the batch
     fmt : result format, one of :data:`FORMATS`
     mapping : mapping file for the logs whose sidecar names none (``--mapping``)
+    gnss_use : how every flight's GNSS fixes are used (:class:`flightrecon.ingest.gnss_use.
+        GnssUse`: withheld, windows, interval, receiver's sd; a sidecar's ``[gnss]`` is merged
+        with it as for ``reconstruct``); part of the settings' key, so a re-run with other GNSS
+        options redoes the flights
 
     Returns
     -------
@@ -231,7 +237,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     sweep_leftovers(out_dir)
     entries = discover_logs(inputs, out_dir)
     store_path = None if store is None else Path(store)
-    key = settings_key(settings, fmt, store_path)
+    key = settings_key(settings, fmt, store_path, gnss_use)
     db = CoefficientStore(store_path) if store_path is not None else None
     run = _BatchRun(entries, out_dir, fmt, key, db, progress)
     try:
@@ -243,7 +249,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
                 todo.append((i, e, paths, hashes))
         if todo:
             _run(todo, client, settings, fmt, run.finish,
-                 None if mapping is None else str(Path(mapping).resolve()))
+                 None if mapping is None else str(Path(mapping).resolve()), gnss_use)
         for j in sorted(run.pending):  # not expected: every submitted flight reports back
             run.record_finished(j, *run.pending.pop(j))
         ordered = tuple(run.outcomes[i] for i in range(len(entries)))
@@ -357,18 +363,18 @@ class _BatchRun:
         return stats_list
 
 
-def _run(todo, client, settings, fmt, finish, mapping=None) -> None:
+def _run(todo, client, settings, fmt, finish, mapping=None, gnss_use=None) -> None:
     """Submit one task per flight and hand each result to ``finish`` as it completes."""
     from flightrecon.batch.cluster import open_client
 
     if client is None:
         with open_client() as c:
-            _submit_all(c, todo, settings, fmt, finish, mapping)
+            _submit_all(c, todo, settings, fmt, finish, mapping, gnss_use)
     else:
-        _submit_all(client, todo, settings, fmt, finish, mapping)
+        _submit_all(client, todo, settings, fmt, finish, mapping, gnss_use)
 
 
-def _submit_all(client, todo, settings, fmt, finish, mapping=None) -> None:
+def _submit_all(client, todo, settings, fmt, finish, mapping=None, gnss_use=None) -> None:
     from distributed import as_completed
 
     from flightrecon.batch.task import run_flight
@@ -378,7 +384,7 @@ def _submit_all(client, todo, settings, fmt, finish, mapping=None) -> None:
         fut = client.submit(run_flight, str(e.log.resolve()),
                             None if e.sidecar is None else str(e.sidecar.resolve()),
                             str(paths["result"].resolve()), str(paths["summary"].resolve()),
-                            settings, fmt, mapping,
+                            settings, fmt, mapping, gnss_use,
                             key=f"flightrecon-{e.name}-{uuid.uuid4().hex[:12]}",
                             pure=False)
         futures[fut] = (i, hashes)

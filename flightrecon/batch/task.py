@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.pipeline import ReconstructSettings
 
 #: accuracy columns summarised per flight (median over the samples where they are finite)
@@ -87,7 +88,7 @@ def _joint_for_store(summary: dict[str, Any]) -> dict[str, Any] | None:
 
 def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: str,
                settings: ReconstructSettings, fmt: str,
-               mapping: str | None = None) -> dict[str, Any]:
+               mapping: str | None = None, gnss_use: GnssUse | None = None) -> dict[str, Any]:
     """Reconstruct ``log`` and write its result and summary atomically.
 
     Calls :func:`flightrecon.pipeline.reconstruct` with ``store=None, record=False`` (the client
@@ -101,6 +102,8 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
     fmt : ``parquet``, ``csv``, ``geojson`` or ``kml``
     mapping : the batch's ``--mapping``, used when the sidecar names no mapping (the log's own
         mapping, found as ``reconstruct`` finds it, wins)
+    gnss_use : the batch's GNSS options (:class:`flightrecon.ingest.gnss_use.GnssUse`, ``None``:
+        as recorded)
 
     Returns
     -------
@@ -123,7 +126,8 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
     try:
         # one thread per flight: the batch's parallelism is across flights (Dask workers)
         rec = reconstruct(log, sidecar=sidecar, mapping=_mapping_for(sidecar, mapping),
-                          settings=settings, store=None, record=False, workers=1)
+                          settings=settings, store=None, record=False, workers=1,
+                          gnss_use=gnss_use)
         write_track(result_path, rec.track, rec.summary, fmt)
         write_summary(summary_path, rec.summary)
     except FlightReconError as exc:

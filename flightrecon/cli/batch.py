@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from flightrecon.cli.common import parse_k
+from flightrecon.cli.common import gnss_use_from_options, gnss_use_options, parse_k
 from flightrecon.cli.trim import trim_options
 
 
@@ -41,12 +41,15 @@ from flightrecon.cli.trim import trim_options
                    "sidecar's [files] mapping wins, as for reconstruct).")
 @click.option("--format", "fmt", type=click.Choice(["parquet", "csv", "geojson", "kml"]),
               default="parquet", show_default=True, help="Result format.")
+@gnss_use_options
 @trim_options
 @click.pass_context
 def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
             scheduler: str | None, workers: int | None, store_path: Path | None, force: bool,
             methods: str | None, rate_hz: float | None, k_text: str | None, estimate_noise: bool,
-            mapping: Path | None, fmt: str, start: str | None = None,
+            mapping: Path | None, fmt: str, no_gnss: bool = False,
+            withhold_gnss: tuple[str, ...] = (), gnss_interval: float | None = None,
+            gnss_sd: str | None = None, start: str | None = None,
             end: str | None = None) -> None:
     """Reconstruct every log among INPUTS (files, folders, globs) into --out, one Dask task per
     flight; a failed flight is reported and the batch goes on; a re-run skips finished flights."""
@@ -54,6 +57,7 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
     from flightrecon.pipeline import ReconstructSettings
 
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
+    gnss_use = gnss_use_from_options(no_gnss, withhold_gnss, gnss_interval, gnss_sd)
     if store_path is not None:   # a store that cannot be used: exit 10 before any cluster starts
         from flightrecon.store.db import check_store_path
 
@@ -84,7 +88,7 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
         with open_client(scheduler, workers) as client:
             res = batch(list(inputs), out_dir, client=client, settings=settings,
                         store=store_path, force=force, progress=progress, fmt=fmt,
-                        mapping=mapping)
+                        mapping=mapping, gnss_use=gnss_use)
     finally:
         if bar is not None:
             bar.close()

@@ -9,7 +9,12 @@ from typing import Any
 
 import click
 
-from flightrecon.cli.common import NonEmptyPath, input_options
+from flightrecon.cli.common import (
+    NonEmptyPath,
+    gnss_use_from_options,
+    gnss_use_options,
+    input_options,
+)
 from flightrecon.cli.trim import trim_options
 
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
@@ -95,12 +100,15 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
 @click.option("--json", "as_json", is_flag=True,
               help="Print the cleaning report (the <stem>.cleaning.json document) on stdout "
                    "instead of the summary lines.")
+@gnss_use_options
 @trim_options
 @click.pass_context
 def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
             gnss: Path | None, radar: Path | None, mapping: Path | None, sidecar: Path | None,
             max_gap_s: float,
             gnss_clock_offset: float, radar_clock_offset: float, as_json: bool,
+            no_gnss: bool = False, withhold_gnss: tuple[str, ...] = (),
+            gnss_interval: float | None = None, gnss_sd: str | None = None,
             start: str | None = None, end: str | None = None) -> None:
     """Clean LOG: despike, unwrap, resample the input channels onto one grid, keep the GNSS fixes
     and radar plots at their own times, detect lift-off and touchdown.
@@ -114,6 +122,7 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
     from flightrecon.export.atomic import check_outputs, sweep_leftovers
     from flightrecon.ingest import load_flight
 
+    gnss_use = gnss_use_from_options(no_gnss, withhold_gnss, gnss_interval, gnss_sd)
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     check_outputs(output_paths(out), run_inputs(log, gnss=gnss, radar=radar, mapping=mapping,
                                                 sidecar=sidecar))
@@ -125,7 +134,8 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
     with stage_progress(quiet, ["ingest", "cleaning", "write"], "clean") as stage:
         with errors_name_file(log, sidecar):
             stage("ingest")
-            flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
+            flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                                 gnss_use=gnss_use)
             stage("cleaning")
             clean = clean_flight(flight, rate_hz=rate_hz, settings=settings)
         stage("write")

@@ -26,6 +26,51 @@ def input_options(f):
     return f
 
 
+def gnss_use_options(f):
+    """The options choosing how the GNSS fixes are used: --no-gnss, --withhold-gnss,
+    --gnss-interval, --gnss-sd (:func:`gnss_use_from_options` turns them into a
+    :class:`flightrecon.ingest.gnss_use.GnssUse`; docs/ingest.md, "Using the GNSS")."""
+    for opt in reversed((
+        click.option("--no-gnss", "no_gnss", is_flag=True,
+                     help="Withhold GNSS: use none of the log's GNSS channels nor a GNSS file "
+                          "(a recorder-only reconstruction, e.g. to compare with the GNSS "
+                          "track)."),
+        click.option("--withhold-gnss", "withhold_gnss", metavar="START:END", multiple=True,
+                     help="Withhold the GNSS fixes from START to END (seconds of the log's "
+                          "time, as --start/--end); repeatable; reported in the summary "
+                          "(docs/ingest.md, 'Using the GNSS')."),
+        click.option("--gnss-interval", "gnss_interval", type=float, metavar="S",
+                     help="Use at most one GNSS fix every S seconds (the first of each "
+                          "S-second slot of the log's time; e.g. 1 for 1 Hz from a 10 Hz "
+                          "frame)."),
+        click.option("--gnss-sd", "gnss_sd", metavar="H[:V]",
+                     help="The GNSS receiver's sd in metres, horizontal per axis [and "
+                          "vertical], in place of the log's figure; the rounding of positions "
+                          "recorded in steps is still added on top."),
+    )):
+        f = opt(f)
+    return f
+
+
+def gnss_use_from_options(no_gnss: bool = False, withhold_gnss: tuple[str, ...] = (),
+                          gnss_interval: float | None = None, gnss_sd: str | None = None):
+    """The options of :func:`gnss_use_options` as a
+    :class:`flightrecon.ingest.gnss_use.GnssUse` (a bad value: a usage error naming the
+    option, exit 2)."""
+    from flightrecon.ingest.gnss_use import GnssUse, parse_gnss_sd, parse_window
+
+    hint = "--withhold-gnss"
+    try:
+        wins = tuple(parse_window(w) for w in withhold_gnss)
+        hint = "--gnss-sd"
+        h, v = parse_gnss_sd(gnss_sd) if gnss_sd is not None else (None, None)
+        hint = "--gnss-interval"
+        return GnssUse(withhold=no_gnss, withhold_s=wins, interval_s=gnss_interval, h_sd_m=h,
+                       v_sd_m=v)
+    except MetadataError as exc:
+        raise click.BadParameter(exc.message, param_hint=hint) from None
+
+
 class NonEmptyPath(click.Path):
     """A click path that refuses an empty string (``-o ''``) as a usage error (exit code 2)
     instead of taking it for the current folder."""

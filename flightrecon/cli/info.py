@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from flightrecon.cli.common import input_options
+from flightrecon.cli.common import gnss_use_from_options, gnss_use_options, input_options
 
 
 def _fmt(v, spec: str = ".3g", none: str = "-") -> str:
@@ -44,7 +44,10 @@ def position_text(p) -> str:
 @input_options
 @click.option("--json", "as_json", is_flag=True,
               help="Machine-readable output: standard JSON (no NaN) on stdout.")
-def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool) -> None:
+@gnss_use_options
+def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool, no_gnss: bool = False,
+            withhold_gnss: tuple[str, ...] = (), gnss_interval: float | None = None,
+            gnss_sd: str | None = None) -> None:
     """Show the channels, rates, duration, gaps and metadata of LOG (validating it); reads
     only, writes nothing."""
     import warnings
@@ -55,10 +58,12 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool) -> None:
 
     from flightrecon.ingest.physics import DoorRefusal
 
+    gnss_use = gnss_use_from_options(no_gnss, withhold_gnss, gnss_interval, gnss_sd)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FlightReconWarning)
-            flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar)
+            flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
+                                 gnss_use=gnss_use)
     except DoorRefusal as exc:          # the checks up to the refusal, then the error
         if as_json:
             click.echo(to_json({"door": [c.as_dict() for c in exc.checks]}))

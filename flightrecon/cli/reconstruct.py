@@ -9,6 +9,8 @@ import click
 from flightrecon.cli.common import (
     default_output,
     errors_name_file,
+    gnss_use_from_options,
+    gnss_use_options,
     input_options,
     NonEmptyPath,
     parse_k,
@@ -34,20 +36,7 @@ from flightrecon.cli.trim import trim_options
               help="Winds-aloft prior: CSV alt_msl_m,from_deg,speed_mps[,sd_mps]: the joint "
                    "smoother's wind prior by altitude, the wind of Sabziev and dead reckoning "
                    "where the log records none (docs/wind.md).")
-@click.option("--no-gnss", "no_gnss", is_flag=True,
-              help="Withhold GNSS: use none of the log's GNSS channels nor a GNSS file "
-                   "(a recorder-only reconstruction, e.g. to compare with the GNSS track).")
-@click.option("--withhold-gnss", "withhold_gnss", metavar="START:END", multiple=True,
-              help="Withhold the GNSS fixes from START to END (seconds of the log's time, as "
-                   "--start/--end); repeatable; reported in the summary (docs/ingest.md, "
-                   "'Using the GNSS').")
-@click.option("--gnss-interval", "gnss_interval", type=float, metavar="S",
-              help="Use at most one GNSS fix every S seconds (the first of each S-second slot "
-                   "of the log's time; e.g. 1 for 1 Hz from a 10 Hz frame).")
-@click.option("--gnss-sd", "gnss_sd", metavar="H[:V]",
-              help="The GNSS receiver's sd in metres, horizontal per axis [and vertical], in "
-                   "place of the log's figure; the rounding of positions recorded in steps is "
-                   "still added on top.")
+@gnss_use_options
 @click.option("--aircraft", "aircraft_id", metavar="ID", help="Aircraft id.")
 @click.option("--methods", metavar="LIST",
               help="Comma-separated methods to run (joint,sabziev,arms,azimuth,sns); "
@@ -137,7 +126,7 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
         overrides["wind_aloft"] = str(wind_file)
     if aircraft_id:
         overrides["aircraft_id"] = aircraft_id
-    gnss_use = _gnss_use(no_gnss, withhold_gnss, gnss_interval, gnss_sd)
+    gnss_use = gnss_use_from_options(no_gnss, withhold_gnss, gnss_interval, gnss_sd)
     settings = ReconstructSettings(
         methods=method_list, rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
         arms_form=arms_form, arms_linearisation=arms_linearisation, azimuth_model=azimuth_model,
@@ -185,25 +174,6 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
     if not (rec.summary.get("result") or {}).get("method"):
         raise NoResultError("no method produced a physically possible track; the unhealthy "
                             f"tracks were written for inspection to {out}")
-
-
-def _gnss_use(no_gnss: bool, windows: tuple[str, ...], interval: float | None,
-              sd: str | None):
-    """The GNSS options as :class:`flightrecon.ingest.gnss_use.GnssUse` (a bad value: a usage
-    error naming the option, exit 2)."""
-    from flightrecon.errors import MetadataError
-    from flightrecon.ingest.gnss_use import GnssUse, parse_gnss_sd, parse_window
-
-    hint = "--withhold-gnss"
-    try:
-        wins = tuple(parse_window(w) for w in windows)
-        hint = "--gnss-sd"
-        h, v = parse_gnss_sd(sd) if sd is not None else (None, None)
-        hint = "--gnss-interval"
-        return GnssUse(withhold=no_gnss, withhold_s=wins, interval_s=interval, h_sd_m=h,
-                       v_sd_m=v)
-    except MetadataError as exc:
-        raise click.BadParameter(exc.message, param_hint=hint) from None
 
 
 def _method_list(methods: str | None) -> tuple[str, ...] | None:

@@ -208,10 +208,13 @@ def _read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsort
     if raw.dialect == "garmin" and mp is not None:
         mt = apply_garmin_columns(raw, mt, mp, withhold_gnss)
         meta = _qnh_from_setting(meta, altimeter_settings_hpa(raw, mt), notes)
+    withheld: set[str] = set()
     if withhold_gnss:
-        mt = _without_gnss(mt)
+        kept = _without_gnss(mt)
+        withheld = set(mt.source_column.values()) - set(kept.source_column.values())
+        mt = kept
     used = (set(mt.source_column.values()) | set(_time_columns(mp, raw.columns))
-            | set(garmin_used))
+            | set(garmin_used) | withheld)   # withheld GNSS columns are said so, not "ignored"
     ignored = [c for c in raw.columns if c not in used]
     if ignored:
         shown = ", ".join(ignored[:8]) + (" ..." if len(ignored) > 8 else "")

@@ -230,7 +230,11 @@ def _radar_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
 
 def _sns_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
     has_gnss = len(clean.gnss) > 0 and "gnss_lat_deg" in clean.gnss.columns
-    return None if has_gnss else "no GNSS fixes in the data"
+    if has_gnss:
+        return None
+    use = (clean.meta.extra.get("gnss_use") or {}).get("options") or {}
+    return ("the GNSS withheld (--no-gnss or the sidecar's [gnss])" if use.get("withhold")
+            else "no GNSS fixes in the data")
 
 
 # -- how each method is called -----------------------------------------------------------------

@@ -76,7 +76,9 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
             if avail[m] is not None:
                 raise MetadataError(f"method '{m}' cannot run on this flight: {avail[m]}")
         chosen = list(settings.methods)
-    status: dict[str, Any] = {m: {"status": "skipped", "reason": avail[m]}
+    status: dict[str, Any] = {m: {"status": "skipped",
+                                  "reason": avail[m] or "not among the methods asked for "
+                                                        "(--methods)"}
                               for m in ALL_METHODS if m not in chosen}
     results: dict[str, MethodResult] = {}
     workers = default_workers() if workers is None else max(1, int(workers))
