@@ -104,3 +104,32 @@ def pressure_to_msl_m(h_p_m, qnh_hpa: float | None) -> np.ndarray:
     q = _check_qnh(qnh_hpa)
     return np.asarray(pressure_altitude_m(isa_pressure_pa(h) * STANDARD_QNH_HPA / q),
                       dtype=np.float64)
+
+
+def height_above_field_m(h_p_m, h_p_field_m: float, isa_deviation_k: float) -> np.ndarray:
+    """Height [m] above a field of a point at pressure altitude ``h_p_m``, in air whose
+    temperature is the ISA's plus the constant deviation ``isa_deviation_k`` [K].
+
+    The hydrostatic equation of an ideal gas, ``g0 dH = -R T dp / p`` (``H`` geopotential
+    height), and the definition of pressure altitude, ``g0 dh_p = -R T_ISA(h_p) dp / p``, give
+    (eq. 1)::
+
+        dH / dh_p = T / T_ISA(h_p) = 1 + dT / T_ISA(h_p)
+
+    and, with ``T_ISA(h_p) = T0 + L h_p`` (troposphere), from the field's pressure altitude
+    ``h_p,f`` to ``h_p`` (eq. 2)::
+
+        H - H_f = (h_p - h_p,f) + (dT / L) ln(T_ISA(h_p) / T_ISA(h_p,f))
+
+    A warm day (``dT > 0``) puts the aircraft higher above the field than its pressure altitude
+    says, by ``dT / T`` (1 % per 2.9 K near 288 K).  Geopotential and geometric height differ by
+    less than 0.05 % below 3 km (gravity's change with height and latitude).  Worked number:
+    ``h_p,f = 0``, ``h_p = 1500 m``, ``dT = +10 K``: ``T_ISA = 278.4 K``, ``H = 1500 -
+    1538.46 ln(278.4 / 288.15) = 1552.96 m``.  Troposphere only (``h_p`` below 11 km).
+    """
+    h = np.asarray(h_p_m, dtype=np.float64)
+    t_hi = T0_K + LAPSE_K_PER_M * h
+    t_lo = T0_K + LAPSE_K_PER_M * float(h_p_field_m)
+    return np.asarray((h - float(h_p_field_m))
+                      + float(isa_deviation_k) / LAPSE_K_PER_M * np.log(t_hi / t_lo),
+                      dtype=np.float64)
