@@ -922,6 +922,7 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
     t = np.arange(0.0, 80.0, 0.25)
     n = len(t)
     nz = JointSettings().noise
+    T = t[::4]
     for thresholds in ((thr, None), (None, None)):
         inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
                           attitude_deg=np.tile([0.0, 0.0, 237.0], (n, 1)),
@@ -930,7 +931,6 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
                           station=None, departure=(thr[0] + 0.005, thr[1], thr[2]),
                           arrival=None, liftoff_t=30.0, touchdown_t=np.nan, field_h=thr[2],
                           runway_rad=(rw, None), thresholds=thresholds)
-        T = t[::4]
         b = _MeasBuilder(T)
         runway_measurements(b, inp, JointSettings(),
                             lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
