@@ -240,11 +240,14 @@ def test_height_above_field_worked_number():
     """Eq. 2 of ``height_above_field_m``: 1500 m of pressure altitude above a field at 0 in air
     10 K above the ISA is ``1500 - (10 / 0.0065) ln(278.4 / 288.15) = 1552.957 m`` (by hand:
     ln(0.966163) = -0.0344228); the ISA gives the pressure-altitude difference itself, and eq. 2
-    is eq. 1 integrated (trapezoid on 1 m steps: error below 1e-6 m)."""
+    is eq. 1 integrated (trapezoid on 1 m steps: error below 1e-6 m).  Across the tropopause,
+    13 000 m at ISA + 10 K: ``F = ln(216.65 / 288.15) / -0.0065 + 2000 / 216.65 = 43.8766 +
+    9.2315 = 53.1081 m/K``, ``H = 13 000 + 10 F = 13 531.08 m``."""
     assert float(height_above_field_m(1500.0, 0.0, 10.0)) == pytest.approx(1552.957, abs=1e-3)
     assert float(height_above_field_m(1500.0, 0.0, 10.0)) - 1500.0 == pytest.approx(
         -10.0 / 0.0065 * -0.0344228, abs=1e-3)
     assert float(height_above_field_m(1287.0, 17.0, 0.0)) == pytest.approx(1270.0, abs=1e-9)
+    assert float(height_above_field_m(13000.0, 0.0, 10.0)) == pytest.approx(13531.08, abs=0.01)
     h = np.arange(17.0, 1288.0, 1.0)
     f = 1.0 + (-4.0) / (T0_K + LAPSE_K_PER_M * h)
     integral = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(h)))

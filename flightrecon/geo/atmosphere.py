@@ -116,20 +116,24 @@ def height_above_field_m(h_p_m, h_p_field_m: float, isa_deviation_k: float) -> n
 
         dH / dh_p = T / T_ISA(h_p) = 1 + dT / T_ISA(h_p)
 
-    and, with ``T_ISA(h_p) = T0 + L h_p`` (troposphere), from the field's pressure altitude
-    ``h_p,f`` to ``h_p`` (eq. 2)::
+    and, from the field's pressure altitude ``h_p,f`` to ``h_p`` (eq. 2)::
 
-        H - H_f = (h_p - h_p,f) + (dT / L) ln(T_ISA(h_p) / T_ISA(h_p,f))
+        H - H_f = (h_p - h_p,f) + dT (F(h_p) - F(h_p,f)),   F(h) = int_0^h dh' / T_ISA(h')
+
+    with ``F(h) = ln(T_ISA(h) / T0) / L`` in the troposphere (``T_ISA = T0 + L h``) and
+    ``F(11 km) + (h - 11 km) / T_11`` above it (``T_11`` = 216.65 K), to 20 km.
 
     A warm day (``dT > 0``) puts the aircraft higher above the field than its pressure altitude
     says, by ``dT / T`` (1 % per 2.9 K near 288 K).  Geopotential and geometric height differ by
     less than 0.05 % below 3 km (gravity's change with height and latitude).  Worked number:
     ``h_p,f = 0``, ``h_p = 1500 m``, ``dT = +10 K``: ``T_ISA = 278.4 K``, ``H = 1500 -
-    1538.46 ln(278.4 / 288.15) = 1552.96 m``.  Troposphere only (``h_p`` below 11 km).
+    1538.46 ln(278.4 / 288.15) = 1552.96 m``.
     """
+    def f(h):
+        tropo = np.minimum(h, H_TROPOPAUSE_M)
+        return (np.log((T0_K + LAPSE_K_PER_M * tropo) / T0_K) / LAPSE_K_PER_M
+                + np.maximum(h - H_TROPOPAUSE_M, 0.0) / T_TROPOPAUSE_K)
+
     h = np.asarray(h_p_m, dtype=np.float64)
-    t_hi = T0_K + LAPSE_K_PER_M * h
-    t_lo = T0_K + LAPSE_K_PER_M * float(h_p_field_m)
-    return np.asarray((h - float(h_p_field_m))
-                      + float(isa_deviation_k) / LAPSE_K_PER_M * np.log(t_hi / t_lo),
-                      dtype=np.float64)
+    h_f = np.asarray(float(h_p_field_m), dtype=np.float64)
+    return np.asarray((h - h_f) + float(isa_deviation_k) * (f(h) - f(h_f)), dtype=np.float64)
