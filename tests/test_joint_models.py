@@ -899,3 +899,49 @@ def test_runway_centreline_runs_through_the_threshold():
     p_arp = np.array(geodetic_to_ecef(arp_lat, arp_lon, thr[2]), float).reshape(3)
     np.testing.assert_allclose(H[:, jl.S_POS] @ p_thr + d, 0.0, atol=1e-3)
     np.testing.assert_allclose(np.abs(H[:, jl.S_POS] @ p_arp + d), 650.0, atol=0.5)
+
+
+def test_centreline_through_a_reference_point_is_one_unknown_offset():
+    """Without a threshold the centreline rows run through the airfield's reference point, which
+    need not lie on the runway (issue #36: the Garmin study's stands, 364 m beside the arrival
+    runway's line at touchdown, where the 25 m rows made the north sd 17 m: error 20 sd, mean
+    NEES north 5.9).  Its distance from the centreline is one error for the whole roll, known
+    no better than the reference itself (``endpoint_h_m``): each of the m rows carries
+    ``halfwidth^2 + m endpoint_h_m^2``, so that the roll tells the cross-track position no
+    more than one reference's worth (sum of 1/r below 1/endpoint_h_m^2).  With the threshold
+    the rows keep the half-width alone."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.ground import runway_measurements
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import SOURCES, JointSettings
+
+    rw = np.radians(237.0)
+    thr = (51.9627, 4.4548, 38.5)
+    t = np.arange(0.0, 80.0, 0.25)
+    n = len(t)
+    nz = JointSettings().noise
+    T = t[::4]
+    for thresholds in ((thr, None), (None, None)):
+        inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                          attitude_deg=np.tile([0.0, 0.0, 237.0], (n, 1)),
+                          tas=np.clip(1.5 * t, 0.0, 60.0), heading_rad=np.full(n, rw),
+                          baro_rel_m=np.zeros(n), gnss=pd.DataFrame(), radar=pd.DataFrame(),
+                          station=None, departure=(thr[0] + 0.005, thr[1], thr[2]),
+                          arrival=None, liftoff_t=30.0, touchdown_t=np.nan, field_h=thr[2],
+                          runway_rad=(rw, None), thresholds=thresholds)
+        b = _MeasBuilder(T)
+        runway_measurements(b, inp, JointSettings(),
+                            lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                            np.zeros((len(T), 3)), np.zeros((len(T), 3)))
+        k = [int(p["source"][0]) for p in b.parts].index(SOURCES.index("runway"))
+        r = b.parts[k]["r"]
+        m = len(r)
+        assert m == 28   # 1 Hz, more than 2 s before lift-off
+        if thresholds[0] is not None:
+            np.testing.assert_allclose(r, nz.runway_halfwidth_m ** 2, rtol=1e-12)
+        else:
+            np.testing.assert_allclose(r, nz.runway_halfwidth_m ** 2 + m * nz.endpoint_h_m ** 2,
+                                       rtol=1e-12)
+            assert float(np.sum(1.0 / r)) < 1.0 / nz.endpoint_h_m ** 2

@@ -6,7 +6,10 @@
   pressure-altitude scale error of -17 % and a heading bias of +3.9 deg to the climb the
   accelerations did not show (``sampled_loads_noise`` and the per-axis process noise);
 * a baro channel on the QNH or QFE datum was referred to the field's pressure altitude
-  (``baro_field_reference_m``).
+  (``baro_field_reference_m``);
+* the pressure-altitude scale's prior N(0, 5 %) ignored the recorded temperature: recorder
+  only, the scale wandered to -2.1 % and put the cruise 22 m above the GPS
+  (``temperature_baro_prior``, ``atmosphere.height_above_field_m``).
 """
 
 from __future__ import annotations
@@ -24,8 +27,19 @@ from flightrecon.filters.joint import dynamics as jd
 from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.nominal import _q_vector
 from flightrecon.filters.joint.settings import JointNoise
-from flightrecon.filters.joint_method import baro_field_reference_m, sampled_loads_noise
-from flightrecon.geo.atmosphere import field_pressure_altitude_m
+from flightrecon.filters.joint_method import (
+    MIN_SAT_SAMPLES,
+    baro_field_reference_m,
+    sampled_loads_noise,
+    temperature_baro_prior,
+)
+from flightrecon.geo.atmosphere import (
+    LAPSE_K_PER_M,
+    T0_K,
+    field_pressure_altitude_m,
+    height_above_field_m,
+    isa_temperature_k,
+)
 from flightrecon.types import FlightMeta, Position
 
 
@@ -210,10 +224,75 @@ def test_a_1hz_load_record_does_not_bend_the_pressure_altitude(tmp_path):
 
     assert height_rms(j.track) < 6.0
     assert abs(j.summary["corrections"]["baro_scale"]["value"]) < 0.035
-    # the defect itself, with the sampling noise held off (an extra the user set is kept)
-    off = JointSettings(noise=JointNoise(accel_sampling_mps2_sqrt_hz=(1e-9, 0.0, 0.0)))
+    # the defect itself, with the sampling noise held off (an extra the user set is kept) and
+    # the scale's prior as it was before the recorded SAT set it (N(0, 5 %), given: kept);
+    # with the SAT's prior alone the scale cannot wander: 4.3 m (temperature_baro_prior)
+    off = JointSettings(noise=JointNoise(accel_sampling_mps2_sqrt_hz=(1e-9, 0.0, 0.0)),
+                        priors=(("baro_scale", 0.0, 0.05),))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         j0 = run_joint(clean, settings=off)
     assert height_rms(j0.track) > 10.0
     assert j0.summary["corrections"]["baro_scale"]["value"] < -0.04
+
+
+def test_height_above_field_worked_number():
+    """Eq. 2 of ``height_above_field_m``: 1500 m of pressure altitude above a field at 0 in air
+    10 K above the ISA is ``1500 - (10 / 0.0065) ln(278.4 / 288.15) = 1552.957 m`` (by hand:
+    ln(0.966163) = -0.0344228); the ISA gives the pressure-altitude difference itself, and eq. 2
+    is eq. 1 integrated (trapezoid on 1 m steps: error below 1e-6 m).  Across the tropopause,
+    13 000 m at ISA + 10 K: ``F = ln(216.65 / 288.15) / -0.0065 + 2000 / 216.65 = 43.8766 +
+    9.2315 = 53.1081 m/K``, ``H = 13 000 + 10 F = 13 531.08 m``."""
+    assert float(height_above_field_m(1500.0, 0.0, 10.0)) == pytest.approx(1552.957, abs=1e-3)
+    assert float(height_above_field_m(1500.0, 0.0, 10.0)) - 1500.0 == pytest.approx(
+        -10.0 / 0.0065 * -0.0344228, abs=1e-3)
+    assert float(height_above_field_m(1287.0, 17.0, 0.0)) == pytest.approx(1270.0, abs=1e-9)
+    assert float(height_above_field_m(13000.0, 0.0, 10.0)) == pytest.approx(13531.08, abs=0.01)
+    h = np.arange(17.0, 1288.0, 1.0)
+    f = 1.0 + (-4.0) / (T0_K + LAPSE_K_PER_M * h)
+    integral = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(h)))
+    assert float(height_above_field_m(1288.0 - 1.0, 17.0, -4.0)) == pytest.approx(integral,
+                                                                                  abs=1e-6)
+
+
+def _sat_inputs(dh_p: np.ndarray, h_p_field: float, dev_k: np.ndarray):
+    """Stand-in JointInputs and SAT [degC] of an airborne record at ``dh_p`` above the field."""
+    t = np.arange(float(len(dh_p)))
+    inp = SimpleNamespace(t_in=t, baro_rel_m=dh_p, liftoff_t=np.nan, touchdown_t=np.nan)
+    sat = isa_temperature_k(dh_p + h_p_field) + dev_k - 273.15
+    return cast(Any, inp), sat
+
+
+def test_temperature_baro_prior_of_a_warm_day():
+    """A cruise 1500 m of pressure altitude above a field at 0, SAT 10 K above the ISA: the
+    height above the field is 1552.957 m (the worked number), so ``1 + c = 1500 / 1552.957``,
+    c = -3.4100 %; its sd is ``sat_column_k`` (1.5 K, no spread) times dc/dT =
+    -1500 * 5.2957 / 1552.957^2 per K (H = 1500 + 5.2957 dT): 0.494 %."""
+    inp, sat = _sat_inputs(np.full(200, 1500.0), 0.0, np.full(200, 10.0))
+    st = temperature_baro_prior(inp, sat, 0.0, JointSettings())
+    (name, mean, sd), = st.priors
+    assert name == "baro_scale"
+    assert mean == pytest.approx(1500.0 / 1552.957 - 1.0, abs=1e-6)
+    assert sd == pytest.approx(1.5 * 1500.0 * 5.2957 / 1552.957 ** 2, rel=1e-3)
+
+
+def test_temperature_baro_prior_spread_and_guards():
+    """The samples' spread of the deviation adds to ``sat_column_k`` in quadrature (2 K and
+    1.5 K: 2.5 K, the sd 2.5 / 1.5 times the one without); an ISA day gives c = 0; a prior
+    given in the settings is kept; fewer than MIN_SAT_SAMPLES airborne samples: unchanged."""
+    rng = np.random.default_rng(4)
+    climb = np.r_[np.linspace(0.0, 1200.0, 300), np.full(900, 1200.0)]
+    dev = rng.standard_normal(climb.size)
+    dev = 2.0 * (dev - dev.mean()) / dev.std()
+    inp, sat = _sat_inputs(climb, 120.0, dev)
+    (_, mean, sd), = temperature_baro_prior(inp, sat, 120.0, JointSettings()).priors
+    inp0, sat0 = _sat_inputs(climb, 120.0, np.zeros(climb.size))
+    (_, mean0, sd0), = temperature_baro_prior(inp0, sat0, 120.0, JointSettings()).priors
+    assert mean0 == pytest.approx(0.0, abs=1e-12)
+    assert mean == pytest.approx(0.0, abs=1e-9)       # zero-mean deviation: the ISA's scale
+    assert sd / sd0 == pytest.approx(2.5 / 1.5, rel=0.01)
+    mine = JointSettings(priors=(("baro_scale", 0.01, 0.02),))
+    assert temperature_baro_prior(inp, sat, 120.0, mine) is mine
+    few = MIN_SAT_SAMPLES - 1
+    inp1, sat1 = _sat_inputs(climb[:few], 120.0, dev[:few])
+    assert temperature_baro_prior(inp1, sat1, 120.0, JointSettings()).priors == ()

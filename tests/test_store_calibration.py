@@ -327,8 +327,13 @@ def test_reconstruct_with_fleet_calibration_end_to_end(tmp_path, capsys):
     assert cal["n_flights"] == 2 and cal["flights"] == ["R0", "R1"]
     assert "tas_scale" in cal["applied"] and "heading_bias_deg" in cal["applied"]
     used = {p[0]: p[1:] for p in summary["methods"]["joint"]["settings"]["priors"]}
-    assert set(used) == set(cal["applied"])
     corr = summary["methods"]["joint"]["corrections"]
+    # the fleet's priors, and the pressure-altitude scale's from the recorded SAT (the day's
+    # atmosphere, never the fleet's: calibration_records.DAY_DEPENDENT)
+    assert "baro_scale" not in cal["applied"]
+    assert set(used) == set(cal["applied"]) | {"baro_scale"}
+    assert tuple(used["baro_scale"]) == pytest.approx(
+        (corr["baro_scale"]["prior_mean"], corr["baro_scale"]["prior_sd"]), rel=1e-12)
     assert corr["tas_scale"]["prior_sd"] == pytest.approx(cal["errors"]["tas_scale"]["sd"])
     # GNSS flights pinned it down: 0.0042 from two circuits against the default 0.03 (the
     # turbulence's gust state, 2 m/s, takes part of the air data's weight; below 0.003 without)

@@ -44,7 +44,11 @@ from flightrecon.filters.joint.diagnostics import (
 from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.filters.joint.measurements import wind_prior_measurements
 from flightrecon.filters.joint.tilt import erection_driver_g, remembered, tilt_evidence
-from flightrecon.geo.atmosphere import field_pressure_altitude_m
+from flightrecon.geo.atmosphere import (
+    field_pressure_altitude_m,
+    height_above_field_m,
+    isa_temperature_k,
+)
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
 from flightrecon.geo.wind import wind_toward_ne
@@ -643,6 +647,62 @@ def _derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSe
     return replace(settings, priors=(*settings.priors, *extra))
 
 
+#: fewest airborne temperature samples for :func:`temperature_baro_prior`
+MIN_SAT_SAMPLES = 60
+
+
+def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: float,
+                           settings: JointSettings) -> JointSettings:
+    """The prior of the pressure-altitude scale ``c`` from the recorded static air temperature.
+
+    The smoother's baro row is ``h_p - h_p,f = (1 + c)(h - h_field) + b_h``.  In air warmer
+    than the ISA by ``dT`` the height above the field exceeds the pressure-altitude difference
+    by ``dT / T`` (:func:`flightrecon.geo.atmosphere.height_above_field_m`, eq. 1-2): ``c``
+    is the temperature's, not an unknown of 5 % (a 15 K deviation) to be found from the
+    accelerations.  With the deviation ``dT_k = SAT_k - T_ISA(h_p,k)`` of the airborne samples
+    (lift-off to touchdown; ``h_p,k = baro_rel_k + h_p,f``), their mean ``dT`` gives each
+    sample's height above the field ``H_k`` (eq. 2) and ``c`` is the least-squares fit of
+    ``h_p,k - h_p,f = (1 + c) H_k``::
+
+        1 + c = sum(dh_p,k H_k) / sum(H_k^2)
+
+    Its sd is that fit's change per kelvin times ``sqrt(s^2 + sat_column_k^2)``: ``s`` the
+    spread of the samples' ``dT`` (the column is not one deviation everywhere),
+    ``JointNoise.sat_column_k`` what the recorded SAT does not tell of the column (probe,
+    humidity).  Fewer than :data:`MIN_SAT_SAMPLES` samples, or a ``baro_scale`` prior given in
+    ``settings.priors`` (the user's, a fleet's): unchanged.
+    """
+    if any(p[0] == "baro_scale" for p in settings.priors):
+        return settings
+    t = inp.t_in
+    air = np.ones(len(t), bool)
+    if np.isfinite(inp.liftoff_t):
+        air &= t >= inp.liftoff_t
+    if np.isfinite(inp.touchdown_t):
+        air &= t <= inp.touchdown_t
+    sat = np.asarray(sat_degc, dtype=float)
+    ok = air & np.isfinite(sat) & np.isfinite(inp.baro_rel_m)
+    if ok.sum() < MIN_SAT_SAMPLES:
+        return settings
+    dh_p = inp.baro_rel_m[ok]
+    h_p = dh_p + h_p_field_m
+    dev = sat[ok] + 273.15 - isa_temperature_k(h_p)
+    if not np.any(np.abs(dh_p) > 0):
+        return settings
+
+    def scale(dt_k: float) -> float:
+        H = height_above_field_m(h_p, h_p_field_m, dt_k)
+        return float(np.sum(dh_p * H) / np.sum(H * H)) - 1.0
+
+    d_mean = float(np.mean(dev))
+    sd_t = float(np.hypot(np.std(dev), settings.noise.sat_column_k))
+    c0 = scale(d_mean)
+    sd_c = 0.5 * abs(scale(d_mean + sd_t) - scale(d_mean - sd_t))
+    if not (np.isfinite(c0) and np.isfinite(sd_c) and sd_c > 0):
+        return settings
+    return replace(settings, priors=(*settings.priors, ("baro_scale", c0, sd_c)))
+
+
 #: fewest airborne sample-to-sample differences of the loads for :func:`sampled_loads_noise`
 MIN_LOAD_DIFFERENCES = 60
 
@@ -728,6 +788,11 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     settings = _derived_long_priors(clean, settings)
     inp = joint_inputs(clean)
     settings = sampled_loads_noise(inp, settings)
+    if clean.meta.departure is not None and "sat_degc" in clean.grid.columns:
+        settings = temperature_baro_prior(
+            inp, clean.grid["sat_degc"].to_numpy(float),
+            field_pressure_altitude_m(clean.meta.departure.elev_m,
+                                      clean.meta.qnh_departure_hpa), settings)
     tilt_ev = gnss_tilt_evidence(clean, inp, settings)
     settings, attitude_note = attitude_source_noise(clean, inp, settings, tilt_ev)
     run = smooth_joint(inp, settings)

@@ -104,3 +104,36 @@ def pressure_to_msl_m(h_p_m, qnh_hpa: float | None) -> np.ndarray:
     q = _check_qnh(qnh_hpa)
     return np.asarray(pressure_altitude_m(isa_pressure_pa(h) * STANDARD_QNH_HPA / q),
                       dtype=np.float64)
+
+
+def height_above_field_m(h_p_m, h_p_field_m: float, isa_deviation_k: float) -> np.ndarray:
+    """Height [m] above a field of a point at pressure altitude ``h_p_m``, in air whose
+    temperature is the ISA's plus the constant deviation ``isa_deviation_k`` [K].
+
+    The hydrostatic equation of an ideal gas, ``g0 dH = -R T dp / p`` (``H`` geopotential
+    height), and the definition of pressure altitude, ``g0 dh_p = -R T_ISA(h_p) dp / p``, give
+    (eq. 1)::
+
+        dH / dh_p = T / T_ISA(h_p) = 1 + dT / T_ISA(h_p)
+
+    and, from the field's pressure altitude ``h_p,f`` to ``h_p`` (eq. 2)::
+
+        H - H_f = (h_p - h_p,f) + dT (F(h_p) - F(h_p,f)),   F(h) = int_0^h dh' / T_ISA(h')
+
+    with ``F(h) = ln(T_ISA(h) / T0) / L`` in the troposphere (``T_ISA = T0 + L h``) and
+    ``F(11 km) + (h - 11 km) / T_11`` above it (``T_11`` = 216.65 K), to 20 km.
+
+    A warm day (``dT > 0``) puts the aircraft higher above the field than its pressure altitude
+    says, by ``dT / T`` (1 % per 2.9 K near 288 K).  Geopotential and geometric height differ by
+    less than 0.05 % below 3 km (gravity's change with height and latitude).  Worked number:
+    ``h_p,f = 0``, ``h_p = 1500 m``, ``dT = +10 K``: ``T_ISA = 278.4 K``, ``H = 1500 -
+    1538.46 ln(278.4 / 288.15) = 1552.96 m``.
+    """
+    def f(h):
+        tropo = np.minimum(h, H_TROPOPAUSE_M)
+        return (np.log((T0_K + LAPSE_K_PER_M * tropo) / T0_K) / LAPSE_K_PER_M
+                + np.maximum(h - H_TROPOPAUSE_M, 0.0) / T_TROPOPAUSE_K)
+
+    h = np.asarray(h_p_m, dtype=np.float64)
+    h_f = np.asarray(float(h_p_field_m), dtype=np.float64)
+    return np.asarray((h - h_f) + float(isa_deviation_k) * (f(h) - f(h_f)), dtype=np.float64)

@@ -80,7 +80,12 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
                          step_of, pnom: np.ndarray, vnom: np.ndarray,
                          psi_hat: np.ndarray | None = None) -> None:
     """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
-    centreline through the airfield reference point.
+    centreline through the runway's threshold, or through the airfield reference point where
+    no threshold is given.  That point need not lie on the runway (an apron, a stand, an ARP
+    between runways): its distance from the centreline is one error for the whole roll,
+    known no better than the reference itself (``endpoint_h_m``), so each of the roll's m
+    centreline rows carries ``runway_halfwidth_m^2 + m endpoint_h_m^2`` (as the slip below:
+    the roll tells the cross-track position one reference's worth, not m of them).
 
     ``settings.roll_velocity`` = "runway" (the default): the velocity rows hold the velocity
     along the runway's direction, the airfield's ``runway_true_deg`` where the metadata give
@@ -127,7 +132,8 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
             (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t) else np.inf),
              inp.runway_rad[1], inp.touchdown_t))):
         known = rw is not None
-        if known and inp.thresholds[dep_end] is not None:
+        on_line = known and inp.thresholds[dep_end] is not None
+        if on_line:
             # the centreline runs through the threshold; the airfield's reference point is
             # where the analyst put it (an apron, between two runways)
             pos = inp.thresholds[dep_end]
@@ -180,7 +186,11 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         H[:, jl.S_POS] = cross
         if not known:
             H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
-        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), nz.runway_halfwidth_m ** 2, H,
+        # without a threshold the line runs through the airfield's reference point, whose
+        # distance from the centreline is not known better than the reference itself
+        # (endpoint_h_m): one error common to the roll's m rows, m endpoint_h_m^2 on each
+        r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line else len(tt) * nz.endpoint_h_m ** 2)
+        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H,
               -cross @ arp - H[:, jl.IPSI] * ph)
 
 

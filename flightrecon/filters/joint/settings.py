@@ -54,7 +54,15 @@ class JointNoise:
     tas_scale: float = 0.03
     baro_offset_m: float = 60.0
     baro_offset_rw_m_sqrt_s: float = 0.05
-    baro_scale: float = 0.05
+    baro_scale: float = 0.05                 # without a recorded SAT: a 15 K deviation from
+    #                                          the ISA; with one, from it (joint_method.
+    #                                          temperature_baro_prior)
+    sat_column_k: float = 1.5                # the column's mean temperature against the
+    #                                          recorded SAT, beyond the samples' spread: the
+    #                                          probe and its ram-rise correction (1 K) and the
+    #                                          unrecorded humidity (the virtual temperature is
+    #                                          0.5-1.5 K above T in temperate air), in
+    #                                          quadrature
     tas_mps: float = 1.5                     # airspeed noise (used at airdata_rate_hz)
     airspeed_lag_s: float = 0.0              # pitot-static lag (first order), from the data sheet
     heading_deg: float = 0.5
@@ -113,7 +121,7 @@ POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_
                   "lineup_heading_deg",
                   "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
                   "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m",
-                  "ahrs_tilt_tau_s")
+                  "ahrs_tilt_tau_s", "sat_column_k")
 """JointNoise fields that must be positive (a zero would be a measurement without noise)."""
 
 
