@@ -46,6 +46,7 @@ import pandas as pd
 
 from flightrecon.cleaning.plausibility import time_spans
 from flightrecon.constants import G0
+from flightrecon.fusion.baselines import ARRIVAL_POINT_SD_M, DR_WALK_MPS_SQRT_S, bridge_sd_m
 from flightrecon.types import CleanFlight, MethodResult
 
 
@@ -257,9 +258,9 @@ class Evidence:
     smooth_s: float = 10.0
     heading_bias_max_deg: float = 16.0
     end_k: float = 4.0
-    arrival_sd_m: float = 1500.0
+    arrival_sd_m: float = ARRIVAL_POINT_SD_M
     dr_k: float = 4.0
-    dr_walk_mps_per_sqrt_s: float = 0.1
+    dr_walk_mps_per_sqrt_s: float = DR_WALK_MPS_SQRT_S
     dr_floor_m: float = 1000.0
     dr_span_s: float = 60.0
     dr_rms_k: float = 2.0
@@ -269,19 +270,6 @@ class Evidence:
         h = np.maximum(np.asarray(h_m, float), 0.0)
         return np.minimum(self.wind_surface_mps + self.wind_per_km_mps * h / 1000.0,
                           self.wind_cap_mps)
-
-
-def bridge_sd_m(t_s: np.ndarray, t0_s: float, t1_s: float, walk_mps_per_sqrt_s: float
-                ) -> np.ndarray:
-    """Position sd [m] of a dead reckoning corrected linearly to both ends when the wind is a
-    random walk of intensity ``walk_mps_per_sqrt_s``: the integral ``X`` of the walk from
-    ``t0_s``, less ``s / T`` times its end value, has the variance
-    ``q^2 (s^3 / 3 - s^3 + s^4 / (3 T) + s^2 T / 3)`` (``s = t - t0``, ``T = t1 - t0``;
-    ``q^2 T^3 / 48`` half-way, zero at both ends)."""
-    T = max(t1_s - t0_s, 1e-9)
-    s = np.clip(np.asarray(t_s, float) - t0_s, 0.0, T)
-    var = s ** 3 / 3.0 - s ** 3 + s ** 4 / (3.0 * T) + s ** 2 * T / 3.0
-    return walk_mps_per_sqrt_s * np.sqrt(np.maximum(var, 0.0))
 
 
 def _on_track(t: np.ndarray, x: np.ndarray, tq: np.ndarray) -> np.ndarray:

@@ -343,13 +343,14 @@ def errors(t: np.ndarray, n: np.ndarray, e: np.ndarray, tn: np.ndarray, te: np.n
 
 
 def flight_nees(t: np.ndarray, tr: pd.DataFrame, tn: np.ndarray, te: np.ndarray, t0: float,
-                t1: float) -> dict[str, float | None]:
+                t1: float, prefix: str = "joint_") -> dict[str, float | None]:
     """The joint smoother's mean NEES per axis between ``t0`` and ``t1`` (the truth's own
     rounding, :data:`TRUTH_SD_M`, added to the reported variance) and its median reported sd:
-    is it honestly unsure?"""
-    sn, se = tr["joint_north_sd_m"].to_numpy(float), tr["joint_east_sd_m"].to_numpy(float)
-    dn = tr["joint_north_m"].to_numpy(float) - tn
-    de = tr["joint_east_m"].to_numpy(float) - te
+    is it honestly unsure?  ``prefix``: whose columns (``""``: the default result's)."""
+    sn = tr[f"{prefix}north_sd_m"].to_numpy(float)
+    se = tr[f"{prefix}east_sd_m"].to_numpy(float)
+    dn = tr[f"{prefix}north_m"].to_numpy(float) - tn
+    de = tr[f"{prefix}east_m"].to_numpy(float) - te
     sel = (t >= t0) & (t <= t1) & np.isfinite(dn) & np.isfinite(de) & (sn > 0) & (se > 0)
     if not sel.any():
         return {"nees_north": None, "nees_east": None, "sd_median_m": None}
@@ -471,6 +472,7 @@ def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
     if res_method is not None:
         errs["result"] = errors(t, tr["north_m"].to_numpy(float), tr["east_m"].to_numpy(float),
                                 tn, te, t_lo, t_td)
+        errs["result_nees"] = flight_nees(t, tr, tn, te, t_lo, t_td, prefix="")
     for m in ("sabziev", "sns"):
         if f"{m}_north_m" in tr.columns:
             errs[m] = errors(t, tr[f"{m}_north_m"].to_numpy(float),
@@ -530,14 +532,15 @@ def _fmt(x: Any, unit: str = "", digits: int = 0) -> str:
 
 def markdown_table(results: list[dict[str, Any]]) -> str:
     """The study's table (one row per case; the reasons in full are in the JSON)."""
-    rows = ["| case | exit, result from | joint: status (failed checks) | joint RMS / max | "
-            "joint NEES n / e, median sd | other methods: status (checks), RMS | DR no wind | "
-            "DR + linear | joint heading bias, wind | withheld GNSS gaps: max error, NEES n / e |",
-            "|---|---|---|---|---|---|---|---|---|---|"]
+    rows = ["| case | exit, result from | result RMS, NEES n / e | joint: status (failed checks) | "
+            "joint RMS / max | joint NEES n / e, median sd | other methods: status (checks), RMS "
+            "| DR no wind | DR + linear | joint heading bias, wind | withheld GNSS gaps: max "
+            "error, NEES n / e |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         if "error" in r:
             rows.append(f"| {r['case']} | exit {r['exit']}: {r['error'][:120]} "
-                        "| | | | | | | | |")
+                        "| | | | | | | | | |")
             continue
         e = r["errors"]
 
@@ -558,12 +561,17 @@ def markdown_table(results: list[dict[str, Any]]) -> str:
             for m in ("sabziev", "sns") if r["methods"].get(m, {}).get("status") != "skipped")
         ntxt = (f"{jn['nees_north']:.1f} / {jn['nees_east']:.1f}, "
                 f"{_fmt(jn['sd_median_m'], 'm')}" if jn.get("nees_north") is not None else "-")
+        rn = e.get("result_nees", {})
+        rtxt = "-" if r["result_method"] is None else (
+            f"{_fmt(e.get('result', {}).get('rms_m'), 'm')}, "
+            + (f"{rn['nees_north']:.1f} / {rn['nees_east']:.1f}"
+               if rn.get("nees_north") is not None else "no sd"))
         gtxt = "; ".join(f"{g['length_s']:.0f} s: {_fmt(g['max_error_m'], 'm')}, "
                          f"{g['nees_north']:.1f} / {g['nees_east']:.1f}"
                          for g in r.get("gaps", []))
         rows.append(
             f"| {r['case']} | {r['exit']}, {r['result_method'] or 'nothing written'} | "
-            f"{status('joint')} | "
+            f"{rtxt} | {status('joint')} | "
             f"{_fmt(je.get('rms_m'), 'm')} / {_fmt(je.get('max_m'), 'm')} | {ntxt} | "
             f"{others or '-'} | "
             f"{_fmt(e.get('dr_no_wind', {}).get('rms_m'), 'm')} | "

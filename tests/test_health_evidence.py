@@ -17,7 +17,8 @@ import pandas as pd
 import pytest
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.envelope import Evidence, bridge_sd_m, evidence_problems
+from flightrecon.envelope import Evidence, evidence_problems
+from flightrecon.fusion.baselines import bridge_sd_m
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
 from flightrecon.pipeline import method_health

@@ -10,6 +10,48 @@ from flightrecon.geo.frames import output_plane
 from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.types import CleanFlight
 
+DR_WALK_MPS_SQRT_S = 0.1
+"""Random walk [m/s/sqrt(s)] of the wind behind a dead reckoning corrected to both ends:
+twice the joint smoother's default wind walk (``JointNoise.wind_rw_mps_sqrt_s``, 0.05), the
+wind the track does not know changing as a random walk (:func:`bridge_sd_m`)."""
+
+ARRIVAL_POINT_SD_M = 1500.0
+"""Horizontal sd [m] per axis of the touchdown about the arrival's reference point (the
+airfield's reference point stands for where the aircraft touched down: the joint smoother's
+``endpoint_h_m``)."""
+
+
+def bridge_sd_m(t_s: np.ndarray, t0_s: float, t1_s: float, walk_mps_per_sqrt_s: float
+                ) -> np.ndarray:
+    """Position sd [m] of a dead reckoning corrected linearly to both ends when the wind is a
+    random walk of intensity ``walk_mps_per_sqrt_s``: the integral ``X`` of the walk from
+    ``t0_s``, less ``s / T`` times its end value, has the variance
+    ``q^2 (s^3 / 3 - s^3 + s^4 / (3 T) + s^2 T / 3)`` (``s = t - t0``, ``T = t1 - t0``;
+    ``q^2 T^3 / 48`` half-way, zero at both ends)."""
+    T = max(t1_s - t0_s, 1e-9)
+    s = np.clip(np.asarray(t_s, float) - t0_s, 0.0, T)
+    var = s ** 3 / 3.0 - s ** 3 + s ** 4 / (3.0 * T) + s ** 2 * T / 3.0
+    return walk_mps_per_sqrt_s * np.sqrt(np.maximum(var, 0.0))
+
+
+def corrected_track_sd_m(t_s: np.ndarray, t0_s: float, t1_s: float, start_sd_m: float,
+                         end_sd_m: float, walk_mps_per_sqrt_s: float = DR_WALK_MPS_SQRT_S
+                         ) -> np.ndarray:
+    """Position sd [m] per horizontal axis of a track integrated from a start point of sd
+    ``start_sd_m`` and corrected linearly in time to an end point of sd ``end_sd_m``: the two
+    ends' errors carried by the correction, ``(1 - s/T) e_0 + (s/T) e_1``, and the wind's
+    random walk between them (:func:`bridge_sd_m`), independent::
+
+        sd(t)^2 = ((1 - s/T) sd_0)^2 + ((s/T) sd_1)^2 + bridge(t)^2
+
+    The Sabziev fusion's stable track, a dead reckoning corrected to both ends in effect
+    (docs/sabziev.md: 0.93-1.05 times dead reckoning with a linear end correction on JSBSim's
+    fleet), reports it (docs/sabziev.md, "The track's sd")."""
+    T = max(t1_s - t0_s, 1e-9)
+    f = np.clip((np.asarray(t_s, float) - t0_s) / T, 0.0, 1.0)
+    return np.sqrt(((1.0 - f) * start_sd_m) ** 2 + (f * end_sd_m) ** 2
+                   + bridge_sd_m(t_s, t0_s, t1_s, walk_mps_per_sqrt_s) ** 2)
+
 
 def dead_reckoning(clean: CleanFlight, *, corrected: bool = False,
                    wind: bool = True) -> pd.DataFrame:

@@ -46,6 +46,11 @@ from flightrecon.errors import (
     SchemaError,
     ValidationError,
 )
+from flightrecon.fusion.baselines import (
+    ARRIVAL_POINT_SD_M,
+    DR_WALK_MPS_SQRT_S,
+    corrected_track_sd_m,
+)
 from flightrecon.fusion.sabziev import KT_MAX, SabzievSolution, air_velocity, fuse
 from flightrecon.geo.atmosphere import field_pressure_altitude_m, isa_temperature_k
 from flightrecon.geo.wind import wind_toward_ne
@@ -243,6 +248,9 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     origin_sd = LIFTOFF_SD_M if liftoff is None else LIFTOFF_GIVEN_SD_M
     track = _track(t_all, sl, sol, k_sd, origin, origin_sd)
     summary = _summary(sol, k, k_sd, t, v0, end_info, warn, hold, vertical_rule)
+    if k_sd is None and end_ned is not None and policy == "stable":
+        end_sd = fix_end.sd_m if arr is None and fix_end is not None else ARRIVAL_POINT_SD_M
+        summary["track_sd"] = _bridge_sd_columns(track, sl, t, origin_sd, end_sd)
     summary["wind_source"] = wind_source
     summary["policy"] = policy
     summary["k_defaults"] = k_defaults
@@ -802,6 +810,23 @@ def _track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray,
             block[sl, 7 + 2 * j] = np.hypot(psd[:, j], floor)
             block[sl, 8 + 2 * j] = vsd[:, j]
     return pd.DataFrame(block, columns=cols, copy=False)
+
+
+def _bridge_sd_columns(track: pd.DataFrame, sl: slice, t: np.ndarray, start_sd_m: float,
+                       end_sd_m: float) -> dict[str, Any]:
+    """The horizontal sd columns of a boundary-value track without a fleet spread of ``k``
+    (``sabziev_north_sd_m``, ``sabziev_east_sd_m``, in place on ``track``'s rows ``sl``): the
+    stable track is in effect a dead reckoning corrected to both ends, and its sd that of
+    :func:`flightrecon.fusion.baselines.corrected_track_sd_m` (the lift-off point's sd, the
+    end point's, the wind's random walk between them).  Returns the model's summary entry."""
+    sd = corrected_track_sd_m(t, float(t[0]), float(t[-1]), start_sd_m, end_sd_m)
+    for c in ("sabziev_north_sd_m", "sabziev_east_sd_m"):
+        col = np.full(len(track), np.nan)
+        col[sl] = sd
+        track[c] = col
+    return {"model": "dead reckoning corrected to both ends (fusion.baselines."
+                     "corrected_track_sd_m)", "start_sd_m": start_sd_m, "end_sd_m": end_sd_m,
+            "wind_walk_mps_sqrt_s": DR_WALK_MPS_SQRT_S, "largest_sd_m": float(np.max(sd))}
 
 
 def _num(x: float) -> float | None:
