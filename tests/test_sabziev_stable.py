@@ -259,3 +259,37 @@ def test_surface_track_follows_the_meridian_and_the_parallel():
     assert np.all(lat == 40.0)
     assert lon[-1] == pytest.approx(50.0 + np.degrees(500e3 / ((N + 1000.0) * np.cos(phi))),
                                     abs=1e-12)
+
+
+def test_corrected_track_sd_formula():
+    """:func:`corrected_track_sd_m`: the start point's sd at the lift-off, the end point's at
+    the end, and half-way sqrt((sd_0 / 2)^2 + (sd_1 / 2)^2 + q^2 T^3 / 48) (the walk's bridge
+    at its widest); never below the smaller end's share."""
+    from flightrecon.fusion.baselines import corrected_track_sd_m
+
+    T, q = 2400.0, 0.1
+    sd = corrected_track_sd_m(np.array([0.0, T / 2, T]), 0.0, T, 1000.0, 1500.0, q)
+    assert sd[0] == pytest.approx(1000.0) and sd[2] == pytest.approx(1500.0)
+    assert sd[1] == pytest.approx(np.sqrt(500.0 ** 2 + 750.0 ** 2 + q ** 2 * T ** 3 / 48.0))
+
+
+def test_boundary_value_track_reports_its_sd():
+    """Without a fleet spread of k the stable boundary-value track reports the horizontal sd of
+    a dead reckoning corrected to both ends (docs/sabziev.md, "The track's sd"): 1000 m at the
+    lift-off (its point not given), the arrival's 1500 m at the end, positive throughout, the
+    model in the summary; the pipeline's health accepts it."""
+    from flightrecon.fusion.baselines import ARRIVAL_POINT_SD_M, corrected_track_sd_m
+    from flightrecon.fusion.method import LIFTOFF_SD_M
+
+    clean, _f, sl, _ = geometric_clean_flight()
+    res = run_sabziev(clean)
+    n_sd = res.track["sabziev_north_sd_m"].to_numpy()[sl]
+    e_sd = res.track["sabziev_east_sd_m"].to_numpy()[sl]
+    t = res.track["t_s"].to_numpy()[sl]
+    assert np.array_equal(n_sd, e_sd) and np.all(n_sd > 0)
+    assert n_sd[0] == pytest.approx(LIFTOFF_SD_M) and n_sd[-1] == pytest.approx(
+        ARRIVAL_POINT_SD_M)
+    assert n_sd == pytest.approx(corrected_track_sd_m(t, t[0], t[-1], LIFTOFF_SD_M,
+                                                      ARRIVAL_POINT_SD_M))
+    assert res.summary["track_sd"]["end_sd_m"] == ARRIVAL_POINT_SD_M
+    assert method_health(res)["healthy"]
