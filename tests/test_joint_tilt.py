@@ -120,7 +120,7 @@ def test_the_declared_attitude_source_switches_the_tilt_noise(tmp_path):
     departure 0.63 g, above the 0.1 g threshold), the note says the source was taken as
     inertial; a wrong value is refused."""
     from flightrecon.errors import MetadataError
-    from flightrecon.filters.joint_method import (
+    from flightrecon.filters.joint.attitude_source import (
         AHRS_TILT_HORIZONTAL,
         AHRS_TILT_MPS2_PER_G,
         UNDECLARED_TILT_WARN_G,
@@ -167,7 +167,7 @@ def test_the_gnss_measured_tilt_gain_sets_the_noise():
     0.25 m/s^2 per g on (below it the attitude holds: no noise, no note), at most the PH-LAB
     figure; a declared AHRS takes the measured gain whatever its size; a declared inertial
     source and a gain given in the settings win over the measurement."""
-    from flightrecon.filters.joint_method import (
+    from flightrecon.filters.joint.attitude_source import (
         TILT_GAIN_MIN_MPS2_PER_G,
         attitude_source_noise,
     )
