@@ -147,10 +147,14 @@ def _heights(clean: CleanFlight, results: dict[str, MethodResult], healthy: dict
              grid_track: Callable[[str], pd.DataFrame], n: int
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Height above the departure airfield: the healthy Sabziev solution where present, else
-    the pressure altitude relative to the field's; its sd and source codes (:data:`_UP_NAMES`)."""
+    the height from the pressure altitude (:func:`flightrecon.geo.pressure_height.
+    pressure_height_m`: through the recorded temperature where there is one); its sd (the
+    Sabziev solution's own where it gives one, else the pressure height's) and source codes
+    (:data:`_UP_NAMES`)."""
     up = np.full(n, np.nan)
     up_sd = np.full(n, np.nan)
     up_source = np.zeros(n, dtype=np.int8)  # index into _UP_NAMES
+    p_height, p_sd = _pressure_height(clean)
     sab = results.get("sabziev")
     if sab is not None and healthy["sabziev"] and "sabziev_up_m" in sab.track.columns:
         su = grid_track("sabziev")
@@ -160,17 +164,40 @@ def _heights(clean: CleanFlight, results: dict[str, MethodResult], healthy: dict
         up_source[ok] = 1
         if "sabziev_up_sd_m" in su.columns:
             up_sd[ok] = su["sabziev_up_sd_m"].to_numpy()[ok]
-    if "baro_alt_m" in clean.grid.columns and clean.meta.departure is not None:
-        from flightrecon.geo.atmosphere import field_pressure_altitude_m
-
-        # pressure altitude of the departure airfield: ISA altitude of its station pressure
-        h_field = field_pressure_altitude_m(clean.meta.departure.elev_m,
-                                            clean.meta.qnh_departure_hpa)
-        baro = clean.grid["baro_alt_m"].to_numpy() - h_field
-        fill = ~np.isfinite(up) & np.isfinite(baro)
-        up[fill] = baro[fill]
+        elif p_sd is not None:  # the pressure height made to meet the end: its budget
+            up_sd[ok] = p_sd[ok]
+    if p_height is not None and p_sd is not None:
+        fill = ~np.isfinite(up) & np.isfinite(p_height)
+        up[fill] = p_height[fill]
+        up_sd[fill] = p_sd[fill]
         up_source[fill] = 2
     return up, up_sd, up_source
+
+
+def _pressure_height(clean: CleanFlight) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Height above the departure field from the pressure altitude and its sd on the grid
+    (:func:`flightrecon.geo.pressure_height.pressure_height_m`); ``None`` without a pressure
+    altitude or a departure airfield."""
+    from flightrecon.geo.atmosphere import field_pressure_altitude_m
+    from flightrecon.geo.pressure_height import isa_deviation_k, pressure_height_m
+
+    g = clean.grid
+    meta = clean.meta
+    if "baro_alt_m" not in g.columns or meta.departure is None:
+        return None, None
+    # pressure altitude of the departure airfield: ISA altitude of its station pressure
+    h_field = field_pressure_altitude_m(meta.departure.elev_m, meta.qnh_departure_hpa)
+    t = g["t_s"].to_numpy(float)
+    h_p = g["baro_alt_m"].to_numpy(float)
+    ph = clean.phases
+    t0 = ph.liftoff_t_s if ph is not None and np.isfinite(ph.liftoff_t_s) else float(t[0])
+    airborne = t >= t0
+    if ph is not None and np.isfinite(ph.touchdown_t_s):
+        airborne &= t <= ph.touchdown_t_s
+    dev = isa_deviation_k(h_p, g["sat_degc"].to_numpy(float) if "sat_degc" in g.columns
+                          else None, airborne)
+    return pressure_height_m(t, h_p, h_field, qnh_known=meta.qnh_departure_hpa is not None,
+                             deviation=dev, t0_s=t0)
 
 
 def _joint_extra(tj: pd.DataFrame) -> dict[str, Any]:
