@@ -945,3 +945,68 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
             np.testing.assert_allclose(r, nz.runway_halfwidth_m ** 2 + m * nz.endpoint_h_m ** 2,
                                        rtol=1e-12)
             assert float(np.sum(1.0 / r)) < 1.0 / nz.endpoint_h_m ** 2
+
+
+def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeypatch):
+    """Guards the wind-walk check where the loads are the wind's only witness
+    (diagnostics.wind_walk_check with ``loads_psd_m2ps3``, joint_method.inertial_wind_share,
+    joint_method._wind_walk_rounds): 4 m/s turning 100 deg in 30 minutes, a 10-minute chord
+    of 2.29 m/s, passes the bound (chi-square 3.5 against the walk's 1.5 m^2/s^2) but a 1 Hz
+    record's loads (sampling 0.28 m/s^2/sqrt(Hz) per axis: r = 0.0809 m^2/s^3, r L = 48.5)
+    let a smoother see only the share Q / (Q + r L) = 0.030 of a change, so the same smoothed
+    chord is chi-square |dw|^2 (Q + r L) / Q^2 = 117 against the 1e-4 limit 21.1 of the
+    3.8 windows clear of the rolls; the walk is raised to the smallest the check accepts,
+    q' L = z^2 (Q + r L) / limit - r L: 0.618 m/s/sqrt(s) (229 m^2/s^2 over 600 s).  With a
+    GNSS (or no sampling term) r = 0 and the check is the bound.  The smoother is a stand-in
+    returning the given wind."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    import flightrecon.filters.joint_method as jm
+    from flightrecon.filters.joint.diagnostics import wind_walk_check
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 2400.0, 1.0)
+    n = len(t)
+    ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
+    x = np.zeros((n, jl.N_STATE))
+    x[:, jl.S_WIND] = 4.0 * np.c_[np.cos(ang), np.sin(ang)]
+    turning = SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
+    chord = 2 * 4.0 * np.sin(np.radians(100.0 / 6))
+    Q = 0.05 ** 2 * 600.0
+    assert wind_walk_check(turning, 0.05, 0.05) is None           # the bound: 3.5 < 12.0
+    assert chord ** 2 / Q == pytest.approx(3.50, abs=0.01)
+
+    base = JointSettings()
+    one_hz = replace(base, noise=replace(base.noise,
+                                           accel_sampling_mps2_sqrt_hz=(0.28, 0.28, 0.5)))
+    inp = SimpleNamespace(gnss=pd.DataFrame(), radar=pd.DataFrame(), fixes=None, wind_ne=None,
+                          doppler_gs=None, wind_aloft=None, liftoff_t=0.0, touchdown_t=2399.0)
+    r = jm.inertial_wind_share(inp, one_hz)
+    assert r == pytest.approx(0.05 ** 2 + 0.28 ** 2, rel=1e-12)
+    assert jm.inertial_wind_share(inp, base) == 0.0               # no sampling term
+    with_gnss = SimpleNamespace(**{**vars(inp), "gnss": pd.DataFrame({"t_s": [1.0]})})
+    assert jm.inertial_wind_share(with_gnss, one_hz) == 0.0
+
+    within = (60.0, 2339.0)
+    c = wind_walk_check(turning, 0.05, 0.05, loads_psd_m2ps3=r, within_s=within, p_false=1e-4)
+    z2 = chord ** 2 * (Q + r * 600.0) / Q ** 2
+    limit = -2.0 * np.log(1e-4 / (2279.0 / 600.0))
+    assert c is not None and c["z2"] == pytest.approx(z2, rel=1e-9)
+    assert (z2, limit) == pytest.approx((117.1, 21.09), abs=0.1)
+    assert c["limit"] == pytest.approx(limit, rel=1e-12)
+    assert c["model_sd_mps"] == pytest.approx(np.sqrt(Q * Q / (Q + r * 600.0)), rel=1e-9)
+    # a span shorter than the window (a circuit clear of its rolls): no window, no finding
+    assert wind_walk_check(turning, 0.05, 0.05, loads_psd_m2ps3=r, within_s=(60.0, 600.0),
+                           p_false=1e-4) is None
+
+    calls = []
+    monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s: calls.append(s) or turning)
+    run, s, rounds = jm._wind_walk_rounds(inp, one_hz, turning)
+    q1 = (z2 * (Q + r * 600.0) / limit - r * 600.0) / 600.0
+    assert rounds[0]["z2"] == pytest.approx(z2, rel=1e-9)
+    assert calls[0].noise.wind_rw_mps_sqrt_s == pytest.approx(np.sqrt(q1), rel=1e-9)
+    assert np.sqrt(q1) == pytest.approx(0.618, abs=0.001)
+    assert 1 <= len(rounds) <= one_hz.wind_rounds

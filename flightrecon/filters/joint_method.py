@@ -637,31 +637,94 @@ def sampled_loads_noise(inp: JointInputs, settings: JointSettings) -> JointSetti
         nz, accel_sampling_mps2_sqrt_hz=(float(extra[0]), float(extra[1]), float(extra[2]))))
 
 
+def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
+    """The PSD ``r`` of the loads' velocity random walk where a record sampled slower than
+    its accelerations (:func:`sampled_loads_noise` set) has the loads as the wind's only
+    witness, else 0 [m^2/s^3].
+
+    Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the
+    smoother learns the wind's change only as the ground velocity's change from the loads
+    less the air velocity's; the loads' error integrates to a velocity random walk of PSD
+    ``r = accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` with ``s`` the horizontal
+    ``accel_sampling_mps2_sqrt_hz``.  The smoothed wind change is then the share
+    ``kappa = Q / (Q + r L)`` of the observed one (``Q`` the wind model's variance over L;
+    :func:`~flightrecon.filters.joint.diagnostics.wind_walk_check`): of a 1 Hz export
+    ``r`` is about 0.08 m^2/s^3 (JSBSim's fleet; 0.011 the shipped G1000 export) and over
+    ten minutes of the default walk (``Q`` = 1.5 m^2/s^2) ``kappa`` is 0.03 (0.19), where a
+    wind that turns moves the smoothed wind by little.  A recorder-rate log (no sampling
+    term; ``r`` the budget 0.0025, ``kappa`` 1/2) or any other source of the wind: 0 (the
+    check's bound, ``kappa = 1``, within a factor 2 there)."""
+    nz = settings.noise
+    s = nz.accel_sampling_mps2_sqrt_hz
+    if (not (s[0] > 0 or s[1] > 0) or len(inp.gnss) or len(inp.radar)
+            or (inp.fixes is not None and len(inp.fixes)) or inp.wind_ne is not None
+            or inp.doppler_gs is not None or inp.wind_aloft is not None):
+        return 0.0
+    return float(nz.accel_noise_mps2_sqrt_hz ** 2 + 0.5 * (s[0] ** 2 + s[1] ** 2))
+
+
+#: how long after lift-off and before touchdown the rolls still witness the wind where the
+#: loads are its only other witness: a derived ``n_long_g``'s bias prior (0.01 g) alone
+#: integrates to 6 m/s in a minute, beyond the wind walk's 0.4 m/s (0.05 m/s/sqrt(s))
+ROLL_WITNESS_S = 60.0
+#: false-alarm probability of the wind-walk check where the loads are the wind's only
+#: witness: the share kappa leaves out the other witnesses (the end points, the estimated
+#: load biases), so its chi-square overstates a change and the check asks for stronger
+#: evidence than the bound's 1 %
+LOADS_WITNESS_P_FALSE = 1e-4
+
+
 def _wind_walk_rounds(inp: JointInputs, settings: JointSettings, run: JointRun
                       ) -> tuple[JointRun, JointSettings, list[dict[str, Any]]]:
     """Where the smoothed wind moved faster than its random walk allows
-    (:func:`~flightrecon.filters.joint.diagnostics.wind_walk_check`), the walk re-estimated
-    from the flight and the smoother run again, at most ``settings.wind_rounds`` times.
+    (:func:`~flightrecon.filters.joint.diagnostics.wind_walk_check`, with the loads' PSD
+    ``r`` of :func:`inertial_wind_share`), the walk re-estimated from the flight and the
+    smoother run again, at most ``settings.wind_rounds`` times.
 
-    Each round scales the walk's variance so that the check's worst window would be a
-    typical one, its chi-square at the mean 2 of chi-square(2): ``wind_rw_mps_sqrt_s`` times
-    ``sqrt(z^2 / 2)`` (the smoothed change of a walk shrinks towards zero by the data's
-    weight, so an estimate can be low and the rounds climb), kept below
-    ``wind_rw_max_mps_sqrt_s``, until the smoothed wind is within the walk (docs/joint.md,
-    "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30 minutes).
-    Returns the last run, its settings and the rounds (the walk each started from, the
-    check's chi-square and limit)."""
+    The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from
+    the height flown through, the loads' ``r L``) has ``z^2 = |dw|^2 / (kappa Q)`` with
+    ``kappa = Q / (Q + r L)``: the observed change ``|do|^2 = |dw|^2 / kappa^2`` is
+    ``z^2 (Q + r L)``.  With ``r = 0`` (another witness of the wind) the walk is scaled so
+    that this window would be a typical one, its chi-square at the mean 2 of chi-square(2):
+    ``q' = q z^2 / 2`` (the smoothed change of a walk shrinks towards zero by the data's
+    weight, so an estimate can be low and the rounds climb).  Where the loads are the only
+    witness (``r > 0``) the worst window's change is mostly the loads' error, and the walk is
+    the smallest that the check accepts, ``|do|^2 = limit (Q' + r L)``:
+
+        q' L = z^2 (Q + r L) / limit - r L - Q_h
+
+    Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``, until the smoothed wind is
+    within the walk (docs/joint.md, "Wind and turbulence": JSBSim's holding, 22 m/s turning
+    100 deg in 30 minutes).  Returns the last run, its settings and the rounds (the walk each
+    started from, the check's chi-square and limit, the loads' PSD)."""
     rounds: list[dict[str, Any]] = []
+    r = inertial_wind_share(inp, settings)
+    within = None
+    if r > 0:   # windows clear of the rolls (a record without both: the check as it is)
+        if not (np.isfinite(inp.liftoff_t) and np.isfinite(inp.touchdown_t)):
+            r = 0.0
+        else:
+            within = (inp.liftoff_t + ROLL_WITNESS_S, inp.touchdown_t - ROLL_WITNESS_S)
     for _ in range(max(0, settings.wind_rounds)):
         nz = settings.noise
-        c = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m)
+        c = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m,
+                            loads_psd_m2ps3=r, within_s=within,
+                            p_false=LOADS_WITNESS_P_FALSE if r > 0 else 0.01)
         if c is None or nz.wind_rw_mps_sqrt_s >= settings.wind_rw_max_mps_sqrt_s:
             break
         rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
-                       "limit": c["limit"]})
-        q = min(nz.wind_rw_mps_sqrt_s * float(np.sqrt(c["z2"] / 2.0)),
-                settings.wind_rw_max_mps_sqrt_s)
-        settings = replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=q))
+                       "limit": c["limit"], "loads_psd_m2ps3": r})
+        L = c["t1_s"] - c["t0_s"]
+        q = nz.wind_rw_mps_sqrt_s ** 2
+        q_h = c["walk_var_m2ps2"] - q * L
+        if r > 0:
+            q_new = (c["z2"] * (c["walk_var_m2ps2"] + c["loads_var_m2ps2"]) / c["limit"]
+                     - c["loads_var_m2ps2"] - q_h) / L
+        else:
+            q_new = q * 0.5 * c["z2"]
+        q_new = max(q_new, q)
+        settings = replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=min(
+            float(np.sqrt(q_new)), settings.wind_rw_max_mps_sqrt_s)))
         run = smooth_joint(inp, settings)
     return run, settings, rounds
 

@@ -101,7 +101,9 @@ def gust_warnings(run: JointRun, upper_mps: float) -> list[str]:
 
 
 def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt_m: float,
-                    window_s: float = 600.0, p_false: float = 0.01) -> dict[str, float] | None:
+                    window_s: float = 600.0, p_false: float = 0.01,
+                    loads_psd_m2ps3: float = 0.0,
+                    within_s: tuple[float, float] | None = None) -> dict[str, float] | None:
     """Whether the smoothed wind moved faster than the wind's process model allows.
 
     The model (docs/joint.md, "Wind and turbulence"): over a stretch the wind changes by its
@@ -117,12 +119,27 @@ def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt
     z^2 near 50 against a limit of 12; the fleet's other flights at most 1.3: the sds then
     rest on a steadier wind than the one flown through.
 
+    Where the loads are the wind's only witness (recorder only: the wind's change is the
+    ground velocity's change integrated from the loads less the air velocity's),
+    ``loads_psd_m2ps3`` is the PSD ``r`` of the loads' velocity random walk
+    (``joint_method.inertial_wind_share``): the observed change over L then has variance
+    ``Q + r L`` per component (``Q`` the walk's variance above) and the smoothed change is its
+    share ``kappa = Q / (Q + r L)``, of variance ``kappa Q``, which replaces ``Q`` in ``z^2``
+    (0: ``kappa = 1``, the bound above).  ``within_s`` (t0, t1) keeps the windows inside that
+    span, each of the full ``window_s`` (none where the span is shorter): with
+    ``loads_psd_m2ps3`` the stretch clear of the take-off and landing rolls, whose ground
+    velocity (at rest, along the runway) is a second witness of the wind.  The 1 Hz export of
+    that holding (``r`` = 0.080 and 0.063 m^2/s^3, seeds 1 and 2) gives z^2 = 58.8 and 34.9,
+    the shipped G1000 export (``r`` = 0.011) 16.1 (``scripts/onehz_fleet_study.py``,
+    ``scripts/onehz_study.py``).
+
     Returns
     -------
     dict or None
         ``z2`` (the worst window's), ``limit``, ``t0_s``, ``t1_s`` (that window), ``change_mps``
-        (its wind change less the gradient's part, magnitude), ``model_sd_mps`` (its random
-        walk's sd per component); None where the worst window is within the limit.
+        (its wind change less the gradient's part, magnitude), ``model_sd_mps`` (the sd per
+        component its smoothed change may have, ``sqrt(kappa Q)``), ``walk_var_m2ps2`` (``Q``)
+        and ``loads_var_m2ps2`` (``r L``); None where the worst window is within the limit.
     """
     t = np.asarray(run.t, dtype=float)
     if len(t) < 3 or not (wind_rw_mps_sqrt_s > 0):
@@ -134,11 +151,12 @@ def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt
     # the gradient's part, sum g dz, and the height flown through, as running sums
     grad = np.vstack([np.zeros(2), np.cumsum(0.5 * (g[1:] + g[:-1]) * dz[:, None], axis=0)])
     climb = np.r_[0.0, np.cumsum(np.abs(dz))]
-    span = float(t[-1] - t[0])
-    L = min(window_s, span)
-    if not L > 0:
+    lo, hi = (float(t[0]), float(t[-1])) if within_s is None else within_s
+    span = float(t[-1] - t[0]) if within_s is None else hi - lo
+    L = min(window_s, span) if within_s is None else window_s
+    if not (L > 0 and span >= L):
         return None
-    starts = np.arange(t[0], t[-1] - L + 1e-9, L / 10.0)
+    starts = np.arange(max(lo, float(t[0])), min(hi, float(t[-1])) - L + 1e-9, L / 10.0)
     i = np.searchsorted(t, starts)
     j = np.minimum(np.searchsorted(t, t[i] + L), len(t) - 1)
     ok = j > i
@@ -148,14 +166,16 @@ def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt
     dw = (w[j] - w[i]) - (grad[j] - grad[i])
     var = (wind_rw_mps_sqrt_s ** 2 * (t[j] - t[i])
            + shear_mps_per_sqrt_m ** 2 * (climb[j] - climb[i]))
-    z2 = np.sum(dw ** 2, axis=1) / var
+    r_l = max(loads_psd_m2ps3, 0.0) * (t[j] - t[i])
+    z2 = np.sum(dw ** 2, axis=1) / (var * var / (var + r_l))
     k = int(np.argmax(z2))
     limit = -2.0 * np.log(p_false / max(1.0, span / L))
     if not z2[k] > limit:
         return None
     return {"z2": float(z2[k]), "limit": float(limit), "t0_s": float(t[i[k]]),
             "t1_s": float(t[j[k]]), "change_mps": float(np.hypot(*dw[k])),
-            "model_sd_mps": float(np.sqrt(var[k]))}
+            "model_sd_mps": float(np.sqrt(var[k] * var[k] / (var[k] + r_l[k]))),
+            "walk_var_m2ps2": float(var[k]), "loads_var_m2ps2": float(r_l[k])}
 
 
 def wind_walk_warning(check: dict[str, float]) -> str:
