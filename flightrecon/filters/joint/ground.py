@@ -161,8 +161,9 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
             # on a landing roll (no rest before it) and a take-off without one, by its angle
             # to the runway itself (the heading bias inside it: a fraction of the swerves)
             ref = rest_heading(inp) if dep_end == 0 else None
-            r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll,
-                                          float(rw) if ref is None else ref)
+            if ref is None and rw is not None:
+                ref = float(rw)
+            r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll, ref)
         b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
         if pos is None:
             continue
