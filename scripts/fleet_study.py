@@ -20,9 +20,10 @@ end-point correction on the same cleaned flight.  Per run, on the airborne truth
   canonical rates, 1.0 at the minimum rates);
 * the joint's RMS vertical error (bar 40 m) and its run-averaged NEES per horizontal axis;
 * the end points: the joint's track at the line-up against the departure threshold and at the
-  detected touchdown against the touchdown point the smoother assumes (``touchdown_m`` past
-  the arrival threshold), in runway axes, each divided by the smoother's own sd for it
-  (``roll_start_sd_m`` / ``touchdown_sd_m`` along, ``runway_halfwidth_m`` across); "met" when
+  detected touchdown against the touchdown point the smoother was given (the air distance
+  flown from the screen height, ``float_touchdown``, or ``touchdown_m`` past the arrival
+  threshold without a recorded flare), in runway axes, each divided by the smoother's own sd
+  for it (``roll_start_sd_m`` / the touchdown's along, ``runway_halfwidth_m`` across); "met" when
   every such ratio is at most 2; and the track's last position's distance from the arrival
   threshold.
 
@@ -113,7 +114,17 @@ def _interp_errors(track: pd.DataFrame, truth: pd.DataFrame, airborne: np.ndarra
     return out
 
 
-def _end_points(track: pd.DataFrame, clean, meta) -> dict[str, float]:
+def _arrival_given(summary: dict) -> tuple[float, float]:
+    """Distance past the arrival threshold and its sd of the touchdown the smoother was given:
+    from the recorded flare where it measured one (``float_touchdown``), else ``touchdown_m``."""
+    nz = JointNoise()
+    for e in summary.get("end_points", []):
+        if e["which"] == "arrival" and "flare" in e:
+            return float(e["flare"]["touchdown_m"]), float(e["flare"]["sd_m"])
+    return nz.touchdown_m, nz.touchdown_sd_m
+
+
+def _end_points(track: pd.DataFrame, clean, meta, summary: dict) -> dict[str, float]:
     """The joint's track against the end points it was given (module docstring)."""
     nz = JointNoise()
     tt = track["t_s"].to_numpy(float)
@@ -122,9 +133,10 @@ def _end_points(track: pd.DataFrame, clean, meta) -> dict[str, float]:
     out: dict[str, float] = {}
     ratios = []
     ph = clean.phases
+    td_m, td_sd_m = _arrival_given(summary)
     for which, pos, t_ev, dist, sd_along in (
             ("departure", meta.departure, ph.lineup_t_s, 0.0, nz.roll_start_sd_m),
-            ("arrival", meta.arrival, ph.touchdown_t_s, nz.touchdown_m, nz.touchdown_sd_m)):
+            ("arrival", meta.arrival, ph.touchdown_t_s, td_m, td_sd_m)):
         if pos is None or pos.threshold is None or pos.runway_true_deg is None or \
                 t_ev is None or not np.isfinite(t_ev):
             continue
@@ -143,10 +155,10 @@ def _end_points(track: pd.DataFrame, clean, meta) -> dict[str, float]:
     return out
 
 
-def _touchdown_truth(track: pd.DataFrame, truth: pd.DataFrame, events: dict, meta
-                     ) -> dict[str, float]:
-    """At the true touchdown: how far the given touchdown point (``touchdown_m`` past the
-    arrival threshold) is from where the aircraft touched down, along the runway, and the
+def _touchdown_truth(track: pd.DataFrame, truth: pd.DataFrame, events: dict, meta,
+                     summary: dict) -> dict[str, float]:
+    """At the true touchdown: how far the given touchdown point (:func:`_arrival_given` past
+    the arrival threshold) is from where the aircraft touched down, along the runway, and the
     joint's horizontal error there."""
     if "touchdown_t_s" not in events or meta.arrival is None or meta.arrival.threshold is None:
         return {}
@@ -160,7 +172,7 @@ def _touchdown_truth(track: pd.DataFrame, truth: pd.DataFrame, events: dict, met
         - float(truth["north_m"].iloc[i])
     de = float(np.interp(t, tt, track["joint_east_m"].to_numpy(float))) \
         - float(truth["east_m"].iloc[i])
-    return {"given_touchdown_off_m": float(along - JointNoise().touchdown_m),
+    return {"given_touchdown_off_m": float(along - _arrival_given(summary)[0]),
             "track_error_at_touchdown_m": float(math.hypot(dn, de))}
 
 
@@ -219,9 +231,9 @@ def one_run(airframe: str, scenario: str, overrides: dict, seed: int, tmp: Path)
             row["heading_bias_truth_deg"] = pe["heading_bias_deg"]
             row["tas_scale_truth"] = pe["airspeed_scale"]
             row["joint_warnings"] = list(j.summary.get("warnings", []))[:5]
-            row["ends"] = _end_points(j.track, clean, flight.meta)
+            row["ends"] = _end_points(j.track, clean, flight.meta, j.summary)
             row["ends"].update(_touchdown_truth(j.track, truth, r.sensor_truth["events"],
-                                                flight.meta))
+                                                flight.meta, j.summary))
         d, err = _attempt(dead_reckoning, clean, corrected=True)
         row["dr_linear"] = {"error": err} if d is None else _interp_errors(d, truth, airborne)
         rows.append(row)

@@ -1010,3 +1010,39 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
     assert calls[0].noise.wind_rw_mps_sqrt_s == pytest.approx(np.sqrt(q1), rel=1e-9)
     assert np.sqrt(q1) == pytest.approx(0.618, abs=0.001)
     assert 1 <= len(rounds) <= one_hz.wind_rounds
+
+
+def test_a_landing_roll_angled_off_the_runway_loosens_its_cross_track_rows():
+    """Guards the landing roll's steering term (issue #38): there is no rest before it, and a
+    roll held 6 deg off the runway (JSBSim's Cessna 310 on cross-country seed 6030 rolls out
+    at 256-257 deg on runway 250) has a constant offset from its own mean heading of zero, so
+    the rows held the track on the runway and the heading bias took up the 6 deg (3.3 +- 0.5
+    deg for a true 0.5, mean NEES north 11.5). The reference is now the runway's direction:
+    each row carries (V sin 6 deg)^2, V the touchdown airspeed."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.ground import runway_measurements
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+
+    t = np.arange(0.0, 40.0, 0.25)
+    n = len(t)
+    hdg = np.full(n, 96.0)
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                      attitude_deg=np.c_[np.zeros(n), np.zeros(n), hdg],
+                      tas=np.clip(40.0 - 1.5 * (t - 10.0), 0.0, 40.0),
+                      heading_rad=np.radians(hdg), baro_rel_m=np.zeros(n), gnss=pd.DataFrame(),
+                      radar=pd.DataFrame(), station=None, departure=None,
+                      arrival=(40.0, 20.0, 100.0), liftoff_t=np.nan, touchdown_t=10.0,
+                      field_h=100.0, runway_rad=(None, np.pi / 2))
+    s = JointSettings()
+    T = t[::4]
+    b = _MeasBuilder(T)
+    vnom = np.c_[np.zeros(len(T)), np.full(len(T), 20.0), np.zeros(len(T))]
+    runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                        np.zeros((len(T), 3)), vnom)
+    g = b.parts[0]
+    assert len(g["t"]) > 20
+    np.testing.assert_allclose(g["r"], s.noise.ground_mps ** 2
+                               + (40.0 * np.sin(np.radians(6.0))) ** 2, rtol=1e-9)

@@ -188,15 +188,15 @@ def test_roll_start_is_found_from_the_recorded_acceleration():
 def test_runway_thresholds_place_the_end_points_along_the_runway():
     """Recorder only, touchdown dispersed as the model assumes (seeds 1000-1003): with
     thresholds the take-off roll starts at the departure threshold and the touchdown is
-    touchdown_m past the arrival one; the track beats the same flights with the reference
-    points only (20-run study: 0.33 of the RMS, every run better), and the errors at both ends
-    lie within 3 reported standard deviations."""
+    where the recorded flare puts it past the arrival one; the track beats the same flights
+    with the reference points only (20-run study: 0.33 of the RMS, every run better), and the
+    errors at both ends lie within 3 reported standard deviations."""
     from dataclasses import replace
 
     import pandas as pd
 
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint import JointNoise, end_points
+    from flightrecon.filters.joint import end_points
     from flightrecon.filters.joint_method import joint_inputs, run_joint
     from flightrecon.types import Flight
 
@@ -210,7 +210,12 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
         assert ends["departure"]["model"] == ends["arrival"]["model"] == "runway"
         assert ends["departure"]["point"][:2] == pytest.approx(r.meta.departure.threshold,
                                                                abs=1e-9)
-        assert ends["arrival"]["sd_m"][0] == JointNoise().touchdown_sd_m
+        # the touchdown from the recorded flare (inputs.float_touchdown), its sd the screen
+        # crossing's scatter and the runway wind over the float
+        fl = ends["arrival"]["flare"]
+        assert ends["arrival"]["sd_m"][0] == pytest.approx(
+            np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * fl["float_s"]), rel=1e-12)
+        assert ends["arrival"]["point"][:2] != pytest.approx(r.meta.arrival.threshold, abs=1e-6)
         settings = mc.JointSettings(noise=nz)
         j = run_joint(clean, settings=settings)
         # the simulated circuit stands lined up, then rolls (slow spool-up: 2-4 m/s after
@@ -299,3 +304,49 @@ def test_joint_inputs_need_the_departure_for_gravity():
         joint_inputs(replace(clean, meta=replace(clean.meta, departure=None)))
     with pytest.raises(TypeError):
         kinematic_acceleration_ned(0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+
+
+def _approach_inputs(float_s: float, tas_mps: float = 70.0, with_baro: bool = True):
+    """A straight-in approach on the input grid (4 Hz): 3 deg glide path at ``tas_mps`` down to
+    3 m above the runway, ``float_s`` held there, touchdown at 100 s, 10 s of roll-out."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.inputs import JointInputs
+
+    t = np.arange(0.0, 110.0, 0.25)
+    td = 100.0
+    h = np.where(t < td - float_s, 3.0 + tas_mps * np.tan(np.radians(3.0))
+                 * (td - float_s - t), 3.0)
+    h = np.where(t >= td, 0.0, h) + 120.0        # the arrival field 120 m above the departure
+    if not with_baro:
+        h = np.full_like(t, np.nan)
+    n = len(t)
+    return JointInputs(
+        t_in=t, acc_ned=np.zeros((n, 3)), attitude_deg=np.zeros((n, 3)),
+        tas=np.where(t < td, tas_mps, 20.0), heading_rad=np.zeros(n), baro_rel_m=h,
+        gnss=pd.DataFrame(), radar=pd.DataFrame(), station=None, departure=None,
+        arrival=None, liftoff_t=np.nan, touchdown_t=td, field_h=0.0), td
+
+
+def test_float_touchdown_integrates_the_airspeed_from_the_screen_height():
+    """Eq. of :func:`flightrecon.filters.joint.inputs.float_touchdown`: on an exact approach
+    the screen height (15.24 m above the touchdown's baro) is crossed where the glide path
+    is 12.24 m above the 3 m float, i.e. 12.24 / (70 tan 3 deg) = 3.34 s before the float,
+    and the touchdown lies 70 m/s times that plus the float past the threshold; the sd
+    combines the crossing's scatter and the runway wind over that time."""
+    from flightrecon.filters.joint import JointNoise
+    from flightrecon.filters.joint.inputs import float_touchdown
+
+    nz = JointNoise()
+    for float_s in (2.0, 12.0):
+        inp, td = _approach_inputs(float_s)
+        f = float_touchdown(inp, nz)
+        t_glide = (nz.screen_height_m - 3.0) / (70.0 * np.tan(np.radians(3.0)))
+        # the 1 s running mean and the 0.25 s grid: the crossing within one sample
+        assert f["float_s"] == pytest.approx(float_s + t_glide, abs=0.3)
+        assert f["touchdown_m"] == pytest.approx(70.0 * (float_s + t_glide), abs=70.0 * 0.3)
+        assert f["sd_m"] == pytest.approx(
+            np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * f["float_s"]), rel=1e-12)
+    # no pressure altitude: the fixed touchdown_m (no flare measured)
+    inp, _ = _approach_inputs(5.0, with_baro=False)
+    assert float_touchdown(inp, nz) is None

@@ -826,7 +826,9 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
                         "lat_deg": e["point"][0], "lon_deg": e["point"][1],
                         "runway_true_deg": (None if e["runway_rad"] is None
                                             else float(np.degrees(e["runway_rad"]) % 360.0)),
-                        "sd_m": list(e["sd_m"])} for e in run.end_points],
+                        "sd_m": list(e["sd_m"]),
+                        **({"flare": e["flare"]} if "flare" in e else {})}
+                       for e in run.end_points],
         "takeoff_roll": {"start_t_s": run.roll.start_t, "rest_t_s": list(run.roll.rest_t)},
         "fixes": _fix_report(clean, track),
         "wind_prior": _wind_prior_report(inp, settings, clean),

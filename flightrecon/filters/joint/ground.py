@@ -162,8 +162,14 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         if nose:
             H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
         else:
-            r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll,
-                                          rest_heading(inp) if dep_end == 0 else None)
+            # the wheels roll where the nose points: the track leaves the runway's direction
+            # by the nose's angle to the heading lined up at rest before a take-off roll, or,
+            # on a landing roll (no rest before it) and a take-off without one, by its angle
+            # to the runway itself (the heading bias inside it: a fraction of the swerves)
+            ref = rest_heading(inp) if dep_end == 0 else None
+            if ref is None and rw is not None:
+                ref = float(rw)
+            r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll, ref)
         b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
         if pos is None:
             continue

@@ -136,6 +136,59 @@ def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
     return lat, lon, float(thr[2])
 
 
+def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
+                    smooth_s: float = 1.0) -> dict[str, float] | None:
+    """The touchdown's distance past the arrival threshold from the recorded flare.
+
+    An approach crosses the threshold at the screen height :math:`h_s` (``screen_height_m``,
+    50 ft: the threshold crossing height of a 3 deg glide path to the aiming point); what
+    follows, the flare and any float in ground effect, is flown at the recorded airspeed, so
+
+    .. math:: d_{td} = \\int_{t_s}^{t_{td}} V_{TAS}\\,dt, \\qquad
+              \\sigma_{td}^2 = \\sigma_s^2 + (w\\,(t_{td} - t_s))^2
+
+    with :math:`t_s` the last time before touchdown the barometric height above the touchdown
+    (the recorded pressure altitude, ``smooth_s`` running mean, minus its median over the
+    first 2 s on the ground: the baro offset cancels) was at least :math:`h_s`,
+    :math:`\\sigma_s` the crossing's scatter along the runway (``screen_along_sd_m``) and
+    :math:`w` the unknown runway component of the wind over that time (``float_wind_mps``).
+    A long float (a tail wind, an approach too fast) is then measured instead of assumed
+    (the fixed ``touchdown_m`` put a 737 landing 870 m long 5.8 sd off: issue #38).
+
+    Returns
+    -------
+    dict or None
+        ``touchdown_m``, ``sd_m``, ``screen_t_s``, ``float_s``; ``None`` (the fixed
+        ``touchdown_m``) without a touchdown, a pressure altitude or an airspeed there, or
+        when the record does not climb above the screen height within ``look_back_s``.
+    """
+    td = inp.touchdown_t
+    h_s = nz.screen_height_m
+    if not (np.isfinite(td) and h_s > 0):
+        return None
+    t, h, v = inp.t_in, inp.baro_rel_m, inp.tas
+    ground = (t >= td) & (t <= td + 2.0) & np.isfinite(h)
+    win = (t >= td - look_back_s) & (t <= td) & np.isfinite(h)
+    if ground.sum() < 2 or win.sum() < 4:
+        return None
+    h_td = float(np.median(h[ground]))
+    tw, hw = t[win], h[win] - h_td
+    dt = float(np.median(np.diff(tw))) if len(tw) > 1 else 1.0
+    n = max(int(round(smooth_s / max(dt, 1e-6))), 1)
+    hs = np.convolve(hw, np.ones(n) / n, mode="same") if n > 1 else hw
+    above = np.flatnonzero(hs >= h_s)
+    if above.size == 0:
+        return None
+    t_s = float(tw[above[-1]])
+    seg = (t >= t_s) & (t <= td)
+    vv = v[seg]
+    if seg.sum() < 2 or not np.all(np.isfinite(vv)):
+        return None
+    dist = float(np.trapezoid(vv, t[seg]))
+    sd = float(np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * (td - t_s)))
+    return {"touchdown_m": dist, "sd_m": sd, "screen_t_s": t_s, "float_s": float(td - t_s)}
+
+
 def end_points(inp: JointInputs, nz: JointNoise,
                roll: TakeoffRoll | None = None) -> list[dict[str, Any]]:
     """The end-point constraints: where and when the record is tied to its airfields.
@@ -176,9 +229,13 @@ def end_points(inp: JointInputs, nz: JointNoise,
         if thr is not None and rw is not None and np.isfinite(t_run):
             dist, sd = ((0.0, nz.roll_start_sd_m) if which == "departure"
                         else (nz.touchdown_m, nz.touchdown_sd_m))
+            flare = float_touchdown(inp, nz) if which == "arrival" else None
+            if flare is not None:
+                dist, sd = flare["touchdown_m"], flare["sd_m"]
             out.append({"which": which, "model": "runway", "t_s": float(t_run),
                         "point": _along_runway_point(thr, rw, dist), "runway_rad": float(rw),
-                        "sd_m": (sd, nz.runway_halfwidth_m, nz.endpoint_v_m)})
+                        "sd_m": (sd, nz.runway_halfwidth_m, nz.endpoint_v_m),
+                        **({"flare": flare} if flare is not None else {})})
             continue
         if which == "departure":
             tt = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]

@@ -79,6 +79,13 @@ class JointNoise:
     #                                          or at impact (radar hand-off, wreckage)
     touchdown_m: float = 400.0               # touchdown distance past the runway threshold
     touchdown_sd_m: float = 150.0            # its dispersion
+    screen_height_m: float = 15.24           # threshold crossing height (50 ft) above the
+    #                                          touchdown: from it, the touchdown distance is the
+    #                                          air distance flown to touchdown (inputs.float_
+    #                                          touchdown); 0 keeps touchdown_m
+    screen_along_sd_m: float = 150.0         # where the approach crosses the screen height,
+    #                                          along the runway about the threshold
+    float_wind_mps: float = 8.0              # runway wind component over that air distance
     roll_start_sd_m: float = 100.0           # start of the take-off roll vs the threshold
     lineup_heading_deg: float = 1.0          # the nose vs the runway, lined up at rest before
     #                                          the take-off roll (ground.lineup_heading; with
@@ -121,7 +128,7 @@ POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_
                   "lineup_heading_deg",
                   "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
                   "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m",
-                  "ahrs_tilt_tau_s", "sat_column_k")
+                  "ahrs_tilt_tau_s", "sat_column_k", "screen_along_sd_m", "float_wind_mps")
 """JointNoise fields that must be positive (a zero would be a measurement without noise)."""
 
 
