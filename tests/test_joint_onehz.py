@@ -182,6 +182,29 @@ def test_derived_long_load_is_not_used_where_the_airspeed_comes_alive():
     assert not airspeed_floor_windows(t, np.zeros(100)).any()
 
 
+def test_the_airspeed_floor_window_leaves_the_roll_s_speed_unknown():
+    """Through each window of :func:`airspeed_floor_windows` (6 samples of 1 s) the missing
+    accelerations' PSD is V^2 / W, V the largest airspeed in it (14.9 + 1.5 x 2 = 17.9 m/s at
+    the take-off, 0 at the landing roll's end: the floor 1), W its 6 s: the velocity change
+    across it is then unknown by about V (sqrt(PSD W) = V) instead of the 2.4 m/s of the
+    default 1 (m/s^2)^2/Hz; 1 elsewhere."""
+    from flightrecon.filters.joint_method import airspeed_floor_psd, airspeed_floor_windows
+
+    t = np.arange(0.0, 100.0)
+    tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))
+    tas[80:] = 0.0
+    dead = airspeed_floor_windows(t, tas)
+    psd = airspeed_floor_psd(t, tas, dead)
+    v_up = 14.9 + 1.5 * 2.0
+    np.testing.assert_allclose(psd[7:13], v_up ** 2 / 6.0)
+    assert np.sqrt(psd[7] * 6.0) == pytest.approx(v_up)
+    v_down = float(np.max(tas[77:83]))
+    np.testing.assert_allclose(psd[77:83], max(v_down ** 2 / 6.0, 1.0))
+    mask = np.ones(100, bool)
+    mask[7:13] = mask[77:83] = False
+    np.testing.assert_array_equal(psd[mask], 1.0)
+
+
 def test_a_1hz_load_record_does_not_bend_the_pressure_altitude(tmp_path):
     """The -17 % pressure-altitude scale reproduced on a simulation: the shipped ``circuit``
     resampled to 1 Hz, GNSS, Doppler and recorded wind dropped (recorder only), and its normal
@@ -296,3 +319,22 @@ def test_temperature_baro_prior_spread_and_guards():
     few = MIN_SAT_SAMPLES - 1
     inp1, sat1 = _sat_inputs(climb[:few], 120.0, dev[:few])
     assert temperature_baro_prior(inp1, sat1, 120.0, JointSettings()).priors == ()
+
+
+def test_missing_accelerations_weigh_their_psd_in_the_step_share():
+    """``nominal._increments``: per state step the seconds without an acceleration, each
+    weighted by the inputs' ``missing_psd`` (1 without it): on a 1 Hz input with samples 3 and
+    4 missing (2 s of centred holds) and a 2 s state grid, 2 s in all, and with a PSD of 9 on
+    those samples 18, step by step 9 times the unweighted share."""
+    from flightrecon.filters.joint.nominal import _increments
+
+    t = np.arange(0.0, 9.0)
+    acc = np.zeros((9, 3))
+    acc[3:5] = np.nan
+    idx = np.arange(0, 9, 2)
+    _, _, miss1 = _increments(t, acc, idx)
+    psd = np.ones(9)
+    psd[3:5] = 9.0
+    _, _, miss9 = _increments(t, acc, idx, psd)
+    assert miss1.sum() == pytest.approx(2.0) and miss9.sum() == pytest.approx(18.0)
+    np.testing.assert_allclose(miss9, 9.0 * miss1)

@@ -238,10 +238,13 @@ def joint_inputs(clean: CleanFlight) -> JointInputs:
             # acceleration back from lift-off, which through these samples is not known
             acc = inp.acc_ned.copy()
             acc[dead] = np.nan
-            inp = replace(inp, acc_ned=acc, notes=(*inp.notes, (
+            inp = replace(inp, acc_ned=acc, missing_psd=airspeed_floor_psd(inp.t_in,
+                                                                           inp.tas, dead),
+                          notes=(*inp.notes, (
                 f"joint: n_long_g derived from an airspeed that reads 0 below its floor: the "
                 f"loads of {int(dead.sum())} sample(s) where it comes alive or dies "
-                "(the derivative's window holds both) are taken as missing")))
+                "(the derivative's window holds both) are taken as missing, the velocity "
+                "change across each such window unknown by the airspeed there")))
     if not (ph is not None and ph.starts_airborne):
         roll = takeoff_roll(inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
                             inp.wind_ne, not_before_t=inp.lineup_t)
@@ -299,6 +302,29 @@ def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
     hi = np.searchsorted(tv, t + half_window_s + 1e-9, side="right")
     n_dead = cum[hi] - cum[lo]
     return (n_dead > 0) & (n_dead < hi - lo)
+
+
+def airspeed_floor_psd(t: np.ndarray, tas: np.ndarray, dead: np.ndarray) -> np.ndarray:
+    """The missing accelerations' PSD [(m/s^2)^2/Hz] per input sample (``JointInputs.
+    missing_psd``): 1 outside the windows of :func:`airspeed_floor_windows`; in each of
+    them (a contiguous run of ``dead`` samples, ``W`` seconds) ``V^2 / W``, ``V`` the largest
+    airspeed there, so that the velocity change across the window is unknown by about the
+    airspeed the indicator comes alive at.  Through such a window the aircraft accelerates
+    (a take-off roll: 0.1-0.3 g for the 6 s the derivative's window spans, 6-18 m/s) where the
+    default's zero-mean 1 m/s^2/sqrt(Hz) allowed 2.4 m/s: the ground speed after it was held
+    short of the truth by most of that, and the smoother took the shortfall as a headwind it
+    then kept (the G1000 export with its departure alone: 5.4 m/s of east wind, 3 sd, a track
+    15.7 km off at the end, docs/ingest.md)."""
+    psd = np.ones(len(t))
+    idx = np.flatnonzero(dead)
+    if idx.size == 0:
+        return psd
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
+    for r in runs:
+        w = float(t[r[-1]] - t[r[0]]) + (float(np.median(np.diff(t))) if len(t) > 1 else 1.0)
+        v = float(np.nanmax(tas[r])) if np.isfinite(tas[r]).any() else 0.0
+        psd[r] = max(v * v / max(w, 1e-6), 1.0)
+    return psd
 
 
 @nb.njit(cache=True, nogil=True)

@@ -63,6 +63,10 @@ class JointInputs:
         horizontal-only fix), sd_m (per axis), or None
     wind_aloft : winds-aloft prior (``--wind``) at the recorded altitude on the input grid
         (Ni, 3): north, east (where the air moves to) [m/s] and sd per component [m/s], or None
+    missing_psd : white-acceleration PSD [(m/s^2)^2/Hz] standing for each input sample's
+        acceleration where it is missing (Ni,), or None: 1 everywhere (the dynamics'
+        ``qv_extra``; a derived ``n_long_g`` where the airspeed comes alive: larger,
+        :func:`flightrecon.filters.joint_method.airspeed_floor_psd`)
     """
 
     t_in: np.ndarray
@@ -93,6 +97,7 @@ class JointInputs:
     ends_airborne: bool = False
     fixes: np.ndarray | None = None
     wind_aloft: np.ndarray | None = None
+    missing_psd: np.ndarray | None = None
 
     def body_to_ned(self, i: int | np.ndarray | slice = slice(None)) -> np.ndarray:
         """Body-to-NED rotations C = R_z(heading) R_y(pitch) R_x(roll) of the input samples

@@ -82,14 +82,15 @@ def _flight(inp: JointInputs, settings: JointSettings) -> _Flight:
     idx = _state_grid(inp.t_in, settings.state_rate_hz)
     T = inp.t_in[idx]
     dt = np.diff(T, prepend=T[0])
-    dV, dP, miss = _increments(inp.t_in, inp.acc_ned, idx)
+    dV, dP, miss = _increments(inp.t_in, inp.acc_ned, idx, inp.missing_psd)
     acc = dV / np.where(dt > 0, dt, 1.0)[:, None]
     fb = np.zeros((len(inp.t_in), 3)) if inp.f_body_g is None else np.nan_to_num(inp.f_body_g)
     # the input samples' rotations only for this (41 MB on a 10-hour flight at 16 Hz)
     Cnb, Csf, Jatt = _attitude_step_means(inp.body_to_ned(), np.ascontiguousarray(fb),
                                           idx.astype(np.int64),
                                           np.ascontiguousarray(inp.t_in, dtype=float))
-    qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0) * 1.0  # (1 m/s^2)^2/Hz
+    # missing loads: (1 m/s^2)^2/Hz, or the inputs' missing_psd, over the share of the step
+    qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0)
     # the attitude reference's tilt after sustained loads (tilt.py, eq. 2)
     qv_extra = qv_extra + tilt_psd(inp.t_in, inp.f_body_g, idx, settings.noise, inp.acc_ned)
     Cst = np.eye(3)

@@ -40,9 +40,12 @@ def _half_holds(t_in: np.ndarray, idx: np.ndarray):
     return k_r, k_l, d_r, d_l
 
 
-def _increments(t_in, acc, idx):
+def _increments(t_in, acc, idx, missing_psd=None):
     """Exact velocity and position increments over each state step for accelerations held on
-    their samples' centred intervals (:func:`_half_holds`).
+    their samples' centred intervals (:func:`_half_holds`), and per step the missing
+    accelerations' share: the seconds of it without an acceleration, each weighted by
+    ``missing_psd`` (per input sample [(m/s^2)^2/Hz], ``None``: 1), the dynamics' extra
+    velocity PSD times the step.
 
     Over step k (from t_in[idx[k-1]] to T_k = t_in[idx[k]]) a constant a on [s0, s1) adds
     a (s1 - s0) to dV and a (s1 - s0)(T_k - (s0 + s1)/2) to dP: the right half of sample i
@@ -50,6 +53,8 @@ def _increments(t_in, acc, idx):
     """
     a = np.where(np.isfinite(acc), acc, 0.0)
     missing = (~np.isfinite(acc)).any(axis=1).astype(float)
+    if missing_psd is not None:
+        missing = missing * np.asarray(missing_psd, dtype=float)
     N = len(idx)
     T = t_in[idx]
     k_r, k_l, d_r, d_l = _half_holds(t_in, idx)
