@@ -29,11 +29,11 @@ AHRS_TILT_HORIZONTAL = 1.0
 #: is announced: below it the tilt noise would be a few tenths of m/s per minute
 UNDECLARED_TILT_WARN_G = 0.1
 
-#: a tilt gain measured by the GNSS below this [m/s^2 per g] is not used: JSBSim's attitude with
-#: its sensors' errors (constant biases and scale factors, lags) gives 0.06-0.17 on airwork,
-#: holding, go-around and circuit flights, the PH-LAB AHRS 0.28 and 0.41 (docs/joint.md, "The
-#: attitude reference after sustained loads"); with 0.2 on JSBSim's airwork the tracks in a
-#: withheld 300 s gap went from 2 to 24 m RMS
+#: a tilt gain measured by the GNSS below this [m/s^2 per g] is not used for an undeclared
+#: source: JSBSim's attitude with its sensors' errors gives 0.04-0.18 on ten airwork, holding,
+#: go-around, circuit, cross-country and jet flights, the PH-LAB AHRS 0.27 and 0.40
+#: (docs/joint.md, "The attitude reference after sustained loads"); with 0.2 on JSBSim's
+#: airwork (measured before the cubic fix velocities) a withheld 300 s gap went from 2 to 24 m
 TILT_GAIN_MIN_MPS2_PER_G = 0.25
 
 
