@@ -530,8 +530,8 @@ def test_nose_offset_is_the_angle_between_nose_and_air_velocity(roll, pitch, alp
     independently with :func:`body_to_ned_matrix`)."""
     import pandas as pd
 
-    from flightrecon.filters.joint.inputs import JointInputs
     from flightrecon.filters.joint.airdata import nose_offset
+    from flightrecon.filters.joint.inputs import JointInputs
     from flightrecon.geo.kinematics import body_to_ned_matrix
 
     C = body_to_ned_matrix(roll, pitch, heading)[0]
@@ -557,8 +557,8 @@ def test_nose_offset_left_out_where_the_angle_of_attack_is_not_believable():
     can only explain with an angle of attack of 30 deg (a stall) gives no offset."""
     import pandas as pd
 
-    from flightrecon.filters.joint.inputs import JointInputs
     from flightrecon.filters.joint.airdata import nose_offset
+    from flightrecon.filters.joint.inputs import JointInputs
 
     t = np.arange(0.0, 10.0, 0.0625)
     n = len(t)
@@ -581,8 +581,8 @@ def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
 
     import pandas as pd
 
-    from flightrecon.filters.joint.inputs import JointInputs
     from flightrecon.filters.joint.ground import runway_measurements
+    from flightrecon.filters.joint.inputs import JointInputs
     from flightrecon.filters.joint.measurements import _MeasBuilder
     from flightrecon.filters.joint.settings import JointSettings
 
@@ -665,6 +665,32 @@ def test_lined_up_at_rest_the_heading_gives_its_bias():
     assert row(np.radians(160.0)).parts[0]["z"] == pytest.approx(b.parts[0]["z"], abs=1e-15)
 
 
+def _runway_rows(t, hdg, tas, settings=None, **where):
+    """The runway rows (``ground.runway_measurements``) of a roll recorded at ``t`` with the
+    heading ``hdg`` [deg] and airspeed ``tas`` on a 1 s state grid (every fourth sample),
+    the nominal ground velocity 20 m/s east; ``where``: the inputs' airfields, lift-off,
+    touchdown, runway and roll.  Returns the rows, their H, the settings and the state grid."""
+    import pandas as pd
+
+    from flightrecon.filters.joint.ground import runway_measurements
+    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.settings import JointSettings
+
+    n = len(t)
+    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
+                      attitude_deg=np.c_[np.zeros(n), np.zeros(n), hdg], tas=tas,
+                      heading_rad=np.radians(hdg), baro_rel_m=np.zeros(n), gnss=pd.DataFrame(),
+                      radar=pd.DataFrame(), station=None, field_h=100.0, **where)
+    s = settings or JointSettings()
+    T = t[::4]
+    b = _MeasBuilder(T)
+    vnom = np.c_[np.zeros(len(T)), np.full(len(T), 20.0), np.zeros(len(T))]
+    runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
+                        np.zeros((len(T), 3)), vnom)
+    return b.parts[0], b.H[0], s, T
+
+
 def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     """Guards the steering term of the runway rows (docs/joint.md, "The heading reference"):
     where the recorded heading swings 8 deg off the heading lined up at rest, the track
@@ -672,12 +698,8 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     white noise (V: the lift-off airspeed), and the rows where the nose stays lined up (and
     the rest itself) keep the white noise alone; without a rest the reference is the roll's
     mean heading."""
-    import pandas as pd
-
     from flightrecon.cleaning.phases import TakeoffRoll
-    from flightrecon.filters.joint.ground import runway_measurements, steering_variance
-    from flightrecon.filters.joint.inputs import JointInputs
-    from flightrecon.filters.joint.measurements import _MeasBuilder
+    from flightrecon.filters.joint.ground import steering_variance
     from flightrecon.filters.joint.settings import JointSettings
 
     t = np.arange(0.0, 80.0, 0.25)
@@ -685,20 +707,11 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     hdg = np.full(n, 90.0)
     swing = (t >= 22.0) & (t < 26.0)
     hdg[swing] += 8.0
-    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
-                      attitude_deg=np.c_[np.zeros(n), np.zeros(n), hdg],
-                      tas=np.clip(1.5 * (t - 12.0), 0.0, 60.0), heading_rad=np.radians(hdg),
-                      baro_rel_m=np.zeros(n), gnss=pd.DataFrame(), radar=pd.DataFrame(),
-                      station=None, departure=(40.0, 20.0, 100.0), arrival=None,
-                      liftoff_t=42.0, touchdown_t=np.nan, field_h=100.0,
-                      runway_rad=(np.pi / 2, None), roll=TakeoffRoll(12.0, (0.0, 10.0)))
-    s = JointSettings()
-    T = t[::4]
-    b = _MeasBuilder(T)
-    vnom = np.c_[np.zeros(len(T)), np.full(len(T), 20.0), np.zeros(len(T))]
-    runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                        np.zeros((len(T), 3)), vnom)
-    g = b.parts[0]
+    where = dict(departure=(40.0, 20.0, 100.0), arrival=None, liftoff_t=42.0,
+                 touchdown_t=np.nan, runway_rad=(np.pi / 2, None),
+                 roll=TakeoffRoll(12.0, (0.0, 10.0)))
+    tas = np.clip(1.5 * (t - 12.0), 0.0, 60.0)
+    g, _, s, T = _runway_rows(t, hdg, tas, **where)
     v_lo = 1.5 * (42.0 - 12.0)          # the airspeed at lift-off: 45 m/s
     in_swing = (g["t"] >= 22.0) & (g["t"] < 26.0)
     assert in_swing.sum() == 4 and len(g["t"]) == 40
@@ -712,11 +725,7 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     np.testing.assert_allclose(r, (45.0 * np.sin(d - mean)) ** 2, rtol=1e-12)
     assert steering_variance(np.zeros(0), 45.0).size == 0
     # roll_velocity="nose": the rows across the recorded heading (less the bias), white noise
-    b = _MeasBuilder(T)
-    runway_measurements(b, inp, JointSettings(roll_velocity="nose"),
-                        lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                        np.zeros((len(T), 3)), vnom)
-    g, H = b.parts[0], b.H[0]
+    g, H, _, _ = _runway_rows(t, hdg, tas, JointSettings(roll_velocity="nose"), **where)
     psi = np.radians(np.interp(g["t"], t, hdg))
     np.testing.assert_allclose(H[:, jl.IV:jl.IV + 2], np.c_[-np.sin(psi), np.cos(psi)],
                                atol=1e-12)
@@ -1019,30 +1028,12 @@ def test_a_landing_roll_angled_off_the_runway_loosens_its_cross_track_rows():
     the rows held the track on the runway and the heading bias took up the 6 deg (3.3 +- 0.5
     deg for a true 0.5, mean NEES north 11.5). The reference is now the runway's direction:
     each row carries (V sin 6 deg)^2, V the touchdown airspeed."""
-    import pandas as pd
-
-    from flightrecon.filters.joint.ground import runway_measurements
-    from flightrecon.filters.joint.inputs import JointInputs
-    from flightrecon.filters.joint.measurements import _MeasBuilder
-    from flightrecon.filters.joint.settings import JointSettings
-
     t = np.arange(0.0, 40.0, 0.25)
     n = len(t)
     hdg = np.full(n, 96.0)
-    inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
-                      attitude_deg=np.c_[np.zeros(n), np.zeros(n), hdg],
-                      tas=np.clip(40.0 - 1.5 * (t - 10.0), 0.0, 40.0),
-                      heading_rad=np.radians(hdg), baro_rel_m=np.zeros(n), gnss=pd.DataFrame(),
-                      radar=pd.DataFrame(), station=None, departure=None,
-                      arrival=(40.0, 20.0, 100.0), liftoff_t=np.nan, touchdown_t=10.0,
-                      field_h=100.0, runway_rad=(None, np.pi / 2))
-    s = JointSettings()
-    T = t[::4]
-    b = _MeasBuilder(T)
-    vnom = np.c_[np.zeros(len(T)), np.full(len(T), 20.0), np.zeros(len(T))]
-    runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                        np.zeros((len(T), 3)), vnom)
-    g = b.parts[0]
+    g, _, s, _ = _runway_rows(t, hdg, np.clip(40.0 - 1.5 * (t - 10.0), 0.0, 40.0),
+                              departure=None, arrival=(40.0, 20.0, 100.0), liftoff_t=np.nan,
+                              touchdown_t=10.0, runway_rad=(None, np.pi / 2))
     assert len(g["t"]) > 20
     np.testing.assert_allclose(g["r"], s.noise.ground_mps ** 2
                                + (40.0 * np.sin(np.radians(6.0))) ** 2, rtol=1e-9)

@@ -28,7 +28,6 @@ from flightrecon.filters.joint import layout as jl
 from flightrecon.filters.joint.nominal import _q_vector
 from flightrecon.filters.joint.settings import JointNoise
 from flightrecon.filters.joint_method import (
-    MIN_SAT_SAMPLES,
     baro_field_reference_m,
     sampled_loads_noise,
     temperature_baro_prior,
@@ -40,6 +39,7 @@ from flightrecon.geo.atmosphere import (
     height_above_field_m,
     isa_temperature_k,
 )
+from flightrecon.geo.pressure_height import MIN_SAT_SAMPLES
 from flightrecon.types import FlightMeta, Position
 
 

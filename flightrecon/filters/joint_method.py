@@ -32,7 +32,11 @@ from flightrecon.filters.joint import (
     takeoff_roll,
 )
 from flightrecon.filters.joint import layout as jl
-from flightrecon.filters.joint.attitude_source import attitude_source_noise, gnss_tilt_evidence
+from flightrecon.filters.joint.attitude_source import (
+    attitude_source_noise,
+    gnss_tilt_evidence,
+    tilt_noise_open,
+)
 from flightrecon.filters.joint.diagnostics import (
     clock_warnings,
     far_warning,
@@ -43,13 +47,10 @@ from flightrecon.filters.joint.diagnostics import (
 )
 from flightrecon.filters.joint.inputs import _nearest
 from flightrecon.filters.joint.measurements import wind_prior_measurements
-from flightrecon.geo.atmosphere import (
-    field_pressure_altitude_m,
-    height_above_field_m,
-    isa_temperature_k,
-)
+from flightrecon.geo.atmosphere import field_pressure_altitude_m, height_above_field_m
 from flightrecon.geo.frames import ecef_to_geodetic, msl_to_ellipsoid, output_plane
 from flightrecon.geo.kinematics import body_to_ned_matrix, kinematic_acceleration_ned
+from flightrecon.geo.pressure_height import isa_deviation_k
 from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.ingest.derive import N_LONG_HALF_WINDOW_S
 from flightrecon.ingest.priors import wind_aloft_on_grid
@@ -558,8 +559,15 @@ def _derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSe
     return replace(settings, priors=(*settings.priors, *extra))
 
 
-#: fewest airborne temperature samples for :func:`temperature_baro_prior`
-MIN_SAT_SAMPLES = 60
+def _airborne(inp: JointInputs) -> np.ndarray:
+    """Input samples from lift-off to touchdown (the whole record where either is unknown)."""
+    t = inp.t_in
+    air = np.ones(len(t), bool)
+    if np.isfinite(inp.liftoff_t):
+        air &= t >= inp.liftoff_t
+    if np.isfinite(inp.touchdown_t):
+        air &= t <= inp.touchdown_t
+    return air
 
 
 def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: float,
@@ -580,24 +588,19 @@ def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: 
     Its sd is that fit's change per kelvin times ``sqrt(s^2 + sat_column_k^2)``: ``s`` the
     spread of the samples' ``dT`` (the column is not one deviation everywhere),
     ``JointNoise.sat_column_k`` what the recorded SAT does not tell of the column (probe,
-    humidity).  Fewer than :data:`MIN_SAT_SAMPLES` samples, or a ``baro_scale`` prior given in
+    humidity).  Fewer than :data:`flightrecon.geo.pressure_height.MIN_SAT_SAMPLES` samples
+    (:func:`~flightrecon.geo.pressure_height.isa_deviation_k`), or a ``baro_scale`` prior given in
     ``settings.priors`` (the user's, a fleet's): unchanged.
     """
     if any(p[0] == "baro_scale" for p in settings.priors):
         return settings
-    t = inp.t_in
-    air = np.ones(len(t), bool)
-    if np.isfinite(inp.liftoff_t):
-        air &= t >= inp.liftoff_t
-    if np.isfinite(inp.touchdown_t):
-        air &= t <= inp.touchdown_t
-    sat = np.asarray(sat_degc, dtype=float)
-    ok = air & np.isfinite(sat) & np.isfinite(inp.baro_rel_m)
-    if ok.sum() < MIN_SAT_SAMPLES:
+    h_p_all = inp.baro_rel_m + h_p_field_m
+    deviation = isa_deviation_k(h_p_all, sat_degc, _airborne(inp))
+    if deviation is None:
         return settings
+    ok = _airborne(inp) & np.isfinite(np.asarray(sat_degc, dtype=float)) & np.isfinite(h_p_all)
     dh_p = inp.baro_rel_m[ok]
-    h_p = dh_p + h_p_field_m
-    dev = sat[ok] + 273.15 - isa_temperature_k(h_p)
+    h_p = h_p_all[ok]
     if not np.any(np.abs(dh_p) > 0):
         return settings
 
@@ -605,8 +608,8 @@ def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: 
         H = height_above_field_m(h_p, h_p_field_m, dt_k)
         return float(np.sum(dh_p * H) / np.sum(H * H)) - 1.0
 
-    d_mean = float(np.mean(dev))
-    sd_t = float(np.hypot(np.std(dev), settings.noise.sat_column_k))
+    d_mean, spread = deviation
+    sd_t = float(np.hypot(spread, settings.noise.sat_column_k))
     c0 = scale(d_mean)
     sd_c = 0.5 * abs(scale(d_mean + sd_t) - scale(d_mean - sd_t))
     if not (np.isfinite(c0) and np.isfinite(sd_c) and sd_c > 0):
@@ -644,11 +647,7 @@ def sampled_loads_noise(inp: JointInputs, settings: JointSettings) -> JointSetti
     if any(v > 0 for v in nz.accel_sampling_mps2_sqrt_hz):
         return settings
     t = inp.t_in
-    air = np.ones(len(t), bool)
-    if np.isfinite(inp.liftoff_t):
-        air &= t >= inp.liftoff_t
-    if np.isfinite(inp.touchdown_t):
-        air &= t <= inp.touchdown_t
+    air = _airborne(inp)
     a = inp.acc_ned
     ok = air[1:] & air[:-1] & np.isfinite(a[1:]).all(axis=1) & np.isfinite(a[:-1]).all(axis=1)
     if ok.sum() < MIN_LOAD_DIFFERENCES:
@@ -767,7 +766,8 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
             inp, clean.grid["sat_degc"].to_numpy(float),
             field_pressure_altitude_m(clean.meta.departure.elev_m,
                                       clean.meta.qnh_departure_hpa), settings)
-    tilt_ev = gnss_tilt_evidence(clean, inp, settings)
+    tilt_ev = (gnss_tilt_evidence(clean, inp, settings)
+               if tilt_noise_open(clean, inp, settings) else None)
     settings, attitude_note = attitude_source_noise(clean, inp, settings, tilt_ev)
     run = smooth_joint(inp, settings)
     if attitude_note:

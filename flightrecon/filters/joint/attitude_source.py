@@ -74,6 +74,15 @@ def gnss_tilt_evidence(clean: CleanFlight, inp: JointInputs,
                          horizontal=nz.ahrs_tilt_horizontal or AHRS_TILT_HORIZONTAL)
 
 
+def tilt_noise_open(clean: CleanFlight, inp: JointInputs, settings: JointSettings) -> bool:
+    """Whether the flight's tilt noise is still to be chosen (:func:`attitude_source_noise`):
+    not where the sidecar declares an inertial reference, the settings give the gain, or the
+    log has no loads; only then is the GNSS's measurement (:func:`gnss_tilt_evidence`) of
+    use."""
+    return not (clean.meta.attitude_source == "inertial"
+                or settings.noise.ahrs_tilt_mps2_per_g > 0.0 or inp.f_body_g is None)
+
+
 _MEASURE: dict = {}
 """Sentinel of :func:`attitude_source_noise`: measure the GNSS evidence there."""
 
@@ -97,7 +106,7 @@ def attitude_source_noise(clean: CleanFlight, inp: JointInputs, settings: JointS
     :func:`gnss_tilt_evidence` already measured (``None``: none), measured here by default."""
     nz = settings.noise
     src = clean.meta.attitude_source
-    if src == "inertial" or nz.ahrs_tilt_mps2_per_g > 0.0 or inp.f_body_g is None:
+    if not tilt_noise_open(clean, inp, settings) or inp.f_body_g is None:  # (typed: no loads)
         return settings, None
     ev = gnss_tilt_evidence(clean, inp, settings) if evidence is _MEASURE else evidence
     if ev is not None:
