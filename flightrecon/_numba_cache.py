@@ -39,7 +39,7 @@ from pathlib import Path
 CHOICE: dict[str, str | None] = {"how": None, "path": None}
 
 #: sub-packages whose modules hold cached kernels (numba writes ``<dir>/__pycache__``)
-_KERNEL_DIRS = ("filters", "smoothing", "fusion", "geo", "sim", "estimation")
+_KERNEL_DIRS = ("methods", "cleaning", "geo", "sim", "estimation")
 
 
 def user_cache_dir() -> Path:

@@ -46,7 +46,7 @@ import pandas as pd
 
 from flightrecon.cleaning.plausibility import time_spans
 from flightrecon.constants import G0
-from flightrecon.fusion.baselines import ARRIVAL_POINT_SD_M, DR_WALK_MPS_SQRT_S, bridge_sd_m
+from flightrecon.methods.baselines import ARRIVAL_POINT_SD_M, DR_WALK_MPS_SQRT_S, bridge_sd_m
 from flightrecon.types import CleanFlight, MethodResult
 
 
@@ -517,8 +517,8 @@ def corrected_dead_reckoning(clean: CleanFlight) -> tuple[pd.DataFrame, float, f
     arrival at touchdown (a record that ends on the ground) or a known position (``--fix``)
     within :data:`END_FIX_S` of the record's end.  Returns the track (``t_s``, ``north_m``,
     ``east_m``), the end's time and the end point's own sd [m]; ``None`` without both ends."""
-    from flightrecon.fusion.baselines import dead_reckoning
     from flightrecon.geo.frames import output_plane
+    from flightrecon.methods.baselines import dead_reckoning
 
     ph = clean.phases
     meta = clean.meta

@@ -58,10 +58,10 @@ def windows(data: Path, flight: str, window_s: float, start_s: float | None = No
     """One row per window (from ``start_s``, default 30 s after lift-off): start, end [s],
     INS minus GPS velocity change north, east and its magnitude [m/s], rms of the load's
     departure from 1 g [g] and of the kinematic acceleration's magnitude [g] (the two drivers
-    of ``flightrecon/filters/joint/tilt.py``)."""
+    of ``flightrecon/methods/joint/tilt.py``)."""
     from flightrecon.cleaning import CleaningSettings, clean_flight
-    from flightrecon.filters.joint_method import joint_inputs
     from flightrecon.ingest import load_flight
+    from flightrecon.methods.joint.method import joint_inputs
 
     folder = data if flight == "ref" else data / "Our-data"
     df, stems = rs.analyst_table(folder)

@@ -49,9 +49,9 @@ import pandas as pd
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.errors import ValidationError
-from flightrecon.filters.joint import JointNoise, JointSettings
-from flightrecon.filters.joint_method import run_joint
-from flightrecon.fusion.baselines import dead_reckoning
+from flightrecon.methods.baselines import dead_reckoning
+from flightrecon.methods.joint import JointNoise, JointSettings
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.sim import simulate
 from flightrecon.sim.scenarios import scenario_config
 from flightrecon.sim.weather import WindField

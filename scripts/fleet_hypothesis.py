@@ -35,8 +35,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.fusion.baselines import dead_reckoning  # noqa: E402
-from flightrecon.fusion.method import run_sabziev  # noqa: E402
+from flightrecon.methods.baselines import dead_reckoning  # noqa: E402
+from flightrecon.methods.sabziev.method import run_sabziev  # noqa: E402
 from flightrecon.sim import simulate_fleet  # noqa: E402
 from flightrecon.store import CoefficientStore, from_sabziev_summary  # noqa: E402
 from flightrecon.types import Flight  # noqa: E402

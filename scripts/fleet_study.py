@@ -50,9 +50,9 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint.settings import JointNoise
-from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.ingest import load_flight
+from flightrecon.methods.baselines import dead_reckoning
+from flightrecon.methods.joint.settings import JointNoise
 from flightrecon.pipeline import ReconstructSettings, run_method
 from flightrecon.pipeline.health import method_health
 from flightrecon.sim import simulate, write_simulation

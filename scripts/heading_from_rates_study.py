@@ -75,8 +75,8 @@ def _rms_h(track, prefix, truth, air):
 
 def one_run(seed: int) -> dict:
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint_method import run_joint
-    from flightrecon.fusion.baselines import dead_reckoning
+    from flightrecon.methods.baselines import dead_reckoning
+    from flightrecon.methods.joint.method import run_joint
     from flightrecon.sim import simulate
     from flightrecon.types import Flight
 

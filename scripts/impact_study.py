@@ -31,11 +31,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from mc_joint import errors, noise_from_sensors  # noqa: E402
 
-import flightrecon.filters.joint_method as jm  # noqa: E402
+import flightrecon.methods.joint.method as jm  # noqa: E402
 from flightrecon.cleaning import clean_flight  # noqa: E402
-from flightrecon.filters.joint import JointSettings  # noqa: E402
-from flightrecon.filters.joint_method import run_joint  # noqa: E402
 from flightrecon.ingest.api import load_flight  # noqa: E402
+from flightrecon.methods.joint import JointSettings  # noqa: E402
+from flightrecon.methods.joint.method import run_joint  # noqa: E402
 from flightrecon.pipeline import ReconstructSettings, run_method  # noqa: E402
 from flightrecon.sim import simulate  # noqa: E402
 from flightrecon.types import Flight  # noqa: E402

@@ -36,7 +36,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import stats
 
-from flightrecon.filters import arms as A
+from flightrecon.methods import arms as A
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = A.ArmsModel(q_m2ps3=0.01, sigma_air_mps=0.2)

@@ -2,7 +2,7 @@
 
 Reproduces the experiment of seed 002 section 4 (figures 3-5: RMS error of azimuth, azimuth rate
 and azimuth acceleration against time during a "Landing" manoeuvre) with the project's
-estimators (:mod:`flightrecon.filters.azimuth`), and adds what the paper does not report: the
+estimators (:mod:`flightrecon.methods.azimuth`), and adds what the paper does not report: the
 radar outage during a turn, the filter's consistency (NEES) and the gain of the backward smoother.
 
 Run (full size, seeded; writes ``docs/tables/azimuth_*.md`` and ``docs/figures/azimuth_*.png``)::
@@ -24,7 +24,7 @@ import numpy as np
 from scipy import stats
 
 from flightrecon.constants import G0
-from flightrecon.filters.azimuth import (
+from flightrecon.methods.azimuth import (
     azimuth_filter,
     horizontal_acceleration,
     horizontal_acceleration_covariance,
@@ -172,7 +172,7 @@ class SensorConfig:
 
 @dataclass(frozen=True)
 class FilterParams:
-    """Tuning of both models (see :func:`flightrecon.filters.azimuth.azimuth_filter`)."""
+    """Tuning of both models (see :func:`flightrecon.methods.azimuth.azimuth_filter`)."""
 
     alpha_m: float = 0.05
     sigma_m_mps2: float = 2.0

@@ -54,8 +54,8 @@ def one_run(seed: int) -> dict:
     from mc_joint import noise_from_sensors
 
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint import JointSettings
-    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.methods.joint import JointSettings
+    from flightrecon.methods.joint.method import run_joint
     from flightrecon.pipeline import ReconstructSettings, run_method
     from flightrecon.sim import simulate
     from flightrecon.types import Flight

@@ -44,9 +44,9 @@ import pandas as pd
 from scipy import stats
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint import JointNoise, JointSettings
-from flightrecon.filters.joint_method import run_joint
-from flightrecon.fusion.baselines import dead_reckoning
+from flightrecon.methods.baselines import dead_reckoning
+from flightrecon.methods.joint import JointNoise, JointSettings
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.pipeline import ReconstructSettings, run_method
 from flightrecon.sim import simulate
 from flightrecon.sim.scenarios import scenario_config

@@ -41,9 +41,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mc_joint import errors, noise_from_sensors
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint import JointSettings
-from flightrecon.filters.joint_method import run_joint
-from flightrecon.fusion.baselines import dead_reckoning
+from flightrecon.methods.baselines import dead_reckoning
+from flightrecon.methods.joint import JointSettings
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.pipeline import ReconstructSettings, run_method
 from flightrecon.sim import simulate
 from flightrecon.types import Flight

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from flightrecon.filters import sns as core
-from flightrecon.filters.sns_method import _radii_np, solve_sns
+from flightrecon.methods import sns as core
+from flightrecon.methods.sns.method import _radii_np, solve_sns
 from flightrecon.types import CleanFlight, FlightMeta, Position
 
 G0 = 9.80665
@@ -146,7 +146,7 @@ def simulate(seed: int, *, model: int = core.MODEL_AIRSPEED, duration_s: float =
     j = np.searchsorted(t, tf, side="right") - 1
     tau = tf - t[j]
     mh, nh = _radii_np(lat[j], alt_m)
-    from flightrecon.filters.sns_method import lever_arm_ne
+    from flightrecon.methods.sns.method import lever_arm_ne
     arm = lever_arm_ne(grid_df, LEVER_ARM_M)
     darm = np.gradient(arm, t, axis=0)
     armf = np.column_stack([np.interp(tf, t, arm[:, i]) for i in range(2)])

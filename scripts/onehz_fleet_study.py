@@ -12,7 +12,7 @@ the export:
 * **recorder only** (``withhold_gnss``: every GNSS channel withheld; departure and arrival
   from the sidecar): horizontal and vertical RMS over the airborne seconds (truth
   ``on_ground`` false) against dead reckoning (TAS along the heading, no wind) with a linear
-  end-point correction (:func:`flightrecon.fusion.baselines.dead_reckoning`,
+  end-point correction (:func:`flightrecon.methods.baselines.dead_reckoning`,
   ``corrected=True``); mean NEES per axis (north, east, up).
 * **GNSS gaps**: the GPS used except in one window of 300 s, and in another run of 120 s,
   centred in the airborne part (the GNSS columns masked in a copy of the flight; a flight
@@ -55,10 +55,10 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint_method import run_joint
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.gnss_use import GnssUse
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.pipeline.health import method_health
 from flightrecon.sim import simulate, write_simulation
 from flightrecon.sim.glass_cockpit import write_glass_cockpit

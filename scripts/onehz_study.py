@@ -8,7 +8,7 @@ against its own GPS fixes (SBAS, about 8-10 m), which are the reference:
   there from the export's own AltGPS - AltMSL so that heights compare on one datum):
   horizontal and vertical RMS over the airborne fixes, against dead reckoning (TAS along the
   heading, no wind) with a linear end-point correction
-  (:func:`flightrecon.fusion.baselines.dead_reckoning`,
+  (:func:`flightrecon.methods.baselines.dead_reckoning`,
   ``corrected=True``); mean NEES per axis (north, east, up).
 * **GNSS gaps**: the GPS used except in windows of 600, 300 and 120 s in the cruise (the GNSS
   columns masked in a copy of the flight; one run, the gaps separated by at least 240 s of GPS).
@@ -40,11 +40,11 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint_method import run_joint
-from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.gnss_use import GnssUse
+from flightrecon.methods.baselines import dead_reckoning
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.types import CleanFlight, Flight
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -133,7 +133,7 @@ def recorder_only(latency_s: float) -> dict:
 
 def dr_linear_errors(clean: CleanFlight, ref: pd.DataFrame) -> dict[str, float]:
     """RMS and largest horizontal error of dead reckoning with its linear end correction
-    (:func:`flightrecon.fusion.baselines.dead_reckoning`) against ``ref`` (``t_s``, ``n``,
+    (:func:`flightrecon.methods.baselines.dead_reckoning`) against ``ref`` (``t_s``, ``n``,
     ``e``)."""
     dr = dead_reckoning(clean, corrected=True)
     ok = np.isfinite(dr.north_m.to_numpy(float))

@@ -34,7 +34,7 @@ only: every 10 Hz fix with the tool's own sd, the export as written.
 Each case runs through :func:`flightrecon.pipeline.reconstruct` (the CLI's own path) with
 ``keep_unhealthy`` so that an unhealthy track can still be measured, and is measured against
 the GPS: horizontal RMS and maximum error of the joint smoother, of the default result and of
-the dead-reckoning baselines (:func:`flightrecon.fusion.baselines.dead_reckoning`), the mean
+the dead-reckoning baselines (:func:`flightrecon.methods.baselines.dead_reckoning`), the mean
 NEES per withheld gap and axis, and every method's status with its reason.
 
 Only numbers are written: ``docs/tables/realflights.json`` and the table of
@@ -424,7 +424,7 @@ def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
     sidecar's ``[gnss]`` table withholds the gaps (:func:`gnss_table`; thinned to 1 Hz with the
     receiver's sd unless ``gnss_as_recorded``)."""
     from flightrecon.errors import FlightReconError
-    from flightrecon.fusion.baselines import dead_reckoning
+    from flightrecon.methods.baselines import dead_reckoning
     from flightrecon.pipeline import ReconstructSettings, reconstruct
 
     gaps = gnss_gaps(facts) if gnss else []

@@ -1,7 +1,7 @@
 """Accuracy of the Sabziev boundary-value fusion on simulated flights (docs/sabziev.md).
 
 For each scenario variant and seed: simulate (``flightrecon.sim.simulate``), clean
-(``flightrecon.cleaning.clean_flight``), run the fusion (``flightrecon.fusion.method``) and
+(``flightrecon.cleaning.clean_flight``), run the fusion (``flightrecon.methods.sabziev.method``) and
 compare, between lift-off and touchdown, with the truth:
 
 * ``sabziev (airfield points)``: the product's default: lift-off point = departure airfield
@@ -49,9 +49,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.fusion.method import field_pressure_altitude_m, run_sabziev
-from flightrecon.fusion.sabziev import air_velocity
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+from flightrecon.methods.sabziev import air_velocity
+from flightrecon.methods.sabziev.method import field_pressure_altitude_m, run_sabziev
 from flightrecon.sim import simulate
 from flightrecon.types import Flight, Position
 

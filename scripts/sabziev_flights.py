@@ -5,7 +5,7 @@ departure and arrival of its ``c<i>-meta.json``; :func:`jsbsim_flight` simulates
 scenario.  Both return a :class:`TruthFlight`: the cleaned flight and the truth on the grid
 (north, east in the output tangent plane; up = height above the departure airfield, geometric).
 :func:`evaluate` compares a Sabziev result and the project's dead-reckoning baselines
-(:func:`flightrecon.fusion.baselines.dead_reckoning`) with that truth.
+(:func:`flightrecon.methods.baselines.dead_reckoning`) with that truth.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
+from flightrecon.methods.baselines import dead_reckoning
 from flightrecon.types import CleanFlight, Flight, MethodResult, Position
 
 SHARED = Path(os.environ.get("FLIGHTRECON_SHARED",
@@ -173,7 +173,7 @@ holding and go-around schedules, one seed each (``--fleet``)."""
 def one(kind: str, i: int, overrides: dict[str, Any]) -> list[dict[str, Any]]:
     """Both policies on one flight: :func:`evaluate` plus the health verdict of the pipeline
     (:func:`flightrecon.pipeline.health.method_health`, the envelope included)."""
-    from flightrecon.fusion.method import run_sabziev
+    from flightrecon.methods.sabziev.method import run_sabziev
     from flightrecon.pipeline.health import method_health
 
     f = corpus_flight(i) if kind == "corpus" else jsbsim_flight(kind, i, **overrides)
@@ -224,7 +224,7 @@ def write_tables(rows: list[dict[str, Any]], out: Path, elapsed: float,
              "0.3; jets at scale 0.2; spiral dives and spins to the ground). Errors against the "
              "truth between lift-off and the end of the fusion interval: `hor RMS` of the "
              "horizontal distance; `DR+lin` the same for air-data dead reckoning with a linear "
-             "end-point correction (`flightrecon.fusion.baselines.dead_reckoning(corrected="
+             "end-point correction (`flightrecon.methods.baselines.dead_reckoning(corrected="
              "True)`); `ratio` = hor RMS / DR+lin; `up RMS` against the geometric height above "
              "the departure airfield; `end miss` the largest per-axis miss of the end point "
              "(`-` when the track is not finite). Roots: `neg` a root on the stable branch, "

@@ -32,8 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from sabziev_flights import jsbsim_flight  # noqa: E402
 
-from flightrecon.fusion.baselines import dead_reckoning  # noqa: E402
-from flightrecon.fusion.method import run_sabziev  # noqa: E402
+from flightrecon.methods.baselines import dead_reckoning  # noqa: E402
+from flightrecon.methods.sabziev.method import run_sabziev  # noqa: E402
 
 END_SD_M = 50.0
 """End-point uncertainty [m] behind the conditioning figure ``sd_k = END_SD_M / |dF/dk|``."""

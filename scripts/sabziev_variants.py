@@ -100,7 +100,7 @@ def _with_meta(f: TruthFlight, **changes: Any) -> TruthFlight:
 
 
 def _run(f: TruthFlight, run_on: TruthFlight, **kw: Any) -> tuple[dict[str, Any], Any]:
-    from flightrecon.fusion.method import run_sabziev
+    from flightrecon.methods.sabziev.method import run_sabziev
     from flightrecon.pipeline.health import method_health
 
     with warnings.catch_warnings():

@@ -48,9 +48,9 @@ from mc_joint import errors, noise_from_sensors  # noqa: E402
 
 from flightrecon.cleaning import clean_flight  # noqa: E402
 from flightrecon.errors import ValidationError  # noqa: E402
-from flightrecon.filters.joint import JointSettings  # noqa: E402
-from flightrecon.filters.joint_method import run_joint  # noqa: E402
-from flightrecon.fusion.baselines import dead_reckoning  # noqa: E402
+from flightrecon.methods.baselines import dead_reckoning  # noqa: E402
+from flightrecon.methods.joint import JointSettings  # noqa: E402
+from flightrecon.methods.joint.method import run_joint  # noqa: E402
 from flightrecon.sim import simulate  # noqa: E402
 from flightrecon.sim.jsbsim_scenarios import draw_weather  # noqa: E402
 from flightrecon.types import Flight, WindLevel  # noqa: E402

@@ -2,7 +2,7 @@
 corrected as docs/sabziev.md states) by adaptive quadrature.
 
 Not part of the package: the tests compare the discrete recursion of
-:mod:`flightrecon.fusion.sabziev` with these.
+:mod:`flightrecon.methods.sabziev` with these.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Attitude anywhere: roll beyond 90 deg, pitch near +-90 deg, inverted flight.
 
-The joint smoother's attitude Jacobians (filters/joint/nominal.py) against central finite
+The joint smoother's attitude Jacobians (methods/joint/nominal.py) against central finite
 differences of the rotated specific force, the body -> NED rotation's orthonormality and the
 load-factor round trip at the same attitudes, and the roll channel's interpolation across its
 +-180 deg wrap (cleaning: unwrapped, interpolated the short way, wrapped back).
@@ -14,12 +14,12 @@ import pytest
 
 from flightrecon.cleaning.resample import resample_inputs, wrap_roll
 from flightrecon.cleaning.steps import Despike, ResolveTimestamps, UnwrapAngles, run_steps
-from flightrecon.filters.joint.nominal import _attitude_step_means, attitude_jacobian
 from flightrecon.geo.kinematics import (
     body_to_ned_matrix,
     kinematic_acceleration_ned,
     load_factors_from_acceleration,
 )
+from flightrecon.methods.joint.nominal import _attitude_step_means, attitude_jacobian
 
 # (roll, pitch, heading) [deg]: steep bank, knife edge, inverted, near the vertical both ways
 ATTITUDES = [(120.0, 10.0, 30.0), (180.0, 0.0, 200.0), (-150.0, -40.0, 300.0),

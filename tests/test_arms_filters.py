@@ -1,4 +1,4 @@
-"""ADS/ARMS estimators (flightrecon.filters.arms): Monte Carlo consistency of the joint form,
+"""ADS/ARMS estimators (flightrecon.methods.arms): Monte Carlo consistency of the joint form,
 cascade vs joint, outages, irregular timing, smoother properties."""
 
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 from scipy import stats
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters import arms as A
+from flightrecon.methods import arms as A
 
 # the paper's setting (METHODS.md section 2) with a nearly straight flight: q small, truth and
 # filter share the models so that consistency is testable.  The paper has no white noise on V*;

@@ -1,4 +1,4 @@
-"""ADS/ARMS adapter (flightrecon.filters.arms_method.run_arms) on a synthetic cleaned flight.
+"""ADS/ARMS adapter (flightrecon.methods.arms.method.run_arms) on a synthetic cleaned flight.
 
 The flight is built here from the paper's scenario with geometry done independently of the
 adapter: truth placed at a fixed MSL altitude through pyproj, slant ranges from the 3-D
@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 
 from flightrecon.errors import MetadataError, SchemaError, ValidationError
-from flightrecon.filters import arms as A
-from flightrecon.filters.arms_method import ArmsSettings, run_arms
 from flightrecon.geo.frames import TangentPlane
+from flightrecon.methods import arms as A
+from flightrecon.methods.arms.method import ArmsSettings, run_arms
 from flightrecon.types import CleanFlight, FlightMeta, Position
 
 STATION = Position(45.0, 10.0, 300.0)
@@ -165,7 +165,7 @@ def test_slant_range_uncorrected_is_worse():
 def test_north_convergence_sign_and_size():
     """Guards the sign of the V* rotation into the station plane: a wrong sign puts a bias of
     2 gamma x TAS (~1.3 m/s at 40 km, 100 m/s) into the cross-track air-data error."""
-    from flightrecon.filters.arms_method import _north_convergence
+    from flightrecon.methods.arms.method import _north_convergence
 
     sp = TangentPlane(STATION.lat_deg, STATION.lon_deg, STATION.elev_m)
     x = np.array([40e3, -40e3, 0.0, 150e3])

@@ -1,4 +1,4 @@
-"""ADS/ARMS models (flightrecon.filters.arms): measurement functions, Jacobian, converted
+"""ADS/ARMS models (flightrecon.methods.arms): measurement functions, Jacobian, converted
 covariance, exact discretisations, horizontal range, and the kernel's single update."""
 
 import numpy as np
@@ -6,9 +6,9 @@ import pytest
 from scipy.linalg import expm
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters import arms as A
-from flightrecon.filters.arms import filter as arms_filter
 from flightrecon.geo.frames import TangentPlane
+from flightrecon.methods import arms as A
+from flightrecon.methods.arms import filter as arms_filter
 
 
 def test_jacobian_matches_finite_differences():

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from flightrecon.filters.arms_method import ArmsSettings, run_arms
+from flightrecon.methods.arms.method import ArmsSettings, run_arms
 from flightrecon.types import CleanFlight
 
 sim = pytest.importorskip("flightrecon.sim")

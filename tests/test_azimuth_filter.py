@@ -1,4 +1,4 @@
-"""Azimuth filters and smoother (flightrecon.filters.azimuth.azimuth_filter; METHODS.md s. 3)."""
+"""Azimuth filters and smoother (flightrecon.methods.azimuth.azimuth_filter; METHODS.md s. 3)."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters.azimuth import RangeTrack, azimuth_filter, track_range, wrap_pi
+from flightrecon.methods.azimuth import RangeTrack, azimuth_filter, track_range, wrap_pi
 
 
 def straight_pass(sigma_az_deg=0.05, seed=0, scan_s=4.0):
@@ -112,9 +112,9 @@ def test_singer_kernel_matches_generic_kalman_filter():
     Same model and updates, different order of operations (scalar vs matrix Joseph form):
     1e-9 of the state sd.
     """
-    from flightrecon.filters.azimuth import singer_process_noise
-    from flightrecon.filters.kalman import kalman_filter
-    from flightrecon.smoothing.rts import rts_smooth_run
+    from flightrecon.estimation.kalman import kalman_filter
+    from flightrecon.estimation.smoother import rts_smooth_run
+    from flightrecon.methods.azimuth import singer_process_noise
 
     t, _, eps_meas, rt = straight_pass()
     plot = np.isfinite(eps_meas)

@@ -1,4 +1,4 @@
-"""Adapter run_azimuth: CleanFlight -> MethodResult (flightrecon.filters.azimuth_method)."""
+"""Adapter run_azimuth: CleanFlight -> MethodResult (flightrecon.methods.azimuth.method)."""
 
 import sys
 from dataclasses import replace
@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from flightrecon.errors import MetadataError, ValidationError
-from flightrecon.filters.azimuth_method import AzimuthSettings, run_azimuth
 from flightrecon.geo.frames import output_plane
+from flightrecon.methods.azimuth.method import AzimuthSettings, run_azimuth
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import mc_azimuth as mc

@@ -1,4 +1,4 @@
-"""Process models of the azimuth channel (flightrecon.filters.azimuth; METHODS.md s. 3).
+"""Process models of the azimuth channel (flightrecon.methods.azimuth; METHODS.md s. 3).
 
 Singer's exact discrete matrices against the continuous-time model (Van Loan's matrix
 exponential), their small-alpha limits, the Euler form of seed 002, and the aided model's exact
@@ -10,7 +10,7 @@ import pytest
 import scipy.linalg as sl
 
 from flightrecon.errors import ValidationError
-from flightrecon.filters.azimuth import (
+from flightrecon.methods.azimuth import (
     random_walk_matrices,
     singer_process_noise,
     singer_transition,

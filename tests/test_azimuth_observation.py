@@ -14,7 +14,7 @@ import pytest
 
 from flightrecon.constants import G0
 from flightrecon.errors import ValidationError
-from flightrecon.filters.azimuth import (
+from flightrecon.methods.azimuth import (
     horizontal_acceleration,
     horizontal_acceleration_covariance,
     horizontal_acceleration_jacobian,

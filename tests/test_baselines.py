@@ -1,13 +1,13 @@
-"""Dead-reckoning baselines (flightrecon.fusion.baselines)."""
+"""Dead-reckoning baselines (flightrecon.methods.baselines)."""
 
 from pathlib import Path
 
 import numpy as np
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
+from flightrecon.methods.baselines import dead_reckoning
 
 LOG = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
 

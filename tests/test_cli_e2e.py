@@ -145,7 +145,7 @@ def test_noise_file_overrides_the_joint_budget(tmp_path):
 
 
 def test_a_zero_noise_setting_is_refused_by_the_library():
-    from flightrecon.filters.joint import JointNoise
+    from flightrecon.methods.joint import JointNoise
 
     with pytest.raises(ValueError, match="'gnss_h_m' must be a positive number"):
         JointNoise(gnss_h_m=0.0)

@@ -199,7 +199,7 @@ def test_seed_sample_sabziev_is_unhealthy_by_its_height():
 
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
-    from flightrecon.pipeline import method_health, run_method, ReconstructSettings
+    from flightrecon.pipeline import ReconstructSettings, method_health, run_method
 
     clean = clean_flight(load_flight(SAMPLES / "seed-ads-arms.parquet"))
     assert clean.meta.arrival is not None and clean.meta.arrival.elev_m == 1000.0

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint import JointSettings, innovation_loglik
-from flightrecon.filters.joint import noise as joint_noise
-from flightrecon.filters.joint_method import run_joint
 from flightrecon.ingest import load_flight
+from flightrecon.methods.joint import JointSettings, innovation_loglik
+from flightrecon.methods.joint import noise as joint_noise
+from flightrecon.methods.joint.method import run_joint
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 

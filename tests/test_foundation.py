@@ -4,8 +4,13 @@ import numpy as np
 import pytest
 from pyproj import Geod
 
-from flightrecon.errors import (FlightReconError, InputFileError, OutputError, SchemaError,
-                                ValidationError)
+from flightrecon.errors import (
+    FlightReconError,
+    InputFileError,
+    OutputError,
+    SchemaError,
+    ValidationError,
+)
 from flightrecon.export.atomic import atomic_path, check_not_input, sweep_leftovers
 from flightrecon.geo import atmosphere as isa
 from flightrecon.geo.frames import TangentPlane, ecef_to_geodetic, geodetic_to_ecef

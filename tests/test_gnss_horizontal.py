@@ -12,10 +12,10 @@ import pytest
 from _scripts import load_script
 
 from flightrecon.errors import MetadataError
-from flightrecon.filters.sns import MODEL_AIRSPEED, default_noise
-from flightrecon.filters.sns_method import sns_noise_with
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.gnss_quality import R95_PER_SD, accuracy_from_dop
+from flightrecon.methods.sns import MODEL_AIRSPEED, default_noise
+from flightrecon.methods.sns.method import sns_noise_with
 from flightrecon.pipeline import ReconstructSettings, reconstruct
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"

@@ -18,9 +18,9 @@ import pytest
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.envelope import Evidence, evidence_problems
-from flightrecon.fusion.baselines import bridge_sd_m
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
+from flightrecon.methods.baselines import bridge_sd_m
 from flightrecon.pipeline import method_health
 from flightrecon.types import MethodResult, PositionFix
 

@@ -1,5 +1,5 @@
 """Damped iterations of the joint smoother on its MAP cost (docs/joint.md, "Filter, smoother,
-iterations"; flightrecon/filters/joint/cost.py).
+iterations"; flightrecon/methods/joint/cost.py).
 
 * the compiled cost against a plain Python evaluation of the same formula;
 * the robust loss against the IRLS weights the smoother uses (majorise-minimise);
@@ -16,15 +16,15 @@ import pytest
 from _scripts import load_script
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint import JointSettings
-from flightrecon.filters.joint import layout as jl
-from flightrecon.filters.joint import linearisation as lin
-from flightrecon.filters.joint import smoother as sm
-from flightrecon.filters.joint import updates as upd
-from flightrecon.filters.joint.cost import map_cost, robust_loss
-from flightrecon.filters.joint.dynamics import add_process_noise, transition
-from flightrecon.filters.joint.observation import measure
-from flightrecon.filters.joint_method import joint_inputs, run_joint
+from flightrecon.methods.joint import JointSettings
+from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint import linearisation as lin
+from flightrecon.methods.joint import smoother as sm
+from flightrecon.methods.joint import updates as upd
+from flightrecon.methods.joint.cost import map_cost, robust_loss
+from flightrecon.methods.joint.dynamics import add_process_noise, transition
+from flightrecon.methods.joint.method import joint_inputs, run_joint
+from flightrecon.methods.joint.observation import measure
 from flightrecon.types import Flight
 
 mc = load_script("mc_joint")
@@ -37,7 +37,7 @@ def recorder_flight():
 
 
 def _reference_cost(X, x0, P0inv, dyn, sc, geo, step, c, c_rej):
-    """J(X) of flightrecon/filters/joint/cost.py written out with numpy: the transition and
+    """J(X) of flightrecon/methods/joint/cost.py written out with numpy: the transition and
     process noise from their own functions, a dense solve per step, h(x) per measurement."""
     d = X[0] - x0
     prior = 0.5 * d @ P0inv @ d

@@ -22,16 +22,6 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from flightrecon.filters.joint import JointSettings
-from flightrecon.filters.joint import dynamics as jd
-from flightrecon.filters.joint import layout as jl
-from flightrecon.filters.joint.nominal import _q_vector
-from flightrecon.filters.joint.settings import JointNoise
-from flightrecon.filters.joint_method import (
-    baro_field_reference_m,
-    sampled_loads_noise,
-    temperature_baro_prior,
-)
 from flightrecon.geo.atmosphere import (
     LAPSE_K_PER_M,
     T0_K,
@@ -40,6 +30,16 @@ from flightrecon.geo.atmosphere import (
     isa_temperature_k,
 )
 from flightrecon.geo.pressure_height import MIN_SAT_SAMPLES
+from flightrecon.methods.joint import JointSettings
+from flightrecon.methods.joint import dynamics as jd
+from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint.method import (
+    baro_field_reference_m,
+    sampled_loads_noise,
+    temperature_baro_prior,
+)
+from flightrecon.methods.joint.nominal import _q_vector
+from flightrecon.methods.joint.settings import JointNoise
 from flightrecon.types import FlightMeta, Position
 
 
@@ -148,7 +148,7 @@ def test_runway_rows_leave_the_taxi_out():
     reference along the runway) hold from the line-up to lift-off and from touchdown to the
     first heading 10 deg off the landing roll's, not on the taxiways (before: every ground
     sample, 233 m off at lift-off on the Garmin export with a 24 m sd)."""
-    from flightrecon.filters.joint.ground import on_runway_mask
+    from flightrecon.methods.joint.ground import on_runway_mask
     t = np.arange(0.0, 200.0)
     psi = np.radians(np.r_[np.full(30, 180.0), np.full(40, 70.0),     # taxi, then runway 07
                            np.full(60, 70.0),                          # airborne
@@ -171,7 +171,7 @@ def test_derived_long_load_is_not_used_where_the_airspeed_comes_alive():
     654 s): the derived n_long_g's +-3 s difference spans the jump on the 6 samples from 3 s
     before the first live reading to 2 s after it, and at the landing roll's end likewise;
     nowhere else (at rest, all dead; in flight, all alive)."""
-    from flightrecon.filters.joint_method import airspeed_floor_windows
+    from flightrecon.methods.joint.method import airspeed_floor_windows
     t = np.arange(0.0, 100.0)
     tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))
     tas[80:] = 0.0
@@ -188,7 +188,7 @@ def test_the_airspeed_floor_window_leaves_the_roll_s_speed_unknown():
     the take-off, 0 at the landing roll's end: the floor 1), W its 6 s: the velocity change
     across it is then unknown by about V (sqrt(PSD W) = V) instead of the 2.4 m/s of the
     default 1 (m/s^2)^2/Hz; 1 elsewhere."""
-    from flightrecon.filters.joint_method import airspeed_floor_psd, airspeed_floor_windows
+    from flightrecon.methods.joint.method import airspeed_floor_psd, airspeed_floor_windows
 
     t = np.arange(0.0, 100.0)
     tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))
@@ -220,8 +220,8 @@ def test_a_1hz_load_record_does_not_bend_the_pressure_altitude(tmp_path):
     import pandas as pd
 
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint_method import run_joint
     from flightrecon.ingest import load_flight
+    from flightrecon.methods.joint.method import run_joint
     root = Path(__file__).resolve().parents[1] / "sample_logs"
     d = pd.read_csv(root / "circuit.csv")
     d = d.drop(columns=[c for c in d.columns
@@ -326,7 +326,7 @@ def test_missing_accelerations_weigh_their_psd_in_the_step_share():
     weighted by the inputs' ``missing_psd`` (1 without it): on a 1 Hz input with samples 3 and
     4 missing (2 s of centred holds) and a 2 s state grid, 2 s in all, and with a PSD of 9 on
     those samples 18, step by step 9 times the unweighted share."""
-    from flightrecon.filters.joint.nominal import _increments
+    from flightrecon.methods.joint.nominal import _increments
 
     t = np.arange(0.0, 9.0)
     acc = np.zeros((9, 3))

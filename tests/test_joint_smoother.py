@@ -61,8 +61,8 @@ def test_noise_estimation_by_em_recovers_the_simulated_sensor_noise():
     sensors are 2/4 m, 0.3 m/s and 1.5 m: EM must find the variance factors (2/5)^2 = 0.16,
     (0.3/1.5)^2 = 0.04, (1.5/8)^2 = 0.035 and make the uncertainty consistent."""
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint import JointNoise, JointSettings
-    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.methods.joint import JointNoise, JointSettings
+    from flightrecon.methods.joint.method import run_joint
     from flightrecon.types import Flight
 
     r = mc.make_flight("gnss", 2001)
@@ -98,8 +98,8 @@ def test_roll_and_pitch_biases_are_estimated():
     from dataclasses import replace
 
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint import JointSettings
-    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.methods.joint import JointSettings
+    from flightrecon.methods.joint.method import run_joint
     from flightrecon.sim import simulate
     from flightrecon.sim.aircraft import LIGHT
     from flightrecon.types import Flight
@@ -124,8 +124,8 @@ def test_runway_direction_gives_the_heading_bias_on_recorder_data():
     from dataclasses import replace
 
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint import JointSettings
-    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.methods.joint import JointSettings
+    from flightrecon.methods.joint.method import run_joint
     from flightrecon.types import Flight
 
     r = mc.make_flight("recorder", 1001)
@@ -161,7 +161,7 @@ def _roll(v_taxi=0.0, a=2.0, v_lo=60.0, t_rest=20.0, rate=16.0, head_wind=0.0):
 
 
 def test_roll_start_is_found_from_the_recorded_acceleration():
-    from flightrecon.filters.joint import takeoff_roll
+    from flightrecon.methods.joint import takeoff_roll
 
     t, acc, psi, tas, t_lo, wind = _roll()
     # rest threshold 3 m/s at 2 m/s^2: 1.5 s after the true start (2.25 m down the runway);
@@ -196,8 +196,8 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
     import pandas as pd
 
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint import end_points
-    from flightrecon.filters.joint_method import joint_inputs, run_joint
+    from flightrecon.methods.joint import end_points
+    from flightrecon.methods.joint.method import joint_inputs, run_joint
     from flightrecon.types import Flight
 
     ratios, rests = [], 0
@@ -271,8 +271,8 @@ def test_missing_attitude_is_held_and_reported_not_zero():
     (replaced by process noise)."""
     from dataclasses import replace
 
-    from flightrecon.filters.joint_method import joint_inputs
     from flightrecon.geo.kinematics import body_to_ned_matrix
+    from flightrecon.methods.joint.method import joint_inputs
 
     clean = _circuit_clean()
     g = clean.grid.copy()
@@ -296,8 +296,8 @@ def test_joint_inputs_need_the_departure_for_gravity():
     import pytest
 
     from flightrecon.errors import MetadataError
-    from flightrecon.filters.joint_method import joint_inputs
     from flightrecon.geo.kinematics import kinematic_acceleration_ned
+    from flightrecon.methods.joint.method import joint_inputs
 
     clean = _circuit_clean()
     with pytest.raises(MetadataError, match="departure"):
@@ -311,7 +311,7 @@ def _approach_inputs(float_s: float, tas_mps: float = 70.0, with_baro: bool = Tr
     3 m above the runway, ``float_s`` held there, touchdown at 100 s, 10 s of roll-out."""
     import pandas as pd
 
-    from flightrecon.filters.joint.inputs import JointInputs
+    from flightrecon.methods.joint.inputs import JointInputs
 
     t = np.arange(0.0, 110.0, 0.25)
     td = 100.0
@@ -329,13 +329,13 @@ def _approach_inputs(float_s: float, tas_mps: float = 70.0, with_baro: bool = Tr
 
 
 def test_float_touchdown_integrates_the_airspeed_from_the_screen_height():
-    """Eq. of :func:`flightrecon.filters.joint.inputs.float_touchdown`: on an exact approach
+    """Eq. of :func:`flightrecon.methods.joint.inputs.float_touchdown`: on an exact approach
     the screen height (15.24 m above the touchdown's baro) is crossed where the glide path
     is 12.24 m above the 3 m float, i.e. 12.24 / (70 tan 3 deg) = 3.34 s before the float,
     and the touchdown lies 70 m/s times that plus the float past the threshold; the sd
     combines the crossing's scatter and the runway wind over that time."""
-    from flightrecon.filters.joint import JointNoise
-    from flightrecon.filters.joint.inputs import float_touchdown
+    from flightrecon.methods.joint import JointNoise
+    from flightrecon.methods.joint.inputs import float_touchdown
 
     nz = JointNoise()
     for float_s in (2.0, 12.0):

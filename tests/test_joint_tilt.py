@@ -1,5 +1,5 @@
 """The attitude reference's tilt after sustained loads as extra acceleration noise of the joint
-smoother (flightrecon/filters/joint/tilt.py; issue #35: the PH-LAB flights' zero-g parabolas
+smoother (flightrecon/methods/joint/tilt.py; issue #35: the PH-LAB flights' zero-g parabolas
 left the loads integrated through the recorded attitude 15-39 m/s per minute off the GPS)."""
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint.linearisation import _flight
-from flightrecon.filters.joint.settings import JointNoise, JointSettings
-from flightrecon.filters.joint.tilt import load_departure_g, remembered, tilt_psd
-from flightrecon.filters.joint_method import joint_inputs
 from flightrecon.ingest import load_flight
+from flightrecon.methods.joint.linearisation import _flight
+from flightrecon.methods.joint.method import joint_inputs
+from flightrecon.methods.joint.settings import JointNoise, JointSettings
+from flightrecon.methods.joint.tilt import load_departure_g, remembered, tilt_psd
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 
@@ -97,7 +97,7 @@ def test_the_erection_driver_of_a_coordinated_turn_eq_1b():
     acceleration, sqrt(0.1547^2 + 0.5774^2) = 0.5977 g; without ``acc_ned`` the share is
     ignored."""
     from flightrecon.constants import G0
-    from flightrecon.filters.joint.tilt import erection_driver_g
+    from flightrecon.methods.joint.tilt import erection_driver_g
 
     phi = np.radians(30.0)
     f = np.array([[0.0, 0.0, -1.0 / np.cos(phi)]])
@@ -120,13 +120,13 @@ def test_the_declared_attitude_source_switches_the_tilt_noise(tmp_path):
     departure 0.63 g, above the 0.1 g threshold), the note says the source was taken as
     inertial; a wrong value is refused."""
     from flightrecon.errors import MetadataError
-    from flightrecon.filters.joint.attitude_source import (
+    from flightrecon.ingest.sidecar import load_sidecar
+    from flightrecon.methods.joint.attitude_source import (
         AHRS_TILT_HORIZONTAL,
         AHRS_TILT_MPS2_PER_G,
         UNDECLARED_TILT_WARN_G,
         attitude_source_noise,
     )
-    from flightrecon.ingest.sidecar import load_sidecar
 
     clean = clean_flight(load_flight(SAMPLES / "circuit.parquet"))
     inp = joint_inputs(clean)
@@ -167,7 +167,7 @@ def test_the_gnss_measured_tilt_gain_sets_the_noise():
     0.25 m/s^2 per g on (below it the attitude holds: no noise, no note), at most the PH-LAB
     figure; a declared AHRS takes the measured gain whatever its size; a declared inertial
     source and a gain given in the settings win over the measurement."""
-    from flightrecon.filters.joint.attitude_source import (
+    from flightrecon.methods.joint.attitude_source import (
         TILT_GAIN_MIN_MPS2_PER_G,
         attitude_source_noise,
     )
@@ -200,7 +200,7 @@ def _turning_flight(gain, seed=1):
     ``gain`` times the remembered driver (eq. 1b), towards the north, its sign alternating
     from turn to turn."""
     from flightrecon.constants import G0
-    from flightrecon.filters.joint.tilt import erection_driver_g, remembered
+    from flightrecon.methods.joint.tilt import erection_driver_g, remembered
 
     rng = np.random.default_rng(seed)
     dt, v = 0.1, 60.0
@@ -233,8 +233,8 @@ def test_tilt_evidence_recovers_the_gain_of_a_simulated_tilt(gain):
     one (measured 0.39 and 0.93: the floor, the lower quartile of the windows' residuals, takes
     part of an error that is present in most windows).  In a coordinated turn the normal axis
     carries the whole horizontal acceleration: its scale error's regressor."""
-    from flightrecon.filters.joint.tilt import tilt_evidence
     from flightrecon.geo.navframe import radii_of_curvature
+    from flightrecon.methods.joint.tilt import tilt_evidence
 
     t, a, f, psi, tg, fx = _turning_flight(gain)
     f_ned_h = np.zeros((len(t), 2, 3))

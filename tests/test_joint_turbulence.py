@@ -14,9 +14,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import mc_joint as mc  # noqa: E402
 
 from flightrecon.cleaning import clean_flight  # noqa: E402
-from flightrecon.filters.joint import JointSettings  # noqa: E402
-from flightrecon.filters.joint_method import run_joint  # noqa: E402
-from flightrecon.fusion.baselines import dead_reckoning  # noqa: E402
+from flightrecon.methods.baselines import dead_reckoning  # noqa: E402
+from flightrecon.methods.joint import JointSettings  # noqa: E402
+from flightrecon.methods.joint.method import run_joint  # noqa: E402
 from flightrecon.types import Flight  # noqa: E402
 
 

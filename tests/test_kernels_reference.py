@@ -27,10 +27,10 @@ import pytest
 from reference_kalman import constant_velocity_case, correlated_one_step, kalman_rts
 
 from flightrecon.estimation.discretise import singer_process_noise, singer_transition
+from flightrecon.estimation.kalman import kalman_filter
 from flightrecon.estimation.predict import predict
+from flightrecon.estimation.smoother import rts_smooth, rts_smooth_run
 from flightrecon.estimation.updates import scalar_update_short
-from flightrecon.filters.kalman import kalman_filter
-from flightrecon.smoothing.rts import rts_smooth, rts_smooth_run
 
 
 def batch_reference(x0, P0, F, Q, z, H, R):
@@ -98,7 +98,7 @@ def test_generic_filter_and_rts(singer_case):
 
 
 def test_azimuth_kernel(singer_case):
-    from flightrecon.filters.azimuth.filter import _azimuth_kernel
+    from flightrecon.methods.azimuth.filter import _azimuth_kernel
 
     x0, P0, F, Q, z, R, ref = singer_case
     N = len(z)
@@ -133,8 +133,8 @@ def test_core_pieces_composed(singer_case):
 def test_arms_kernel_on_its_linear_part():
     """The ADS/ARMS joint model [x, Vx, y, Vy, dVx, dVy] with the air-data velocity
     V* = V + dV as its only measurement (linear), against the same reference."""
-    from flightrecon.filters.arms import joint_process_noise, joint_transition
-    from flightrecon.filters.arms.filter import _arms_kernel
+    from flightrecon.methods.arms import joint_process_noise, joint_transition
+    from flightrecon.methods.arms.filter import _arms_kernel
 
     rng = np.random.default_rng(4)
     N = 30
@@ -178,8 +178,8 @@ def _check_cv(x, P, x_ref, P_ref, tol=1e-9):
 
 
 def test_cv_generic_filter_and_rts(cv_case):
-    """Guards ``filters/kalman.py`` (core dense predict + Joseph update) and
-    ``smoothing/rts.py`` (core RTS step, dense C^T = F P): filtered, predicted and smoothed."""
+    """Guards ``estimation/kalman.py`` (core dense predict + Joseph update) and
+    ``estimation/smoother.py`` (core RTS step, dense C^T = F P): filtered, predicted and smoothed."""
     (x0, P0, F, Q, z, H, R), ref = cv_case
     run = kalman_filter(x0, P0, F, Q, z, H, R[:, :, None] * np.eye(2))
     _check_cv(run.x, run.P, ref.xf, ref.Pf)
@@ -190,10 +190,10 @@ def test_cv_generic_filter_and_rts(cv_case):
 
 
 def test_cv_azimuth_kernel(cv_case):
-    """Guards the azimuth channel's kernel (``filters/azimuth/filter.py``: core predict and
+    """Guards the azimuth channel's kernel (``methods/azimuth/filter.py``: core predict and
     Joseph update with its angle wrap) on one axis of the case, the state padded with a
     decoupled random walk to the kernel's three states; azimuth plots only (linear)."""
-    from flightrecon.filters.azimuth.filter import _azimuth_kernel
+    from flightrecon.methods.azimuth.filter import _azimuth_kernel
 
     (x0, P0, F, Q, z, H, R), _ = cv_case
     N = len(z)
@@ -219,11 +219,11 @@ def test_cv_azimuth_kernel(cv_case):
 
 
 def test_cv_arms_kernel():
-    """Guards the ADS/ARMS kernel (``filters/arms/filter.py``: core predict and Joseph update)
+    """Guards the ADS/ARMS kernel (``methods/arms/filter.py``: core predict and Joseph update)
     on its linear part: constant velocity plus the air-data error as a Gauss-Markov state,
     measured through the air-data velocity ``V + dV``."""
-    from flightrecon.filters.arms import joint_process_noise, joint_transition
-    from flightrecon.filters.arms.filter import _arms_kernel
+    from flightrecon.methods.arms import joint_process_noise, joint_transition
+    from flightrecon.methods.arms.filter import _arms_kernel
 
     rng = np.random.default_rng(4)
     N = 40
@@ -246,7 +246,7 @@ def test_cv_arms_kernel():
 
 def test_cv_sns_kernels_through_the_core(cv_case):
     """Guards the SNS filter's update and prediction as its kernel composes them
-    (``filters/sns/filter.py::_filter_kernel``: core ``gain_into`` with the pseudo-inverse,
+    (``methods/sns/filter.py::_filter_kernel``: core ``gain_into`` with the pseudo-inverse,
     ``joseph_cov_into``, ``state_correction_into``, ``predict_cov_into`` plus the factored
     noise ``B B^T``), and the SNS smoother kernel itself (``_smoother_kernel`` on the core's RTS
     step, its cross-covariances ``P^+ F^T``), in the Euclidean geometry of this linear case."""
@@ -259,7 +259,7 @@ def test_cv_sns_kernels_through_the_core(cv_case):
         normalised_innovation,
         state_correction_into,
     )
-    from flightrecon.filters.sns.filter import _smoother_kernel
+    from flightrecon.methods.sns.filter import _smoother_kernel
 
     (x0, P0, F, Q, z, H, R), ref = cv_case
     N, n = len(z), 4
@@ -345,7 +345,7 @@ def test_correlated_noise_prediction_against_brute_force():
 
 def test_cv_joint_kernels_through_the_core(cv_case):
     """Guards the joint smoother's passes as they compose the core
-    (``filters/joint/passes.py``): the row-compressed prediction ``predict_sparse`` with the
+    (``methods/joint/passes.py``): the row-compressed prediction ``predict_sparse`` with the
     process noise added after it, one ``scalar_update_short`` per measurement component
     (``forward``), the RTS step with the sparse ``C^T = F P_f`` (``backward``) and the mean-only
     step, ``rts_mean_solve`` then ``P_f (F^T y)`` (``backward_mean``)."""

@@ -1,4 +1,4 @@
-"""Generic linear Kalman filter and RTS smoother (flightrecon.filters.kalman, smoothing.rts)."""
+"""Generic linear Kalman filter and RTS smoother (flightrecon.estimation.kalman, smoothing.rts)."""
 
 import numpy as np
 import pytest
@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from flightrecon.filters.kalman import kalman_filter
-from flightrecon.smoothing.rts import rts_smooth_run
+from flightrecon.estimation.kalman import kalman_filter
+from flightrecon.estimation.smoother import rts_smooth_run
 
 
 def cv_model(dt: float, q: float):

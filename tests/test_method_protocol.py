@@ -14,12 +14,12 @@ import pytest
 from flightrecon.cleaning import clean_flight
 from flightrecon.errors import MetadataError
 from flightrecon.export.writers import to_json
-from flightrecon.filters.arms_method import ArmsSettings
-from flightrecon.filters.azimuth_method import AzimuthSettings
-from flightrecon.filters.joint import JointNoise, JointSettings
-from flightrecon.filters.sns_settings import SnsSettings
-from flightrecon.fusion.settings import SabzievSettings
 from flightrecon.ingest import load_flight
+from flightrecon.methods.arms.method import ArmsSettings
+from flightrecon.methods.azimuth.method import AzimuthSettings
+from flightrecon.methods.joint import JointNoise, JointSettings
+from flightrecon.methods.sabziev.settings import SabzievSettings
+from flightrecon.methods.sns.settings import SnsSettings
 from flightrecon.pipeline import (
     ALL_METHODS,
     METHODS,
@@ -78,7 +78,7 @@ def test_from_dict_names_what_does_not_fit():
 def test_summary_settings_repeat_the_run(monkeypatch):
     """The settings written into the summary rebuild the run's settings, and a method's own
     settings reach its function (here the Sabziev fusion's tolerance and iteration cap)."""
-    import flightrecon.fusion.method as fm
+    import flightrecon.methods.sabziev.method as fm
 
     seen = {}
     real = fm.run_sabziev
@@ -114,7 +114,7 @@ def test_can_run_rules_are_the_methods():
 def test_numerical_failure_in_one_method_is_its_error(monkeypatch, exc):
     """Regression (issue 20): a numerical breakdown inside one estimator is that method's
     ``failed`` status naming the exception; the other methods' results and the track stand."""
-    import flightrecon.fusion.method as fm
+    import flightrecon.methods.sabziev.method as fm
 
     def broken(clean, **kwargs):
         raise exc

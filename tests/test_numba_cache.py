@@ -16,10 +16,10 @@ PKG = Path(nc.__file__).resolve().parent
 
 def _fake_package(tmp_path: Path) -> Path:
     pkg = tmp_path / "flightrecon"
-    for sub in ("", "filters", "cli"):
+    for sub in ("", "methods", "cli"):
         (pkg / sub).mkdir(parents=True, exist_ok=True)
         (pkg / sub / "__init__.py").write_text("")
-    (pkg / "filters" / "kern.py").write_text("x = 1\n")
+    (pkg / "methods" / "kern.py").write_text("x = 1\n")
     (pkg / "cli" / "main.py").write_text("y = 1\n")
     return pkg
 
@@ -47,7 +47,7 @@ def test_a_changed_source_drops_the_cached_kernels_once(tmp_path):
         assert len(_cached(dirs)) == 2 * len(dirs)
         (pkg / "cli" / "main.py").write_text("y = 2\n")                 # no kernel there
         assert nc.drop_stale_kernels(pkg, cache_dir) is False
-        (pkg / "filters" / "kern.py").write_text("x = 2\n")             # a callee changed
+        (pkg / "methods" / "kern.py").write_text("x = 2\n")             # a callee changed
         assert nc.drop_stale_kernels(pkg, cache_dir) is True and _cached(dirs) == []
 
 
@@ -56,11 +56,11 @@ def test_numba_cache_dir_layout_is_numbas():
     from numba.core.caching import UserProvidedCacheLocator
 
     d = nc.kernel_cache_dirs(PKG, "/some/cache")
-    py = str(PKG / "filters" / "kalman.py")
+    py = str(PKG / "estimation" / "kalman.py")
     sub = UserProvidedCacheLocator.get_suitable_cache_subpath(py)
     assert Path("/some/cache") / sub in d
-    path = os.path.abspath(PKG / "filters")
-    assert sub == f"filters_{hashlib.sha1(path.encode()).hexdigest()}"
+    path = os.path.abspath(PKG / "estimation")
+    assert sub == f"estimation_{hashlib.sha1(path.encode()).hexdigest()}"
 
 
 def test_the_folders_left_out_of_the_digest_hold_no_kernel():

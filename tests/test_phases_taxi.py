@@ -15,8 +15,8 @@ import pytest
 
 from flightrecon.cleaning.phases import detect_phases_with_report
 from flightrecon.constants import G0
-from flightrecon.filters.joint import takeoff_roll
 from flightrecon.geo.kinematics import kinematic_acceleration_ned
+from flightrecon.methods.joint import takeoff_roll
 
 DT = 1.0 / 16.0
 

@@ -33,7 +33,7 @@ def test_a_numerical_failure_is_that_methods_error_not_the_runs(monkeypatch):
     ``strict`` still raises."""
     import pytest
 
-    import flightrecon.filters.sns_method as sns_method
+    import flightrecon.methods.sns.method as sns_method
 
     def broken(clean, **kwargs):
         raise np.linalg.LinAlgError("Matrix is singular to machine precision.")

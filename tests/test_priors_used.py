@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.filters.joint import JointNoise, JointSettings
-from flightrecon.filters.joint.inputs import end_points
-from flightrecon.filters.joint.measurements import wind_prior_measurements
-from flightrecon.filters.joint_method import joint_inputs, run_joint
-from flightrecon.fusion.baselines import dead_reckoning
 from flightrecon.geo.frames import offset_latlon
 from flightrecon.geo.wind import wind_aloft_ne
+from flightrecon.methods.baselines import dead_reckoning
+from flightrecon.methods.joint import JointNoise, JointSettings
+from flightrecon.methods.joint.inputs import end_points
+from flightrecon.methods.joint.measurements import wind_prior_measurements
+from flightrecon.methods.joint.method import joint_inputs, run_joint
 from flightrecon.types import Flight, PositionFix, WindLevel
 
 SAMPLES = __import__("pathlib").Path(__file__).resolve().parents[1] / "sample_logs"
@@ -130,8 +130,8 @@ def test_sabziev_takes_a_fix_at_the_end_as_its_end_point():
     truth's, and the plane's north and east move by 1.6 m per km of height at 10 km out), and
     it says that the other fix is not used. (Whether the fusion then converges is Sabziev's
     own health on this JSBSim flight: it does not, with the arrival given either.)"""
-    from flightrecon.fusion.method import end_fix, run_sabziev
     from flightrecon.geo.frames import output_plane
+    from flightrecon.methods.sabziev.method import end_fix, run_sabziev
     from flightrecon.pipeline import ReconstructSettings
     from flightrecon.pipeline.registry import available_methods
 
@@ -249,9 +249,9 @@ def test_joint_prior_from_270_is_an_east_wind():
     outliers, as it should) and sd 0.3 m/s, the smoothed east wind at every pseudo-measurement
     and the track's last airborne east position are larger with "from 270" than with
     "from 90"."""
-    from flightrecon.filters.joint import layout as jl
-    from flightrecon.filters.joint.measurements import static_measurements
-    from flightrecon.filters.joint.settings import SOURCES
+    from flightrecon.methods.joint import layout as jl
+    from flightrecon.methods.joint.measurements import static_measurements
+    from flightrecon.methods.joint.settings import SOURCES
 
     r = _jsbsim(1)
     st = JointSettings(robust=False)

@@ -46,8 +46,8 @@ def _flight(scenario: str, seed: int):
 
 
 def test_spiral_without_arrival_from_a_store_of_circuits(tmp_path):
-    from flightrecon.fusion.baselines import dead_reckoning
-    from flightrecon.fusion.method import run_sabziev
+    from flightrecon.methods.baselines import dead_reckoning
+    from flightrecon.methods.sabziev.method import run_sabziev
     from flightrecon.pipeline import ReconstructSettings
     from flightrecon.pipeline.run import fleet_settings, reconstruct_clean
     from flightrecon.store import CoefficientStore, from_sabziev_summary

@@ -12,9 +12,9 @@ from scipy.optimize import brentq
 from test_sabziev_flights import synthetic_flight
 
 from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
-from flightrecon.fusion.method import LIFTOFF_SD_M, field_pressure_altitude_m, run_sabziev
 from flightrecon.geo.frames import output_plane
 from flightrecon.geo.kinematics import load_factors_from_acceleration
+from flightrecon.methods.sabziev.method import LIFTOFF_SD_M, field_pressure_altitude_m, run_sabziev
 from flightrecon.types import CleanFlight, FlightMeta, FlightPhases, Position
 
 PAD_S = 20.0

@@ -11,8 +11,8 @@ from scipy.optimize import brentq
 from test_sabziev_flights import synthetic_flight
 
 from flightrecon.errors import ConvergenceError, ValidationError
-from flightrecon.fusion import sabziev as sz
-from flightrecon.fusion.newton import find_coefficient
+from flightrecon.methods import sabziev as sz
+from flightrecon.methods.sabziev.newton import find_coefficient
 
 
 def _fuse(f, **kw):

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.linalg import expm
 
 from flightrecon.errors import ValidationError
-from flightrecon.fusion import sabziev as sz
+from flightrecon.methods import sabziev as sz
 
 # k values covering both branches, the removable singularity and both evaluation paths of the
 # phi/psi functions (series for |k dt| < 1 or |k2 dt^2| < 1, closed forms beyond)

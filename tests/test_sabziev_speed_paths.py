@@ -1,7 +1,7 @@
 """The fast paths of the Sabziev root search must not change a single result (issue #13).
 
-The scan of :mod:`flightrecon.fusion.newton` evaluates ``F`` for all grid points of a branch in
-one pass over the data (:func:`flightrecon.fusion.sabziev.propagate_end_many`) and the root
+The scan of :mod:`flightrecon.methods.sabziev.newton` evaluates ``F`` for all grid points of a branch in
+one pass over the data (:func:`flightrecon.methods.sabziev.propagate_end_many`) and the root
 finder keeps a memo of the values it has computed.  Both are exact, not approximations: every
 lane of the batch performs the same floating-point operations in the same order as the single
 evaluation, so the comparisons here are for *equality* (no tolerance), which is what makes
@@ -15,9 +15,9 @@ import pytest
 from test_sabziev_flights import synthetic_flight
 
 from flightrecon.errors import ValidationError
-from flightrecon.fusion import sabziev as sz
-from flightrecon.fusion.newton import find_coefficient
-from flightrecon.fusion.sabziev import discrete as sz_discrete
+from flightrecon.methods import sabziev as sz
+from flightrecon.methods.sabziev import discrete as sz_discrete
+from flightrecon.methods.sabziev.newton import find_coefficient
 
 DT = 0.125
 

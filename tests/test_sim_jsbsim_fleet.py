@@ -186,10 +186,10 @@ def test_a_long_float_is_measured_not_assumed(tmp_path):
     From the recorded flare (inputs.float_touchdown: the air distance flown from the screen
     height) it is 1085 m with an sd of 193 m in this run; the test allows 2 sd."""
     from flightrecon.cleaning import clean_flight
-    from flightrecon.filters.joint import JointNoise
-    from flightrecon.filters.joint.inputs import float_touchdown
-    from flightrecon.filters.joint_method import joint_inputs
     from flightrecon.ingest import load_flight
+    from flightrecon.methods.joint import JointNoise
+    from flightrecon.methods.joint.inputs import float_touchdown
+    from flightrecon.methods.joint.method import joint_inputs
     from flightrecon.sim import write_simulation
     from flightrecon.sim.jsbsim_flight import Runway
 

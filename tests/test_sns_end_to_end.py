@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from flightrecon.filters.sns_method import run_sns
+from flightrecon.methods.sns.method import run_sns
 from flightrecon.types import CleanFlight
 
 sim_mod = pytest.importorskip("flightrecon.sim")

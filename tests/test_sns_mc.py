@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from _scripts import load_script
 
-from flightrecon.filters import sns as core
+from flightrecon.methods import sns as core
 
 mc = load_script("mc_sns")
 RUNS = 40

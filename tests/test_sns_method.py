@@ -1,4 +1,4 @@
-"""The SNS adapter run_sns / solve_sns on simulated flights (flightrecon.filters.sns_method)."""
+"""The SNS adapter run_sns / solve_sns on simulated flights (flightrecon.methods.sns.method)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 from _scripts import load_script
 
 from flightrecon.errors import MetadataError, SchemaError, ValidationError
-from flightrecon.filters import sns as core
-from flightrecon.filters.sns_method import run_sns, solve_sns
 from flightrecon.geo.frames import output_plane
+from flightrecon.methods import sns as core
+from flightrecon.methods.sns.method import run_sns, solve_sns
 
 mc = load_script("mc_sns")
 

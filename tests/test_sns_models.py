@@ -1,4 +1,4 @@
-"""SNS dead-reckoning models, frame and filter algebra (flightrecon.filters.sns, METHODS.md 4)."""
+"""SNS dead-reckoning models, frame and filter algebra (flightrecon.methods.sns, METHODS.md 4)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from flightrecon.filters import sns as core
+from flightrecon.methods import sns as core
 
 RNG = np.random.default_rng(7)
 Z7 = np.zeros(7)  # no summed-sample noise: each filter step is one recorder sample
@@ -389,7 +389,7 @@ def test_smoother_counts_cholesky_failures():
     covariance P_p[k+1] failed its Cholesky factorisation.  The kernel now counts those steps
     (the adapter reports them as ``cholesky_fallbacks``): none for a positive-definite P_p, one
     for an indefinite (but regular) one, whose gain still equals the general solve's."""
-    from flightrecon.filters.sns.filter import _smoother_kernel
+    from flightrecon.methods.sns.filter import _smoother_kernel
 
     rng = np.random.default_rng(5)
     n = core.N_STATE

@@ -12,11 +12,11 @@ import pytest
 from _scripts import load_script
 
 from flightrecon.estimation import linalg as sns_linalg
-from flightrecon.filters import sns as core
-from flightrecon.filters import sns_method
-from flightrecon.filters.sns import output as sns_output
-from flightrecon.filters.sns_method import run_sns, solve_sns
 from flightrecon.geo.frames import output_plane
+from flightrecon.methods import sns as core
+from flightrecon.methods.sns import method as sns_method
+from flightrecon.methods.sns import output as sns_output
+from flightrecon.methods.sns.method import run_sns, solve_sns
 
 mc = load_script("mc_sns")
 RNG = np.random.default_rng(13)

@@ -238,9 +238,9 @@ def test_concurrent_record_flight_one_record_per_log(tmp_path):
 
 
 def test_joint_priors_set_the_initial_state():
-    from flightrecon.filters.joint import JointSettings, prior_of
-    from flightrecon.filters.joint import layout as jk
-    from flightrecon.filters.joint.nominal import _initial
+    from flightrecon.methods.joint import JointSettings, prior_of
+    from flightrecon.methods.joint import layout as jk
+    from flightrecon.methods.joint.nominal import _initial
 
     s = JointSettings(priors=(("tas_scale", 0.02, 0.002), ("heading_bias_deg", 0.8, 0.05)))
     assert prior_of("tas_scale", s) == (0.02, 0.002)
@@ -287,7 +287,7 @@ def test_reconstruct_with_fleet_calibration_end_to_end(tmp_path, capsys):
 
     from flightrecon.cleaning import clean_flight
     from flightrecon.cli.main import main
-    from flightrecon.filters.joint_method import run_joint
+    from flightrecon.methods.joint.method import run_joint
     from flightrecon.sim import simulate
     from flightrecon.sim.io import write_simulation
     from flightrecon.store import from_joint_summary

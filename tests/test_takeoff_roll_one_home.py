@@ -1,6 +1,6 @@
 """Take-off roll detection has one home, :mod:`flightrecon.cleaning.phases` (issue 20).
 
-Regression: the joint smoother's roll (``filters/joint/inputs.py``) repeated the cleaning's
+Regression: the joint smoother's roll (``methods/joint/inputs.py``) repeated the cleaning's
 back-integration of the ground speed.  After the move the joint uses
 :func:`flightrecon.cleaning.phases.takeoff_roll` and its refinement (smoothed lift-off speed,
 estimated accelerometer bias) is a parameter of it.  The numbers below were measured with the
@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from flightrecon.cleaning import clean_flight, phases
-from flightrecon.filters import joint
-from flightrecon.filters.joint_method import joint_inputs
 from flightrecon.ingest import load_flight
+from flightrecon.methods import joint
+from flightrecon.methods.joint.method import joint_inputs
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 

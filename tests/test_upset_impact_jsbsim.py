@@ -24,7 +24,7 @@ pytest.importorskip("jsbsim")
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.events import detect_events
-from flightrecon.filters.joint_method import run_joint
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.sim import simulate
 from flightrecon.types import Flight
 

@@ -8,8 +8,13 @@ import pandas as pd
 import pytest
 
 from flightrecon.errors import OutputError
-from flightrecon.export.writers import (format_from_path, read_parquet_metadata, read_track,
-                                        write_summary, write_track)
+from flightrecon.export.writers import (
+    format_from_path,
+    read_parquet_metadata,
+    read_track,
+    write_summary,
+    write_track,
+)
 
 
 @pytest.fixture

@@ -155,8 +155,8 @@ def read_sns_noise_file(path: Path) -> dict[str, float] | None:
     if t is not None and not isinstance(t, dict):
         raise MetadataError("[sns] in the noise file must be a table", file=str(path))
     if t:
-        from flightrecon.filters.sns_method import sns_noise_with
-        from flightrecon.filters.sns import MODEL_AIRSPEED
+        from flightrecon.methods.sns.method import sns_noise_with
+        from flightrecon.methods.sns import MODEL_AIRSPEED
 
         try:
             sns_noise_with(MODEL_AIRSPEED, t)   # keys and values checked now
@@ -170,7 +170,7 @@ def read_noise_file(path: Path) -> dict[str, float]:
     import tomllib
     from dataclasses import fields
 
-    from flightrecon.filters.joint import POSITIVE_NOISE, JointNoise
+    from flightrecon.methods.joint import POSITIVE_NOISE, JointNoise
 
     try:
         with open(path, "rb") as fh:

@@ -30,11 +30,11 @@ from flightrecon.types import CleanFlight, MethodResult
 #: per method, the compiled kernel whose cache entry tells whether the method's kernels are
 #: compiled (its largest kernel, compiled on every run of the method)
 KERNEL_SENTINELS: dict[str, tuple[str, str]] = {
-    "joint": ("flightrecon.filters.joint.passes", "forward"),
-    "sns": ("flightrecon.filters.sns.filter", "_filter_kernel"),
-    "sabziev": ("flightrecon.fusion.sabziev.discrete", "_run_end"),
-    "arms": ("flightrecon.filters.arms.filter", "_arms_kernel"),
-    "azimuth": ("flightrecon.filters.azimuth.filter", "_azimuth_kernel"),
+    "joint": ("flightrecon.methods.joint.passes", "forward"),
+    "sns": ("flightrecon.methods.sns.filter", "_filter_kernel"),
+    "sabziev": ("flightrecon.methods.sabziev.discrete", "_run_end"),
+    "arms": ("flightrecon.methods.arms.filter", "_arms_kernel"),
+    "azimuth": ("flightrecon.methods.azimuth.filter", "_azimuth_kernel"),
 }
 
 

@@ -22,11 +22,11 @@ from flightrecon.errors import MetadataError
 from flightrecon.types import CleanFlight, MethodResult
 
 if TYPE_CHECKING:
-    from flightrecon.filters.arms_method import ArmsSettings
-    from flightrecon.filters.azimuth_method import AzimuthSettings
-    from flightrecon.filters.joint import JointSettings
-    from flightrecon.filters.sns_settings import SnsSettings
-    from flightrecon.fusion.settings import SabzievSettings
+    from flightrecon.methods.arms.method import ArmsSettings
+    from flightrecon.methods.azimuth.method import AzimuthSettings
+    from flightrecon.methods.joint import JointSettings
+    from flightrecon.methods.sabziev.settings import SabzievSettings
+    from flightrecon.methods.sns.settings import SnsSettings
 
 
 @dataclass(frozen=True)
@@ -46,27 +46,27 @@ class ReconstructSettings:
     sns_model, sns_form : SNS dead-reckoning model (``auto``/``airspeed``/``doppler``) and
         filter form (``consistent``/``seed``)
     joint_noise : overrides of the joint smoother's error budget
-        (:class:`flightrecon.filters.joint.JointNoise` field -> value), applied on top of
+        (:class:`flightrecon.methods.joint.JointNoise` field -> value), applied on top of
         ``joint.noise``
     joint_estimate_noise : scale each source's noise from the flight's own residuals (or
         ``joint.estimate_noise``)
     joint_priors : ``(error, mean, sd)`` priors of the joint smoother's sensor-error states
-        (names of :data:`flightrecon.filters.joint.PRIOR_STATES`), e.g. an aircraft's fleet
+        (names of :data:`flightrecon.methods.joint.PRIOR_STATES`), e.g. an aircraft's fleet
         calibration (:func:`flightrecon.store.fleet.fleet_settings`); replace ``joint.priors``
         when given
     strict : raise on the first method that fails, does not converge or is unhealthy
     keep_unhealthy : when no method is healthy, return (and let the CLI write) the unhealthy
         tracks under their prefixes for inspection instead of raising
         :class:`~flightrecon.errors.NoResultError`
-    sns_noise : overrides of the SNS noise (:func:`flightrecon.filters.sns_settings.sns_noise_with`)
+    sns_noise : overrides of the SNS noise (:func:`flightrecon.methods.sns.settings.sns_noise_with`)
     start, end : trim the record to ``start <= t_s <= end`` before cleaning (seconds from the
         epoch or UTC timestamps; :func:`flightrecon.cleaning.trim.trim_flight`)
     joint, sabziev, arms, azimuth, sns : each method's own settings
-        (:class:`~flightrecon.filters.joint.JointSettings`,
-        :class:`~flightrecon.fusion.settings.SabzievSettings`,
-        :class:`~flightrecon.filters.arms_method.ArmsSettings`,
-        :class:`~flightrecon.filters.azimuth_method.AzimuthSettings`,
-        :class:`~flightrecon.filters.sns_settings.SnsSettings`); ``None``: the defaults
+        (:class:`~flightrecon.methods.joint.JointSettings`,
+        :class:`~flightrecon.methods.sabziev.settings.SabzievSettings`,
+        :class:`~flightrecon.methods.arms.method.ArmsSettings`,
+        :class:`~flightrecon.methods.azimuth.method.AzimuthSettings`,
+        :class:`~flightrecon.methods.sns.settings.SnsSettings`); ``None``: the defaults
     """
 
     methods: tuple[str, ...] | None = None
@@ -206,7 +206,7 @@ def _joint_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
 
 
 def _sabziev_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
-    from flightrecon.fusion.method import end_fix
+    from flightrecon.methods.sabziev.method import end_fix
 
     if clean.meta.arrival is not None or s.k is not None or end_fix(clean) is not None:
         return None
@@ -274,20 +274,20 @@ def _sns_kwargs(s: ReconstructSettings) -> dict[str, Any]:
 
 #: the estimators, in the order they are listed and (one thread) run
 METHODS: dict[str, MethodSpec] = {
-    "joint": MethodSpec("joint", ("flightrecon.filters.joint_method", "run_joint"),
-                        ("flightrecon.filters.joint", "JointSettings"),
+    "joint": MethodSpec("joint", ("flightrecon.methods.joint.method", "run_joint"),
+                        ("flightrecon.methods.joint", "JointSettings"),
                         _joint_can_run, _joint_kwargs),
-    "sabziev": MethodSpec("sabziev", ("flightrecon.fusion.method", "run_sabziev"),
-                          ("flightrecon.fusion.settings", "SabzievSettings"),
+    "sabziev": MethodSpec("sabziev", ("flightrecon.methods.sabziev.method", "run_sabziev"),
+                          ("flightrecon.methods.sabziev.settings", "SabzievSettings"),
                           _sabziev_can_run, _sabziev_kwargs),
-    "arms": MethodSpec("arms", ("flightrecon.filters.arms_method", "run_arms"),
-                       ("flightrecon.filters.arms_method", "ArmsSettings"),
+    "arms": MethodSpec("arms", ("flightrecon.methods.arms.method", "run_arms"),
+                       ("flightrecon.methods.arms.method", "ArmsSettings"),
                        _radar_can_run, _arms_kwargs),
-    "azimuth": MethodSpec("azimuth", ("flightrecon.filters.azimuth_method", "run_azimuth"),
-                          ("flightrecon.filters.azimuth_method", "AzimuthSettings"),
+    "azimuth": MethodSpec("azimuth", ("flightrecon.methods.azimuth.method", "run_azimuth"),
+                          ("flightrecon.methods.azimuth.method", "AzimuthSettings"),
                           _radar_can_run, _azimuth_kwargs),
-    "sns": MethodSpec("sns", ("flightrecon.filters.sns_method", "run_sns"),
-                      ("flightrecon.filters.sns_settings", "SnsSettings"),
+    "sns": MethodSpec("sns", ("flightrecon.methods.sns.method", "run_sns"),
+                      ("flightrecon.methods.sns.settings", "SnsSettings"),
                       _sns_can_run, _sns_kwargs),
 }
 

@@ -1,7 +1,7 @@
 """Build store records from method summaries: a :class:`FlightCoefficients` from the Sabziev
 method's, a :class:`FlightCalibration` from the joint smoother's (:func:`from_joint_summary`).
 
-The Sabziev method (:func:`flightrecon.fusion.method.run_sabziev`) reports, in its
+The Sabziev method (:func:`flightrecon.methods.sabziev.method.run_sabziev`) reports, in its
 ``MethodResult.summary``: ``mode`` (``"boundary-value"`` when k was fitted), ``converged``,
 ``axes`` = {``"x"``: k1, ``"y"``: k2, ``"z"``: k3 reports, each with ``converged``, ``k``,
 ``branch``, ``iterations``}, ``end_residual_m`` = {``north``, ``up``, ``east``} and

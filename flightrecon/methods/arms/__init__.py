@@ -1,0 +1,75 @@
+"""ADS/ARMS estimators: ground velocity from range/azimuth plots and the air-data error.
+
+docs/arms.md; Vasyliev (2025), seed ``000_92b8f66acbd1b85b.txt``.
+
+Frame: the station's east-north-up tangent plane, ``x`` east, ``y`` north, station at the origin.
+Azimuth ``theta`` clockwise from north, ``theta = atan2(x, y)``; ``r`` is the *horizontal* range
+(see :func:`horizontal_range`).  SI inside: metres, seconds, radians.
+
+Three forms, each filtered forward and (optionally) smoothed backward with the RTS smoother
+(:func:`flightrecon.estimation.smoother.rts_smooth_run`):
+
+* stage 1 (:func:`track_ground_velocity`): constant-velocity (CV) tracker of
+  ``X = [x, Vx, y, Vy]`` from the plots at their own times, linearised either as an EKF
+  (paper eq. 12) or by converted measurements (paper eqs. 13-15);
+* stage 2 (:func:`compensate`): the paper's compensation filter, state ``dV = [dVx, dVy]``
+  (first-order Gauss-Markov per axis, paper eq. 4), measurement ``V* - W_hat`` at the plot times;
+  :func:`run_cascade` chains the two as in the paper's Fig. 1;
+* joint (:func:`run_joint_model`): one model ``[x, Vx, y, Vy, dVx, dVy]`` with range/azimuth and the
+  air-data velocity ``V* = [Vx + dVx, Vy + dVy]`` as measurements, each at its own time: the
+  consistent form (docs/arms.md, "Two cautions" of the joint form) and the product default.
+
+Discretisations are exact for the step ``T`` taken from the data:
+CV per axis ``F = [[1, T], [0, 1]]``, ``Q = q [[T^3/3, T^2/2], [T^2/2, T]]`` (q: acceleration
+power spectral density, m^2/s^3); Gauss-Markov ``dV_i = e^{-a T} dV_{i-1} + w_i`` with
+``var(w_i) = sigma^2 (1 - e^{-2 a T})`` (docs/arms.md: the seed's eq. 9 noise factor is
+dimensionally inconsistent and is not used).
+
+The nonlinear measurement update (EKF and converted-at-predicted forms) runs in a numba kernel
+(:func:`_arms_kernel`) with the Joseph-form covariance update; the transition is linear, so the
+generic RTS smoother applies unchanged.
+"""
+
+from __future__ import annotations
+
+from flightrecon.methods.arms.filter import (
+    ArmsEstimate,
+    ArmsJointRun,
+    CascadeResult,
+    Stage1Run,
+    Stage2Run,
+    compensate,
+    estimate_of,
+    run_cascade,
+    run_joint_model,
+    track_ground_velocity,
+)
+from flightrecon.methods.arms.model import (
+    CONVERTED_AT,
+    LINEARISATIONS,
+    AirData,
+    ArmsModel,
+    RadarPlots,
+    converted_covariance,
+    converted_measurement,
+    cv_process_noise,
+    cv_transition,
+    gm_process_noise,
+    gm_transition,
+    horizontal_range,
+    joint_process_noise,
+    joint_transition,
+    range_azimuth,
+    range_azimuth_jacobian,
+    wrap_angle,
+)
+from flightrecon.methods.arms.paper import PaperScenario, simulate_paper_scenario
+
+__all__ = [
+    "LINEARISATIONS", "CONVERTED_AT", "ArmsModel", "RadarPlots", "AirData", "horizontal_range",
+    "range_azimuth", "range_azimuth_jacobian", "wrap_angle", "converted_measurement",
+    "converted_covariance", "cv_transition", "cv_process_noise", "gm_transition",
+    "gm_process_noise", "joint_transition", "joint_process_noise", "ArmsEstimate", "Stage1Run",
+    "Stage2Run", "ArmsJointRun", "CascadeResult", "track_ground_velocity", "compensate",
+    "run_cascade", "run_joint_model", "estimate_of", "PaperScenario", "simulate_paper_scenario",
+]

@@ -1,0 +1,62 @@
+"""Joint post-flight smoother: one trajectory from every source, with honest uncertainty.
+
+The state, its propagation by the kinematic accelerations from load factors and attitude, and
+the measurement models are in :mod:`flightrecon.methods.joint.layout` and the compiled kernels
+beside it.  This package builds their inputs from a cleaned flight, runs the forward filter
+and the RTS backward pass, and iterates (Gauss-Newton about the smoothed trajectory) with
+
+* the linearisation refreshed on the smoothed trajectory (nominal positions through pyproj);
+* robust re-weighting: each measurement's smoothed residual, normalised by its own standard
+  deviation sqrt(R - H P_s H^T), enters a Huber weight (threshold ``huber_c``), so a source that
+  jumps (a GNSS offset of 500 m for a minute) is down-weighted rather than trusted;
+* clock offsets of the GNSS and radar against the recorder estimated by weighted least squares
+  of the smoothed residuals against the rate of each predicted measurement.  An offset is the
+  number of seconds to *add* to the source's time stamps, as ``flightrecon clean
+  --radar-clock-offset`` takes it: a plot stamped t_m that belongs to true time t_m + c has
+  residual hdot * c;
+* optionally, a scale factor on each source's noise variance estimated from the flight
+  (variance-component estimation from the normalised residuals);
+* every pass damped on the MAP cost (:mod:`~flightrecon.methods.joint.cost`): a backtracking
+  line search along the Gauss-Newton step, a Levenberg-Marquardt step where it fails, the
+  result the lowest-cost iterate and the reason reported when the iterations did not settle
+  (docs/joint.md, "Filter, smoother, iterations").
+
+Frame: position in ECEF, velocity in the local north-east-down frame of the (nominal) aircraft
+position: valid on flights of any length; outputs converted to the departure tangent plane.
+"""
+
+from __future__ import annotations
+
+from flightrecon.methods.joint.diagnostics import source_report
+from flightrecon.methods.joint.inputs import (
+    JointInputs,
+    TakeoffRoll,
+    end_points,
+    enu_to_ecef_matrix,
+    refined_roll,
+    takeoff_roll,
+)
+from flightrecon.methods.joint.measurements import (
+    Measurements,
+    build_measurements,
+    static_measurements,
+)
+from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik
+from flightrecon.methods.joint.nominal import attitude_jacobian, relinearised_increments
+from flightrecon.methods.joint.settings import (
+    POSITIVE_NOISE,
+    PRIOR_STATES,
+    SOURCES,
+    JointNoise,
+    JointSettings,
+    prior_of,
+)
+from flightrecon.methods.joint.smoother import JointRun, smooth_joint
+
+__all__ = [
+    "SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
+    "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "takeoff_roll", "refined_roll",
+    "end_points", "attitude_jacobian", "relinearised_increments", "Measurements",
+    "static_measurements", "build_measurements", "NOISE_GROUPS", "innovation_loglik", "JointRun",
+    "smooth_joint", "source_report",
+]

@@ -1,0 +1,187 @@
+"""Diagnostics of a joint smoother run: per-source residual statistics, the estimated clock
+offsets and sensor errors that deserve a word."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint.settings import SOURCES
+from flightrecon.methods.joint.smoother import JointRun
+
+
+def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
+    """Per source: measurements used, mean squared normalised residual, down-weighted ones
+    and their time spans; a source with more than ``flag_fraction`` of its residuals beyond
+    5 sigma is flagged inconsistent."""
+    out: dict[str, Any] = {}
+    m = run.meas
+    for s_i, name in enumerate(SOURCES):
+        sel = m.source == s_i
+        if not sel.any():
+            continue
+        rn = run.resid_norm[sel]
+        w = run.weights[sel]
+        t = m.t[sel]
+        down = w < 0.999
+        big = np.abs(rn) > 5.0
+        spans = []
+        if big.any():
+            tb = np.unique(t[big])
+            start = prev = tb[0]
+            for ti in tb[1:]:
+                if ti - prev > 10.0:
+                    spans.append([float(start), float(prev)])
+                    start = ti
+                prev = ti
+            spans.append([float(start), float(prev)])
+        innov_ok = np.isfinite(run.innov[sel]) & (run.innov_var[sel] > 0)
+        nis = run.innov[sel][innov_ok] ** 2 / run.innov_var[sel][innov_ok]
+        out[name] = {"count": int(sel.sum()),
+                     "mean_norm_residual_sq": float(np.nanmean(rn ** 2)),
+                     "mean_nis": float(np.mean(nis)) if len(nis) else None,
+                     "downweighted": int(down.sum()),
+                     "beyond_5_sigma": int(big.sum()),
+                     "flagged_inconsistent": bool(big.mean() > flag_fraction),
+                     "flagged_spans_s": spans[:50]}
+    return out
+
+
+def clock_warnings(run: JointRun) -> list[str]:
+    """A warning per clock offset estimated beyond 3 sd and 0.05 s (it was corrected)."""
+    return [f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated and corrected "
+            f"(seconds added to the {name} times, as `clean --{name}-clock-offset` takes it)"
+            for name, (o, sd) in run.clock_offsets_s.items()
+            if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05]
+
+
+IMPLAUSIBLE_PRIOR_SD = 8.0
+"""A sensor error estimated this many prior sd from its prior mean makes the joint track
+unhealthy (docs/output.md, "Method health"): under the prior such a value has a probability
+below 1e-15, and where it happened the smoother had used the error to explain a model mismatch
+(JSBSim cross-country without the gust state: an airspeed scale of +26 %; a spin whose loads
+saturate: -82 %)."""
+
+
+def implausible_corrections(corrections: dict[str, Any],
+                            limit: float = IMPLAUSIBLE_PRIOR_SD) -> dict[str, float]:
+    """The sensor errors (the summary's ``corrections``: value, prior_mean, prior_sd) estimated
+    more than ``limit`` prior sd from their prior mean, with that distance."""
+    out = {}
+    for name, c in corrections.items():
+        sd = c.get("prior_sd")
+        if sd and np.isfinite(c["value"]):
+            z = abs(c["value"] - c["prior_mean"]) / sd
+            if z > limit:
+                out[name] = float(z)
+    return out
+
+
+def far_warning(name: str, c: dict[str, Any], z: float) -> str:
+    """The warning of an implausible sensor error ``name`` (``c``: its correction entry)."""
+    return (f"joint: {name} estimated at {c['value']:+.4g} (sd {c['sd']:.2g}), {z:.0f} prior "
+            f"sd from its prior {c['prior_mean']:+.4g} (sd {c['prior_sd']:.2g}): no sensor is "
+            "that far off, the smoother explained something else with it (unhealthy)")
+
+
+def gust_warnings(run: JointRun, upper_mps: float) -> list[str]:
+    """A warning when the estimated gust sd ended at its upper bound ``upper_mps``: the air
+    data then disagree with the rest by more than turbulence explains, and the smoother
+    has all but stopped using them (JSBSim circuit 7009, departure only: 8 m/s, the pressure
+    altitude and the air data both flagged inconsistent, the track unhealthy)."""
+    g = run.gust or {}
+    if g.get("rounds") and g.get("sd_mps", 0.0) >= upper_mps * (1.0 - 1e-9):
+        return [f"joint: the turbulence's gust sd reached its upper bound {upper_mps:g} m/s: "
+                "the air data disagree with the other sources by more than turbulence "
+                "explains and carry little weight (check the airspeed and heading channels, "
+                "their units, and the metadata)"]
+    return []
+
+
+def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt_m: float,
+                    window_s: float = 600.0, p_false: float = 0.01,
+                    loads_psd_m2ps3: float = 0.0,
+                    within_s: tuple[float, float] | None = None) -> dict[str, float] | None:
+    """Whether the smoothed wind moved faster than the wind's process model allows.
+
+    The model (docs/joint.md, "Wind and turbulence"): over a stretch the wind changes by its
+    gradient times the climb, g dz, plus a random walk of variance
+    ``q_t L + q_h sum|dz|`` per component (``q_t`` = ``wind_rw_mps_sqrt_s``^2 over the time L,
+    ``q_h`` = ``shear_mps_per_sqrt_m``^2 over the height flown through).  The smoothed change
+    of a Gaussian random walk, E[dw | data], has at most that variance (the variance of the
+    true change less the posterior's), so ``z^2 = |dw - g dz|^2 / (q_t L + q_h sum|dz|)`` over
+    the two components is at most chi-square with 2 degrees of freedom.  Windows of
+    ``window_s`` (the record if shorter) every tenth of it; the limit is the chi-square(2)
+    tail ``-2 ln(p_false / n)`` with ``n`` the number of disjoint windows in the record
+    (Bonferroni).  A wind that turns 100 deg in 30 minutes at 22 m/s (JSBSim's holding) gives
+    z^2 near 50 against a limit of 12; the fleet's other flights at most 1.3: the sds then
+    rest on a steadier wind than the one flown through.
+
+    Where the loads are the wind's only witness (recorder only: the wind's change is the
+    ground velocity's change integrated from the loads less the air velocity's),
+    ``loads_psd_m2ps3`` is the PSD ``r`` of the loads' velocity random walk
+    (``joint_method.inertial_wind_share``): the observed change over L then has variance
+    ``Q + r L`` per component (``Q`` the walk's variance above) and the smoothed change is its
+    share ``kappa = Q / (Q + r L)``, of variance ``kappa Q``, which replaces ``Q`` in ``z^2``
+    (0: ``kappa = 1``, the bound above).  ``within_s`` (t0, t1) keeps the windows inside that
+    span, each of the full ``window_s`` (none where the span is shorter): with
+    ``loads_psd_m2ps3`` the stretch clear of the take-off and landing rolls, whose ground
+    velocity (at rest, along the runway) is a second witness of the wind.  The 1 Hz export of
+    that holding (``r`` = 0.080 and 0.063 m^2/s^3, seeds 1 and 2) gives z^2 = 58.8 and 34.9,
+    the shipped G1000 export (``r`` = 0.011) 16.1 (``scripts/onehz_fleet_study.py``,
+    ``scripts/onehz_study.py``).
+
+    Returns
+    -------
+    dict or None
+        ``z2`` (the worst window's), ``limit``, ``t0_s``, ``t1_s`` (that window), ``change_mps``
+        (its wind change less the gradient's part, magnitude), ``model_sd_mps`` (the sd per
+        component its smoothed change may have, ``sqrt(kappa Q)``), ``walk_var_m2ps2`` (``Q``)
+        and ``loads_var_m2ps2`` (``r L``); None where the worst window is within the limit.
+    """
+    t = np.asarray(run.t, dtype=float)
+    if len(t) < 3 or not (wind_rw_mps_sqrt_s > 0):
+        return None
+    w = run.x[:, jl.S_WIND]
+    g = run.x[:, jl.S_WIND_GRAD]
+    h = np.asarray(run.h_m, dtype=float)
+    dz = np.diff(h)
+    # the gradient's part, sum g dz, and the height flown through, as running sums
+    grad = np.vstack([np.zeros(2), np.cumsum(0.5 * (g[1:] + g[:-1]) * dz[:, None], axis=0)])
+    climb = np.r_[0.0, np.cumsum(np.abs(dz))]
+    lo, hi = (float(t[0]), float(t[-1])) if within_s is None else within_s
+    span = float(t[-1] - t[0]) if within_s is None else hi - lo
+    L = min(window_s, span) if within_s is None else window_s
+    if not (L > 0 and span >= L):
+        return None
+    starts = np.arange(max(lo, float(t[0])), min(hi, float(t[-1])) - L + 1e-9, L / 10.0)
+    i = np.searchsorted(t, starts)
+    j = np.minimum(np.searchsorted(t, t[i] + L), len(t) - 1)
+    ok = j > i
+    i, j = i[ok], j[ok]
+    if not len(i):
+        return None
+    dw = (w[j] - w[i]) - (grad[j] - grad[i])
+    var = (wind_rw_mps_sqrt_s ** 2 * (t[j] - t[i])
+           + shear_mps_per_sqrt_m ** 2 * (climb[j] - climb[i]))
+    r_l = max(loads_psd_m2ps3, 0.0) * (t[j] - t[i])
+    z2 = np.sum(dw ** 2, axis=1) / (var * var / (var + r_l))
+    k = int(np.argmax(z2))
+    limit = -2.0 * np.log(p_false / max(1.0, span / L))
+    if not z2[k] > limit:
+        return None
+    return {"z2": float(z2[k]), "limit": float(limit), "t0_s": float(t[i[k]]),
+            "t1_s": float(t[j[k]]), "change_mps": float(np.hypot(*dw[k])),
+            "model_sd_mps": float(np.sqrt(var[k] * var[k] / (var[k] + r_l[k]))),
+            "walk_var_m2ps2": float(var[k]), "loads_var_m2ps2": float(r_l[k])}
+
+
+def wind_walk_warning(check: dict[str, float]) -> str:
+    """The warning of :func:`wind_walk_check`'s finding."""
+    return (f"joint: the wind changed by {check['change_mps']:.1f} m/s between t = "
+            f"{check['t0_s']:.0f} and {check['t1_s']:.0f} s beyond its gradient with height, "
+            f"against {check['model_sd_mps']:.1f} m/s (sd per component) that the wind's random "
+            f"walk allows (chi-square {check['z2']:.0f} > {check['limit']:.0f}): the standard "
+            "deviations assume a steadier wind than the one flown through (unhealthy)")

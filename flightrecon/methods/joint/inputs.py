@@ -1,0 +1,260 @@
+"""Inputs of the joint smoother: :class:`JointInputs`, the take-off roll refined with the
+smoothed lift-off speed (the detection itself: :func:`flightrecon.cleaning.phases.takeoff_roll`)
+and the end points."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from flightrecon.cleaning.phases import TakeoffRoll, takeoff_roll
+from flightrecon.geo.frames import offset_latlon
+from flightrecon.geo.kinematics import body_to_ned_matrix
+from flightrecon.geo.navframe import ned_to_ecef_matrix
+from flightrecon.methods.joint.layout import G0 as G0_MPS2
+from flightrecon.methods.joint.settings import JointNoise
+
+
+def enu_to_ecef_matrix(lat_deg: float, lon_deg: float) -> np.ndarray:
+    """(3, 3) rotation whose columns are the east, north, up unit vectors in ECEF."""
+    C = ned_to_ecef_matrix(lat_deg, lon_deg)[0]
+    return np.column_stack([C[:, 1], C[:, 0], -C[:, 2]])
+
+
+@dataclass(frozen=True)
+class JointInputs:
+    """Everything the smoother needs, in SI, on the state grid / at measurement times.
+
+    Attributes
+    ----------
+    t_in : input grid times (Ni,)
+    acc_ned : measured kinematic acceleration on the input grid (Ni, 3), NaN where missing
+    attitude_deg : roll, pitch, heading on the input grid, each missing sample held at the
+        nearest recorded one (Ni, 3) [deg]; its body-to-NED rotations: :meth:`body_to_ned`
+        (kept as angles: the (Ni, 3, 3) matrices of a 10-hour flight at 16 Hz are 41 MB)
+    tas, heading_rad : airspeed and (unwrapped) true heading on the input grid
+    baro_rel_m : pressure altitude minus the departure field's pressure altitude (input grid)
+    gnss : DataFrame t_s, lat_deg, lon_deg, h_m (ellipsoidal; NaN: a horizontal-only fix),
+        vn_mps, ve_mps, optionally h_sd_m, v_sd_m, vel_sd_mps (per-fix sd) (may be empty)
+    radar : DataFrame t_s, range_m, azimuth_rad, elevation_rad (NaN if absent) (may be empty)
+    station : (lat, lon, h_ellipsoidal) or None
+    departure, arrival : (lat, lon, h_ellipsoidal) or None
+    liftoff_t, touchdown_t : NaN where not in the record
+    field_h : ellipsoidal height of the departure field (reference of baro_rel_m)
+    lever_arm : GNSS antenna in body FRD [m]
+    wind_ne : recorded wind (Ni, 2) where the air moves to, or None
+    doppler_gs, drift_rad : Doppler ground speed [m/s] and drift angle [rad] (Ni,), or None
+    f_body_g : measured specific force in body FRD axes [n_long, n_lat, -n_norm] (Ni, 3) [g]
+    runway_rad : true directions of the departure and arrival runways [rad], ``None`` each
+        where unknown
+    thresholds : (lat, lon, h_ellipsoidal) of the departure and arrival runway thresholds,
+        ``None`` each where unknown (used only with the runway's direction)
+    roll : the take-off roll and the rest before it (:func:`takeoff_roll`)
+    lineup_t : when the aircraft lined up on the take-off runway (cleaning phases); nothing
+        before it is taken as at rest on the runway (NaN: no limit)
+    notes : what the input builder had to assume (missing attitude held, ...), for the summary
+    ends_airborne : the record ends in the air or at an impact (cleaning phases): the arrival is
+        then the last known position at the last sample (a radar hand-off, the wreckage), not
+        an airfield (:func:`end_points`)
+    fixes : known positions (``--fix``) (F, 5): t_s, lat_deg, lon_deg, h_ellipsoidal (NaN: a
+        horizontal-only fix), sd_m (per axis), or None
+    wind_aloft : winds-aloft prior (``--wind``) at the recorded altitude on the input grid
+        (Ni, 3): north, east (where the air moves to) [m/s] and sd per component [m/s], or None
+    missing_psd : white-acceleration PSD [(m/s^2)^2/Hz] standing for each input sample's
+        acceleration where it is missing (Ni,), or None: 1 everywhere (the dynamics'
+        ``qv_extra``; a derived ``n_long_g`` where the airspeed comes alive: larger,
+        :func:`flightrecon.methods.joint.method.airspeed_floor_psd`)
+    """
+
+    t_in: np.ndarray
+    acc_ned: np.ndarray
+    attitude_deg: np.ndarray
+    tas: np.ndarray
+    heading_rad: np.ndarray
+    baro_rel_m: np.ndarray
+    gnss: pd.DataFrame
+    radar: pd.DataFrame
+    station: tuple[float, float, float] | None
+    departure: tuple[float, float, float] | None
+    arrival: tuple[float, float, float] | None
+    liftoff_t: float
+    touchdown_t: float
+    field_h: float
+    lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wind_ne: np.ndarray | None = None
+    doppler_gs: np.ndarray | None = None
+    drift_rad: np.ndarray | None = None
+    f_body_g: np.ndarray | None = None
+    runway_rad: tuple[float | None, float | None] = (None, None)
+    thresholds: tuple[tuple[float, float, float] | None,
+                      tuple[float, float, float] | None] = (None, None)
+    roll: TakeoffRoll = field(default_factory=TakeoffRoll)
+    lineup_t: float = np.nan
+    notes: tuple[str, ...] = ()
+    ends_airborne: bool = False
+    fixes: np.ndarray | None = None
+    wind_aloft: np.ndarray | None = None
+    missing_psd: np.ndarray | None = None
+
+    def body_to_ned(self, i: int | np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Body-to-NED rotations C = R_z(heading) R_y(pitch) R_x(roll) of the input samples
+        ``i`` (all by default), shape (len(i), 3, 3), or (3, 3) for one sample
+        (:func:`flightrecon.geo.body_to_ned_matrix`)."""
+        a = self.attitude_deg[i]
+        C = body_to_ned_matrix(a[..., 0], a[..., 1], a[..., 2])
+        return C[0] if a.ndim == 1 else C
+
+
+def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
+                 accel_bias_g: np.ndarray | None = None) -> TakeoffRoll:
+    """The take-off roll refined by the smoother: :func:`flightrecon.cleaning.phases.takeoff_roll`
+    with the along-track component of the nominal (smoothed) ground velocity ``vnom`` (N, 3) at
+    lift-off on the state grid ``T`` as the lift-off speed, and the smoothed forward
+    accelerometer bias ``accel_bias_g`` (N, 3) [g] at lift-off as its ``accel_bias_mps2``;
+    ``inp.roll`` without a nominal, without a roll, or where the refined search finds none."""
+    roll = inp.roll
+    if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):
+        return roll
+    t_in = inp.t_in
+    k_lo = int(_nearest(T, np.array([inp.liftoff_t]))[0])
+    psi_lo = inp.heading_rad[max(int(np.searchsorted(t_in, inp.liftoff_t)) - 1, 0)]
+    if not np.isfinite(psi_lo):
+        return roll
+    bias = 0.0 if accel_bias_g is None else G0_MPS2 * float(accel_bias_g[k_lo, 0])
+    refined = takeoff_roll(t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,
+                           v_lo_mps=float(vnom[k_lo, 0] * np.cos(psi_lo)
+                                          + vnom[k_lo, 1] * np.sin(psi_lo)),
+                           accel_bias_mps2=bias, not_before_t=inp.lineup_t)
+    # a refinement that finds no roll keeps the one found before (the phases' where the
+    # recorded loads do not reach back through the roll: joint_method.phases_roll)
+    return refined if np.isfinite(refined.start_t) else roll
+
+
+def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
+                        dist_m: float) -> tuple[float, float, float]:
+    """(lat, lon, h) ``dist_m`` down the runway from its threshold ``thr``."""
+    lat, lon = offset_latlon(thr[0], thr[1], dist_m * np.cos(runway_rad),
+                             dist_m * np.sin(runway_rad))
+    return lat, lon, float(thr[2])
+
+
+def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
+                    smooth_s: float = 1.0) -> dict[str, float] | None:
+    """The touchdown's distance past the arrival threshold from the recorded flare.
+
+    An approach crosses the threshold at the screen height :math:`h_s` (``screen_height_m``,
+    50 ft: the threshold crossing height of a 3 deg glide path to the aiming point); what
+    follows, the flare and any float in ground effect, is flown at the recorded airspeed, so
+
+    .. math:: d_{td} = \\int_{t_s}^{t_{td}} V_{TAS}\\,dt, \\qquad
+              \\sigma_{td}^2 = \\sigma_s^2 + (w\\,(t_{td} - t_s))^2
+
+    with :math:`t_s` the last time before touchdown the barometric height above the touchdown
+    (the recorded pressure altitude, ``smooth_s`` running mean, minus its median over the
+    first 2 s on the ground: the baro offset cancels) was at least :math:`h_s`,
+    :math:`\\sigma_s` the crossing's scatter along the runway (``screen_along_sd_m``) and
+    :math:`w` the unknown runway component of the wind over that time (``float_wind_mps``).
+    A long float (a tail wind, an approach too fast) is then measured instead of assumed
+    (the fixed ``touchdown_m`` put a 737 landing 870 m long 5.8 sd off: issue #38).
+
+    Returns
+    -------
+    dict or None
+        ``touchdown_m``, ``sd_m``, ``screen_t_s``, ``float_s``; ``None`` (the fixed
+        ``touchdown_m``) without a touchdown, a pressure altitude or an airspeed there, or
+        when the record does not climb above the screen height within ``look_back_s``.
+    """
+    td = inp.touchdown_t
+    h_s = nz.screen_height_m
+    if not (np.isfinite(td) and h_s > 0):
+        return None
+    t, h, v = inp.t_in, inp.baro_rel_m, inp.tas
+    ground = (t >= td) & (t <= td + 2.0) & np.isfinite(h)
+    win = (t >= td - look_back_s) & (t <= td) & np.isfinite(h)
+    if ground.sum() < 2 or win.sum() < 4:
+        return None
+    h_td = float(np.median(h[ground]))
+    tw, hw = t[win], h[win] - h_td
+    dt = float(np.median(np.diff(tw))) if len(tw) > 1 else 1.0
+    n = max(int(round(smooth_s / max(dt, 1e-6))), 1)
+    hs = np.convolve(hw, np.ones(n) / n, mode="same") if n > 1 else hw
+    above = np.flatnonzero(hs >= h_s)
+    if above.size == 0:
+        return None
+    t_s = float(tw[above[-1]])
+    seg = (t >= t_s) & (t <= td)
+    vv = v[seg]
+    if seg.sum() < 2 or not np.all(np.isfinite(vv)):
+        return None
+    dist = float(np.trapezoid(vv, t[seg]))
+    sd = float(np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * (td - t_s)))
+    return {"touchdown_m": dist, "sd_m": sd, "screen_t_s": t_s, "float_s": float(td - t_s)}
+
+
+def end_points(inp: JointInputs, nz: JointNoise,
+               roll: TakeoffRoll | None = None) -> list[dict[str, Any]]:
+    """The end-point constraints: where and when the record is tied to its airfields.
+
+    With a runway's threshold and direction known: the take-off roll starts at the departure
+    threshold (along-runway sd ``roll_start_sd_m``; the time from :func:`takeoff_roll`), and
+    the touchdown is ``touchdown_m`` past the arrival threshold (sd ``touchdown_sd_m``); across
+    the runway the centreline holds (``runway_halfwidth_m``). Otherwise the airfield reference
+    point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every
+    horizontal direction. Vertically the airfield elevation, ``endpoint_v_m``.  A record that
+    ends in the air or at an impact (``inp.ends_airborne``) has no arrival airfield: its
+    arrival is the last known position (a radar hand-off, the wreckage) and is applied at the
+    last sample as that position, ``last_position_h_m`` per horizontal axis and
+    ``endpoint_v_m`` vertically (model "last_position"; docs/wind.md, "End points").  ``roll``
+    replaces ``inp.roll`` (the smoother refines it with its smoothed lift-off speed).
+
+    Returns
+    -------
+    list of dict
+        Keys ``which`` ("departure" / "arrival"), ``model`` ("runway" / "reference" /
+        "last_position"), ``t_s``, ``point`` (lat, lon, h_ellipsoidal: the constrained point's
+        mean), ``runway_rad`` and ``sd_m`` (along, cross, vertical) for the runway model,
+        (north, east, vertical) otherwise.
+    """
+    out = []
+    t_in = inp.t_in
+    for which, pos, thr, rw in (("departure", inp.departure, inp.thresholds[0], inp.runway_rad[0]),
+                                ("arrival", inp.arrival, inp.thresholds[1], inp.runway_rad[1])):
+        if pos is None:
+            continue
+        if which == "arrival" and inp.ends_airborne:
+            out.append({"which": which, "model": "last_position", "t_s": float(t_in[-1]),
+                        "point": tuple(pos), "runway_rad": None,
+                        "sd_m": (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)})
+            continue
+        t_run = (inp.roll if roll is None else roll).start_t if which == "departure" \
+            else inp.touchdown_t
+        if thr is not None and rw is not None and np.isfinite(t_run):
+            dist, sd = ((0.0, nz.roll_start_sd_m) if which == "departure"
+                        else (nz.touchdown_m, nz.touchdown_sd_m))
+            flare = float_touchdown(inp, nz) if which == "arrival" else None
+            if flare is not None:
+                dist, sd = flare["touchdown_m"], flare["sd_m"]
+            out.append({"which": which, "model": "runway", "t_s": float(t_run),
+                        "point": _along_runway_point(thr, rw, dist), "runway_rad": float(rw),
+                        "sd_m": (sd, nz.runway_halfwidth_m, nz.endpoint_v_m),
+                        **({"flare": flare} if flare is not None else {})})
+            continue
+        if which == "departure":
+            tt = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]
+        else:
+            tt = inp.touchdown_t if np.isfinite(inp.touchdown_t) else t_in[-1]
+        out.append({"which": which, "model": "reference", "t_s": float(tt), "point": tuple(pos),
+                    "runway_rad": None,
+                    "sd_m": (nz.endpoint_h_m, nz.endpoint_h_m, nz.endpoint_v_m)})
+    return out
+
+
+def _nearest(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
+    """Index of the sample of sorted ``t`` nearest to each of ``tq`` (a tie goes to the later
+    sample); the state step of a measurement, the input sample of a fix."""
+    j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)
+    p = np.clip(j - 1, 0, len(t) - 1)
+    return np.where(np.abs(tq - t[p]) < np.abs(tq - t[j]), p, j)

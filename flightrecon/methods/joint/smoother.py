@@ -1,0 +1,501 @@
+"""Iterations of the joint smoother: forward filter, RTS backward pass and Gauss-Newton
+relinearisation with robust re-weighting and clock-offset fits, damped by a backtracking line
+search on the MAP cost (:func:`smooth_joint`; docs/joint.md, "Filter, smoother, iterations").
+
+The iterations are an iterated extended Kalman smoother with a line search (Sarkka & Svensson
+2020, "Levenberg-Marquardt and line-search extended Kalman smoothers", ICASSP, section 4):
+each pass linearises about the current iterate X and smooths, which gives the Gauss-Newton
+point X_GN; the next iterate is X + alpha (X_GN - X) with alpha = 1, 1/2, 1/4, ... the first
+that does not raise the MAP cost J (:mod:`~flightrecon.methods.joint.cost`).  The robust
+weights, the clock offsets, the take-off roll and the noise factors are updated between the
+passes and held fixed within one (the cost is compared under the same ones).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from flightrecon.geo.frames import ecef_to_geodetic
+from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint import passes as jp
+from flightrecon.methods.joint.inputs import JointInputs, TakeoffRoll, end_points, refined_roll
+from flightrecon.methods.joint.linearisation import (
+    _cost,
+    _Flight,
+    _flight,
+    _Models,
+    _models_about,
+    _models_at,
+    _nominal_states,
+    _scalars,
+    _scaled_variances,
+    _with_pseudo,
+)
+from flightrecon.methods.joint.measurements import Measurements
+from flightrecon.methods.joint.noise import NOISE_GROUPS, _noise_update, innovation_loglik
+from flightrecon.methods.joint.nominal import _initial, _nominal_trajectory
+from flightrecon.methods.joint.settings import JointSettings
+from flightrecon.methods.joint.turbulence import gust_update
+from flightrecon.methods.joint.updates import _clock_update, _robust_weights, _stop_reason
+
+
+@dataclass(frozen=True)
+class JointRun:
+    """Result of :func:`smooth_joint` on the state grid."""
+
+    t: np.ndarray
+    x: np.ndarray            # smoothed states (N, n)
+    P_pv: np.ndarray         # smoothed position-velocity covariance block (ECEF p, NED v)
+    var: np.ndarray          # smoothed state variances (N, n)
+    xf: np.ndarray           # filtered states
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    h_m: np.ndarray          # ellipsoidal height
+    Cen: np.ndarray
+    meas: Measurements
+    weights: np.ndarray
+    resid_norm: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    clock_offsets_s: dict[str, tuple[float, float]]  # (value, sd): seconds added to the stamps
+    noise_scale: dict[str, float]
+    iterations: list[dict[str, Any]]
+    end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
+    roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
+    noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
+    cholesky_fallbacks: int = 0  # last pass's steps whose Cholesky failed (general solve)
+    # convergence: the test of docs/joint.md ("Filter, smoother, iterations"), and why not
+    converged: bool = False
+    stop_reason: str = ""
+    gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
+
+
+@dataclass
+class _Pass:
+    """Outputs of one forward filter and backward smoother pass."""
+
+    xs: np.ndarray
+    xf: np.ndarray
+    res: np.ndarray
+    rate: np.ndarray
+    hph: np.ndarray | None
+    infl: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    Pblk: np.ndarray | None
+    var: np.ndarray | None
+    n_fallback: int
+    kern_args: tuple[Any, ...]
+    scalars: jl.Scalars
+
+
+@dataclass
+class _Step:
+    """The accepted iterate of one pass (after the line search)."""
+
+    X: np.ndarray
+    alpha: float
+    cost: dict[str, float]
+    models: _Models           # built about X with the pass's clock offsets and roll
+    res: np.ndarray
+    rate: np.ndarray
+    evaluations: int
+    ok: bool                  # False: no step lowered the cost (X is the pass's start)
+    gn_shift_m: float         # largest position change of the full Gauss-Newton step
+    gn_cost: float            # cost at the full Gauss-Newton step
+    lm_lambda: float = 0.0    # > 0: a Levenberg-Marquardt step with this damping
+
+
+def _gn_pass(fl: _Flight, mdl: _Models, r: np.ndarray, weights: np.ndarray, xlin: np.ndarray,
+             bufs: tuple[np.ndarray, ...], with_cov: bool, first: bool) -> _Pass:
+    """Forward filter (linearised about ``xlin``; empty: about its own prediction) and RTS
+    backward pass; the smoothed covariances with ``with_cov`` (on a second thread beside the
+    mean pass unless the noise estimation needs the smoothed H P H^T)."""
+    s = fl.settings
+    xf, Pf, xp, Pp = bufs
+    assert fl.x0 is not None and fl.P0 is not None
+    scalars = _scalars(mdl, fl.T, r, weights)
+    # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
+    gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
+    if not first and s.line_search and not s.gate_damped:
+        gate = 0.0
+    innov, innov_var, infl = jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars, mdl.geo,
+                                        gate, xlin)
+    kern_args = (mdl.dyn, scalars._replace(r=r * infl), mdl.geo)
+    hph = Pblk = var = None
+    if s.estimate_noise:
+        xs, Pblk, var, _, res, rate, hph, n_fallback = jp.backward(xf, Pf, xp, Pp, *kern_args,
+                                                                   True)
+    elif with_cov:
+        # the covariance recursion on a second thread (the kernels release the GIL)
+        cov: dict[str, Any] = {}
+
+        def covariances(*args: Any, cov: dict[str, Any] = cov) -> None:
+            try:
+                cov["out"] = jp.backward(*args, False)
+            except BaseException as exc:  # re-raised on the calling thread
+                cov["error"] = exc
+
+        worker = threading.Thread(target=covariances, name="joint-covariances",
+                                  args=(xf, Pf, xp, Pp, *kern_args))
+        worker.start()
+        xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+        worker.join()
+        if "error" in cov:
+            raise cov["error"]
+        _, Pblk, var, *_, n_fallback_cov = cov["out"]
+        n_fallback = max(n_fallback, n_fallback_cov)
+    else:
+        xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+    return _Pass(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
+                 kern_args, scalars)
+
+
+def _line_search(fl: _Flight, mdl: _Models, X: np.ndarray | None,
+                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: _Pass,
+                 r: np.ndarray, weights: np.ndarray) -> _Step:
+    """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
+    X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
+    whose MAP cost does not exceed the cost of X (``start``: its cost, residuals and rates;
+    every cost under this pass's
+    clock offsets, roll, noise factors).  The first pass (no iterate yet) takes the full step;
+    so does every pass with ``line_search`` off (the cost is still evaluated and reported)."""
+    s = fl.settings
+    X_gn = out.xs
+    gn_shift = float(np.max(np.abs(X_gn[:, jl.S_POS] - mdl.pnom)))
+    alpha, evals, gn_cost = 1.0, 0, np.nan
+    while True:
+        Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
+        mc, Xc = _models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = _cost(fl, mc, Xc, r, weights)
+        evals += 1
+        if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
+            res, rate = out.res, out.rate
+            gn_cost = cost["cost"]
+        step = _Step(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
+        if (X is None or start is None or not s.line_search
+                or (np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"])):
+            return step
+        if evals > s.line_search_halvings:
+            # no step size lowered the cost: the iterate stays (the lowest-cost one)
+            return _Step(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
+                         gn_cost)
+        del step, mc   # the rejected candidate's models go before the next one's are built
+        alpha *= 0.5
+
+
+def _lm_step(fl: _Flight, st: _State, mdl: _Models,
+             start: tuple[dict[str, Any], np.ndarray, np.ndarray], r: np.ndarray
+             ) -> _Step | None:
+    """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
+    the smoothing pass with the pseudo-measurements of :func:`_with_pseudo` about the iterate,
+    lambda from ``lm_lambda0`` (or ten times the last one) multiplied by 10 until the cost
+    does not exceed the iterate's, at most up to ``lm_lambda_max``; None if none did."""
+    s = fl.settings
+    assert st.X is not None and st.bufs is not None and st.weights is not None
+    if st.lm_bufs is None:  # its own buffers: the plain pass's filter outputs are kept
+        st.lm_bufs = tuple(np.empty_like(b) for b in st.bufs)
+    xf, Pf, xp, Pp = st.lm_bufs
+    assert fl.x0 is not None and fl.P0 is not None
+    sd = np.sqrt(np.diag(fl.P0))
+    lam, evals = max(10.0 * st.lm_lambda, s.lm_lambda0), 0
+    while lam <= s.lm_lambda_max:
+        sc = _with_pseudo(_scalars(mdl, fl.T, r, st.weights), st.X, sd, lam)
+        jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, st.X)
+        xs = jp.backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
+        mc, Xc = _models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = _cost(fl, mc, Xc, r, st.weights)
+        evals += 1
+        if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
+            st.lm_lambda = lam / 10.0
+            return _Step(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan, lam)
+        lam *= 10.0
+    return None
+
+
+def _full_step(step: _Step) -> bool:  # the accepted iterate is the pass's own smoothed states
+    return step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
+
+
+def _settled(it: int, step: _Step, cost0: float | None, psi_moved: float, w_change: float,
+             params_still: bool, settings: JointSettings, info: dict[str, Any]) -> bool:
+    """Convergence test (docs/joint.md): the MAP cost changed by less than ``cost_tol``
+    (relative), the track by less than ``converge_m`` and the heading bias by less than 1e-4
+    rad (1 m at 10 km) in the last pass, no robust weight by more than ``converge_weight``,
+    and the clock offsets and noise factors stand still.  A pass whose line search found no
+    lower cost counts as settled only if its full Gauss-Newton step was that small too."""
+    if it == 0 or cost0 is None:
+        return False
+    shift = step.gn_shift_m if not step.ok else info["max_position_change_m"]
+    new = step.gn_cost if not step.ok else step.cost["cost"]
+    rel = abs(cost0 - new) / max(abs(new), 1.0)
+    info["cost_relative_change"] = float(rel)
+    return bool(rel < settings.cost_tol and shift < settings.converge_m and psi_moved < 1e-4
+                and w_change <= settings.converge_weight and params_still)
+
+
+@dataclass
+class _State:
+    """What the passes carry from one to the next."""
+
+    lat: np.ndarray                     # nominal of the next pass
+    lon: np.ndarray
+    h: np.ndarray
+    vnom: np.ndarray                    # nominal velocity (runway constraints, take-off roll)
+    clock: dict[str, float]
+    clock_sd: dict[str, float]
+    scale: np.ndarray                   # variance factor per noise group (EM)
+    psi_hat: np.ndarray | None = None   # heading bias of the iterate (rotation's linearisation)
+    ba_hat: np.ndarray | None = None    # accelerometer biases of the iterate (take-off roll)
+    X: np.ndarray | None = None         # the current iterate (None before the first pass)
+    models: _Models | None = None       # built about X (reused when nothing else changed)
+    # cost, residuals, rates of X under ``models`` and ``cost_scale``: the next pass's start
+    cost: tuple[dict[str, float], np.ndarray, np.ndarray] | None = None
+    cost_scale: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    bufs: tuple[np.ndarray, ...] | None = None
+    lm_bufs: tuple[np.ndarray, ...] | None = None
+    lm_lambda: float = 0.0              # the last accepted Levenberg-Marquardt damping / 10
+    converged: bool = False
+    reason: str = ""
+    refit: bool = False                 # the models' noise changed (gust sd): a new cost
+    gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
+    rolls_seen: list[TakeoffRoll] = field(default_factory=list)  # rolls of the passes so far,
+    #                                     the last pass's last (a roll once left is not taken)
+
+
+def _pass_models(fl: _Flight, st: _State) -> _Models:
+    """The models of the next pass: about the iterate, with the current clock offsets and the
+    take-off roll refined on the iterate (those of the line search's last candidate when they
+    are the same).  A refined roll changes the runway and ground measurements, a clock offset
+    the GNSS and radar ones: the cost function itself (more measurements, more terms), so
+    costs are compared within a pass, and across passes only where neither changed
+    (``parameters_changed`` in the pass's entry).  A roll back at one an earlier pass had
+    (a cycle that never settles: JSBSim spiral 5305 between two, the fleet study's accident
+    flight of seed 0 among three) is not taken: the last pass's stays."""
+    roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
+    m = st.models
+    if st.rolls_seen and any(roll.same_as(r) for r in st.rolls_seen[:-1]):
+        roll = st.rolls_seen[-1]
+    if m is not None and m.clock == st.clock and m.roll.same_as(roll):
+        return m
+    return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
+
+
+def _start_cost(fl: _Flight, st: _State, mdl: _Models, r: np.ndarray, reset: bool
+                ) -> tuple[dict[str, Any], np.ndarray, np.ndarray] | None:
+    """The iterate's cost, residuals and rates under the pass's models (None before the first
+    pass; the last accepted ones when the models and noise factors are the same).  After a
+    ``reset`` of the weights (a new measurement set: a refined take-off roll) the IRLS weights
+    at the iterate, so that the pass is again a majorise-minimise step (with all weights 1
+    its Gauss-Newton step need not lower the robust cost)."""
+    if st.X is None:
+        return None
+    assert st.weights is not None
+    same = mdl is st.models and np.array_equal(st.scale, st.cost_scale)
+    start = st.cost if same and st.cost is not None else _cost(fl, mdl, st.X, r, st.weights)
+    if reset:
+        st.weights = _robust_weights(start[1] / np.sqrt(r), st.weights, fl.settings)
+    return start
+
+
+def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, dict[str, Any]]:
+    """One damped Gauss-Newton pass: models about the iterate, its cost, the smoothing pass,
+    the line search, then the weights, clock and noise updates (``st`` updated in place)."""
+    s = fl.settings
+    mdl = _pass_models(fl, st)
+    r = _scaled_variances(mdl, st.scale)
+    reset = st.weights is None or len(st.weights) != len(mdl.meas.z)
+    if reset:
+        st.weights = np.ones(len(mdl.meas.z))
+    if fl.x0 is None:
+        fl.x0, fl.P0 = _initial(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
+        fl.P0inv = np.linalg.inv(fl.P0)
+    if st.bufs is None:  # filter outputs, reused by every pass (allocated and paged in once)
+        st.bufs = jp.filter_buffers(len(fl.T))
+    if st.X is None and fl.settings.first_pass == "nominal":
+        st.X = _nominal_states(fl, mdl)
+    start = _start_cost(fl, st, mdl, r, reset)
+    xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
+    # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
+    # the solution) smooths the states only, the later ones (likely the last) everything
+    out = _gn_pass(fl, mdl, r, st.weights, xlin, st.bufs, s.estimate_noise or it > 0, it == 0)
+    step = _line_search(fl, mdl, st.X, start, out, r, st.weights)
+    if not step.ok and s.levenberg_marquardt and start is not None:
+        lm = _lm_step(fl, st, mdl, start, r)
+        if lm is not None:
+            step = replace(lm, evaluations=step.evaluations + lm.evaluations,
+                           gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
+    shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
+    changed = st.refit or (st.models is not None and (
+        st.models.clock != mdl.clock or not st.models.roll.same_as(mdl.roll)
+        or not np.array_equal(st.scale, st.cost_scale)))
+    st.refit = False
+    info: dict[str, Any] = {"iteration": it, "max_position_change_m": shift,
+                            "parameters_changed": bool(changed),
+                            "roll_start_t_s": mdl.roll.start_t,
+                            "cholesky_fallbacks": out.n_fallback, **step.cost,
+                            "cost_start": None if start is None else start[0]["cost"],
+                            "step_size": step.alpha, "lm_lambda": step.lm_lambda,
+                            "line_search_evaluations": step.evaluations,
+                            "gauss_newton_position_change_m": step.gn_shift_m}
+    psi_from = 0.0 if st.psi_hat is None else st.psi_hat
+    psi_new = np.ascontiguousarray((step.X if step.ok else out.xs)[:, jl.IPSI])
+    psi_moved = float(np.max(np.abs(psi_new - psi_from)))
+    info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
+    info["heading_bias_deg"] = float(np.degrees(step.X[len(fl.T) // 2, jl.IPSI]))
+    if not step.ok:
+        info["line_search_failed"] = True
+        info["gauss_newton_cost"] = step.gn_cost
+        info["_settled"] = _settled(it, step, start[0]["cost"] if start else None, psi_moved,
+                                    0.0, True, s, info)
+        return mdl, out, step, info
+    w_before = st.weights.copy()
+    clock_before = dict(st.clock)
+    scale_used = st.scale.copy()
+    st.weights = _robust_weights(step.res / np.sqrt(r), st.weights, s)
+    if s.estimate_clock:
+        _clock_update(mdl.meas, step.res, step.rate, st.weights, r, st.clock, st.clock_sd, info)
+    noise_moved = False
+    if s.estimate_noise:
+        # measurements taken at face value in this pass: full weight, not gated
+        use = (st.weights >= 1.0) & (w_before >= 1.0) & (out.infl <= 1.0)
+        assert out.hph is not None
+        st.scale, noise_moved = _noise_update(mdl.groups, out.hph, mdl.meas.r, step.res, use,
+                                              st.scale, s, info)
+    X = step.X
+    st.lat, st.lon, st.h = step.models.lat, step.models.lon, step.models.h
+    st.vnom, st.psi_hat, st.ba_hat = X[:, jl.S_VEL], psi_new, X[:, jl.S_ACC_BIAS]
+    if not any(mdl.roll.same_as(r) for r in st.rolls_seen):
+        st.rolls_seen.append(mdl.roll)
+    st.X, st.models = X, step.models
+    st.cost, st.cost_scale = (step.cost, step.res, step.rate), scale_used
+    info["_settled"] = _settled(it, step, None if start is None else start[0]["cost"],
+                                psi_moved, float(np.max(np.abs(st.weights - w_before),
+                                                        initial=0.0)),
+                                st.clock == clock_before and not noise_moved, s, info)
+    if not info["_settled"] and (s.estimate_noise or shift > 10.0 * s.converge_m):
+        gust_update(fl, st, out, out.xs if _full_step(step) else X, it)
+    return mdl, out, step, info
+
+
+def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) -> JointRun:
+    """Run the joint smoother: forward EKF and RTS passes, iterated as damped Gauss-Newton on
+    the MAP cost with IRLS weights (docs/joint.md, "Filter, smoother, iterations").
+
+    The result is the last accepted iterate, the lowest-cost one (each pass's cost does not
+    exceed the cost of its start under the same clock offsets, roll and noise factors);
+    ``JointRun.converged`` is the test of :func:`_settled` and ``stop_reason`` says why the
+    iterations stopped.
+    """
+    fl = _flight(inp, settings)
+    lat, lon, h = _nominal_trajectory(inp, fl.idx, settings.noise)
+    # nominal velocity (runway constraints): air data at first, then the smoothed velocity
+    tas0 = np.nan_to_num(inp.tas[fl.idx])
+    psi0 = np.nan_to_num(inp.heading_rad[fl.idx])
+    vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(fl.idx))]
+    st = _State(lat, lon, h, vnom, {"gnss": 0.0, "radar": 0.0},
+                {"gnss": np.nan, "radar": np.nan}, np.ones(len(NOISE_GROUPS)))
+    n_iter = max(1, settings.iterations)
+    if settings.estimate_noise:
+        n_iter = max(n_iter, settings.noise_iterations)
+    history: list[dict[str, Any]] = []
+    last = None
+    for it in range(n_iter):
+        last = None   # the last pass's models and outputs go before the next pass builds its own
+        last = _one_pass(fl, st, it)
+        info = last[3]
+        settled = info.pop("_settled")
+        history.append(info)
+        if settled:
+            info["converged"] = True
+            st.converged, st.reason = True, "converged"
+            break
+        if not last[2].ok:
+            break
+    if not st.converged:
+        st.reason = _stop_reason(history, settings)
+    assert last is not None
+    return replace(_finish(fl, st, *last[:3], history),
+                   gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
+
+
+def _finish(fl: _Flight, st: _State, mdl: _Models, out: _Pass, step: _Step,
+            history: list[dict[str, Any]]) -> JointRun:
+    """The result of the last pass: its iterate (the pass's own smoothed states after a full
+    step), the smoothed covariances of its linearisation and the noise check."""
+    s = fl.settings
+    assert st.bufs is not None and st.weights is not None
+    xf, Pf, xp, Pp = st.bufs
+    full = _full_step(step)
+    xs = out.xs if full else step.X
+    res = out.res if full else step.res
+    Pblk, var, n_fallback = out.Pblk, out.var, out.n_fallback
+    if Pblk is None or var is None:
+        # smoothed covariances of the last pass (its states equal those of the mean-only pass
+        # to round-off: same gains, same linearisation)
+        xs_c, Pblk, var, *_, n_fallback_cov = jp.backward(xf, Pf, xp, Pp, *out.kern_args, False)
+        xs = xs_c if full else xs
+        n_fallback = max(n_fallback, int(n_fallback_cov))
+    r = out.scalars.r
+    lat, lon, h = (step.models.lat, step.models.lon, step.models.h)
+    innov, innov_var, scale = out.innov, out.innov_var, st.scale
+    noise_check = None
+    if s.estimate_noise:
+        noise_check, redo = _noise_check(fl, mdl, out, st)
+        if redo is not None:
+            scale = np.ones(len(NOISE_GROUPS))
+            xs, Pblk, var, res, n_fallback, xf, innov, innov_var, r = redo
+            lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+    history[-1]["stop_reason"] = st.reason
+    return JointRun(t=fl.T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
+                    Cen=mdl.Cen, meas=mdl.meas, weights=st.weights,
+                    resid_norm=res / np.sqrt(r),
+                    innov=innov, innov_var=innov_var,
+                    clock_offsets_s={k: (st.clock[k], st.clock_sd[k]) for k in st.clock},
+                    noise_scale={name: float(scale[i]) for i, name in
+                                 enumerate(NOISE_GROUPS.values())},
+                    iterations=history, end_points=end_points(fl.inp, s.noise, mdl.roll),
+                    roll=mdl.roll, noise_check=noise_check, cholesky_fallbacks=int(n_fallback),
+                    converged=st.converged, stop_reason=st.reason)
+
+
+def _noise_check(fl: _Flight, mdl: _Models, out: _Pass, st: _State
+                 ) -> tuple[dict[str, Any], tuple[Any, ...] | None]:
+    """The estimated noise must raise the likelihood of the data: the innovations'
+    log-likelihood (prediction-error decomposition) of the last pass against a forward pass
+    with the default variances at the same linearisation, weights and clock offsets;
+    otherwise the defaults are kept and the last pass is redone with them (docs/joint.md,
+    "Noise estimation").  Returns the check and, when rejected, the redone pass's outputs."""
+    s = fl.settings
+    assert fl.x0 is not None and fl.P0 is not None and st.bufs is not None
+    xf, Pf, xp, Pp = st.bufs
+    lo_b, hi_b = s.noise_factor_bounds
+    xf1, xp1 = np.empty_like(xf), np.empty_like(xp)
+    Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
+    r1 = mdl.meas.r.copy()
+    # (out.scalars.w: the weights the last forward pass ran with)
+    w_before = out.scalars.w
+    scalars1 = out.scalars._replace(r=r1)
+    xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
+    innov1, innov_var1, infl1 = jp.forward(
+        xf1, Pf1, xp1, Pp1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
+        s.innovation_gate if s.robust else 0.0, xlin)
+    sel = (w_before >= 1.0) & (out.infl <= 1.0) & (infl1 <= 1.0)
+    ll_est = innovation_loglik(out.innov, out.innov_var, sel)
+    ll_def = innovation_loglik(innov1, innov_var1, sel)
+    at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
+                if np.any(mdl.groups == i) and (st.scale[i] <= lo_b or st.scale[i] >= hi_b)]
+    accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
+    check = {"loglik_estimated": ll_est, "loglik_default": ll_def,
+             "measurements": int(sel.sum()), "accepted": accepted,
+             "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
+    if accepted:
+        return check, None
+    kern_args = (mdl.dyn, scalars1._replace(r=r1 * infl1), mdl.geo)
+    xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
+    return check, (xs, Pblk, var, res, int(n_fb1), xf1, innov1, innov_var1, r1)
