@@ -29,7 +29,7 @@ PKG = ROOT / "flightrecon"
 PATTERNS = {
     "predict": [
         r"F\s*@\s*P\s*@\s*F\.T",                                    # numpy F P F^T
-        r"_mm\((\w+), (P\w*), (\w+)\)\s*\n\s*_mmt\(\3, \1,",             # loop A P A^T
+        r"mm_into\((\w+), (P\w*), (\w+)\)\s*\n\s*mmt_into\(\3, \1,",             # loop A P A^T
         r"vals\[i, c\] \* B\[cols\[i, c\], j\]",                       # sparse F (P F^T)
         r"FP\[i, j\] \+= F\[i, m\] \* P\[m, j\]",
     ],
@@ -38,7 +38,7 @@ PATTERNS = {
         r"\(1\.0 if i == j else 0\.0\) - \w+\[i, j\]",                 # loop I - K H
         r"K\s*=\s*PH\s*/\s*S|inv_s\s*=\s*1\.0\s*/\s*S",                  # scalar gain
         r"-=\s*\(?\w+\s*\*\s*PH\[",                                      # P -= PH PH^T / S
-        r"_mmt\(B, G\w*, \w+\)\s*#?.*\n\s*_mm\(\w+, Sp",                  # B G^T S^+ (correlated)
+        r"mmt_into\(B, G\w*, \w+\)\s*#?.*\n\s*mm_into\(\w+, Sp",                  # B G^T S^+ (correlated)
     ],
     "rts_step": [
         r"xs\[k\]\s*=\s*x\[k\]\s*\+\s*C\s*@",                            # numpy mean

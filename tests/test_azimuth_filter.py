@@ -112,8 +112,7 @@ def test_singer_kernel_matches_generic_kalman_filter():
     Same model and updates, different order of operations (scalar vs matrix Joseph form):
     1e-9 of the state sd.
     """
-    from flightrecon.estimation.kalman import kalman_filter
-    from flightrecon.estimation.smoother import rts_smooth_run
+    from flightrecon.estimation.kalman import kalman_filter, rts_smooth_run
     from flightrecon.methods.azimuth import singer_process_noise
 
     t, _, eps_meas, rt = straight_pass()

@@ -27,9 +27,8 @@ import pytest
 from reference_kalman import constant_velocity_case, correlated_one_step, kalman_rts
 
 from flightrecon.estimation.discretise import singer_process_noise, singer_transition
-from flightrecon.estimation.kalman import kalman_filter
+from flightrecon.estimation.kalman import kalman_filter, rts_smooth, rts_smooth_run
 from flightrecon.estimation.predict import predict
-from flightrecon.estimation.smoother import rts_smooth, rts_smooth_run
 from flightrecon.estimation.updates import scalar_update_short
 
 
@@ -179,7 +178,7 @@ def _check_cv(x, P, x_ref, P_ref, tol=1e-9):
 
 def test_cv_generic_filter_and_rts(cv_case):
     """Guards ``estimation/kalman.py`` (core dense predict + Joseph update) and
-    ``estimation/smoother.py`` (core RTS step, dense C^T = F P): filtered, predicted and smoothed."""
+    ``estimation/kalman.py`` (core RTS step, dense C^T = F P): filtered, predicted and smoothed."""
     (x0, P0, F, Q, z, H, R), ref = cv_case
     run = kalman_filter(x0, P0, F, Q, z, H, R[:, :, None] * np.eye(2))
     _check_cv(run.x, run.P, ref.xf, ref.Pf)
@@ -250,7 +249,7 @@ def test_cv_sns_kernels_through_the_core(cv_case):
     ``joseph_cov_into``, ``state_correction_into``, ``predict_cov_into`` plus the factored
     noise ``B B^T``), and the SNS smoother kernel itself (``_smoother_kernel`` on the core's RTS
     step, its cross-covariances ``P^+ F^T``), in the Euclidean geometry of this linear case."""
-    from flightrecon.estimation.linalg import _mdmt_acc, _sym_into
+    from flightrecon.estimation.linalg import mdmt_acc_into, sym_into
     from flightrecon.estimation.manifold import EUCLIDEAN
     from flightrecon.estimation.predict import predict_cov_into
     from flightrecon.estimation.updates import (
@@ -291,11 +290,11 @@ def test_cv_sns_kernels_through_the_core(cv_case):
         B = np.linalg.cholesky(Q[k + 1])  # the SNS kernel's noise comes factored: Q = B B^T
         Pn = np.empty((n, n))
         predict_cov_into(Pu, F[k + 1], Pn, np.empty((n, n)))
-        _mdmt_acc(B, ones, B, Pn)
+        mdmt_acc_into(B, ones, B, Pn)
         cross[k] = Pu @ F[k + 1].T
         x = F[k + 1] @ xu
         P = np.empty((n, n))
-        _sym_into(Pn, P)
+        sym_into(Pn, P)
     _check_cv(xf, Pf, ref.xf, ref.Pf)
     _check_cv(xp, Pp, ref.xp, ref.Pp)
     xs, Ps, n_fb = _smoother_kernel(xp, xf, Pp, Pf, cross, np.zeros(N), EUCLIDEAN)

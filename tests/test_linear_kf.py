@@ -6,8 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from flightrecon.estimation.kalman import kalman_filter
-from flightrecon.estimation.smoother import rts_smooth_run
+from flightrecon.estimation.kalman import kalman_filter, rts_smooth_run
 
 
 def cv_model(dt: float, q: float):

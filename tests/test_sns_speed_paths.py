@@ -37,13 +37,13 @@ def test_small_matrix_products_equal_numpy():
     dg = RNG.normal(size=11)
     big = np.zeros((6, 6))
     out = big[:5, :4]  # a strided view, as the kernel uses
-    sns_linalg._mmt(A, Bm, out)
+    sns_linalg.mmt_into(A, Bm, out)
     np.testing.assert_allclose(out, A @ Bm.T, rtol=1e-13, atol=1e-13)
     out2 = np.zeros((5, 3))
-    sns_linalg._mm(A, C, out2)
+    sns_linalg.mm_into(A, C, out2)
     np.testing.assert_allclose(out2, A @ C, rtol=1e-13, atol=1e-13)
     acc = np.ones((5, 4))
-    sns_linalg._mdmt_acc(A, dg, Bm, acc)
+    sns_linalg.mdmt_acc_into(A, dg, Bm, acc)
     np.testing.assert_allclose(acc, 1.0 + A @ np.diag(dg) @ Bm.T, rtol=1e-13, atol=1e-13)
 
 

@@ -14,89 +14,152 @@ Equations (filterpy / Bar-Shalom notation)::
     S = H P^- H^T + R,               K = P^- H^T S^{-1}
     x^+ = x^- + K (z - H x^-),       P^+ = (I - K H) P^- (I - K H)^T + K R K^T   (Joseph)
 
-The prediction and the update are the estimation core's
-(:func:`flightrecon.estimation.predict.predict`,
-:func:`flightrecon.estimation.updates.joseph_update`); the backward pass is
-:func:`flightrecon.estimation.smoother.rts_smooth`.
+The linear-Gaussian model on the core's loops: :class:`LinearModel` supplies the prediction
+and the update (the estimation core's :func:`flightrecon.estimation.predict.predict` and
+:func:`flightrecon.estimation.updates.joseph_update`) to
+:func:`flightrecon.estimation.filtering.forward_pass`, and ``C^T = F_{k+1} P_k`` to
+:func:`flightrecon.estimation.smoothing.backward_pass`; :func:`kalman_filter` and
+:func:`rts_smooth` are the array front ends.
+
+Backward (Rauch, Tung & Striebel 1965; Simon, *Optimal State Estimation*, 2006, section 9.4)::
+
+    G_k   = P_k F_{k+1}^T (P_{k+1}^-)^{-1}
+    x_k^s = x_k + G_k (x_{k+1}^s - x_{k+1}^-)
+    P_k^s = P_k + G_k (P_{k+1}^s - P_{k+1}^-) G_k^T
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
-import numba as nb
 import numpy as np
 
+from flightrecon.estimation.filtering import FilterRun, forward_pass
+from flightrecon.estimation.linalg import mm_into
+from flightrecon.estimation.manifold import EUCLIDEAN
+from flightrecon.estimation.model import (
+    cross_times_into,
+    cross_transposed_into,
+    implements,
+    keep_filtered,
+    keep_predicted,
+    keep_smoothed,
+    predict_into,
+    rts_frame,
+    smoothing_covariances,
+    update_into,
+    workspace,
+)
 from flightrecon.estimation.predict import predict
+from flightrecon.estimation.smoothing import SmoothedRun, backward_pass
 from flightrecon.estimation.updates import joseph_update
 
 
-@dataclass(frozen=True)
-class FilterRun:
-    """A forward filter run: everything the backward pass and the diagnostics need.
+class LinearModel(NamedTuple):
+    """A linear-Gaussian model on stacked arrays (module docstring for the shapes) and the
+    buffers of its run: filtered ``x_f``, ``P_f``, predicted ``x_p``, ``P_p``, innovations
+    ``nu`` (NaN where absent), their covariances ``S``, ``nis`` and ``n_meas`` per step, and
+    the smoothed covariances ``P_s`` (N, n, n) (empty (0, n, n) in a forward run)."""
 
-    ``x_pred``/``P_pred`` are the one-step predictions (``x_pred[0] = x0``), ``x``/``P`` the
-    filtered estimates, ``F`` the transitions used, ``nu`` the innovations (NaN where no
-    measurement), ``S`` their covariances, ``nis`` the normalised innovation squared per step
-    and ``n_meas`` the number of measurement components used per step.
-    """
-
-    x: np.ndarray
-    P: np.ndarray
-    x_pred: np.ndarray
-    P_pred: np.ndarray
     F: np.ndarray
+    Q: np.ndarray
+    z: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    x_f: np.ndarray
+    P_f: np.ndarray
+    x_p: np.ndarray
+    P_p: np.ndarray
     nu: np.ndarray
     S: np.ndarray
     nis: np.ndarray
     n_meas: np.ndarray
+    P_s: np.ndarray
 
 
-@nb.njit(cache=True, nogil=True)
-def _kf_kernel(x0, P0, F, Q, z, H, R):
-    N = z.shape[0]
-    n = x0.shape[0]
+@implements(workspace, LinearModel)
+def _workspace(model):
+    return np.empty(model.z.shape[1], dtype=np.int64)  # indices of the step's measurements
+
+
+@implements(predict_into, LinearModel)
+def _predict(model, k, x, P, ws):
+    xn, Pn = predict(x, P, model.F[k], model.Q[k])
+    x[:] = xn
+    P[:, :] = Pn
+
+
+@implements(keep_predicted, LinearModel)
+def _keep_predicted(model, k, x, P):
+    model.x_p[k] = x
+    model.P_p[k] = P
+
+
+@implements(update_into, LinearModel)
+def _update(model, k, x, P, ws):
+    """Block Joseph update with the step's measurement components that are present."""
+    z = model.z
     m = z.shape[1]
-    xs = np.empty((N, n))
-    Ps = np.empty((N, n, n))
-    xp = np.empty((N, n))
-    Pp = np.empty((N, n, n))
-    nus = np.full((N, m), np.nan)
-    Ss = np.full((N, m, m), np.nan)
-    nis = np.full(N, np.nan)
-    nmeas = np.zeros(N, dtype=np.int64)
-    x = x0.copy()
-    P = P0.copy()
-    for k in range(N):
-        if k > 0:
-            x, P = predict(x, P, F[k], Q[k])
-        xp[k] = x
-        Pp[k] = P
-        idx = np.empty(m, dtype=np.int64)
-        c = 0
-        for i in range(m):
-            if not np.isnan(z[k, i]):
-                idx[c] = i
-                c += 1
-        if c > 0:
-            Hk = np.empty((c, n))
-            Rk = np.empty((c, c))
-            nu = np.empty(c)
-            for a in range(c):
-                Hk[a] = H[k, idx[a]]
-                for b in range(c):
-                    Rk[a, b] = R[k, idx[a], idx[b]]
-            for a in range(c):
-                nu[a] = z[k, idx[a]] - Hk[a] @ x
-            x, P, S, nis[k] = joseph_update(x, P, nu, Hk, Rk)
-            nmeas[k] = c
-            for a in range(c):
-                nus[k, idx[a]] = nu[a]
-                for b in range(c):
-                    Ss[k, idx[a], idx[b]] = S[a, b]
-        xs[k] = x
-        Ps[k] = P
-    return xs, Ps, xp, Pp, nus, Ss, nis, nmeas
+    n = x.shape[0]
+    idx = ws
+    c = 0
+    for i in range(m):
+        if not np.isnan(z[k, i]):
+            idx[c] = i
+            c += 1
+    if c == 0:
+        return
+    Hk = np.empty((c, n))
+    Rk = np.empty((c, c))
+    nu = np.empty(c)
+    for a in range(c):
+        Hk[a] = model.H[k, idx[a]]
+        for b in range(c):
+            Rk[a, b] = model.R[k, idx[a], idx[b]]
+    for a in range(c):
+        nu[a] = z[k, idx[a]] - Hk[a] @ x
+    xu, Pu, S, model.nis[k] = joseph_update(x, P, nu, Hk, Rk)
+    x[:] = xu
+    P[:, :] = Pu
+    model.n_meas[k] = c
+    for a in range(c):
+        model.nu[k, idx[a]] = nu[a]
+        for b in range(c):
+            model.S[k, idx[a], idx[b]] = S[a, b]
+
+
+@implements(keep_filtered, LinearModel)
+def _keep_filtered(model, k, x, P):
+    model.x_f[k] = x
+    model.P_f[k] = P
+
+
+@implements(smoothing_covariances, LinearModel)
+def _smoothing_covariances(model, k, ws):
+    return model.P_f[k], model.P_p[k + 1]
+
+
+@implements(cross_transposed_into, LinearModel)
+def _cross_transposed(model, k, CT, ws):
+    mm_into(model.F[k + 1], model.P_f[k], CT)  # C^T = F_{k+1} P_k
+
+
+@implements(cross_times_into, LinearModel)
+def _cross_times(model, k, y, out, ws):
+    # C y = P_k F_{k+1}^T y
+    Fy = model.F[k + 1].T @ y
+    out[:] = model.P_f[k] @ Fy
+
+
+@implements(rts_frame, LinearModel)
+def _rts_frame(model, k):
+    return EUCLIDEAN, 0.0, 0.0, 0.0
+
+
+@implements(keep_smoothed, LinearModel)
+def _keep_smoothed(model, k, x, P, with_cov, ws):
+    if with_cov:
+        model.P_s[k] = P
 
 
 def _stack(a: np.ndarray, N: int, shape: tuple[int, ...]) -> np.ndarray:
@@ -108,27 +171,57 @@ def _stack(a: np.ndarray, N: int, shape: tuple[int, ...]) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+def _c(a) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+
+
 def kalman_filter(x0, P0, F, Q, z, H, R) -> FilterRun:
     """Run the linear Kalman filter over all steps (see module docstring for shapes).
 
-    ``F``, ``Q``, ``H``, ``R`` may be given once (constant) or stacked per step.
+    ``F``, ``Q``, ``H``, ``R`` may be given once (constant) or stacked per step.  Returns the
+    core's :class:`~flightrecon.estimation.filtering.FilterRun` with the diagnostics ``F``,
+    ``nu``, ``S``, ``nis`` and ``n_meas``.
     """
-    z = np.ascontiguousarray(np.asarray(z, dtype=np.float64))
+    z = _c(z)
     if z.ndim == 1:
         z = z[:, None]
     N, m = z.shape
-    x0 = np.ascontiguousarray(np.asarray(x0, dtype=np.float64))
+    x0 = _c(x0)
     n = x0.shape[0]
-    P0 = np.ascontiguousarray(np.asarray(P0, dtype=np.float64))
+    P0 = _c(P0)
     if P0.shape != (n, n):
         raise ValueError(f"P0 must be {(n, n)}, got {P0.shape}")
-    F = _stack(F, N, (n, n))
-    Q = _stack(Q, N, (n, n))
-    H = _stack(H, N, (m, n))
-    R = _stack(R, N, (m, m))
-    out = _kf_kernel(x0, P0, F, Q, z, H, R)
-    xs, Ps, xp, Pp, nus, Ss, nis, nmeas = out
-    return FilterRun(xs, Ps, xp, Pp, F, nus, Ss, nis, nmeas)
+    model = LinearModel(_stack(F, N, (n, n)), _stack(Q, N, (n, n)), z, _stack(H, N, (m, n)),
+                        _stack(R, N, (m, m)), np.empty((N, n)), np.empty((N, n, n)),
+                        np.empty((N, n)), np.empty((N, n, n)), np.full((N, m), np.nan),
+                        np.full((N, m, m), np.nan), np.full(N, np.nan),
+                        np.zeros(N, dtype=np.int64), np.empty((0, n, n)))
+    forward_pass(model, x0, P0, N)
+    return FilterRun(model.x_f, model.P_f, model.x_p, model.P_p,
+                     {"F": model.F, "nu": model.nu, "S": model.S, "nis": model.nis,
+                      "n_meas": model.n_meas}, model)
 
 
-__all__ = ["FilterRun", "joseph_update", "kalman_filter", "predict"]
+def rts_smooth(x, P, x_pred, P_pred, F) -> SmoothedRun:
+    """Backward RTS pass over a linear forward run given as arrays (module docstring)."""
+    x, P, x_pred, P_pred, F = (_c(a) for a in (x, P, x_pred, P_pred, F))
+    N, n = x.shape
+    empty = np.empty((0, 0))
+    model = LinearModel(F, empty.reshape(0, 0, 0), empty, empty.reshape(0, 0, 0),
+                        empty.reshape(0, 0, 0), x, P, x_pred, P_pred, empty,
+                        empty.reshape(0, 0, 0), np.empty(0), np.empty(0, dtype=np.int64),
+                        np.empty((N, n, n)))
+    model.P_s[N - 1] = P[N - 1]
+    xs = np.empty((N, n))
+    n_fallback = backward_pass(model, x, x_pred, xs, P[N - 1], True)
+    return SmoothedRun(xs, model.P_s, int(n_fallback))
+
+
+def rts_smooth_run(run: FilterRun) -> SmoothedRun:
+    """Smooth a :class:`~flightrecon.estimation.filtering.FilterRun` of :func:`kalman_filter`
+    (or any run with the diagnostic ``F``)."""
+    return rts_smooth(run.x, run.P, run.x_pred, run.P_pred, run.F)
+
+
+__all__ = ["FilterRun", "LinearModel", "SmoothedRun", "joseph_update", "kalman_filter",
+           "predict", "rts_smooth", "rts_smooth_run"]

@@ -301,7 +301,7 @@ def pinv_sym(S: np.ndarray, rcond: float):
 
 
 @nb.njit(cache=True, nogil=True)
-def _mm(A, B, out):
+def mm_into(A, B, out):
     """``out = A @ B`` for small matrices (plain loops: no allocation, no BLAS call overhead).
 
     Row-update order (``out[i, :] += A[i, l] B[l, :]``): the inner loop carries no dependency
@@ -320,8 +320,8 @@ def _mm(A, B, out):
 
 
 @nb.njit(cache=True, nogil=True)
-def _mmt(A, B, out):
-    """``out = A @ B.T`` for small matrices (row-update order, as :func:`_mm`)."""
+def mmt_into(A, B, out):
+    """``out = A @ B.T`` for small matrices (row-update order, as :func:`mm_into`)."""
     n, kk = A.shape
     m = B.shape[0]
     for i in range(n):
@@ -335,8 +335,8 @@ def _mmt(A, B, out):
 
 
 @nb.njit(cache=True, nogil=True)
-def _mdmt_acc(A, dg, B, out):
-    """``out += A @ diag(dg) @ B.T`` for small matrices (row-update order, as :func:`_mm`)."""
+def mdmt_acc_into(A, dg, B, out):
+    """``out += A @ diag(dg) @ B.T`` for small matrices (row-update order, as :func:`mm_into`)."""
     n, kk = A.shape
     m = B.shape[0]
     for i in range(n):
@@ -348,7 +348,7 @@ def _mdmt_acc(A, dg, B, out):
 
 
 @nb.njit(cache=True, nogil=True)
-def _sym_into(M, out):
+def sym_into(M, out):
     """``out = (M + M^T) / 2``."""
     n = M.shape[0]
     for i in range(n):

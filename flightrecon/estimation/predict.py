@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numba as nb
 
-from flightrecon.estimation.linalg import _mm, _mmt
+from flightrecon.estimation.linalg import mm_into, mmt_into
 
 
 @nb.njit(cache=True, nogil=True)
@@ -27,11 +27,11 @@ def predict_cov_into(P, F, out, T):
     """``out = F P F^T`` (not symmetrised: the caller adds its noise, then symmetrises).
 
     ``T`` (n, n) is scratch (``T = F P``); loop products
-    (:func:`~flightrecon.estimation.linalg._mm`), no allocation.  ``F`` may be any (n, n)
+    (:func:`~flightrecon.estimation.linalg.mm_into`), no allocation.  ``F`` may be any (n, n)
     matrix, e.g. ``I - K H`` of a Joseph update.
     """
-    _mm(F, P, T)
-    _mmt(T, F, out)
+    mm_into(F, P, T)
+    mmt_into(T, F, out)
 
 
 @nb.njit(cache=True, nogil=True)

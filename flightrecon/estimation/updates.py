@@ -24,7 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flightrecon.estimation.linalg import _mdmt_acc, _mm, _mmt, _pinv_sym_into, _sym_into
+from flightrecon.estimation.linalg import _pinv_sym_into, mdmt_acc_into, mm_into, mmt_into, sym_into
 from flightrecon.estimation.manifold import EUCLIDEAN, state_plus_into
 from flightrecon.estimation.predict import predict_cov_into
 
@@ -59,14 +59,14 @@ def gain_into(P, H, R, rcond, PHt, S, Sp, K, A, V):
     proves that no eigenvalue of ``S`` is below ``rcond`` times the largest, else the
     pseudo-inverse with that tolerance (docs/estimation.md, "Linear algebra").
     """
-    _mmt(P, H, PHt)
-    _mm(H, PHt, S)
+    mmt_into(P, H, PHt)
+    mm_into(H, PHt, S)
     m = S.shape[0]
     for i in range(m):
         for j in range(m):
             S[i, j] += R[i, j]
     rk = _pinv_sym_into(S, rcond, Sp, A, V)
-    _mm(PHt, Sp, K)
+    mm_into(PHt, Sp, K)
     return rk
 
 
@@ -77,17 +77,17 @@ def joseph_cov_into(P, K, H, R, out, IKH, T, TK, Pn):
     ``IKH``, ``T``, ``Pn`` (n, n) and ``TK`` (n, m) scratch.
     """
     n = P.shape[0]
-    _mm(K, H, IKH)
+    mm_into(K, H, IKH)
     for i in range(n):
         for j in range(n):
             IKH[i, j] = (1.0 if i == j else 0.0) - IKH[i, j]
     predict_cov_into(P, IKH, Pn, T)
-    _mm(K, R, TK)
-    _mmt(TK, K, out)
+    mm_into(K, R, TK)
+    mmt_into(TK, K, out)
     for i in range(n):
         for j in range(n):
             out[i, j] += Pn[i, j]
-    _sym_into(out, out)
+    sym_into(out, out)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -169,21 +169,21 @@ def correlated_noise_predict_into(P, F, B, K, H, G, Sp, Rd, Pn, cross, BGS, work
     n = P.shape[0]
     m = K.shape[1]
     nw = B.shape[1]
-    _mmt(B, G, BG)  # B G^T
-    _mm(BG, Sp, BGS)  # B G^T S^+
-    _mm(F, K, L)  # L = F K + B G^T S^+
+    mmt_into(B, G, BG)  # B G^T
+    mm_into(BG, Sp, BGS)  # B G^T S^+
+    mm_into(F, K, L)  # L = F K + B G^T S^+
     for i in range(n):
         for j in range(m):
             L[i, j] += BGS[i, j]
-    _mm(L, H, A)  # F - L H
+    mm_into(L, H, A)  # F - L H
     for i in range(n):
         for j in range(n):
             A[i, j] = F[i, j] - A[i, j]
     predict_cov_into(P, A, Pn, T)
-    _mm(L, G, BmLG)  # B - L G
+    mm_into(L, G, BmLG)  # B - L G
     for i in range(n):
         for j in range(nw):
             BmLG[i, j] = B[i, j] - BmLG[i, j]
-    _mdmt_acc(BmLG, ones_w, BmLG, Pn)  # + (B - L G)(B - L G)^T
-    _mdmt_acc(L, Rd, L, Pn)  # + L D D^T L^T
-    _mdmt_acc(K, minus_m, BG, cross)  # cross -= K G B^T
+    mdmt_acc_into(BmLG, ones_w, BmLG, Pn)  # + (B - L G)(B - L G)^T
+    mdmt_acc_into(L, Rd, L, Pn)  # + L D D^T L^T
+    mdmt_acc_into(K, minus_m, BG, cross)  # cross -= K G B^T

@@ -7,7 +7,7 @@ Azimuth ``theta`` clockwise from north, ``theta = atan2(x, y)``; ``r`` is the *h
 (see :func:`horizontal_range`).  SI inside: metres, seconds, radians.
 
 Three forms, each filtered forward and (optionally) smoothed backward with the RTS smoother
-(:func:`flightrecon.estimation.smoother.rts_smooth_run`):
+(:func:`flightrecon.estimation.kalman.rts_smooth_run`):
 
 * stage 1 (:func:`track_ground_velocity`): constant-velocity (CV) tracker of
   ``X = [x, Vx, y, Vy]`` from the plots at their own times, linearised either as an EKF

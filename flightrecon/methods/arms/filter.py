@@ -9,8 +9,14 @@ import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
-from flightrecon.estimation.kalman import FilterRun, joseph_update, kalman_filter, predict
-from flightrecon.estimation.smoother import SmootherRun, rts_smooth_run
+from flightrecon.estimation.kalman import (
+    FilterRun,
+    SmoothedRun,
+    joseph_update,
+    kalman_filter,
+    predict,
+    rts_smooth_run,
+)
 from flightrecon.methods.arms.model import (
     _LIN_CODE,
     CONVERTED_AT,
@@ -58,7 +64,7 @@ class Stage1Run:
 
     t_s: np.ndarray
     filt: FilterRun
-    smooth: SmootherRun | None
+    smooth: SmoothedRun | None
     radar_used: np.ndarray
 
 
@@ -68,7 +74,7 @@ class Stage2Run:
 
     t_s: np.ndarray
     filt: FilterRun
-    smooth: SmootherRun | None
+    smooth: SmoothedRun | None
 
 
 @dataclass(frozen=True)
@@ -77,7 +83,7 @@ class ArmsJointRun:
 
     t_s: np.ndarray
     filt: FilterRun
-    smooth: SmootherRun | None
+    smooth: SmoothedRun | None
     radar_used: np.ndarray
     air_used: np.ndarray
 

@@ -27,7 +27,7 @@ The angular process noises are set from physical ones: ``sigma_m = sigma_m_mps2 
 ``q = q_jerk / r^2`` with the tracked range ``r`` at each step.
 
 Every filter here runs forward (:func:`azimuth_filter`, compiled with numba) and is smoothed
-backward by the generic Rauch-Tung-Striebel pass :func:`flightrecon.estimation.smoother.rts_smooth`.
+backward by the generic Rauch-Tung-Striebel pass :func:`flightrecon.estimation.kalman.rts_smooth`.
 """
 
 from __future__ import annotations

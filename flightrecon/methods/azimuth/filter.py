@@ -13,8 +13,8 @@ from flightrecon.estimation.discretise import (
     singer_process_noise,
     singer_transition,
 )
+from flightrecon.estimation.kalman import rts_smooth
 from flightrecon.estimation.predict import predict
-from flightrecon.estimation.smoother import rts_smooth
 from flightrecon.estimation.updates import joseph_update
 from flightrecon.methods.azimuth.range_track import RangeTrack
 

@@ -8,8 +8,7 @@ import numpy as np
 
 from flightrecon.errors import ValidationError
 from flightrecon.estimation.discretise import constant_velocity
-from flightrecon.estimation.kalman import kalman_filter
-from flightrecon.estimation.smoother import rts_smooth_run
+from flightrecon.estimation.kalman import kalman_filter, rts_smooth_run
 
 # ---------------------------------------------------------------------------------------------
 # Range tracker

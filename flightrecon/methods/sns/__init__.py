@@ -89,7 +89,8 @@ Implementation (speed, issue #13)
 The kernels do all per-step and per-sample work in preallocated buffers: the public model
 functions (:func:`increment`, :func:`segment_factor`, :func:`step_matrices`,
 :func:`observation_rows`) are thin allocating wrappers of ``_*_into`` cores that the kernels
-call directly, small products are plain loops (:func:`_mm`, :func:`_mmt`), the trigonometry of
+call directly, small products are plain loops (:func:`mm_into`, :func:`mmt_into`), the
+trigonometry of
 the corrections' rotation is evaluated once per step (once per filter step in :func:`densify`,
 whose moves from the filter states reuse the states' ``sin``/``cos`` of latitude,
 :func:`_boxplus_pre`).  ``S^+`` is the Cholesky inverse whenever a trace bound proves full rank

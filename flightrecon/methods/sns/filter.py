@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from flightrecon.estimation.linalg import _mdmt_acc, _mmt, _sym_into
+from flightrecon.estimation.linalg import mdmt_acc_into, mmt_into, sym_into
 from flightrecon.estimation.manifold import LATLON, boxminus, boxplus
 from flightrecon.estimation.predict import predict_cov_into
 from flightrecon.estimation.rts import rts_step, rts_step_work
@@ -122,7 +122,7 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
     t, hgt, A, U, W, star, dt_star, Qb, Qa = steps
     fs, fe, flat, flon, fv, ftau, fPA, fPU, fPW, fa, fu, fw, ftau_in = fixes
     sig, q, pos_sd, vel_sd, rcond = noise
-    # All small-matrix algebra runs in preallocated buffers with loop products (_mm, _mmt):
+    # All small-matrix algebra runs in preallocated buffers with loop products (mm_into, mmt_into):
     # the same operations as the matrix expressions in the module docstring, without the
     # per-step heap allocations and BLAS calls that dominated the run time.
     N = t.shape[0]
@@ -229,7 +229,7 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
                         nu[r] = fv[i, j - 2] - hh[j]
                         Rd[r] = vel_sd[i] * vel_sd[i]
                     r += 1
-            _mmt(Gs, Gs, Rt)  # Rt = D D^T + G G^T
+            mmt_into(Gs, Gs, Rt)  # Rt = D D^T + G G^T
             for r in range(m):
                 Rt[r, r] += Rd[r]
             # the core's update: K = P- H^T S^+, Joseph form, x+ = x- (+) K nu on the ellipsoid
@@ -258,7 +258,7 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
         dn = d[0]
         de = d[1]
         ck = cross[k]
-        _mmt(Pplus, Phi, ck)  # smoother numerator P+ Phi^T (- K G B^T when correlated)
+        mmt_into(Pplus, Phi, ck)  # smoother numerator P+ Phi^T (- K G B^T when correlated)
         if have and form == FORM_CONSISTENT:
             BGS = BGSb[:, :m]
             correlated_noise_predict_into(P, Phi, B, K, Hs, Gs, Sp, Rd[:m], Pn, ck, BGS,
@@ -269,13 +269,13 @@ def _filter_kernel(model, form, x0, P0, steps, fixes, noise):
                 de += BGS[1, j] * nu[j]
         else:
             predict_cov_into(Pplus, Phi, Pn, T55)  # Phi P+ Phi^T + B B^T
-            _mdmt_acc(B, ones_e, B, Pn)
+            mdmt_acc_into(B, ones_e, B, Pn)
         lat, lon = boxplus(xplus[0], xplus[1], dn, de, hgt[k])
         x[0] = lat
         x[1] = lon
         for i in range(2, n):
             x[i] = xplus[i]
-        _sym_into(Pn, P)
+        sym_into(Pn, P)
     return xp, xs, Pp, Ps, cross, nis, rank
 
 

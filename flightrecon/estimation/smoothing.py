@@ -1,0 +1,95 @@
+"""The backward smoother: one Rauch-Tung-Striebel loop over the time steps, for every method.
+
+For k = N-1 .. 0 (docs/estimation.md, "One backward loop"; Rauch, Tung & Striebel 1965)::
+
+    G_k   = C_k P_p[k+1]^-1,   C_k = Cov(x_k, x_{k+1} | Y_0..k)   (F P_f^T for a plain transition)
+    x_s[k] = x_f[k] (+) G_k (x_s[k+1] (-) x_p[k+1])
+    P_s[k] = P_f[k] + G_k (P_s[k+1] - P_p[k+1]) G_k^T               (not in the mean-only mode)
+
+with the step of :mod:`flightrecon.estimation.rts` (:func:`~flightrecon.estimation.rts.rts_step`,
+or in the mean-only mode :func:`~flightrecon.estimation.rts.rts_mean_solve` and the model's
+``C y``: O(n^3 / 6) per step instead of O(n^3)).  The model
+(:mod:`flightrecon.estimation.model`) supplies the covariances it kept, its cross-covariance and
+its geometry, and takes the smoothed estimate of each step into its own outputs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba as nb
+import numpy as np
+
+from flightrecon.estimation.manifold import state_plus_into
+from flightrecon.estimation.model import (
+    cross_times_into,
+    cross_transposed_into,
+    keep_smoothed,
+    rts_frame,
+    smoothing_covariances,
+    workspace,
+)
+from flightrecon.estimation.rts import rts_mean_solve, rts_step, rts_step_work
+
+__all__ = ["SmoothedRun", "backward_pass"]
+
+
+@nb.njit(cache=True, nogil=True)
+def backward_pass(model, x_f, x_p, x_s, P_last, with_cov):
+    """Run the RTS backward pass of ``model``.
+
+    ``x_f``, ``x_p`` (N, n) the filtered and predicted states; ``x_s`` (N, n) receives the
+    smoothed states (``x_s[N-1]`` is set to ``x_f[N-1]``); ``P_last`` (n, n) the filtered
+    covariance of the last step (the smoothed one there).  With ``with_cov`` False only the
+    means (the mean-only step); the model's ``keep_smoothed`` then gets an empty covariance.
+
+    Returns the number of steps whose predicted covariance failed its Cholesky factorisation
+    (solved through its eigen-decomposition instead; the caller reports it).
+    """
+    N, n = x_f.shape
+    ws = workspace(model)
+    Ps = P_last.copy() if with_cov else np.empty((0, 0))
+    CT = np.empty((n, n))
+    work = rts_step_work(n)
+    L = np.empty((n, n))
+    d = np.empty(n)
+    y = np.empty(n)
+    dx = np.empty(n)
+    n_fallback = 0
+    for i in range(n):
+        x_s[N - 1, i] = x_f[N - 1, i]
+    for k in range(N - 1, -1, -1):
+        if k < N - 1:
+            Pf, Pp = smoothing_covariances(model, k, ws)
+            geom, h, h_next, rel_tol = rts_frame(model, k)
+            if with_cov:
+                cross_transposed_into(model, k, CT, ws)
+                ok = rts_step(geom, (x_f[k], Pf), (x_p[k + 1], Pp), (x_s[k + 1], Ps), CT,
+                              (h, h_next), rel_tol, (x_s[k], Ps), work)
+            else:
+                ok = rts_mean_solve(geom, x_p[k + 1], Pp, x_s[k + 1], h_next, rel_tol, L, d, y)
+                cross_times_into(model, k, y, dx, ws)
+                state_plus_into(geom, x_f[k], dx, h, x_s[k])
+            if not ok:
+                n_fallback += 1
+        keep_smoothed(model, k, x_s[k], Ps, with_cov, ws)
+    return n_fallback
+
+
+@dataclass(frozen=True)
+class SmoothedRun:
+    """A smoothed run of any method: state ``x`` (N, n), covariance ``P`` (N, n, n) (or the
+    blocks the method keeps, see ``outputs``), the number of ``cholesky_fallbacks`` (steps whose
+    predicted covariance failed its factorisation; reported, never silent) and the method's
+    other smoothed ``outputs`` by name (gains ``G``, residuals, ...)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    cholesky_fallbacks: int = 0
+    outputs: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        outs = object.__getattribute__(self, "outputs")
+        if name in outs:
+            return outs[name]
+        raise AttributeError(name)
