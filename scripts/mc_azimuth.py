@@ -342,7 +342,8 @@ def monte_carlo(n_runs: int, seed: int, cfg: SensorConfig, params: FilterParams,
         xt = np.stack([truth.eps[j, out_idx], truth.omega[j, out_idx], truth.accel[j, out_idx]],
                       -1)
         for m, run in runs.items():
-            for kind, x, P in (("filter", run.x, run.P), ("smoother", run.xs, run.Ps)):
+            for kind, x, P in (("filter", run.filt.x, run.filt.P),
+                                ("smoother", run.smooth.x, run.smooth.P)):
                 e = x[pos] - xt
                 e[:, 0] = wrap_pi(e[:, 0])
                 err[(m, kind)][j] = e

@@ -6,8 +6,10 @@ Frame: the station's east-north-up tangent plane, ``x`` east, ``y`` north, stati
 Azimuth ``theta`` clockwise from north, ``theta = atan2(x, y)``; ``r`` is the *horizontal* range
 (see :func:`horizontal_range`).  SI inside: metres, seconds, radians.
 
-Three forms, each filtered forward and (optionally) smoothed backward with the RTS smoother
-(:func:`flightrecon.estimation.kalman.rts_smooth_run`):
+Three forms, each filtered forward on the estimation core's one forward loop
+(:func:`flightrecon.estimation.filtering.forward_pass`) and (optionally) smoothed backward with
+its RTS loop (:func:`flightrecon.estimation.kalman.rts_smooth_run`); each form's result is an
+:class:`ArmsRun` (step times, the core's ``FilterRun`` and ``SmoothedRun``):
 
 * stage 1 (:func:`track_ground_velocity`): constant-velocity (CV) tracker of
   ``X = [x, Vx, y, Vy]`` from the plots at their own times, linearised either as an EKF
@@ -25,19 +27,17 @@ power spectral density, m^2/s^3); Gauss-Markov ``dV_i = e^{-a T} dV_{i-1} + w_i`
 ``var(w_i) = sigma^2 (1 - e^{-2 a T})`` (docs/arms.md: the seed's eq. 9 noise factor is
 dimensionally inconsistent and is not used).
 
-The nonlinear measurement update (EKF and converted-at-predicted forms) runs in a numba kernel
-(:func:`_arms_kernel`) with the Joseph-form covariance update; the transition is linear, so the
-generic RTS smoother applies unchanged.
+The nonlinear measurement update (EKF and converted forms) is the model
+:class:`ArmsTrackModel`'s (compiled into the core's loop) with the Joseph-form covariance update;
+the transition is linear, so the linear RTS smoother applies unchanged.
 """
 
 from __future__ import annotations
 
 from flightrecon.methods.arms.filter import (
     ArmsEstimate,
-    ArmsJointRun,
+    ArmsRun,
     CascadeResult,
-    Stage1Run,
-    Stage2Run,
     compensate,
     estimate_of,
     run_cascade,
@@ -49,6 +49,7 @@ from flightrecon.methods.arms.model import (
     LINEARISATIONS,
     AirData,
     ArmsModel,
+    ArmsTrackModel,
     RadarPlots,
     converted_covariance,
     converted_measurement,
@@ -59,6 +60,7 @@ from flightrecon.methods.arms.model import (
     horizontal_range,
     joint_process_noise,
     joint_transition,
+    linearisation_code,
     range_azimuth,
     range_azimuth_jacobian,
     wrap_angle,
@@ -69,7 +71,8 @@ __all__ = [
     "LINEARISATIONS", "CONVERTED_AT", "ArmsModel", "RadarPlots", "AirData", "horizontal_range",
     "range_azimuth", "range_azimuth_jacobian", "wrap_angle", "converted_measurement",
     "converted_covariance", "cv_transition", "cv_process_noise", "gm_transition",
-    "gm_process_noise", "joint_transition", "joint_process_noise", "ArmsEstimate", "Stage1Run",
-    "Stage2Run", "ArmsJointRun", "CascadeResult", "track_ground_velocity", "compensate",
+    "gm_process_noise", "joint_transition", "joint_process_noise", "ArmsTrackModel",
+    "linearisation_code", "ArmsEstimate", "ArmsRun", "CascadeResult", "track_ground_velocity",
+    "compensate",
     "run_cascade", "run_joint_model", "estimate_of", "PaperScenario", "simulate_paper_scenario",
 ]

@@ -1,29 +1,27 @@
 """ADS/ARMS filters and smoothers: stage 1 (ground velocity), stage 2 (compensation), the
-cascade and the joint form, and the estimate they give."""
+cascade and the joint form, and the estimate they give.
+
+Every filter runs on the estimation core: the track filters (stage 1, joint) as the model
+:class:`~flightrecon.methods.arms.model.ArmsTrackModel` through
+:func:`~flightrecon.estimation.filtering.forward_pass`, stage 2 as the linear model
+(:func:`~flightrecon.estimation.kalman.kalman_filter`); all transitions are linear, so every
+backward pass is the linear RTS pass (:func:`~flightrecon.estimation.kalman.rts_smooth_run`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
-from flightrecon.estimation.kalman import (
-    FilterRun,
-    SmoothedRun,
-    joseph_update,
-    kalman_filter,
-    predict,
-    rts_smooth_run,
-)
+from flightrecon.estimation.filtering import FilterRun, forward_pass
+from flightrecon.estimation.kalman import kalman_filter, rts_smooth_run
+from flightrecon.estimation.smoothing import SmoothedRun
 from flightrecon.methods.arms.model import (
-    _LIN_CODE,
-    CONVERTED_AT,
-    LINEARISATIONS,
     AirData,
     ArmsModel,
     RadarPlots,
+    arms_track_model,
     converted_covariance,
     converted_measurement,
     cv_process_noise,
@@ -32,6 +30,7 @@ from flightrecon.methods.arms.model import (
     gm_transition,
     joint_process_noise,
     joint_transition,
+    linearisation_code,
 )
 
 
@@ -59,33 +58,22 @@ class ArmsEstimate:
 
 
 @dataclass(frozen=True)
-class Stage1Run:
-    """Stage-1 CV tracker run: forward pass, optional backward pass, step times."""
+class ArmsRun:
+    """One ADS/ARMS filter (stage 1, stage 2 or the joint form) on its step times: the core's
+    forward run and, if smoothed, its backward run.
+
+    Attributes
+    ----------
+    t_s : (N,) step times
+    filt : the :class:`~flightrecon.estimation.filtering.FilterRun`; its diagnostics ``F``
+        (the transitions), ``nu``, ``S``, ``nis``, ``n_meas`` and, for the track filters,
+        ``radar_used`` / ``air_used`` (N,) (the steps whose plot / air-data sample was used)
+    smooth : the :class:`~flightrecon.estimation.smoothing.SmoothedRun`, or None (forward only)
+    """
 
     t_s: np.ndarray
     filt: FilterRun
     smooth: SmoothedRun | None
-    radar_used: np.ndarray
-
-
-@dataclass(frozen=True)
-class Stage2Run:
-    """Stage-2 compensation run at the plot times."""
-
-    t_s: np.ndarray
-    filt: FilterRun
-    smooth: SmoothedRun | None
-
-
-@dataclass(frozen=True)
-class ArmsJointRun:
-    """Joint-model run on the union of plot and air-data times."""
-
-    t_s: np.ndarray
-    filt: FilterRun
-    smooth: SmoothedRun | None
-    radar_used: np.ndarray
-    air_used: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -93,124 +81,22 @@ class CascadeResult:
     """The paper's cascade: stage 1 then stage 2 (its stage-2 input uses the stage-1 estimate
     of the same kind: filtered into filtered, smoothed into smoothed)."""
 
-    stage1: Stage1Run
-    stage2: Stage2Run
+    stage1: ArmsRun
+    stage2: ArmsRun
 
 
-# --------------------------------------------------------------------------------------------
-# the forward kernel (EKF / converted measurements, optional air-data velocity measurement)
-# --------------------------------------------------------------------------------------------
-
-@nb.njit(cache=True, nogil=True)
-def _arms_kernel(x0, P0, F, Q, radar, radar_sd, air, Rv, lin):
-    """Forward pass of the CV (n=4) or joint (n=6) model.
-
-    radar (N, 2): [r, theta] (NaN: no plot); radar_sd (N, 2): [sigma_r, sigma_theta];
-    air (N, 2): [V*x, V*y] (NaN: none; only used when n == 6); Rv (2, 2) its noise;
-    lin: 0 EKF, 1 converted at measured, 2 converted at predicted.
-    Innovation components: 0-1 radar (range/azimuth or x/y), 2-3 air data.
-    """
-    N = F.shape[0]
-    n = x0.shape[0]
-    xs = np.empty((N, n))
-    Ps = np.empty((N, n, n))
-    xp = np.empty((N, n))
-    Pp = np.empty((N, n, n))
-    nus = np.full((N, 4), np.nan)
-    Ss = np.full((N, 4, 4), np.nan)
-    nis = np.full(N, np.nan)
-    nmeas = np.zeros(N, dtype=np.int64)
-    radar_used = np.zeros(N, dtype=np.bool_)
-    air_used = np.zeros(N, dtype=np.bool_)
-    x = x0.copy()
-    P = P0.copy()
-    for k in range(N):
-        if k > 0:
-            x, P = predict(x, P, F[k], Q[k])
-        xp[k] = x
-        Pp[k] = P
-        nu = np.zeros(4)
-        Hk = np.zeros((4, n))
-        Rk = np.zeros((4, 4))
-        slot = np.empty(4, dtype=np.int64)
-        c = 0
-        if not (np.isnan(radar[k, 0]) or np.isnan(radar[k, 1])):
-            rho = radar[k, 0]
-            th = radar[k, 1]
-            sr2 = radar_sd[k, 0] ** 2
-            st2 = radar_sd[k, 1] ** 2
-            px = x[0]
-            py = x[2]
-            r2 = px * px + py * py
-            if r2 > 1.0:  # at the station the azimuth is undefined: skip such a plot
-                rp = np.sqrt(r2)
-                if lin == 0:
-                    nu[0] = rho - rp
-                    d = th - np.arctan2(px, py)
-                    nu[1] = np.pi - np.mod(np.pi - d, 2.0 * np.pi)
-                    Hk[0, 0] = px / rp
-                    Hk[0, 2] = py / rp
-                    Hk[1, 0] = py / r2
-                    Hk[1, 2] = -px / r2
-                    Rk[0, 0] = sr2
-                    Rk[1, 1] = st2
-                else:
-                    nu[0] = rho * np.sin(th) - px
-                    nu[1] = rho * np.cos(th) - py
-                    Hk[0, 0] = 1.0
-                    Hk[1, 2] = 1.0
-                    if lin == 1:
-                        re = rho
-                        te = th
-                    else:
-                        re = rp
-                        te = np.arctan2(px, py)
-                    s = np.sin(te)
-                    co = np.cos(te)
-                    ct2 = re * re * st2
-                    Rk[0, 0] = sr2 * s * s + ct2 * co * co
-                    Rk[1, 1] = sr2 * co * co + ct2 * s * s
-                    Rk[0, 1] = s * co * (sr2 - ct2)
-                    Rk[1, 0] = Rk[0, 1]
-                slot[0] = 0
-                slot[1] = 1
-                c = 2
-                radar_used[k] = True
-        if n == 6 and not (np.isnan(air[k, 0]) or np.isnan(air[k, 1])):
-            nu[c] = air[k, 0] - (x[1] + x[4])
-            nu[c + 1] = air[k, 1] - (x[3] + x[5])
-            Hk[c, 1] = 1.0
-            Hk[c, 4] = 1.0
-            Hk[c + 1, 3] = 1.0
-            Hk[c + 1, 5] = 1.0
-            for a in range(2):
-                for b in range(2):
-                    Rk[c + a, c + b] = Rv[a, b]
-            slot[c] = 2
-            slot[c + 1] = 3
-            c += 2
-            air_used[k] = True
-        if c > 0:
-            v = nu[:c].copy()
-            x, P, S, nis[k] = joseph_update(x, P, v, Hk[:c].copy(), Rk[:c, :c].copy())
-            nmeas[k] = c
-            for a in range(c):
-                nus[k, slot[a]] = v[a]
-                for b in range(c):
-                    Ss[k, slot[a], slot[b]] = S[a, b]
-        xs[k] = x
-        Ps[k] = P
-    return xs, Ps, xp, Pp, nus, Ss, nis, nmeas, radar_used, air_used
-
-
-def _lin_code(linearisation: str, converted_at: str) -> int:
-    if linearisation not in LINEARISATIONS:
-        raise ValidationError(f"unknown ARMS linearisation '{linearisation}'; choose from "
-                              f"{', '.join(LINEARISATIONS)}")
-    if converted_at not in CONVERTED_AT:
-        raise ValidationError(f"unknown converted-covariance point '{converted_at}'; choose from "
-                              f"{', '.join(CONVERTED_AT)}")
-    return _LIN_CODE[(linearisation, converted_at)]
+def _track_run(x0: np.ndarray, P0: np.ndarray, F: np.ndarray, Q: np.ndarray, radar: np.ndarray,
+               radar_sd: np.ndarray, air: np.ndarray, Rv: np.ndarray, lin: int,
+               smooth: bool) -> tuple[FilterRun, SmoothedRun | None]:
+    """The track filter (:class:`ArmsTrackModel`) forward on the core and, with ``smooth``,
+    the linear RTS pass (its transition is linear)."""
+    model = arms_track_model(F, Q, radar, radar_sd, air, Rv, lin)
+    forward_pass(model, np.ascontiguousarray(x0), np.ascontiguousarray(P0), F.shape[0])
+    run = FilterRun(model.x_f, model.P_f, model.x_p, model.P_p,
+                    {"F": model.F, "nu": model.nu, "S": model.S, "nis": model.nis,
+                     "n_meas": model.n_meas, "radar_used": model.radar_used,
+                     "air_used": model.air_used}, model)
+    return run, (rts_smooth_run(run) if smooth else None)
 
 
 def _initial_position(plots: RadarPlots) -> tuple[np.ndarray, np.ndarray]:
@@ -237,7 +123,7 @@ def _dt(t: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 
 def track_ground_velocity(plots: RadarPlots, model: ArmsModel, *, linearisation: str = "ekf",
-                          converted_at: str = "predicted", smooth: bool = True) -> Stage1Run:
+                          converted_at: str = "predicted", smooth: bool = True) -> ArmsRun:
     """Stage 1: CV tracker of ``[x, Vx, y, Vy]`` from the plots at their own times.
 
     Paper eqs. 10-15 (docs/arms.md, stage 1).  One step per plot, ``T`` from the plot
@@ -247,11 +133,11 @@ def track_ground_velocity(plots: RadarPlots, model: ArmsModel, *, linearisation:
 
     Returns
     -------
-    Stage1Run
-        ``filt`` (a :class:`FilterRun`; innovations in columns 0-1 of ``nu``) and, if ``smooth``,
-        the RTS pass ``smooth``.
+    ArmsRun
+        ``filt`` (a :class:`FilterRun`; innovations in columns 0-1 of ``nu``, the plots used in
+        ``radar_used``) and, if ``smooth``, the RTS pass ``smooth``.
     """
-    lin = _lin_code(linearisation, converted_at)
+    lin = linearisation_code(linearisation, converted_at)
     t = plots.t_s
     dt = _dt(t)
     F = cv_transition(dt)
@@ -264,15 +150,13 @@ def track_ground_velocity(plots: RadarPlots, model: ArmsModel, *, linearisation:
     z, sd = _radar_arrays(plots)
     z[0] = np.nan
     air = np.full((len(t), 2), np.nan)
-    out = _arms_kernel(x0, P0, F, Q, z, sd, air, np.zeros((2, 2)), lin)
-    run = FilterRun(out[0], out[1], out[2], out[3], F, out[4], out[5], out[6], out[7])
-    sm = rts_smooth_run(run) if smooth else None
-    return Stage1Run(t, run, sm, out[8])
+    run, sm = _track_run(x0, P0, F, Q, z, sd, air, np.zeros((2, 2)), lin, smooth)
+    return ArmsRun(t, run, sm)
 
 
-def compensate(stage1: Stage1Run, air: AirData, model: ArmsModel, *,
+def compensate(stage1: ArmsRun, air: AirData, model: ArmsModel, *,
                use_smoothed_stage1: bool | None = None, smooth: bool = True,
-               air_max_gap_s: float = np.inf) -> Stage2Run:
+               air_max_gap_s: float = np.inf) -> ArmsRun:
     """Stage 2: the paper's compensation filter (Fig. 1, eqs. 5-8).
 
     State ``dV = [dVx, dVy]``, Gauss-Markov per axis (exact discretisation).  Measurement at each
@@ -303,7 +187,7 @@ def compensate(stage1: Stage1Run, air: AirData, model: ArmsModel, *,
     Q = gm_process_noise(dt, model.alpha_ps, model.gm_sigma_mps)
     run = kalman_filter(np.zeros(2), model.gm_sigma_mps ** 2 * np.eye(2), F, Q, z, np.eye(2), R)
     sm = rts_smooth_run(run) if smooth else None
-    return Stage2Run(t, run, sm)
+    return ArmsRun(t, run, sm)
 
 
 def run_cascade(plots: RadarPlots, air: AirData, model: ArmsModel, *, linearisation: str = "ekf",
@@ -321,7 +205,7 @@ def run_cascade(plots: RadarPlots, air: AirData, model: ArmsModel, *, linearisat
 
 def run_joint_model(plots: RadarPlots, air: AirData, model: ArmsModel, *,
                     linearisation: str = "ekf", converted_at: str = "predicted",
-                    smooth: bool = True, extra_times=None) -> ArmsJointRun:
+                    smooth: bool = True, extra_times=None) -> ArmsRun:
     """Joint model ``[x, Vx, y, Vy, dVx, dVy]`` (docs/arms.md, product form).
 
     Steps: the union of the plot times, the air-data times and ``extra_times`` (steps without a
@@ -331,9 +215,9 @@ def run_joint_model(plots: RadarPlots, air: AirData, model: ArmsModel, *,
     Measurements: range/azimuth (EKF or converted, as in stage 1) and
     ``V* = [Vx + dVx, Vy + dVy] + e``, ``e ~ N(0, sigma_air^2 I)``.  Prior: first plot's converted
     position, zero ground velocity (sd ``v0_sd_mps``), zero air-data error with its stationary
-    sd ``gm_sigma_mps``.
+    sd ``gm_sigma_mps``.  The air-data samples used are the ``air_used`` diagnostic.
     """
-    lin = _lin_code(linearisation, converted_at)
+    lin = linearisation_code(linearisation, converted_at)
     tp = plots.t_s
     inside = (air.t_s >= tp[0]) & (air.t_s <= tp[-1])
     ta = air.t_s[inside]
@@ -365,17 +249,15 @@ def run_joint_model(plots: RadarPlots, air: AirData, model: ArmsModel, *,
     P0[1, 1] = P0[3, 3] = model.v0_sd_mps ** 2
     P0[4, 4] = P0[5, 5] = model.gm_sigma_mps ** 2
     Rv = model.sigma_air_mps ** 2 * np.eye(2)
-    out = _arms_kernel(x0, P0, F, Q, radar, radar_sd, av, Rv, lin)
-    run = FilterRun(out[0], out[1], out[2], out[3], F, out[4], out[5], out[6], out[7])
-    sm = rts_smooth_run(run) if smooth else None
-    return ArmsJointRun(t, run, sm, out[8], out[9])
+    run, sm = _track_run(x0, P0, F, Q, radar, radar_sd, av, Rv, lin, smooth)
+    return ArmsRun(t, run, sm)
 
 
 def _sub(P: np.ndarray, idx: list[int]) -> np.ndarray:
     return P[:, idx][:, :, idx]
 
 
-def estimate_of(run: CascadeResult | ArmsJointRun, *, smoothed: bool = True) -> ArmsEstimate:
+def estimate_of(run: CascadeResult | ArmsRun, *, smoothed: bool = True) -> ArmsEstimate:
     """Collect positions, velocities and air-data errors of a run (smoothed or filtered).
 
     Raises

@@ -362,7 +362,7 @@ def _air_data(clean: CleanFlight, plots: A.RadarPlots, splane, dh_at
 
 def _filter(form: str, linearisation: str, settings: ArmsSettings, model: A.ArmsModel,
             plots: A.RadarPlots, ta: np.ndarray, air_all: A.AirData, tg: np.ndarray
-            ) -> tuple[A.ArmsJointRun | A.CascadeResult, int, int, np.ndarray, np.ndarray]:
+            ) -> tuple[A.ArmsRun | A.CascadeResult, int, int, np.ndarray, np.ndarray]:
     """Run the joint model or the cascade; returns the run, the radar plots and air-data
     samples used, and the forward innovations ``nu`` (K, 4) with their covariances ``S``
     (radar block first, air data second)."""
@@ -373,11 +373,12 @@ def _filter(form: str, linearisation: str, settings: ArmsSettings, model: A.Arms
                                converted_at=settings.converted_at, smooth=settings.smooth,
                                extra_times=tg[_thin(tg, settings.output_rate_hz,
                                                     "output_rate_hz")])
-        return jr, int(jr.radar_used.sum()) + 1, int(jr.air_used.sum()), jr.filt.nu, jr.filt.S
+        return (jr, int(jr.filt.radar_used.sum()) + 1, int(jr.filt.air_used.sum()), jr.filt.nu,
+                jr.filt.S)
     cr = A.run_cascade(plots, air_all, model, linearisation=linearisation,
                        converted_at=settings.converted_at, smooth=settings.smooth,
                        air_max_gap_s=settings.air_max_gap_s)
-    radar_used = int(cr.stage1.radar_used.sum()) + 1
+    radar_used = int(cr.stage1.filt.radar_used.sum()) + 1
     air_used = int(cr.stage2.filt.n_meas.astype(bool).sum())
     nu = np.concatenate([cr.stage1.filt.nu[:, :2], cr.stage2.filt.nu], axis=1)
     S = np.full((len(plots.t_s), 4, 4), np.nan)

@@ -1,9 +1,11 @@
 """ADS/ARMS models: settings and inputs, the range/azimuth measurement (EKF and converted forms),
-horizontal range, and the exact constant-velocity and Gauss-Markov discretisations."""
+horizontal range, the exact constant-velocity and Gauss-Markov discretisations, and the track
+filter's model on the estimation core (:class:`ArmsTrackModel`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -13,6 +15,16 @@ from flightrecon.estimation.discretise import (
     constant_velocity,
     gauss_markov,
 )
+from flightrecon.estimation.model import (
+    implements,
+    keep_filtered,
+    keep_predicted,
+    predict_into,
+    update_into,
+    workspace,
+)
+from flightrecon.estimation.predict import predict
+from flightrecon.estimation.updates import joseph_update
 from flightrecon.geo.radar import horizontal_range  # noqa: F401  (public here too)
 
 LINEARISATIONS = ("ekf", "converted")
@@ -28,6 +40,25 @@ sec. 10.4)."""
 
 _LIN_CODE = {("ekf", "predicted"): 0, ("ekf", "measured"): 0,
              ("converted", "measured"): 1, ("converted", "predicted"): 2}
+
+
+def linearisation_code(linearisation: str, converted_at: str) -> int:
+    """The :class:`ArmsTrackModel`'s ``lin`` of a linearisation (:data:`LINEARISATIONS`) and
+    converted-covariance point (:data:`CONVERTED_AT`): 0 EKF, 1 converted at the measured
+    range/azimuth, 2 converted at the predicted ones.
+
+    Raises
+    ------
+    ValidationError
+        For a name not among those.
+    """
+    if linearisation not in LINEARISATIONS:
+        raise ValidationError(f"unknown ARMS linearisation '{linearisation}'; choose from "
+                              f"{', '.join(LINEARISATIONS)}")
+    if converted_at not in CONVERTED_AT:
+        raise ValidationError(f"unknown converted-covariance point '{converted_at}'; choose from "
+                              f"{', '.join(CONVERTED_AT)}")
+    return _LIN_CODE[(linearisation, converted_at)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -277,3 +308,174 @@ def joint_process_noise(dt, q_m2ps3: float, alpha_ps: float, sigma_mps: float) -
     Q[:, 0:4, 0:4] = cv_process_noise(dt, q_m2ps3)
     Q[:, 4, 4] = Q[:, 5, 5] = gauss_markov(dt, alpha_ps, sigma_mps)[1]
     return Q
+
+
+# --------------------------------------------------------------------------------------------
+# the track filter's model on the estimation core (forward_pass)
+# --------------------------------------------------------------------------------------------
+
+class ArmsTrackModel(NamedTuple):
+    """The CV (n = 4, ``[x, Vx, y, Vy]``) or joint (n = 6, ``[x, Vx, y, Vy, dVx, dVy]``) track
+    filter as a model of the estimation core (:mod:`flightrecon.estimation.model`), run by
+    :func:`flightrecon.estimation.filtering.forward_pass`.
+
+    Inputs: ``F``, ``Q`` (N, n, n) the exact transitions and process noises
+    (:func:`cv_transition` / :func:`joint_transition`); ``radar`` (N, 2) ``[rho*, theta*]``
+    (NaN: no plot at that step); ``radar_sd`` (N, 2) ``[sigma_rho, sigma_theta]``; ``air``
+    (N, 2) ``V* = [V*x, V*y]`` (NaN: none; used only when n = 6) with noise ``Rv`` (2, 2);
+    ``lin`` the radar linearisation (:func:`linearisation_code`).
+
+    Outputs (filled by the run): ``x_f``, ``P_f`` the filtered, ``x_p``, ``P_p`` the predicted
+    estimates; ``nu`` (N, 4) the innovations (columns 0-1 the radar's: range/azimuth for the
+    EKF, x/y for the converted form; 2-3 the air data's; NaN where none) and ``S`` (N, 4, 4)
+    their covariances; ``nis`` and ``n_meas`` per step; ``radar_used``, ``air_used`` (N,) the
+    steps whose plot / air-data sample was used.
+
+    The transition is linear, so its backward pass is the linear model's
+    (:func:`flightrecon.estimation.kalman.rts_smooth`: ``C^T = F_{k+1} P_f[k]``).
+    """
+
+    F: np.ndarray
+    Q: np.ndarray
+    radar: np.ndarray
+    radar_sd: np.ndarray
+    air: np.ndarray
+    Rv: np.ndarray
+    lin: int
+    x_f: np.ndarray
+    P_f: np.ndarray
+    x_p: np.ndarray
+    P_p: np.ndarray
+    nu: np.ndarray
+    S: np.ndarray
+    nis: np.ndarray
+    n_meas: np.ndarray
+    radar_used: np.ndarray
+    air_used: np.ndarray
+
+
+def arms_track_model(F: np.ndarray, Q: np.ndarray, radar: np.ndarray, radar_sd: np.ndarray,
+                     air: np.ndarray, Rv: np.ndarray, lin: int) -> ArmsTrackModel:
+    """An :class:`ArmsTrackModel` on these inputs with its output buffers (NaN innovations,
+    no measurement used)."""
+    N, n = F.shape[0], F.shape[1]
+    c = np.ascontiguousarray
+    return ArmsTrackModel(c(F), c(Q), c(radar), c(radar_sd), c(air), c(Rv), int(lin),
+                          np.empty((N, n)), np.empty((N, n, n)), np.empty((N, n)),
+                          np.empty((N, n, n)), np.full((N, 4), np.nan),
+                          np.full((N, 4, 4), np.nan), np.full(N, np.nan),
+                          np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.bool_),
+                          np.zeros(N, dtype=np.bool_))
+
+
+@implements(workspace, ArmsTrackModel)
+def _workspace(model):
+    n = model.F.shape[1]
+    # the step's stacked innovation, Jacobian, noise and innovation slots (radar 0-1, air 2-3)
+    return np.zeros(4), np.zeros((4, n)), np.zeros((4, 4)), np.empty(4, dtype=np.int64)
+
+
+@implements(predict_into, ArmsTrackModel)
+def _predict(model, k, x, P, ws):
+    """``x <- F_k x``, ``P <- F_k P F_k^T + Q_k`` (exact CV / Gauss-Markov discretisation)."""
+    xn, Pn = predict(x, P, model.F[k], model.Q[k])
+    x[:] = xn
+    P[:, :] = Pn
+
+
+@implements(keep_predicted, ArmsTrackModel)
+def _keep_predicted(model, k, x, P):
+    model.x_p[k] = x
+    model.P_p[k] = P
+
+
+@implements(update_into, ArmsTrackModel)
+def _update(model, k, x, P, ws):
+    """The step's plot and air-data sample in one block Joseph update (docs/arms.md).
+
+    Radar (paper eqs. 10-15), ``lin`` 0: EKF on ``[rho, theta]``, ``H`` of eq. 12, azimuth
+    innovation wrapped to (-pi, pi]; 1 / 2: converted measurement ``[x*, y*]`` (eq. 13) with
+    ``H`` selecting x, y and the covariance of eq. 15 at the measured (1) or predicted (2)
+    range and azimuth.  A plot within 1 m of the station (azimuth undefined) is skipped.
+    Air data (n = 6): ``V* = [Vx + dVx, Vy + dVy] + e``, ``e ~ N(0, Rv)``.
+    """
+    nu, Hk, Rk, slot = ws
+    n = x.shape[0]
+    radar = model.radar
+    air = model.air
+    nu[:] = 0.0
+    Hk[:, :] = 0.0
+    Rk[:, :] = 0.0
+    c = 0
+    if not (np.isnan(radar[k, 0]) or np.isnan(radar[k, 1])):
+        rho = radar[k, 0]
+        th = radar[k, 1]
+        sr2 = model.radar_sd[k, 0] ** 2
+        st2 = model.radar_sd[k, 1] ** 2
+        px = x[0]
+        py = x[2]
+        r2 = px * px + py * py
+        if r2 > 1.0:  # at the station the azimuth is undefined: skip such a plot
+            rp = np.sqrt(r2)
+            if model.lin == 0:
+                nu[0] = rho - rp
+                d = th - np.arctan2(px, py)
+                nu[1] = np.pi - np.mod(np.pi - d, 2.0 * np.pi)
+                Hk[0, 0] = px / rp
+                Hk[0, 2] = py / rp
+                Hk[1, 0] = py / r2
+                Hk[1, 2] = -px / r2
+                Rk[0, 0] = sr2
+                Rk[1, 1] = st2
+            else:
+                nu[0] = rho * np.sin(th) - px
+                nu[1] = rho * np.cos(th) - py
+                Hk[0, 0] = 1.0
+                Hk[1, 2] = 1.0
+                if model.lin == 1:
+                    re = rho
+                    te = th
+                else:
+                    re = rp
+                    te = np.arctan2(px, py)
+                s = np.sin(te)
+                co = np.cos(te)
+                ct2 = re * re * st2
+                Rk[0, 0] = sr2 * s * s + ct2 * co * co
+                Rk[1, 1] = sr2 * co * co + ct2 * s * s
+                Rk[0, 1] = s * co * (sr2 - ct2)
+                Rk[1, 0] = Rk[0, 1]
+            slot[0] = 0
+            slot[1] = 1
+            c = 2
+            model.radar_used[k] = True
+    if n == 6 and not (np.isnan(air[k, 0]) or np.isnan(air[k, 1])):
+        nu[c] = air[k, 0] - (x[1] + x[4])
+        nu[c + 1] = air[k, 1] - (x[3] + x[5])
+        Hk[c, 1] = 1.0
+        Hk[c, 4] = 1.0
+        Hk[c + 1, 3] = 1.0
+        Hk[c + 1, 5] = 1.0
+        for a in range(2):
+            for b in range(2):
+                Rk[c + a, c + b] = model.Rv[a, b]
+        slot[c] = 2
+        slot[c + 1] = 3
+        c += 2
+        model.air_used[k] = True
+    if c > 0:
+        v = nu[:c].copy()
+        xu, Pu, S, model.nis[k] = joseph_update(x, P, v, Hk[:c].copy(), Rk[:c, :c].copy())
+        x[:] = xu
+        P[:, :] = Pu
+        model.n_meas[k] = c
+        for a in range(c):
+            model.nu[k, slot[a]] = v[a]
+            for b in range(c):
+                model.S[k, slot[a], slot[b]] = S[a, b]
+
+
+@implements(keep_filtered, ArmsTrackModel)
+def _keep_filtered(model, k, x, P):
+    model.x_f[k] = x
+    model.P_f[k] = P

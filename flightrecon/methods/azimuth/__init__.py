@@ -26,8 +26,11 @@ Observations (docs/azimuth.md):
 The angular process noises are set from physical ones: ``sigma_m = sigma_m_mps2 / r`` and
 ``q = q_jerk / r^2`` with the tracked range ``r`` at each step.
 
-Every filter here runs forward (:func:`azimuth_filter`, compiled with numba) and is smoothed
-backward by the generic Rauch-Tung-Striebel pass :func:`flightrecon.estimation.kalman.rts_smooth`.
+Every filter here runs forward on the estimation core's one forward loop
+(:func:`azimuth_filter`: the model :class:`AzimuthModel` in
+:func:`flightrecon.estimation.filtering.forward_pass`) and is smoothed backward by the linear
+Rauch-Tung-Striebel pass :func:`flightrecon.estimation.kalman.rts_smooth`; the result, an
+:class:`AzimuthRun`, holds the core's ``FilterRun`` and ``SmoothedRun``.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from flightrecon.estimation.discretise import (
     singer_transition,
 )
 from flightrecon.methods.azimuth.filter import AzimuthRun, azimuth_filter
+from flightrecon.methods.azimuth.model import AzimuthModel, azimuth_model
 from flightrecon.methods.azimuth.observation import (
     horizontal_acceleration,
     horizontal_acceleration_covariance,
@@ -51,5 +55,5 @@ __all__ = [
     "singer_transition", "singer_process_noise", "random_walk_matrices",
     "horizontal_acceleration", "horizontal_acceleration_jacobian",
     "horizontal_acceleration_covariance", "transverse_acceleration", "wrap_pi", "RangeTrack",
-    "track_range", "AzimuthRun", "azimuth_filter",
+    "track_range", "AzimuthModel", "azimuth_model", "AzimuthRun", "azimuth_filter",
 ]

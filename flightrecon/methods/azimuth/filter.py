@@ -1,10 +1,10 @@
-"""The azimuth channel's forward filter (compiled kernel) and its RTS smoothing."""
+"""The azimuth channel's forward filter (the model :class:`AzimuthModel` on the estimation
+core's forward loop) and its RTS smoothing (the linear backward loop)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
@@ -13,9 +13,10 @@ from flightrecon.estimation.discretise import (
     singer_process_noise,
     singer_transition,
 )
+from flightrecon.estimation.filtering import FilterRun, forward_pass
 from flightrecon.estimation.kalman import rts_smooth
-from flightrecon.estimation.predict import predict
-from flightrecon.estimation.updates import joseph_update
+from flightrecon.estimation.smoothing import SmoothedRun
+from flightrecon.methods.azimuth.model import azimuth_model
 from flightrecon.methods.azimuth.range_track import RangeTrack
 
 # ---------------------------------------------------------------------------------------------
@@ -23,112 +24,40 @@ from flightrecon.methods.azimuth.range_track import RangeTrack
 # ---------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True, nogil=True)
-def _wrap(x):
-    return np.pi - np.mod(np.pi - x, 2.0 * np.pi)
-
-
-@nb.njit(cache=True, nogil=True)
-def _azimuth_kernel(x0, P0, F, Q, eps_meas, eps_var, a_ne, Sa, Sb, r, rdot, Pr, n_corr):
-    """Forward pass over the events (module docstring; docs/azimuth.md "Observations").
-
-    Per event: predict with ``F[k]``, ``Q[k]``; radar update with the wrapped innovation; then
-    the on-board update linearised at the current estimate, ``H = [-dz/deps, 2 r_dot, r]``,
-    ``R_z = u Sa u^T + n_corr (u Sb u^T + [a, 2 omega] Pr [a, 2 omega]^T)``.
-    """
-    N = F.shape[0]
-    xs = np.empty((N, 3))
-    Ps = np.empty((N, 3, 3))
-    xp = np.empty((N, 3))
-    Pp = np.empty((N, 3, 3))
-    nu_e = np.full(N, np.nan)
-    s_e = np.full(N, np.nan)
-    nu_z = np.full(N, np.nan)
-    s_z = np.full(N, np.nan)
-    r_z = np.full(N, np.nan)
-    x = x0.copy()
-    P = P0.copy()
-    h_eps = np.array([[1.0, 0.0, 0.0]])
-    r1 = np.empty((1, 1))
-    nu1 = np.empty(1)
-    for k in range(N):
-        if k > 0:
-            x, P = predict(x, P, F[k], Q[k])
-        xp[k] = x
-        Pp[k] = P
-        if not np.isnan(eps_meas[k]):
-            nu1[0] = _wrap(eps_meas[k] - x[0])
-            r1[0, 0] = eps_var[k]
-            x, P, S1, _ = joseph_update(x, P, nu1, h_eps, r1)
-            nu_e[k] = nu1[0]
-            s_e[k] = S1[0, 0]
-        if not np.isnan(a_ne[k, 0]):
-            e, om, a = x[0], x[1], x[2]
-            s, c = np.sin(e), np.cos(e)
-            zacc = a_ne[k, 1] * c - a_ne[k, 0] * s
-            dz = -(a_ne[k, 1] * s + a_ne[k, 0] * c)
-            h = np.empty((1, 3))
-            h[0, 0], h[0, 1], h[0, 2] = -dz, 2.0 * rdot[k], r[k]
-            u0, u1 = -s, c
-            rs = (u0 * u0 * Sa[k, 0, 0] + 2.0 * u0 * u1 * Sa[k, 0, 1] + u1 * u1 * Sa[k, 1, 1])
-            rb = (u0 * u0 * Sb[k, 0, 0] + 2.0 * u0 * u1 * Sb[k, 0, 1] + u1 * u1 * Sb[k, 1, 1])
-            g0_, g1_ = a, 2.0 * om  # dz_model / d(r, r_dot)
-            rr = g0_ * g0_ * Pr[k, 0, 0] + 2.0 * g0_ * g1_ * Pr[k, 0, 1] + g1_ * g1_ * Pr[k, 1, 1]
-            R = rs + n_corr * (rb + rr)
-            nu1[0] = zacc - 2.0 * rdot[k] * om - r[k] * a
-            r1[0, 0] = R
-            x, P, S1, _ = joseph_update(x, P, nu1, h, r1)
-            nu_z[k] = nu1[0]
-            s_z[k] = S1[0, 0]
-            r_z[k] = R
-        xs[k] = x
-        Ps[k] = P
-    return xs, Ps, xp, Pp, nu_e, s_e, nu_z, s_z, r_z
-
-
 @dataclass(frozen=True)
 class AzimuthRun:
-    """A forward azimuth filter and its backward RTS smoother, on the event times.
+    """The azimuth filter and its backward RTS smoother on the event times.
 
     Attributes
     ----------
     t_s : (N,) event times [s]
-    x, P : filtered state (N, 3) [rad, rad/s, rad/s^2] (azimuth continuous, not wrapped) and
-        covariance (N, 3, 3)
-    x_pred, P_pred, F : one-step predictions and transitions (for the backward pass)
-    xs, Ps : smoothed state and covariance
-    nu_eps, s_eps : azimuth innovations [rad] (wrapped) and their variances (NaN: no plot)
-    nu_z, s_z, r_z : transverse-acceleration innovations [m/s^2], their variances and the
-        propagated observation variance R_z (NaN: no on-board observation)
+    filt : the core's :class:`~flightrecon.estimation.filtering.FilterRun`: filtered state
+        ``x`` (N, 3) [rad, rad/s, rad/s^2] (azimuth continuous, not wrapped), ``P``, the
+        one-step predictions, and the diagnostics ``F`` (transitions), ``nu_eps``, ``s_eps``
+        (azimuth innovations [rad], wrapped, and their variances; NaN: no plot), ``nis_eps``,
+        ``nu_z``, ``s_z``, ``r_z`` (transverse-acceleration innovations [m/s^2], their
+        variances and the propagated observation variance R_z; NaN: no on-board observation)
+        and ``nis_z``
+    smooth : the core's :class:`~flightrecon.estimation.smoothing.SmoothedRun` (``x``, ``P``)
     model : ``"singer"`` or ``"aided"``
     n_corr : inflation of the correlated error variances of ``z`` (see :func:`azimuth_filter`)
     """
 
     t_s: np.ndarray
-    x: np.ndarray
-    P: np.ndarray
-    x_pred: np.ndarray
-    P_pred: np.ndarray
-    F: np.ndarray
-    xs: np.ndarray
-    Ps: np.ndarray
-    nu_eps: np.ndarray
-    s_eps: np.ndarray
-    nu_z: np.ndarray
-    s_z: np.ndarray
-    r_z: np.ndarray
+    filt: FilterRun
+    smooth: SmoothedRun
     model: str
     n_corr: float
 
     @property
     def nis_eps(self) -> np.ndarray:
         """Normalised azimuth innovations squared (chi-square, 1 dof, where a plot was used)."""
-        return self.nu_eps**2 / self.s_eps
+        return self.filt.nis_eps
 
     @property
     def nis_z(self) -> np.ndarray:
         """Normalised transverse-acceleration innovations squared (1 dof)."""
-        return self.nu_z**2 / self.s_z
+        return self.filt.nis_z
 
 
 def _checked_events(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack):
@@ -236,10 +165,10 @@ def azimuth_filter(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack, *, 
     P0 = np.diag([eps_var[0], (v_max_mps / r[0]) ** 2, (a_max_mps2 / r[0]) ** 2])
     eps_used = eps.copy()
     eps_used[0] = np.nan
-    out = _azimuth_kernel(x0, P0, np.ascontiguousarray(F), np.ascontiguousarray(Q), eps_used,
-                          eps_var, a_ne, a_ne_cov, a_ne_cov_corr, r,
-                          np.ascontiguousarray(range_track.r_dot),
-                          np.ascontiguousarray(range_track.P), n_corr)
-    xf, Pf, xp, Pp, nu_e, s_e, nu_z, s_z, r_z = out
-    sm = rts_smooth(xf, Pf, xp, Pp, F)
-    return AzimuthRun(t, xf, Pf, xp, Pp, F, sm.x, sm.P, nu_e, s_e, nu_z, s_z, r_z, model, n_corr)
+    m = azimuth_model(F, Q, eps_used, eps_var, a_ne, a_ne_cov, a_ne_cov_corr, r,
+                      range_track.r_dot, range_track.P, n_corr)
+    forward_pass(m, x0, P0, t.size)
+    sm = rts_smooth(m.x_f, m.P_f, m.x_p, m.P_p, m.F)
+    diags = {"F": m.F, "nu_eps": m.nu_eps, "s_eps": m.s_eps, "nis_eps": m.nu_eps**2 / m.s_eps,
+             "nu_z": m.nu_z, "s_z": m.s_z, "r_z": m.r_z, "nis_z": m.nu_z**2 / m.s_z}
+    return AzimuthRun(t, FilterRun(m.x_f, m.P_f, m.x_p, m.P_p, diags, m), sm, model, n_corr)

@@ -271,8 +271,8 @@ def _grid_track(run, rt, pos_g: np.ndarray, tg: np.ndarray, ig: np.ndarray,
     """The smoothed estimate at the grid samples ``ig`` (events ``pos_g``) as track columns:
     azimuth channel, range, and position / velocity from the station plane into the output's
     axes (``up_st``: the height above the station plane there)."""
-    x = run.xs[pos_g]
-    P = run.Ps[pos_g]
+    x = run.smooth.x[pos_g]
+    P = run.smooth.P[pos_g]
     r = rt.r[pos_g]
     rd = rt.r_dot[pos_g]
     Pr = rt.P[pos_g]
@@ -317,7 +317,7 @@ def _summary(run, rt, model: str, s: AzimuthSettings, range_from: str, tp: np.nd
     """Counts, innovation statistics and the health verdict of the three filters."""
     nis_e = run.nis_eps[np.isfinite(run.nis_eps)]
     nis_z = run.nis_z[np.isfinite(run.nis_z)]
-    finite = bool(np.all(np.isfinite(run.xs)) and np.all(np.isfinite(run.Ps)))
+    finite = bool(np.all(np.isfinite(run.smooth.x)) and np.all(np.isfinite(run.smooth.P)))
     # every scalar innovation of the three filters (azimuth, transverse acceleration, range)
     verdict = chi_square_verdict(np.r_[nis_e, nis_z, rt.nis])
     gaps = np.diff(tp)
