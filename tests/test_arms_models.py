@@ -6,9 +6,9 @@ import pytest
 from scipy.linalg import expm
 
 from flightrecon.errors import ValidationError
+from flightrecon.estimation.filtering import forward_pass
 from flightrecon.geo.frames import TangentPlane
 from flightrecon.methods import arms as A
-from flightrecon.methods.arms import filter as arms_filter
 
 
 def test_jacobian_matches_finite_differences():
@@ -127,19 +127,21 @@ def test_horizontal_range_from_altitude_matches_geodesy():
 @pytest.mark.parametrize("lin,conv_at", [("ekf", "predicted"), ("converted", "measured"),
                                          ("converted", "predicted")])
 def test_kernel_update_matches_numpy_reference(lin, conv_at):
-    """One predict + update of the numba kernel against a textbook numpy EKF step."""
+    """One predict + update of the track model on the core's forward loop against a textbook
+    numpy EKF step."""
     m = A.ArmsModel(q_m2ps3=0.3, sigma_air_mps=0.4)
     t = np.array([0.0, 2.5])
-    F = A.joint_transition(arms_filter._dt(t), m.alpha_ps)
-    Q = A.joint_process_noise(arms_filter._dt(t), m.q_m2ps3, m.alpha_ps, m.gm_sigma_mps)
+    dt = np.diff(t, prepend=t[0])
+    F = A.joint_transition(dt, m.alpha_ps)
+    Q = A.joint_process_noise(dt, m.q_m2ps3, m.alpha_ps, m.gm_sigma_mps)
     x0 = np.array([20e3, 80.0, -35e3, -40.0, 3.0, -2.0])
     P0 = np.diag([300.0, 5.0, 250.0, 4.0, 10.0, 12.0]) ** 2
     radar = np.array([[np.nan, np.nan], [40.4e3, np.deg2rad(150.1)]])
     sd = np.array([[1.0, 1.0], [m.sigma_range_m, m.sigma_azimuth_rad]])
     air = np.array([[np.nan, np.nan], [83.0, -43.5]])
     Rv = m.sigma_air_mps**2 * np.eye(2)
-    code = arms_filter._lin_code(lin, conv_at)
-    out = arms_filter._arms_kernel(x0, P0, F, Q, radar, sd, air, Rv, code)
+    model = A.arms_track_model(F, Q, radar, sd, air, Rv, A.linearisation_code(lin, conv_at))
+    forward_pass(model, x0, P0, 2)
     xp = F[1] @ x0
     Pp = F[1] @ P0 @ F[1].T + Q[1]
     Hv = np.zeros((2, 6))
@@ -165,10 +167,11 @@ def test_kernel_update_matches_numpy_reference(lin, conv_at):
     x1 = xp + K @ nu
     P1 = (np.eye(6) - K @ H) @ Pp
     # Joseph and simple forms agree for the optimal gain up to rounding of a well-conditioned S
-    np.testing.assert_allclose(out[0][1], x1, rtol=1e-9, atol=1e-8)
-    np.testing.assert_allclose(out[1][1], P1, rtol=1e-7, atol=1e-7 * np.abs(P1).max())
-    assert out[6][1] == pytest.approx(nu @ np.linalg.solve(S, nu), rel=1e-9)
-    assert out[8][1] and out[9][1]
+    np.testing.assert_allclose(model.x_p[1], xp, rtol=1e-12)
+    np.testing.assert_allclose(model.x_f[1], x1, rtol=1e-9, atol=1e-8)
+    np.testing.assert_allclose(model.P_f[1], P1, rtol=1e-7, atol=1e-7 * np.abs(P1).max())
+    assert model.nis[1] == pytest.approx(nu @ np.linalg.solve(S, nu), rel=1e-9)
+    assert model.radar_used[1] and model.air_used[1]
 
 
 def test_joint_model_is_block_diagonal_of_cv_and_gm():

@@ -41,11 +41,11 @@ def test_tracks_through_north(model):
     cov = np.tile(np.eye(2) * 0.01, (t.size, 1, 1))
     run = azimuth_filter(t, eps_meas, np.full(t.size, np.radians(0.05) ** 2), rt, model=model,
                          a_ne=a_ne, a_ne_cov=cov)
-    for x, P in ((run.x, run.P), (run.xs, run.Ps)):
+    for x, P in ((run.filt.x, run.filt.P), (run.smooth.x, run.smooth.P)):
         err = wrap_pi(x[:, 0] - eps)
         assert np.all(np.abs(err[10:]) < 5 * np.sqrt(P[10:, 0, 0]))
         assert np.all(np.abs(x[:, 0] - eps) < 0.05)  # continuous state: no 2 pi offset
-    assert np.nanmax(np.abs(run.nu_eps[8:])) < 0.01  # wrapped (the first two plots set omega)
+    assert np.nanmax(np.abs(run.filt.nu_eps[8:])) < 0.01  # wrapped (the first two plots set omega)
 
 
 def test_aided_keeps_tracking_without_radar():
@@ -70,10 +70,10 @@ def test_aided_keeps_tracking_without_radar():
     for model in ("singer", "aided"):
         run = azimuth_filter(t, eps_meas, np.full(t.size, np.radians(0.1) ** 2), rt,
                              model=model, a_ne=a_ne, a_ne_cov=cov)
-        err[model] = abs(wrap_pi(run.x[-1, 0] - eps[-1]))
+        err[model] = abs(wrap_pi(run.filt.x[-1, 0] - eps[-1]))
         if model == "aided":
-            assert err[model] < 4 * np.sqrt(run.P[-1, 0, 0])
-            assert np.all(np.isfinite(run.nu_z[t > 40]))
+            assert err[model] < 4 * np.sqrt(run.filt.P[-1, 0, 0])
+            assert np.all(np.isfinite(run.filt.nu_z[t > 40]))
     assert err["aided"] < 0.5 * err["singer"]
 
 
@@ -83,10 +83,10 @@ def test_smoother_covariance_below_filter():
     run = azimuth_filter(t, eps_meas, np.full(t.size, np.radians(0.05) ** 2), rt, model="aided",
                          a_ne=np.zeros((t.size, 2)),
                          a_ne_cov=np.tile(np.eye(2) * 0.01, (t.size, 1, 1)))
-    D = run.P - run.Ps
-    scale = np.trace(run.P, axis1=1, axis2=2)
+    D = run.filt.P - run.smooth.P
+    scale = np.trace(run.filt.P, axis1=1, axis2=2)
     assert np.all(np.linalg.eigvalsh(D).min(axis=1) > -1e-12 * scale)
-    assert np.all(np.linalg.eigvalsh(run.Ps).min(axis=1) > 0)
+    assert np.all(np.linalg.eigvalsh(run.smooth.P).min(axis=1) > 0)
 
 
 def test_input_errors():
@@ -123,13 +123,13 @@ def test_singer_kernel_matches_generic_kalman_filter():
     Q = singer_process_noise(0.1, 1.5 / rt.r, np.diff(t, prepend=t[0]))
     z = eps_meas.copy()
     z[0] = np.nan  # the first plot is the prior (x_pred[0], P_pred[0]), used once
-    ref = kalman_filter(run.x_pred[0], run.P_pred[0], run.F, Q, z[:, None],
+    ref = kalman_filter(run.filt.x_pred[0], run.filt.P_pred[0], run.filt.F, Q, z[:, None],
                         np.array([[1.0, 0.0, 0.0]]), var[:, None, None])
-    sd = np.sqrt(np.diagonal(run.P, axis1=1, axis2=2))
-    np.testing.assert_allclose((ref.x - run.x) / sd, 0.0, atol=1e-9)
-    np.testing.assert_allclose(ref.P, run.P, rtol=1e-9, atol=0)
+    sd = np.sqrt(np.diagonal(run.filt.P, axis1=1, axis2=2))
+    np.testing.assert_allclose((ref.x - run.filt.x) / sd, 0.0, atol=1e-9)
+    np.testing.assert_allclose(ref.P, run.filt.P, rtol=1e-9, atol=0)
     sm = rts_smooth_run(ref)
-    np.testing.assert_allclose((sm.x - run.xs) / sd, 0.0, atol=1e-9)
+    np.testing.assert_allclose((sm.x - run.smooth.x) / sd, 0.0, atol=1e-9)
 
 
 @settings(max_examples=15, deadline=None)
@@ -159,10 +159,10 @@ def test_covariances_stay_positive_definite(offset, speed, heading, turn, model,
     rt = track_range(t, r_meas, np.full(t.size, 2500.0), q_range_m2ps3=10.0)
     run = azimuth_filter(t, eps_meas, np.full(t.size, 0.003**2), rt, model=model, a_ne=a_ne,
                          a_ne_cov=np.tile(np.eye(2) * 0.01, (t.size, 1, 1)))
-    scale = np.trace(run.P, axis1=1, axis2=2)
-    assert np.all(np.linalg.eigvalsh(run.P).min(axis=1) > 0)
-    assert np.all(np.linalg.eigvalsh(run.Ps).min(axis=1) > 0)
-    assert np.all(np.linalg.eigvalsh(run.P - run.Ps).min(axis=1) > -1e-12 * scale)
+    scale = np.trace(run.filt.P, axis1=1, axis2=2)
+    assert np.all(np.linalg.eigvalsh(run.filt.P).min(axis=1) > 0)
+    assert np.all(np.linalg.eigvalsh(run.smooth.P).min(axis=1) > 0)
+    assert np.all(np.linalg.eigvalsh(run.filt.P - run.smooth.P).min(axis=1) > -1e-12 * scale)
 
 
 def test_range_tracker_uses_its_first_plot_once():
@@ -191,5 +191,5 @@ def test_azimuth_filter_uses_its_first_plot_once(model):
     if model == "aided":
         extra = {"a_ne": np.full((3, 2), np.nan), "a_ne_cov": np.zeros((3, 2, 2))}
     run = azimuth_filter(t, eps, var, rt, model=model, **extra)
-    assert run.P[0, 0, 0] == pytest.approx(var[0], rel=1e-12)
-    assert np.isnan(run.nu_eps[0]) and np.isfinite(run.nu_eps[2])
+    assert run.filt.P[0, 0, 0] == pytest.approx(var[0], rel=1e-12)
+    assert np.isnan(run.filt.nu_eps[0]) and np.isfinite(run.filt.nu_eps[2])

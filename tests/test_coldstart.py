@@ -32,7 +32,7 @@ def test_every_sentinel_is_a_cached_kernel_of_its_method():
     from flightrecon.pipeline.registry import ALL_METHODS
 
     assert set(coldstart.KERNEL_SENTINELS) == set(ALL_METHODS)
-    for mod, name in coldstart.KERNEL_SENTINELS.values():
+    for mod, name, *_ in coldstart.KERNEL_SENTINELS.values():
         d = getattr(importlib.import_module(mod), name)
         assert d._cache._cache_file._index_path.endswith(".nbi"), (mod, name)
 

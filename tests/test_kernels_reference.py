@@ -96,15 +96,35 @@ def test_generic_filter_and_rts(singer_case):
     _check(sm.x, sm.P, ref)
 
 
-def test_azimuth_kernel(singer_case):
-    from flightrecon.methods.azimuth.filter import _azimuth_kernel
+def _azimuth_forward(x0, P0, F, Q, eps, var):
+    """The azimuth channel's model (``methods/azimuth/model.py``) on the core's forward loop,
+    azimuth plots only (linear); its filtered and predicted arrays."""
+    from flightrecon.estimation.filtering import forward_pass
+    from flightrecon.methods.azimuth import azimuth_model
 
+    N = len(eps)
+    m = azimuth_model(F, Q, eps, var, np.full((N, 2), np.nan), np.zeros((N, 2, 2)),
+                      np.zeros((N, 2, 2)), np.full(N, 1e4), np.zeros(N), np.zeros((N, 2, 2)),
+                      1.0)
+    forward_pass(m, x0, P0, N)
+    return m.x_f, m.P_f, m.x_p, m.P_p
+
+
+def _arms_forward(x0, P0, F, Q, air, Rv):
+    """The ADS/ARMS track model (``methods/arms/model.py``) on the core's forward loop with
+    the air-data velocity as its only measurement (linear); its filtered and predicted arrays."""
+    from flightrecon.estimation.filtering import forward_pass
+    from flightrecon.methods.arms import arms_track_model
+
+    N = len(air)
+    m = arms_track_model(F, Q, np.full((N, 2), np.nan), np.ones((N, 2)), air, Rv, 0)
+    forward_pass(m, x0, P0, N)
+    return m.x_f, m.P_f, m.x_p, m.P_p
+
+
+def test_azimuth_kernel(singer_case):
     x0, P0, F, Q, z, R, ref = singer_case
-    N = len(z)
-    out = _azimuth_kernel(x0, P0, F, Q, z, R[:, 0], np.full((N, 2), np.nan),
-                          np.zeros((N, 2, 2)), np.zeros((N, 2, 2)), np.full(N, 1e4),
-                          np.zeros(N), np.zeros((N, 2, 2)), 1.0)
-    xf, Pf, xp, Pp = out[:4]
+    xf, Pf, xp, Pp = _azimuth_forward(x0, P0, F, Q, z, R[:, 0])
     sm = rts_smooth(xf, Pf, xp, Pp, F)
     _check(sm.x, sm.P, ref)
 
@@ -133,7 +153,6 @@ def test_arms_kernel_on_its_linear_part():
     """The ADS/ARMS joint model [x, Vx, y, Vy, dVx, dVy] with the air-data velocity
     V* = V + dV as its only measurement (linear), against the same reference."""
     from flightrecon.methods.arms import joint_process_noise, joint_transition
-    from flightrecon.methods.arms.filter import _arms_kernel
 
     rng = np.random.default_rng(4)
     N = 30
@@ -146,7 +165,7 @@ def test_arms_kernel_on_its_linear_part():
     air = np.column_stack([100.0 + rng.normal(0, 1, N), 5.0 + rng.normal(0, 1, N)])
     air[rng.choice(N, 6, replace=False)] = np.nan
     Rv = 0.3 ** 2 * np.eye(2)
-    out = _arms_kernel(x0, P0, F, Q, np.full((N, 2), np.nan), np.ones((N, 2)), air, Rv, 0)
+    out = _arms_forward(x0, P0, F, Q, air, Rv)
     sm = rts_smooth(out[0], out[1], out[2], out[3], F)
     H = np.zeros((2, 6))
     H[0, 1] = H[0, 4] = H[1, 3] = H[1, 5] = 1.0
@@ -189,11 +208,10 @@ def test_cv_generic_filter_and_rts(cv_case):
 
 
 def test_cv_azimuth_kernel(cv_case):
-    """Guards the azimuth channel's kernel (``methods/azimuth/filter.py``: core predict and
-    Joseph update with its angle wrap) on one axis of the case, the state padded with a
-    decoupled random walk to the kernel's three states; azimuth plots only (linear)."""
-    from flightrecon.methods.azimuth.filter import _azimuth_kernel
-
+    """Guards the azimuth channel's model (``methods/azimuth/model.py``: core predict and
+    Joseph update with its angle wrap, on the core's forward loop) on one axis of the case, the
+    state padded with a decoupled random walk to the model's three states; azimuth plots only
+    (linear)."""
     (x0, P0, F, Q, z, H, R), _ = cv_case
     N = len(z)
     F3 = np.zeros((N, 3, 3))
@@ -208,21 +226,18 @@ def test_cv_azimuth_kernel(cv_case):
     Q3[:, :2, :2] *= s**2
     eps, var = z[:, 0] * s, R[:, 0] * s**2
     ref = kalman_rts(x03, P03, F3, Q3, eps[:, None], np.array([[1.0, 0.0, 0.0]]), var[:, None])
-    out = _azimuth_kernel(x03, P03, F3, Q3, eps, var, np.full((N, 2), np.nan),
-                          np.zeros((N, 2, 2)), np.zeros((N, 2, 2)), np.full(N, 1e4),
-                          np.zeros(N), np.zeros((N, 2, 2)), 1.0)
-    xf, Pf, xp, Pp = out[:4]
+    xf, Pf, xp, Pp = _azimuth_forward(x03, P03, F3, Q3, eps, var)
     _check_cv(xf, Pf, ref.xf, ref.Pf)
+    _check_cv(xp, Pp, ref.xp, ref.Pp)
     sm = rts_smooth(xf, Pf, xp, Pp, F3)
     _check_cv(sm.x, sm.P, ref.xs, ref.Ps)
 
 
 def test_cv_arms_kernel():
-    """Guards the ADS/ARMS kernel (``methods/arms/filter.py``: core predict and Joseph update)
-    on its linear part: constant velocity plus the air-data error as a Gauss-Markov state,
-    measured through the air-data velocity ``V + dV``."""
+    """Guards the ADS/ARMS track model (``methods/arms/model.py``: core predict and Joseph
+    update, on the core's forward loop) on its linear part: constant velocity plus the air-data
+    error as a Gauss-Markov state, measured through the air-data velocity ``V + dV``."""
     from flightrecon.methods.arms import joint_process_noise, joint_transition
-    from flightrecon.methods.arms.filter import _arms_kernel
 
     rng = np.random.default_rng(4)
     N = 40
@@ -232,13 +247,13 @@ def test_cv_arms_kernel():
     x0 = np.array([1e3, 100.0, -2e3, 5.0, 3.0, -2.0])
     P0 = np.diag([100.0, 5.0, 100.0, 5.0, 20.0, 20.0]) ** 2
     air = np.column_stack([100.0 + rng.normal(0, 1, N), 5.0 + rng.normal(0, 1, N)])
-    air[rng.choice(N, 8, replace=False)] = np.nan  # the kernel takes the pair or neither
+    air[rng.choice(N, 8, replace=False)] = np.nan  # the model takes the pair or neither
     H = np.zeros((2, 6))
     H[0, 1] = H[0, 4] = H[1, 3] = H[1, 5] = 1.0
     ref = kalman_rts(x0, P0, F, Q, air, H, np.full((N, 2), 0.3**2))
-    out = _arms_kernel(x0, P0, F, Q, np.full((N, 2), np.nan), np.ones((N, 2)), air,
-                       0.3**2 * np.eye(2), 0)
+    out = _arms_forward(x0, P0, F, Q, air, 0.3**2 * np.eye(2))
     _check_cv(out[0], out[1], ref.xf, ref.Pf)
+    _check_cv(out[2], out[3], ref.xp, ref.Pp)
     sm = rts_smooth(out[0], out[1], out[2], out[3], F)
     _check_cv(sm.x, sm.P, ref.xs, ref.Ps)
 

@@ -28,13 +28,15 @@ from typing import Any
 from flightrecon.types import CleanFlight, MethodResult
 
 #: per method, the compiled kernel whose cache entry tells whether the method's kernels are
-#: compiled (its largest kernel, compiled on every run of the method)
-KERNEL_SENTINELS: dict[str, tuple[str, str]] = {
+#: compiled (its largest kernel, compiled on every run of the method); a third element names
+#: the model class whose specialisation of that kernel (the estimation core's shared loop)
+#: must be among its cache entries
+KERNEL_SENTINELS: dict[str, tuple[str, ...]] = {
     "joint": ("flightrecon.methods.joint.passes", "forward"),
     "sns": ("flightrecon.methods.sns.filter", "_filter_kernel"),
     "sabziev": ("flightrecon.methods.sabziev.discrete", "_run_end"),
-    "arms": ("flightrecon.methods.arms.filter", "_arms_kernel"),
-    "azimuth": ("flightrecon.methods.azimuth.filter", "_azimuth_kernel"),
+    "arms": ("flightrecon.estimation.filtering", "forward_pass", "ArmsTrackModel"),
+    "azimuth": ("flightrecon.estimation.filtering", "forward_pass", "AzimuthModel"),
 }
 
 
@@ -48,7 +50,10 @@ def kernels_cached(method: str) -> bool:
     try:
         dispatcher = getattr(importlib.import_module(spec[0]), spec[1])
         # numba's own index: empty when missing or written for another version of the source
-        return bool(dispatcher._cache._cache_file._load_index())
+        index = dispatcher._cache._cache_file._load_index()
+        if len(spec) > 2:  # keys (signature, codegen magic): the model's own specialisation
+            return any(str(key[0][0]).startswith(spec[2] + "(") for key in index)
+        return bool(index)
     except Exception:  # noqa: BLE001 - numba internals changed, caching off: do as when warm
         return True
 
