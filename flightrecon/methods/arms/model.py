@@ -410,8 +410,9 @@ def _update(model, k, x, P, ws):
     if not (np.isnan(radar[k, 0]) or np.isnan(radar[k, 1])):
         rho = radar[k, 0]
         th = radar[k, 1]
-        sr2 = model.radar_sd[k, 0] ** 2
-        st2 = model.radar_sd[k, 1] ** 2
+        radar_sd = model.radar_sd
+        sr2 = radar_sd[k, 0] ** 2
+        st2 = radar_sd[k, 1] ** 2
         px = x[0]
         py = x[2]
         r2 = px * px + py * py
@@ -456,9 +457,10 @@ def _update(model, k, x, P, ws):
         Hk[c, 4] = 1.0
         Hk[c + 1, 3] = 1.0
         Hk[c + 1, 5] = 1.0
+        Rv = model.Rv
         for a in range(2):
             for b in range(2):
-                Rk[c + a, c + b] = model.Rv[a, b]
+                Rk[c + a, c + b] = Rv[a, b]
         slot[c] = 2
         slot[c + 1] = 3
         c += 2
@@ -469,10 +471,12 @@ def _update(model, k, x, P, ws):
         x[:] = xu
         P[:, :] = Pu
         model.n_meas[k] = c
+        nu_k = model.nu[k]
+        S_k = model.S[k]
         for a in range(c):
-            model.nu[k, slot[a]] = v[a]
+            nu_k[slot[a]] = v[a]
             for b in range(c):
-                model.S[k, slot[a], slot[b]] = S[a, b]
+                S_k[slot[a], slot[b]] = S[a, b]
 
 
 @implements(keep_filtered, ArmsTrackModel)
