@@ -38,7 +38,7 @@ PATTERNS = {
         r"\(1\.0 if i == j else 0\.0\) - \w+\[i, j\]",                 # loop I - K H
         r"K\s*=\s*PH\s*/\s*S|inv_s\s*=\s*1\.0\s*/\s*S",                  # scalar gain
         r"-=\s*\(?\w+\s*\*\s*PH\[",                                      # P -= PH PH^T / S
-        r"mmt_into\(B, G\w*, \w+\)\s*#?.*\n\s*mm_into\(\w+, Sp",                  # B G^T S^+ (correlated)
+        r"mmt_into\(B, G\w*, \w+\)\s*#?.*\n\s*mm_into\(\w+, Sp",  # B G^T S^+ (correlated)
     ],
     "rts_step": [
         r"xs\[k\]\s*=\s*x\[k\]\s*\+\s*C\s*@",                            # numpy mean

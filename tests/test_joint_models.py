@@ -239,9 +239,9 @@ def _step_mean(x, idx, t_in):
 def test_fused_attitude_step_means_equal_the_per_sample_route():
     from flightrecon.geo.kinematics import body_to_ned_matrix
     from flightrecon.methods.joint.nominal import (
-        _attitude_step_means,
-        _state_grid,
         attitude_jacobian,
+        attitude_step_means,
+        state_grid,
     )
 
     rng = np.random.default_rng(9)
@@ -250,8 +250,8 @@ def test_fused_attitude_step_means_equal_the_per_sample_route():
     C = body_to_ned_matrix(rng.uniform(-40, 40, n), rng.uniform(-15, 15, n),
                            rng.uniform(0, 360, n))
     f = rng.normal(0, 1, (n, 3))
-    idx = _state_grid(t, 1.0)
-    Cm, Sm, Jm = _attitude_step_means(C, f, idx, t)
+    idx = state_grid(t, 1.0)
+    Cm, Sm, Jm = attitude_step_means(C, f, idx, t)
     # same sums in a different order: a few ulps of O(1) values
     np.testing.assert_allclose(Cm, _step_mean(C, idx, t), atol=1e-13)
     np.testing.assert_allclose(Sm, _step_mean(C * f[:, None, :], idx, t), atol=1e-13)
@@ -418,11 +418,11 @@ def test_gust_process_noise_keeps_the_stationary_variance():
     """Guards the exact discretisation of the first-order Gauss-Markov gust (docs/joint.md,
     "Wind and turbulence"): from its stationary variance sigma^2, one step of any length keeps
     sigma^2 (F P F^T + Q = a^2 s^2 + s^2 (1 - a^2)); the other states' noise is unchanged."""
-    from flightrecon.methods.joint.nominal import _q_vector
+    from flightrecon.methods.joint.nominal import q_vector
     from flightrecon.methods.joint.settings import JointNoise
     from flightrecon.methods.joint.turbulence import gust_decay
     nz = JointNoise(gust_mps=2.5, gust_length_m=400.0)
-    q = _q_vector(nz)
+    q = q_vector(nz)
     rng = np.random.default_rng(5)
     _, _, Cen, *_ = _setup(rng)
     for h, v in ((0.25, 60.0), (1.0, 230.0), (5.0, 10.0)):
@@ -843,13 +843,13 @@ def test_increments_do_not_lag_a_turning_acceleration():
     the turn direction; docs/joint.md "Increments"). The centred hold's error is second order:
     9e-7 of the velocity increment and 1.7e-5 of the position increment here, where the
     forward hold's is 1.6e-3 for both (bounds 1e-5 and 5e-5)."""
-    from flightrecon.methods.joint.nominal import _increments, _state_grid
+    from flightrecon.methods.joint.nominal import held_increments, state_grid
 
     w = np.radians(3.0)                                 # rate-one turn
     t = np.arange(0.0, 60.0, 1.0 / 16.0)
     acc = np.c_[np.cos(w * t), np.sin(w * t), np.zeros(len(t))] * 2.6   # centripetal, m/s^2
-    idx = _state_grid(t, 1.0)
-    dV, dP, _ = _increments(t, acc, idx)
+    idx = state_grid(t, 1.0)
+    dV, dP, _ = held_increments(t, acc, idx)
     T = t[idx]
     exact = np.c_[np.sin(w * T[1:]) - np.sin(w * T[:-1]),
                   -np.cos(w * T[1:]) + np.cos(w * T[:-1])] * 2.6 / w

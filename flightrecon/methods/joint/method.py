@@ -52,7 +52,7 @@ from flightrecon.methods.joint.diagnostics import (
     wind_walk_check,
     wind_walk_warning,
 )
-from flightrecon.methods.joint.inputs import _nearest
+from flightrecon.methods.joint.inputs import nearest_index
 from flightrecon.methods.joint.measurements import wind_prior_measurements
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult
 
@@ -78,7 +78,7 @@ def _held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndar
             out.append(a)
             continue
         held = a.copy()
-        held[~ok] = a[ok][_nearest(t[ok], t[~ok])]
+        held[~ok] = a[ok][nearest_index(t[ok], t[~ok])]
         out.append(held)
         notes.append(f"joint: {name} missing on {int((~ok).sum())} samples; the acceleration "
                      "there is replaced by process noise and the bias rotation holds the "
