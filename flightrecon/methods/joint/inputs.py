@@ -66,7 +66,7 @@ class JointInputs:
     missing_psd : white-acceleration PSD [(m/s^2)^2/Hz] standing for each input sample's
         acceleration where it is missing (Ni,), or None: 1 everywhere (the dynamics'
         ``qv_extra``; a derived ``n_long_g`` where the airspeed comes alive: larger,
-        :func:`flightrecon.methods.joint.method.airspeed_floor_psd`)
+        :func:`flightrecon.methods.joint.flight_inputs.airspeed_floor_psd`)
     """
 
     t_in: np.ndarray
