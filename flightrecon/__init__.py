@@ -4,11 +4,11 @@ Units: SI inside (metres, seconds, radians in the maths); column names carry the
 (``_m``, ``_mps``, ``_deg``, ``_g``, ``_s``).  Conventions: see ``docs/schema.md``.
 """
 
-from flightrecon import _numba_cache
+from flightrecon import numba_cache
 
 # where the compiled kernels are cached: before any kernel module is imported (a read-only
 # installation with an unwritable home must still run)
-_numba_cache.configure()
+numba_cache.configure()
 
 __all__ = ["__version__"]
 

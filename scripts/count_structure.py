@@ -1,5 +1,13 @@
-"""Count what issue 20's acceptance asks of the package's structure.
+"""Count what issues 20 and 40 ask of the package's structure.
 
+* the time loops of a forward filter (a loop over an ascending range whose body predicts and
+  updates) and of a backward smoother (a loop over a descending range whose body takes an RTS
+  step), found by the shape of the code;
+* private names (a leading underscore) imported from another module of the package;
+* import circles among the package's modules (module-level imports, those under
+  ``TYPE_CHECKING`` included) and imports against the data's direction (the estimation core
+  importing a method, the pipeline or the CLI; a method importing the pipeline or the CLI; the
+  pipeline importing the CLI);
 * implementations of the Kalman prediction, the measurement updates and the RTS backward step
   (functions whose body computes them, found by the shape of their code, not by their names);
 * package files above 500 lines;
@@ -38,7 +46,7 @@ PATTERNS = {
         r"\(1\.0 if i == j else 0\.0\) - \w+\[i, j\]",                 # loop I - K H
         r"K\s*=\s*PH\s*/\s*S|inv_s\s*=\s*1\.0\s*/\s*S",                  # scalar gain
         r"-=\s*\(?\w+\s*\*\s*PH\[",                                      # P -= PH PH^T / S
-        r"mmt_into\(B, G\w*, \w+\)\s*#?.*\n\s*mm_into\(\w+, Sp",                  # B G^T S^+ (correlated)
+        r"mmt_into\(B, G\w*, \w+\)\s*#?.*\n\s*mm_into\(\w+, Sp",  # B G^T S^+ (correlated)
     ],
     "rts_step": [
         r"xs\[k\]\s*=\s*x\[k\]\s*\+\s*C\s*@",                            # numpy mean
@@ -68,7 +76,161 @@ def _is_njit(fn: ast.FunctionDef) -> bool:
     return any("njit" in ast.unparse(d) for d in fn.decorator_list)
 
 
+FORWARD_BODY = (re.compile(r"\bpredict\w*\("), re.compile(r"\b(\w*update\w*|gain_into)\("))
+BACKWARD_BODY = re.compile(r"\brts_(step|mean_solve)\(")
+
+
+def _range_direction(node: ast.For) -> str | None:
+    """'up' for ``range(N)`` / ``range(a, b)``, 'down' for ``range(a, b, -1)``, else None."""
+    it = node.iter
+    if not (isinstance(it, ast.Call) and isinstance(it.func, ast.Name) and it.func.id == "range"):
+        return None
+    if len(it.args) == 3:
+        step = ast.unparse(it.args[2]).replace(" ", "")
+        return "down" if step.startswith("-") else "up"
+    return "up"
+
+
+def _time_loops(fn: ast.FunctionDef) -> tuple[int, int]:
+    """Forward-filter and backward-smoother loops directly in ``fn`` (module docstring)."""
+    fwd = bwd = 0
+    for node in ast.walk(fn):
+        if not isinstance(node, ast.For):
+            continue
+        body = "\n".join(ast.unparse(b) for b in node.body)
+        d = _range_direction(node)
+        if d == "up" and all(p.search(body) for p in FORWARD_BODY):
+            fwd += 1
+        elif d == "down" and BACKWARD_BODY.search(body):
+            bwd += 1
+    return fwd, bwd
+
+
+def _module_of(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imports(tree: ast.Module, modules: set[str]) -> list[tuple[str, list[str]]]:
+    """Module-level imports (and those under ``if TYPE_CHECKING``) of package modules: the
+    imported module and the names taken from it."""
+    out = []
+    body = list(tree.body)
+    for node in list(body):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            body.extend(node.body)
+    for node in body:
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            if not node.module.startswith("flightrecon"):
+                continue
+            names = [a.name for a in node.names]
+            subs = [n for n in names if f"{node.module}.{n}" in modules]
+            for n in subs:
+                out.append((f"{node.module}.{n}", []))
+            rest = [n for n in names if n not in subs]
+            if rest or not subs:
+                out.append((node.module, rest))
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("flightrecon"):
+                    out.append((a.name, []))
+    return out
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    sys.setrecursionlimit(10000)
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+#: the data's direction: a module of a layer imports nothing of the layers after it
+LAYERS = [("flightrecon.estimation", ("flightrecon.methods", "flightrecon.pipeline",
+                                      "flightrecon.cli")),
+          ("flightrecon.methods", ("flightrecon.pipeline", "flightrecon.cli")),
+          ("flightrecon.pipeline", ("flightrecon.cli",))]
+
+
+def _structure_report() -> None:
+    files = sorted(PKG.rglob("*.py"))
+    modules = {_module_of(f) for f in files}
+    fwd_loops, bwd_loops, private, against = [], [], [], []
+    graph: dict[str, set[str]] = {}
+    for f in files:
+        tree = ast.parse(f.read_text(encoding="utf-8"))
+        mod = _module_of(f)
+        rel = f.relative_to(ROOT).as_posix()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef):
+                nf, nb = _time_loops(node)
+                fwd_loops += [f"{rel}::{node.name}"] * nf
+                bwd_loops += [f"{rel}::{node.name}"] * nb
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0 \
+                    and node.module.startswith("flightrecon") and node.module != mod:
+                private += [f"{rel}: {node.module}.{a.name}" for a in node.names
+                            if a.name.startswith("_") and not a.name.startswith("__")]
+        for target, _names in _imports(tree, modules):
+            if target in modules and target != mod:
+                graph.setdefault(mod, set()).add(target)
+                for layer, later in LAYERS:
+                    if mod.startswith(layer) and target.startswith(later):
+                        against.append(f"{rel} imports {target}")
+    print("## time loops (by the shape of their code)")
+    print(f"forward filter loops: {len(fwd_loops)}")
+    for n in fwd_loops:
+        print(f"    {n}")
+    print(f"backward smoother loops: {len(bwd_loops)}")
+    for n in bwd_loops:
+        print(f"    {n}")
+    print(f"\n## private names imported from another module of the package: {len(private)}")
+    for n in private:
+        print(f"    {n}")
+    circles = _circles(graph)
+    print(f"\n## import circles (module-level and TYPE_CHECKING imports): {len(circles)}")
+    for c in circles:
+        print(f"    {' <-> '.join(c)}")
+    print(f"\n## imports against the data's direction: {len(against)}")
+    for n in against:
+        print(f"    {n}")
+    print()
+
+
 def main() -> int:
+    _structure_report()
     big_files, long_fns, wide_fns, wide_kernels = [], [], [], []
     impl: dict[str, list[str]] = {k: [] for k in PATTERNS}
     for f in sorted(PKG.rglob("*.py")):

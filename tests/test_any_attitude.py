@@ -19,7 +19,7 @@ from flightrecon.geo.kinematics import (
     kinematic_acceleration_ned,
     load_factors_from_acceleration,
 )
-from flightrecon.methods.joint.nominal import _attitude_step_means, attitude_jacobian
+from flightrecon.methods.joint.nominal import attitude_jacobian, attitude_step_means
 
 # (roll, pitch, heading) [deg]: steep bank, knife edge, inverted, near the vertical both ways
 ATTITUDES = [(120.0, 10.0, 30.0), (180.0, 0.0, 200.0), (-150.0, -40.0, 300.0),
@@ -52,7 +52,7 @@ def test_step_means_kernel_equals_the_per_sample_jacobian():
     fb = np.resize(F_BODY, (len(att), 3))
     idx = np.arange(len(att), dtype=np.int64)  # one sample per step
     t = np.arange(len(att), dtype=float)
-    C_m, S_m, J_m = _attitude_step_means(np.ascontiguousarray(C), np.ascontiguousarray(fb), idx,
+    C_m, S_m, J_m = attitude_step_means(np.ascontiguousarray(C), np.ascontiguousarray(fb), idx,
                                          t)
     J = attitude_jacobian(C, fb)
     # step k holds the second half of sample k-1 and the first half of sample k

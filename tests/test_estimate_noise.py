@@ -62,7 +62,7 @@ def test_worse_estimate_rejected(clean, monkeypatch):
         gi = list(joint_noise.NOISE_GROUPS.values()).index("gnss_pos")
         return {**{k: 1.0 for k in out}, gi: 50.0}
 
-    monkeypatch.setattr(joint_noise, "_em_noise_scales", bad)  # called by its _noise_update
+    monkeypatch.setattr(joint_noise, "_em_noise_scales", bad)  # called by its noise_update
     r = run_joint(clean, settings=JointSettings(estimate_noise=True))
     nc = r.summary["noise_check"]
     assert not nc["accepted"] and nc["loglik_estimated"] < nc["loglik_default"]

@@ -27,7 +27,7 @@ PROBE = textwrap.dedent("""
     if len(sys.argv) > 2:       # the system's temporary folder too (no fallback to /tmp)
         tempfile.tempdir = sys.argv[2]
     import flightrecon
-    from flightrecon import _numba_cache
+    from flightrecon import numba_cache
     from flightrecon.pipeline import METHOD_FUNCTIONS
     import importlib
     for mod, _ in METHOD_FUNCTIONS.values():   # decorating the kernels needs a cache locator
@@ -35,7 +35,7 @@ PROBE = textwrap.dedent("""
     sys.path.insert(0, sys.argv[1])
     import tinykernel                           # one small cached kernel, compiled and saved
     assert tinykernel.twice(21.0) == 42.0
-    print(json.dumps(_numba_cache.CHOICE))
+    print(json.dumps(numba_cache.CHOICE))
 """)
 
 KERNEL = textwrap.dedent("""
@@ -97,7 +97,7 @@ def test_readonly_installation_uses_the_user_cache_dir(readonly_install, tmp_pat
     assert Path(choice["path"]) == cache / "flightrecon" / "numba"
 
 
-def test_numba_cache_dir_is_honoured(readonly_install, tmp_path):
+def testnumba_cache_dir_is_honoured(readonly_install, tmp_path):
     mine = tmp_path / "mine"
     mine.mkdir()
     p = _run(readonly_install, {"NUMBA_CACHE_DIR": str(mine)})

@@ -23,7 +23,8 @@ from flightrecon.methods.joint import smoother as sm
 from flightrecon.methods.joint import updates as upd
 from flightrecon.methods.joint.cost import map_cost, robust_loss
 from flightrecon.methods.joint.dynamics import add_process_noise, transition
-from flightrecon.methods.joint.method import joint_inputs, run_joint
+from flightrecon.methods.joint.flight_inputs import joint_inputs
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.methods.joint.observation import measure
 from flightrecon.types import Flight
 
@@ -77,8 +78,8 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     s = JointSettings(noise=mc.noise_from_sensors(r.sensor_truth), iterations=2)
     inp = joint_inputs(clean)
     run = sm.smooth_joint(inp, s)
-    fl = lin._flight(inp, s)
-    mdl, X = lin._models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll)
+    fl = lin.smoother_flight(inp, s)
+    mdl, X = lin.models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll)
     rng = np.random.default_rng(3)
     Xp = X.copy()
     Xp[:, jl.S_POS] += np.cumsum(rng.normal(0.0, 3.0, (len(X), 3)), axis=0)
@@ -86,7 +87,7 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     Xp[:, jl.IPSI] += 0.01
     x0 = X[0] + rng.normal(0.0, 1.0, jl.N_STATE) * 1e-3
     P0inv = np.diag(1.0 / (np.arange(1, jl.N_STATE + 1) * 1e-3) ** 2)
-    sc = lin._scalars(mdl, fl.T, mdl.meas.r, np.ones(len(mdl.meas.z)))
+    sc = lin.pass_scalars(mdl, fl.T, mdl.meas.r, np.ones(len(mdl.meas.z)))
     prior, process, data, const, res, rate, n_fail = map_cost(
         Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, s.huber_c, s.reject_c, True)
     ref = _reference_cost(Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, mdl.meas.step, s.huber_c,
@@ -108,7 +109,7 @@ def test_robust_loss_is_majorised_by_the_irls_weights():
     u = np.linspace(-20.0, 20.0, 4001)
     rho = np.array([robust_loss(v, s.huber_c, s.reject_c, True) for v in u])
     for u0 in (0.5, 2.9, 3.1, 5.0, 7.9, 8.5, 15.0):
-        w = upd._robust_weights(np.array([u0]), np.ones(1), s)[0]
+        w = upd.robust_weights(np.array([u0]), np.ones(1), s)[0]
         rho0 = robust_loss(u0, s.huber_c, s.reject_c, True)
         maj = w * u ** 2 / 2 + (rho0 - w * u0 ** 2 / 2)
         # (beyond reject_c the rule keeps a weight of 1e-8: a majoriser up to 1e-8 u0^2 / 2)

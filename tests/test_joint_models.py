@@ -163,7 +163,7 @@ def test_mean_only_backward_pass_gives_the_covariance_pass_states():
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
     from flightrecon.methods.joint import JointSettings, smooth_joint
-    from flightrecon.methods.joint.method import joint_inputs
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
 
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
     run = smooth_joint(joint_inputs(clean_flight(load_flight(log))), JointSettings(iterations=1))
@@ -239,9 +239,9 @@ def _step_mean(x, idx, t_in):
 def test_fused_attitude_step_means_equal_the_per_sample_route():
     from flightrecon.geo.kinematics import body_to_ned_matrix
     from flightrecon.methods.joint.nominal import (
-        _attitude_step_means,
-        _state_grid,
         attitude_jacobian,
+        attitude_step_means,
+        state_grid,
     )
 
     rng = np.random.default_rng(9)
@@ -250,8 +250,8 @@ def test_fused_attitude_step_means_equal_the_per_sample_route():
     C = body_to_ned_matrix(rng.uniform(-40, 40, n), rng.uniform(-15, 15, n),
                            rng.uniform(0, 360, n))
     f = rng.normal(0, 1, (n, 3))
-    idx = _state_grid(t, 1.0)
-    Cm, Sm, Jm = _attitude_step_means(C, f, idx, t)
+    idx = state_grid(t, 1.0)
+    Cm, Sm, Jm = attitude_step_means(C, f, idx, t)
     # same sums in a different order: a few ulps of O(1) values
     np.testing.assert_allclose(Cm, _step_mean(C, idx, t), atol=1e-13)
     np.testing.assert_allclose(Sm, _step_mean(C * f[:, None, :], idx, t), atol=1e-13)
@@ -260,7 +260,7 @@ def test_fused_attitude_step_means_equal_the_per_sample_route():
 
 def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
     """Positions of a cubic path with exact velocities are reproduced to round-off."""
-    from flightrecon.methods.joint.method import _hermite_positions
+    from flightrecon.methods.joint.track import hermite_positions
 
     T = np.array([0.0, 1.0, 2.5, 4.0])
     t = np.linspace(-0.5, 4.5, 41)   # includes points outside (clamped to the ends)
@@ -271,7 +271,7 @@ def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
     def vel(tt):
         return np.c_[3 * tt ** 2 - 2, tt, 0 * tt]
 
-    got = _hermite_positions(t, T, path(T), vel(T))
+    got = hermite_positions(t, T, path(T), vel(T))
     inside = (t >= 0) & (t <= 4)
     np.testing.assert_allclose(got[inside], path(t[inside]), atol=1e-12)
     np.testing.assert_allclose(got[t < 0], np.repeat(path(T[:1]), (t < 0).sum(), 0), atol=1e-12)
@@ -285,7 +285,7 @@ def captured_passes():
     import flightrecon.methods.joint as J
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
-    from flightrecon.methods.joint.method import joint_inputs
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
 
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
     inp = joint_inputs(clean_flight(load_flight(log)))
@@ -339,7 +339,7 @@ def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypat
     import flightrecon.methods.joint as J
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
-    from flightrecon.methods.joint.method import joint_inputs
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
 
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
     inp = joint_inputs(clean_flight(load_flight(log)))
@@ -418,11 +418,11 @@ def test_gust_process_noise_keeps_the_stationary_variance():
     """Guards the exact discretisation of the first-order Gauss-Markov gust (docs/joint.md,
     "Wind and turbulence"): from its stationary variance sigma^2, one step of any length keeps
     sigma^2 (F P F^T + Q = a^2 s^2 + s^2 (1 - a^2)); the other states' noise is unchanged."""
-    from flightrecon.methods.joint.nominal import _q_vector
+    from flightrecon.methods.joint.nominal import q_vector
     from flightrecon.methods.joint.settings import JointNoise
     from flightrecon.methods.joint.turbulence import gust_decay
     nz = JointNoise(gust_mps=2.5, gust_length_m=400.0)
-    q = _q_vector(nz)
+    q = q_vector(nz)
     rng = np.random.default_rng(5)
     _, _, Cen, *_ = _setup(rng)
     for h, v in ((0.25, 60.0), (1.0, 230.0), (5.0, 10.0)):
@@ -805,7 +805,7 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     from dataclasses import replace
     from types import SimpleNamespace
 
-    import flightrecon.methods.joint.method as jm
+    import flightrecon.methods.joint.data_settings as jm
     from flightrecon.envelope import Evidence, _dr_walk
     from flightrecon.methods.joint.settings import JointSettings
 
@@ -820,14 +820,14 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     turning = fake_run(22.0 * np.c_[np.cos(ang), np.sin(ang)])
     calls = []
     monkeypatch.setattr(jm, "smooth_joint", lambda inp, s: calls.append(s) or turning)
-    run, s, rounds = jm._wind_walk_rounds(None, JointSettings(), turning)
+    run, s, rounds = jm.wind_walk_rounds(None, JointSettings(), turning)
     chord = 2 * 22.0 * np.sin(np.radians(100.0 / 6))
     z2 = chord ** 2 / (0.05 ** 2 * 600.0)
     assert len(rounds) == 1 and len(calls) == 1 and rounds[0]["z2"] == pytest.approx(z2)
     assert s.noise.wind_rw_mps_sqrt_s == pytest.approx(0.05 * np.sqrt(z2 / 2.0))
     steady = fake_run(np.tile([5.0, -3.0], (n, 1)))
-    assert jm._wind_walk_rounds(None, JointSettings(), steady)[2] == []
-    assert jm._wind_walk_rounds(None, replace(JointSettings(), wind_rounds=0), turning)[2] == []
+    assert jm.wind_walk_rounds(None, JointSettings(), steady)[2] == []
+    assert jm.wind_walk_rounds(None, replace(JointSettings(), wind_rounds=0), turning)[2] == []
     res = SimpleNamespace(summary={"wind_walk": {"wind_rw_mps_sqrt_s": 0.364,
                                                  "rounds": rounds}})
     assert _dr_walk(res, Evidence()) == pytest.approx(0.728)
@@ -843,13 +843,13 @@ def test_increments_do_not_lag_a_turning_acceleration():
     the turn direction; docs/joint.md "Increments"). The centred hold's error is second order:
     9e-7 of the velocity increment and 1.7e-5 of the position increment here, where the
     forward hold's is 1.6e-3 for both (bounds 1e-5 and 5e-5)."""
-    from flightrecon.methods.joint.nominal import _increments, _state_grid
+    from flightrecon.methods.joint.nominal import held_increments, state_grid
 
     w = np.radians(3.0)                                 # rate-one turn
     t = np.arange(0.0, 60.0, 1.0 / 16.0)
     acc = np.c_[np.cos(w * t), np.sin(w * t), np.zeros(len(t))] * 2.6   # centripetal, m/s^2
-    idx = _state_grid(t, 1.0)
-    dV, dP, _ = _increments(t, acc, idx)
+    idx = state_grid(t, 1.0)
+    dV, dP, _ = held_increments(t, acc, idx)
     T = t[idx]
     exact = np.c_[np.sin(w * T[1:]) - np.sin(w * T[:-1]),
                   -np.cos(w * T[1:]) + np.cos(w * T[:-1])] * 2.6 / w
@@ -973,7 +973,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
 
     import pandas as pd
 
-    import flightrecon.methods.joint.method as jm
+    import flightrecon.methods.joint.data_settings as jm
     from flightrecon.methods.joint.diagnostics import wind_walk_check
     from flightrecon.methods.joint.settings import JointSettings
 
@@ -1013,7 +1013,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
 
     calls = []
     monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s: calls.append(s) or turning)
-    run, s, rounds = jm._wind_walk_rounds(inp, one_hz, turning)
+    run, s, rounds = jm.wind_walk_rounds(inp, one_hz, turning)
     q1 = (z2 * (Q + r * 600.0) / limit - r * 600.0) / 600.0
     assert rounds[0]["z2"] == pytest.approx(z2, rel=1e-9)
     assert calls[0].noise.wind_rw_mps_sqrt_s == pytest.approx(np.sqrt(q1), rel=1e-9)

@@ -33,12 +33,9 @@ from flightrecon.geo.pressure_height import MIN_SAT_SAMPLES
 from flightrecon.methods.joint import JointSettings
 from flightrecon.methods.joint import dynamics as jd
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.method import (
-    baro_field_reference_m,
-    sampled_loads_noise,
-    temperature_baro_prior,
-)
-from flightrecon.methods.joint.nominal import _q_vector
+from flightrecon.methods.joint.data_settings import sampled_loads_noise, temperature_baro_prior
+from flightrecon.methods.joint.flight_inputs import baro_field_reference_m
+from flightrecon.methods.joint.nominal import q_vector
 from flightrecon.methods.joint.settings import JointNoise
 from flightrecon.types import FlightMeta, Position
 
@@ -69,7 +66,7 @@ def test_per_axis_white_acceleration_is_the_exact_discretisation(extra):
     model for any per-axis PSD (docs/joint.md, "1 Hz records"), and with no extra it is the
     former isotropic q (h^3/3, h^2/2 C, h); to 1e-12 relative (matrix exponential rounding)."""
     nz = JointNoise(accel_sampling_mps2_sqrt_hz=extra)
-    q = _q_vector(nz)
+    q = q_vector(nz)
     C = _cen(np.radians(49.3), np.radians(4.1))
     for h in (0.25, 1.0, 4.0):
         dt = np.array([0.0, h])
@@ -171,7 +168,7 @@ def test_derived_long_load_is_not_used_where_the_airspeed_comes_alive():
     654 s): the derived n_long_g's +-3 s difference spans the jump on the 6 samples from 3 s
     before the first live reading to 2 s after it, and at the landing roll's end likewise;
     nowhere else (at rest, all dead; in flight, all alive)."""
-    from flightrecon.methods.joint.method import airspeed_floor_windows
+    from flightrecon.methods.joint.flight_inputs import airspeed_floor_windows
     t = np.arange(0.0, 100.0)
     tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))
     tas[80:] = 0.0
@@ -188,7 +185,7 @@ def test_the_airspeed_floor_window_leaves_the_roll_s_speed_unknown():
     the take-off, 0 at the landing roll's end: the floor 1), W its 6 s: the velocity change
     across it is then unknown by about V (sqrt(PSD W) = V) instead of the 2.4 m/s of the
     default 1 (m/s^2)^2/Hz; 1 elsewhere."""
-    from flightrecon.methods.joint.method import airspeed_floor_psd, airspeed_floor_windows
+    from flightrecon.methods.joint.flight_inputs import airspeed_floor_psd, airspeed_floor_windows
 
     t = np.arange(0.0, 100.0)
     tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))
@@ -322,19 +319,19 @@ def test_temperature_baro_prior_spread_and_guards():
 
 
 def test_missing_accelerations_weigh_their_psd_in_the_step_share():
-    """``nominal._increments``: per state step the seconds without an acceleration, each
+    """``nominal.held_increments``: per state step the seconds without an acceleration, each
     weighted by the inputs' ``missing_psd`` (1 without it): on a 1 Hz input with samples 3 and
     4 missing (2 s of centred holds) and a 2 s state grid, 2 s in all, and with a PSD of 9 on
     those samples 18, step by step 9 times the unweighted share."""
-    from flightrecon.methods.joint.nominal import _increments
+    from flightrecon.methods.joint.nominal import held_increments
 
     t = np.arange(0.0, 9.0)
     acc = np.zeros((9, 3))
     acc[3:5] = np.nan
     idx = np.arange(0, 9, 2)
-    _, _, miss1 = _increments(t, acc, idx)
+    _, _, miss1 = held_increments(t, acc, idx)
     psd = np.ones(9)
     psd[3:5] = 9.0
-    _, _, miss9 = _increments(t, acc, idx, psd)
+    _, _, miss9 = held_increments(t, acc, idx, psd)
     assert miss1.sum() == pytest.approx(2.0) and miss9.sum() == pytest.approx(18.0)
     np.testing.assert_allclose(miss9, 9.0 * miss1)

@@ -197,7 +197,8 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
 
     from flightrecon.cleaning import clean_flight
     from flightrecon.methods.joint import end_points
-    from flightrecon.methods.joint.method import joint_inputs, run_joint
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.method import run_joint
     from flightrecon.types import Flight
 
     ratios, rests = [], 0
@@ -272,7 +273,7 @@ def test_missing_attitude_is_held_and_reported_not_zero():
     from dataclasses import replace
 
     from flightrecon.geo.kinematics import body_to_ned_matrix
-    from flightrecon.methods.joint.method import joint_inputs
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
 
     clean = _circuit_clean()
     g = clean.grid.copy()
@@ -297,7 +298,7 @@ def test_joint_inputs_need_the_departure_for_gravity():
 
     from flightrecon.errors import MetadataError
     from flightrecon.geo.kinematics import kinematic_acceleration_ned
-    from flightrecon.methods.joint.method import joint_inputs
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
 
     clean = _circuit_clean()
     with pytest.raises(MetadataError, match="departure"):

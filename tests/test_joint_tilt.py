@@ -12,8 +12,8 @@ import pytest
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.ingest import load_flight
-from flightrecon.methods.joint.linearisation import _flight
-from flightrecon.methods.joint.method import joint_inputs
+from flightrecon.methods.joint.flight_inputs import joint_inputs
+from flightrecon.methods.joint.linearisation import smoother_flight
 from flightrecon.methods.joint.settings import JointNoise, JointSettings
 from flightrecon.methods.joint.tilt import load_departure_g, remembered, tilt_psd
 
@@ -76,15 +76,15 @@ def test_the_smoother_takes_the_tilt_noise_where_the_loads_left_one_g():
     mid = float(t[len(t) // 2])
     f[(t >= mid) & (t < mid + 20.0)] = 0.0
     settings = JointSettings(noise=JointNoise(ahrs_tilt_mps2_per_g=1.0))
-    base = _flight(dataclasses.replace(inp, f_body_g=np.array(inp.f_body_g)), settings)
-    fl = _flight(dataclasses.replace(inp, f_body_g=f), settings)
+    base = smoother_flight(dataclasses.replace(inp, f_body_g=np.array(inp.f_body_g)), settings)
+    fl = smoother_flight(dataclasses.replace(inp, f_body_g=f), settings)
     extra = fl.qv_extra - base.qv_extra
     want = (tilt_psd(t, f, fl.idx, settings.noise)
             - tilt_psd(t, np.array(inp.f_body_g), fl.idx, settings.noise))
     np.testing.assert_allclose(extra, want, rtol=1e-9, atol=1e-12)
     # the default (0) adds nothing
-    assert np.array_equal(_flight(dataclasses.replace(inp, f_body_g=f), JointSettings()).qv_extra,
-                          _flight(inp, JointSettings()).qv_extra)
+    with_f = smoother_flight(dataclasses.replace(inp, f_body_g=f), JointSettings())
+    assert np.array_equal(with_f.qv_extra, smoother_flight(inp, JointSettings()).qv_extra)
     k = int(np.searchsorted(fl.T, mid + 20.0))
     assert extra[k] > 1.0          # (1 - exp(-1/3))^2 * 60 = 4.8 (m/s^2)^2/Hz at its end
     assert np.all(extra[fl.T < mid - 1.0] == 0.0)

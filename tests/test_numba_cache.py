@@ -1,4 +1,4 @@
-"""Stale compiled kernels (flightrecon/_numba_cache.py, drop_stale_kernels): numba keys a cached
+"""Stale compiled kernels (flightrecon/numba_cache.py, drop_stale_kernels): numba keys a cached
 kernel on its own file's stamp, so a change to a function it calls in another file would leave
 the old compiled code in use, silently.  What is guarded: a source change anywhere a kernel
 can reach drops the package's cached kernels once, an unchanged package keeps them, both cache
@@ -9,7 +9,7 @@ import hashlib
 import os
 from pathlib import Path
 
-from flightrecon import _numba_cache as nc
+from flightrecon import numba_cache as nc
 
 PKG = Path(nc.__file__).resolve().parent
 
@@ -51,7 +51,7 @@ def test_a_changed_source_drops_the_cached_kernels_once(tmp_path):
         assert nc.drop_stale_kernels(pkg, cache_dir) is True and _cached(dirs) == []
 
 
-def test_numba_cache_dir_layout_is_numbas():
+def testnumba_cache_dir_layout_is_numbas():
     """The subfolder names follow numba's UserProvidedCacheLocator: <folder>_<sha1 of path>."""
     from numba.core.caching import UserProvidedCacheLocator
 

@@ -18,9 +18,10 @@ from flightrecon.geo.frames import offset_latlon
 from flightrecon.geo.wind import wind_aloft_ne
 from flightrecon.methods.baselines import dead_reckoning
 from flightrecon.methods.joint import JointNoise, JointSettings
+from flightrecon.methods.joint.flight_inputs import joint_inputs
 from flightrecon.methods.joint.inputs import end_points
 from flightrecon.methods.joint.measurements import wind_prior_measurements
-from flightrecon.methods.joint.method import joint_inputs, run_joint
+from flightrecon.methods.joint.method import run_joint
 from flightrecon.types import Flight, PositionFix, WindLevel
 
 SAMPLES = __import__("pathlib").Path(__file__).resolve().parents[1] / "sample_logs"

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-import pytest
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.types import Flight, FlightMeta

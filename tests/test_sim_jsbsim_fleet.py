@@ -188,8 +188,8 @@ def test_a_long_float_is_measured_not_assumed(tmp_path):
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
     from flightrecon.methods.joint import JointNoise
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
     from flightrecon.methods.joint.inputs import float_touchdown
-    from flightrecon.methods.joint.method import joint_inputs
     from flightrecon.sim import write_simulation
     from flightrecon.sim.jsbsim_flight import Runway
 

@@ -240,7 +240,7 @@ def test_concurrent_record_flight_one_record_per_log(tmp_path):
 def test_joint_priors_set_the_initial_state():
     from flightrecon.methods.joint import JointSettings, prior_of
     from flightrecon.methods.joint import layout as jk
-    from flightrecon.methods.joint.nominal import _initial
+    from flightrecon.methods.joint.nominal import initial_estimate
 
     s = JointSettings(priors=(("tas_scale", 0.02, 0.002), ("heading_bias_deg", 0.8, 0.05)))
     assert prior_of("tas_scale", s) == (0.02, 0.002)
@@ -250,7 +250,7 @@ def test_joint_priors_set_the_initial_state():
         tas = np.array([0.0])
         heading_rad = np.array([0.0])
 
-    x0, P0 = _initial(Inp, np.zeros((1, 3)), s.noise, 30.0, s.priors)
+    x0, P0 = initial_estimate(Inp, np.zeros((1, 3)), s.noise, 30.0, s.priors)
     assert x0[jk.IS] == 0.02 and P0[jk.IS, jk.IS] == pytest.approx(0.002 ** 2)
     assert x0[jk.IPSI] == pytest.approx(np.radians(0.8))
     assert P0[jk.IPSI, jk.IPSI] == pytest.approx(np.radians(0.05) ** 2)

@@ -100,7 +100,7 @@ def implements(function: Callable[..., Any], model_class: type) -> Callable[[Cal
     """
     def register(impl: Callable) -> Callable:
         def typer(model: Any, *args: Any) -> Callable | None:
-            if (isinstance(model, types.BaseNamedTuple)
+            if (isinstance(model, types.BaseNamedTuple)  # type: ignore[attr-defined]
                     and model.instance_class is model_class):
                 return impl
             return None

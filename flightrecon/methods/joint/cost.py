@@ -39,9 +39,9 @@ import numpy as np
 from flightrecon.estimation.linalg import cholesky_factor
 from flightrecon.estimation.predict import sparse_matvec, sparse_rows
 from flightrecon.methods.joint.dynamics import (
-    _wrap,
     add_process_noise,
     transition_into,
+    wrap_pi,
 )
 from flightrecon.methods.joint.layout import (
     AZIMUTH,
@@ -181,7 +181,7 @@ def map_cost(X, x0, P0inv, dyn, meas, geo, huber_c, reject_c, robust):
             t = mtype[j]
             r = mz[j] - hx
             if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
-                r = _wrap(r)
+                r = wrap_pi(r)
             res[j] = r
             if t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
                 rate[j] = 0.0

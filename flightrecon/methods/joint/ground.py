@@ -119,9 +119,6 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
     1000 m of roll).  With it the cross-country flights lost more than the upsets gained, so
     the default is 0 (docs/jsbsim.md).
     """
-    nz = settings.noise
-    slip = np.radians(nz.ground_slip_deg)
-    n = jl.N_STATE
     t_in = inp.t_in
     keep = on_ground_mask(inp, settings)
     if not keep.any():
@@ -147,57 +144,85 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         sel = keep & side
         if not sel.any():
             continue
-        # along the runway's direction (only its line matters: a reversed direction is the
-        # same), or the true heading psi_rec - dpsi linearised about the last pass's bias
-        tt = t_in[sel]
-        k = step_of(tt)
-        nose = not known or settings.roll_velocity == "nose"
-        ph = np.zeros(len(tt)) if psi_hat is None or not nose else psi_hat[k]
-        psi = inp.heading_rad[sel] - ph if nose else np.full(len(tt), rw)
-        H = np.zeros((len(tt), n))
-        H[:, jl.IV] = -np.sin(psi)
-        H[:, jl.IV + 1] = np.cos(psi)
-        v_roll = roll_speed(inp, settings, t_edge)
-        r_v = nz.ground_mps ** 2 + len(tt) * (slip * v_roll) ** 2
-        if nose:
-            H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
-        else:
-            # the wheels roll where the nose points: the track leaves the runway's direction
-            # by the nose's angle to the heading lined up at rest before a take-off roll, or,
-            # on a landing roll (no rest before it) and a take-off without one, by its angle
-            # to the runway itself (the heading bias inside it: a fraction of the swerves)
-            ref = rest_heading(inp) if dep_end == 0 else None
-            if ref is None and rw is not None:
-                ref = float(rw)
-            r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll, ref)
-        b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
+        tt, k, ph, psi = _roll_velocity_rows(b, inp, settings, sel, (dep_end, rw, t_edge),
+                                             step_of, vnom, psi_hat)
         if pos is None:
             continue
         on_cl = cl_side[sel]
-        if not on_cl.any():
-            continue
-        # the centreline: the runway's direction where known (only its line matters: a
-        # reversed direction is the same), else the true heading
-        tt, k, ph = tt[on_cl], k[on_cl], ph[on_cl]
-        if known:
-            psi, ph = np.full(len(tt), rw), np.zeros(len(tt))
-        else:
-            psi = psi[on_cl]
-        ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-        arp = np.array([float(ex), float(ey), float(ez)])
-        Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
-        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
-        along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
-        H = np.zeros((len(tt), n))
-        H[:, jl.S_POS] = cross
-        if not known:
-            H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
-        # without a threshold the line runs through the airfield's reference point, whose
-        # distance from the centreline is not known better than the reference itself
-        # (endpoint_h_m): one error common to the roll's m rows, m endpoint_h_m^2 on each
-        r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line else len(tt) * nz.endpoint_h_m ** 2)
-        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H,
-              -cross @ arp - H[:, jl.IPSI] * ph)
+        if on_cl.any():
+            _centreline_rows(b, settings, pos, (tt[on_cl], k[on_cl], ph[on_cl], psi[on_cl]),
+                             rw, on_line, pnom)
+
+
+def _roll_velocity_rows(b: Any, inp: JointInputs, settings: JointSettings, sel: np.ndarray,
+                        ends: tuple[int, float | None, float], step_of, vnom: np.ndarray,
+                        psi_hat: np.ndarray | None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The roll's cross-track velocity rows (:func:`runway_measurements`) on the samples
+    ``sel``; ``ends`` the departure (0) or arrival (1) end, its runway direction (None: not
+    known) and the lift-off or touchdown time.  Returns the rows' times, state steps, heading
+    bias of the linearisation and direction (for the centreline rows)."""
+    nz = settings.noise
+    slip = np.radians(nz.ground_slip_deg)
+    n = jl.N_STATE
+    dep_end, rw, t_edge = ends
+    known = rw is not None
+    # along the runway's direction (only its line matters: a reversed direction is the
+    # same), or the true heading psi_rec - dpsi linearised about the last pass's bias
+    tt = inp.t_in[sel]
+    k = step_of(tt)
+    nose = not known or settings.roll_velocity == "nose"
+    ph = np.zeros(len(tt)) if psi_hat is None or not nose else psi_hat[k]
+    psi = inp.heading_rad[sel] - ph if nose else np.full(len(tt), rw)
+    H = np.zeros((len(tt), n))
+    H[:, jl.IV] = -np.sin(psi)
+    H[:, jl.IV + 1] = np.cos(psi)
+    v_roll = roll_speed(inp, settings, t_edge)
+    r_v = nz.ground_mps ** 2 + len(tt) * (slip * v_roll) ** 2
+    if nose:
+        H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
+    else:
+        # the wheels roll where the nose points: the track leaves the runway's direction
+        # by the nose's angle to the heading lined up at rest before a take-off roll, or,
+        # on a landing roll (no rest before it) and a take-off without one, by its angle
+        # to the runway itself (the heading bias inside it: a fraction of the swerves)
+        ref = rest_heading(inp) if dep_end == 0 else None
+        if ref is None and rw is not None:
+            ref = float(rw)
+        r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll, ref)
+    b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
+    return tt, k, ph, psi
+
+
+def _centreline_rows(b: Any, settings: JointSettings, pos: tuple[float, float, float],
+                     rows: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                     rw: float | None, on_line: bool, pnom: np.ndarray) -> None:
+    """The roll's cross-track offset rows from the centreline through ``pos`` (the threshold,
+    ``on_line``, or the airfield's reference point) on the rows ``(tt, k, ph, psi)`` of the
+    centreline samples (:func:`runway_measurements`)."""
+    nz = settings.noise
+    n = jl.N_STATE
+    known = rw is not None
+    tt, k, ph, psi = rows
+    # the centreline: the runway's direction where known (only its line matters: a
+    # reversed direction is the same), else the true heading
+    if known:
+        psi, ph = np.full(len(tt), rw), np.zeros(len(tt))
+    ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+    arp = np.array([float(ex), float(ey), float(ez)])
+    Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
+    cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
+    along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
+    H = np.zeros((len(tt), n))
+    H[:, jl.S_POS] = cross
+    if not known:
+        H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
+    # without a threshold the line runs through the airfield's reference point, whose
+    # distance from the centreline is not known better than the reference itself
+    # (endpoint_h_m): one error common to the roll's m rows, m endpoint_h_m^2 on each
+    r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line else len(tt) * nz.endpoint_h_m ** 2)
+    b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H,
+          -cross @ arp - H[:, jl.IPSI] * ph)
 
 
 def rest_heading(inp: JointInputs) -> float | None:

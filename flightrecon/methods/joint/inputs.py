@@ -66,7 +66,7 @@ class JointInputs:
     missing_psd : white-acceleration PSD [(m/s^2)^2/Hz] standing for each input sample's
         acceleration where it is missing (Ni,), or None: 1 everywhere (the dynamics'
         ``qv_extra``; a derived ``n_long_g`` where the airspeed comes alive: larger,
-        :func:`flightrecon.methods.joint.method.airspeed_floor_psd`)
+        :func:`flightrecon.methods.joint.flight_inputs.airspeed_floor_psd`)
     """
 
     t_in: np.ndarray
@@ -119,7 +119,7 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
     if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):
         return roll
     t_in = inp.t_in
-    k_lo = int(_nearest(T, np.array([inp.liftoff_t]))[0])
+    k_lo = int(nearest_index(T, np.array([inp.liftoff_t]))[0])
     psi_lo = inp.heading_rad[max(int(np.searchsorted(t_in, inp.liftoff_t)) - 1, 0)]
     if not np.isfinite(psi_lo):
         return roll
@@ -252,7 +252,7 @@ def end_points(inp: JointInputs, nz: JointNoise,
     return out
 
 
-def _nearest(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
+def nearest_index(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
     """Index of the sample of sorted ``t`` nearest to each of ``tq`` (a tie goes to the later
     sample); the state step of a measurement, the input sample of a fix."""
     j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)

@@ -111,7 +111,7 @@ class Dynamics(NamedTuple):
     dV: np.ndarray        # (N, 3) exact velocity increments
     dz: np.ndarray        # (N,) height change over each step (wind gradient)
     qv_extra: np.ndarray  # (N,) extra acceleration PSD where the loads are missing
-    q: np.ndarray         # process-noise densities and the bias time constant (_q_vector)
+    q: np.ndarray         # process-noise densities and the bias time constant (q_vector)
     ga: np.ndarray        # (N,) gust decay over each step, exp(-V_k dt_k / L) (ga[0] = 1)
 
 

@@ -1,7 +1,8 @@
 """Linearisation of the joint smoother's iterations: what the passes hold fixed
-(:class:`_Flight`), the models built about a nominal or about an iterate (:class:`_Models`,
-with the local-level components re-expressed in the iterate's own frames) and the MAP cost of
-an iterate (:func:`_cost`, the kernel in :mod:`~flightrecon.methods.joint.cost`)."""
+(:class:`SmootherFlight`), the models built about a nominal or about an iterate
+(:class:`PassModels`, with the local-level components re-expressed in the iterate's own
+frames) and the MAP cost of an iterate (:func:`pass_cost`, the kernel in
+:mod:`~flightrecon.methods.joint.cost`)."""
 
 from __future__ import annotations
 
@@ -20,13 +21,13 @@ from flightrecon.methods.joint.measurements import (
     build_measurements,
     static_measurements,
 )
-from flightrecon.methods.joint.noise import _noise_groups
+from flightrecon.methods.joint.noise import noise_groups
 from flightrecon.methods.joint.nominal import (
-    _attitude_step_means,
-    _increments,
-    _q_vector,
-    _state_grid,
+    attitude_step_means,
+    held_increments,
+    q_vector,
     relinearised_increments,
+    state_grid,
 )
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.tilt import tilt_psd
@@ -34,7 +35,7 @@ from flightrecon.methods.joint.turbulence import gust_decay
 
 
 @dataclass
-class _Flight:
+class SmootherFlight:
     """What the iterations hold fixed: the state grid, the held-input increments, the
     attitude step means, the process noise, the station and the prior of x_0."""
 
@@ -61,7 +62,7 @@ class _Flight:
 
 
 @dataclass
-class _Models:
+class PassModels:
     """The dynamics, measurements and geometry built about one linearisation point."""
 
     lat: np.ndarray
@@ -77,16 +78,16 @@ class _Models:
     groups: np.ndarray
 
 
-def _flight(inp: JointInputs, settings: JointSettings) -> _Flight:
-    """The iteration-independent parts (:class:`_Flight`)."""
-    idx = _state_grid(inp.t_in, settings.state_rate_hz)
+def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight:
+    """The iteration-independent parts (:class:`SmootherFlight`)."""
+    idx = state_grid(inp.t_in, settings.state_rate_hz)
     T = inp.t_in[idx]
     dt = np.diff(T, prepend=T[0])
-    dV, dP, miss = _increments(inp.t_in, inp.acc_ned, idx, inp.missing_psd)
+    dV, dP, miss = held_increments(inp.t_in, inp.acc_ned, idx, inp.missing_psd)
     acc = dV / np.where(dt > 0, dt, 1.0)[:, None]
     fb = np.zeros((len(inp.t_in), 3)) if inp.f_body_g is None else np.nan_to_num(inp.f_body_g)
     # the input samples' rotations only for this (41 MB on a 10-hour flight at 16 Hz)
-    Cnb, Csf, Jatt = _attitude_step_means(inp.body_to_ned(), np.ascontiguousarray(fb),
+    Cnb, Csf, Jatt = attitude_step_means(inp.body_to_ned(), np.ascontiguousarray(fb),
                                           idx.astype(np.int64),
                                           np.ascontiguousarray(inp.t_in, dtype=float))
     # missing loads: (1 m/s^2)^2/Hz, or the inputs' missing_psd, over the share of the step
@@ -100,14 +101,14 @@ def _flight(inp: JointInputs, settings: JointSettings) -> _Flight:
         sx, sy, sz = geodetic_to_ecef(*inp.station)
         pst = np.array([float(sx), float(sy), float(sz)])
     ga = gust_decay(dt, inp.tas[idx], settings.noise, settings.min_airspeed_mps)
-    return _Flight(inp, settings, idx, T, dt, acc, dV, dP, Cnb, Csf, Jatt, qv_extra,
-                   _q_vector(settings.noise), ga, static_measurements(inp, settings, T), pst,
+    return SmootherFlight(inp, settings, idx, T, dt, acc, dV, dP, Cnb, Csf, Jatt, qv_extra,
+                   q_vector(settings.noise), ga, static_measurements(inp, settings, T), pst,
                    Cst)
 
 
-def _models_at(fl: _Flight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
+def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
                vnom: np.ndarray, psi_hat: np.ndarray | None, clock: dict[str, float],
-               roll: TakeoffRoll) -> _Models:
+               roll: TakeoffRoll) -> PassModels:
     """Dynamics, measurements and geometry linearised about the nominal (lat, lon, h, vnom,
     heading bias ``psi_hat``; None: zero, the first pass)."""
     inp = fl.inp
@@ -125,8 +126,8 @@ def _models_at(fl: _Flight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
     dyn = jl.Dynamics(fl.dt, Cen, fl.Cnb, fl.Csf, fl.Jatt, acc_k, dP_k, dV_k, dz, fl.qv_extra,
                       fl.q, fl.ga)
     geo = jl.Geometry(pnom, h - inp.field_h, fl.pst, fl.Cst)
-    return _Models(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock),
-                   _noise_groups(meas))
+    return PassModels(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock),
+                   noise_groups(meas))
 
 
 def _with_frame_rate(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
@@ -159,20 +160,20 @@ def _in_frame(X: np.ndarray, Cen_from: np.ndarray, Cen_to: np.ndarray) -> np.nda
     return Y
 
 
-def _models_about(fl: _Flight, X: np.ndarray, Cen_from: np.ndarray, clock: dict[str, float],
-                  roll: TakeoffRoll) -> tuple[_Models, np.ndarray]:
-    """:func:`_models_at` about the trajectory ``X`` itself (its positions, velocities and
+def models_about(fl: SmootherFlight, X: np.ndarray, Cen_from: np.ndarray, clock: dict[str, float],
+                  roll: TakeoffRoll) -> tuple[PassModels, np.ndarray]:
+    """:func:`models_at` about the trajectory ``X`` itself (its positions, velocities and
     heading bias; its local-level components in the frames ``Cen_from``), and ``X`` in its
     own frames (:func:`_in_frame`): the models in which the cost of ``X`` is its nonlinear
     cost."""
     lat, lon, h = ecef_to_geodetic(X[:, 0], X[:, 1], X[:, 2])
     Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
     Y = _in_frame(X, Cen_from, Cen)
-    return _models_at(fl, lat, lon, h, Y[:, jl.S_VEL], np.ascontiguousarray(Y[:, jl.IPSI]),
+    return models_at(fl, lat, lon, h, Y[:, jl.S_VEL], np.ascontiguousarray(Y[:, jl.IPSI]),
                       clock, roll), Y
 
 
-def _nominal_states(fl: _Flight, mdl: _Models) -> np.ndarray:
+def nominal_states(fl: SmootherFlight, mdl: PassModels) -> np.ndarray:
     """The starting trajectory of the damped iterations with ``first_pass = "nominal"``: the
     nominal positions, the air-data velocity of the nominal (plus the recorded wind, the
     wind state holding it) and the prior means of the sensor errors."""
@@ -194,18 +195,18 @@ def _nominal_states(fl: _Flight, mdl: _Models) -> np.ndarray:
     return X
 
 
-def _scaled_variances(mdl: _Models, scale: np.ndarray) -> np.ndarray:
+def scaled_variances(mdl: PassModels, scale: np.ndarray) -> np.ndarray:
     """Nominal measurement variances with the noise factors of their groups."""
     g = mdl.groups
     return mdl.meas.r * np.where(g >= 0, scale[np.maximum(g, 0)], 1.0)
 
 
-def _scalars(mdl: _Models, T: np.ndarray, r: np.ndarray, weights: np.ndarray) -> jl.Scalars:
+def pass_scalars(mdl: PassModels, T: np.ndarray, r: np.ndarray, weights: np.ndarray) -> jl.Scalars:
     m = mdl.meas
     return jl.Scalars(m.start, m.mtype, m.z, r, weights, m.t - T[m.step], m.H, m.hrow, m.d)
 
 
-def _cost(fl: _Flight, mdl: _Models, X: np.ndarray, r: np.ndarray,
+def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
           weights: np.ndarray) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
     """MAP cost of ``X`` (models built about it) and its residuals and rates
     (:func:`~flightrecon.methods.joint.cost.map_cost`)."""
@@ -214,7 +215,7 @@ def _cost(fl: _Flight, mdl: _Models, X: np.ndarray, r: np.ndarray,
     # the weights only mark left-out measurements (w <= 0); the loss is the robust one
     try:
         prior, process, data, const, res, rate, n_fail = map_cost(
-            X, fl.x0, fl.P0inv, mdl.dyn, _scalars(mdl, fl.T, r, weights), mdl.geo,
+            X, fl.x0, fl.P0inv, mdl.dyn, pass_scalars(mdl, fl.T, r, weights), mdl.geo,
             s.huber_c, s.reject_c, s.robust)
     except ZeroDivisionError:
         # a measurement function at a singular point (an air velocity of exactly zero under
@@ -228,7 +229,7 @@ def _cost(fl: _Flight, mdl: _Models, X: np.ndarray, r: np.ndarray,
     return cost, res, rate
 
 
-def _with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl.Scalars:
+def with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl.Scalars:
     """``sc`` with the Levenberg-Marquardt pseudo-measurements x_k,i = X_k,i of variance
     sd_i^2 / lam appended to every step's measurements (Sarkka & Svensson 2020, section 3: the
     smoother then minimises the linearised cost plus lam/2 sum_k |x_k - X_k|^2_D, D =

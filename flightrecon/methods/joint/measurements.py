@@ -20,8 +20,8 @@ from flightrecon.methods.joint.ground import (
 from flightrecon.methods.joint.inputs import (
     JointInputs,
     TakeoffRoll,
-    _nearest,
     end_points,
+    nearest_index,
     refined_roll,
 )
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
@@ -102,7 +102,7 @@ class _MeasBuilder:
         ok = cat["ok"].astype(bool) & (cat["t"] >= T[0] - 0.5 * (T[1] - T[0] if N > 1 else 1)) & (
             cat["t"] <= T[-1] + 0.5 * (T[-1] - T[-2] if N > 1 else 1))
         t = cat["t"][ok]
-        step = _nearest(T, t)
+        step = nearest_index(T, t)
         order = np.flatnonzero(ok)[np.lexsort((t, step))]
         step = np.sort(step, kind="stable")
         start = np.searchsorted(step, np.arange(N + 1), side="left")
@@ -284,7 +284,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         _add_ned_components(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
                         "pos", np.c_[ex, ey, ez])
     if pnom is not None and vnom is not None:
-        runway_measurements(b, inp, settings, lambda t: _nearest(T, t), pnom, vnom, psi_hat)
+        runway_measurements(b, inp, settings, lambda t: nearest_index(T, t), pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -318,7 +318,7 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
     measurements, whose rows the kernel builds from the step's frame with the tau term) or a
     velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to
     ``b``."""
-    k = _nearest(T, t)
+    k = nearest_index(T, t)
     for i in range(3 if kind == "pos" else 2):
         r = np.broadcast_to(sd[i] ** 2, (len(t),))
         if kind == "pos":   # c_i . p + v_i tau, c_i the NED axis i in ECEF at the step
@@ -333,9 +333,9 @@ def _substitute_height(inp: JointInputs, T: np.ndarray, t: np.ndarray,
     """Ellipsoidal height [m] for a position given without one at times ``t``: the nominal
     track's at the nearest state step, else the field's plus the recorded pressure height."""
     if pnom is not None:
-        k = _nearest(T, t)
+        k = nearest_index(T, t)
         return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
-    ii = _nearest(inp.t_in, t)
+    ii = nearest_index(inp.t_in, t)
     return inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
 
 
@@ -350,7 +350,7 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
         return
     t_in = inp.t_in
     tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
-    k = _nearest(T, tg)
+    k = nearest_index(T, tg)
     hg = g["h_m"].to_numpy(float)
     no_h = ~np.isfinite(hg)
     if no_h.any():
@@ -365,13 +365,13 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     v_arm = np.zeros((len(tg), 3))
     if np.any(L != 0):
         # attitude at the fix: nearest input sample
-        ii = _nearest(t_in, tg)
+        ii = nearest_index(t_in, tg)
         arm_ned = np.einsum("mij,j->mi", inp.body_to_ned(ii), L)
         ant = ant - np.einsum("mij,mj->mi", Cen[k], arm_ned)
         # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of
         # yaw): a central difference over +-0.5 s of the recorded attitude (its noise,
         # 0.05 deg at 8 Hz, then adds under 0.01 m/s)
-        ip, im = _nearest(t_in, tg + 0.5), _nearest(t_in, tg - 0.5)
+        ip, im = nearest_index(t_in, tg + 0.5), nearest_index(t_in, tg - 0.5)
         span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
         v_arm = np.einsum("mij,j->mi", inp.body_to_ned(ip) - inp.body_to_ned(im), L) / span
     # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
@@ -397,7 +397,7 @@ def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSet
         if ep["model"] in ("reference", "last_position"):
             _add_ned_components(b, T, Cen, "endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
             continue
-        k = _nearest(T, tt)[0]
+        k = nearest_index(T, tt)[0]
         tau = tt[0] - T[k]
         psi = ep["runway_rad"]
         Ca = ned_to_ecef_matrix(lat, lon)[0]

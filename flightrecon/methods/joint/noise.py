@@ -20,7 +20,7 @@ NOISE_GROUPS = {("air", jl.TAS): "air_tas", ("air", jl.HEADING): "air_heading",
 ground and runway constraints and the sparse recorded wind are priors, not estimated)."""
 
 
-def _noise_groups(meas: Measurements) -> np.ndarray:
+def noise_groups(meas: Measurements) -> np.ndarray:
     """Index into NOISE_GROUPS of each measurement, -1 where its variance is not estimated."""
     g = np.full(len(meas.z), -1, dtype=np.int64)
     for i, (src, mt) in enumerate(NOISE_GROUPS):
@@ -57,7 +57,7 @@ def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int
     return out
 
 
-def _noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.ndarray,
+def noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.ndarray,
                   use: np.ndarray, scale: np.ndarray, settings: JointSettings,
                   info: dict[str, Any]) -> tuple[np.ndarray, bool]:
     """EM step of the noise factors (:func:`_em_noise_scales`) on the measurements taken at

@@ -11,7 +11,7 @@ from flightrecon.methods.joint.inputs import JointInputs, end_points
 from flightrecon.methods.joint.settings import PRIOR_STATES, JointNoise
 
 
-def _state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
+def state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
     """Indices of the input grid that are state steps (every ``stride``-th sample, and the last)."""
     dt_in = float(np.median(np.diff(t_in))) if len(t_in) > 1 else 1.0
     stride = max(1, int(round(1.0 / (rate_hz * dt_in))))
@@ -40,7 +40,7 @@ def _half_holds(t_in: np.ndarray, idx: np.ndarray):
     return k_r, k_l, d_r, d_l
 
 
-def _increments(t_in, acc, idx, missing_psd=None):
+def held_increments(t_in, acc, idx, missing_psd=None):
     """Exact velocity and position increments over each state step for accelerations held on
     their samples' centred intervals (:func:`_half_holds`), and per step the missing
     accelerations' share: the seconds of it without an acceleration, each weighted by
@@ -91,7 +91,7 @@ def attitude_jacobian(Cnb: np.ndarray, f_body: np.ndarray) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True)
-def _attitude_step_means(Cnb, fb, idx, t_in):
+def attitude_step_means(Cnb, fb, idx, t_in):
     """Step means of C_nb, C_nb diag(f) and :func:`attitude_jacobian` in one pass over the
     input samples, without the per-sample intermediate arrays, weighted as the increments
     hold them (:func:`_half_holds`): over step k the samples idx[k-1] .. idx[k], the two ends
@@ -143,7 +143,7 @@ def _attitude_step_means(Cnb, fb, idx, t_in):
     return C_m, S_m, J_m
 
 
-def _q_vector(nz: JointNoise) -> np.ndarray:
+def q_vector(nz: JointNoise) -> np.ndarray:
     return np.array([nz.accel_noise_mps2_sqrt_hz ** 2, nz.wind_rw_mps_sqrt_s ** 2,
                      nz.wind_shear_mps_per_sqrt_m ** 2, nz.accel_bias_g ** 2, nz.accel_bias_tau_s,
                      np.radians(nz.heading_bias_rw_deg_sqrt_s) ** 2,
@@ -152,7 +152,7 @@ def _q_vector(nz: JointNoise) -> np.ndarray:
                      *(np.square(np.asarray(nz.accel_sampling_mps2_sqrt_hz, dtype=float)))])
 
 
-def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
+def initial_estimate(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
              priors: tuple[tuple[str, float, float], ...] = ()):
     n = jl.N_STATE
     x0 = np.zeros(n)
@@ -183,7 +183,7 @@ def _initial(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
     return x0, P0
 
 
-def _nominal_trajectory(inp: JointInputs, idx: np.ndarray, nz: JointNoise):
+def nominal_trajectory(inp: JointInputs, idx: np.ndarray, nz: JointNoise):
     """Iteration-0 linearisation trajectory on the state grid.
 
     Air-data dead reckoning (airspeed and heading, plus the recorded wind) integrated on the

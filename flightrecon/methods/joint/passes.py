@@ -24,9 +24,9 @@ from flightrecon.estimation.predict import (
 from flightrecon.estimation.rts import rts_mean_solve, rts_step, rts_step_work
 from flightrecon.estimation.updates import scalar_update_short
 from flightrecon.methods.joint.dynamics import (
-    _wrap,
     add_process_noise,
     transition_into,
+    wrap_pi,
 )
 from flightrecon.methods.joint.layout import (
     AZIMUTH,
@@ -122,7 +122,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
                                   hnom, pst, Cst)
                 nu = mz[j] - hx
                 if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
-                    nu = _wrap(nu)
+                    nu = wrap_pi(nu)
                 for i in range(n):
                     if H[i] != 0.0:
                         nu -= H[i] * (x[i] - xlin[k, i])
@@ -131,7 +131,7 @@ def forward(xf, Pf, xp, Pp, x0, P0, dyn, meas, geo, gate, xlin):
                                   pst, Cst)
                 nu = mz[j] - hx
                 if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
-                    nu = _wrap(nu)
+                    nu = wrap_pi(nu)
             nh = 0
             for i in range(n):
                 if H[i] != 0.0:
@@ -214,7 +214,7 @@ def _residuals_at(k, x, mstart, mtype, mz, mr, mtau, mH, mrow, md, Cen, pnom, hn
         e = mz[j] - hx
         t = mtype[j]
         if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
-            e = _wrap(e)
+            e = wrap_pi(e)
         res[j] = e
         res_n[j] = e / np.sqrt(mr[j])
         # rate of the predicted measurement with the measurement time: dh/dtau

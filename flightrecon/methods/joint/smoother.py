@@ -14,7 +14,7 @@ passes and held fixed within one (the cost is compared under the same ones).
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -22,25 +22,26 @@ import numpy as np
 from flightrecon.geo.frames import ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import passes as jp
+from flightrecon.methods.joint.gust_rounds import gust_update
 from flightrecon.methods.joint.inputs import JointInputs, TakeoffRoll, end_points, refined_roll
 from flightrecon.methods.joint.linearisation import (
-    _cost,
-    _Flight,
-    _flight,
-    _Models,
-    _models_about,
-    _models_at,
-    _nominal_states,
-    _scalars,
-    _scaled_variances,
-    _with_pseudo,
+    PassModels,
+    SmootherFlight,
+    models_about,
+    models_at,
+    nominal_states,
+    pass_cost,
+    pass_scalars,
+    scaled_variances,
+    smoother_flight,
+    with_pseudo,
 )
 from flightrecon.methods.joint.measurements import Measurements
-from flightrecon.methods.joint.noise import NOISE_GROUPS, _noise_update, innovation_loglik
-from flightrecon.methods.joint.nominal import _initial, _nominal_trajectory
+from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik, noise_update
+from flightrecon.methods.joint.nominal import initial_estimate, nominal_trajectory
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.turbulence import gust_update
-from flightrecon.methods.joint.updates import _clock_update, _robust_weights, _stop_reason
+from flightrecon.methods.joint.state import PassResult, PassStep, SmootherState
+from flightrecon.methods.joint.updates import clock_update, robust_weights, stop_reason_of
 
 
 @dataclass(frozen=True)
@@ -74,51 +75,16 @@ class JointRun:
     gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
 
 
-@dataclass
-class _Pass:
-    """Outputs of one forward filter and backward smoother pass."""
-
-    xs: np.ndarray
-    xf: np.ndarray
-    res: np.ndarray
-    rate: np.ndarray
-    hph: np.ndarray | None
-    infl: np.ndarray
-    innov: np.ndarray
-    innov_var: np.ndarray
-    Pblk: np.ndarray | None
-    var: np.ndarray | None
-    n_fallback: int
-    kern_args: tuple[Any, ...]
-    scalars: jl.Scalars
-
-
-@dataclass
-class _Step:
-    """The accepted iterate of one pass (after the line search)."""
-
-    X: np.ndarray
-    alpha: float
-    cost: dict[str, float]
-    models: _Models           # built about X with the pass's clock offsets and roll
-    res: np.ndarray
-    rate: np.ndarray
-    evaluations: int
-    ok: bool                  # False: no step lowered the cost (X is the pass's start)
-    gn_shift_m: float         # largest position change of the full Gauss-Newton step
-    gn_cost: float            # cost at the full Gauss-Newton step
-    lm_lambda: float = 0.0    # > 0: a Levenberg-Marquardt step with this damping
-
-
-def _gn_pass(fl: _Flight, mdl: _Models, r: np.ndarray, weights: np.ndarray, xlin: np.ndarray,
-             bufs: tuple[np.ndarray, ...], with_cov: bool, first: bool) -> _Pass:
+def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.ndarray,
+             xlin: np.ndarray, bufs: tuple[np.ndarray, ...], with_cov: bool,
+             first: bool) -> PassResult:
     """Forward filter (linearised about ``xlin``; empty: about its own prediction) and RTS
     backward pass; the smoothed covariances with ``with_cov`` (on a second thread beside the
     mean pass unless the noise estimation needs the smoothed H P H^T)."""
     s = fl.settings
     xf, Pf, xp, Pp = bufs
     assert fl.x0 is not None and fl.P0 is not None
-    scalars = _scalars(mdl, fl.T, r, weights)
+    scalars = pass_scalars(mdl, fl.T, r, weights)
     # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
     gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
     if not first and s.line_search and not s.gate_damped:
@@ -151,13 +117,13 @@ def _gn_pass(fl: _Flight, mdl: _Models, r: np.ndarray, weights: np.ndarray, xlin
         n_fallback = max(n_fallback, n_fallback_cov)
     else:
         xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
-    return _Pass(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
+    return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
                  kern_args, scalars)
 
 
-def _line_search(fl: _Flight, mdl: _Models, X: np.ndarray | None,
-                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: _Pass,
-                 r: np.ndarray, weights: np.ndarray) -> _Step:
+def _line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
+                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: PassResult,
+                 r: np.ndarray, weights: np.ndarray) -> PassStep:
     """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
     X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
     whose MAP cost does not exceed the cost of X (``start``: its cost, residuals and rates;
@@ -170,29 +136,29 @@ def _line_search(fl: _Flight, mdl: _Models, X: np.ndarray | None,
     alpha, evals, gn_cost = 1.0, 0, np.nan
     while True:
         Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
-        mc, Xc = _models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = _cost(fl, mc, Xc, r, weights)
+        mc, Xc = models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
         evals += 1
         if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
             res, rate = out.res, out.rate
             gn_cost = cost["cost"]
-        step = _Step(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
+        step = PassStep(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
         if (X is None or start is None or not s.line_search
                 or (np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"])):
             return step
         if evals > s.line_search_halvings:
             # no step size lowered the cost: the iterate stays (the lowest-cost one)
-            return _Step(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
+            return PassStep(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
                          gn_cost)
         del step, mc   # the rejected candidate's models go before the next one's are built
         alpha *= 0.5
 
 
-def _lm_step(fl: _Flight, st: _State, mdl: _Models,
+def _lm_step(fl: SmootherFlight, st: SmootherState, mdl: PassModels,
              start: tuple[dict[str, Any], np.ndarray, np.ndarray], r: np.ndarray
-             ) -> _Step | None:
+             ) -> PassStep | None:
     """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
-    the smoothing pass with the pseudo-measurements of :func:`_with_pseudo` about the iterate,
+    the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate,
     lambda from ``lm_lambda0`` (or ten times the last one) multiplied by 10 until the cost
     does not exceed the iterate's, at most up to ``lm_lambda_max``; None if none did."""
     s = fl.settings
@@ -204,24 +170,24 @@ def _lm_step(fl: _Flight, st: _State, mdl: _Models,
     sd = np.sqrt(np.diag(fl.P0))
     lam, evals = max(10.0 * st.lm_lambda, s.lm_lambda0), 0
     while lam <= s.lm_lambda_max:
-        sc = _with_pseudo(_scalars(mdl, fl.T, r, st.weights), st.X, sd, lam)
+        sc = with_pseudo(pass_scalars(mdl, fl.T, r, st.weights), st.X, sd, lam)
         jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, st.X)
         xs = jp.backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
-        mc, Xc = _models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = _cost(fl, mc, Xc, r, st.weights)
+        mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = pass_cost(fl, mc, Xc, r, st.weights)
         evals += 1
         if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
             st.lm_lambda = lam / 10.0
-            return _Step(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan, lam)
+            return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan, lam)
         lam *= 10.0
     return None
 
 
-def _full_step(step: _Step) -> bool:  # the accepted iterate is the pass's own smoothed states
+def _full_step(step: PassStep) -> bool:  # the accepted iterate is the pass's own smoothed states
     return step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
 
 
-def _settled(it: int, step: _Step, cost0: float | None, psi_moved: float, w_change: float,
+def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_change: float,
              params_still: bool, settings: JointSettings, info: dict[str, Any]) -> bool:
     """Convergence test (docs/joint.md): the MAP cost changed by less than ``cost_tol``
     (relative), the track by less than ``converge_m`` and the heading bias by less than 1e-4
@@ -238,37 +204,7 @@ def _settled(it: int, step: _Step, cost0: float | None, psi_moved: float, w_chan
                 and w_change <= settings.converge_weight and params_still)
 
 
-@dataclass
-class _State:
-    """What the passes carry from one to the next."""
-
-    lat: np.ndarray                     # nominal of the next pass
-    lon: np.ndarray
-    h: np.ndarray
-    vnom: np.ndarray                    # nominal velocity (runway constraints, take-off roll)
-    clock: dict[str, float]
-    clock_sd: dict[str, float]
-    scale: np.ndarray                   # variance factor per noise group (EM)
-    psi_hat: np.ndarray | None = None   # heading bias of the iterate (rotation's linearisation)
-    ba_hat: np.ndarray | None = None    # accelerometer biases of the iterate (take-off roll)
-    X: np.ndarray | None = None         # the current iterate (None before the first pass)
-    models: _Models | None = None       # built about X (reused when nothing else changed)
-    # cost, residuals, rates of X under ``models`` and ``cost_scale``: the next pass's start
-    cost: tuple[dict[str, float], np.ndarray, np.ndarray] | None = None
-    cost_scale: np.ndarray | None = None
-    weights: np.ndarray | None = None
-    bufs: tuple[np.ndarray, ...] | None = None
-    lm_bufs: tuple[np.ndarray, ...] | None = None
-    lm_lambda: float = 0.0              # the last accepted Levenberg-Marquardt damping / 10
-    converged: bool = False
-    reason: str = ""
-    refit: bool = False                 # the models' noise changed (gust sd): a new cost
-    gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
-    rolls_seen: list[TakeoffRoll] = field(default_factory=list)  # rolls of the passes so far,
-    #                                     the last pass's last (a roll once left is not taken)
-
-
-def _pass_models(fl: _Flight, st: _State) -> _Models:
+def _pass_models(fl: SmootherFlight, st: SmootherState) -> PassModels:
     """The models of the next pass: about the iterate, with the current clock offsets and the
     take-off roll refined on the iterate (those of the line search's last candidate when they
     are the same).  A refined roll changes the runway and ground measurements, a clock offset
@@ -283,10 +219,10 @@ def _pass_models(fl: _Flight, st: _State) -> _Models:
         roll = st.rolls_seen[-1]
     if m is not None and m.clock == st.clock and m.roll.same_as(roll):
         return m
-    return _models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
+    return models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
 
 
-def _start_cost(fl: _Flight, st: _State, mdl: _Models, r: np.ndarray, reset: bool
+def _start_cost(fl: SmootherFlight, st: SmootherState, mdl: PassModels, r: np.ndarray, reset: bool
                 ) -> tuple[dict[str, Any], np.ndarray, np.ndarray] | None:
     """The iterate's cost, residuals and rates under the pass's models (None before the first
     pass; the last accepted ones when the models and noise factors are the same).  After a
@@ -297,28 +233,29 @@ def _start_cost(fl: _Flight, st: _State, mdl: _Models, r: np.ndarray, reset: boo
         return None
     assert st.weights is not None
     same = mdl is st.models and np.array_equal(st.scale, st.cost_scale)
-    start = st.cost if same and st.cost is not None else _cost(fl, mdl, st.X, r, st.weights)
+    start = st.cost if same and st.cost is not None else pass_cost(fl, mdl, st.X, r, st.weights)
     if reset:
-        st.weights = _robust_weights(start[1] / np.sqrt(r), st.weights, fl.settings)
+        st.weights = robust_weights(start[1] / np.sqrt(r), st.weights, fl.settings)
     return start
 
 
-def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, dict[str, Any]]:
+def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
+              ) -> tuple[PassModels, PassResult, PassStep, dict[str, Any]]:
     """One damped Gauss-Newton pass: models about the iterate, its cost, the smoothing pass,
     the line search, then the weights, clock and noise updates (``st`` updated in place)."""
     s = fl.settings
     mdl = _pass_models(fl, st)
-    r = _scaled_variances(mdl, st.scale)
+    r = scaled_variances(mdl, st.scale)
     reset = st.weights is None or len(st.weights) != len(mdl.meas.z)
     if reset:
         st.weights = np.ones(len(mdl.meas.z))
     if fl.x0 is None:
-        fl.x0, fl.P0 = _initial(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
+        fl.x0, fl.P0 = initial_estimate(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
         fl.P0inv = np.linalg.inv(fl.P0)
     if st.bufs is None:  # filter outputs, reused by every pass (allocated and paged in once)
         st.bufs = jp.filter_buffers(len(fl.T))
     if st.X is None and fl.settings.first_pass == "nominal":
-        st.X = _nominal_states(fl, mdl)
+        st.X = nominal_states(fl, mdl)
     start = _start_cost(fl, st, mdl, r, reset)
     xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
     # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
@@ -357,15 +294,15 @@ def _one_pass(fl: _Flight, st: _State, it: int) -> tuple[_Models, _Pass, _Step, 
     w_before = st.weights.copy()
     clock_before = dict(st.clock)
     scale_used = st.scale.copy()
-    st.weights = _robust_weights(step.res / np.sqrt(r), st.weights, s)
+    st.weights = robust_weights(step.res / np.sqrt(r), st.weights, s)
     if s.estimate_clock:
-        _clock_update(mdl.meas, step.res, step.rate, st.weights, r, st.clock, st.clock_sd, info)
+        clock_update(mdl.meas, step.res, step.rate, st.weights, r, st.clock, st.clock_sd, info)
     noise_moved = False
     if s.estimate_noise:
         # measurements taken at face value in this pass: full weight, not gated
         use = (st.weights >= 1.0) & (w_before >= 1.0) & (out.infl <= 1.0)
         assert out.hph is not None
-        st.scale, noise_moved = _noise_update(mdl.groups, out.hph, mdl.meas.r, step.res, use,
+        st.scale, noise_moved = noise_update(mdl.groups, out.hph, mdl.meas.r, step.res, use,
                                               st.scale, s, info)
     X = step.X
     st.lat, st.lon, st.h = step.models.lat, step.models.lon, step.models.h
@@ -392,13 +329,13 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     ``JointRun.converged`` is the test of :func:`_settled` and ``stop_reason`` says why the
     iterations stopped.
     """
-    fl = _flight(inp, settings)
-    lat, lon, h = _nominal_trajectory(inp, fl.idx, settings.noise)
+    fl = smoother_flight(inp, settings)
+    lat, lon, h = nominal_trajectory(inp, fl.idx, settings.noise)
     # nominal velocity (runway constraints): air data at first, then the smoothed velocity
     tas0 = np.nan_to_num(inp.tas[fl.idx])
     psi0 = np.nan_to_num(inp.heading_rad[fl.idx])
     vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(fl.idx))]
-    st = _State(lat, lon, h, vnom, {"gnss": 0.0, "radar": 0.0},
+    st = SmootherState(lat, lon, h, vnom, {"gnss": 0.0, "radar": 0.0},
                 {"gnss": np.nan, "radar": np.nan}, np.ones(len(NOISE_GROUPS)))
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
@@ -418,13 +355,13 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
         if not last[2].ok:
             break
     if not st.converged:
-        st.reason = _stop_reason(history, settings)
+        st.reason = stop_reason_of(history, settings)
     assert last is not None
     return replace(_finish(fl, st, *last[:3], history),
                    gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
 
 
-def _finish(fl: _Flight, st: _State, mdl: _Models, out: _Pass, step: _Step,
+def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassResult, step: PassStep,
             history: list[dict[str, Any]]) -> JointRun:
     """The result of the last pass: its iterate (the pass's own smoothed states after a full
     step), the smoothed covariances of its linearisation and the noise check."""
@@ -464,7 +401,7 @@ def _finish(fl: _Flight, st: _State, mdl: _Models, out: _Pass, step: _Step,
                     converged=st.converged, stop_reason=st.reason)
 
 
-def _noise_check(fl: _Flight, mdl: _Models, out: _Pass, st: _State
+def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: SmootherState
                  ) -> tuple[dict[str, Any], tuple[Any, ...] | None]:
     """The estimated noise must raise the likelihood of the data: the innovations'
     log-likelihood (prediction-error decomposition) of the last pass against a forward pass

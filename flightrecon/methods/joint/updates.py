@@ -12,7 +12,7 @@ from flightrecon.methods.joint.measurements import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 
-def _robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettings
+def robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettings
                     ) -> np.ndarray:
     """IRLS weights of the robust loss from the normalised residuals of the iterate: 1 up to
     ``huber_c``, huber_c/|u| beyond (Huber), 1e-8 beyond ``reject_c`` (set aside: a jumped
@@ -26,7 +26,7 @@ def _robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSetti
     return w
 
 
-def _clock_update(meas: Measurements, res: np.ndarray, rate: np.ndarray, weights: np.ndarray,
+def clock_update(meas: Measurements, res: np.ndarray, rate: np.ndarray, weights: np.ndarray,
                   r: np.ndarray, clock: dict[str, float], clock_sd: dict[str, float],
                   info: dict[str, Any]) -> None:
     """Clock offsets, in seconds added to the source's time stamps (the convention of
@@ -49,7 +49,7 @@ def _clock_update(meas: Measurements, res: np.ndarray, rate: np.ndarray, weights
         info[f"clock_{name}_s"] = clock[name]
 
 
-def _stop_reason(history: list[dict[str, Any]], settings: JointSettings) -> str:
+def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> str:
     """Why the iterations stopped without converging: the line search failed, the cost rose
     from one pass to the next (through the updates between the passes: weights' residuals,
     clock offsets, take-off roll, noise factors), or the cap on the passes was reached."""

@@ -150,7 +150,7 @@ def configure(pkg_dir: Path | None = None) -> dict[str, str | None]:
 
 
 #: package folders that hold no compiled kernel and that no kernel calls into: their sources
-#: do not enter the digest (tests/test_numba_cache.py checks that they hold no kernel)
+#: do not enter the digest (tests/testnumba_cache.py checks that they hold no kernel)
 NO_KERNEL_DIRS = ("cli", "report", "export", "batch", "store", "ingest")
 
 #: the digest's file, in the cache folder of the package's top level
