@@ -83,7 +83,8 @@ def test_gm_discretisation_is_exact():
     # stationarity: the variance sigma^2 is kept by the exact recursion for any step
     P = s**2
     for T in (0.1, 1.0, 100.0):
-        P2 = A.gm_transition([0, T], a)[1, 0, 0] ** 2 * P + A.gm_process_noise([0, T], a, s)[1, 0, 0]
+        phi = A.gm_transition([0, T], a)[1, 0, 0]
+        P2 = phi**2 * P + A.gm_process_noise([0, T], a, s)[1, 0, 0]
         assert P2 == pytest.approx(P, rel=1e-12)
 
 

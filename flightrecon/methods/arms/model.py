@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numba as nb
 import numpy as np
 
 from flightrecon.errors import ValidationError
@@ -389,15 +390,61 @@ def _keep_predicted(model, k, x, P):
     model.P_p[k] = P
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def radar_rows_into(lin, rho, th, sr2, st2, x, nu, Hk, Rk):
+    """The radar plot ``[rho*, theta*]`` (variances ``sr2``, ``st2``) as rows 0-1 of the step's
+    innovation ``nu``, Jacobian ``Hk`` and noise ``Rk`` at the state ``x`` (paper eqs. 10-15).
+
+    ``lin`` 0: EKF on ``[rho, theta]``, ``H`` of eq. 12, azimuth innovation wrapped to
+    (-pi, pi]; 1 / 2: converted measurement ``[x*, y*]`` (eq. 13) with ``H`` selecting x, y and
+    the covariance of eq. 15 at the measured (1) or predicted (2) range and azimuth.  Returns
+    False (rows untouched) for a predicted position within 1 m of the station, where the
+    azimuth is undefined.  Inlined into the model's update.
+    """
+    px = x[0]
+    py = x[2]
+    r2 = px * px + py * py
+    if r2 <= 1.0:  # at the station the azimuth is undefined: skip such a plot
+        return False
+    rp = np.sqrt(r2)
+    if lin == 0:
+        nu[0] = rho - rp
+        d = th - np.arctan2(px, py)
+        nu[1] = np.pi - np.mod(np.pi - d, 2.0 * np.pi)
+        Hk[0, 0] = px / rp
+        Hk[0, 2] = py / rp
+        Hk[1, 0] = py / r2
+        Hk[1, 2] = -px / r2
+        Rk[0, 0] = sr2
+        Rk[1, 1] = st2
+    else:
+        nu[0] = rho * np.sin(th) - px
+        nu[1] = rho * np.cos(th) - py
+        Hk[0, 0] = 1.0
+        Hk[1, 2] = 1.0
+        if lin == 1:
+            re = rho
+            te = th
+        else:
+            re = rp
+            te = np.arctan2(px, py)
+        s = np.sin(te)
+        co = np.cos(te)
+        ct2 = re * re * st2
+        Rk[0, 0] = sr2 * s * s + ct2 * co * co
+        Rk[1, 1] = sr2 * co * co + ct2 * s * s
+        Rk[0, 1] = s * co * (sr2 - ct2)
+        Rk[1, 0] = Rk[0, 1]
+    return True
+
+
 @implements(update_into, ArmsTrackModel)
 def _update(model, k, x, P, ws):
     """The step's plot and air-data sample in one block Joseph update (docs/arms.md).
 
-    Radar (paper eqs. 10-15), ``lin`` 0: EKF on ``[rho, theta]``, ``H`` of eq. 12, azimuth
-    innovation wrapped to (-pi, pi]; 1 / 2: converted measurement ``[x*, y*]`` (eq. 13) with
-    ``H`` selecting x, y and the covariance of eq. 15 at the measured (1) or predicted (2)
-    range and azimuth.  A plot within 1 m of the station (azimuth undefined) is skipped.
-    Air data (n = 6): ``V* = [Vx + dVx, Vy + dVy] + e``, ``e ~ N(0, Rv)``.
+    Radar: :func:`radar_rows_into` (EKF or converted, ``model.lin``).  Air data (n = 6):
+    ``V* = [Vx + dVx, Vy + dVy] + e``, ``e ~ N(0, Rv)``, rows ``H = [0 1 0 0 1 0; 0 0 0 1 0 1]``.
+    Innovations are kept in slots 0-1 (radar) and 2-3 (air data) of ``model.nu`` / ``model.S``.
     """
     nu, Hk, Rk, slot = ws
     n = x.shape[0]
@@ -408,44 +455,9 @@ def _update(model, k, x, P, ws):
     Rk[:, :] = 0.0
     c = 0
     if not (np.isnan(radar[k, 0]) or np.isnan(radar[k, 1])):
-        rho = radar[k, 0]
-        th = radar[k, 1]
         radar_sd = model.radar_sd
-        sr2 = radar_sd[k, 0] ** 2
-        st2 = radar_sd[k, 1] ** 2
-        px = x[0]
-        py = x[2]
-        r2 = px * px + py * py
-        if r2 > 1.0:  # at the station the azimuth is undefined: skip such a plot
-            rp = np.sqrt(r2)
-            if model.lin == 0:
-                nu[0] = rho - rp
-                d = th - np.arctan2(px, py)
-                nu[1] = np.pi - np.mod(np.pi - d, 2.0 * np.pi)
-                Hk[0, 0] = px / rp
-                Hk[0, 2] = py / rp
-                Hk[1, 0] = py / r2
-                Hk[1, 2] = -px / r2
-                Rk[0, 0] = sr2
-                Rk[1, 1] = st2
-            else:
-                nu[0] = rho * np.sin(th) - px
-                nu[1] = rho * np.cos(th) - py
-                Hk[0, 0] = 1.0
-                Hk[1, 2] = 1.0
-                if model.lin == 1:
-                    re = rho
-                    te = th
-                else:
-                    re = rp
-                    te = np.arctan2(px, py)
-                s = np.sin(te)
-                co = np.cos(te)
-                ct2 = re * re * st2
-                Rk[0, 0] = sr2 * s * s + ct2 * co * co
-                Rk[1, 1] = sr2 * co * co + ct2 * s * s
-                Rk[0, 1] = s * co * (sr2 - ct2)
-                Rk[1, 0] = Rk[0, 1]
+        if radar_rows_into(model.lin, radar[k, 0], radar[k, 1], radar_sd[k, 0] ** 2,
+                           radar_sd[k, 1] ** 2, x, nu, Hk, Rk):
             slot[0] = 0
             slot[1] = 1
             c = 2
