@@ -389,8 +389,6 @@ def test_smoother_counts_cholesky_failures():
     covariance P_p[k+1] failed its Cholesky factorisation.  The kernel now counts those steps
     (the adapter reports them as ``cholesky_fallbacks``): none for a positive-definite P_p, one
     for an indefinite (but regular) one, whose gain still equals the general solve's."""
-    from flightrecon.methods.sns.filter import _smoother_kernel
-
     rng = np.random.default_rng(5)
     n = core.N_STATE
     A = rng.standard_normal((n, n))
@@ -400,11 +398,12 @@ def test_smoother_counts_cholesky_failures():
     xp = xf + np.array([0.0, 0.0, 0.1, 0.2, 0.01])
     cross = np.stack([0.5 * Pf[0]] * 2)
     hgt = np.zeros(2)
-    _, _, count = _smoother_kernel(xp, xf, Pf.copy(), Pf, cross, hgt)
+    count = core.rts_smooth_cross(xp, xf, Pf.copy(), Pf, cross, hgt).cholesky_fallbacks
     assert count == 0
     Pp = Pf.copy()
     Pp[1, 2, 2] = -Pp[1, 2, 2]
-    xs, _, count = _smoother_kernel(xp, xf, Pp, Pf, cross, hgt)
+    sm = core.rts_smooth_cross(xp, xf, Pp, Pf, cross, hgt)
+    xs, count = sm.x, sm.cholesky_fallbacks
     assert count == 1
     C = np.linalg.solve(Pp[1], cross[0].T).T
     d = np.r_[0.0, 0.0, xf[1, 2:] - xp[1, 2:]]

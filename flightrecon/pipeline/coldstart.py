@@ -31,7 +31,7 @@ from flightrecon.types import CleanFlight, MethodResult
 #: compiled (its largest kernel, compiled on every run of the method)
 KERNEL_SENTINELS: dict[str, tuple[str, str]] = {
     "joint": ("flightrecon.methods.joint.passes", "forward"),
-    "sns": ("flightrecon.methods.sns.filter", "_filter_kernel"),
+    "sns": ("flightrecon.methods.sns.output", "_densify_kernel"),
     "sabziev": ("flightrecon.methods.sabziev.discrete", "_run_end"),
     "arms": ("flightrecon.methods.arms.filter", "_arms_kernel"),
     "azimuth": ("flightrecon.methods.azimuth.filter", "_azimuth_kernel"),
