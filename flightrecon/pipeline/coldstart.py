@@ -28,7 +28,8 @@ from typing import Any
 from flightrecon.types import CleanFlight, MethodResult
 
 #: per method, the compiled kernel whose cache entry tells whether the method's kernels are
-#: compiled (its largest kernel, compiled on every run of the method)
+#: compiled (its largest kernel, compiled on every run of the method; for a method on the
+#: estimation core's shared loops, whose cache holds every model's, a kernel of its own)
 KERNEL_SENTINELS: dict[str, tuple[str, str]] = {
     "joint": ("flightrecon.methods.joint.passes", "forward"),
     "sns": ("flightrecon.methods.sns.output", "_densify_kernel"),
