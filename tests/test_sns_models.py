@@ -115,7 +115,8 @@ def test_step_transition_jacobian_in_local_level_frame():
         return np.array([dn, de, *x[2:]])
 
     x = np.array([0.0, 0.0, *c])
-    Jfd = np.column_stack([_fd(f, x, np.array(1.0))[:, :2], _fd(f, x, np.array([1.0, 1.0, 1e-3, 1e-3, 1e-6]))[:, 2:]])
+    Jfd = np.column_stack([_fd(f, x, np.array(1.0))[:, :2],
+                           _fd(f, x, np.array([1.0, 1.0, 1e-3, 1e-3, 1e-6]))[:, 2:]])
     np.testing.assert_allclose(Phi[:, :2], Jfd[:, :2], atol=1e-4)
     np.testing.assert_allclose(Phi[:, 2:], Jfd[:, 2:], rtol=1e-4, atol=1e-4)
     assert B.shape == (5, 11)
@@ -177,7 +178,10 @@ def _one_step_inputs(model, fixes_twice=False, tau_fix=0.3):
     a, u, w = A / tau, U / tau, W / tau
     nfix = 2 if fixes_twice else 1
     flat, flon = core.boxplus(lat0, lon0, 40.0, -25.0, h)
-    one = lambda v: np.repeat(np.atleast_2d(v), nfix, axis=0)
+
+    def one(v):
+        return np.repeat(np.atleast_2d(v), nfix, axis=0)
+
     inp = core.StepInputs(
         t=np.array([0.0, tau]), h=np.array([h, h]), A=np.vstack([A, [0, 0]]),
         U=np.vstack([U, [0, 0]]), W=np.vstack([W, [0, 0]]),
