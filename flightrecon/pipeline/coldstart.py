@@ -28,10 +28,11 @@ from typing import Any
 from flightrecon.types import CleanFlight, MethodResult
 
 #: per method, the compiled kernel whose cache entry tells whether the method's kernels are
-#: compiled (its largest kernel, compiled on every run of the method)
+#: compiled (its largest kernel, compiled on every run of the method; for a method on the
+#: estimation core's shared loops, whose cache holds every model's, a kernel of its own)
 KERNEL_SENTINELS: dict[str, tuple[str, str]] = {
     "joint": ("flightrecon.methods.joint.passes", "forward"),
-    "sns": ("flightrecon.methods.sns.filter", "_filter_kernel"),
+    "sns": ("flightrecon.methods.sns.output", "_densify_kernel"),
     "sabziev": ("flightrecon.methods.sabziev.discrete", "_run_end"),
     "arms": ("flightrecon.methods.arms.filter", "_arms_kernel"),
     "azimuth": ("flightrecon.methods.azimuth.filter", "_azimuth_kernel"),
