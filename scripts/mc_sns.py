@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.methods import sns as core
-from flightrecon.methods.sns.method import _radii_np, solve_sns
+from flightrecon.methods.sns.method import radii_with_height, solve_sns
 from flightrecon.types import CleanFlight, FlightMeta, Position
 
 G0 = 9.80665
@@ -80,10 +80,10 @@ def _integrate_latlon(lat0: float, lon0: float, dn: np.ndarray, de: np.ndarray, 
     lat = np.full(len(dn) + 1, lat0)
     for _ in range(3):
         latm = 0.5 * (lat[:-1] + lat[1:])
-        mh, nh = _radii_np(latm, h)
+        mh, nh = radii_with_height(latm, h)
         lat = lat0 + np.concatenate([[0.0], np.cumsum(dn / mh)])
     latm = 0.5 * (lat[:-1] + lat[1:])
-    mh, nh = _radii_np(latm, h)
+    mh, nh = radii_with_height(latm, h)
     lon = lon0 + np.concatenate([[0.0], np.cumsum(de / (nh * np.cos(latm)))])
     return lat, lon
 
@@ -145,7 +145,7 @@ def simulate(seed: int, *, model: int = core.MODEL_AIRSPEED, duration_s: float =
         tf = tf[(tf < g0) | (tf >= g0 + glen)]
     j = np.searchsorted(t, tf, side="right") - 1
     tau = tf - t[j]
-    mh, nh = _radii_np(lat[j], alt_m)
+    mh, nh = radii_with_height(lat[j], alt_m)
     from flightrecon.methods.sns.method import lever_arm_ne
     arm = lever_arm_ne(grid_df, LEVER_ARM_M)
     darm = np.gradient(arm, t, axis=0)
@@ -170,7 +170,7 @@ def state_errors(sim: SimFlight, x: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """Truth minus estimate (N, 5) at filter points ``idx``: north/east metres, corrections."""
     lat_t, lon_t = sim.lat[idx], sim.lon[idx]
     latm = 0.5 * (lat_t + x[:, 0])
-    mh, nh = _radii_np(latm, 9000.0)
+    mh, nh = radii_with_height(latm, 9000.0)
     err = np.empty((len(idx), 5))
     err[:, 0] = (lat_t - x[:, 0]) * mh
     err[:, 1] = (lon_t - x[:, 1]) * nh * np.cos(latm)

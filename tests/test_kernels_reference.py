@@ -260,10 +260,11 @@ def test_cv_arms_kernel():
 
 def test_cv_sns_kernels_through_the_core(cv_case):
     """Guards the SNS filter's update and prediction as its kernel composes them
-    (``methods/sns/filter.py::_filter_kernel``: core ``gain_into`` with the pseudo-inverse,
-    ``joseph_cov_into``, ``state_correction_into``, ``predict_cov_into`` plus the factored
-    noise ``B B^T``), and the SNS smoother kernel itself (``_smoother_kernel`` on the core's RTS
-    step, its cross-covariances ``P^+ F^T``), in the Euclidean geometry of this linear case."""
+    (``methods/sns/filter.py``, the ``SnsModel``'s update and prediction: core ``gain_into``
+    with the pseudo-inverse, ``joseph_cov_into``, ``state_correction_into``,
+    ``predict_cov_into`` plus the factored noise ``B B^T``), and the SNS smoother itself
+    (``rts_smooth_cross``: the ``SnsModel`` on the core's backward pass, its cross-covariances
+    ``P^+ F^T``), in the Euclidean geometry of this linear case."""
     from flightrecon.estimation.linalg import mdmt_acc_into, sym_into
     from flightrecon.estimation.manifold import EUCLIDEAN
     from flightrecon.estimation.predict import predict_cov_into
@@ -273,7 +274,7 @@ def test_cv_sns_kernels_through_the_core(cv_case):
         normalised_innovation,
         state_correction_into,
     )
-    from flightrecon.methods.sns.filter import _smoother_kernel
+    from flightrecon.methods.sns import rts_smooth_cross
 
     (x0, P0, F, Q, z, H, R), ref = cv_case
     N, n = len(z), 4
@@ -312,9 +313,9 @@ def test_cv_sns_kernels_through_the_core(cv_case):
         sym_into(Pn, P)
     _check_cv(xf, Pf, ref.xf, ref.Pf)
     _check_cv(xp, Pp, ref.xp, ref.Pp)
-    xs, Ps, n_fb = _smoother_kernel(xp, xf, Pp, Pf, cross, np.zeros(N), EUCLIDEAN)
-    assert n_fb == 0
-    _check_cv(xs, Ps, ref.xs, ref.Ps)
+    sm = rts_smooth_cross(xp, xf, Pp, Pf, cross, np.zeros(N), EUCLIDEAN)
+    assert sm.cholesky_fallbacks == 0
+    _check_cv(sm.x, sm.P, ref.xs, ref.Ps)
 
 
 def test_correlated_noise_prediction_against_brute_force():

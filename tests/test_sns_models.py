@@ -115,7 +115,8 @@ def test_step_transition_jacobian_in_local_level_frame():
         return np.array([dn, de, *x[2:]])
 
     x = np.array([0.0, 0.0, *c])
-    Jfd = np.column_stack([_fd(f, x, np.array(1.0))[:, :2], _fd(f, x, np.array([1.0, 1.0, 1e-3, 1e-3, 1e-6]))[:, 2:]])
+    Jfd = np.column_stack([_fd(f, x, np.array(1.0))[:, :2],
+                           _fd(f, x, np.array([1.0, 1.0, 1e-3, 1e-3, 1e-6]))[:, 2:]])
     np.testing.assert_allclose(Phi[:, :2], Jfd[:, :2], atol=1e-4)
     np.testing.assert_allclose(Phi[:, 2:], Jfd[:, 2:], rtol=1e-4, atol=1e-4)
     assert B.shape == (5, 11)
@@ -177,7 +178,10 @@ def _one_step_inputs(model, fixes_twice=False, tau_fix=0.3):
     a, u, w = A / tau, U / tau, W / tau
     nfix = 2 if fixes_twice else 1
     flat, flon = core.boxplus(lat0, lon0, 40.0, -25.0, h)
-    one = lambda v: np.repeat(np.atleast_2d(v), nfix, axis=0)
+
+    def one(v):
+        return np.repeat(np.atleast_2d(v), nfix, axis=0)
+
     inp = core.StepInputs(
         t=np.array([0.0, tau]), h=np.array([h, h]), A=np.vstack([A, [0, 0]]),
         U=np.vstack([U, [0, 0]]), W=np.vstack([W, [0, 0]]),
@@ -389,8 +393,6 @@ def test_smoother_counts_cholesky_failures():
     covariance P_p[k+1] failed its Cholesky factorisation.  The kernel now counts those steps
     (the adapter reports them as ``cholesky_fallbacks``): none for a positive-definite P_p, one
     for an indefinite (but regular) one, whose gain still equals the general solve's."""
-    from flightrecon.methods.sns.filter import _smoother_kernel
-
     rng = np.random.default_rng(5)
     n = core.N_STATE
     A = rng.standard_normal((n, n))
@@ -400,11 +402,12 @@ def test_smoother_counts_cholesky_failures():
     xp = xf + np.array([0.0, 0.0, 0.1, 0.2, 0.01])
     cross = np.stack([0.5 * Pf[0]] * 2)
     hgt = np.zeros(2)
-    _, _, count = _smoother_kernel(xp, xf, Pf.copy(), Pf, cross, hgt)
+    count = core.rts_smooth_cross(xp, xf, Pf.copy(), Pf, cross, hgt).cholesky_fallbacks
     assert count == 0
     Pp = Pf.copy()
     Pp[1, 2, 2] = -Pp[1, 2, 2]
-    xs, _, count = _smoother_kernel(xp, xf, Pp, Pf, cross, hgt)
+    sm = core.rts_smooth_cross(xp, xf, Pp, Pf, cross, hgt)
+    xs, count = sm.x, sm.cholesky_fallbacks
     assert count == 1
     C = np.linalg.solve(Pp[1], cross[0].T).T
     d = np.r_[0.0, 0.0, xf[1, 2:] - xp[1, 2:]]

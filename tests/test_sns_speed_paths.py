@@ -135,7 +135,7 @@ def test_lever_arm_on_needed_rows_equals_full_grid(flight16):
     tf = np.sort(tf[(tf >= t[0]) & (tf <= t[-1])])
     jf = np.clip(np.searchsorted(t, tf, side="right") - 1, 0, len(t) - 1)
     lever = (6.0, 0.5, -2.0)
-    arm_f, darm_f = sns_method._lever_arm_at(grid, t, tf, jf, lever)
+    arm_f, darm_f = sns_method.lever_arm_at_fixes(grid, t, tf, jf, lever)
     arm = sns_method.lever_arm_ne(grid, lever)
     darm = np.gradient(arm, t, axis=0)
     for i in range(2):
@@ -181,7 +181,7 @@ def test_densify_matches_tangent_plane_blend(flight16):
     sim, sol = flight16
     grid = sim.clean.grid
     t = grid["t_s"].to_numpy(float)
-    a, u, w = sns_method._readings(grid, sol.model, [])
+    a, u, w = sns_method.held_readings(grid, sol.model, [])
     IA, IU, IW, _ = core.integrate_readings(t, a, u, w)
     rows = np.r_[3000:5000, len(t) - 20:len(t)]
     lat, lon, v, Pv = _densify_reference(sol, t, IA, IU, IW, a, u, w, rows)

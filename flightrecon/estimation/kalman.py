@@ -213,7 +213,7 @@ def rts_smooth(x, P, x_pred, P_pred, F) -> SmoothedRun:
                         np.empty((N, n, n)))
     model.P_s[N - 1] = P[N - 1]
     xs = np.empty((N, n))
-    n_fallback = backward_pass(model, x, x_pred, xs, P[N - 1], True)
+    n_fallback = backward_pass(model, x, x_pred, xs, P[N - 1])
     return SmoothedRun(xs, model.P_s, int(n_fallback))
 
 

@@ -64,7 +64,7 @@ def cholesky_solve_columns(L, B, X):
 
 
 @nb.njit(cache=True, nogil=True)
-def _chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
+def chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
     """Lower Cholesky factor of the PSD 2x2 [[a, b], [b, c]] into ``L`` (semi-definite allowed)."""
     L[0, 1] = 0.0
     if a > 0.0:
@@ -81,7 +81,7 @@ def _chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
 def _chol2(a: float, b: float, c: float) -> np.ndarray:
     """Lower Cholesky factor of the PSD 2x2 matrix [[a, b], [b, c]] (semi-definite allowed)."""
     L = np.empty((2, 2))
-    _chol2_into(a, b, c, L)
+    chol2_into(a, b, c, L)
     return L
 
 
@@ -198,7 +198,7 @@ def _inv_spd_into(S: np.ndarray, rcond: float, Sp: np.ndarray, L: np.ndarray) ->
 
 
 @nb.njit(cache=True, nogil=True)
-def _pinv_sym_into(S: np.ndarray, rcond: float, Sp: np.ndarray, A: np.ndarray,
+def pinv_sym_into(S: np.ndarray, rcond: float, Sp: np.ndarray, A: np.ndarray,
                    V: np.ndarray) -> int:
     """:func:`pinv_sym` writing ``S^+`` into ``Sp``; ``A``, ``V`` scratch of ``S``'s shape.
 
@@ -259,7 +259,7 @@ def solve_sym_eig_into(S: np.ndarray, B: np.ndarray, rcond: float, X: np.ndarray
                 raise np.linalg.LinAlgError("matrix is not finite")
             A[i, j] = 0.5 * (S[i, j] + S[j, i])
     # views of any layout ('A'), as the SNS filter's sliced buffers reach it through
-    # _pinv_sym_into: one compiled specialisation of the eigen-decomposition instead of two
+    # pinv_sym_into: one compiled specialisation of the eigen-decomposition instead of two
     # (0.4 s of a cold start; the same arithmetic)
     _jacobi_eigh(A[:, :], V[:, :])
     lmax = 0.0
@@ -296,7 +296,7 @@ def pinv_sym(S: np.ndarray, rcond: float):
     """
     m = S.shape[0]
     Sp = np.empty((m, m))
-    rank = _pinv_sym_into(S, rcond, Sp, np.empty((m, m)), np.empty((m, m)))
+    rank = pinv_sym_into(S, rcond, Sp, np.empty((m, m)), np.empty((m, m)))
     return Sp, rank
 
 

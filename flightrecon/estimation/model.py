@@ -34,11 +34,11 @@ Backward (Rauch-Tung-Striebel smoother, :mod:`flightrecon.estimation.rts`):
 * ``cross_times_into(model, k, y, out, ws)``: ``out = C y`` (the mean-only pass's product,
   computed in the model's structure);
 * ``rts_frame(model, k)``: ``(geometry, h_k, h_k+1, rel_tol)``: the state's geometry
-  (:mod:`flightrecon.estimation.manifold`), the heights for a latitude/longitude state, and the
-  Cholesky pivot tolerance;
+  (:mod:`flightrecon.estimation.manifold`, a module constant: inlined, it stays a compile-time
+  constant), the heights for a latitude/longitude state, and the Cholesky pivot tolerance;
 * ``keep_smoothed(model, k, x_s, P_s, with_cov, ws)``: the model's outputs at step k from the
-  smoothed state (and covariance when ``with_cov``: an empty ``P_s`` otherwise), residuals
-  included.
+  smoothed state (and covariance when ``with_cov``: an empty ``P_s`` in the mean-only pass),
+  residuals included.
 
 The functions below are the names the core calls; calling one with a class that did not
 implement it is a typing error naming the function and the class.
@@ -88,7 +88,28 @@ rts_frame = _protocol("rts_frame")
 keep_smoothed = _protocol("keep_smoothed")
 
 
-def implements(function: Callable[..., Any], model_class: type) -> Callable[[Callable], Callable]:
+#: the protocol functions that numba inlines into the core's loops at its IR level: their
+#: results are constants of the model class (the geometry), which then stay compile-time
+#: constants in the loop (``rts_step`` compiles only that geometry's branch)
+INLINED = ("rts_frame",)
+
+
+def _jit_options(refcounted: bool) -> dict[str, Any]:
+    """Compile options of a model function: ``nogil``, cached; without numba's reference
+    counting where the model says so (``_nrt=False``: measured on the SNS filter, the per-step
+    calls' reference counting of the model's some 70 arrays took 38 % of its run; numba's own
+    flag, whose absence in a numba version falls back to counting)."""
+    opts: dict[str, Any] = {"nogil": True, "cache": True}
+    if not refcounted:
+        from numba.core.options import TargetOptions
+
+        if hasattr(TargetOptions, "_nrt"):
+            opts["_nrt"] = False
+    return opts
+
+
+def implements(function: Callable[..., Any], model_class: type, *,
+               refcounted: bool = True) -> Callable[[Callable], Callable]:
     """Register ``impl`` as ``function`` (one of this module's) for models of ``model_class``.
 
     ``impl`` is a plain Python function with the protocol's arguments, written in the subset
@@ -97,6 +118,13 @@ def implements(function: Callable[..., Any], model_class: type) -> Callable[[Cal
         @implements(predict_into, LinearModel)
         def _predict(model, k, x, P, ws):
             ...
+
+    ``refcounted=False`` for a per-step function that allocates nothing and returns no array
+    (it works in the model's and the workspace's buffers): it is compiled without numba's
+    reference counting, which otherwise counts every array of the model up and down on each
+    call (numba refuses to compile an allocation there: the guard is the compiler's).  A
+    function that allocates (e.g. through ``joseph_update``) must stay counted, or what it
+    allocates would never be freed.
     """
     def register(impl: Callable) -> Callable:
         def typer(model: Any, *args: Any) -> Callable | None:
@@ -106,6 +134,9 @@ def implements(function: Callable[..., Any], model_class: type) -> Callable[[Cal
             return None
         typer.__name__ = f"{function.__name__}_{model_class.__name__}"
         typer.__signature__ = inspect.signature(impl)  # type: ignore[attr-defined]
-        overload(function, jit_options={"nogil": True, "cache": True})(typer)
+        if function.__name__ in INLINED:
+            overload(function, inline="always", jit_options={"nogil": True})(typer)
+        else:
+            overload(function, jit_options=_jit_options(refcounted))(typer)
         return impl
     return register

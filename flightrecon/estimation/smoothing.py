@@ -4,7 +4,7 @@ For k = N-1 .. 0 (docs/estimation.md, "One backward loop"; Rauch, Tung & Striebe
 
     G_k   = C_k P_p[k+1]^-1,   C_k = Cov(x_k, x_{k+1} | Y_0..k)   (F P_f^T for a plain transition)
     x_s[k] = x_f[k] (+) G_k (x_s[k+1] (-) x_p[k+1])
-    P_s[k] = P_f[k] + G_k (P_s[k+1] - P_p[k+1]) G_k^T               (not in the mean-only mode)
+    P_s[k] = P_f[k] + G_k (P_s[k+1] - P_p[k+1]) G_k^T               (not in the mean-only pass)
 
 with the step of :mod:`flightrecon.estimation.rts` (:func:`~flightrecon.estimation.rts.rts_step`,
 or in the mean-only mode :func:`~flightrecon.estimation.rts.rts_mean_solve` and the model's
@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
+from numba.core import types
+from numba.extending import overload
 
 from flightrecon.estimation.manifold import state_plus_into
 from flightrecon.estimation.model import (
@@ -31,46 +33,80 @@ from flightrecon.estimation.model import (
 )
 from flightrecon.estimation.rts import rts_mean_solve, rts_step, rts_step_work
 
-__all__ = ["SmoothedRun", "backward_pass"]
+__all__ = ["SmoothedRun", "backward_pass", "last_smoothed_cov", "smoothed_step"]
+
+
+def smoothed_step(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
+    """One backward step of :func:`backward_pass` into ``x_s[k]`` (and ``Ps``): the RTS step
+    with covariances, or the mean-only step where ``P_last`` is None; chosen by ``P_last``'s
+    type when numba compiles the loop (each pass compiles only its own step).  Returns False
+    where the predicted covariance failed its Cholesky factorisation."""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+@overload(smoothed_step, jit_options={"nogil": True, "cache": True})
+def _smoothed_step(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
+    if isinstance(P_last, types.NoneType):
+        def mean_only(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
+            CT, rts_work, L, d, y, dx = work
+            Pf, Pp = smoothing_covariances(model, k, ws)
+            geom, h, h_next, rel_tol = rts_frame(model, k)
+            # y = P_p^-1 (x_s[k+1] (-) x_p[k+1]), then x_s[k] = x_f[k] (+) C y
+            ok = rts_mean_solve(geom, x_p[k + 1], Pp, x_s[k + 1], h_next, rel_tol, L, d, y)
+            cross_times_into(model, k, y, dx, ws)
+            state_plus_into(geom, x_f[k], dx, h, x_s[k])
+            return ok
+        return mean_only
+
+    def with_covariances(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
+        CT, rts_work, L, d, y, dx = work
+        Pf, Pp = smoothing_covariances(model, k, ws)
+        geom, h, h_next, rel_tol = rts_frame(model, k)
+        cross_transposed_into(model, k, CT, ws)
+        return rts_step(geom, (x_f[k], Pf), (x_p[k + 1], Pp), (x_s[k + 1], Ps), CT,
+                        (h, h_next), rel_tol, (x_s[k], Ps), rts_work)
+    return with_covariances
+
+
+def last_smoothed_cov(P_last):
+    """The running smoothed covariance's start: a copy of ``P_last``, or an empty (0, 0)
+    array for the mean-only pass (``P_last`` None)."""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+@overload(last_smoothed_cov, jit_options={"nogil": True, "cache": True})
+def _last_smoothed_cov(P_last):
+    if isinstance(P_last, types.NoneType):
+        return lambda P_last: np.empty((0, 0))
+    return lambda P_last: P_last.copy()
 
 
 @nb.njit(cache=True, nogil=True)
-def backward_pass(model, x_f, x_p, x_s, P_last, with_cov):
+def backward_pass(model, x_f, x_p, x_s, P_last):
     """Run the RTS backward pass of ``model``.
 
     ``x_f``, ``x_p`` (N, n) the filtered and predicted states; ``x_s`` (N, n) receives the
     smoothed states (``x_s[N-1]`` is set to ``x_f[N-1]``); ``P_last`` (n, n) the filtered
-    covariance of the last step (the smoothed one there).  With ``with_cov`` False only the
-    means (the mean-only step); the model's ``keep_smoothed`` then gets an empty covariance.
+    covariance of the last step (the smoothed one there), or None for the mean-only pass (the
+    model's ``keep_smoothed`` then gets an empty covariance).  The two passes are two
+    compilations of this loop (``P_last`` None or an array), each with only its own step
+    (:func:`smoothed_step`).
 
     Returns the number of steps whose predicted covariance failed its Cholesky factorisation
     (solved through its eigen-decomposition instead; the caller reports it).
     """
     N, n = x_f.shape
     ws = workspace(model)
-    Ps = P_last.copy() if with_cov else np.empty((0, 0))
-    CT = np.empty((n, n))
-    work = rts_step_work(n)
-    L = np.empty((n, n))
-    d = np.empty(n)
-    y = np.empty(n)
-    dx = np.empty(n)
+    Ps = last_smoothed_cov(P_last)
+    with_cov = Ps.shape[0] > 0
+    work = (np.empty((n, n)), rts_step_work(n), np.empty((n, n)), np.empty(n), np.empty(n),
+            np.empty(n))
     n_fallback = 0
     for i in range(n):
         x_s[N - 1, i] = x_f[N - 1, i]
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            Pf, Pp = smoothing_covariances(model, k, ws)
-            geom, h, h_next, rel_tol = rts_frame(model, k)
-            if with_cov:
-                cross_transposed_into(model, k, CT, ws)
-                ok = rts_step(geom, (x_f[k], Pf), (x_p[k + 1], Pp), (x_s[k + 1], Ps), CT,
-                              (h, h_next), rel_tol, (x_s[k], Ps), work)
-            else:
-                ok = rts_mean_solve(geom, x_p[k + 1], Pp, x_s[k + 1], h_next, rel_tol, L, d, y)
-                cross_times_into(model, k, y, dx, ws)
-                state_plus_into(geom, x_f[k], dx, h, x_s[k])
-            if not ok:
+            if not smoothed_step(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
                 n_fallback += 1
         keep_smoothed(model, k, x_s[k], Ps, with_cov, ws)
     return n_fallback

@@ -3,7 +3,7 @@ that follows an update whose measurement noise is correlated with the next step'
 
 * :func:`gain_into`: ``S = H P H^T + R``, ``K = P H^T S^+`` with ``S^+`` the inverse from a
   Cholesky factor when ``S`` is provably regular, else the pseudo-inverse (Jacobi
-  eigen-decomposition; :func:`~flightrecon.estimation.linalg._pinv_sym_into`), and its rank;
+  eigen-decomposition; :func:`~flightrecon.estimation.linalg.pinv_sym_into`), and its rank;
 * :func:`joseph_cov_into`: ``P^+ = (I - K H) P (I - K H)^T + K R K^T`` (symmetric, positive
   semi-definite for any gain); :func:`joseph_update` composes the two for a regular ``S``;
 * :func:`scalar_update_short`: for one scalar measurement with row ``h``, ``PH = P h^T`` and
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flightrecon.estimation.linalg import _pinv_sym_into, mdmt_acc_into, mm_into, mmt_into, sym_into
+from flightrecon.estimation.linalg import mdmt_acc_into, mm_into, mmt_into, pinv_sym_into, sym_into
 from flightrecon.estimation.manifold import EUCLIDEAN, state_plus_into
 from flightrecon.estimation.predict import predict_cov_into
 
@@ -65,7 +65,7 @@ def gain_into(P, H, R, rcond, PHt, S, Sp, K, A, V):
     for i in range(m):
         for j in range(m):
             S[i, j] += R[i, j]
-    rk = _pinv_sym_into(S, rcond, Sp, A, V)
+    rk = pinv_sym_into(S, rcond, Sp, A, V)
     mm_into(PHt, Sp, K)
     return rk
 

@@ -28,12 +28,13 @@ from typing import Any
 from flightrecon.types import CleanFlight, MethodResult
 
 #: per method, the compiled kernel whose cache entry tells whether the method's kernels are
-#: compiled (its largest kernel, compiled on every run of the method); a third element names
-#: the model class whose specialisation of that kernel (the estimation core's shared loop)
-#: must be among its cache entries
+#: compiled (its largest kernel, compiled on every run of the method; for a method on the
+#: estimation core's shared loops, whose cache holds every model's, a kernel of its own, or a
+#: third element naming the model class whose specialisation of the shared loop must be among
+#: that loop's cache entries)
 KERNEL_SENTINELS: dict[str, tuple[str, ...]] = {
     "joint": ("flightrecon.methods.joint.passes", "forward"),
-    "sns": ("flightrecon.methods.sns.filter", "_filter_kernel"),
+    "sns": ("flightrecon.methods.sns.output", "_densify_kernel"),
     "sabziev": ("flightrecon.methods.sabziev.discrete", "_run_end"),
     "arms": ("flightrecon.estimation.filtering", "forward_pass", "ArmsTrackModel"),
     "azimuth": ("flightrecon.estimation.filtering", "forward_pass", "AzimuthModel"),

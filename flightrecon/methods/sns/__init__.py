@@ -86,16 +86,20 @@ Gaussian conditioning argument of RTS goes through with the correct cross-covari
 
 Implementation (speed, issue #13)
 ---------------------------------
-The kernels do all per-step and per-sample work in preallocated buffers: the public model
+The filter and the smoother are a model of the estimation core
+(:class:`~flightrecon.methods.sns.filter.SnsModel` on the core's one forward loop and one
+backward loop, :mod:`flightrecon.estimation.filtering`, :mod:`flightrecon.estimation.smoothing`):
+the model's functions do the per-step work in preallocated buffers; the public model
 functions (:func:`increment`, :func:`segment_factor`, :func:`step_matrices`,
-:func:`observation_rows`) are thin allocating wrappers of ``_*_into`` cores that the kernels
-call directly, small products are plain loops (:func:`mm_into`, :func:`mmt_into`), the
-trigonometry of
-the corrections' rotation is evaluated once per step (once per filter step in :func:`densify`,
-whose moves from the filter states reuse the states' ``sin``/``cos`` of latitude,
-:func:`_boxplus_pre`).  ``S^+`` is the Cholesky inverse whenever a trace bound proves full rank
-at ``rcond`` (:func:`_inv_spd_into`), else a Jacobi eigen-decomposition; the update, the
-correlated-noise prediction and the smoother's step are the estimation core's
+:func:`observation_rows`) are thin allocating wrappers of the ``*_into`` forms that the model
+calls directly (:func:`~flightrecon.methods.sns.model.step_matrices_into`,
+:func:`~flightrecon.methods.sns.model.observation_rows_into`), small products are plain loops
+(:func:`mm_into`, :func:`mmt_into`), the trigonometry of the corrections' rotation is
+evaluated once per step (once per filter step in :func:`densify`, whose moves from the filter
+states reuse the states' ``sin``/``cos`` of latitude).  ``S^+`` is the Cholesky inverse
+whenever a trace bound proves full rank at ``rcond``
+(:func:`~flightrecon.estimation.linalg.pinv_sym_into`), else a Jacobi eigen-decomposition; the
+update, the correlated-noise prediction and the smoother's step are the estimation core's
 (:mod:`flightrecon.estimation.updates`, :mod:`flightrecon.estimation.rts`: the smoother's gain
 by a Cholesky solve with ``Pp``, or, counted, a general solve, which reports singularity, where
 that fails).  The results equal the straightforward matrix expressions to round-off
@@ -104,9 +108,11 @@ that fails).  The results equal the straightforward matrix expressions to round-
 
 from __future__ import annotations
 
+from flightrecon.estimation.filtering import FilterRun
 from flightrecon.estimation.linalg import pinv_sym
 from flightrecon.estimation.manifold import boxminus, boxplus, radii
-from flightrecon.methods.sns.filter import SnsRun, SnsSmoothed, sns_filter, sns_smooth
+from flightrecon.estimation.smoothing import SmoothedRun
+from flightrecon.methods.sns.filter import SnsModel, rts_smooth_cross, sns_filter, sns_smooth
 from flightrecon.methods.sns.model import (
     FORM_CONSISTENT,
     FORM_SEED,
@@ -130,6 +136,7 @@ __all__ = [
     "pinv_sym", "MODEL_AIRSPEED", "MODEL_DOPPLER", "FORM_CONSISTENT", "FORM_SEED", "N_STATE",
     "N_EPS1", "STATE_NAMES", "radii", "boxplus", "boxminus", "increment", "segment_factor",
     "step_matrices", "observation_rows", "StepInputs", "fill_single_sample", "SnsNoise",
-    "default_noise", "SnsRun", "SnsSmoothed", "sns_filter", "sns_smooth", "densify",
+    "default_noise", "FilterRun", "SmoothedRun", "SnsModel", "sns_filter", "sns_smooth",
+    "rts_smooth_cross", "densify",
     "integrate_readings",
 ]

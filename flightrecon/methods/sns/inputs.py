@@ -64,7 +64,7 @@ def _channel(grid: pd.DataFrame, name: str, notes: list[str], fill: float | None
     return x
 
 
-def _readings(grid: pd.DataFrame, model: int, notes: list[str]):
+def held_readings(grid: pd.DataFrame, model: int, notes: list[str]):
     """Per recorder sample: measured velocity vector a, its unit vector u, wind (toward) w."""
     psi = np.deg2rad(_channel(grid, "heading_deg", notes))
     if model == core.MODEL_DOPPLER:
@@ -124,7 +124,7 @@ def _lever_arm_rows(grid: pd.DataFrame, rows: np.ndarray,
     return out
 
 
-def _lever_arm_at(grid: pd.DataFrame, t: np.ndarray, tf: np.ndarray, jf: np.ndarray,
+def lever_arm_at_fixes(grid: pd.DataFrame, t: np.ndarray, tf: np.ndarray, jf: np.ndarray,
                   lever_arm_m: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
     """Lever arm ``C_nb l`` (north/east) and its time derivative at the fix times ``tf``.
 
@@ -175,7 +175,7 @@ def _at(t: np.ndarray, cum: np.ndarray, v: np.ndarray, tq: np.ndarray,
     return cum[j] + v[j] * (tq - t[j])[:, None]
 
 
-def _radii_np(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def radii_with_height(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`flightrecon.methods.sns.radii` on arrays: ``(M + h, N + h)`` [m]."""
     m, n = radii_from_sin(np.sin(lat))
     return m + h, n + h
@@ -292,7 +292,7 @@ class Readings(NamedTuple):
 def readings(grid: pd.DataFrame, t: np.ndarray, model: int, notes: list[str]) -> Readings:
     """The readings of ``model`` and, in one compiled pass, their cumulative integrals and
     ``CQ[j]`` = sum over samples < j of ``dt^2 [u u^T, (Ja)(Ja)^T, 1]``."""
-    a, u, w = _readings(grid, model, notes)
+    a, u, w = held_readings(grid, model, notes)
     IA, IU, IW, CQ = core.integrate_readings(t, a, u, w)
     return Readings(a, u, w, IA, IU, IW, CQ)
 
@@ -329,10 +329,10 @@ def step_inputs(clean: CleanFlight, t: np.ndarray, h_grid: np.ndarray, fixes: Gn
     Qa = np.where(inner[:, None], CQ[nxt] - CQ[np.minimum(jstar + 1, len(t))], 0.0)
 
     # fixes: centre of mass, step, partial integrals, held readings
-    arm_f, darm_f = _lever_arm_at(clean.grid, t, tf, jf, clean.meta.gnss_lever_arm_m)
+    arm_f, darm_f = lever_arm_at_fixes(clean.grid, t, tf, jf, clean.meta.gnss_lever_arm_m)
     lat_a = np.deg2rad(g["gnss_lat_deg"].to_numpy(float))
     lon_a = np.deg2rad(g["gnss_lon_deg"].to_numpy(float))
-    mh, nh = _radii_np(lat_a, h_fix)
+    mh, nh = radii_with_height(lat_a, h_fix)
     flat = lat_a - arm_f[:, 0] / mh
     flon = lon_a - arm_f[:, 1] / (nh * np.cos(lat_a))
     fv = np.full((len(tf), 2), np.nan)

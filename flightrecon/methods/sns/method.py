@@ -35,6 +35,8 @@ import pandas as pd
 
 from flightrecon.errors import ConvergenceError, SchemaError, ValidationError
 from flightrecon.estimation.consistency import chi_square_verdict
+from flightrecon.estimation.filtering import FilterRun
+from flightrecon.estimation.smoothing import SmoothedRun
 from flightrecon.geo.frames import output_plane
 from flightrecon.geo.navframe import north_azimuth_in_plane
 from flightrecon.methods import sns as core
@@ -42,17 +44,14 @@ from flightrecon.methods.sns.inputs import (  # noqa: F401  (re-exported: tests,
     FORMS,
     GNSS_COLUMNS,
     MODELS,
-    _at,
-    _channel,
-    _lever_arm_at,
-    _lever_arm_rows,
-    _radii_np,
-    _readings,
     choose_model,
     filter_grid,
     gnss_fixes,
+    held_readings,
     initial_state,
+    lever_arm_at_fixes,
     lever_arm_ne,
+    radii_with_height,
     readings,
     step_inputs,
 )
@@ -75,8 +74,8 @@ class SnsSolution:
     form: int
     noise: core.SnsNoise
     inputs: core.StepInputs
-    run: core.SnsRun
-    smoothed: core.SnsSmoothed
+    run: FilterRun
+    smoothed: SmoothedRun
     idx: np.ndarray
     fix_t: np.ndarray
     n_fix_dropped: int

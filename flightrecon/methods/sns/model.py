@@ -5,11 +5,12 @@ state are the estimation core's (:mod:`flightrecon.estimation.manifold`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
-from flightrecon.estimation.linalg import _chol2_into
+from flightrecon.estimation.linalg import chol2_into
 
 MODEL_AIRSPEED = 0
 
@@ -45,13 +46,13 @@ def _increment_into(model: int, c: np.ndarray, A0: float, A1: float, U0: float, 
 
     The allocation-free core used by the filter kernel (every entry of the outputs is written).
     """
-    s, th = _scale_angle(model, c)
-    _increment_cs_into(model, s, np.cos(th), np.sin(th), c, A0, A1, U0, U1, W0, W1, tau, sig,
+    s, th = scale_angle(model, c)
+    increment_cs_into(model, s, np.cos(th), np.sin(th), c, A0, A1, U0, U1, W0, W1, tau, sig,
                        d, J, Gs)
 
 
 @nb.njit(cache=True, nogil=True)
-def _increment_cs_into(model: int, s: float, ct: float, st: float, c: np.ndarray, A0: float,
+def increment_cs_into(model: int, s: float, ct: float, st: float, c: np.ndarray, A0: float,
                        A1: float, U0: float, U1: float, W0: float, W1: float, tau: float,
                        sig: np.ndarray, d: np.ndarray, J: np.ndarray, Gs: np.ndarray) -> None:
     """:func:`_increment_into` given the scale ``s`` and ``cos``/``sin`` of the rotation angle
@@ -133,12 +134,12 @@ def increment(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: np.nd
 def _segment_factor_into(model: int, c: np.ndarray, Q: np.ndarray, sig: np.ndarray,
                          L: np.ndarray) -> None:
     """:func:`segment_factor` writing into a caller-owned (2, 2) ``L``."""
-    s, th = _scale_angle(model, c)
+    s, th = scale_angle(model, c)
     _segment_factor_cs_into(model, s, np.cos(th), np.sin(th), Q, sig, L)
 
 
 @nb.njit(cache=True, nogil=True)
-def _scale_angle(model: int, c: np.ndarray) -> tuple[float, float]:
+def scale_angle(model: int, c: np.ndarray) -> tuple[float, float]:
     """Scale ``s`` and rotation angle ``theta`` of the corrected reading (module docstring)."""
     if model == MODEL_AIRSPEED:
         return 1.0, c[2]
@@ -165,7 +166,7 @@ def _segment_factor_cs_into(model: int, s: float, ct: float, st: float, Q: np.nd
     r00 = ct * ct * m00 - 2 * ct * st * m01 + st * st * m11
     r01 = ct * st * (m00 - m11) + (ct * ct - st * st) * m01
     r11 = st * st * m00 + 2 * ct * st * m01 + ct * ct * m11
-    _chol2_into(s * s * r00 + wn, s * s * r01, s * s * r11 + we, L)
+    chol2_into(s * s * r00 + wn, s * s * r01, s * s * r11 + we, L)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -184,32 +185,65 @@ def segment_factor(model: int, c: np.ndarray, Q: np.ndarray, sig: np.ndarray) ->
     return L
 
 
-@nb.njit(cache=True, nogil=True)
-def _step_matrices_into(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray,
-                        Wv: np.ndarray, tau: float, sig: np.ndarray, q: np.ndarray,
-                        star: np.ndarray, dt_star: float, Qb: np.ndarray, Qa: np.ndarray,
-                        d: np.ndarray, Phi: np.ndarray, B: np.ndarray, J: np.ndarray,
-                        Gs: np.ndarray, d2: np.ndarray, L: np.ndarray) -> None:
-    """:func:`step_matrices` writing ``d`` (2,), ``Phi`` (5, 5), ``B`` (5, 11) in place.
+class StepReadings(NamedTuple):
+    """The readings of one filter step (:func:`step_matrices`): the integrals ``A``, ``U``,
+    ``W`` (2,) of the held readings over the step, its length ``tau`` [s], the readings
+    ``star`` (3, 2) of the recorder sample held at the step's fixes and their hold
+    ``dt_star`` [s], and the noise sums ``Qb``, ``Qa`` (7,) of the samples before and after
+    it."""
 
-    ``J`` (2, 3), ``Gs`` (2, 4), ``d2`` (2,), ``L`` (2, 2) are scratch buffers.
+    A: np.ndarray
+    U: np.ndarray
+    W: np.ndarray
+    tau: float
+    star: np.ndarray
+    dt_star: float
+    Qb: np.ndarray
+    Qa: np.ndarray
+
+
+class FixReadings(NamedTuple):
+    """The readings of one SNS fix (:func:`observation_rows`): the integrals ``PA``, ``PU``,
+    ``PW`` (2,) from the start of its step to the fix, taken ``tau`` [s] after the step, the
+    readings ``a``, ``u``, ``w`` (2,) of the recorder sample held at the fix and ``tau_in``
+    [s], how long that sample is held before the fix."""
+
+    PA: np.ndarray
+    PU: np.ndarray
+    PW: np.ndarray
+    tau: float
+    a: np.ndarray
+    u: np.ndarray
+    w: np.ndarray
+    tau_in: float
+
+
+@nb.njit(cache=True, nogil=True)
+def step_matrices_into(model: int, c: np.ndarray, step: StepReadings, sig: np.ndarray,
+                       q: np.ndarray, out: tuple, scratch: tuple) -> None:
+    """:func:`step_matrices` writing ``out = (d (2,), Phi (5, 5), B (5, 11))`` in place.
+
+    ``scratch = (J (2, 3), Gs (2, 4), d2 (2,), L (2, 2))``.
     """
+    d, Phi, B = out
+    J, Gs, d2, L = scratch
+    A, U, Wv, tau, star, dt_star, Qb, Qa = step
     for i in range(N_STATE):
         for j in range(N_STATE):
             Phi[i, j] = 1.0 if i == j else 0.0
         for j in range(N_EPS1):
             B[i, j] = 0.0
-    s, th = _scale_angle(model, c)
+    s, th = scale_angle(model, c)
     ct = np.cos(th)
     st = np.sin(th)
-    _increment_cs_into(model, s, ct, st, c, A[0], A[1], U[0], U[1], Wv[0], Wv[1], tau, sig, d,
-                       J, Gs)
+    increment_cs_into(model, s, ct, st, c, A[0], A[1], U[0], U[1], Wv[0], Wv[1], tau, sig, d,
+                      J, Gs)
     for i in range(2):
         for j in range(3):
             Phi[i, 2 + j] = J[i, j]
-    _increment_cs_into(model, s, ct, st, c, star[0, 0] * dt_star, star[0, 1] * dt_star,
-                       star[1, 0] * dt_star, star[1, 1] * dt_star, star[2, 0] * dt_star,
-                       star[2, 1] * dt_star, dt_star, sig, d2, J, Gs)
+    increment_cs_into(model, s, ct, st, c, star[0, 0] * dt_star, star[0, 1] * dt_star,
+                      star[1, 0] * dt_star, star[1, 1] * dt_star, star[2, 0] * dt_star,
+                      star[2, 1] * dt_star, dt_star, sig, d2, J, Gs)
     for i in range(2):
         for j in range(4):
             B[i, j] = Gs[i, j]
@@ -241,21 +275,22 @@ def step_matrices(model: int, c: np.ndarray, A: np.ndarray, U: np.ndarray, Wv: n
     d = np.empty(2)
     Phi = np.empty((N_STATE, N_STATE))
     B = np.empty((N_STATE, N_EPS1))
-    _step_matrices_into(model, c, A, U, Wv, tau, sig, q, star, dt_star, Qb, Qa, d, Phi, B,
-                        np.empty((2, 3)), np.empty((2, 4)), np.empty(2), np.empty((2, 2)))
+    step_matrices_into(model, c, StepReadings(A, U, Wv, tau, star, dt_star, Qb, Qa), sig, q,
+                       (d, Phi, B), (np.empty((2, 3)), np.empty((2, 4)), np.empty(2),
+                                     np.empty((2, 2))))
     return d, Phi, B
 
 
 @nb.njit(cache=True, nogil=True)
-def _observation_rows_into(model: int, c: np.ndarray, PA: np.ndarray, PU: np.ndarray,
-                           PW: np.ndarray, tau: float, a: np.ndarray, u: np.ndarray,
-                           w: np.ndarray, sig: np.ndarray, tau_in: float, Qb: np.ndarray,
-                           h: np.ndarray, H: np.ndarray, G: np.ndarray, d: np.ndarray,
-                           J: np.ndarray, Gs: np.ndarray, L: np.ndarray) -> None:
-    """:func:`observation_rows` writing ``h`` (4,), ``H`` (4, 5), ``G`` (4, 11) in place.
+def observation_rows_into(model: int, c: np.ndarray, fix: FixReadings, sig: np.ndarray,
+                          Qb: np.ndarray, out: tuple, scratch: tuple) -> None:
+    """:func:`observation_rows` writing ``out = (h (4,), H (4, 5), G (4, 11))`` in place.
 
-    ``d`` (2,), ``J`` (2, 3), ``Gs`` (2, 4), ``L`` (2, 2) are scratch buffers.
+    ``scratch = (d (2,), J (2, 3), Gs (2, 4), L (2, 2))``.
     """
+    h, H, G = out
+    d, J, Gs, L = scratch
+    PA, PU, PW, tau, a, u, w, tau_in = fix
     for i in range(4):
         for j in range(N_STATE):
             H[i, j] = 0.0
@@ -263,18 +298,18 @@ def _observation_rows_into(model: int, c: np.ndarray, PA: np.ndarray, PU: np.nda
             G[i, j] = 0.0
     H[0, 0] = 1.0
     H[1, 1] = 1.0
-    s, th = _scale_angle(model, c)
+    s, th = scale_angle(model, c)
     ct = np.cos(th)
     st = np.sin(th)
-    _increment_cs_into(model, s, ct, st, c, PA[0], PA[1], PU[0], PU[1], PW[0], PW[1], tau, sig,
-                       d, J, Gs)
+    increment_cs_into(model, s, ct, st, c, PA[0], PA[1], PU[0], PU[1], PW[0], PW[1], tau, sig,
+                      d, J, Gs)
     h[0] = d[0]
     h[1] = d[1]
     for i in range(2):
         for j in range(3):
             H[i, 2 + j] = J[i, j]
-    _increment_cs_into(model, s, ct, st, c, a[0] * tau_in, a[1] * tau_in, u[0] * tau_in,
-                       u[1] * tau_in, w[0] * tau_in, w[1] * tau_in, tau_in, sig, d, J, Gs)
+    increment_cs_into(model, s, ct, st, c, a[0] * tau_in, a[1] * tau_in, u[0] * tau_in,
+                      u[1] * tau_in, w[0] * tau_in, w[1] * tau_in, tau_in, sig, d, J, Gs)
     for i in range(2):
         for j in range(4):
             G[i, j] = Gs[i, j]
@@ -282,8 +317,8 @@ def _observation_rows_into(model: int, c: np.ndarray, PA: np.ndarray, PU: np.nda
     for i in range(2):
         for j in range(2):
             G[i, 4 + j] = L[i, j]
-    _increment_cs_into(model, s, ct, st, c, a[0], a[1], u[0], u[1], w[0], w[1], 1.0, sig, d, J,
-                       Gs)
+    increment_cs_into(model, s, ct, st, c, a[0], a[1], u[0], u[1], w[0], w[1], 1.0, sig, d, J,
+                      Gs)
     h[2] = d[0]
     h[3] = d[1]
     for i in range(2):
@@ -308,8 +343,9 @@ def observation_rows(model: int, c: np.ndarray, PA: np.ndarray, PU: np.ndarray, 
     h = np.empty(4)
     H = np.empty((4, N_STATE))
     G = np.empty((4, N_EPS1))
-    _observation_rows_into(model, c, PA, PU, PW, tau, a, u, w, sig, tau_in, Qb, h, H, G,
-                           np.empty(2), np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 2)))
+    observation_rows_into(model, c, FixReadings(PA, PU, PW, tau, a, u, w, tau_in), sig, Qb,
+                          (h, H, G), (np.empty(2), np.empty((2, 3)), np.empty((2, 4)),
+                                      np.empty((2, 2))))
     return h, H, G
 
 

@@ -3,17 +3,40 @@ of sensor readings between filter steps."""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
 from flightrecon.estimation.manifold import boxplus, radii
 from flightrecon.geo.ellipsoid import radii_from_sin
-from flightrecon.methods.sns.filter import _c
 from flightrecon.methods.sns.model import (
     MODEL_AIRSPEED,
-    _increment_cs_into,
-    _scale_angle,
+    increment_cs_into,
+    scale_angle,
 )
+
+
+class ReadingIntegrals(NamedTuple):
+    """Cumulative integrals of the held readings at a set of times, each (M, 2)
+    (:func:`integrate_readings`): measured velocity ``A``, its unit vector ``U``, wind ``W``."""
+
+    A: np.ndarray
+    U: np.ndarray
+    W: np.ndarray
+
+
+class HeldReadings(NamedTuple):
+    """The readings held at a set of times, each (M, 2): measured velocity ``a``, its unit
+    vector ``u``, wind (toward) ``w``."""
+
+    a: np.ndarray
+    u: np.ndarray
+    w: np.ndarray
+
+
+def _c(a, dtype=np.float64) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=dtype))
 
 
 @nb.njit(cache=True, nogil=True)
@@ -52,10 +75,13 @@ def _boxplus_pre(lat: float, lon: float, slat: float, clat: float, mr: float, nr
 
 
 @nb.njit(cache=True, nogil=True)
-def _densify_kernel(model, xs, Ps, kidx, tq, tf, IA, IU, IW, FA, FU, FW, hq, a, u, w, sig):
+def _densify_kernel(model, xs, Ps, kidx, tq, tf, at_q, at_filter, hq, held, sig):
     # Scalar form of the per-sample work (no allocation): the increments of :func:`increment`
     # (only ``d`` is needed for the positions; the velocity uses ``d``, ``J`` and ``Gs`` at
     # ``tau = 1``), blended as described in :func:`densify`.
+    IA, IU, IW = at_q
+    FA, FU, FW = at_filter
+    a, u, w = held
     M = tq.shape[0]
     lat = np.empty(M)
     lon = np.empty(M)
@@ -80,7 +106,7 @@ def _densify_kernel(model, xs, Ps, kidx, tq, tf, IA, IU, IW, FA, FU, FW, hq, a, 
         if k != kprev:
             for i in range(3):
                 c[i] = xs[k, 2 + i]
-            s, th = _scale_angle(model, c)
+            s, th = scale_angle(model, c)
             ct = np.cos(th)
             st = np.sin(th)
             kprev = k
@@ -121,7 +147,7 @@ def _densify_kernel(model, xs, Ps, kidx, tq, tf, IA, IU, IW, FA, FU, FW, hq, a, 
                     Pn[j, r, q] = Ps[k, r, q]
         lat[j] = la
         lon[j] = lo
-        _increment_cs_into(model, s, ct, st, c, a[j, 0], a[j, 1], u[j, 0], u[j, 1], w[j, 0],
+        increment_cs_into(model, s, ct, st, c, a[j, 0], a[j, 1], u[j, 0], u[j, 1], w[j, 0],
                            w[j, 1], 1.0, sig, d, J, Gs)
         v[j, 0] = d[0]
         v[j, 1] = d[1]
@@ -170,11 +196,11 @@ def densify(model: int, xs: np.ndarray, Ps: np.ndarray, kidx: np.ndarray, tq: np
     -------
     lat, lon [rad] (M,), P_ne (M, 2, 2), v_ne (M, 2) [m/s], P_v (M, 2, 2)
     """
-    IA, IU, IW = (_c(x) for x in I_at_q)
-    FA, FU, FW = (_c(x) for x in I_at_filter)
-    a, u, w = (_c(x) for x in readings)
+    at_q = ReadingIntegrals(*(_c(x) for x in I_at_q))
+    at_filter = ReadingIntegrals(*(_c(x) for x in I_at_filter))
+    held = HeldReadings(*(_c(x) for x in readings))
     return _densify_kernel(int(model), _c(xs), _c(Ps), _c(kidx, np.int64), _c(tq),
-                           _c(t_filter), IA, IU, IW, FA, FU, FW, _c(hq), a, u, w, _c(sig))
+                           _c(t_filter), at_q, at_filter, _c(hq), held, _c(sig))
 
 
 @nb.njit(cache=True, nogil=True)
