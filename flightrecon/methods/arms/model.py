@@ -384,7 +384,7 @@ def _predict(model, k, x, P, ws):
     P[:, :] = Pn
 
 
-@implements(keep_predicted, ArmsTrackModel)
+@implements(keep_predicted, ArmsTrackModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
     model.x_p[k] = x
     model.P_p[k] = P
@@ -491,7 +491,7 @@ def _update(model, k, x, P, ws):
                 S_k[slot[a], slot[b]] = S[a, b]
 
 
-@implements(keep_filtered, ArmsTrackModel)
+@implements(keep_filtered, ArmsTrackModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
     model.x_f[k] = x
     model.P_f[k] = P

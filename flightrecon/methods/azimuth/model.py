@@ -97,7 +97,7 @@ def _predict(model, k, x, P, ws):
     P[:, :] = Pn
 
 
-@implements(keep_predicted, AzimuthModel)
+@implements(keep_predicted, AzimuthModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
     model.x_p[k] = x
     model.P_p[k] = P
@@ -147,7 +147,7 @@ def _update(model, k, x, P, ws):
         model.r_z[k] = R
 
 
-@implements(keep_filtered, AzimuthModel)
+@implements(keep_filtered, AzimuthModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
     model.x_f[k] = x
     model.P_f[k] = P
