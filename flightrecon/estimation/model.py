@@ -101,9 +101,9 @@ def _jit_options(refcounted: bool) -> dict[str, Any]:
     flag, whose absence in a numba version falls back to counting)."""
     opts: dict[str, Any] = {"nogil": True, "cache": True}
     if not refcounted:
-        from numba.core.options import TargetOptions
+        from numba.core.options import DefaultOptions
 
-        if hasattr(TargetOptions, "_nrt"):
+        if hasattr(DefaultOptions, "_nrt"):
             opts["_nrt"] = False
     return opts
 

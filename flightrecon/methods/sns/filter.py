@@ -209,7 +209,7 @@ def _workspace(model):
         np.zeros(n), np.zeros(3))
 
 
-@implements(predict_into, SnsModel)
+@implements(predict_into, SnsModel, refcounted=False)
 def _predict(model, k, x, P, ws):
     """Step k-1 to k from the filtered ``x``, ``P`` of step k-1 (docs/sns.md, "Filter"):
     ``x_k = f(x+) (+ B G^T S^+ nu)``, ``P_k`` by the consistent or the seed form; keeps
@@ -249,7 +249,7 @@ def _predict(model, k, x, P, ws):
     sym_into(Pn, P)
 
 
-@implements(keep_predicted, SnsModel)
+@implements(keep_predicted, SnsModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
     for i in range(N_STATE):  # element loops, not x_p[k] = x: no shape-check path to compile
         model.x_p[k, i] = x[i]
@@ -257,7 +257,7 @@ def _keep_predicted(model, k, x, P):
             model.P_p[k, i, j] = P[i, j]
 
 
-@implements(update_into, SnsModel)
+@implements(update_into, SnsModel, refcounted=False)
 def _update(model, k, x, P, ws):
     """The fixes of step k, stacked (docs/sns.md, "Filter"): ``K = P- H^T S^+``, Joseph form,
     ``x+ = x- (+) K nu``; records ``nis[k]``, ``rank[k]``."""
@@ -329,7 +329,7 @@ def _update(model, k, x, P, ws):
     state_correction_into(LATLON, x, K, nu, hgt, ws.dxb, x)
 
 
-@implements(keep_filtered, SnsModel)
+@implements(keep_filtered, SnsModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
     for i in range(N_STATE):
         model.x_f[k, i] = x[i]
@@ -342,7 +342,7 @@ def _smoothing_covariances(model, k, ws):
     return model.P_f[k], model.P_p[k + 1]
 
 
-@implements(cross_transposed_into, SnsModel)
+@implements(cross_transposed_into, SnsModel, refcounted=False)
 def _cross_transposed(model, k, CT, ws):
     n = CT.shape[0]
     for i in range(n):
@@ -350,7 +350,7 @@ def _cross_transposed(model, k, CT, ws):
             CT[i, j] = model.cross[k, j, i]
 
 
-@implements(cross_times_into, SnsModel)
+@implements(cross_times_into, SnsModel, refcounted=False)
 def _cross_times(model, k, y, out, ws):
     n = out.shape[0]
     for i in range(n):
@@ -365,7 +365,7 @@ def _rts_frame(model, k):
     return model.geometry, model.steps.hgt[k], model.steps.hgt[k + 1], RTS_REL_TOL
 
 
-@implements(keep_smoothed, SnsModel)
+@implements(keep_smoothed, SnsModel, refcounted=False)
 def _keep_smoothed(model, k, x, P, with_cov, ws):
     if with_cov:
         n = P.shape[0]
@@ -473,7 +473,7 @@ def rts_smooth_cross(x_pred: np.ndarray, x: np.ndarray, P_pred: np.ndarray, P: n
     sm = SnsModel(-1, -1, int(geometry), 1, steps, fixes, noise, x_pred, P_pred, x, P, cross,
                   e1, ei, np.empty((N, n, n)))
     xs = np.empty((N, n))
-    n_fallback = backward_pass(sm, x, x_pred, xs, P[N - 1], True)
+    n_fallback = backward_pass(sm, x, x_pred, xs, P[N - 1])
     return SmoothedRun(xs, sm.P_s, int(n_fallback))
 
 
@@ -484,5 +484,5 @@ def sns_smooth(run: FilterRun) -> SmoothedRun:
     N, n = sm.x_f.shape
     sm = sm._replace(P_s=np.empty((N, n, n)))
     xs = np.empty((N, n))
-    n_fallback = backward_pass(sm, sm.x_f, sm.x_p, xs, sm.P_f[N - 1], True)
+    n_fallback = backward_pass(sm, sm.x_f, sm.x_p, xs, sm.P_f[N - 1])
     return SmoothedRun(xs, sm.P_s, int(n_fallback))
