@@ -24,7 +24,7 @@ from flightrecon.estimation.model import (
     update_into,
     workspace,
 )
-from flightrecon.estimation.predict import predict
+from flightrecon.estimation.predict import predict_cov_into
 from flightrecon.estimation.updates import joseph_update
 from flightrecon.geo.radar import horizontal_range  # noqa: F401  (public here too)
 
@@ -372,22 +372,45 @@ def arms_track_model(F: np.ndarray, Q: np.ndarray, radar: np.ndarray, radar_sd: 
 @implements(workspace, ArmsTrackModel)
 def _workspace(model):
     n = model.F.shape[1]
-    # the step's stacked innovation, Jacobian, noise and innovation slots (radar 0-1, air 2-3)
-    return np.zeros(4), np.zeros((4, n)), np.zeros((4, 4)), np.empty(4, dtype=np.int64)
+    # the step's stacked innovation, Jacobian, noise and innovation slots (radar 0-1, air 2-3),
+    # then the prediction's buffers (x^-, F P F^T, F P)
+    return (np.zeros(4), np.zeros((4, n)), np.zeros((4, 4)), np.empty(4, dtype=np.int64),
+            np.empty(n), np.empty((n, n)), np.empty((n, n)))
 
 
-@implements(predict_into, ArmsTrackModel)
+@implements(predict_into, ArmsTrackModel, refcounted=False)
 def _predict(model, k, x, P, ws):
-    """``x <- F_k x``, ``P <- F_k P F_k^T + Q_k`` (exact CV / Gauss-Markov discretisation)."""
-    xn, Pn = predict(x, P, model.F[k], model.Q[k])
-    x[:] = xn
-    P[:, :] = Pn
+    """``x <- F_k x``, ``P <- F_k P F_k^T + Q_k`` symmetrised (exact CV / Gauss-Markov
+    discretisation): :func:`~flightrecon.estimation.predict.predict`'s operations in the
+    workspace's buffers (no allocation)."""
+    xn, FPFt, T = ws[4], ws[5], ws[6]
+    F = model.F[k]
+    Q = model.Q[k]
+    n = x.shape[0]
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += F[i, j] * x[j]
+        xn[i] = acc
+    predict_cov_into(P, F, FPFt, T)
+    for i in range(n):
+        x[i] = xn[i]
+        for j in range(n):
+            P[i, j] = Q[i, j] + FPFt[i, j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = v
+            P[j, i] = v
 
 
 @implements(keep_predicted, ArmsTrackModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
-    model.x_p[k] = x
-    model.P_p[k] = P
+    n = x.shape[0]
+    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
+        model.x_p[k, i] = x[i]
+        for j in range(n):
+            model.P_p[k, i, j] = P[i, j]
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -446,7 +469,7 @@ def _update(model, k, x, P, ws):
     ``V* = [Vx + dVx, Vy + dVy] + e``, ``e ~ N(0, Rv)``, rows ``H = [0 1 0 0 1 0; 0 0 0 1 0 1]``.
     Innovations are kept in slots 0-1 (radar) and 2-3 (air data) of ``model.nu`` / ``model.S``.
     """
-    nu, Hk, Rk, slot = ws
+    nu, Hk, Rk, slot = ws[0], ws[1], ws[2], ws[3]
     n = x.shape[0]
     radar = model.radar
     air = model.air
@@ -493,5 +516,8 @@ def _update(model, k, x, P, ws):
 
 @implements(keep_filtered, ArmsTrackModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
-    model.x_f[k] = x
-    model.P_f[k] = P
+    n = x.shape[0]
+    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
+        model.x_f[k, i] = x[i]
+        for j in range(n):
+            model.P_f[k, i, j] = P[i, j]

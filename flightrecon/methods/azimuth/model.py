@@ -91,7 +91,9 @@ def _workspace(model):
 
 @implements(predict_into, AzimuthModel)
 def _predict(model, k, x, P, ws):
-    """``x <- F_k x``, ``P <- F_k P F_k^T + Q_k``."""
+    """``x <- F_k x``, ``P <- F_k P F_k^T + Q_k`` symmetrised (Singer or random-walk matrices;
+    :func:`~flightrecon.estimation.predict.predict`: ``F x`` through BLAS, whose summation
+    order an element loop does not reproduce for n = 3, hence counted)."""
     xn, Pn = predict(x, P, model.F[k], model.Q[k])
     x[:] = xn
     P[:, :] = Pn
@@ -99,8 +101,11 @@ def _predict(model, k, x, P, ws):
 
 @implements(keep_predicted, AzimuthModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
-    model.x_p[k] = x
-    model.P_p[k] = P
+    n = x.shape[0]
+    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
+        model.x_p[k, i] = x[i]
+        for j in range(n):
+            model.P_p[k, i, j] = P[i, j]
 
 
 @implements(update_into, AzimuthModel)
@@ -109,7 +114,7 @@ def _update(model, k, x, P, ws):
     at the current estimate (docs/azimuth.md "Observations"): ``H = [-dz/deps, 2 r_dot, r]``,
     ``R_z = u Sa u^T + n_corr (u Sb u^T + [a, 2 omega] Pr [a, 2 omega]^T)``, ``u = [-sin eps,
     cos eps]``; each a scalar Joseph update."""
-    h_eps, r1, nu1 = ws
+    h_eps, r1, nu1 = ws[0], ws[1], ws[2]
     if not np.isnan(model.eps_meas[k]):
         nu1[0] = _wrap(model.eps_meas[k] - x[0])
         r1[0, 0] = model.eps_var[k]
@@ -149,5 +154,8 @@ def _update(model, k, x, P, ws):
 
 @implements(keep_filtered, AzimuthModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
-    model.x_f[k] = x
-    model.P_f[k] = P
+    n = x.shape[0]
+    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
+        model.x_f[k, i] = x[i]
+        for j in range(n):
+            model.P_f[k, i, j] = P[i, j]
