@@ -77,7 +77,7 @@ def _is_njit(fn: ast.FunctionDef) -> bool:
 
 
 FORWARD_BODY = (re.compile(r"\bpredict\w*\("), re.compile(r"\b(\w*update\w*|gain_into)\("))
-BACKWARD_BODY = re.compile(r"\brts_(step|mean_solve)\(")
+BACKWARD_BODY = re.compile(r"\b(rts_step|rts_mean_solve|smoothed_step)\(")
 
 
 def _range_direction(node: ast.For) -> str | None:

@@ -88,7 +88,7 @@ def _truth(cols: dict[str, np.ndarray], cfg: JsbsimConfig, meta: FlightMeta,
     return frame.assign(**extra)
 
 
-def _sensors(cfg: JsbsimConfig, aircraft) -> SensorSuite:
+def scenario_sensor_models(cfg: JsbsimConfig, aircraft) -> SensorSuite:
     if cfg.ideal_sensors:
         return SensorSuite(
             LoadFactorSensor(cfg.loads_hz, (0.0,) * 3, (0.0,) * 3, (0.0,) * 3),
@@ -155,7 +155,7 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
     wind_mean = weather.wind.velocity(cols["h"], cols["t"])
     truth = _truth(cols, cfg, meta0, wind_mean)
     aircraft = persistent_aircraft(name, cfg, seed)
-    suite = _sensors(cfg, aircraft)
+    suite = scenario_sensor_models(cfg, aircraft)
     rec = record_log(truth, suite, seed, cfg.truth_rate_hz, recorder_faults(cfg))
     # the antenna where the receiver has it (at the centre of mass with ideal sensors)
     lever = tuple(float(v) for v in (suite.gnss.lever_arm_m if suite.gnss is not None

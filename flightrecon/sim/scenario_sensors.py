@@ -23,10 +23,10 @@ from flightrecon.sim.sensors import (
 from flightrecon.types import Position
 
 if TYPE_CHECKING:
-    from flightrecon.sim.scenarios import ScenarioConfig
+    from flightrecon.sim.scenario_config import ScenarioConfig
 
 
-def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
+def scenario_sensor_models(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
     """The scenario's sensors: its aircraft's errors, ideal where asked, the air data of
     the ADS/ARMS seed scenario without their own errors, GNSS, radar, Doppler, wind."""
     a = cfg.aircraft
@@ -81,7 +81,7 @@ def json_ready(x: Any) -> Any:
     return x
 
 
-def _sensor_truth(name: str, seed: int, cfg: ScenarioConfig, suite: Any,
+def scenario_sensor_truth(name: str, seed: int, cfg: ScenarioConfig, suite: Any,
                   events: dict[str, Any], faults: Any) -> dict[str, Any]:
     """The ``<stem>.sensors.json`` document: the errors drawn, the sensors, the weather."""
     a = cfg.aircraft
