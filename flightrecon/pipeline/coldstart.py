@@ -30,7 +30,7 @@ from flightrecon.types import CleanFlight, MethodResult
 #: per method, the compiled kernel whose cache entry tells whether the method's kernels are
 #: compiled (its largest kernel, compiled on every run of the method)
 KERNEL_SENTINELS: dict[str, tuple[str, str]] = {
-    "joint": ("flightrecon.methods.joint.passes", "forward"),
+    "joint": ("flightrecon.estimation.filtering", "forward_pass"),
     "sns": ("flightrecon.methods.sns.filter", "_filter_kernel"),
     "sabziev": ("flightrecon.methods.sabziev.discrete", "_run_end"),
     "arms": ("flightrecon.methods.arms.filter", "_arms_kernel"),
