@@ -147,8 +147,8 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
 def _transition_rows(F, cols, vals, cnt, k, dyn):
     """F_k into ``F`` and its row-compressed copy (:func:`transition_into`,
     :func:`~flightrecon.estimation.predict.sparse_rows`)."""
-    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
-    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz, ga)
+    transition_into(F, k, dyn.dt, dyn.Cen, dyn.Cnb, dyn.Csf, dyn.Jatt, dyn.acc, dyn.q[4], dyn.dz,
+                    dyn.ga)
     sparse_rows(F, cols, vals, cnt)
 
 
@@ -174,7 +174,7 @@ def _residuals_at(k, x, meas, geo, Cen, H, res, res_n, rate, P, hph):
     smoothed covariance ``P`` (n, n) (an empty array: skipped) also H P H^T into ``hph``."""
     mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas
     pnom, hnom, pst, Cst = geo
-    n = x.shape[0]
+    n = N_STATE
     for j in range(mstart[k], mstart[k + 1]):
         hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst)
         if P.shape[0] == n:
@@ -205,7 +205,7 @@ def _residuals_at(k, x, meas, geo, Cen, H, res, res_n, rate, P, hph):
 
 # ---- the model protocol (estimation.model) ----
 
-@implements(workspace, JointModel)
+@implements(workspace, JointModel, forceinline=True)
 def _workspace(model):
     """Scratch of both passes: F_k dense and row-compressed, the products' buffers, a
     measurement's gradient and its nonzero indices, P_p[k+1] and P_f[k] unpacked."""
@@ -216,31 +216,32 @@ def _workspace(model):
             np.empty(n))
 
 
-@implements(predict_into, JointModel)
+@implements(predict_into, JointModel, forceinline=True)
 def _predict(model, k, x, P, ws):
     """x <- F_k x + C_en[k-1] dP_k (position) + dV_k (velocity), P <- F_k P F_k^T + Q_k
     (docs/joint.md, "State and dynamics"), with F_k row-compressed: O(n nnz)."""
+    dyn = model.dyn
     F, cols, vals, cnt, B, xn = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]
-    dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = model.dyn
-    _transition_rows(F, cols, vals, cnt, k, model.dyn)
+    _transition_rows(F, cols, vals, cnt, k, dyn)
     predict_sparse(x, P, cols, vals, cnt, xn, B)  # x <- F x, P <- F P F^T
+    Cen, dP, dV = dyn.Cen, dyn.dP, dyn.dV
     for i in range(3):  # + the control input (the recorded increments) and Q_k
         for m in range(3):
             x[IP + i] += Cen[k - 1, i, m] * dP[k, m]
         x[IV + i] += dV[k, i]
-    add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga)
+    add_process_noise(P, k, dyn.dt, Cen, dyn.dz, dyn.qv_extra, dyn.q, dyn.ga)
 
 
-@implements(keep_predicted, JointModel)
+@implements(keep_predicted, JointModel, forceinline=True)
 def _keep_predicted(model, k, x, P):
     xp = model.xp
-    for i in range(x.shape[0]):  # element loop, not xp[k] = x: no shape-check path to compile
+    for i in range(N_STATE):  # element loop, not xp[k] = x: no shape-check path to compile
         xp[k, i] = x[i]
     if model.Pp.shape[0] > 0:
         pack_sym(P, model.Pp[k])
 
 
-@implements(update_into, JointModel)
+@implements(update_into, JointModel, forceinline=True)
 def _update(model, k, x, P, ws):
     """The step's scalar measurements in turn (docs/joint.md, "Filter, smoother, iterations").
 
@@ -258,7 +259,7 @@ def _update(model, k, x, P, ws):
     xlin = model.xlin
     gate = model.gate
     nu_out, s_out, infl = model.nu, model.S, model.infl
-    n = x.shape[0]
+    n = N_STATE  # a constant: the loops below unroll (as in the filter before the core)
     for j in range(mstart[k], mstart[k + 1]):
         if mw[j] <= 0.0:
             continue
@@ -305,15 +306,15 @@ def _update(model, k, x, P, ws):
         scalar_update_short(x, P, PH, nu, S)
 
 
-@implements(keep_filtered, JointModel)
+@implements(keep_filtered, JointModel, forceinline=True)
 def _keep_filtered(model, k, x, P):
     xf = model.xf
-    for i in range(x.shape[0]):
+    for i in range(N_STATE):
         xf[k, i] = x[i]
     pack_sym(P, model.Pf[k])
 
 
-@implements(smoothing_covariances, JointModel)
+@implements(smoothing_covariances, JointModel, forceinline=True)
 def _smoothing_covariances(model, k, ws):
     """P_f[k] unpacked and P_p[k+1] (unpacked, or recomputed when the forward pass did not keep
     it); F_{k+1} row-compressed in ``ws`` for the cross-covariance that follows."""
@@ -328,17 +329,17 @@ def _smoothing_covariances(model, k, ws):
     return Pfk, Pbuf
 
 
-@implements(cross_transposed_into, JointModel)
+@implements(cross_transposed_into, JointModel, forceinline=True)
 def _cross_transposed(model, k, CT, ws):
     sparse_left_product(ws[1], ws[2], ws[3], ws[10], CT)  # C^T = F_{k+1} P_f[k]
 
 
-@implements(cross_times_into, JointModel)
+@implements(cross_times_into, JointModel, forceinline=True)
 def _cross_times(model, k, y, out, ws):
     """C y = P_f[k] (F_{k+1}^T y): the sparse product first, O(nnz + n^2)."""
     z, Pfk = ws[11], ws[10]
     sparse_rmatvec(ws[1], ws[2], ws[3], y, z)
-    n = out.shape[0]
+    n = N_STATE
     for a in range(n):
         v = 0.0
         for b in range(n):
@@ -346,12 +347,12 @@ def _cross_times(model, k, y, out, ws):
         out[a] = v
 
 
-@implements(rts_frame, JointModel)
+@implements(rts_frame, JointModel, forceinline=True)
 def _rts_frame(model, k):
     return EUCLIDEAN, 0.0, 0.0, 0.0
 
 
-@implements(keep_smoothed, JointModel)
+@implements(keep_smoothed, JointModel, forceinline=True)
 def _keep_smoothed(model, k, x, P, with_cov, ws):
     """The position-velocity block and the diagonal of P_s (covariance pass); the residuals at
     the smoothed state where the model has their buffers (with H P_s H^T in the covariance
@@ -360,7 +361,7 @@ def _keep_smoothed(model, k, x, P, with_cov, ws):
         for i in range(6):
             for j in range(6):
                 model.Pblk[k, i, j] = P[i, j]
-        for i in range(x.shape[0]):
+        for i in range(N_STATE):
             model.var[k, i] = P[i, i]
     if model.res.shape[0] > 0:
         _residuals_at(k, x, model.meas, model.geo, model.dyn.Cen, ws[6], model.res,
