@@ -359,11 +359,12 @@ def test_correlated_noise_prediction_against_brute_force():
 
 
 def test_cv_joint_kernels_through_the_core(cv_case):
-    """Guards the joint smoother's passes as they compose the core
-    (``methods/joint/passes.py``): the row-compressed prediction ``predict_sparse`` with the
-    process noise added after it, one ``scalar_update_short`` per measurement component
-    (``forward``), the RTS step with the sparse ``C^T = F P_f`` (``backward``) and the mean-only
-    step, ``rts_mean_solve`` then ``P_f (F^T y)`` (``backward_mean``)."""
+    """Guards the joint smoother's model as it composes the core
+    (``methods/joint/model.py``): the row-compressed prediction ``predict_sparse`` with the
+    process noise added after it (``predict_into``), one ``scalar_update_short`` per measurement
+    component (``update_into``), the RTS step with the sparse ``C^T = F P_f``
+    (``cross_transposed_into``) and the mean-only step, ``rts_mean_solve`` then ``P_f (F^T y)``
+    (``cross_times_into``)."""
     from flightrecon.estimation.manifold import EUCLIDEAN, state_plus_into
     from flightrecon.estimation.predict import (
         predict_sparse,

@@ -94,7 +94,7 @@ keep_smoothed = _protocol("keep_smoothed")
 INLINED = ("rts_frame",)
 
 
-def _jit_options(refcounted: bool) -> dict[str, Any]:
+def _jit_options(refcounted: bool, forceinline: bool) -> dict[str, Any]:
     """Compile options of a model function: ``nogil``, cached; without numba's reference
     counting where the model says so (``_nrt=False``: measured on the SNS filter, the per-step
     calls' reference counting of the model's some 70 arrays took 38 % of its run; numba's own
@@ -105,11 +105,14 @@ def _jit_options(refcounted: bool) -> dict[str, Any]:
 
         if hasattr(DefaultOptions, "_nrt"):
             opts["_nrt"] = False
+    if forceinline:
+        opts["forceinline"] = True
     return opts
 
 
 def implements(function: Callable[..., Any], model_class: type, *,
-               refcounted: bool = True) -> Callable[[Callable], Callable]:
+               refcounted: bool = True, forceinline: bool = False
+               ) -> Callable[[Callable], Callable]:
     """Register ``impl`` as ``function`` (one of this module's) for models of ``model_class``.
 
     ``impl`` is a plain Python function with the protocol's arguments, written in the subset
@@ -125,6 +128,10 @@ def implements(function: Callable[..., Any], model_class: type, *,
     call (numba refuses to compile an allocation there: the guard is the compiler's).  A
     function that allocates (e.g. through ``joseph_update``) must stay counted, or what it
     allocates would never be freed.
+
+    With ``forceinline`` LLVM inlines ``impl`` into the loop (numba's ``forceinline``): no call
+    per step, whose arguments (every array of the model and the workspace, flattened) cost a
+    large model a measurable part of its step.
     """
     def register(impl: Callable) -> Callable:
         def typer(model: Any, *args: Any) -> Callable | None:
@@ -137,6 +144,6 @@ def implements(function: Callable[..., Any], model_class: type, *,
         if function.__name__ in INLINED:
             overload(function, inline="always", jit_options={"nogil": True})(typer)
         else:
-            overload(function, jit_options=_jit_options(refcounted))(typer)
+            overload(function, jit_options=_jit_options(refcounted, forceinline))(typer)
         return impl
     return register

@@ -33,7 +33,7 @@ from flightrecon.types import CleanFlight, MethodResult
 #: third element naming the model class whose specialisation of the shared loop must be among
 #: that loop's cache entries)
 KERNEL_SENTINELS: dict[str, tuple[str, ...]] = {
-    "joint": ("flightrecon.methods.joint.passes", "forward"),
+    "joint": ("flightrecon.estimation.filtering", "forward_pass", "JointModel"),
     "sns": ("flightrecon.methods.sns.output", "_densify_kernel"),
     "sabziev": ("flightrecon.methods.sabziev.discrete", "_run_end"),
     "arms": ("flightrecon.estimation.filtering", "forward_pass", "ArmsTrackModel"),

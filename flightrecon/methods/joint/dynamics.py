@@ -114,9 +114,7 @@ def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
     with dq = 0 this is the isotropic q_acc (h^3/3, h^2/2 C, h) of one white acceleration."""
     h = dt[k]
     base = q[0] + qv_extra[k]
-    qa = np.empty(3)
-    for a in range(3):
-        qa[a] = base + q[9 + a]
+    qa = (base + q[9], base + q[10], base + q[11])   # a tuple: no allocation per step
     qpp, qpv, qvv = white_acceleration_q(1.0, h)
     C = Cen[k - 1]
     for i in range(3):

@@ -42,6 +42,16 @@ def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
 
 
 @nb.njit(cache=True, nogil=True)
+def _moved(x, C, tau, i):
+    """ECEF coordinate ``i`` of the position moved by the velocity over ``tau``:
+    p_i + sum_m C[i, m] v_m tau (summed in that order)."""
+    s = x[IP + i]
+    for m in range(3):
+        s += C[i, m] * x[IV + m] * tau
+    return s
+
+
+@nb.njit(cache=True, nogil=True)
 def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
     """h(x) of scalar measurement j at step k (state x at the step); its gradient into ``H``.
 
@@ -73,34 +83,31 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
         H[IV + a] = tau
         return hx
     if t == RANGE or t == AZIMUTH or t == ELEVATION:
-        pos = np.empty(3)
-        for i in range(3):
-            s = x[IP + i]
-            for m in range(3):
-                s += C[i, m] * x[IV + m] * tau
-            pos[i] = s - pst[i]
-        d = np.empty(3)  # ENU at the station: Cst has the E, N, U unit vectors as columns
-        for i in range(3):
-            d[i] = Cst[0, i] * pos[0] + Cst[1, i] * pos[1] + Cst[2, i] * pos[2]
-        e, nn, u = d[0], d[1], d[2]
+        # (scalars and tuples, no arrays: the step's functions allocate nothing)
+        pos = (_moved(x, C, tau, 0) - pst[0], _moved(x, C, tau, 1) - pst[1],
+               _moved(x, C, tau, 2) - pst[2])
+        # ENU at the station: Cst has the E, N, U unit vectors as columns
+        e = Cst[0, 0] * pos[0] + Cst[1, 0] * pos[1] + Cst[2, 0] * pos[2]
+        nn = Cst[0, 1] * pos[0] + Cst[1, 1] * pos[1] + Cst[2, 1] * pos[2]
+        u = Cst[0, 2] * pos[0] + Cst[1, 2] * pos[1] + Cst[2, 2] * pos[2]
         dh2 = e * e + nn * nn
         dh = np.sqrt(dh2)
         r2 = dh2 + u * u
         r = np.sqrt(r2)
-        g = np.zeros(3)
+        g0 = g1 = g2 = 0.0
         if t == RANGE:
             hx = r
-            g[0], g[1], g[2] = e / r, nn / r, u / r
+            g0, g1, g2 = e / r, nn / r, u / r
         elif t == AZIMUTH:
             hx = np.arctan2(e, nn)
-            g[0], g[1] = nn / dh2, -e / dh2
+            g0, g1 = nn / dh2, -e / dh2
         else:
             hx = np.arctan2(u, dh)
-            g[0], g[1], g[2] = -u * e / (dh * r2), -u * nn / (dh * r2), dh / r2
+            g0, g1, g2 = -u * e / (dh * r2), -u * nn / (dh * r2), dh / r2
         # d h / d pos_ecef = g^T Cst^T
-        gp = np.empty(3)
-        for i in range(3):
-            gp[i] = Cst[i, 0] * g[0] + Cst[i, 1] * g[1] + Cst[i, 2] * g[2]
+        gp = (Cst[0, 0] * g0 + Cst[0, 1] * g1 + Cst[0, 2] * g2,
+              Cst[1, 0] * g0 + Cst[1, 1] * g1 + Cst[1, 2] * g2,
+              Cst[2, 0] * g0 + Cst[2, 1] * g1 + Cst[2, 2] * g2)
         for i in range(3):
             H[IP + i] = gp[i]
         for m in range(3):
