@@ -49,9 +49,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from flightrecon.cleaning import clean_flight
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
 from flightrecon.methods.sabziev import air_velocity
-from flightrecon.methods.sabziev.method import field_pressure_altitude_m, run_sabziev
+from flightrecon.methods.sabziev.method import run_sabziev
 from flightrecon.sim import simulate
 from flightrecon.types import Flight, Position
 

@@ -85,7 +85,8 @@ def test_heading_reference_grid_with_runways_only_true_with_gnss():
     departure's meridian (the rates carry no transport rate): the report says "grid", and the
     Sabziev adapter then integrates in the flat frame; a GNSS track anchors it to the local
     north along the flight ("true")."""
-    from flightrecon.methods.sabziev.method import heading_reference, run_sabziev
+    from flightrecon.methods.sabziev.flight_inputs import heading_reference
+    from flightrecon.methods.sabziev.method import run_sabziev
 
     cf = clean_flight(_rates_flight(with_gnss=False, runway=True))
     assert heading_reference(cf) == "grid"

@@ -132,7 +132,8 @@ def test_sabziev_takes_a_fix_at_the_end_as_its_end_point():
     it says that the other fix is not used. (Whether the fusion then converges is Sabziev's
     own health on this JSBSim flight: it does not, with the arrival given either.)"""
     from flightrecon.geo.frames import output_plane
-    from flightrecon.methods.sabziev.method import end_fix, run_sabziev
+    from flightrecon.methods.sabziev.flight_inputs import end_fix
+    from flightrecon.methods.sabziev.method import run_sabziev
     from flightrecon.pipeline import ReconstructSettings
     from flightrecon.pipeline.registry import available_methods
 

@@ -12,9 +12,11 @@ from scipy.optimize import brentq
 from test_sabziev_flights import synthetic_flight
 
 from flightrecon.errors import FlightReconWarning, MetadataError, SchemaError
+from flightrecon.geo.atmosphere import field_pressure_altitude_m
 from flightrecon.geo.frames import output_plane
 from flightrecon.geo.kinematics import load_factors_from_acceleration
-from flightrecon.methods.sabziev.method import LIFTOFF_SD_M, field_pressure_altitude_m, run_sabziev
+from flightrecon.methods.sabziev.method import run_sabziev
+from flightrecon.methods.sabziev.result import LIFTOFF_SD_M
 from flightrecon.types import CleanFlight, FlightMeta, FlightPhases, Position
 
 PAD_S = 20.0

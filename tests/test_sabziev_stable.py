@@ -211,7 +211,7 @@ def test_an_altitude_in_feet_is_unhealthy_even_when_the_ends_agree():
 def test_end_consistent_height_scale_and_drift():
     """A flight ending at its top: the end mismatch is a scale (exact for a pure scale error);
     one ending low: a drift linear in time; both end exactly on the end height."""
-    from flightrecon.methods.sabziev.method import end_consistent_height
+    from flightrecon.methods.sabziev.heights import end_consistent_height
 
     t = np.linspace(0.0, 900.0, 901)
     truth = 1500.0 * np.sin(0.5 * np.pi * t / 900.0)  # ends at its top
@@ -231,7 +231,7 @@ def test_hypsometric_height():
     to the trapezoidal rule on a linear lapse: 1e-6 m); 10 K warmer it is larger by about
     10/T (3.5 % near sea level)."""
     from flightrecon.geo.atmosphere import isa_temperature_k
-    from flightrecon.methods.sabziev.method import hypsometric_height
+    from flightrecon.methods.sabziev.heights import hypsometric_height
 
     hp = np.linspace(0.0, 3000.0, 3001)
     isa = isa_temperature_k(hp) - 273.15
@@ -247,7 +247,7 @@ def test_surface_track_follows_the_meridian_and_the_parallel():
     distances flown east keep the latitude and advance the longitude by dz / ((N + h) cos phi) exactly."""
     from pyproj import Geod
 
-    from flightrecon.methods.sabziev.method import surface_track
+    from flightrecon.methods.sabziev.surface import surface_track
 
     d = np.linspace(0.0, 500e3, 5001)
     lat, lon = surface_track(40.0, 50.0, d, np.zeros_like(d), np.zeros_like(d))
@@ -279,7 +279,7 @@ def test_boundary_value_track_reports_its_sd():
     lift-off (its point not given), the arrival's 1500 m at the end, positive throughout, the
     model in the summary; the pipeline's health accepts it."""
     from flightrecon.methods.baselines import ARRIVAL_POINT_SD_M, corrected_track_sd_m
-    from flightrecon.methods.sabziev.method import LIFTOFF_SD_M
+    from flightrecon.methods.sabziev.result import LIFTOFF_SD_M
 
     clean, _f, sl, _ = geometric_clean_flight()
     res = run_sabziev(clean)

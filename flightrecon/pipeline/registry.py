@@ -206,7 +206,7 @@ def _joint_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
 
 
 def _sabziev_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
-    from flightrecon.methods.sabziev.method import end_fix
+    from flightrecon.methods.sabziev.flight_inputs import end_fix
 
     if clean.meta.arrival is not None or s.k is not None or end_fix(clean) is not None:
         return None
