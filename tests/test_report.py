@@ -10,7 +10,7 @@ import pytest
 from flightrecon.events import Event, events_table
 from flightrecon.report import make_figures, write_report
 from flightrecon.report.html import opening_paragraph
-from flightrecon.report.plots import FIGURES, _wind_from_speed, correction_rows
+from flightrecon.report.plots import FIGURES, correction_rows, wind_from_speed
 
 EPOCH = "2026-01-01T10:00:00Z"
 
@@ -102,7 +102,7 @@ def test_time_axes_are_utc_and_altitude_is_msl():
 
 def test_wind_direction_is_where_it_blows_from():
     # air moving south (wind_n = -5) comes from the north: 0 deg; moving east: from 270
-    d, s = _wind_from_speed(np.array([-5.0, 0.0]), np.array([0.0, 3.0]))
+    d, s = wind_from_speed(np.array([-5.0, 0.0]), np.array([0.0, 3.0]))
     np.testing.assert_allclose(d, [0.0, 270.0], atol=1e-9)
     np.testing.assert_allclose(s, [5.0, 3.0])
 

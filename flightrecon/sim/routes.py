@@ -23,7 +23,7 @@ ARP_OFFSET_M = 800.0
 (departure) or from the touchdown point (arrival)."""
 
 
-def _offset(p: Position, north_m: float, east_m: float) -> tuple[float, float]:
+def offset_point(p: Position, north_m: float, east_m: float) -> tuple[float, float]:
     """Lat/lon of a point ``north_m, east_m`` from ``p`` in its tangent plane (at ground)."""
     return offset_latlon(p.lat_deg, p.lon_deg, north_m, east_m)
 
@@ -40,7 +40,7 @@ def _builder(cfg: ScenarioConfig, atmosphere: Atmosphere, start: tuple[float, fl
 
 def _takeoff_start(cfg: ScenarioConfig) -> tuple[float, float, float]:
     r = np.radians(cfg.runway_deg)
-    lat, lon = _offset(cfg.airfield, -ARP_OFFSET_M * np.cos(r), -ARP_OFFSET_M * np.sin(r))
+    lat, lon = offset_point(cfg.airfield, -ARP_OFFSET_M * np.cos(r), -ARP_OFFSET_M * np.sin(r))
     return lat, lon, cfg.airfield.elev_m
 
 
@@ -51,18 +51,18 @@ def circuit_touchdown_m(cfg: ScenarioConfig) -> float:
     return cfg.touchdown_m - ARP_OFFSET_M - cfg.lineup_m
 
 
-def _threshold(cfg: ScenarioConfig) -> tuple[float, float]:
+def threshold_latlon(cfg: ScenarioConfig) -> tuple[float, float]:
     """Lat/lon of the departure runway's threshold: ``lineup_m`` before the roll's start."""
     r = np.radians(cfg.runway_deg)
     d = ARP_OFFSET_M + cfg.lineup_m
-    return _offset(cfg.airfield, -d * np.cos(r), -d * np.sin(r))
+    return offset_point(cfg.airfield, -d * np.cos(r), -d * np.sin(r))
 
 
-def _route_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float,
+def route_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float,
                    legs: tuple[float, float] = (215.0, 60.0)) -> PlanBuilder:
     """Left-hand pattern at 450 m AGL: upwind, crosswind, downwind, base, final, landing.
 
-    ``legs`` = (downwind, base) times [s]; :func:`_close_circuit` adjusts them so that the
+    ``legs`` = (downwind, base) times [s]; :func:`close_circuit` adjusts them so that the
     final approach lies on the runway centre line and touches down at
     :func:`circuit_touchdown_m`.
     """
@@ -96,14 +96,14 @@ def _touchdown_offset(cfg: ScenarioConfig, b: PlanBuilder) -> tuple[float, float
     return float(along), float(cross)
 
 
-def _close_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> tuple[float, float]:
+def close_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> tuple[float, float]:
     """Downwind and base leg times that put the touchdown on the centre line at
     :func:`circuit_touchdown_m` (fixed-point iteration; the downwind leg moves the touchdown
     along the runway, the base leg across it)."""
     legs = np.array([215.0, 60.0])
     target = circuit_touchdown_m(cfg)
     for _ in range(6):
-        b = _route_circuit(cfg, atm, extra_s, tuple(legs))
+        b = route_circuit(cfg, atm, extra_s, tuple(legs))
         along, cross = _touchdown_offset(cfg, b)
         g = cfg.aircraft.cruise_tas_mps
         legs = legs + np.array([(along - target) / (g * cfg.leg_scale),
@@ -115,7 +115,7 @@ def _close_circuit(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> tupl
     return float(legs[0]), float(legs[1])
 
 
-def _route_regional(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+def route_regional(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
     """About 300 km: climb to 4500 m with turns, cruise with heading changes, descent,
     approach turns, landing (about 1 h)."""
     a, s = cfg.aircraft, cfg.leg_scale
@@ -137,10 +137,10 @@ def _route_regional(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> Pla
     return b
 
 
-def _route_landing(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+def route_landing(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
     """Approach from 2500 m, 40 km out: descending turns, base, final, landing (about 12 min)."""
     a = cfg.aircraft
-    lat, lon = _offset(cfg.airfield, 22e3, -30e3)
+    lat, lon = offset_point(cfg.airfield, 22e3, -30e3)
     b = _builder(cfg, atm, (lat, lon, 2500.0), cfg.runway_deg + 70.0, a.cruise_tas_mps)
     b.hold(40).change_altitude(1500.0, 8.0, wait=False)
     b.turn(-40, 2.0).hold(60 + extra_s)
@@ -152,15 +152,15 @@ def _route_landing(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> Plan
     return b
 
 
-def _route_seed_ads_arms(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+def route_seed_ads_arms(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
     """Straight and level at 100 m/s, 1000 m, passing the station (docs/arms.md)."""
-    lat, lon = _offset(cfg.airfield, 15e3, -60e3)
+    lat, lon = offset_point(cfg.airfield, 15e3, -60e3)
     b = _builder(cfg, atm, (lat, lon, 1000.0), 90.0, 100.0)
     b.hold(cfg.duration_s or 1200.0)
     return b
 
 
-def _route_longhaul(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
+def route_longhaul(cfg: ScenarioConfig, atm: Atmosphere, extra_s: float) -> PlanBuilder:
     """10 h: climb to 10 500 m, cruise with course changes, descent, landing."""
     a = cfg.aircraft
     b = _builder(cfg, atm, _takeoff_start(cfg), cfg.runway_deg, None)

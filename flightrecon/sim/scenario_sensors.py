@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from flightrecon.sim.scenarios import ScenarioConfig
 
 
-def _sensors(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
+def scenario_sensor_suite(cfg: ScenarioConfig, station: Position | None) -> SensorSuite:
     """The scenario's sensors: its aircraft's errors, ideal where asked, the air data of
     the ADS/ARMS seed scenario without their own errors, GNSS, radar, Doppler, wind."""
     a = cfg.aircraft
@@ -81,7 +81,7 @@ def json_ready(x: Any) -> Any:
     return x
 
 
-def _sensor_truth(name: str, seed: int, cfg: ScenarioConfig, suite: Any,
+def sensor_truth_document(name: str, seed: int, cfg: ScenarioConfig, suite: Any,
                   events: dict[str, Any], faults: Any) -> dict[str, Any]:
     """The ``<stem>.sensors.json`` document: the errors drawn, the sensors, the weather."""
     a = cfg.aircraft

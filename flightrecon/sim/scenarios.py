@@ -30,17 +30,17 @@ from flightrecon.sim.plan import PlanBuilder
 from flightrecon.sim.recorder import record_log, stream
 from flightrecon.sim.routes import (  # noqa: F401 - ARP_OFFSET_M, circuit_touchdown_m: API
     ARP_OFFSET_M,
-    _close_circuit,
-    _offset,
-    _route_circuit,
-    _route_landing,
-    _route_longhaul,
-    _route_regional,
-    _route_seed_ads_arms,
-    _threshold,
+    close_circuit,
+    offset_point,
+    route_circuit,
+    route_landing,
+    route_longhaul,
+    route_regional,
+    route_seed_ads_arms,
+    threshold_latlon,
     circuit_touchdown_m,
 )
-from flightrecon.sim.scenario_sensors import _sensor_truth, _sensors, json_ready
+from flightrecon.sim.scenario_sensors import sensor_truth_document, scenario_sensor_suite, json_ready
 from flightrecon.sim.sensors import Faults, gauss_markov, wrap360
 from flightrecon.sim.trajectory import FlightPlan, simulate_truth
 from flightrecon.sim.weather import Atmosphere, WindField, qnh_hpa
@@ -148,7 +148,7 @@ SCENARIOS: dict[str, _Scenario] = {
     "circuit": _Scenario(ScenarioConfig(
         aircraft=LIGHT, wind=WindField(6.0, 0.004, 230.0, 0.02, 1.0, 5.0, 1800.0),
         temp_offset_k=6.0, p_sl_departure_hpa=1006.0, p_sl_arrival_hpa=1006.5,
-    ), _route_circuit, target_s=900.0),
+    ), route_circuit, target_s=900.0),
     "regional": _Scenario(ScenarioConfig(
         aircraft=TURBOPROP, runway_deg=300.0, arrival_elev_m=25.0,
         wind=WindField(8.0, 0.004, 250.0, 0.006, 3.0, 10.0, 3.0 * 3600.0),
@@ -158,13 +158,13 @@ SCENARIOS: dict[str, _Scenario] = {
         faults=Faults(spikes=3, spike_channels=(("n_norm_g", 1.5), ("tas_mps", 40.0),
                                                 ("baro_alt_m", 300.0)),
                       gaps=(("tas_mps", 2000.0, 20.0),)),
-    ), _route_regional, target_s=3600.0),
+    ), route_regional, target_s=3600.0),
     "seed-ads-arms": _Scenario(ScenarioConfig(
         aircraft=TURBOPROP, airfield=Position(40.0, 49.0, 0.0), arrival_elev_m=0.0,
         truth_rate_hz=4.0, loads_hz=4.0, attitude_hz=1.0, airspeed_hz=1.0, baro_hz=1.0,
         gnss_hz=0.0, radar_scan_s=1.0, radar_range_sd_m=50.0, radar_azimuth_sd_deg=0.25,
         airdata_gm_sigma_mps=20.0, airdata_gm_tau_s=360.0, duration_s=1200.0,
-    ), _route_seed_ads_arms, airborne=True),
+    ), route_seed_ads_arms, airborne=True),
     "landing": _Scenario(ScenarioConfig(
         aircraft=TURBOPROP, airfield=Position(40.0, 49.0, 0.0), runway_deg=100.0,
         arrival_elev_m=-20.0, wind=WindField(5.0, 0.003, 30.0, 0.01, 1.0, 5.0, 1800.0),
@@ -172,13 +172,13 @@ SCENARIOS: dict[str, _Scenario] = {
         truth_rate_hz=8.0, loads_hz=8.0, attitude_hz=8.0, airspeed_hz=4.0, baro_hz=4.0,
         gnss_hz=1.0, radar_scan_s=4.0, radar_range_sd_m=50.0, radar_azimuth_sd_deg=0.15,
         radar_outages=((400.0, 60.0),), station_offset_m=(-1500.0, 1000.0),
-    ), _route_landing, airborne=True),
+    ), route_landing, airborne=True),
     "longhaul": _Scenario(ScenarioConfig(
         aircraft=JET, runway_deg=230.0, arrival_elev_m=120.0,
         wind=WindField(6.0, 0.002, 260.0, 0.004, 4.0, 15.0, 4.0 * 3600.0),
         temp_offset_k=-4.0, p_sl_departure_hpa=1011.0, p_sl_arrival_hpa=1019.0,
         doppler_hz=4.0, wind_hz=1.0, gnss_dropouts=((12000.0, 900.0),),
-    ), _route_longhaul, target_s=36000.0 - 1.0 / 16.0),
+    ), route_longhaul, target_s=36000.0 - 1.0 / 16.0),
 }
 
 
@@ -210,8 +210,8 @@ def build_plan(name: str, cfg: ScenarioConfig) -> tuple[FlightPlan, Atmosphere]:
     def route_for(atm_: Atmosphere, extra_: float):
         if name != "circuit":
             return lambda c, a, x: sc.route(c, a, x)
-        legs = _close_circuit(cfg, atm_, extra_)
-        return lambda c, a, x: _route_circuit(c, a, x, legs)
+        legs = close_circuit(cfg, atm_, extra_)
+        return lambda c, a, x: route_circuit(c, a, x, legs)
 
     target_s = sc.target_s
     if name == "longhaul" and cfg.duration_s > 0.0:
@@ -249,7 +249,7 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     # a record that starts airborne: departure = the ground point below its first sample; an
     # airfield departure carries the true direction of its runway and its threshold, where the
     # take-off roll starts (as a runway database would)
-    thr_lat, thr_lon = _threshold(cfg)
+    thr_lat, thr_lon = threshold_latlon(cfg)
     field = replace(cfg.airfield, runway_true_deg=float(cfg.runway_deg % 360.0),
                     threshold_lat_deg=thr_lat, threshold_lon_deg=thr_lon)
     departure = (Position(float(plan.lat0_deg), float(plan.lon0_deg), cfg.arrival_elev_m)
@@ -261,9 +261,9 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
     station = None
     if cfg.radar_scan_s > 0:
         base = cfg.airfield if name == "seed-ads-arms" else arrival
-        lat, lon = _offset(base, *cfg.station_offset_m)
+        lat, lon = offset_point(base, *cfg.station_offset_m)
         station = Position(lat, lon, base.elev_m)
-    suite = _sensors(cfg, station)
+    suite = scenario_sensor_suite(cfg, station)
     airdata_truth, extra_truth = _airdata_error(cfg, truth, seed)
     rec = record_log(truth, suite, seed, cfg.truth_rate_hz, cfg.faults, airdata_truth)
     extra_truth.update(rec.truth_extra)
@@ -279,7 +279,7 @@ def _run(name: str, cfg: ScenarioConfig, seed: int) -> SimResult:
         qnh_arrival_hpa=round(qnh_hpa(atm, arrival.elev_m, plan.t_end_s), 2),
         geoid_undulation_m=cfg.geoid_undulation_m,
     )
-    sensor_truth = _sensor_truth(name, seed, cfg, suite, events, rec.faults)
+    sensor_truth = sensor_truth_document(name, seed, cfg, suite, events, rec.faults)
     return SimResult(log=rec.log, truth=truth, meta=meta, sensor_truth=json_ready(sensor_truth))
 
 
@@ -323,8 +323,8 @@ def _arrival(plan: Any, truth: pd.DataFrame, cfg: ScenarioConfig) -> Position:
         i = int(np.searchsorted(t, plan.touchdown_s))
         trk = np.radians(truth["track_deg"].iloc[i])
         td = Position(float(truth["lat_deg"].iloc[i]), float(truth["lon_deg"].iloc[i]))
-        lat, lon = _offset(td, ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
-        thr_lat, thr_lon = _offset(td, -cfg.touchdown_m * np.cos(trk),
+        lat, lon = offset_point(td, ARP_OFFSET_M * np.cos(trk), ARP_OFFSET_M * np.sin(trk))
+        thr_lat, thr_lon = offset_point(td, -cfg.touchdown_m * np.cos(trk),
                                    -cfg.touchdown_m * np.sin(trk))
         # the landing runway's direction: the track at touchdown (on the centre line)
         return Position(lat, lon, cfg.arrival_elev_m,

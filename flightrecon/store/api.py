@@ -438,10 +438,10 @@ class CoefficientStore:
     def flight_id_of(self, aircraft_id: str, log_sha256: str) -> str | None:
         """The flight id under which the log with this SHA-256 is recorded for the aircraft
         (``None`` if it is not; identity rule 1 of :mod:`flightrecon.store.identity`)."""
-        from flightrecon.store.identity import _rows, _same
+        from flightrecon.store.identity import identity_rows, same_log
 
-        for fid, h, hashes in self._run(lambda: _rows(self.con, aircraft_id)):
-            if _same(h, hashes, log_sha256):
+        for fid, h, hashes in self._run(lambda: identity_rows(self.con, aircraft_id)):
+            if same_log(h, hashes, log_sha256):
                 return fid
         return None
 

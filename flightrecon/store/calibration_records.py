@@ -10,7 +10,7 @@ from typing import Any
 
 
 from flightrecon.errors import StoreError
-from flightrecon.store.records import _finite, _flag, check_flight_identity
+from flightrecon.store.records import finite_number, bool_flag, check_flight_identity
 
 #: the persistent sensor errors the joint smoother estimates (keys of its ``corrections``) that
 #: belong to the aircraft: fused over its flights and, with ``--use-fleet-coefficients``, used as
@@ -62,7 +62,7 @@ class SensorEstimate:
                              f"got {self.quantity!r}")
         q = self.quantity
         for name in ("value", "sd", "prior_mean", "prior_sd"):
-            object.__setattr__(self, name, _finite(getattr(self, name), f"{q}.{name}"))
+            object.__setattr__(self, name, finite_number(getattr(self, name), f"{q}.{name}"))
         if self.sd < 0:
             raise StoreError(f"{q}.sd: must be >= 0, got {self.sd}")
         if self.prior_sd <= 0:
@@ -130,11 +130,11 @@ class FlightCalibration:
         if len(set(names)) != len(names):
             raise StoreError(f"estimates: a quantity appears twice in {names}")
         set_(self, "estimates", est)
-        dur = _finite(self.duration_s, "duration_s")
+        dur = finite_number(self.duration_s, "duration_s")
         if dur <= 0:
             raise StoreError(f"duration_s: must be positive, got {dur}")
         set_(self, "duration_s", dur)
-        set_(self, "converged", _flag(self.converged, "converged"))
+        set_(self, "converged", bool_flag(self.converged, "converged"))
         for name in ("tas_range_mps", "alt_range_m"):
             r = tuple(getattr(self, name))
             if len(r) != 2:

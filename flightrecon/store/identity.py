@@ -51,7 +51,7 @@ class Identity:
     requested: str | None
 
 
-def _rows(con: sqlite3.Connection, aircraft_id: str, with_date: bool = False) -> list[tuple]:
+def identity_rows(con: sqlite3.Connection, aircraft_id: str, with_date: bool = False) -> list[tuple]:
     out = []
     for table in ("flights", "calibration_flights"):
         for fid, h, hashes, date in con.execute(
@@ -66,7 +66,7 @@ def _rows(con: sqlite3.Connection, aircraft_id: str, with_date: bool = False) ->
     return out
 
 
-def _same(h: str | None, hashes: dict, log_sha256: str) -> bool:
+def same_log(h: str | None, hashes: dict, log_sha256: str) -> bool:
     if h is not None:
         return h == log_sha256
     return log_sha256 in {str(v) for v in hashes.values()}
@@ -78,10 +78,10 @@ def resolve_flight_id(con: sqlite3.Connection, aircraft_id: str, flight_id: str 
     inside the write transaction that records the flight.  With ``flight_date_utc``, a
     disambiguated flight whose take-off time equals the other record's is noted as a possible
     duplicate (the same flight in another file format counts twice in the averages)."""
-    dated = _rows(con, aircraft_id, with_date=True)
+    dated = identity_rows(con, aircraft_id, with_date=True)
     rows = [r[:3] for r in dated]
     for fid, h, hashes in rows:
-        if _same(h, hashes, log_sha256):
+        if same_log(h, hashes, log_sha256):
             note = "" if fid == flight_id else (
                 f"this log is recorded as flight '{fid}'" + (
                     f" (the metadata now say '{flight_id}')" if flight_id else ""))

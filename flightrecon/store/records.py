@@ -91,14 +91,14 @@ def _number_or_nan(x: Any, what: str) -> float:
     return v if math.isfinite(v) else math.nan
 
 
-def _finite(x: Any, what: str) -> float:
+def finite_number(x: Any, what: str) -> float:
     v = _number_or_nan(x, what)
     if not math.isfinite(v):
         raise StoreError(f"{what}: must be a finite number, got {x!r}")
     return v
 
 
-def _flag(x: Any, what: str) -> bool:
+def bool_flag(x: Any, what: str) -> bool:
     if not isinstance(x, (bool, int, np.bool_)) or x not in (0, 1):
         raise StoreError(f"{what}: expected True or False, got {x!r}")
     return bool(x)
@@ -196,17 +196,17 @@ class FlightCoefficients:
         if any(x <= 0.0 for x in sds if math.isfinite(x)):
             raise StoreError(f"k_sd: must be positive where known, got {sds!r}")
         set_(self, "k_sd", sds)
-        dur = _finite(self.duration_s, "duration_s")
+        dur = finite_number(self.duration_s, "duration_s")
         if dur <= 0.0:
             raise StoreError(f"duration_s: must be positive, got {dur}")
         set_(self, "duration_s", dur)
-        set_(self, "converged", _flag(self.converged, "converged"))
+        set_(self, "converged", bool_flag(self.converged, "converged"))
         if self.axis_converged is None:
             set_(self, "axis_converged", (self.converged,) * 3)
         ac = tuple(self.axis_converged)
         if len(ac) != 3:
             raise StoreError(f"axis_converged: expected three flags for (k1, k2, k3), got {ac!r}")
-        ac = tuple(_flag(c, "axis_converged") for c in ac)
+        ac = tuple(bool_flag(c, "axis_converged") for c in ac)
         if all(ac) != self.converged:
             raise StoreError(f"converged is {self.converged} but the axes say {ac}: a fit is "
                              "converged when every axis is")
@@ -218,7 +218,7 @@ class FlightCoefficients:
         set_(self, "branch", br)
         for ax, ok, b in zip(AXES, ac, br):
             if ok:
-                set_(self, ax, _finite(getattr(self, ax), ax))
+                set_(self, ax, finite_number(getattr(self, ax), ax))
                 if b == NO_ROOT:
                     raise StoreError(f"branch of {ax}: a converged axis has a root branch, "
                                      f"not '{NO_ROOT}'")

@@ -42,7 +42,7 @@ from flightrecon.report.plots.diagnostics import (
 )
 from flightrecon.report.plots.ground_track import ground_track
 from flightrecon.report.plots.time_series import (
-    _wind_from_speed,
+    wind_from_speed,
     altitude_profile,
     attitude,
     load_factors,
@@ -52,7 +52,7 @@ from flightrecon.report.plots.time_series import (
 
 __all__ = [
     "COLOURS", "CORRECTIONS", "FIGURES", "FPM", "FT", "G0", "KT", "METHOD_NAMES", "PREFIXES",
-    "ReportContext", "_wind_from_speed", "air_data_error", "altitude_profile", "attitude",
+    "ReportContext", "wind_from_speed", "air_data_error", "altitude_profile", "attitude",
     "correction_rows", "event_numbers", "ground_track", "innovation_statistics", "load_factors",
     "make_figures", "make_figures_ctx", "mark_events", "method_differences", "newton_history",
     "sensor_corrections", "speeds", "wind",

@@ -96,7 +96,7 @@ class ReportContext:
         return f"UTC ({self.epoch:%Y-%m-%d})"
 
 
-def _col(df: pd.DataFrame | None, name: str) -> np.ndarray | None:
+def column_values(df: pd.DataFrame | None, name: str) -> np.ndarray | None:
     if df is not None and name in df.columns:
         v = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
         if np.isfinite(v).any():
@@ -162,7 +162,7 @@ def _events_note(ctx: ReportContext) -> str:
             "smoother") if ctx.events else ""
 
 
-def _finish_time_figure(fig, axes, ctx: ReportContext, title: str) -> None:
+def finish_time_figure(fig, axes, ctx: ReportContext, title: str) -> None:
     for ax in axes:
         _time_axis(ax, ctx)
         mark_events(ax, ctx, label=ax is axes[0])
@@ -174,7 +174,7 @@ def _finish_time_figure(fig, axes, ctx: ReportContext, title: str) -> None:
     fig.tight_layout(rect=(0, 0.035 * 4.5 / fig.get_figheight(), 1, 1))
 
 
-def _twin_units(ax, factor: float, label: str) -> None:
+def twin_units(ax, factor: float, label: str) -> None:
     sec = ax.secondary_yaxis("right", functions=(lambda x: x / factor, lambda x: x * factor))
     sec.set_ylabel(label)
 

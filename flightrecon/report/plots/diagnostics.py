@@ -16,8 +16,8 @@ from flightrecon.report.plots.context import (
     METHOD_NAMES,
     PREFIXES,
     ReportContext,
-    _col,
-    _finish_time_figure,
+    column_values,
+    finish_time_figure,
 )
 
 #: readable names and display units of the estimated sensor corrections:
@@ -67,32 +67,32 @@ def method_differences(ctx: ReportContext) -> Figure | None:
     else:
         truth = None
         ref_name = "default result"
-        rn, re_ = _col(track, "north_m"), _col(track, "east_m")
+        rn, re_ = column_values(track, "north_m"), column_values(track, "east_m")
     if rn is None or re_ is None:
         return None
     x = ctx.time(track["t_s"])
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     drawn = False
     if truth is not None:
-        dn, de = _col(track, "north_m"), _col(track, "east_m")
+        dn, de = column_values(track, "north_m"), column_values(track, "east_m")
         if dn is not None and de is not None:
             drawn = True
             axes[0].plot(x, dn - rn, "k", lw=1, label="default result")
             axes[1].plot(x, de - re_, "k", lw=1, label="default result")
             for ax, c in ((axes[0], "north_sd_m"), (axes[1], "east_sd_m")):
-                sd = _col(track, c)
+                sd = column_values(track, c)
                 if sd is not None:
                     ax.fill_between(x, -2 * sd, 2 * sd, color="k", alpha=0.12, lw=0)
     diffs = {}
     for p in PREFIXES:
-        pn, pe = _col(track, f"{p}_north_m"), _col(track, f"{p}_east_m")
+        pn, pe = column_values(track, f"{p}_north_m"), column_values(track, f"{p}_east_m")
         if pn is not None and pe is not None:
             diffs[p] = (pn - rn, pe - re_)
     # the scale: the well-determined methods (a method kilometres off would flatten the rest
     # to a line); one whose error leaves it is drawn clipped and named "off scale"
     sizes = {p: float(np.nanpercentile(np.abs(np.r_[d[0], d[1]]), 95))
              for p, d in diffs.items() if np.isfinite(np.r_[d[0], d[1]]).any()}
-    dn_, de_ = _col(track, "north_m"), _col(track, "east_m")
+    dn_, de_ = column_values(track, "north_m"), column_values(track, "east_m")
     if truth is not None and dn_ is not None and de_ is not None:
         sizes["default"] = float(np.nanpercentile(np.abs(np.r_[dn_ - rn, de_ - re_]), 95))
     small = sorted(v for v in sizes.values() if np.isfinite(v))
@@ -113,7 +113,7 @@ def method_differences(ctx: ReportContext) -> Figure | None:
         axes[0].plot(x, en, color=COLOURS[p], lw=1, label=lab)
         axes[1].plot(x, ee, color=COLOURS[p], lw=1, label=lab)
         for ax, c in ((axes[0], f"{p}_north_sd_m"), (axes[1], f"{p}_east_sd_m")):
-            sd = _col(track, c)
+            sd = column_values(track, c)
             if sd is not None:
                 ax.fill_between(x, -2 * sd, 2 * sd, color=COLOURS[p], alpha=0.12, lw=0)
     if not drawn:
@@ -125,14 +125,14 @@ def method_differences(ctx: ReportContext) -> Figure | None:
     axes[0].set_ylabel(f"north - {ref_name} [m]")
     axes[1].set_ylabel(f"east - {ref_name} [m]")
     axes[0].legend(fontsize=7, loc="upper right")
-    _finish_time_figure(fig, list(axes), ctx, f"Methods against the {ref_name} (bands: each "
+    finish_time_figure(fig, list(axes), ctx, f"Methods against the {ref_name} (bands: each "
                         "method's own 2 sigma)")
     return fig
 
 
 def air_data_error(ctx: ReportContext) -> Figure | None:
     """Estimated air-data error of ADS/ARMS (air-data velocity minus ground velocity)."""
-    vn, ve = _col(ctx.track, "arms_dvn_mps"), _col(ctx.track, "arms_dve_mps")
+    vn, ve = column_values(ctx.track, "arms_dvn_mps"), column_values(ctx.track, "arms_dve_mps")
     if vn is None or ve is None:
         return None
     x = ctx.time(ctx.track["t_s"])
@@ -140,7 +140,7 @@ def air_data_error(ctx: ReportContext) -> Figure | None:
     for v, sdc, name, c in ((vn, "arms_dvn_sd_mps", "north", "tab:blue"),
                             (ve, "arms_dve_sd_mps", "east", "tab:orange")):
         ax.plot(x, v, color=c, lw=1, label=f"air-data error, {name}")
-        sd = _col(ctx.track, sdc)
+        sd = column_values(ctx.track, sdc)
         if sd is not None:
             ax.fill_between(x, v - 2 * sd, v + 2 * sd, color=c, alpha=0.15, lw=0)
     if ctx.truth is not None and {"wind_n_mps", "wind_e_mps"} <= set(ctx.truth.columns):
@@ -149,7 +149,7 @@ def air_data_error(ctx: ReportContext) -> Figure | None:
         ax.plot(xt, -ctx.truth["wind_e_mps"], ":", color="tab:orange", label="-wind east (truth)")
     ax.set_ylabel("m/s")
     ax.legend(fontsize=7, loc="upper right")
-    _finish_time_figure(fig, [ax], ctx, "ADS/ARMS: air-data velocity minus ground velocity "
+    finish_time_figure(fig, [ax], ctx, "ADS/ARMS: air-data velocity minus ground velocity "
                         "(wind plus sensor error; band: 2 sigma)")
     return fig
 

@@ -20,7 +20,7 @@ from flightrecon.report.plots.context import (
     METHOD_NAMES,
     PREFIXES,
     ReportContext,
-    _col,
+    column_values,
     event_numbers,
 )
 
@@ -37,7 +37,7 @@ def _nice_length_km(width_km: float) -> float:
 
 
 def _method_latlon(ctx: ReportContext, prefix: str) -> tuple[np.ndarray, np.ndarray] | None:
-    n, e = _col(ctx.track, f"{prefix}_north_m"), _col(ctx.track, f"{prefix}_east_m")
+    n, e = column_values(ctx.track, f"{prefix}_north_m"), column_values(ctx.track, f"{prefix}_east_m")
     dep = ctx.flight.get("departure")
     if n is None or e is None or not isinstance(dep, Mapping):
         return None
@@ -61,10 +61,10 @@ def _radar_latlon(ctx: ReportContext) -> tuple[np.ndarray, np.ndarray] | None:
     rd, st = ctx.radar, ctx.flight.get("station")
     if rd is None or len(rd) == 0 or not isinstance(st, Mapping) or st.get("lat_deg") is None:
         return None
-    r, az = _col(rd, "arms_range_m"), _col(rd, "arms_azimuth_deg")
+    r, az = column_values(rd, "arms_range_m"), column_values(rd, "arms_azimuth_deg")
     if r is None or az is None:
         return None
-    el = _col(rd, "arms_elevation_deg")
+    el = column_values(rd, "arms_elevation_deg")
     el = np.zeros(len(r)) if el is None else np.nan_to_num(el)
     from flightrecon.geo.frames import TangentPlane
 
@@ -91,7 +91,7 @@ def ground_track(ctx: ReportContext) -> Figure | None:
     known positions (``--fix``) with their 2-sd circles, start/end, numbered events, every
     method, the default result coloured by its horizontal 2-sigma and its 2-sigma ellipses (to
     scale)."""
-    lat, lon = _col(ctx.track, "lat_deg"), _col(ctx.track, "lon_deg")
+    lat, lon = column_values(ctx.track, "lat_deg"), column_values(ctx.track, "lon_deg")
     if lat is None or lon is None:
         return None
     fig, ax = plt.subplots(figsize=(9, 8.2))
@@ -134,7 +134,7 @@ def _draw_sources(ax, ctx: ReportContext) -> None:
 def _draw_default(fig, ax, ctx: ReportContext, lat: np.ndarray, lon: np.ndarray,
                   ok: np.ndarray, coslat: float) -> None:
     """The default result coloured by its horizontal 2-sigma radius, with 2-sigma ellipses."""
-    sn, se = _col(ctx.track, "north_sd_m"), _col(ctx.track, "east_sd_m")
+    sn, se = column_values(ctx.track, "north_sd_m"), column_values(ctx.track, "east_sd_m")
     if sn is not None and se is not None:
         s2 = 2 * np.hypot(sn, se)
         pts = np.column_stack([lon, lat])[:, None, :]

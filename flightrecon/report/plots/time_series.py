@@ -14,16 +14,16 @@ from flightrecon.report.plots.context import (
     FT,
     KT,
     ReportContext,
-    _col,
-    _finish_time_figure,
-    _twin_units,
+    column_values,
+    finish_time_figure,
+    twin_units,
 )
 
 
 def altitude_profile(ctx: ReportContext) -> Figure | None:
     """Altitude above MSL of the default result with its 2-sigma band, pressure altitude from
     the recorder, airfield elevations; metres left, feet right."""
-    alt = _col(ctx.track, "alt_m")
+    alt = column_values(ctx.track, "alt_m")
     if alt is None:
         return None
     n_geoid = ctx.geoid_m
@@ -34,7 +34,7 @@ def altitude_profile(ctx: ReportContext) -> Figure | None:
                 alpha=0.35, label="truth, MSL")
     if n_geoid is not None:
         msl = alt - n_geoid
-        sd = _col(ctx.track, "up_sd_m")
+        sd = column_values(ctx.track, "up_sd_m")
         if sd is not None:
             ax.fill_between(x, msl - 2 * sd, msl + 2 * sd, color="k", alpha=0.15, lw=0,
                             label="2 sigma")
@@ -44,7 +44,7 @@ def altitude_profile(ctx: ReportContext) -> Figure | None:
         ax.plot(x, alt, "k", lw=1.2, label="reconstructed WGS-84 ellipsoidal height "
                 "(geoid undulation unknown: not MSL)")
         ylab = "height [m]"
-    hp = _col(ctx.grid, "baro_alt_m")
+    hp = column_values(ctx.grid, "baro_alt_m")
     g = ctx.grid
     if hp is not None and g is not None:
         datum = (ctx.flight.get("baro_datum") or "pressure")
@@ -62,16 +62,16 @@ def altitude_profile(ctx: ReportContext) -> Figure | None:
                     color="navy", fontsize=7, ha=ha, va="bottom",
                     transform=ax.get_yaxis_transform())
     ax.set_ylabel(ylab)
-    _twin_units(ax, FT, "altitude [ft]")
+    twin_units(ax, FT, "altitude [ft]")
     ax.legend(fontsize=7, loc="best")
-    _finish_time_figure(fig, [ax], ctx, "Altitude above mean sea level and pressure altitude "
+    finish_time_figure(fig, [ax], ctx, "Altitude above mean sea level and pressure altitude "
                         "(band: 2 sigma)")
     return fig
 
 
 def speeds(ctx: ReportContext) -> Figure | None:
     """Ground speed and true airspeed (m/s, kt), vertical speed (m/s, ft/min), 2-sigma bands."""
-    vn, ve = _col(ctx.track, "vn_mps"), _col(ctx.track, "ve_mps")
+    vn, ve = column_values(ctx.track, "vn_mps"), column_values(ctx.track, "ve_mps")
     if vn is None or ve is None:
         return None
     x = ctx.time(ctx.track["t_s"])
@@ -80,40 +80,40 @@ def speeds(ctx: ReportContext) -> Figure | None:
         a1.plot(ctx.time(ctx.truth["t_s"]), ctx.truth["gs_mps"], color=COLOURS["truth"], lw=4,
                 alpha=0.35, label="ground speed, truth")
     gs = np.hypot(vn, ve)
-    sdn, sde = _col(ctx.track, "vn_sd_mps"), _col(ctx.track, "ve_sd_mps")
+    sdn, sde = column_values(ctx.track, "vn_sd_mps"), column_values(ctx.track, "ve_sd_mps")
     if sdn is not None and sde is not None:
         with np.errstate(invalid="ignore", divide="ignore"):
             sd = np.sqrt((vn * sdn) ** 2 + (ve * sde) ** 2) / np.where(gs > 0.1, gs, np.nan)
         sd = np.where(np.isfinite(sd), sd, np.hypot(sdn, sde))
         a1.fill_between(x, gs - 2 * sd, gs + 2 * sd, color="k", alpha=0.15, lw=0)
     a1.plot(x, gs, "k", lw=1.1, label="ground speed (reconstructed)")
-    tas = _col(ctx.grid, "tas_mps")
+    tas = column_values(ctx.grid, "tas_mps")
     if tas is not None and ctx.grid is not None:
         a1.plot(ctx.time(ctx.grid["t_s"]), tas, color="tab:orange", lw=0.9,
                 label="true airspeed (recorded)")
     a1.set_ylabel("speed [m/s]")
-    _twin_units(a1, KT, "speed [kt]")
+    twin_units(a1, KT, "speed [kt]")
     a1.legend(fontsize=7, loc="upper right")
-    vu = _col(ctx.track, "vu_mps")
+    vu = column_values(ctx.track, "vu_mps")
     if vu is not None:
         if ctx.truth is not None and "vu_mps" in ctx.truth.columns:
             a2.plot(ctx.time(ctx.truth["t_s"]), ctx.truth["vu_mps"], color=COLOURS["truth"], lw=4,
                     alpha=0.35, label="truth")
-        sdu = _col(ctx.track, "vu_sd_mps")
+        sdu = column_values(ctx.track, "vu_sd_mps")
         if sdu is not None:
             a2.fill_between(x, vu - 2 * sdu, vu + 2 * sdu, color="k", alpha=0.15, lw=0)
         a2.plot(x, vu, "k", lw=1.0, label="vertical speed (reconstructed, up positive)")
         a2.legend(fontsize=7, loc="upper right")
     a2.axhline(0, color="k", lw=0.5)
     a2.set_ylabel("vertical speed [m/s]")
-    _twin_units(a2, FPM, "vertical speed [ft/min]")
-    _finish_time_figure(fig, [a1, a2], ctx, "Speeds (bands: 2 sigma)")
+    twin_units(a2, FPM, "vertical speed [ft/min]")
+    finish_time_figure(fig, [a1, a2], ctx, "Speeds (bands: 2 sigma)")
     return fig
 
 
 def attitude(ctx: ReportContext) -> Figure | None:
     """Recorded roll, pitch and heading (truth overlaid), with the reconstructed track angle."""
-    cols = [c for c in ("roll_deg", "pitch_deg", "heading_deg") if _col(ctx.grid, c) is not None]
+    cols = [c for c in ("roll_deg", "pitch_deg", "heading_deg") if column_values(ctx.grid, c) is not None]
     if not cols:
         return None
     g = ctx.grid
@@ -125,7 +125,7 @@ def attitude(ctx: ReportContext) -> Figure | None:
     names = {"roll_deg": "roll [deg] (right wing down +)", "pitch_deg": "pitch [deg] (nose up +)",
              "heading_deg": "heading [deg true]"}
     for ax, c in zip(axes, cols):
-        v = _col(g, c)
+        v = column_values(g, c)
         if v is None:
             continue
         if c == "heading_deg":
@@ -137,7 +137,7 @@ def attitude(ctx: ReportContext) -> Figure | None:
         ax.plot(ctx.time(g["t_s"]), v, "." if c == "heading_deg" else "-", ms=1, lw=0.8,
                 color="tab:blue", label="recorded")
         if c == "heading_deg":
-            vn, ve = _col(ctx.track, "vn_mps"), _col(ctx.track, "ve_mps")
+            vn, ve = column_values(ctx.track, "vn_mps"), column_values(ctx.track, "ve_mps")
             if vn is not None and ve is not None:
                 trk = np.mod(np.degrees(np.arctan2(ve, vn)), 360.0)
                 trk[np.hypot(vn, ve) < 5] = np.nan
@@ -147,13 +147,13 @@ def attitude(ctx: ReportContext) -> Figure | None:
             ax.set_yticks([0, 90, 180, 270, 360])
         ax.set_ylabel(names[c], fontsize=8)
         ax.legend(fontsize=7, loc="upper right", markerscale=6)
-    _finish_time_figure(fig, axes, ctx, "Attitude (recorded; shaded red: exceedances)")
+    finish_time_figure(fig, axes, ctx, "Attitude (recorded; shaded red: exceedances)")
     return fig
 
 
 def load_factors(ctx: ReportContext) -> Figure | None:
     """Recorded body load factors with the envelope limits of the events."""
-    cols = [c for c in ("n_long_g", "n_lat_g", "n_norm_g") if _col(ctx.grid, c) is not None]
+    cols = [c for c in ("n_long_g", "n_lat_g", "n_norm_g") if column_values(ctx.grid, c) is not None]
     if not cols:
         return None
     from flightrecon.events import Envelope
@@ -171,25 +171,25 @@ def load_factors(ctx: ReportContext) -> Figure | None:
         if ctx.truth is not None and c in ctx.truth.columns:
             ax.plot(ctx.time(ctx.truth["t_s"]), ctx.truth[c], color=COLOURS["truth"], lw=3,
                     alpha=0.35, label="truth")
-        ax.plot(ctx.time(grid["t_s"]), _col(grid, c), lw=0.6, color="tab:blue",
+        ax.plot(ctx.time(grid["t_s"]), column_values(grid, c), lw=0.6, color="tab:blue",
                 label="recorded")
         if c == "n_norm_g":
             for lim in (env.n_max_g, env.n_min_g):
                 ax.axhline(lim, color="tab:red", lw=0.8, ls="--")
             ax.text(0.005, env.n_max_g, f"limit {env.n_max_g:+g} g", color="tab:red", fontsize=7,
                     transform=ax.get_yaxis_transform(), va="bottom")
-            vn = _col(grid, c)
+            vn = column_values(grid, c)
             lo, hi = np.nanpercentile(vn if vn is not None else np.full(1, np.nan),
                                       [0.05, 99.95])
             ax.set_ylim(min(lo - 0.2, env.n_min_g - 0.2), max(hi + 0.2, env.n_max_g + 0.2))
         ax.set_ylabel(names[c], fontsize=8)
         ax.legend(fontsize=7, loc="upper right")
-    _finish_time_figure(fig, axes, ctx, "Load factors (recorded, body axes; dashed: limit load "
+    finish_time_figure(fig, axes, ctx, "Load factors (recorded, body axes; dashed: limit load "
                         "factors)")
     return fig
 
 
-def _wind_from_speed(wn: np.ndarray, we: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def wind_from_speed(wn: np.ndarray, we: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Direction the wind blows from [deg true, 0..360) and its speed, from the velocity of
     the air (north, east: where it moves to)."""
     return np.mod(np.degrees(np.arctan2(-we, -wn)), 360.0), np.hypot(wn, we)
@@ -198,15 +198,15 @@ def _wind_from_speed(wn: np.ndarray, we: np.ndarray) -> tuple[np.ndarray, np.nda
 def wind(ctx: ReportContext) -> Figure | None:
     """Wind of the joint smoother as direction-from and speed (m/s and kt), 2-sigma bands; the
     recorded wind channel and the truth overlaid; grey where the aircraft is on the ground."""
-    wn, we = _col(ctx.track, "wind_n_mps"), _col(ctx.track, "wind_e_mps")
+    wn, we = column_values(ctx.track, "wind_n_mps"), column_values(ctx.track, "wind_e_mps")
     if wn is None or we is None:
         return None
     x = ctx.time(ctx.track["t_s"])
-    dirn, spd = _wind_from_speed(wn, we)
-    sdn, sde = _col(ctx.track, "wind_n_sd_mps"), _col(ctx.track, "wind_e_sd_mps")
+    dirn, spd = wind_from_speed(wn, we)
+    sdn, sde = column_values(ctx.track, "wind_n_sd_mps"), column_values(ctx.track, "wind_e_sd_mps")
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     if ctx.truth is not None and {"wind_n_mps", "wind_e_mps"} <= set(ctx.truth.columns):
-        wd_t, ts = _wind_from_speed(ctx.truth["wind_n_mps"].to_numpy(float),
+        wd_t, ts = wind_from_speed(ctx.truth["wind_n_mps"].to_numpy(float),
                                   ctx.truth["wind_e_mps"].to_numpy(float))
         xt = ctx.time(ctx.truth["t_s"])
         a1.plot(xt, wd_t, ".", ms=3, color=COLOURS["truth"], alpha=0.4, label="truth")
@@ -234,7 +234,7 @@ def wind(ctx: ReportContext) -> Figure | None:
     a1.set_yticks([0, 90, 180, 270, 360])
     a1.set_ylabel("wind from [deg true]")
     a2.set_ylabel("wind speed [m/s]")
-    _twin_units(a2, KT, "wind speed [kt]")
+    twin_units(a2, KT, "wind speed [kt]")
     a2.set_ylim(bottom=0)
     ph = ctx.summary.get("phases") or {}
     tt = ctx.track["t_s"].to_numpy(float)
@@ -245,6 +245,6 @@ def wind(ctx: ReportContext) -> Figure | None:
         if td is not None and np.isfinite(td) and td < tt[-1]:
             ax.axvspan(*ctx.time([td, tt[-1]]), color="0.85", lw=0, zorder=0)
         ax.legend(fontsize=7, loc="upper right", markerscale=6)
-    _finish_time_figure(fig, [a1, a2], ctx, "Wind: direction it blows from and speed (light "
+    finish_time_figure(fig, [a1, a2], ctx, "Wind: direction it blows from and speed (light "
                         "grey: on the ground, wind unobservable)")
     return fig
