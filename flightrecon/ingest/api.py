@@ -29,7 +29,8 @@ from flightrecon.ingest.garmin import (
 )
 from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.gnss_use import GnssUse
-from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
+from flightrecon.ingest.mapping import MappedTable, Mapping, load_mapping
+from flightrecon.ingest.mapping_apply import apply_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.door import DeclaredUnit, DoorCheck, DoorRefusal
