@@ -56,7 +56,7 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool, no_gnss: bo
     from flightrecon.export.writers import to_json
     from flightrecon.ingest import describe_flight, load_flight
 
-    from flightrecon.ingest.physics import DoorRefusal
+    from flightrecon.ingest.door import DoorRefusal
 
     gnss_use = gnss_use_from_options(no_gnss, withhold_gnss, gnss_interval, gnss_sd)
     try:

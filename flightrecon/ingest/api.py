@@ -29,10 +29,12 @@ from flightrecon.ingest.garmin import (
 )
 from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.gnss_use import GnssUse
-from flightrecon.ingest.mapping import MappedTable, Mapping, apply_mapping, load_mapping
+from flightrecon.ingest.mapping import MappedTable, Mapping, load_mapping
+from flightrecon.ingest.mapping_apply import apply_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
-from flightrecon.ingest.physics import DeclaredUnit, DoorCheck, DoorRefusal, door_checks
+from flightrecon.ingest.door import DeclaredUnit, DoorCheck, DoorRefusal
+from flightrecon.ingest.physics import door_checks
 from flightrecon.ingest.timestamps import repair_time_order, unset_clock_rows
 from flightrecon.ingest.sidecar import (
     apply_overrides,

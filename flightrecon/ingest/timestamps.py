@@ -112,7 +112,7 @@ def unset_clock_rows(columns: dict[str, np.ndarray], names: tuple[str, ...]) -> 
     """0-based indices of the rows at the start of a file whose time cells (any of ``names``:
     the time, and the date and UTC-offset columns if separate) are empty, up to the first row
     with a complete time: rows written before the recorder's clock was set.  Empty time
-    cells after that stay an error (:func:`flightrecon.ingest.mapping.apply_mapping`)."""
+    cells after that stay an error (:func:`flightrecon.ingest.mapping_apply.apply_mapping`)."""
     n = len(columns[names[0]]) if names else 0
     k = 64
     while True:

@@ -146,6 +146,59 @@ def _utc_seconds(meta: FlightMeta, t_log: np.ndarray) -> tuple[np.ndarray, np.da
     return t0 + np.arange(max(n, 0), dtype=float), epoch
 
 
+def _recorded_at(t: np.ndarray, log: pd.DataFrame
+                 ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """The attitude, airspeed, pressure altitude and load factors at the export's seconds
+    ``t``, the seconds where one of them is missing dropped; the SAT there (NaN unless
+    sampled at least twice)."""
+    rec = {c: _at(t, log, c, angle=c == "heading_deg") for c in
+           ("roll_deg", "pitch_deg", "heading_deg", "tas_mps", "baro_alt_m", "n_lat_g",
+            "n_norm_g")}
+    keep = np.all([np.isfinite(v) for v in rec.values()], axis=0)
+    t = t[keep]
+    rec = {c: v[keep] for c, v in rec.items()}
+    sat = (_at(t, log, "sat_degc") if "sat_degc" in log.columns
+           and log["sat_degc"].notna().sum() >= 2 else np.full(t.size, np.nan))
+    return t, rec, sat
+
+
+def _magnetic_variation_deg(t: np.ndarray, truth: pd.DataFrame, meta: FlightMeta
+                            ) -> np.ndarray:
+    """The avionics' magnetic variation [deg, 0.1 deg] at the truth's position at ``t``."""
+    tt = truth["t_s"].to_numpy(dtype=float)
+    pos = [np.interp(t, tt, truth[c].to_numpy(dtype=float)) for c in
+           ("lat_deg", "lon_deg", "alt_m")]
+    year = float(decimal_year(meta.epoch_utc or "", float(np.mean(t)) if t.size else 0.0))
+    decl, _ = declination_deg(pos[0], pos[1], pos[2], year)
+    return np.round(np.asarray(decl, dtype=np.float64), 1)
+
+
+def _local_time(epoch: np.datetime64, t: np.ndarray, utc_offset_min: int
+                ) -> tuple[pd.DatetimeIndex, str]:
+    """The local time stamps (whole seconds) of ``t`` and the ``UTCOfst`` text (``+hh:mm``)."""
+    local = (epoch + (t * 1e9).round().astype("timedelta64[ns]")
+             + np.timedelta64(int(utc_offset_min), "m")).astype("datetime64[s]")
+    sign = "+" if utc_offset_min >= 0 else "-"
+    ofst = f"{sign}{abs(int(utc_offset_min)) // 60:02d}:{abs(int(utc_offset_min)) % 60:02d}"
+    return pd.DatetimeIndex(local), ofst
+
+
+def _as_text(values: dict[str, Any]) -> pd.DataFrame:
+    """The columns of :data:`GLASS_COCKPIT_COLUMNS` as the avionics write them (their
+    decimals; headings in [0, 360); empty where not finite)."""
+    out = {}
+    for col, (_, dec) in GLASS_COCKPIT_COLUMNS.items():
+        v = values[col]
+        if dec is None:
+            out[col] = [str(x) for x in v]
+            continue
+        v = np.round(np.asarray(v, dtype=float), dec)
+        if col in ("HDG", "TRK"):
+            v = np.mod(v, 360.0)
+        out[col] = ["" if not np.isfinite(x) else f"{x + 0.0:.{dec}f}" for x in v]
+    return pd.DataFrame(out)
+
+
 def glass_cockpit_export(log: pd.DataFrame, truth: pd.DataFrame, meta: FlightMeta, *,
                          utc_offset_min: int = 0, baro_setting_hpa: float | None = None
                          ) -> pd.DataFrame:
@@ -174,23 +227,10 @@ def glass_cockpit_export(log: pd.DataFrame, truth: pd.DataFrame, meta: FlightMet
         A recorder channel the export needs is not sampled, or no ``epoch_utc``.
     """
     t, epoch = _utc_seconds(meta, log["t_s"].to_numpy(dtype=float))
-    rec = {c: _at(t, log, c, angle=c == "heading_deg") for c in
-           ("roll_deg", "pitch_deg", "heading_deg", "tas_mps", "baro_alt_m", "n_lat_g",
-            "n_norm_g")}
-    keep = np.all([np.isfinite(v) for v in rec.values()], axis=0)
-    t = t[keep]
-    rec = {c: v[keep] for c, v in rec.items()}
-    sat = (_at(t, log, "sat_degc") if "sat_degc" in log.columns
-           and log["sat_degc"].notna().sum() >= 2 else np.full(t.size, np.nan))
+    t, rec, sat = _recorded_at(t, log)
     gps = _fixes_at(t, log)
     fix = np.isfinite(gps["gnss_lat_deg"])
-
-    tt = truth["t_s"].to_numpy(dtype=float)
-    pos = [np.interp(t, tt, truth[c].to_numpy(dtype=float)) for c in
-           ("lat_deg", "lon_deg", "alt_m")]
-    year = float(decimal_year(meta.epoch_utc or "", float(np.mean(t)) if t.size else 0.0))
-    decl, _ = declination_deg(pos[0], pos[1], pos[2], year)
-    magvar = np.round(np.asarray(decl, dtype=np.float64), 1)
+    magvar = _magnetic_variation_deg(t, truth, meta)
 
     setting_hpa = (baro_setting_hpa if baro_setting_hpa is not None else
                    meta.qnh_departure_hpa if meta.qnh_departure_hpa is not None else 1013.25)
@@ -204,11 +244,7 @@ def glass_cockpit_export(log: pd.DataFrame, truth: pd.DataFrame, meta: FlightMet
     trk = np.degrees(np.arctan2(gps["gnss_ve_mps"], gps["gnss_vn_mps"]))
     geoid = meta.geoid_undulation_m or 0.0
 
-    local = (epoch + (t * 1e9).round().astype("timedelta64[ns]")
-             + np.timedelta64(int(utc_offset_min), "m")).astype("datetime64[s]")
-    stamp = pd.DatetimeIndex(local)
-    sign = "+" if utc_offset_min >= 0 else "-"
-    ofst = f"{sign}{abs(int(utc_offset_min)) // 60:02d}:{abs(int(utc_offset_min)) % 60:02d}"
+    stamp, ofst = _local_time(epoch, t, utc_offset_min)
     values: dict[str, Any] = {
         "Lcl Date": stamp.strftime("%Y-%m-%d"), "Lcl Time": stamp.strftime("%H:%M:%S"),
         "UTCOfst": np.full(t.size, ofst), "AtvWpt": np.full(t.size, ""),
@@ -223,17 +259,7 @@ def glass_cockpit_export(log: pd.DataFrame, truth: pd.DataFrame, meta: FlightMet
         "AltGPS": gps["gnss_alt_m"] / FOOT_M, "TAS": rec["tas_mps"] / KNOT_MPS,
         "MagVar": magvar, "GPSfix": np.where(fix, "3D", "NoSoln"),
     }
-    out = {}
-    for col, (_, dec) in GLASS_COCKPIT_COLUMNS.items():
-        v = values[col]
-        if dec is None:
-            out[col] = [str(x) for x in v]
-            continue
-        v = np.round(np.asarray(v, dtype=float), dec)
-        if col in ("HDG", "TRK"):
-            v = np.mod(v, 360.0)
-        out[col] = ["" if not np.isfinite(x) else f"{x + 0.0:.{dec}f}" for x in v]
-    return pd.DataFrame(out)
+    return _as_text(values)
 
 
 def glass_cockpit_text(export: pd.DataFrame, *, airframe_name: str = "Simulated aircraft",
