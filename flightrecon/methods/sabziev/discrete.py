@@ -77,7 +77,7 @@ def _step_rows(vertical: bool, ks, dt: float, linear: bool):
     return C
 
 
-def _check_hold(hold: str) -> None:
+def check_hold(hold: str) -> None:
     if hold not in HOLDS:
         raise ValidationError(f"hold must be one of {HOLDS}, got {hold!r}")
 
@@ -91,7 +91,7 @@ def horizontal_step(k: float, dt: float, hold: str = "linear") -> StepCoefficien
     dt : step [s]
     hold : ``"linear"`` (first-order hold) or ``"zero"`` (zero-order hold)
     """
-    _check_hold(hold)
+    check_hold(hold)
     h = float(dt)
     phi, dphi = phi_functions(float(k) * h)
     Phi = np.array([[1.0, h * phi[1]], [0.0, phi[0]]])
@@ -116,7 +116,7 @@ def vertical_step(k2: float, dt: float, hold: str = "linear") -> StepCoefficient
     dt : step [s]
     hold : ``"linear"`` or ``"zero"``
     """
-    _check_hold(hold)
+    check_hold(hold)
     h = float(dt)
     k2 = float(k2)
     h2 = h * h
@@ -375,7 +375,7 @@ def propagate_end_many(kind: str, ks, dt: float, q0, a, w, *,
     q_N : (K, 2) end states, bit-identical to :func:`propagate_end` with the same ``k``
     misfit : (K,) RMS of ``q[:, 0] - w``, bit-identical to :func:`propagate_end`'s
     """
-    _check_hold(hold)
+    check_hold(hold)
     if kind not in ("horizontal", "vertical"):
         raise ValidationError(f"kind must be 'horizontal' or 'vertical', got {kind!r}")
     ks = _f64(ks).reshape(-1)

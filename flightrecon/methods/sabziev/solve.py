@@ -12,8 +12,8 @@ import numpy as np
 from flightrecon.errors import ValidationError
 from flightrecon.methods.sabziev.discrete import (
     StepCoefficients,
-    _check_hold,
     check_grid,
+    check_hold,
     horizontal_step,
     propagate_end,
     propagate_end_many,
@@ -154,7 +154,7 @@ def _solve_axis(kind: str, t, a, w, v0: float, s_T: float | None, k: float | Non
     n = len(t)
     a = _arr(f"{axis} acceleration", a, n)
     w = _arr(f"{axis} reference", w, n)
-    _check_hold(hold)
+    check_hold(hold)
     step = vertical_step if kind == "vertical" else horizontal_step
     T = dt * (n - 1)
     report = None
