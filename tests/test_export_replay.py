@@ -17,7 +17,8 @@ from _cli import run_cli
 
 from flightrecon.errors import MetadataError, OutputError
 from flightrecon.events import Event, events_table
-from flightrecon.export.writers import format_from_path, track_angles, write_kml, write_track
+from flightrecon.export.replay import track_angles, write_kml
+from flightrecon.export.writers import format_from_path, write_track
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "sample_logs"

@@ -13,7 +13,7 @@ import pytest
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.errors import MetadataError
-from flightrecon.export.writers import to_json
+from flightrecon.export.encode import to_json
 from flightrecon.ingest import load_flight
 from flightrecon.methods.arms.method import ArmsSettings
 from flightrecon.methods.azimuth.method import AzimuthSettings

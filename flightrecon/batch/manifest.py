@@ -75,6 +75,6 @@ def is_up_to_date(manifest: dict[str, Any] | None, hashes: dict[str, str], key: 
 def write_manifest(path: Path, doc: dict[str, Any]) -> Path:
     """Write ``doc`` (with :data:`MANIFEST_VERSION`) atomically as JSON."""
     from flightrecon.export.atomic import write_text_atomic
-    from flightrecon.export.writers import to_json
+    from flightrecon.export.encode import to_json
 
     return write_text_atomic(path, to_json({**doc, "manifest_version": MANIFEST_VERSION}))

@@ -99,14 +99,14 @@ def arrival_not_end(grid: pd.DataFrame, phases: FlightPhases | None, meta: Fligh
                "aircraft's position at the last sample (a hand-off point at its height, or the "
                "airfield on short final or a fast roll-out); if the record ends elsewhere, "
                "give no arrival")
-        warnings.warn(msg, FlightReconWarning, stacklevel=3)
+        warnings.warn(msg, FlightReconWarning, stacklevel=4)
         return meta, [report_entry("arrival", "arrival_end_airborne", msg, count=1,
                                    t_s=[t_end])]
     msg = (f"the arrival given ({arr.lat_deg:.5f}, {arr.lon_deg:.5f}, {arr.elev_m:g} m) is not "
            f"where this record ends: it ends in the air ({evidence}; {margin:g} m proves it); "
            "not used as the track's end point by any method (docs/signals.md, 'An arrival "
            "for a record that ends airborne')")
-    warnings.warn(msg, FlightReconWarning, stacklevel=3)
+    warnings.warn(msg, FlightReconWarning, stacklevel=4)
     rec = {"arrival": dataclasses.asdict(arr), "t_end_s": t_end, "tas_mps": tas,
            "height_above_field_m": float(height), "margin_m": margin, "qnh_hpa": qnh}
     meta = dataclasses.replace(meta, arrival=None,

@@ -208,27 +208,8 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
     # grid north of the departure's tangent plane (docs/signals.md, "Heading from the body
     # rates"); a GNSS track anchors it to the local north along the flight instead
     extra["heading_reference"] = ("grid" if tri is None and rows_psi else "true")
-    calibrated = ""
-    if rest_row is not None:
-        t_rest = rest_row[4]
-        used.append(f"the gyro biases at rest on the ground ({t_rest:.0f} s)")
-        extra.update(standstill_s=t_rest,
-                     standstill_yaw_rate_dps=float(np.degrees(rest_row[0]
-                                                              / max(rest_row[2], 1e-9))))
-        calibrated = (f"; gyro biases calibrated on {t_rest:.0f} s at rest on the ground "
-                      f"(yaw-rate bias {np.degrees(x[2]):+.4f} deg/s, sd "
-                      f"{np.degrees(np.sqrt(max(Cfull[2, 2], 0.0))):.4f})")
-    # announced: the heading is no measurement but an integral whose error grows away from
-    # its anchors (docs/signals.md, "Heading from the body rates")
-    aligned = "; ".join(f"the {r['which']} roll aligned with runway {r['runway_true_deg']:.1f} "
-                        f"deg (mean heading over it {r['residual_deg']:+.2f} deg off after the "
-                        f"fit)" for r in rolls)
-    warnings.warn(
-        f"heading from the body rates ({why}): anchored by {'; '.join(used)}"
-        + (f"; {aligned}" if aligned else "") + calibrated
-        + f"; its sd grows away from the anchors: {float(np.min(sd)):.1f} deg at them, "
-        f"median {float(np.median(sd)):.1f}, at most {float(np.max(sd)):.1f} deg "
-        f"(t = {float(t[int(np.argmax(sd))]):.0f} s)", FlightReconWarning, stacklevel=2)
+    calibrated = _standstill_calibration(rest_row, x, Cfull, used, extra)
+    _announce_heading(why, used, rolls, calibrated, t, sd)
     g = grid.copy()
     g["heading_deg"] = np.degrees(psi)
     g["heading_valid"] = True
@@ -243,6 +224,38 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
         fit_rms=float(np.sqrt(s2)))
     rep.update(extra)
     return g, [rep]
+
+
+def _standstill_calibration(rest_row: tuple | None, x: np.ndarray, Cfull: np.ndarray,
+                            used: list[str], extra: dict[str, Any]) -> str:
+    """With a standstill in the fit: its anchor named in ``used``, its length and yaw rate in
+    ``extra``, and the text saying the gyro biases were calibrated there ("" without one)."""
+    if rest_row is None:
+        return ""
+    t_rest = rest_row[4]
+    used.append(f"the gyro biases at rest on the ground ({t_rest:.0f} s)")
+    extra.update(standstill_s=t_rest,
+                 standstill_yaw_rate_dps=float(np.degrees(rest_row[0]
+                                                          / max(rest_row[2], 1e-9))))
+    return (f"; gyro biases calibrated on {t_rest:.0f} s at rest on the ground "
+            f"(yaw-rate bias {np.degrees(x[2]):+.4f} deg/s, sd "
+            f"{np.degrees(np.sqrt(max(Cfull[2, 2], 0.0))):.4f})")
+
+
+def _announce_heading(why: str, used: list[str], rolls: list[dict], calibrated: str,
+                      t: np.ndarray, sd: np.ndarray) -> None:
+    """Warn that the heading is no measurement but an integral whose error grows away from its
+    anchors (docs/signals.md, "Heading from the body rates"); raised at the caller of
+    :func:`heading_from_rates`."""
+    aligned = "; ".join(f"the {r['which']} roll aligned with runway {r['runway_true_deg']:.1f} "
+                        f"deg (mean heading over it {r['residual_deg']:+.2f} deg off after the "
+                        f"fit)" for r in rolls)
+    warnings.warn(
+        f"heading from the body rates ({why}): anchored by {'; '.join(used)}"
+        + (f"; {aligned}" if aligned else "") + calibrated
+        + f"; its sd grows away from the anchors: {float(np.min(sd)):.1f} deg at them, "
+        f"median {float(np.median(sd)):.1f}, at most {float(np.max(sd)):.1f} deg "
+        f"(t = {float(t[int(np.argmax(sd))]):.0f} s)", FlightReconWarning, stacklevel=3)
 
 
 def _rolling(x: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:

@@ -39,7 +39,7 @@ from flightrecon.cleaning.timebase import check_clock_offsets, measurement_table
 from flightrecon.cleaning.trim import trim_flight
 from flightrecon.errors import FlightReconError, ValidationError
 from flightrecon.schema import GROUPS
-from flightrecon.types import CleanFlight, Flight, FlightMeta
+from flightrecon.types import CleanFlight, Flight, FlightMeta, FlightPhases
 
 __all__ = ["CleaningSettings", "clean_flight"]
 
@@ -113,6 +113,40 @@ def _repair_entry(r: dict) -> dict:
     return e
 
 
+def _checked_offsets(flight: Flight, settings: CleaningSettings) -> dict[str, float]:
+    """Refuse a flight or settings that cannot be cleaned; the checked clock offsets [s]."""
+    if not isinstance(flight, Flight):
+        raise ValidationError("clean_flight expects a flightrecon.types.Flight")
+    if not (np.isfinite(settings.max_gap_s) and settings.max_gap_s >= 0.0):
+        raise ValidationError(f"max_gap_s must be a non-negative number, got {settings.max_gap_s}")
+    offsets = check_clock_offsets(settings.clock_offsets_s)
+    if not isinstance(flight.data, pd.DataFrame):
+        raise ValidationError("flight.data must be a pandas DataFrame")
+    return offsets
+
+
+def _phases_and_end(grid: pd.DataFrame, meta: FlightMeta, settings: CleaningSettings,
+                    report: list) -> tuple[FlightPhases | None, FlightMeta]:
+    """The flight phases (``None`` when switched off or impossible, reported), an accident
+    record's impact, and an arrival that is not the record's end (``report`` extended)."""
+    if settings.phases is None:
+        return None, meta
+    phases: FlightPhases | None
+    try:
+        phases, rep = detect_phases_with_report(grid, settings.phases,
+                                                lat_deg=_gravity_latitude(meta))
+    except FlightReconError as exc:
+        rep = [report_entry("phases", "not_detected", str(exc), count=0)]
+        phases = None
+    report.extend(rep)
+    phases, rep = with_impact(grid, phases, meta)   # an accident record's end
+    report.extend(rep)
+    # an arrival given for a record cut in the air is not its end point (arrival_end.py)
+    meta, rep = arrival_not_end(grid, phases, meta, settings.phases.airborne_speed_mps)
+    report.extend(rep)
+    return phases, meta
+
+
 def clean_flight(flight: Flight, *, rate_hz: float | None = None,
                  settings: CleaningSettings = CleaningSettings()) -> CleanFlight:
     """Clean a flight and bring its input channels onto one grid.
@@ -140,13 +174,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         Bad settings, no input channel, non-finite time stamps, or a grid that would exceed
         50 million points.
     """
-    if not isinstance(flight, Flight):
-        raise ValidationError("clean_flight expects a flightrecon.types.Flight")
-    if not (np.isfinite(settings.max_gap_s) and settings.max_gap_s >= 0.0):
-        raise ValidationError(f"max_gap_s must be a non-negative number, got {settings.max_gap_s}")
-    offsets = check_clock_offsets(settings.clock_offsets_s)
-    if not isinstance(flight.data, pd.DataFrame):
-        raise ValidationError("flight.data must be a pandas DataFrame")
+    offsets = _checked_offsets(flight, settings)
     untrimmed = flight.data
     flight, trim_rep = trim_flight(flight, settings.start, settings.end)
     # the part cut away still tells the gyro biases where the aircraft stood (attitude.py)
@@ -181,19 +209,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         grid, rep = _heading_from_body_rates(grid, tables["gnss"], meta, settings, why,
                                              trimmed)
         report.extend(rep)
-    phases = None
-    if settings.phases is not None:
-        try:
-            phases, rep = detect_phases_with_report(grid, settings.phases,
-                                                    lat_deg=_gravity_latitude(meta))
-        except FlightReconError as exc:
-            rep = [report_entry("phases", "not_detected", str(exc), count=0)]
-        report.extend(rep)
-        phases, rep = with_impact(grid, phases, meta)   # an accident record's end
-        report.extend(rep)
-        # an arrival given for a record cut in the air is not its end point (arrival_end.py)
-        meta, rep = arrival_not_end(grid, phases, meta, settings.phases.airborne_speed_mps)
-        report.extend(rep)
+    phases, meta = _phases_and_end(grid, meta, settings, report)
     return CleanFlight(grid=grid, rate_hz=rate, gnss=tables["gnss"], radar=tables["radar"],
                        meta=meta, report=tuple(report), phases=phases)
 

@@ -49,7 +49,8 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
     Returns the paths written.
     """
     from flightrecon.export.atomic import Publication, check_not_input, write_text_atomic
-    from flightrecon.export.writers import to_json, write_csv, write_parquet
+    from flightrecon.export.encode import to_json
+    from flightrecon.export.writers import write_csv, write_parquet
 
     paths = output_paths(out)
     for p in paths.values():

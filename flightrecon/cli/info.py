@@ -53,7 +53,7 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool, no_gnss: bo
     import warnings
 
     from flightrecon.errors import FlightReconWarning
-    from flightrecon.export.writers import to_json
+    from flightrecon.export.encode import to_json
     from flightrecon.ingest import describe_flight, load_flight
 
     from flightrecon.ingest.door import DoorRefusal

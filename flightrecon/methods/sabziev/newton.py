@@ -503,6 +503,22 @@ def _alpha_newton(f: _Counter, alpha0: float, k_max_pos: float, tol_m: float, ma
                       f"(|F| = {abs(F):.3g} m)", tuple(history), (), alpha0, "alpha", False)
 
 
+def _sign_changes(up: list[tuple[float, float, float]], down: list[tuple[float, float, float]]
+                  ) -> list[tuple[float, float]]:
+    """The brackets ``(w_a, w_b)`` between neighbouring scan points of finite ``F`` of opposite
+    signs: along the upward and the downward scans, then across ``w_target`` between their
+    first points."""
+    found = []
+    for seq in (up, down):
+        for (w1, F1, _), (w2, F2, _) in zip(seq[:-1], seq[1:]):
+            if np.isfinite(F1) and np.isfinite(F2) and _sign(F1) != _sign(F2):
+                found.append((min(w1, w2), max(w1, w2)))
+    if up and down and np.isfinite(up[0][1]) and np.isfinite(down[0][1]) \
+            and _sign(up[0][1]) != _sign(down[0][1]):
+        found.append((down[0][0], up[0][0]))
+    return found
+
+
 def find_root_near(fun: Evaluator, *, w_target: float, w_step: float, w_lo: float,
                    w_hi: float, tol_m: float = 1e-3, max_iter: int = 60, chunk: int = 64,
                    max_points: int = 1024, fun_many: ManyEvaluator | None = None,
@@ -557,14 +573,7 @@ def find_root_near(fun: Evaluator, *, w_target: float, w_step: float, w_lo: floa
         vals = list(f.scan(-ws * ws))
         for w, (_k, F, m) in zip(ws.tolist(), vals):
             (up if w >= w_target else down).append((w, F, m))
-        found = []
-        for seq in (up, down):
-            for (w1, F1, _), (w2, F2, _) in zip(seq[:-1], seq[1:]):
-                if np.isfinite(F1) and np.isfinite(F2) and _sign(F1) != _sign(F2):
-                    found.append((min(w1, w2), max(w1, w2)))
-        if up and down and np.isfinite(up[0][1]) and np.isfinite(down[0][1]) \
-                and _sign(up[0][1]) != _sign(down[0][1]):
-            found.append((down[0][0], up[0][0]))
+        found = _sign_changes(up, down)
         if found:
             brackets = found
             break
