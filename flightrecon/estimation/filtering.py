@@ -29,7 +29,20 @@ from flightrecon.estimation.model import (
     workspace,
 )
 
-__all__ = ["FilterRun", "forward_pass"]
+__all__ = ["FilterRun", "forward_pass", "keep_dense_into"]
+
+
+@nb.njit(cache=True, nogil=True)
+def keep_dense_into(x_buf, P_buf, k, x, P):
+    """``x_buf[k] = x``, ``P_buf[k] = P`` for a model that keeps dense states (N, n) and
+    covariances (N, n, n): element loops, which allocate nothing, so that a model's
+    ``keep_predicted`` / ``keep_filtered`` built on it may be registered ``refcounted=False``
+    (:func:`flightrecon.estimation.model.implements`)."""
+    n = x.shape[0]
+    for i in range(n):
+        x_buf[k, i] = x[i]
+        for j in range(n):
+            P_buf[k, i, j] = P[i, j]
 
 
 @nb.njit(cache=True, nogil=True)

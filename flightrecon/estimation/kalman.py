@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from flightrecon.estimation.filtering import FilterRun, forward_pass
+from flightrecon.estimation.filtering import FilterRun, forward_pass, keep_dense_into
 from flightrecon.estimation.linalg import mm_into
 from flightrecon.estimation.manifold import EUCLIDEAN
 from flightrecon.estimation.model import (
@@ -89,10 +89,9 @@ def _predict(model, k, x, P, ws):
     P[:, :] = Pn
 
 
-@implements(keep_predicted, LinearModel)
+@implements(keep_predicted, LinearModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
-    model.x_p[k] = x
-    model.P_p[k] = P
+    keep_dense_into(model.x_p, model.P_p, k, x, P)
 
 
 @implements(update_into, LinearModel)
@@ -128,10 +127,9 @@ def _update(model, k, x, P, ws):
             model.S[k, idx[a], idx[b]] = S[a, b]
 
 
-@implements(keep_filtered, LinearModel)
+@implements(keep_filtered, LinearModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
-    model.x_f[k] = x
-    model.P_f[k] = P
+    keep_dense_into(model.x_f, model.P_f, k, x, P)
 
 
 @implements(smoothing_covariances, LinearModel)

@@ -16,6 +16,7 @@ from flightrecon.estimation.discretise import (
     constant_velocity,
     gauss_markov,
 )
+from flightrecon.estimation.filtering import keep_dense_into
 from flightrecon.estimation.model import (
     implements,
     keep_filtered,
@@ -406,11 +407,7 @@ def _predict(model, k, x, P, ws):
 
 @implements(keep_predicted, ArmsTrackModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
-    n = x.shape[0]
-    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
-        model.x_p[k, i] = x[i]
-        for j in range(n):
-            model.P_p[k, i, j] = P[i, j]
+    keep_dense_into(model.x_p, model.P_p, k, x, P)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -516,8 +513,4 @@ def _update(model, k, x, P, ws):
 
 @implements(keep_filtered, ArmsTrackModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
-    n = x.shape[0]
-    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
-        model.x_f[k, i] = x[i]
-        for j in range(n):
-            model.P_f[k, i, j] = P[i, j]
+    keep_dense_into(model.x_f, model.P_f, k, x, P)

@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation.filtering import keep_dense_into
 from flightrecon.estimation.model import (
     implements,
     keep_filtered,
@@ -101,11 +102,7 @@ def _predict(model, k, x, P, ws):
 
 @implements(keep_predicted, AzimuthModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
-    n = x.shape[0]
-    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
-        model.x_p[k, i] = x[i]
-        for j in range(n):
-            model.P_p[k, i, j] = P[i, j]
+    keep_dense_into(model.x_p, model.P_p, k, x, P)
 
 
 @implements(update_into, AzimuthModel)
@@ -154,8 +151,4 @@ def _update(model, k, x, P, ws):
 
 @implements(keep_filtered, AzimuthModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
-    n = x.shape[0]
-    for i in range(n):  # element loops: no reference counting (nor allocation) in this call
-        model.x_f[k, i] = x[i]
-        for j in range(n):
-            model.P_f[k, i, j] = P[i, j]
+    keep_dense_into(model.x_f, model.P_f, k, x, P)

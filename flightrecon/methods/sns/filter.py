@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from flightrecon.estimation.filtering import FilterRun, forward_pass
+from flightrecon.estimation.filtering import FilterRun, forward_pass, keep_dense_into
 from flightrecon.estimation.linalg import mdmt_acc_into, mmt_into, sym_into
 from flightrecon.estimation.manifold import LATLON, boxminus, boxplus
 from flightrecon.estimation.model import (
@@ -251,10 +251,7 @@ def _predict(model, k, x, P, ws):
 
 @implements(keep_predicted, SnsModel, refcounted=False)
 def _keep_predicted(model, k, x, P):
-    for i in range(N_STATE):  # element loops, not x_p[k] = x: no shape-check path to compile
-        model.x_p[k, i] = x[i]
-        for j in range(N_STATE):
-            model.P_p[k, i, j] = P[i, j]
+    keep_dense_into(model.x_p, model.P_p, k, x, P)
 
 
 @implements(update_into, SnsModel, refcounted=False)
@@ -331,10 +328,7 @@ def _update(model, k, x, P, ws):
 
 @implements(keep_filtered, SnsModel, refcounted=False)
 def _keep_filtered(model, k, x, P):
-    for i in range(N_STATE):
-        model.x_f[k, i] = x[i]
-        for j in range(N_STATE):
-            model.P_f[k, i, j] = P[i, j]
+    keep_dense_into(model.x_f, model.P_f, k, x, P)
 
 
 @implements(smoothing_covariances, SnsModel)
