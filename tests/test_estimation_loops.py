@@ -1,6 +1,6 @@
 """The core's one forward loop and one backward loop (estimation/filtering.py, smoothing.py)
-on the linear model: the mean-only pass against the pass with covariances, each pass compiled
-with its own step only, and the loops served from numba's disk cache in a new process."""
+on the linear model: the mean-only pass against the pass with covariances, both passes one
+compilation, and the loops served from numba's disk cache in a new process."""
 
 from __future__ import annotations
 
@@ -39,16 +39,17 @@ def test_mean_only_pass_gives_the_covariance_pass_means():
                         empty.reshape(0, 0, 0), np.empty(0), np.empty(0, dtype=np.int64),
                         np.empty((0, n, n)))
     xs = np.empty((N, n))
-    assert backward_pass(model, run.x, run.x_pred, xs, None) == 0
+    assert backward_pass(model, run.x, run.x_pred, xs, np.empty((0, 0))) == 0
     np.testing.assert_allclose(xs, full.x, rtol=1e-10, atol=1e-9)
     assert not np.allclose(xs, run.x)          # it did smooth
 
 
-def test_each_pass_compiles_its_own_step_once_and_loads_it_from_the_cache(tmp_path):
-    """In a process with an empty cache the covariance pass compiles the RTS step and not the
-    mean-only solve (``P_last``'s type chooses the step: smoothing.smoothed_step), the linear
-    model's geometry stays a compile-time constant (one specialisation of rts_step), and both
-    loops are written to the disk cache: a second process loads them without compiling."""
+def test_both_passes_are_one_compilation_loaded_from_the_cache(tmp_path):
+    """In a process with an empty cache the covariance pass and the mean-only pass of a model
+    class with ``MEAN_ONLY_PASS`` are one compilation of the backward loop (the step chosen at
+    run time by the running covariance's shape: smoothing.smoothed_step), the linear model's
+    geometry stays a compile-time constant (one specialisation of rts_step), and both loops are
+    written to the disk cache: a second process loads them without compiling."""
     code = textwrap.dedent("""
         import numpy as np
         from flightrecon.estimation import rts
@@ -58,7 +59,9 @@ def test_each_pass_compiles_its_own_step_once_and_loads_it_from_the_cache(tmp_pa
         r = kalman_filter(np.zeros(2), np.eye(2), np.eye(2), 0.1 * np.eye(2),
                           np.ones((20, 1)), np.array([[1.0, 0.0]]), np.eye(1))
         rts_smooth_run(r)
-        print(len(rts.rts_mean_solve.signatures),
+        xs = np.empty_like(r.x)
+        backward_pass(r.model, r.x, r.x_pred, xs, np.empty((0, 0)))
+        print(len(backward_pass.signatures),
               ",".join(str(s[0]) for s in rts.rts_step.signatures),
               sum(forward_pass.stats.cache_hits.values()),
               sum(backward_pass.stats.cache_hits.values()))
@@ -66,5 +69,17 @@ def test_each_pass_compiles_its_own_step_once_and_loads_it_from_the_cache(tmp_pa
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                            env=env, check=True).stdout.split() for _ in range(2)]
-    assert runs[0] == ["0", "Literal[int](0)", "0", "0"]      # compiled: its own step only
+    assert runs[0] == ["1", "Literal[int](0)", "0", "0"]      # one loop for both passes
     assert runs[1][-2:] == ["1", "1"]                          # loaded from the cache
+
+
+def test_mean_only_pass_is_offered_by_the_models_that_use_it():
+    """The joint smoother's iterations and the linear worked example run the mean-only pass;
+    the SNS filter always smooths with covariances, so its loop has no mean-only step."""
+    from flightrecon.estimation.smoothing import mean_only_pass
+    from flightrecon.methods.joint.model import JointModel
+    from flightrecon.methods.sns.filter import SnsModel
+
+    assert JointModel.MEAN_ONLY_PASS and LinearModel.MEAN_ONLY_PASS
+    assert not getattr(SnsModel, "MEAN_ONLY_PASS", False)
+    assert mean_only_pass(_run().model)

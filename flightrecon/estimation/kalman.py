@@ -61,6 +61,9 @@ class LinearModel(NamedTuple):
     ``nu`` (NaN where absent), their covariances ``S``, ``nis`` and ``n_meas`` per step, and
     the smoothed covariances ``P_s`` (N, n, n) (empty (0, n, n) in a forward run)."""
 
+    #: the backward pass may run without covariances (estimation.smoothing.backward_pass)
+    MEAN_ONLY_PASS = True
+
     F: np.ndarray
     Q: np.ndarray
     z: np.ndarray

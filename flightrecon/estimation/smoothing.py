@@ -33,52 +33,63 @@ from flightrecon.estimation.model import (
 )
 from flightrecon.estimation.rts import rts_mean_solve, rts_step, rts_step_work
 
-__all__ = ["SmoothedRun", "backward_pass", "last_smoothed_cov", "smoothed_step"]
+__all__ = ["SmoothedRun", "backward_pass", "mean_only_pass", "smoothed_step"]
 
 
-def smoothed_step(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
+def smoothed_step(model, k, x_f, x_p, x_s, Ps, ws, work):
     """One backward step of :func:`backward_pass` into ``x_s[k]`` (and ``Ps``): the RTS step
-    with covariances, or the mean-only step where ``P_last`` is None; chosen by ``P_last``'s
-    type when numba compiles the loop (each pass compiles only its own step).  Returns False
-    where the predicted covariance failed its Cholesky factorisation."""
+    with covariances, or the mean-only step where ``Ps`` is empty (0, 0).  A model class with
+    ``MEAN_ONLY_PASS = True`` gets both steps in one compilation of the loop, chosen at run
+    time (the mean-only pass is then no second compilation); any other class gets only the
+    covariance step.  Returns False where the predicted covariance failed its Cholesky
+    factorisation."""
     raise NotImplementedError("compiled only (numba overload)")
 
 
-@overload(smoothed_step, jit_options={"nogil": True, "cache": True})
-def _smoothed_step(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
-    if isinstance(P_last, types.NoneType):
-        def mean_only(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
-            CT, rts_work, L, d, y, dx = work
-            Pf, Pp = smoothing_covariances(model, k, ws)
-            geom, h, h_next, rel_tol = rts_frame(model, k)
-            # y = P_p^-1 (x_s[k+1] (-) x_p[k+1]), then x_s[k] = x_f[k] (+) C y
-            ok = rts_mean_solve(geom, x_p[k + 1], Pp, x_s[k + 1], h_next, rel_tol, L, d, y)
-            cross_times_into(model, k, y, dx, ws)
-            state_plus_into(geom, x_f[k], dx, h, x_s[k])
-            return ok
-        return mean_only
+def mean_only_pass(model) -> bool:
+    """True when the model's class offers the mean-only backward pass (its class attribute
+    ``MEAN_ONLY_PASS``); a compile-time constant of the loop."""
+    return bool(getattr(type(model), "MEAN_ONLY_PASS", False))
 
-    def with_covariances(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
+
+def _offers_mean_only(model_type: types.Type) -> bool:
+    cls = getattr(model_type, "instance_class", None)
+    return bool(getattr(cls, "MEAN_ONLY_PASS", False))
+
+
+@overload(mean_only_pass, jit_options={"nogil": True, "cache": True})
+def _mean_only_pass(model):
+    offered = _offers_mean_only(model)
+    return lambda model: offered
+
+
+@overload(smoothed_step, jit_options={"nogil": True, "cache": True})
+def _smoothed_step(model, k, x_f, x_p, x_s, Ps, ws, work):
+    def with_covariances(model, k, x_f, x_p, x_s, Ps, ws, work):
         CT, rts_work, L, d, y, dx = work
         Pf, Pp = smoothing_covariances(model, k, ws)
         geom, h, h_next, rel_tol = rts_frame(model, k)
         cross_transposed_into(model, k, CT, ws)
         return rts_step(geom, (x_f[k], Pf), (x_p[k + 1], Pp), (x_s[k + 1], Ps), CT,
                         (h, h_next), rel_tol, (x_s[k], Ps), rts_work)
-    return with_covariances
 
+    if not _offers_mean_only(model):
+        return with_covariances
 
-def last_smoothed_cov(P_last):
-    """The running smoothed covariance's start: a copy of ``P_last``, or an empty (0, 0)
-    array for the mean-only pass (``P_last`` None)."""
-    raise NotImplementedError("compiled only (numba overload)")
-
-
-@overload(last_smoothed_cov, jit_options={"nogil": True, "cache": True})
-def _last_smoothed_cov(P_last):
-    if isinstance(P_last, types.NoneType):
-        return lambda P_last: np.empty((0, 0))
-    return lambda P_last: P_last.copy()
+    def either(model, k, x_f, x_p, x_s, Ps, ws, work):
+        CT, rts_work, L, d, y, dx = work
+        Pf, Pp = smoothing_covariances(model, k, ws)
+        geom, h, h_next, rel_tol = rts_frame(model, k)
+        if Ps.shape[0] > 0:
+            cross_transposed_into(model, k, CT, ws)
+            return rts_step(geom, (x_f[k], Pf), (x_p[k + 1], Pp), (x_s[k + 1], Ps), CT,
+                            (h, h_next), rel_tol, (x_s[k], Ps), rts_work)
+        # y = P_p^-1 (x_s[k+1] (-) x_p[k+1]), then x_s[k] = x_f[k] (+) C y
+        ok = rts_mean_solve(geom, x_p[k + 1], Pp, x_s[k + 1], h_next, rel_tol, L, d, y)
+        cross_times_into(model, k, y, dx, ws)
+        state_plus_into(geom, x_f[k], dx, h, x_s[k])
+        return ok
+    return either
 
 
 @nb.njit(cache=True, nogil=True)
@@ -87,18 +98,20 @@ def backward_pass(model, x_f, x_p, x_s, P_last):
 
     ``x_f``, ``x_p`` (N, n) the filtered and predicted states; ``x_s`` (N, n) receives the
     smoothed states (``x_s[N-1]`` is set to ``x_f[N-1]``); ``P_last`` (n, n) the filtered
-    covariance of the last step (the smoothed one there), or None for the mean-only pass (the
-    model's ``keep_smoothed`` then gets an empty covariance).  The two passes are two
-    compilations of this loop (``P_last`` None or an array), each with only its own step
-    (:func:`smoothed_step`).
+    covariance of the last step (the smoothed one there), or an empty (0, 0) array for the
+    mean-only pass (the model's ``keep_smoothed`` then gets an empty covariance; only for a
+    model class with ``MEAN_ONLY_PASS``, else ValueError).  Both passes are one compilation
+    of this loop per model class (:func:`smoothed_step`).
 
     Returns the number of steps whose predicted covariance failed its Cholesky factorisation
     (solved through its eigen-decomposition instead; the caller reports it).
     """
     N, n = x_f.shape
     ws = workspace(model)
-    Ps = last_smoothed_cov(P_last)
+    Ps = P_last.copy()
     with_cov = Ps.shape[0] > 0
+    if not with_cov and not mean_only_pass(model):
+        raise ValueError("this model has no mean-only backward pass (MEAN_ONLY_PASS)")
     work = (np.empty((n, n)), rts_step_work(n), np.empty((n, n)), np.empty(n), np.empty(n),
             np.empty(n))
     n_fallback = 0
@@ -106,7 +119,7 @@ def backward_pass(model, x_f, x_p, x_s, P_last):
         x_s[N - 1, i] = x_f[N - 1, i]
     for k in range(N - 1, -1, -1):
         if k < N - 1:
-            if not smoothed_step(P_last, model, k, x_f, x_p, x_s, Ps, ws, work):
+            if not smoothed_step(model, k, x_f, x_p, x_s, Ps, ws, work):
                 n_fallback += 1
         keep_smoothed(model, k, x_s[k], Ps, with_cov, ws)
     return n_fallback

@@ -97,6 +97,10 @@ class JointModel(NamedTuple):
     ``var`` (N, n) its diagonal ((0, ...): the mean-only pass).
     """
 
+    #: the Gauss-Newton iterations' backward passes run without covariances
+    #: (estimation.smoothing.backward_pass: the same compilation as the covariance pass)
+    MEAN_ONLY_PASS = True
+
     dyn: Dynamics
     meas: Scalars
     geo: Geometry

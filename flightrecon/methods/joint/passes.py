@@ -67,7 +67,7 @@ def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: G
     xs = np.empty((N, n))
     P_last = np.empty((n, n))
     unpack_sym(Pf[N - 1], P_last)
-    n_fallback = backward_pass(model, xf, xp, xs, P_last if with_cov else None)
+    n_fallback = backward_pass(model, xf, xp, xs, P_last if with_cov else np.empty((0, 0)))
     return xs, model, int(n_fallback)
 
 
