@@ -46,10 +46,10 @@ def test_mean_only_pass_gives_the_covariance_pass_means():
 
 def test_both_passes_are_one_compilation_loaded_from_the_cache(tmp_path):
     """In a process with an empty cache the covariance pass and the mean-only pass of a model
-    class with ``MEAN_ONLY_PASS`` are one compilation of the backward loop (the step chosen at
-    run time by the running covariance's shape: smoothing.smoothed_step), the linear model's
-    geometry stays a compile-time constant (one specialisation of rts_step), and both loops are
-    written to the disk cache: a second process loads them without compiling."""
+    class registered ``with_mean_only_pass`` are one compilation of the backward loop (the step
+    chosen at run time by the running covariance's shape: smoothing.smoothed_step), the linear
+    model's geometry stays a compile-time constant (one specialisation of rts_step), and both
+    loops are written to the disk cache: a second process loads them without compiling."""
     code = textwrap.dedent("""
         import numpy as np
         from flightrecon.estimation import rts
@@ -76,10 +76,11 @@ def test_both_passes_are_one_compilation_loaded_from_the_cache(tmp_path):
 def test_mean_only_pass_is_offered_by_the_models_that_use_it():
     """The joint smoother's iterations and the linear worked example run the mean-only pass;
     the SNS filter always smooths with covariances, so its loop has no mean-only step."""
+    from flightrecon.estimation.model import mean_only_pass_offered
     from flightrecon.estimation.smoothing import mean_only_pass
     from flightrecon.methods.joint.model import JointModel
     from flightrecon.methods.sns.filter import SnsModel
 
-    assert JointModel.MEAN_ONLY_PASS and LinearModel.MEAN_ONLY_PASS
-    assert not getattr(SnsModel, "MEAN_ONLY_PASS", False)
+    assert mean_only_pass_offered(JointModel) and mean_only_pass_offered(LinearModel)
+    assert not mean_only_pass_offered(SnsModel)
     assert mean_only_pass(_run().model)

@@ -48,6 +48,7 @@ from flightrecon.estimation.model import (
     rts_frame,
     smoothing_covariances,
     update_into,
+    with_mean_only_pass,
     workspace,
 )
 from flightrecon.estimation.predict import predict
@@ -55,14 +56,13 @@ from flightrecon.estimation.smoothing import SmoothedRun, backward_pass
 from flightrecon.estimation.updates import joseph_update
 
 
+@with_mean_only_pass
 class LinearModel(NamedTuple):
     """A linear-Gaussian model on stacked arrays (module docstring for the shapes) and the
     buffers of its run: filtered ``x_f``, ``P_f``, predicted ``x_p``, ``P_p``, innovations
     ``nu`` (NaN where absent), their covariances ``S``, ``nis`` and ``n_meas`` per step, and
     the smoothed covariances ``P_s`` (N, n, n) (empty (0, n, n) in a forward run)."""
 
-    #: the backward pass may run without covariances (estimation.smoothing.backward_pass)
-    MEAN_ONLY_PASS = True
 
     F: np.ndarray
     Q: np.ndarray

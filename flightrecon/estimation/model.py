@@ -60,10 +60,12 @@ __all__ = [
     "keep_filtered",
     "keep_predicted",
     "keep_smoothed",
+    "mean_only_pass_offered",
     "predict_into",
     "rts_frame",
     "smoothing_covariances",
     "update_into",
+    "with_mean_only_pass",
     "workspace",
 ]
 
@@ -147,3 +149,21 @@ def implements(function: Callable[..., Any], model_class: type, *,
             overload(function, jit_options=_jit_options(refcounted, forceinline))(typer)
         return impl
     return register
+
+
+#: the model classes whose backward pass may run without covariances (:func:`with_mean_only_pass`)
+_MEAN_ONLY_CLASSES: set[type] = set()
+
+
+def with_mean_only_pass(model_class: type) -> type:
+    """Class decorator: ``model_class`` offers the mean-only backward pass
+    (:func:`flightrecon.estimation.smoothing.backward_pass` with an empty ``P_last``; it must
+    implement ``cross_times_into``).  Its loop then holds both steps in one compilation, chosen
+    at run time; a class without it compiles only the covariance step."""
+    _MEAN_ONLY_CLASSES.add(model_class)
+    return model_class
+
+
+def mean_only_pass_offered(model_class: type | None) -> bool:
+    """True when ``model_class`` was registered with :func:`with_mean_only_pass`."""
+    return model_class in _MEAN_ONLY_CLASSES

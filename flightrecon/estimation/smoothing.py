@@ -27,6 +27,7 @@ from flightrecon.estimation.model import (
     cross_times_into,
     cross_transposed_into,
     keep_smoothed,
+    mean_only_pass_offered,
     rts_frame,
     smoothing_covariances,
     workspace,
@@ -38,23 +39,23 @@ __all__ = ["SmoothedRun", "backward_pass", "mean_only_pass", "smoothed_step"]
 
 def smoothed_step(model, k, x_f, x_p, x_s, Ps, ws, work):
     """One backward step of :func:`backward_pass` into ``x_s[k]`` (and ``Ps``): the RTS step
-    with covariances, or the mean-only step where ``Ps`` is empty (0, 0).  A model class with
-    ``MEAN_ONLY_PASS = True`` gets both steps in one compilation of the loop, chosen at run
-    time (the mean-only pass is then no second compilation); any other class gets only the
-    covariance step.  Returns False where the predicted covariance failed its Cholesky
-    factorisation."""
+    with covariances, or the mean-only step where ``Ps`` is empty (0, 0).  A model class
+    registered ``with_mean_only_pass`` (estimation.model) gets both steps in one compilation
+    of the loop, chosen at run time (the mean-only pass is then no second compilation); any
+    other class gets only the covariance step.  Returns False where the predicted covariance
+    failed its Cholesky factorisation."""
     raise NotImplementedError("compiled only (numba overload)")
 
 
 def mean_only_pass(model) -> bool:
-    """True when the model's class offers the mean-only backward pass (its class attribute
-    ``MEAN_ONLY_PASS``); a compile-time constant of the loop."""
-    return bool(getattr(type(model), "MEAN_ONLY_PASS", False))
+    """True when the model's class offers the mean-only backward pass
+    (:func:`flightrecon.estimation.model.with_mean_only_pass`); a compile-time constant of the
+    loop."""
+    return mean_only_pass_offered(type(model))
 
 
 def _offers_mean_only(model_type: types.Type) -> bool:
-    cls = getattr(model_type, "instance_class", None)
-    return bool(getattr(cls, "MEAN_ONLY_PASS", False))
+    return mean_only_pass_offered(getattr(model_type, "instance_class", None))
 
 
 @overload(mean_only_pass, jit_options={"nogil": True, "cache": True})
@@ -100,8 +101,8 @@ def backward_pass(model, x_f, x_p, x_s, P_last):
     smoothed states (``x_s[N-1]`` is set to ``x_f[N-1]``); ``P_last`` (n, n) the filtered
     covariance of the last step (the smoothed one there), or an empty (0, 0) array for the
     mean-only pass (the model's ``keep_smoothed`` then gets an empty covariance; only for a
-    model class with ``MEAN_ONLY_PASS``, else ValueError).  Both passes are one compilation
-    of this loop per model class (:func:`smoothed_step`).
+    model class registered ``with_mean_only_pass``, else ValueError).  Both passes are one
+    compilation of this loop per model class (:func:`smoothed_step`).
 
     Returns the number of steps whose predicted covariance failed its Cholesky factorisation
     (solved through its eigen-decomposition instead; the caller reports it).
@@ -111,7 +112,8 @@ def backward_pass(model, x_f, x_p, x_s, P_last):
     Ps = P_last.copy()
     with_cov = Ps.shape[0] > 0
     if not with_cov and not mean_only_pass(model):
-        raise ValueError("this model has no mean-only backward pass (MEAN_ONLY_PASS)")
+        raise ValueError("this model has no mean-only backward pass "
+                         "(estimation.model.with_mean_only_pass)")
     work = (np.empty((n, n)), rts_step_work(n), np.empty((n, n)), np.empty(n), np.empty(n),
             np.empty(n))
     n_fallback = 0

@@ -50,6 +50,7 @@ from flightrecon.estimation.model import (
     rts_frame,
     smoothing_covariances,
     update_into,
+    with_mean_only_pass,
     workspace,
 )
 from flightrecon.estimation.predict import (
@@ -80,6 +81,7 @@ from flightrecon.methods.joint.observation import measure_into
 __all__ = ["JointModel", "joint_model"]
 
 
+@with_mean_only_pass
 class JointModel(NamedTuple):
     """One pass of the joint smoother as a model of the estimation core (module docstring).
 
@@ -97,9 +99,6 @@ class JointModel(NamedTuple):
     ``var`` (N, n) its diagonal ((0, ...): the mean-only pass).
     """
 
-    #: the Gauss-Newton iterations' backward passes run without covariances
-    #: (estimation.smoothing.backward_pass: the same compilation as the covariance pass)
-    MEAN_ONLY_PASS = True
 
     dyn: Dynamics
     meas: Scalars
