@@ -41,7 +41,11 @@ def test_the_child_is_used_only_when_it_helps(monkeypatch):
     monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "1")
     cold = {"joint": False, "sns": False, "sabziev": True}
     monkeypatch.setattr(coldstart, "kernels_cached", lambda m: cold.get(m, True))
-    assert coldstart.child_methods(["joint", "sabziev", "sns"], 2) == ["sabziev", "sns"]
+    # Sabziev compiles in seconds: it stays beside the joint smoother when the SNS goes
+    assert coldstart.child_methods(["joint", "sabziev", "sns"], 2) == ["sns"]
+    assert coldstart.child_methods(["joint", "sabziev"], 2) == []         # Sabziev is warm
+    cold["sabziev"] = False
+    assert coldstart.child_methods(["joint", "sabziev"], 2) == ["sabziev"]  # alone: it goes
     assert coldstart.child_methods(["joint", "sabziev", "sns"], 1) == []   # one worker
     assert coldstart.child_methods(["sabziev", "sns"], 2) == []           # no joint beside
     assert coldstart.child_methods(["joint"], 2) == []
@@ -50,6 +54,26 @@ def test_the_child_is_used_only_when_it_helps(monkeypatch):
     cold["sns"] = False
     monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "0")
     assert coldstart.child_methods(["joint", "sabziev", "sns"], 2) == []  # turned off
+
+
+def test_the_early_child_starts_only_when_a_cold_method_may_need_it(monkeypatch):
+    """Started before the log is read when a method that would go to the child is cold; taken
+    by the methods' child (then theirs to shut down), or shut down unused."""
+    monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "1")
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m != "sns")
+    with coldstart.EarlyChild(2) as early:
+        pool = early.take()
+        assert pool is not None and early.take() is None
+    pool.shutdown(wait=True)
+    with coldstart.EarlyChild(1) as early:                      # one worker: no child
+        assert early.take() is None
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m != "sabziev")
+    with coldstart.EarlyChild(2) as early:                      # only Sabziev cold: parent
+        assert early.take() is None
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: False)
+    monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "0")
+    with coldstart.EarlyChild(2) as early:                      # turned off
+        assert early.take() is None
 
 
 def test_the_child_is_used_only_with_a_core_to_spare(monkeypatch):

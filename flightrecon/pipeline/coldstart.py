@@ -9,7 +9,11 @@ smoother: both compile at once, on two cores, and write the cache that every lat
 The results are the same as in one process (the same functions on the same inputs; the child's
 warnings are re-issued in the parent), so only the first run's wall time changes.  Anything
 that goes wrong with the child itself (it cannot start, a result cannot be sent back) falls back
-to running that method in the parent.  A warm cache changes nothing: the methods run on
+to running that method in the parent.  The child is started before the log is read
+(:class:`EarlyChild`), so that it imports the package while the parent reads and cleans the log,
+and the Sabziev method, whose kernels compile in a few seconds, stays in the parent beside the
+joint smoother when another method goes to the child (the two processes then finish closer
+together: docs/performance.md).  A warm cache changes nothing: the methods run on
 threads as before, and so does a busy machine (no core to spare: :func:`spare_core`).
 ``FLIGHTRECON_COMPILE_IN_CHILD=0`` in the environment turns the child off (the test suite
 does, so that a test's monkeypatched method runs where the test put it, whatever the state of
@@ -72,13 +76,26 @@ def spare_core() -> bool:
     return load < (os.cpu_count() or 1) - 1
 
 
+#: methods whose kernels compile in a few seconds (Sabziev: 2.7 s against the joint's and the
+#: SNS's 19-23 s, docs/performance.md): they stay in the parent, beside the joint smoother,
+#: when another method goes to the child
+QUICK_TO_COMPILE = ("sabziev",)
+
+
+def _mode() -> str:
+    return os.environ.get("FLIGHTRECON_COMPILE_IN_CHILD", "").strip()
+
+
 def child_methods(chosen: list[str], workers: int) -> list[str]:
-    """The methods to run in a child process: every chosen method but the joint smoother, when
-    two workers are allowed, the joint smoother is among ``chosen`` (it keeps the parent busy),
-    at least one of the others is not compiled yet and the machine has a :func:`spare_core`;
-    otherwise none.  ``FLIGHTRECON_COMPILE_IN_CHILD``: ``0`` never, ``1`` whatever the load."""
+    """The methods to run in a child process: every chosen method but the joint smoother (and
+    but the :data:`QUICK_TO_COMPILE` ones when another goes), when two workers are allowed, the
+    joint smoother is among ``chosen`` (it keeps the parent busy), at least one of them is not
+    compiled yet and the machine has a :func:`spare_core`; otherwise none.
+    ``FLIGHTRECON_COMPILE_IN_CHILD``: ``0`` never, ``1`` whatever the load."""
     others = [m for m in chosen if m != "joint"]
-    mode = os.environ.get("FLIGHTRECON_COMPILE_IN_CHILD", "").strip()
+    if any(m not in QUICK_TO_COMPILE for m in others):
+        others = [m for m in others if m not in QUICK_TO_COMPILE]
+    mode = _mode()
     if mode == "0":
         return []
     if workers < 2 or "joint" not in chosen or not others:
@@ -88,6 +105,55 @@ def child_methods(chosen: list[str], workers: int) -> list[str]:
     if mode != "1" and not spare_core():
         return []
     return others
+
+
+def _import_methods() -> None:
+    """In the child, while the parent reads and cleans the log: import what the methods run
+    (the package, numba, the methods' modules), so that their compilation starts at once."""
+    from flightrecon.pipeline import registry  # noqa: F401 - imported for its side effect
+
+    for name in KERNEL_SENTINELS:
+        if name != "joint":
+            importlib.import_module(f"flightrecon.methods.{name}.method")
+
+
+class EarlyChild:
+    """The child process started before the log is read, when a first run is likely to need
+    it (two workers, a core to spare, a method that may go to the child not compiled yet): it
+    imports the package meanwhile.  :meth:`take` hands it to :class:`ChildMethods`; an early
+    child nobody took is shut down on exit.  Use as a context manager."""
+
+    def __init__(self, workers: int) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        mode = _mode()
+        candidates = [m for m in KERNEL_SENTINELS if m != "joint" and m not in QUICK_TO_COMPILE]
+        if mode == "0" or workers < 2 or all(kernels_cached(m) for m in candidates):
+            return
+        if mode != "1" and not spare_core():
+            return
+        try:
+            self._pool = ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            self._pool.submit(_import_methods)
+        except Exception:  # noqa: BLE001 - no child process here: ChildMethods starts one
+            self.close()
+
+    def __enter__(self) -> EarlyChild:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def take(self) -> ProcessPoolExecutor | None:
+        """The started child process (then the caller's to shut down), or None."""
+        pool, self._pool = self._pool, None
+        return pool
+
+    def close(self) -> None:
+        """Shut the child down if nobody took it."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
 
 
 def _run_recording(name: str, clean: CleanFlight, settings: Any
@@ -110,18 +176,23 @@ def _run_recording(name: str, clean: CleanFlight, settings: Any
 class ChildMethods:
     """The methods run in the child process; :meth:`result` waits for one of them.
 
-    Use as a context manager: the process is shut down on exit.
+    ``started``: a child process started earlier (:meth:`EarlyChild.take`), used instead of a
+    new one (and shut down when no method goes to it).  Use as a context manager: the process
+    is shut down on exit.
     """
 
-    def __init__(self, names: list[str], clean: CleanFlight, settings: Any) -> None:
+    def __init__(self, names: list[str], clean: CleanFlight, settings: Any,
+                 started: ProcessPoolExecutor | None = None) -> None:
         self.names = list(names)
-        self._pool: ProcessPoolExecutor | None = None
+        self._pool: ProcessPoolExecutor | None = started
         self._futures: dict[str, Future[Any]] = {}
         if not self.names:
+            self.close()
             return
         try:
-            self._pool = ProcessPoolExecutor(
-                max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            if self._pool is None:
+                self._pool = ProcessPoolExecutor(
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"))
             for name in self.names:
                 self._futures[name] = self._pool.submit(_run_recording, name, clean, settings)
         except Exception:  # noqa: BLE001 - no child process here: run them in the parent

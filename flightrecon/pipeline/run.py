@@ -21,7 +21,7 @@ from flightrecon.errors import (
     NoResultError,
 )
 from flightrecon.memory import release_unused
-from flightrecon.pipeline.coldstart import ChildMethods, child_methods
+from flightrecon.pipeline.coldstart import ChildMethods, EarlyChild, child_methods
 from flightrecon.pipeline.combine import combine
 from flightrecon.pipeline.health import has_finite_track, method_health
 from flightrecon.pipeline.registry import (
@@ -56,13 +56,15 @@ def default_workers() -> int:
 
 
 def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = ReconstructSettings(),
-                      progress: Callable[[str], None] | None = None, workers: int | None = None
+                      progress: Callable[[str], None] | None = None, workers: int | None = None,
+                      early_child: EarlyChild | None = None
                       ) -> tuple[pd.DataFrame, dict[str, MethodResult], dict[str, Any]]:
     """Run the estimators on a cleaned flight and combine them.
 
     ``workers`` threads run the estimators (default :func:`default_workers`; 1: one after the
-    other, in the order of ``ALL_METHODS``).  Returns the track, the method results and the
-    per-method status for the summary.
+    other, in the order of ``ALL_METHODS``).  ``early_child``: a child process started before
+    the log was read (pipeline/coldstart.py), used if methods go to a child.  Returns the
+    track, the method results and the per-method status for the summary.
     """
     avail = available_methods(clean, settings)
     if settings.methods is None:
@@ -85,7 +87,8 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
 
     # on a cold kernel cache the methods other than the joint smoother compile and run in a
     # child process while this one compiles the joint smoother (pipeline/coldstart.py)
-    child = ChildMethods(child_methods(chosen, workers), clean, settings)
+    child = ChildMethods(child_methods(chosen, workers), clean, settings,
+                         early_child.take() if early_child is not None else None)
 
     def run(name: str) -> MethodResult:
         if progress:
@@ -202,14 +205,16 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
         if progress:
             progress(name)
 
-    with warnings.catch_warnings(record=True) as caught:
+    workers = default_workers() if workers is None else max(1, int(workers))
+    # on a cold kernel cache a child process imports the methods while the log is read
+    with warnings.catch_warnings(record=True) as caught, EarlyChild(workers) as early:
         warnings.simplefilter("always")
         flight_warnings, clean, settings, fleet, findings = _load_and_clean(
             log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
             meta_overrides=meta_overrides, settings=settings, stage=stage, store=store,
             use_fleet_coefficients=use_fleet_coefficients, gnss_use=gnss_use)
         track, results, status = reconstruct_clean(clean, settings, progress=stage,
-                                                   workers=workers)
+                                                   workers=workers, early_child=early)
     warn_list = flight_warnings + [str(w.message) for w in caught
                                   if str(w.message) not in flight_warnings]
     # a verdict and its reason belong at the top, beside the warnings that led to it
