@@ -60,14 +60,17 @@ def test_the_early_child_starts_only_when_a_cold_method_may_need_it(monkeypatch)
     """Started before the log is read when a method that would go to the child is cold; taken
     by the methods' child (then theirs to shut down), or shut down unused."""
     monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "1")
-    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m != "sns")
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m not in ("sns", "joint"))
     with coldstart.EarlyChild(2) as early:
         pool = early.take()
         assert pool is not None and early.take() is None
     pool.shutdown(wait=True)
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m != "sns")
+    with coldstart.EarlyChild(2) as early:                      # the joint warm: not a first run
+        assert early.take() is None
     with coldstart.EarlyChild(1) as early:                      # one worker: no child
         assert early.take() is None
-    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m != "sabziev")
+    monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m not in ("sabziev", "joint"))
     with coldstart.EarlyChild(2) as early:                      # only Sabziev cold: parent
         assert early.take() is None
     monkeypatch.setattr(coldstart, "kernels_cached", lambda m: False)

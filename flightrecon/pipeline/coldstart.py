@@ -119,15 +119,17 @@ def _import_methods() -> None:
 
 class EarlyChild:
     """The child process started before the log is read, when a first run is likely to need
-    it (two workers, a core to spare, a method that may go to the child not compiled yet): it
-    imports the package meanwhile.  :meth:`take` hands it to :class:`ChildMethods`; an early
-    child nobody took is shut down on exit.  Use as a context manager."""
+    it (two workers, a core to spare, the joint smoother and a method that may go to the child
+    not compiled yet): it imports the package meanwhile.  :meth:`take` hands it to
+    :class:`ChildMethods`; an early child nobody took is shut down on exit.  Use as a context
+    manager."""
 
     def __init__(self, workers: int) -> None:
         self._pool: ProcessPoolExecutor | None = None
         mode = _mode()
         candidates = [m for m in KERNEL_SENTINELS if m != "joint" and m not in QUICK_TO_COMPILE]
-        if mode == "0" or workers < 2 or all(kernels_cached(m) for m in candidates):
+        if (mode == "0" or workers < 2 or kernels_cached("joint")
+                or all(kernels_cached(m) for m in candidates)):
             return
         if mode != "1" and not spare_core():
             return
