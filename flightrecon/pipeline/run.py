@@ -55,17 +55,11 @@ def default_workers() -> int:
     return max(1, min(2, os.cpu_count() or 1))
 
 
-def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = ReconstructSettings(),
-                      progress: Callable[[str], None] | None = None, workers: int | None = None,
-                      early_child: EarlyChild | None = None
-                      ) -> tuple[pd.DataFrame, dict[str, MethodResult], dict[str, Any]]:
-    """Run the estimators on a cleaned flight and combine them.
-
-    ``workers`` threads run the estimators (default :func:`default_workers`; 1: one after the
-    other, in the order of ``ALL_METHODS``).  ``early_child``: a child process started before
-    the log was read (pipeline/coldstart.py), used if methods go to a child.  Returns the
-    track, the method results and the per-method status for the summary.
-    """
+def _chosen_methods(clean: CleanFlight, settings: ReconstructSettings
+                    ) -> tuple[list[str], dict[str, Any]]:
+    """The methods to run (those asked for, or every one the flight allows) and the summary
+    status of the others (skipped, with the reason); MetadataError for a method asked for that
+    does not exist or cannot run on this flight."""
     avail = available_methods(clean, settings)
     if settings.methods is None:
         chosen = [m for m in ALL_METHODS if avail[m] is None]
@@ -82,6 +76,21 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
                                   "reason": avail[m] or "not among the methods asked for "
                                                         "(--methods)"}
                               for m in ALL_METHODS if m not in chosen}
+    return chosen, status
+
+
+def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = ReconstructSettings(),
+                      progress: Callable[[str], None] | None = None, workers: int | None = None,
+                      early_child: EarlyChild | None = None
+                      ) -> tuple[pd.DataFrame, dict[str, MethodResult], dict[str, Any]]:
+    """Run the estimators on a cleaned flight and combine them.
+
+    ``workers`` threads run the estimators (default :func:`default_workers`; 1: one after the
+    other, in the order of ``ALL_METHODS``).  ``early_child``: a child process started before
+    the log was read (pipeline/coldstart.py), used if methods go to a child.  Returns the
+    track, the method results and the per-method status for the summary.
+    """
+    chosen, status = _chosen_methods(clean, settings)
     results: dict[str, MethodResult] = {}
     workers = default_workers() if workers is None else max(1, int(workers))
 

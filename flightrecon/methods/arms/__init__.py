@@ -34,6 +34,7 @@ the transition is linear, so the linear RTS smoother applies unchanged.
 
 from __future__ import annotations
 
+from flightrecon.geo.radar import horizontal_range
 from flightrecon.methods.arms.filter import (
     ArmsEstimate,
     ArmsRun,
@@ -44,29 +45,31 @@ from flightrecon.methods.arms.filter import (
     run_joint_model,
     track_ground_velocity,
 )
-from flightrecon.methods.arms.model import (
+from flightrecon.methods.arms.inputs import (
     CONVERTED_AT,
     LINEARISATIONS,
     AirData,
     ArmsModel,
-    ArmsTrackModel,
     RadarPlots,
-    arms_track_model,
+    linearisation_code,
+)
+from flightrecon.methods.arms.measurement import (
     converted_covariance,
     converted_measurement,
-    cv_process_noise,
-    cv_transition,
-    gm_process_noise,
-    gm_transition,
-    horizontal_range,
-    joint_process_noise,
-    joint_transition,
-    linearisation_code,
     range_azimuth,
     range_azimuth_jacobian,
     wrap_angle,
 )
+from flightrecon.methods.arms.model import ArmsTrackModel, arms_track_model
 from flightrecon.methods.arms.paper import PaperScenario, simulate_paper_scenario
+from flightrecon.methods.arms.transition import (
+    cv_process_noise,
+    cv_transition,
+    gm_process_noise,
+    gm_transition,
+    joint_process_noise,
+    joint_transition,
+)
 
 __all__ = [
     "LINEARISATIONS", "CONVERTED_AT", "ArmsModel", "RadarPlots", "AirData", "horizontal_range",

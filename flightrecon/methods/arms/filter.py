@@ -17,20 +17,16 @@ from flightrecon.errors import ValidationError
 from flightrecon.estimation.filtering import FilterRun, forward_pass
 from flightrecon.estimation.kalman import kalman_filter, rts_smooth_run
 from flightrecon.estimation.smoothing import SmoothedRun
-from flightrecon.methods.arms.model import (
-    AirData,
-    ArmsModel,
-    RadarPlots,
-    arms_track_model,
-    converted_covariance,
-    converted_measurement,
+from flightrecon.methods.arms.inputs import AirData, ArmsModel, RadarPlots, linearisation_code
+from flightrecon.methods.arms.measurement import converted_covariance, converted_measurement
+from flightrecon.methods.arms.model import arms_track_model
+from flightrecon.methods.arms.transition import (
     cv_process_noise,
     cv_transition,
     gm_process_noise,
     gm_transition,
     joint_process_noise,
     joint_transition,
-    linearisation_code,
 )
 
 

@@ -6,7 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flightrecon.methods.arms.model import ArmsModel, cv_process_noise, wrap_angle
+from flightrecon.methods.arms.inputs import ArmsModel
+from flightrecon.methods.arms.measurement import wrap_angle
+from flightrecon.methods.arms.transition import cv_process_noise
 
 # --------------------------------------------------------------------------------------------
 # the paper's simulation (section "Computer simulation results"), vectorised over runs
