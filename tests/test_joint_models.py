@@ -698,7 +698,7 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     white noise (V: the lift-off airspeed), and the rows where the nose stays lined up (and
     the rest itself) keep the white noise alone; without a rest the reference is the roll's
     mean heading."""
-    from flightrecon.cleaning.phases import TakeoffRoll
+    from flightrecon.cleaning.ground_roll import TakeoffRoll
     from flightrecon.methods.joint.ground import steering_variance
     from flightrecon.methods.joint.settings import JointSettings
 
