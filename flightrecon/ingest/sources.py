@@ -28,7 +28,8 @@ from flightrecon.ingest.mapping_apply import apply_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.sidecar import normalise_epoch
-from flightrecon.ingest.timestamps import repair_time_order, unset_clock_rows
+from flightrecon.ingest.time_cells import unset_clock_rows
+from flightrecon.ingest.timestamps import repair_time_order
 from flightrecon.ingest.validate import check_required, check_time
 from flightrecon.schema import GROUPS
 from flightrecon.types import FlightMeta
@@ -203,7 +204,7 @@ def _time_columns(mp: Mapping | None, columns) -> tuple[str, ...]:
 
 def _drop_unset_clock(raw, mp: Mapping | None, log: Path, warns: list[str]):
     """``raw`` with the rows written before the recorder's clock was set (empty time cells at
-    the start of the file, :func:`.timestamps.unset_clock_rows`) marked to be skipped, and a
+    the start of the file, :func:`.time_cells.unset_clock_rows`) marked to be skipped, and a
     warning naming them."""
     names = tuple(c for c in _time_columns(mp, raw.columns) if c in raw.columns)
     if not names:
