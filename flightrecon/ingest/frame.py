@@ -18,7 +18,8 @@ from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.mapping import Mapping
 from flightrecon.ingest.physics import door_checks
 from flightrecon.ingest.sources import Sources
-from flightrecon.ingest.validate import Provenance, check_polarity, check_values
+from flightrecon.ingest.polarity import check_polarity
+from flightrecon.ingest.validate import Provenance, check_values
 from flightrecon.schema import BY_NAME, CHANNELS
 from flightrecon.types import FlightMeta
 
