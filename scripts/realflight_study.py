@@ -485,7 +485,7 @@ def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
         if rec.clean.meta.arrival is not None:
             drc = dead_reckoning(rec.clean, wind=False, corrected=True)
         else:   # closed at a known position at the record's end, if there is one
-            from flightrecon.envelope import corrected_dead_reckoning
+            from flightrecon.track_evidence import corrected_dead_reckoning
 
             got = corrected_dead_reckoning(rec.clean)
             drc = got[0] if got is not None else None

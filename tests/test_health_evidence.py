@@ -17,11 +17,11 @@ import pandas as pd
 import pytest
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.envelope import Evidence, evidence_problems
 from flightrecon.geo.frames import output_plane
 from flightrecon.ingest import load_flight
 from flightrecon.methods.baselines import bridge_sd_m
 from flightrecon.pipeline import method_health
+from flightrecon.track_evidence import Evidence, evidence_problems
 from flightrecon.types import MethodResult, PositionFix
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"

@@ -22,7 +22,8 @@ from flightrecon.errors import SchemaError, ValidationError
 from flightrecon.ingest.garmin import INHG_PA, pressure_altitude_from_indicated
 from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.readers import read_table
-from flightrecon.ingest.timestamps import combine_date_time, repair_time_order
+from flightrecon.ingest.time_cells import combine_date_time
+from flightrecon.ingest.timestamps import repair_time_order
 from tests.test_ingest_support import handmade_frame, load_quiet
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"

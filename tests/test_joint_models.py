@@ -698,7 +698,7 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     white noise (V: the lift-off airspeed), and the rows where the nose stays lined up (and
     the rest itself) keep the white noise alone; without a rest the reference is the roll's
     mean heading."""
-    from flightrecon.cleaning.phases import TakeoffRoll
+    from flightrecon.cleaning.ground_roll import TakeoffRoll
     from flightrecon.methods.joint.ground import steering_variance
     from flightrecon.methods.joint.settings import JointSettings
 
@@ -806,8 +806,8 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     from types import SimpleNamespace
 
     import flightrecon.methods.joint.data_settings as jm
-    from flightrecon.envelope import Evidence, _dr_walk
     from flightrecon.methods.joint.settings import JointSettings
+    from flightrecon.track_evidence import Evidence, dr_walk
 
     t = np.arange(0.0, 2400.0, 1.0)
     n = len(t)
@@ -830,9 +830,9 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     assert jm.wind_walk_rounds(None, replace(JointSettings(), wind_rounds=0), turning)[2] == []
     res = SimpleNamespace(summary={"wind_walk": {"wind_rw_mps_sqrt_s": 0.364,
                                                  "rounds": rounds}})
-    assert _dr_walk(res, Evidence()) == pytest.approx(0.728)
+    assert dr_walk(res, Evidence()) == pytest.approx(0.728)
     res.summary["wind_walk"] = {"wind_rw_mps_sqrt_s": 0.05, "rounds": []}
-    assert _dr_walk(res, Evidence()) == Evidence().dr_walk_mps_per_sqrt_s
+    assert dr_walk(res, Evidence()) == Evidence().dr_walk_mps_per_sqrt_s
 
 
 def test_increments_do_not_lag_a_turning_acceleration():

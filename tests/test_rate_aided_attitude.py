@@ -1,5 +1,5 @@
 """Where body rates and attitude both exist, the rates shape the attitude between its samples
-(flightrecon.cleaning.attitude.rate_aided_attitude)."""
+(flightrecon.cleaning.rate_aided.rate_aided_attitude)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The standstill before the taxi calibrates the gyro biases of a heading propagated from the
-body rates (flightrecon.cleaning.attitude, issue #35): at rest the heading does not change, so
+body rates (flightrecon.cleaning.standstill, issue #35): at rest the heading does not change, so
 the mean rates there are the biases.
 
 On the real Citation II record anchored by its departure runway alone the rate-propagated
@@ -122,7 +122,7 @@ def test_a_record_that_starts_airborne_has_no_standstill_and_does_not_fail():
     to anchor it."""
     import pandas as pd
 
-    from flightrecon.cleaning.attitude import standstill
+    from flightrecon.cleaning.standstill import standstill
     from flightrecon.types import FlightPhases
 
     t = np.arange(0.0, 120.0, 0.1)

@@ -49,12 +49,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from flightrecon.cleaning.rate_integrals import gap_filled, heading_integrals
 from flightrecon.cleaning.report import report_entry
+from flightrecon.cleaning.standstill import standstill_rows
 from flightrecon.errors import FlightReconWarning, ValidationError
-from flightrecon.geo.kinematics import heading_increments
 from flightrecon.types import FlightMeta, FlightPhases
 
-__all__ = ["heading_from_rates", "heading_needed", "provisional_heading", "rate_aided_attitude"]
+__all__ = ["heading_from_rates", "heading_needed"]
 
 RUNWAY_SD_DEG = 1.0
 #: prior sd of each gyro bias (a tactical-grade rate gyro: 0.02 deg/s = 72 deg/h)
@@ -66,22 +67,6 @@ GNSS_TRIANGLE_SD_MPS = 2.0
 TRIANGLE_FLOOR_DEG = 0.5
 WIND_SEGMENT_S = 600.0
 MIN_AIR_TAS_MPS = 30.0
-#: at rest on the ground the heading does not change: the mean rates there are the gyro biases.
-#: The airspeed at rest is the wind's (a headwind of 15 m/s reads 29 kt); below it the rates and
-#: the loads tell standing from taxiing
-STANDSTILL_TAS_MPS = 15.0
-#: a standstill window: over ``STANDSTILL_WINDOW_S`` the yaw rate's mean within
-#: ``STANDSTILL_MEAN_DPS`` of zero and its sd below ``STANDSTILL_SD_DPS``, the longitudinal and
-#: lateral loads' sd below ``STANDSTILL_LOAD_SD_G`` (a taxiing aircraft turns, brakes, bumps)
-STANDSTILL_WINDOW_S = 10.0
-STANDSTILL_MEAN_DPS = 0.05
-STANDSTILL_SD_DPS = 0.1
-STANDSTILL_LOAD_SD_G = 0.003
-#: standstills shorter than this in all are not used
-STANDSTILL_MIN_S = 20.0
-#: how far the gyro biases may move between the standstill and the flight (temperature, the
-#: bias instability of a tactical-grade gyro over an hour: 7 deg/h)
-STANDSTILL_BIAS_STABILITY_DPS = 0.002
 
 
 def heading_needed(grid: pd.DataFrame) -> str | None:
@@ -97,50 +82,6 @@ def heading_needed(grid: pd.DataFrame) -> str | None:
     if np.nanmax(h) - np.nanmin(h) < 1e-6:
         return "heading never changes (a dead channel)"
     return None
-
-
-def _filled(grid: pd.DataFrame, name: str) -> np.ndarray:
-    v = grid[name].to_numpy(float).copy()
-    bad = ~np.isfinite(v)
-    if bad.all():
-        raise ValidationError(f"heading from the rates needs {name}", column=name)
-    if bad.any():
-        idx = np.arange(len(v))
-        v[bad] = np.interp(idx[bad], idx[~bad], v[~bad])
-    return v
-
-
-def _integrals(grid: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``t``, ``psi_int`` [rad], ``Q``, ``R`` [s] (trapezoidal, zero at the first sample)."""
-    t = grid["t_s"].to_numpy(float)
-    phi = np.radians(_filled(grid, "roll_deg"))
-    th = np.radians(np.clip(_filled(grid, "pitch_deg"), -85.0, 85.0))
-    q = np.radians(_filled(grid, "q_dps"))
-    r = np.radians(_filled(grid, "r_dps"))
-    sq, sr = np.sin(phi) / np.cos(th), np.cos(phi) / np.cos(th)
-    dt = np.diff(t)
-
-    def cum(x):
-        out = np.zeros(len(x))
-        out[1:] = np.cumsum(0.5 * (x[1:] + x[:-1]) * dt)
-        return out
-
-    # the heading itself by rotating the attitude with the rates (exact through the vertical;
-    # the bias sensitivities Q, R keep the Euler form with the pitch clipped)
-    has_p = "p_dps" in grid.columns and bool(grid["p_dps"].notna().any())
-    p_dps = _filled(grid, "p_dps") if has_p else np.zeros(len(t))   # second order only
-    psi = np.zeros(len(t))
-    psi[1:] = np.cumsum(heading_increments(t, _filled(grid, "roll_deg"),
-                                           _filled(grid, "pitch_deg"), p_dps,
-                                           np.degrees(q), np.degrees(r)))
-    return t, psi, cum(sq), cum(sr)
-
-
-def provisional_heading(grid: pd.DataFrame) -> np.ndarray:
-    """The heading integrated from the rates from 0 deg at the first sample [deg] (for the
-    phase detector, whose lift-off rule needs only the vertical; the anchors come after)."""
-    _, psi, _, _ = _integrals(grid)
-    return np.degrees(psi)
 
 
 def _roll_window(t, tas, phases: FlightPhases | None, which: str):
@@ -173,11 +114,11 @@ def heading_from_rates(grid: pd.DataFrame, gnss: pd.DataFrame, meta: FlightMeta,
     ValidationError
         No anchor for the heading (no runway direction in the metadata, no GNSS velocity).
     """
-    t, psi_int, Q, R = _integrals(grid)
-    tas = _filled(grid, "tas_mps") if "tas_mps" in grid.columns else np.zeros(len(t))
+    t, psi_int, Q, R = heading_integrals(grid)
+    tas = gap_filled(grid, "tas_mps") if "tas_mps" in grid.columns else np.zeros(len(t))
     rows_psi, used, anchor_t = _runway_anchors(meta, t, tas, phases)
     tri = _gnss_triangle(grid, gnss, t, tas, psi_int, Q, R, used, anchor_t)
-    rest_row = _standstill_rows(grid, t, tas, phases, psi_int, Q, R, trimmed)
+    rest_row = standstill_rows(grid, t, tas, phases, psi_int, Q, R, trimmed)
     if not rows_psi and tri is None:
         raise ValidationError(f"{why}: the heading can be propagated from the body rates, but the "
                               "flight has nothing to anchor it (give the departure's "
@@ -258,99 +199,6 @@ def _announce_heading(why: str, used: list[str], rolls: list[dict], calibrated: 
         f"(t = {float(t[int(np.argmax(sd))]):.0f} s)", FlightReconWarning, stacklevel=3)
 
 
-def _rolling(x: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Centred rolling mean and sd over ``k`` samples (NaN-tolerant, at least half present)."""
-    r = pd.Series(x).rolling(k, center=True, min_periods=max(k // 2, 2))
-    return r.mean().to_numpy(), r.std().to_numpy()
-
-
-def standstill(grid: pd.DataFrame, t: np.ndarray, tas: np.ndarray,
-               phases: FlightPhases | None, min_s: float = STANDSTILL_MIN_S) -> np.ndarray:
-    """Where the aircraft stands still on the ground (boolean over the grid): outside the
-    flight and the take-off roll, the airspeed below ``STANDSTILL_TAS_MPS``, and over
-    ``STANDSTILL_WINDOW_S`` a yaw rate that is steady about zero and quiet longitudinal and
-    lateral loads; fewer than ``min_s`` seconds in all count as none."""
-    if "r_dps" not in grid.columns or len(t) < 3:
-        return np.zeros(len(t), bool)
-    dt = float(np.median(np.diff(t)))
-    k = max(int(round(STANDSTILL_WINDOW_S / dt)), 3) if dt > 0 else 3
-    r_mean, r_sd = _rolling(grid["r_dps"].to_numpy(float), k)
-    ok = (np.abs(r_mean) < STANDSTILL_MEAN_DPS) & (r_sd < STANDSTILL_SD_DPS)
-    for c in ("n_long_g", "n_lat_g"):
-        if c in grid.columns:
-            _, sd_c = _rolling(grid[c].to_numpy(float), k)
-            ok &= sd_c < STANDSTILL_LOAD_SD_G
-    ok &= ~(tas > STANDSTILL_TAS_MPS)
-    if phases is not None:
-        # a record that starts airborne (``--start`` after the lift-off) has neither
-        first = min((v for v in (phases.roll_start_t_s, phases.liftoff_t_s) if np.isfinite(v)),
-                    default=np.inf)
-        ok &= ~((t >= first) & ~(t > phases.touchdown_t_s)) if np.isfinite(first) else ok
-        if phases.starts_airborne:
-            ok &= t > phases.touchdown_t_s
-    ok &= np.isfinite(grid["r_dps"].to_numpy(float))
-    if float(np.sum(np.diff(t, append=t[-1])[ok])) < min_s or not ok.any():
-        return np.zeros(len(t), bool)
-    return ok
-
-
-def _rest_sums(grid: pd.DataFrame, t: np.ndarray, rest: np.ndarray, psi_int: np.ndarray,
-               Q: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Over the intervals with both ends at rest: the sums of ``dpsi_int``, ``dQ``, ``dR``, the
-    time at rest and the rate noise's variance times the sample interval (its angle random
-    walk per second)."""
-    inc = rest[1:] & rest[:-1]
-    if not inc.any():
-        return np.zeros(5)
-    r = np.radians(grid["r_dps"].to_numpy(float))
-    dt = float(np.median(np.diff(t)))
-    arw2 = float(np.nanvar(np.diff(r)[inc]) / 2.0) * dt
-    return np.array([np.sum(np.diff(psi_int)[inc]), np.sum(np.diff(Q)[inc]),
-                     np.sum(np.diff(R)[inc]), np.sum(np.diff(t)[inc]), arw2])
-
-
-def _standstill_rows(grid: pd.DataFrame, t: np.ndarray, tas: np.ndarray,
-                     phases: FlightPhases | None, psi_int: np.ndarray, Q: np.ndarray,
-                     R: np.ndarray, trimmed: pd.DataFrame | None
-                     ) -> tuple[float, float, float, float, float] | None:
-    """The standstills (on the grid, and in the part of the record trimmed away) as one anchor
-    on the gyro biases: at rest the heading does not change, so the rates integrated there
-    (``sum dpsi_int``) equal the biases integrated (``b_q sum dQ + b_r sum dR``).  Returns
-    ``(sum dpsi_int, sum dQ, sum dR, sd, time at rest)`` [rad, s, s, rad, s], ``None`` with
-    less than ``STANDSTILL_MIN_S`` at rest.  The sd is the rate noise's angle random walk over
-    the time at rest and the biases' stability between the standstill and the flight
-    (``STANDSTILL_BIAS_STABILITY_DPS``) times that time."""
-    sums = _rest_sums(grid, t, standstill(grid, t, tas, phases, min_s=0.0), psi_int, Q, R)
-    parts = [sums]
-    if trimmed is not None and len(trimmed) > 2 and {"t_s", "r_dps", "roll_deg",
-                                                     "pitch_deg"} <= set(trimmed.columns):
-        tr = trimmed.sort_values("t_s").reset_index(drop=True)
-        tr = tr[[c for c in tr.columns if c in ("t_s", "p_dps", "q_dps", "r_dps", "roll_deg",
-                                                  "pitch_deg", "n_long_g", "n_lat_g",
-                                                  "tas_mps")]]
-        # the trimmed part may be two pieces (before the start, after the end): each alone
-        t_tr = tr["t_s"].to_numpy(float)
-        for piece in (tr[t_tr < t[0]], tr[t_tr > t[-1]]):
-            piece = piece[np.isfinite(piece["r_dps"].to_numpy(float))].reset_index(drop=True)
-            if len(piece) < 3 or not np.isfinite(piece["roll_deg"].to_numpy(float)).any():
-                continue
-            if "q_dps" not in piece.columns or not piece["q_dps"].notna().any():
-                continue
-            tp, psi_p, Q_p, R_p = _integrals(piece)
-            tas_p = (_filled(piece, "tas_mps") if "tas_mps" in piece.columns
-                     and piece["tas_mps"].notna().any() else np.zeros(len(tp)))
-            rest_p = standstill(piece, tp, tas_p, None, min_s=0.0)
-            parts.append(_rest_sums(piece, tp, rest_p, psi_p, Q_p, R_p))
-    tot = np.sum(parts, axis=0)
-    t_rest = float(tot[3])
-    if t_rest < STANDSTILL_MIN_S:
-        return None
-    arw2 = max((float(p[4]) for p in parts if p[3] > 0), default=0.0)
-    stab = np.radians(STANDSTILL_BIAS_STABILITY_DPS)
-    sd = float(np.sqrt(arw2 * t_rest + (stab * t_rest) ** 2))
-    return float(tot[0]), float(tot[1]), float(tot[2]), max(sd, 1e-12), t_rest
-
-
 _Anchor = tuple[np.ndarray, float, float, str]   # (weights over the grid, value, sd, which)
 
 
@@ -406,8 +254,8 @@ def _gnss_triangle(grid: pd.DataFrame, gnss: pd.DataFrame, t: np.ndarray, tas: n
     tg, vn, ve, V = tg[ok], vn[ok], ve[ok], V[ok]
     wind = None
     if {"wind_speed_mps", "wind_from_deg"} <= set(grid.columns):
-        ws = np.interp(tg, t, _filled(grid, "wind_speed_mps"))
-        to = np.radians(np.interp(tg, t, _filled(grid, "wind_from_deg")) + 180.0)
+        ws = np.interp(tg, t, gap_filled(grid, "wind_speed_mps"))
+        to = np.radians(np.interp(tg, t, gap_filled(grid, "wind_from_deg")) + 180.0)
         wind = np.c_[ws * np.cos(to), ws * np.sin(to)]
     seg = np.floor((tg - tg[0]) / WIND_SEGMENT_S).astype(int)
     used.append(f"GNSS track: {int(ok.sum())} velocity fixes"
@@ -516,91 +364,3 @@ def _heading_sd(t: np.ndarray, psi_int: np.ndarray, Q: np.ndarray, R: np.ndarray
             else np.abs(t - at[0]))
     floor = np.radians(TRIANGLE_FLOOR_DEG) ** 2 if triangle else 0.0
     return np.degrees(np.sqrt(var + arw2 * dist + floor))
-
-
-#: the body rates must be sampled at least this many times faster than an attitude channel
-#: for the rate-aided interpolation of that channel
-RATE_AID_RATIO = 1.5
-
-
-def _euler_rates_dps(grid: pd.DataFrame) -> dict[str, np.ndarray]:
-    """Euler-angle rates [deg/s] on the grid from the body rates and the (interpolated) roll and
-    pitch: ZYX kinematics ``phi' = p + (q sin phi + r cos phi) tan theta``,
-    ``theta' = q cos phi - r sin phi``, ``psi' = (q sin phi + r cos phi) / cos theta``.  NaN
-    where a rate or an angle is missing."""
-    phi = np.radians(grid["roll_deg"].to_numpy(float))
-    th = np.radians(np.clip(grid["pitch_deg"].to_numpy(float), -85.0, 85.0))
-    p, q, r = (grid[c].to_numpy(float) for c in ("p_dps", "q_dps", "r_dps"))
-    a = q * np.sin(phi) + r * np.cos(phi)
-    return {"roll_deg": p + a * np.tan(th), "pitch_deg": q * np.cos(phi) - r * np.sin(phi),
-            "heading_deg": a / np.cos(th)}
-
-
-def rate_aided_attitude(grid: pd.DataFrame, work: pd.DataFrame, max_gap_s: float
-                        ) -> tuple[pd.DataFrame, list[dict]]:
-    """Attitude between its samples shaped by the body rates (where both are recorded).
-
-    Between two samples ``v_k`` (at ``t_k``) and ``v_k+1`` of an attitude channel sampled more
-    slowly than the rates, the grid value is the rate integral from ``t_k`` with a linear
-    correction that makes it end on ``v_k+1``::
-
-        v(t) = v_k + (I(t) - I(t_k)) - f (v_k + I(t_k+1) - I(t_k) - v_k+1),
-        f = (t - t_k) / (t_k+1 - t_k),   I = int of the Euler-angle rate
-
-    exact at the samples (a measurement is never moved), and between them it follows the
-    rates instead of a straight line; a gyro bias over one interval (b dt) is removed by the
-    correction.  Intervals longer than ``max_gap_s``, with a missing rate, or outside the
-    channel's samples keep the linear interpolation.  ``grid`` angles are unwrapped, as are
-    ``work``'s (cleaning's UnwrapAngles step).
-    """
-    need = {"p_dps", "q_dps", "r_dps", "roll_deg", "pitch_deg"}
-    if not need <= set(grid.columns) or not need <= set(work.columns):
-        return grid, []
-    tw = work["t_s"].to_numpy(float)
-    tp = tw[work["q_dps"].notna().to_numpy()]
-    if len(tp) < 3:
-        return grid, []
-    rate_period = float(np.median(np.diff(tp)))
-    t = grid["t_s"].to_numpy(float)
-    rates = _euler_rates_dps(grid)
-    g = grid.copy()
-    report: list[dict] = []
-    for c in ("roll_deg", "pitch_deg", "heading_deg"):
-        if c not in grid.columns or c not in work.columns:
-            continue
-        ok = work[c].notna().to_numpy()
-        tc, vc = tw[ok], work[c].to_numpy(float)[ok]
-        if len(tc) < 2:
-            continue
-        period = float(np.median(np.diff(tc)))
-        if not period > RATE_AID_RATIO * rate_period:
-            continue
-        rate = rates[c]
-        bad = ~np.isfinite(rate)
-        I = np.zeros(len(t))
-        rr = np.where(bad, 0.0, rate)
-        I[1:] = np.cumsum(0.5 * (rr[1:] + rr[:-1]) * np.diff(t))
-        nbad = np.cumsum(bad)
-        Ic = np.interp(tc, t, I)
-        k = np.clip(np.searchsorted(tc, t, side="right") - 1, 0, len(tc) - 2)
-        t0, t1 = tc[k], tc[k + 1]
-        j0 = np.clip(np.searchsorted(t, t0), 0, len(t) - 1)
-        j1 = np.clip(np.searchsorted(t, t1), 0, len(t) - 1)
-        inside = (t >= tc[0]) & (t <= tc[-1]) & ((t1 - t0) <= max_gap_s) \
-            & (nbad[j1] - nbad[np.maximum(j0 - 1, 0)] == 0)
-        if f"{c}_valid" in g.columns:
-            inside &= g[f"{c}_valid"].to_numpy(bool)
-        f = (t - t0) / np.maximum(t1 - t0, 1e-12)
-        aided = vc[k] + (I - Ic[k]) - f * (vc[k] + Ic[k + 1] - Ic[k] - vc[k + 1])
-        v = g[c].to_numpy(float).copy()
-        change = np.where(inside, aided - v, 0.0)
-        v[inside] = aided[inside]
-        g[c] = v
-        n = int(inside.sum())
-        if n:
-            report.append(report_entry(
-                c, "rate_aided_interpolation",
-                f"between its samples ({1 / period:.3g} Hz) shaped by the body rates "
-                f"({1 / rate_period:.3g} Hz), corrected to end on each sample", count=n,
-                rms_change_deg=float(np.sqrt(np.mean(change[inside] ** 2)))))
-    return g, report

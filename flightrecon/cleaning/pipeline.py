@@ -16,16 +16,13 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning.arrival_end import arrival_not_end
-from flightrecon.cleaning.attitude import (
-    heading_from_rates,
-    heading_needed,
-    provisional_heading,
-    rate_aided_attitude,
-)
+from flightrecon.cleaning.attitude import heading_from_rates, heading_needed
 from flightrecon.cleaning.despike import DespikeSettings
 from flightrecon.cleaning.impact import with_impact
 from flightrecon.cleaning.origin import with_origin
 from flightrecon.cleaning.phases import PhaseSettings, detect_phases_with_report
+from flightrecon.cleaning.rate_aided import rate_aided_attitude
+from flightrecon.cleaning.rate_integrals import provisional_heading
 from flightrecon.cleaning.report import report_entry
 from flightrecon.cleaning.resample import resample_inputs, wrap_roll
 from flightrecon.cleaning.saturation import detect_saturation, saturation_on_grid

@@ -80,7 +80,7 @@ class TimeSpec:
     unit: str
     format: str | None = None
     #: a separate date column (then ``column`` holds the time of day) and a column of UTC
-    #: offsets (``+02:00``, local time = UTC + offset): :func:`.timestamps.combine_date_time`
+    #: offsets (``+02:00``, local time = UTC + offset): :func:`.time_cells.combine_date_time`
     date_column: str | None = None
     utc_offset_column: str | None = None
 

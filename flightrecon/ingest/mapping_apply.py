@@ -257,7 +257,7 @@ def _convert_time(raw: RawTable, tspec: TimeSpec, rows: np.ndarray) -> np.ndarra
     col = raw.columns[tspec.column]
     file = raw.file
     if tspec.date_column is not None or tspec.utc_offset_column is not None:
-        from flightrecon.ingest.timestamps import combine_date_time
+        from flightrecon.ingest.time_cells import combine_date_time
 
         return combine_date_time(raw, tspec.column, tspec.date_column,
                                  tspec.utc_offset_column, tspec.format, rows)

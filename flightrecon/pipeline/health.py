@@ -1,6 +1,7 @@
 """Health of a method's track: non-finite positions, missing or non-positive sd, its own
 verdicts with their reasons, the physical envelope, the plausibility of its estimated states
-and its agreement with the evidence (:mod:`flightrecon.envelope`)."""
+and its agreement with the evidence (:mod:`flightrecon.envelope`,
+:mod:`flightrecon.track_evidence`)."""
 
 from __future__ import annotations
 
@@ -57,7 +58,7 @@ def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[s
     physically possible (:func:`flightrecon.envelope.envelope_problems`: speeds, vertical
     speeds, accelerations beyond the envelope, a height far from the recorded pressure
     altitude) or its states are implausible and its track disagrees with the evidence
-    (:func:`flightrecon.envelope.evidence_problems`: wind, ground against air speed, heading
+    (:func:`flightrecon.track_evidence.evidence_problems`: wind, ground against air speed, heading
     bias, the arrival, known positions, dead reckoning between two known ends).  Any problem
     makes it unhealthy: the default result then falls back to the healthy sources, and its
     coefficients are not stored."""
@@ -95,7 +96,8 @@ def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[s
         out["problems"].append({"what": self_verdict_reason(s), "check": "self",
                                 "spans_s": []})
     if clean is not None:
-        from flightrecon.envelope import envelope_problems, evidence_problems
+        from flightrecon.envelope import envelope_problems
+        from flightrecon.track_evidence import evidence_problems
 
         for prob in envelope_problems(res, clean) + evidence_problems(res, clean):
             out["problems"].append({"what": prob["what"], "check": prob["check"],

@@ -245,7 +245,7 @@ def phases_roll(ph: Any, settle_s: float = 10.0) -> TakeoffRoll:
     1 Hz record whose ``n_long_g`` is derived from an airspeed that reads 0 below its floor
     does not have through the roll's first seconds (:func:`airspeed_floor_windows`).  The rest
     is the line-up to ``settle_s`` before the roll start, as in
-    :func:`flightrecon.cleaning.phases.takeoff_roll`; none where the phases found a rolling
+    :func:`flightrecon.cleaning.ground_roll.takeoff_roll`; none where the phases found a rolling
     take-off (the roll starting at the line-up)."""
     start = float(getattr(ph, "roll_start_t_s", np.nan))
     lineup = float(getattr(ph, "lineup_t_s", np.nan))

@@ -1,6 +1,6 @@
 """Inputs of the joint smoother: :class:`JointInputs`, the take-off roll refined with the
-smoothed lift-off speed (the detection itself: :func:`flightrecon.cleaning.phases.takeoff_roll`)
-and the end points."""
+smoothed lift-off speed (the detection itself:
+:func:`flightrecon.cleaning.ground_roll.takeoff_roll`) and the end points."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from flightrecon.cleaning.phases import TakeoffRoll, takeoff_roll
+from flightrecon.cleaning.ground_roll import TakeoffRoll, takeoff_roll
 from flightrecon.geo.frames import offset_latlon
 from flightrecon.geo.kinematics import body_to_ned_matrix
 from flightrecon.geo.navframe import ned_to_ecef_matrix
@@ -110,10 +110,11 @@ class JointInputs:
 
 def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
                  accel_bias_g: np.ndarray | None = None) -> TakeoffRoll:
-    """The take-off roll refined by the smoother: :func:`flightrecon.cleaning.phases.takeoff_roll`
-    with the along-track component of the nominal (smoothed) ground velocity ``vnom`` (N, 3) at
-    lift-off on the state grid ``T`` as the lift-off speed, and the smoothed forward
-    accelerometer bias ``accel_bias_g`` (N, 3) [g] at lift-off as its ``accel_bias_mps2``;
+    """The take-off roll refined by the smoother:
+    :func:`flightrecon.cleaning.ground_roll.takeoff_roll` with the along-track component of the
+    nominal (smoothed) ground velocity ``vnom`` (N, 3) at lift-off on the state grid ``T`` as
+    the lift-off speed, and the smoothed forward accelerometer bias ``accel_bias_g`` (N, 3) [g]
+    at lift-off as its ``accel_bias_mps2``;
     ``inp.roll`` without a nominal, without a roll, or where the refined search finds none."""
     roll = inp.roll
     if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):

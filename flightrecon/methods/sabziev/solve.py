@@ -20,7 +20,9 @@ from flightrecon.methods.sabziev.discrete import (
     propagate_path,
     vertical_step,
 )
-from flightrecon.methods.sabziev.newton import RootReport, find_coefficient, find_root_near
+from flightrecon.methods.sabziev.nearest import find_root_near
+from flightrecon.methods.sabziev.newton import find_coefficient
+from flightrecon.methods.sabziev.roots import RootReport
 
 # --------------------------------------------------------------------------------------------
 # Library API: one axis, and the three-axis fusion
