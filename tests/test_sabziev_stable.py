@@ -21,8 +21,8 @@ from flightrecon.methods.sabziev import (
     propagate_path,
     solve_axis_y,
 )
+from flightrecon.methods.sabziev.axis import TAU_FALLBACK_S, vertical_target_w
 from flightrecon.methods.sabziev.method import run_sabziev
-from flightrecon.methods.sabziev.solve import TAU_FALLBACK_S, vertical_target_w
 from flightrecon.pipeline.health import method_health
 from flightrecon.types import Position
 

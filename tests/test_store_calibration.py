@@ -22,7 +22,7 @@ from flightrecon.store import (
     SensorEstimate,
 )
 from flightrecon.store import calibration as cal
-from flightrecon.store.db import SCHEMA_VERSION
+from flightrecon.store.schema import SCHEMA_VERSION
 
 FIXTURE_V2 = Path(__file__).parent / "data" / "store_v2.sqlite"
 H1, H2, H3 = "1" * 64, "2" * 64, "3" * 64

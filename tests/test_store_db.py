@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from flightrecon.errors import StoreError
-from flightrecon.store import SCHEMA_VERSION, CoefficientStore, FlightCoefficients, db
+from flightrecon.store import SCHEMA_VERSION, CoefficientStore, FlightCoefficients, db, schema
 
 
 def fit(**kw):
@@ -32,13 +32,13 @@ def test_new_store_has_identity_schema_and_wal(tmp_path):
         assert store.journal_mode == "wal" and store.notes == ()
         assert store.count() == 0
     con = sqlite3.connect(path)
-    assert con.execute("PRAGMA application_id").fetchone()[0] == db.APPLICATION_ID
+    assert con.execute("PRAGMA application_id").fetchone()[0] == schema.APPLICATION_ID
     assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
     assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     cols = [r[1] for r in con.execute("PRAGMA table_info(flights)")]
-    assert tuple(cols[1:]) == db.FLIGHT_COLUMNS
+    assert tuple(cols[1:]) == schema.FLIGHT_COLUMNS
     meta = dict(con.execute("SELECT key, value FROM store_meta"))
-    assert meta["application"] == db.APPLICATION_NAME
+    assert meta["application"] == schema.APPLICATION_NAME
     con.close()
 
 
@@ -106,7 +106,7 @@ def test_parameterised_queries_take_hostile_ids_literally(tmp_path):
 def _build_v1(path, rows):
     con = sqlite3.connect(path, isolation_level=None)
     with db.write_transaction(con):
-        db.create_schema(con, db.SCHEMA_V1_DDL, 1)
+        schema.create_schema(con, schema.SCHEMA_V1_DDL, 1)
         con.executemany(
             "INSERT INTO flights (aircraft_id, flight_id, flight_date_utc, duration_s, k1, k2, k3, "
             "converged, residual_m, software_version, settings_json, input_hashes_json, "
@@ -139,7 +139,8 @@ def test_upgrade_from_v1(tmp_path):
         assert store.count() == 3
     con = sqlite3.connect(path)
     assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
-    assert tuple(r[1] for r in con.execute("PRAGMA table_info(flights)"))[1:] == db.FLIGHT_COLUMNS
+    cols = tuple(r[1] for r in con.execute("PRAGMA table_info(flights)"))
+    assert cols[1:] == schema.FLIGHT_COLUMNS
     assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
     meta = dict(con.execute("SELECT key, value FROM store_meta"))
     assert "migrated_to_v2_by" in meta and "migrated_to_v3_by" in meta  # v1 -> v2 -> v3
@@ -193,7 +194,7 @@ def test_our_application_id_without_marker_refused(tmp_path):
     """application_id alone is 4 bytes anyone could pick; the store_meta marker must match too."""
     path = tmp_path / "fake.db"
     con = sqlite3.connect(path)
-    con.execute(f"PRAGMA application_id = {db.APPLICATION_ID}")
+    con.execute(f"PRAGMA application_id = {schema.APPLICATION_ID}")
     con.execute("PRAGMA user_version = 2")
     con.execute("CREATE TABLE flights (x)")
     con.commit()
@@ -243,8 +244,8 @@ def test_partial_fit_round_trip_and_sql_checks(tmp_path):
         assert math.isnan(got.k2) and got.axis_converged == (True, False, True)
         row = store.con.execute("SELECT k2, residual_m FROM flights").fetchone()
         assert row == (None, None)
-        cols = ", ".join(db.FLIGHT_COLUMNS)
-        marks = ", ".join("?" for _ in db.FLIGHT_COLUMNS)
+        cols = ", ".join(schema.FLIGHT_COLUMNS)
+        marks = ", ".join("?" for _ in schema.FLIGHT_COLUMNS)
         bad = ("A", "X", "2024-01-01T00:00:00Z", 10.0, -0.1, None, -0.1, "negative", "negative",
                "negative", 1, 1, 1, 1, 1.0, 3, "0", "{}", "{}", "2024-01-01T00:00:00Z", None,
                None, None, None)

@@ -8,7 +8,7 @@ import sqlite3
 import pytest
 
 from flightrecon.errors import StoreError
-from flightrecon.store import CoefficientStore, FlightCoefficients, db
+from flightrecon.store import CoefficientStore, FlightCoefficients, db, schema
 from flightrecon.store.stats import aircraft_stats, fleet_mean, from_property, to_property
 
 N, P, NONE = "negative", "positive", "none"
@@ -85,8 +85,8 @@ def test_conditioning_round_trips_and_a_v3_store_is_upgraded(tmp_path):
     path = tmp_path / "v3.sqlite"
     con = sqlite3.connect(path, isolation_level=None)
     with db.write_transaction(con):
-        db.create_schema(con, db.SCHEMA_V3_DDL, 3)
-        cols = db.FLIGHT_COLUMNS[:-3]
+        schema.create_schema(con, schema.SCHEMA_V3_DDL, 3)
+        cols = schema.FLIGHT_COLUMNS[:-3]
         con.execute(f"INSERT INTO flights ({', '.join(cols)}) VALUES "
                     f"({', '.join('?' for _ in cols)})",
                     ("A", "OLD", "2026-01-01T00:00:00Z", 900.0, -0.1, -0.04, -0.02, N, N, N,
@@ -100,7 +100,7 @@ def test_conditioning_round_trips_and_a_v3_store_is_upgraded(tmp_path):
         # one fit without conditioning: the k1 mean falls back on equal weights
         assert not st.aircraft_stats("A").axis("k1").prop.weighted
     con = sqlite3.connect(path)
-    assert con.execute("PRAGMA user_version").fetchone()[0] == db.SCHEMA_VERSION == 4
+    assert con.execute("PRAGMA user_version").fetchone()[0] == schema.SCHEMA_VERSION == 4
     with pytest.raises(sqlite3.IntegrityError):       # a conditioning is positive
         con.execute("UPDATE flights SET k1_sd = -1.0")
     con.close()

@@ -42,18 +42,14 @@ from flightrecon.sim.aircraft import JET, LIGHT, draw_aircraft
 from flightrecon.sim.fdm import AirframeModel, FdmWeather
 from flightrecon.sim.jsbsim_flight import (
     Approach,
-    Chandelle,
     GoAround,
     Leg,
     Rest,
     Runway,
-    SpiralDive,
-    Stall,
-    StallSpin,
-    SteepTurn,
     TakeOff,
     Wait,
 )
+from flightrecon.sim.manoeuvres import Chandelle, SpiralDive, Stall, StallSpin, SteepTurn
 from flightrecon.sim.sensors import Faults
 from flightrecon.sim.weather import WindField
 from flightrecon.types import Position

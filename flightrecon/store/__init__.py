@@ -25,9 +25,10 @@ from flightrecon.store.api import CALIBRATION_CSV_COLUMNS, CSV_COLUMNS, Coeffici
 from flightrecon.store.calibration import (PERSISTENT, AircraftCalibration, FlightCalibration,
                                            QuantityCalibration, SensorChange, SensorEstimate)
 from flightrecon.store.identity import Identity
-from flightrecon.store.db import SCHEMA_VERSION, default_store_path
+from flightrecon.store.db import default_store_path
 from flightrecon.store.records import (AXES, BRANCHES, NO_ROOT, AircraftStats, AxisStats,
                                        Exclusion, FleetMean, FlightCoefficients, PropertyStats)
+from flightrecon.store.schema import SCHEMA_VERSION
 
 __all__ = [
     "CALIBRATION_CSV_COLUMNS", "PERSISTENT", "AircraftCalibration", "FlightCalibration",

@@ -25,11 +25,11 @@ from flightrecon.store import calibration as _cal
 from flightrecon.store import stats as _stats
 from flightrecon.store.calibration import (AircraftCalibration, FlightCalibration,
                                            SensorChange, SensorEstimate)
-from flightrecon.store.db import (CALIBRATION_COLUMNS, DEFAULT_BUSY_TIMEOUT_S, FLIGHT_COLUMNS,
-                                  connect, write_transaction)
+from flightrecon.store.db import DEFAULT_BUSY_TIMEOUT_S, connect, write_transaction
 from flightrecon.store.identity import Identity, resolve_flight_id
 from flightrecon.store.records import (AircraftStats, FleetMean, FlightCoefficients,
                                        now_utc_text, utc_text)
+from flightrecon.store.schema import CALIBRATION_COLUMNS, FLIGHT_COLUMNS
 
 _SELECT = "SELECT " + ", ".join(FLIGHT_COLUMNS) + " FROM flights"
 _ORDER = " ORDER BY aircraft_id, flight_date_utc, flight_id"

@@ -7,7 +7,7 @@ and a flight recorded with two input files."""
 from pathlib import Path
 
 from flightrecon.store import CoefficientStore, FlightCoefficients
-from flightrecon.store.db import SCHEMA_VERSION
+from flightrecon.store.schema import SCHEMA_VERSION
 
 assert SCHEMA_VERSION == 2, "run this with the schema-v2 release"
 out = Path(__file__).with_name("store_v2.sqlite")

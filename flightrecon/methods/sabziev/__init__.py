@@ -50,6 +50,13 @@ with them the brackets and the root taken, are bit-identical to point-by-point e
 
 from __future__ import annotations
 
+from flightrecon.methods.sabziev.axis import (
+    KT_MAX,
+    POINTS_PER_DECADE,
+    AxisSolution,
+    solve_axis_horizontal,
+    solve_axis_y,
+)
 from flightrecon.methods.sabziev.discrete import (
     StepCoefficients,
     check_grid,
@@ -62,16 +69,7 @@ from flightrecon.methods.sabziev.discrete import (
     vertical_step,
 )
 from flightrecon.methods.sabziev.functions import HOLDS, phi_functions, psi_functions
-from flightrecon.methods.sabziev.solve import (
-    KT_MAX,
-    POINTS_PER_DECADE,
-    AxisSolution,
-    SabzievSolution,
-    air_velocity,
-    fuse,
-    solve_axis_horizontal,
-    solve_axis_y,
-)
+from flightrecon.methods.sabziev.solve import SabzievSolution, air_velocity, fuse
 
 __all__ = [
     "HOLDS", "phi_functions", "psi_functions", "StepCoefficients", "horizontal_step",

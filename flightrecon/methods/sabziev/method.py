@@ -250,7 +250,7 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     acceleration_ned : (N, 3) kinematic acceleration on the whole grid, if already computed
         (default: :func:`flightrecon.geo.kinematics.kinematic_acceleration_ned` of the loads)
     policy : ``stable`` (default) or ``paper``
-        (:data:`flightrecon.methods.sabziev.solve.POLICIES`; docs/sabziev.md "Root finding" and
+        (:data:`flightrecon.methods.sabziev.axis.POLICIES`; docs/sabziev.md "Root finding" and
         "The adapter"): with ``stable`` the vertical reference is the pressure height relative
         to its recorded value at lift-off, made consistent with the end points
         (:func:`end_consistent_height`)

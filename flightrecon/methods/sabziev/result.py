@@ -78,7 +78,7 @@ def resolve_coefficients(k: tuple[float, float, float] | None, duration_s: float
                          ) -> tuple[tuple[float, float, float] | None, list[str]]:
     """Coefficients for the initial-value mode with a missing (NaN) axis replaced by the stable
     policy's fixed coefficient: ``-1/TAU_FALLBACK_S`` for k1, k3 and ``-w*(T)^2`` for k2
-    (:func:`flightrecon.methods.sabziev.solve.vertical_target_w`).
+    (:func:`flightrecon.methods.sabziev.axis.vertical_target_w`).
 
     Parameters
     ----------
@@ -93,7 +93,7 @@ def resolve_coefficients(k: tuple[float, float, float] | None, duration_s: float
     """
     if k is None:
         return None, []
-    from flightrecon.methods.sabziev.solve import TAU_FALLBACK_S, vertical_target_w
+    from flightrecon.methods.sabziev.axis import TAU_FALLBACK_S, vertical_target_w
 
     default = (-1.0 / TAU_FALLBACK_S, -vertical_target_w(duration_s) ** 2,
                -1.0 / TAU_FALLBACK_S)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from flightrecon.methods.sabziev.solve import KT_MAX
+from flightrecon.methods.sabziev.axis import KT_MAX
 
 
 @dataclass(frozen=True)
@@ -21,7 +21,7 @@ class SabzievSettings:
     max_iter : iteration cap per phase
     vertical_rule : root selection for k2 on the oscillatory branch (``baro``: the root whose
         track stays closest to the pressure height; ``slowest``); docs/sabziev.md
-    kt_max : overflow guard on ``k t`` (:data:`flightrecon.methods.sabziev.solve.KT_MAX`)
+    kt_max : overflow guard on ``k t`` (:data:`flightrecon.methods.sabziev.axis.KT_MAX`)
     policy : ``stable`` (default: roots in the stable range, a fixed stable coefficient with a
         linear end correction where there is none, the pressure height made consistent with
         the end points) or ``paper`` (both branches, NaN without a root); docs/sabziev.md
