@@ -223,6 +223,11 @@ def _print_outcome(summary: dict) -> None:
         if why:
             line += ": " + "; ".join(why)
         click.echo(line, err=True)
+    gc = (summary["methods"].get("joint") or {}).get("gap_calibration")
+    if gc and gc.get("factor") is not None:
+        click.echo(f"  gap sd calibrated on {len(gc['stretches_s'])} held-out stretches of this "
+                   f"flight's GNSS: factor {gc['factor']:.3g} (held-out mean NEES "
+                   f"{_mean(gc['nees_before']):.2f} before)", err=True)
     # the verdicts in the summary's warnings are on the method lines above already
     verdicts = {f"{name} unhealthy: {st.get('reason')}" for name, st in summary["methods"].items()}
     for w in summary["warnings"]:
@@ -232,6 +237,12 @@ def _print_outcome(summary: dict) -> None:
     if res.get("method"):
         click.echo(f"  result from {res['method']}: {res['why']}", err=True)
     click.echo(_events_line(summary), err=True)
+
+
+def _mean(rows: list[list[float]]) -> float:
+    """Mean of a list of rows of numbers."""
+    vals = [v for r in rows for v in r]
+    return sum(vals) / len(vals) if vals else float("nan")
 
 
 def _events_line(summary: dict) -> str:
