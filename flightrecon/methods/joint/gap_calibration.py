@@ -139,16 +139,20 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
     return tf, d, P
 
 
-def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray) -> np.ndarray:
-    """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight: the
-    smoothed residuals of the fixes the smoother used have ``E[eps^2] = R - P_s`` (eq. G5),
-    so ``R = mean(eps^2) + mean(P_s)``.  Errors of the fixes correlated in time are partly
-    followed by the track and count less: the estimate is then low, the held-out NEES high
-    and the factor larger (the sd wider), the safe side."""
+def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float
+              ) -> np.ndarray:
+    """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight, never
+    above the declared ``declared_m`` squared: the smoothed residuals of the fixes the
+    smoother used have ``E[eps^2] = R - P_s`` (eq. G5), so ``R = mean(eps^2) + mean(P_s)``.
+    A residual that is the model's misfit rather than the fix's noise would credit the fixes
+    with more noise and shrink the factor; the declared sd caps it (the Citation II's north
+    residuals: 31-33 m against the declared 5 m).  Errors of the fixes correlated in time are
+    partly followed by the track and count less: the estimate is then low, the held-out NEES
+    high and the factor larger (the sd wider), the safe side."""
     sel = np.flatnonzero(used)
     _, d, P = _fix_errors(inp, run, sel)
-    return np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1),
-                                             axis=0)
+    r = np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1), axis=0)
+    return np.minimum(r, declared_m ** 2)
 
 
 def heldout_errors(inp: JointInputs, run: JointRun, stretches: list[tuple[float, float]],
@@ -185,36 +189,47 @@ def stretch_nees(held: list[dict[str, np.ndarray]], f: float) -> np.ndarray:
 
 
 def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, float],
-                       p_stretch: float) -> dict[str, Any]:
-    """The factor ``f`` of the in-gap excess variance (eq. G3): ``f_hat`` makes the mean over
-    the stretches and the two horizontal axes of their mean NEES 1; never below ``f_floor``,
-    the smallest that keeps every stretch-axis's mean NEES within the ``p_stretch`` quantile
-    of chi-square(1) (the fixes of one stretch share one error: its degrees of freedom are
-    about one per axis), so a few calm stretches cannot shrink the sd below an error the
-    held-out fixes saw.  Both within ``bounds``."""
+                       p_stretch: float, p_pool: float) -> dict[str, Any]:
+    """The factor ``f`` of the in-gap excess variance (eq. G3).
+
+    ``f_hat`` (the point estimate) makes the mean over the stretches and the two horizontal
+    axes of their mean NEES 1.  The fixes of one stretch share one drifting error, so the
+    stretches give about one degree of freedom per axis, ``nu = 2 S``, and with a few of them
+    ``f_hat`` is noisy (chi-square(nu)/nu has sd sqrt(2/nu): 0.5 with two stretches).  The
+    factor used is never below either of
+
+    * ``f_pool``: the largest factor the held-out errors support at one-sided level
+      ``p_pool``, the one whose mean NEES is the ``p_pool`` quantile of chi-square(nu)/nu
+      (where the fixes' own noise hides the excess, the data cannot tell a small factor from
+      a moderate one and the moderate one is kept);
+    * ``f_floor``: the smallest that keeps every stretch-axis's mean NEES within the
+      ``p_stretch`` quantile of chi-square(1), so that one stretch with errors beyond the
+      others' is covered;
+
+    all within ``bounds``."""
     lo, hi = bounds
     m0 = stretch_nees(held, 1.0)
-
-    def mean_minus_one(lf: float) -> float:
-        return float(np.mean(stretch_nees(held, np.exp(lf)))) - 1.0
+    dof = 2 * len(held)
 
     def solve(fun) -> float:
         a, b = np.log(lo), np.log(hi)
-        fa, fb = fun(a), fun(b)
-        if fa <= 0:
+        if fun(a) <= 0:
             return lo
-        if fb >= 0:
+        if fun(b) >= 0:
             return hi
         return float(np.exp(brentq(fun, a, b, xtol=1e-6)))
 
+    def pooled(target: float):
+        return lambda lf: float(np.mean(stretch_nees(held, np.exp(lf)))) - target
+
     limit = float(chi2.ppf(p_stretch, 1))
-    f_hat = solve(mean_minus_one)
+    q_pool = float(chi2.ppf(p_pool, dof) / dof)
+    f_hat = solve(pooled(1.0))
+    f_pool = solve(pooled(q_pool))
     f_floor = solve(lambda lf: float(np.max(stretch_nees(held, np.exp(lf)))) - limit)
-    f = max(f_hat, f_floor)
-    dof = 2 * len(held)
-    return {"factor": f, "f_hat": f_hat, "f_floor": f_floor, "stretch_limit": limit,
-            "dof": dof, "band": [float(chi2.ppf(0.025, dof) / dof),
-                                 float(chi2.ppf(0.975, dof) / dof)],
+    f = max(f_hat, f_pool, f_floor)
+    return {"factor": f, "f_hat": f_hat, "f_pool": f_pool, "f_floor": f_floor,
+            "pool_quantile": q_pool, "stretch_limit": limit, "dof": dof,
             "nees_before": m0.tolist(), "nees_after": stretch_nees(held, f).tolist()}
 
 
@@ -275,12 +290,13 @@ def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
     run_h = smooth_joint(replace(inp, gnss=inp.gnss[keep].reset_index(drop=True)), settings)
     ok = (np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
           & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
-    r = fix_noise(inp, run_h, keep & ok)
+    r = fix_noise(inp, run_h, keep & ok, settings.noise.gnss_h_m)
     held = heldout_errors(inp, run_h, stretches, r)
     if not held:
         report["note"] = "no held-out fix inside the stretches"
         return run, report
-    cal = calibration_factor(held, settings.gap_factor_bounds, settings.gap_stretch_p)
+    cal = calibration_factor(held, settings.gap_factor_bounds, settings.gap_stretch_p,
+                             settings.gap_pool_p)
     report.update(cal)
     report["fix_sd_m"] = np.sqrt(r).tolist()
     report["stretches_s"] = [[h["t0_s"], h["t1_s"]] for h in held]
