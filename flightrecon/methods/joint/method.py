@@ -126,7 +126,8 @@ def _summary(clean: CleanFlight, inp: JointInputs, run: JointRun, settings: Join
     """The joint method's summary (docs/output.md, "The joint smoother's summary"): health,
     consistency, iterations, the data-chosen settings, the corrections, clock offsets, noise,
     end points, take-off roll, fixes, wind prior, sources, settings and warnings; ``extra``
-    the run's ``wind_rounds``, ``gap_calibration``, ``tilt_ev``, ``corrections``, ``sources`` and ``warnings``."""
+    the run's ``wind_rounds``, ``gap_calibration``, ``tilt_ev``, ``corrections``, ``sources``
+    and ``warnings``."""
     return {
         "healthy": healthy,
         "consistency": verdict.as_dict(),
