@@ -48,16 +48,12 @@ def test_factor_recovered_from_independent_fixes():
     for f_true in (0.02, 0.3, 4.0):
         cal = calibration_factor(_held(rng, f_true, 4, 300), BOUNDS, 0.99, 0.16)
         assert cal["f_hat"] == pytest.approx(f_true, rel=0.15)
-        # the factor used: below 1 the one-sided bound (its pooled NEES the 16 % point of
-        # chi-square(8)/8, 0.53), never below the point estimate; beyond 1 the point estimate
+        # the factor used: the one-sided bound, its pooled NEES the 16 % point of
+        # chi-square(8)/8 (0.53), never below the point estimate
         assert cal["dof"] == 8
-        assert cal["factor"] == pytest.approx(max(cal["f_hat"], min(cal["f_pool"], 1.0)))
-        assert cal["f_pool"] > cal["f_hat"]
-        if f_true < 1.0:
-            assert float(np.mean(cal["nees_after"])) == pytest.approx(chi2.ppf(0.16, 8) / 8,
-                                                                      rel=1e-4)
-        else:
-            assert float(np.mean(cal["nees_after"])) == pytest.approx(1.0, rel=1e-4)
+        assert cal["factor"] == pytest.approx(cal["f_pool"]) and cal["factor"] > cal["f_hat"]
+        assert float(np.mean(cal["nees_after"])) == pytest.approx(chi2.ppf(0.16, 8) / 8,
+                                                                  rel=1e-4)
 
 
 def test_never_below_the_held_out_errors():
@@ -72,9 +68,9 @@ def test_never_below_the_held_out_errors():
     held = _held(rng, 0.01, 8, 300, scale=scale)
     cal = calibration_factor(held, BOUNDS, 0.99, 0.16)
     limit = chi2.ppf(0.99, 1)
-    assert np.max(stretch_nees(held, max(cal["f_hat"], min(cal["f_pool"], 1.0)))) > limit
+    assert np.max(stretch_nees(held, max(cal["f_hat"], cal["f_pool"]))) > limit
     assert cal["factor"] == pytest.approx(cal["f_floor"])
-    assert cal["factor"] > max(cal["f_hat"], min(cal["f_pool"], 1.0))
+    assert cal["factor"] > max(cal["f_hat"], cal["f_pool"])
     assert np.max(cal["nees_after"]) == pytest.approx(limit, rel=1e-3)
 
 

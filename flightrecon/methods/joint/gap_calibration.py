@@ -197,12 +197,13 @@ def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, f
     ``f_hat`` is noisy (chi-square(nu)/nu has sd sqrt(2/nu): 0.5 with two stretches).  The
     factor used is never below either of
 
-    * ``min(f_pool, 1)``: ``f_pool`` is the largest factor the held-out errors support at
-      one-sided level ``p_pool``, the one whose mean NEES is the ``p_pool`` quantile of
-      chi-square(nu)/nu (where the fixes' own noise hides the excess, the data cannot tell a
-      small factor from a moderate one and the moderate one is kept); it limits shrinking
-      only and inflates nothing by itself (the model's sd, f = 1, is where a stretch too
-      few to tell leaves it);
+    * ``f_pool``: the largest factor the held-out errors support at one-sided level
+      ``p_pool``, the one whose mean NEES is the ``p_pool`` quantile of chi-square(nu)/nu:
+      where the fixes' own noise hides the excess, the data cannot tell a small factor from
+      a moderate one and the moderate one is kept, and where the stretches are few the sd is
+      widened by what they cannot exclude (inflating is always allowed; JSBSim's 1 Hz
+      airwork: two stretches at a mean NEES of 0.97, ``f_hat`` 0.97, ``f_pool`` 2.8, the
+      gap's east NEES 6.2 with the model's sd);
     * ``f_floor``: the smallest that keeps every stretch-axis's mean NEES within the
       ``p_stretch`` quantile of chi-square(1), so that one stretch with errors beyond the
       others' is covered;
@@ -228,7 +229,7 @@ def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, f
     f_hat = solve(pooled(1.0))
     f_pool = solve(pooled(q_pool))
     f_floor = solve(lambda lf: float(np.max(stretch_nees(held, np.exp(lf)))) - limit)
-    f = max(f_hat, min(f_pool, 1.0), f_floor)
+    f = max(f_hat, f_pool, f_floor)
     return {"factor": f, "f_hat": f_hat, "f_pool": f_pool, "f_floor": f_floor,
             "pool_quantile": q_pool, "stretch_limit": limit, "dof": dof,
             "nees_before": m0.tolist(), "nees_after": stretch_nees(held, f).tolist()}
