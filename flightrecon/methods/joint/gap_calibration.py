@@ -116,12 +116,15 @@ def _ned_cov(run: JointRun) -> np.ndarray:
 
 def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``): their times, the error of the
-    smoothed antenna position against the fix in north and east (K, 2) [m] (eq. G4: the body
-    lever arm rotated to NED with the recorded attitude) and the smoother's NED position
-    covariance (K, 3, 3) interpolated to them."""
+    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``): their times (the smoother's
+    GNSS clock offset applied), the error of the smoothed antenna position against the fix
+    in north and east (K, 2) [m] (eq. G4: the body lever arm rotated to NED with the recorded
+    attitude) and the smoother's NED position covariance (K, 3, 3) interpolated to them."""
     g = inp.gnss
-    tf = g["t_s"].to_numpy(float)[sel]
+    # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
+    # estimated (seconds added to the stamps, as in its measurements)
+    off = run.clock_offsets_s.get("gnss", (0.0, 0.0))[0]
+    tf = g["t_s"].to_numpy(float)[sel] + (off if np.isfinite(off) else 0.0)
     T = run.t
     v_ecef = np.einsum("kij,kj->ki", run.Cen, run.x[:, jl.S_VEL])
     p = hermite_positions(tf, T, run.x[:, jl.S_POS], v_ecef)
