@@ -454,6 +454,7 @@ def run_case(name: str, data: Path, df: pd.DataFrame, stems: dict[str, str],
     out["warnings_top"] = [w for w in rec.summary.get("warnings", []) if "unhealthy" in w
                            or "implausible" in w][:10]
     out["joint"] = joint_figures(rec)
+    out["gap_calibration"] = (rec.summary["methods"].get("joint") or {}).get("gap_calibration")
     if gnss:
         out["gnss_use"] = rec.summary["measurements"].get("gnss_use")
     tr = rec.track

@@ -70,6 +70,11 @@ from flightrecon.cli.trim import trim_options
 @click.option("--estimate-noise", is_flag=True,
               help="Joint smoother: estimate each source's noise variance from the flight "
                    "itself (expectation-maximisation; docs/joint.md).")
+@click.option("--gap-stretches", "gap_stretches", type=click.IntRange(min=0), default=None,
+              metavar="N",
+              help="Joint smoother, GNSS gaps: calibrate the in-gap position sd on up to N "
+                   "held-out stretches of the flight's own GNSS (default 6; 0: the model's "
+                   "sd; docs/joint.md, \"GNSS gaps\").")
 @click.option("--store", "store_path", type=NonEmptyPath(dir_okay=False, path_type=Path),
               help="Coefficient store (SQLite): the flight's fitted k1..k3 and the joint "
                    "smoother's sensor-error estimates are recorded there under its aircraft id.")
@@ -103,7 +108,7 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
             arrival, station, fixes, wind_file, no_gnss, withhold_gnss, gnss_interval,
             gnss_sd, aircraft_id, methods, k_text, rate_hz,
             arms_form, arms_linearisation, azimuth_model, sns_model, sns_form, noise_file, estimate_noise,
-            store_path, use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt,
+            gap_stretches, store_path, use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt,
             summary_path, report_dir, start=None, end=None) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary.
 
@@ -133,7 +138,8 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
         sns_model=sns_model, sns_form=sns_form, strict=strict, keep_unhealthy=keep_unhealthy,
         joint_noise=(read_noise_file(noise_file) or None) if noise_file else None,
         sns_noise=read_sns_noise_file(noise_file) if noise_file else None,
-        joint_estimate_noise=estimate_noise, start=start, end=end)
+        joint_estimate_noise=estimate_noise, joint_gap_stretches=gap_stretches,
+        start=start, end=end)
     if use_fleet_coefficients and not store_path:
         from flightrecon.store import default_store_path
 
@@ -223,6 +229,11 @@ def _print_outcome(summary: dict) -> None:
         if why:
             line += ": " + "; ".join(why)
         click.echo(line, err=True)
+    gc = (summary["methods"].get("joint") or {}).get("gap_calibration")
+    if gc and gc.get("factor") is not None:
+        click.echo(f"  gap sd calibrated on {len(gc['stretches_s'])} held-out stretches of this "
+                   f"flight's GNSS: factor {gc['factor']:.3g} (held-out mean NEES "
+                   f"{_mean(gc['nees_before']):.2f} before)", err=True)
     # the verdicts in the summary's warnings are on the method lines above already
     verdicts = {f"{name} unhealthy: {st.get('reason')}" for name, st in summary["methods"].items()}
     for w in summary["warnings"]:
@@ -232,6 +243,12 @@ def _print_outcome(summary: dict) -> None:
     if res.get("method"):
         click.echo(f"  result from {res['method']}: {res['why']}", err=True)
     click.echo(_events_line(summary), err=True)
+
+
+def _mean(rows: list[list[float]]) -> float:
+    """Mean of a list of rows of numbers."""
+    vals = [v for r in rows for v in r]
+    return sum(vals) / len(vals) if vals else float("nan")
 
 
 def _events_line(summary: dict) -> str:

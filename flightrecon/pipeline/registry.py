@@ -50,6 +50,9 @@ class ReconstructSettings:
         ``joint.noise``
     joint_estimate_noise : scale each source's noise from the flight's own residuals (or
         ``joint.estimate_noise``)
+    joint_gap_stretches : held-out stretches that calibrate the joint smoother's position sd
+        inside GNSS gaps (``None``: ``joint.gap_stretches``; 0: off; docs/joint.md, "GNSS
+        gaps")
     joint_priors : ``(error, mean, sd)`` priors of the joint smoother's sensor-error states
         (names of :data:`flightrecon.methods.joint.PRIOR_STATES`), e.g. an aircraft's fleet
         calibration (:func:`flightrecon.store.fleet.fleet_settings`); replace ``joint.priors``
@@ -80,6 +83,7 @@ class ReconstructSettings:
     sns_form: str = "consistent"
     joint_noise: dict[str, float] | None = None
     joint_estimate_noise: bool = False
+    joint_gap_stretches: int | None = None
     joint_priors: tuple[tuple[str, float, float], ...] | None = None
     strict: bool = False
     keep_unhealthy: bool = False
@@ -248,7 +252,9 @@ def _joint_kwargs(s: ReconstructSettings) -> dict[str, Any]:
     priors = base.priors if s.joint_priors is None else tuple(tuple(p) for p in s.joint_priors)
     try:
         js = replace(base, noise=noise, priors=priors,
-                     estimate_noise=s.joint_estimate_noise or base.estimate_noise)
+                     estimate_noise=s.joint_estimate_noise or base.estimate_noise,
+                     gap_stretches=(base.gap_stretches if s.joint_gap_stretches is None
+                                    else int(s.joint_gap_stretches)))
     except ValueError as exc:
         raise MetadataError(str(exc)) from exc
     return {"settings": js}

@@ -48,6 +48,7 @@ from flightrecon.methods.joint.diagnostics import (
     wind_walk_warning,
 )
 from flightrecon.methods.joint.flight_inputs import joint_inputs
+from flightrecon.methods.joint.gap_calibration import calibrate_gaps
 from flightrecon.methods.joint.report import corrections_at_middle, fix_report, wind_prior_report
 from flightrecon.methods.joint.track import PREFIX, joint_track
 from flightrecon.types import CleanFlight, MethodResult
@@ -125,7 +126,8 @@ def _summary(clean: CleanFlight, inp: JointInputs, run: JointRun, settings: Join
     """The joint method's summary (docs/output.md, "The joint smoother's summary"): health,
     consistency, iterations, the data-chosen settings, the corrections, clock offsets, noise,
     end points, take-off roll, fixes, wind prior, sources, settings and warnings; ``extra``
-    the run's ``wind_rounds``, ``tilt_ev``, ``corrections``, ``sources`` and ``warnings``."""
+    the run's ``wind_rounds``, ``gap_calibration``, ``tilt_ev``, ``corrections``, ``sources``
+    and ``warnings``."""
     return {
         "healthy": healthy,
         "consistency": verdict.as_dict(),
@@ -136,6 +138,7 @@ def _summary(clean: CleanFlight, inp: JointInputs, run: JointRun, settings: Join
         "gust": run.gust,
         "wind_walk": {"wind_rw_mps_sqrt_s": settings.noise.wind_rw_mps_sqrt_s,
                       "rounds": extra["wind_rounds"]},
+        "gap_calibration": extra["gap_calibration"],
         "state_rate_hz": settings.state_rate_hz,
         "attitude_tilt": {"source": clean.meta.attitude_source,
                           "gain_mps2_per_g": settings.noise.ahrs_tilt_mps2_per_g,
@@ -172,10 +175,14 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     if attitude_note:
         _warnings.warn(attitude_note, FlightReconWarning, stacklevel=2)
     run, settings, wind_rounds = wind_walk_rounds(inp, settings, run)
+    run, gap_cal = calibrate_gaps(inp, settings, run)
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
     warnings = _run_warnings(run, inp, settings, sources, attitude_note)
+    if gap_cal is not None and gap_cal["factor"] is None:
+        warnings.append(f"joint: GNSS gaps {gap_cal['gaps_s'][:3]} s, but {gap_cal['note']}: "
+                        "their position sd is the model's, not calibrated on this flight")
     converged = run.converged
     verdict = _innovation_verdict(run)
     if verdict.gross:
@@ -198,6 +205,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
                        healthy=bool(finite) and not verdict.gross and not far
                        and wind_walk is None, converged=bool(finite) and converged,
                        extra={"wind_rounds": wind_rounds, "tilt_ev": tilt_ev,
+                              "gap_calibration": gap_cal,
                               "corrections": corrections, "sources": sources,
                               "warnings": warnings})
     return MethodResult(name="joint", track=track, summary=summary)

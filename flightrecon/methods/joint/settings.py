@@ -186,6 +186,17 @@ class JointSettings:
     #                                          at most this many re-estimates of the walk (0: the
     #                                          track is then unhealthy)
     wind_rw_max_mps_sqrt_s: float = 1.0      # the re-estimated walk kept below this
+    gap_stretches: int = 6                   # GNSS gaps: held-out stretches of the gaps'
+    #                                          length that calibrate the in-gap position sd
+    #                                          (gap_calibration.py; 0: off)
+    gap_min_s: float = 30.0                  # a GNSS gap: no horizontal fix for longer
+    gap_guard_s: float = 60.0                # stretches this far from the gaps, the ends and
+    #                                          each other
+    gap_factor_bounds: tuple[float, float] = (1e-3, 1e3)  # the in-gap excess variance factor
+    gap_stretch_p: float = 0.99              # no stretch-axis's mean NEES beyond this quantile
+    #                                          of chi-square(1) after the calibration
+    gap_pool_p: float = 0.16                 # the factor the held-out errors support at this
+    #                                          one-sided level (chi-square(2 stretches) / dof)
     estimate_clock: bool = True
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise

@@ -1,0 +1,310 @@
+"""Held-out calibration of the position sd inside GNSS gaps (docs/joint.md, "GNSS gaps: the
+sd calibrated on held-out stretches").
+
+Inside a GNSS gap the smoothed position's variance grows with the process noise that carries
+the track across it, mostly the wind's random walk; its default (0.05 m/s/sqrt(s)) is right
+for the Citation II's gaps and five to ten times too wide in sd for a simulated flight in a
+steady wind.  One fixed process noise cannot serve both, so the flight's own GNSS sets the
+scale: after the smoother converged, stretches of the real gaps' lengths are withheld where
+the GNSS is present (:func:`pseudo_gaps`), the smoother is run once more without them, and
+the withheld fixes' normalised errors give the factor ``f`` of the in-gap excess variance
+(:func:`calibration_factor`, eq. G3) that is then applied to the real gaps
+(:func:`apply_factor`, eq. G1/G2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from scipy.optimize import brentq
+from scipy.stats import chi2
+
+from flightrecon.geo.frames import geodetic_to_ecef
+from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint.inputs import JointInputs
+from flightrecon.methods.joint.settings import JointSettings
+from flightrecon.methods.joint.smoother import JointRun, smooth_joint
+from flightrecon.methods.joint.track import hermite_positions
+
+__all__ = ["apply_factor", "calibrate_gaps", "calibration_factor", "gnss_gaps",
+           "fix_noise", "heldout_errors", "pseudo_gaps"]
+
+
+def gnss_gaps(inp: JointInputs, min_gap_s: float) -> list[tuple[float, float]]:
+    """The stretches between consecutive horizontal GNSS fixes longer than ``min_gap_s`` [s]
+    that lie (partly) in the air (between lift-off and touchdown, where known): (t0, t1) the
+    last fix before and the first after each gap [s].  Only gaps with fixes on both sides
+    (the ends of a record without GNSS are not gaps: no fix beyond them to calibrate on)."""
+    g = inp.gnss
+    if not len(g) or min_gap_s <= 0:
+        return []
+    ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
+    t = np.sort(g["t_s"].to_numpy(float)[ok])
+    if len(t) < 2:
+        return []
+    lo = inp.liftoff_t if np.isfinite(inp.liftoff_t) else -np.inf
+    hi = inp.touchdown_t if np.isfinite(inp.touchdown_t) else np.inf
+    dt = np.diff(t)
+    k = np.flatnonzero(dt > min_gap_s)
+    return [(float(t[i]), float(t[i + 1])) for i in k if t[i + 1] > lo and t[i] < hi]
+
+
+def pseudo_gaps(inp: JointInputs, gaps: list[tuple[float, float]], *, n_max: int,
+                guard_s: float, min_gap_s: float) -> list[tuple[float, float]]:
+    """Up to ``n_max`` held-out stretches (t0, t1) [s] of the real ``gaps``' lengths (the
+    longest first, in turn) where the GNSS is present: in the air, at least ``guard_s`` after
+    lift-off and before touchdown (the first and last fix where not known), at least
+    ``guard_s`` from every real gap and from each other, with no interval between fixes
+    longer than ``min_gap_s / 2`` from ``guard_s`` before to ``guard_s`` after (both edges
+    covered, as a real gap's are).  Packed from the start, then ``n_max`` of them spread
+    evenly over the flight."""
+    g = inp.gnss
+    ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
+    t = np.sort(g["t_s"].to_numpy(float)[ok])
+    if not gaps or len(t) < 2 or n_max <= 0:
+        return []
+    lo = max(inp.liftoff_t if np.isfinite(inp.liftoff_t) else t[0], t[0]) + guard_s
+    hi = min(inp.touchdown_t if np.isfinite(inp.touchdown_t) else t[-1], t[-1]) - guard_s
+    lengths = sorted((b - a for a, b in gaps), reverse=True)
+    busy = [(a - guard_s, b + guard_s) for a, b in gaps]
+    dt = np.diff(t)
+    holes = [(t[i], t[i + 1]) for i in np.flatnonzero(dt > 0.5 * min_gap_s)]
+    found: list[tuple[float, float]] = []
+    s = lo
+    while True:
+        L = lengths[len(found) % len(lengths)]
+        if s + L > hi:
+            break
+        a, b = s, s + L
+        clash = [(c, d) for c, d in busy + [(h0 - guard_s, h1 + guard_s) for h0, h1 in holes]
+                 if c < b and d > a]
+        if clash:
+            s = max(d for _, d in clash)
+            continue
+        found.append((float(a), float(b)))
+        busy.append((a - guard_s, b + guard_s))
+        s = b + guard_s
+        if len(found) > 50 * n_max:
+            break
+    if len(found) <= n_max:
+        return found
+    pick = np.unique(np.round(np.linspace(0, len(found) - 1, n_max)).astype(int))
+    return [found[i] for i in pick]
+
+
+def _edge_baseline(T: np.ndarray, P: np.ndarray, a: float, b: float
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The states strictly inside (a, b) and the covered level there: the covariance ``P``
+    (N, 3, 3) of the last state at or before ``a`` and of the first at or after ``b``,
+    interpolated linearly in time (eq. G1's ``P_b``); None without states on both sides."""
+    i0 = int(np.searchsorted(T, a, side="right")) - 1
+    i1 = int(np.searchsorted(T, b, side="left"))
+    if i0 < 0 or i1 >= len(T) or i1 - i0 < 2:
+        return None
+    inside = np.arange(i0 + 1, i1)
+    w = ((T[inside] - T[i0]) / (T[i1] - T[i0]))[:, None, None]
+    return inside, (1.0 - w) * P[i0] + w * P[i1]
+
+
+def _ned_cov(run: JointRun) -> np.ndarray:
+    """The smoothed position covariance in the local NED frame per state (N, 3, 3)."""
+    C = run.Cen
+    return np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)
+
+
+def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``): their times (the smoother's
+    GNSS clock offset applied), the error of the smoothed antenna position against the fix
+    in north and east (K, 2) [m] (eq. G4: the body lever arm rotated to NED with the recorded
+    attitude) and the smoother's NED position covariance (K, 3, 3) interpolated to them."""
+    g = inp.gnss
+    # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
+    # estimated (seconds added to the stamps, as in its measurements)
+    off = run.clock_offsets_s.get("gnss", (0.0, 0.0))[0]
+    tf = g["t_s"].to_numpy(float)[sel] + (off if np.isfinite(off) else 0.0)
+    T = run.t
+    v_ecef = np.einsum("kij,kj->ki", run.Cen, run.x[:, jl.S_VEL])
+    p = hermite_positions(tf, T, run.x[:, jl.S_POS], v_ecef)
+    k = np.clip(np.searchsorted(T, tf), 0, len(T) - 1)
+    j = np.clip(np.searchsorted(inp.t_in, tf), 0, len(inp.t_in) - 1)
+    lever = np.einsum("kij,j->ki", inp.body_to_ned(j), np.asarray(inp.lever_arm, float))
+    h_s = np.interp(tf, T, run.h_m)
+    fx = np.stack(geodetic_to_ecef(g["lat_deg"].to_numpy(float)[sel],
+                                   g["lon_deg"].to_numpy(float)[sel], h_s), axis=1)
+    d = np.einsum("kji,kj->ki", run.Cen[k], fx - p)[:, :2] - lever[:, :2]
+    Pn = _ned_cov(run)
+    P = np.stack([np.stack([np.interp(tf, T, Pn[:, a, b]) for b in range(3)], axis=1)
+                  for a in range(3)], axis=1)
+    return tf, d, P
+
+
+def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float
+              ) -> np.ndarray:
+    """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight, never
+    above the declared ``declared_m`` squared: the smoothed residuals of the fixes the
+    smoother used have ``E[eps^2] = R - P_s`` (eq. G5), so ``R = mean(eps^2) + mean(P_s)``.
+    A residual that is the model's misfit rather than the fix's noise would credit the fixes
+    with more noise and shrink the factor; the declared sd caps it (the Citation II's north
+    residuals: 31-33 m against the declared 5 m).  Errors of the fixes correlated in time are
+    partly followed by the track and count less: the estimate is then low, the held-out NEES
+    high and the factor larger (the sd wider), the safe side."""
+    sel = np.flatnonzero(used)
+    _, d, P = _fix_errors(inp, run, sel)
+    r = np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1), axis=0)
+    return np.minimum(r, declared_m ** 2)
+
+
+def heldout_errors(inp: JointInputs, run: JointRun, stretches: list[tuple[float, float]],
+                   r: np.ndarray) -> list[dict[str, np.ndarray]]:
+    """Per held-out stretch, at its withheld fixes: the error of the smoothed antenna
+    position against the fix in north and east ``e`` (K, 2) [m], the smoother's variance
+    ``v`` (K, 2), the covered level ``b`` (K, 2) (eq. G1) and the fixes' variance ``r`` (2,)
+    [m^2] (:func:`fix_noise`).  ``run`` is the run without them."""
+    g = inp.gnss
+    tg = g["t_s"].to_numpy(float)
+    ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
+    T = run.t
+    Pn = _ned_cov(run)
+    out = []
+    for a, b in stretches:
+        base = _edge_baseline(T, Pn, a, b)
+        sel = np.flatnonzero((tg > a) & (tg < b) & ok)
+        if base is None or not len(sel):
+            continue
+        inside, Pb = base
+        tf, d, P = _fix_errors(inp, run, sel)
+        v = np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1)
+        Ti = T[inside]
+        bb = np.stack([np.interp(tf, Ti, Pb[:, i, i]) for i in (0, 1)], axis=1)
+        out.append({"t0_s": a, "t1_s": b, "e": d, "v": v, "b": np.minimum(bb, v), "r": r})
+    return out
+
+
+def stretch_nees(held: list[dict[str, np.ndarray]], f: float) -> np.ndarray:
+    """Mean NEES per stretch and axis (S, 2) with the excess scaled by ``f`` (eq. G2):
+    ``e^2 / (b + f (v - b) + r)`` averaged over the stretch's fixes."""
+    return np.array([np.mean(h["e"] ** 2 / (h["b"] + f * (h["v"] - h["b"]) + h["r"]), axis=0)
+                     for h in held])
+
+
+def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, float],
+                       p_stretch: float, p_pool: float) -> dict[str, Any]:
+    """The factor ``f`` of the in-gap excess variance (eq. G3).
+
+    ``f_hat`` (the point estimate) makes the mean over the stretches and the two horizontal
+    axes of their mean NEES 1.  The fixes of one stretch share one drifting error, so the
+    stretches give about one degree of freedom per axis, ``nu = 2 S``, and with a few of them
+    ``f_hat`` is noisy (chi-square(nu)/nu has sd sqrt(2/nu): 0.5 with two stretches).  The
+    factor used is never below either of
+
+    * ``f_pool``: the largest factor the held-out errors support at one-sided level
+      ``p_pool``, the one whose mean NEES is the ``p_pool`` quantile of chi-square(nu)/nu:
+      where the fixes' own noise hides the excess, the data cannot tell a small factor from
+      a moderate one and the moderate one is kept, and where the stretches are few the sd is
+      widened by what they cannot exclude (inflating is always allowed; JSBSim's 1 Hz
+      airwork: two stretches at a mean NEES of 0.97, ``f_hat`` 0.97, ``f_pool`` 2.8, the
+      gap's east NEES 6.2 with the model's sd);
+    * ``f_floor``: the smallest that keeps every stretch-axis's mean NEES within the
+      ``p_stretch`` quantile of chi-square(1), so that one stretch with errors beyond the
+      others' is covered;
+
+    all within ``bounds``."""
+    lo, hi = bounds
+    m0 = stretch_nees(held, 1.0)
+    dof = 2 * len(held)
+
+    def solve(fun) -> float:
+        a, b = np.log(lo), np.log(hi)
+        if fun(a) <= 0:
+            return lo
+        if fun(b) >= 0:
+            return hi
+        return float(np.exp(brentq(fun, a, b, xtol=1e-6)))
+
+    def pooled(target: float):
+        return lambda lf: float(np.mean(stretch_nees(held, np.exp(lf)))) - target
+
+    limit = float(chi2.ppf(p_stretch, 1))
+    q_pool = float(chi2.ppf(p_pool, dof) / dof)
+    f_hat = solve(pooled(1.0))
+    f_pool = solve(pooled(q_pool))
+    f_floor = solve(lambda lf: float(np.max(stretch_nees(held, np.exp(lf)))) - limit)
+    f = max(f_hat, f_pool, f_floor)
+    return {"factor": f, "f_hat": f_hat, "f_pool": f_pool, "f_floor": f_floor,
+            "pool_quantile": q_pool, "stretch_limit": limit, "dof": dof,
+            "nees_before": m0.tolist(), "nees_after": stretch_nees(held, f).tolist()}
+
+
+def apply_factor(run: JointRun, gaps: list[tuple[float, float]], f: float) -> JointRun:
+    """The run with the position covariance inside each gap rescaled (eq. G1/G2).  With
+    ``P_b`` the covered level at the gap's edges: ``P' = P_b + f (P - P_b)`` for f <= 1
+    (convex in P and P_b, positive semidefinite; the position-velocity cross blocks scaled
+    by ``sqrt(f)`` so that the 6x6 block stays so) and ``P' = P + (f - 1) [P - P_b]_+``
+    for f > 1 (the excess's positive part added)."""
+    T = run.t
+    P = run.P_pv.copy()
+    var = run.var.copy()
+    Ppp = P[:, 0:3, 0:3]
+    for a, b in gaps:
+        base = _edge_baseline(T, Ppp, a, b)
+        if base is None:
+            continue
+        inside, Pb = base
+        if f <= 1.0:
+            new = Pb + f * (Ppp[inside] - Pb)
+            P[inside, 0:3, 3:6] *= np.sqrt(f)
+            P[inside, 3:6, 0:3] *= np.sqrt(f)
+        else:
+            E = Ppp[inside] - Pb
+            E = 0.5 * (E + np.transpose(E, (0, 2, 1)))
+            w, V = np.linalg.eigh(E)
+            Epos = np.einsum("kij,kj,klj->kil", V, np.maximum(w, 0.0), V)
+            new = Ppp[inside] + (f - 1.0) * Epos
+        P[inside, 0:3, 0:3] = new
+        var[inside, jl.IP:jl.IP + 3] = np.einsum("kii->ki", new)
+    return replace(run, P_pv=P, var=var)
+
+
+def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
+                   ) -> tuple[JointRun, dict[str, Any] | None]:
+    """Held-out gap calibration: where the GNSS has gaps longer than
+    ``settings.gap_min_s``, withhold up to ``settings.gap_stretches`` stretches of their
+    lengths, smooth once more, measure the held-out NEES and rescale the real gaps' position
+    variance by the factor (:func:`calibration_factor`).  Returns the run (unchanged without
+    gaps, with ``gap_stretches`` 0 or without room for a stretch) and the report (None
+    without gaps)."""
+    if settings.gap_stretches <= 0:
+        return run, None
+    gaps = gnss_gaps(inp, settings.gap_min_s)
+    if not gaps:
+        return run, None
+    stretches = pseudo_gaps(inp, gaps, n_max=settings.gap_stretches,
+                            guard_s=settings.gap_guard_s, min_gap_s=settings.gap_min_s)
+    report: dict[str, Any] = {"gaps_s": [[a, b] for a, b in gaps],
+                              "stretches_s": [[a, b] for a, b in stretches], "factor": None}
+    if not stretches:
+        report["note"] = "no room for a held-out stretch of the gaps' length"
+        return run, report
+    tg = inp.gnss["t_s"].to_numpy(float)
+    keep = np.ones(len(tg), bool)
+    for a, b in stretches:
+        keep &= ~((tg > a) & (tg < b))
+    run_h = smooth_joint(replace(inp, gnss=inp.gnss[keep].reset_index(drop=True)), settings)
+    ok = (np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
+          & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
+    r = fix_noise(inp, run_h, keep & ok, settings.noise.gnss_h_m)
+    held = heldout_errors(inp, run_h, stretches, r)
+    if not held:
+        report["note"] = "no held-out fix inside the stretches"
+        return run, report
+    cal = calibration_factor(held, settings.gap_factor_bounds, settings.gap_stretch_p,
+                             settings.gap_pool_p)
+    report.update(cal)
+    report["fix_sd_m"] = np.sqrt(r).tolist()
+    report["stretches_s"] = [[h["t0_s"], h["t1_s"]] for h in held]
+    report["heldout_rms_m"] = [float(np.sqrt(np.mean(np.sum(h["e"] ** 2, axis=1))))
+                               for h in held]
+    return apply_factor(run, gaps, cal["factor"]), report
