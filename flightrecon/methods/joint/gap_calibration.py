@@ -24,6 +24,7 @@ from scipy.stats import chi2
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import JointInputs
+from flightrecon.methods.joint.measurements import per_fix_sd
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.smoother import JointRun, smooth_joint
 from flightrecon.methods.joint.track import hermite_positions
@@ -144,13 +145,14 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
 def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float
               ) -> np.ndarray:
     """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight, never
-    above the declared ``declared_m`` squared: the smoothed residuals of the fixes the
+    above the declared ``declared_m`` squared (the rms of the used fixes' declared sd: the
+    receiver's figures, or the noise setting, with the rounding of positions recorded in
+    steps added, ingest/gnss_quality.py): the smoothed residuals of the fixes the
     smoother used have ``E[eps^2] = R - P_s`` (eq. G5), so ``R = mean(eps^2) + mean(P_s)``.
     A residual that is the model's misfit rather than the fix's noise would credit the fixes
-    with more noise and shrink the factor; the declared sd caps it (the Citation II's north
-    residuals: 31-33 m against the declared 5 m).  Errors of the fixes correlated in time are
-    partly followed by the track and count less: the estimate is then low, the held-out NEES
-    high and the factor larger (the sd wider), the safe side."""
+    with more noise and shrink the factor; the declared sd caps it.  Errors of the fixes
+    correlated in time are partly followed by the track and count less: the estimate is then
+    low, the held-out NEES high and the factor larger (the sd wider), the safe side."""
     sel = np.flatnonzero(used)
     _, d, P = _fix_errors(inp, run, sel)
     r = np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1), axis=0)
@@ -295,7 +297,8 @@ def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
     run_h = smooth_joint(replace(inp, gnss=inp.gnss[keep].reset_index(drop=True)), settings)
     ok = (np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
           & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
-    r = fix_noise(inp, run_h, keep & ok, settings.noise.gnss_h_m)
+    declared = per_fix_sd(inp.gnss, "h_sd_m", settings.noise.gnss_h_m)[keep & ok]
+    r = fix_noise(inp, run_h, keep & ok, float(np.sqrt(np.mean(declared ** 2))))
     held = heldout_errors(inp, run_h, stretches, r)
     if not held:
         report["note"] = "no held-out fix inside the stretches"

@@ -49,7 +49,7 @@ class Measurements:
     start: np.ndarray       # (N+1,)
 
 
-def _per_fix(g, column: str, default: float) -> np.ndarray:
+def per_fix_sd(g, column: str, default: float) -> np.ndarray:
     """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own
     accuracy figures), ``default`` where absent or not finite."""
     if column not in g.columns:
@@ -376,11 +376,11 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
         v_arm = np.einsum("mij,j->mi", inp.body_to_ned(ip) - inp.body_to_ned(im), L) / span
     # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
     # else the noise settings; no height: no vertical component
-    sd_h = _per_fix(g, "h_sd_m", nz.gnss_h_m)
-    sd_v = np.where(no_h, np.nan, _per_fix(g, "v_sd_m", nz.gnss_v_m))
+    sd_h = per_fix_sd(g, "h_sd_m", nz.gnss_h_m)
+    sd_v = np.where(no_h, np.nan, per_fix_sd(g, "v_sd_m", nz.gnss_v_m))
     _add_ned_components(b, T, Cen, "gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
     if {"vn_mps", "ve_mps"} <= set(g.columns):
-        sd_vel = _per_fix(g, "vel_sd_mps", nz.gnss_vel_mps)
+        sd_vel = per_fix_sd(g, "vel_sd_mps", nz.gnss_vel_mps)
         _add_ned_components(b, T, Cen, "gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
                                                     g["ve_mps"].to_numpy() - v_arm[:, 1]),
                         (sd_vel, sd_vel), "vel")
