@@ -271,3 +271,34 @@ def test_turn_rate_fit_gives_the_airspeed_scale():
                           "tas_mps": 50.0 * scale})
         fit = turn_rate_fit(d)
         assert fit is not None and abs(fit.factor / scale - 1) < 0.02, fit
+
+
+# ------------------------------------------------------------------ the time unit: certainty only
+
+
+def _fit_returning(factor: float, r: float):
+    from flightrecon.ingest.evidence import Fit
+
+    return lambda *a, **k: Fit(factor, r, 25.0, 0.019, "windows")
+
+
+@pytest.mark.parametrize("log, r, refused", [
+    ("c1-fdr.parquet", 0.13, False),    # the fit does not explain the airspeed: no evidence
+    ("c1-fdr.parquet", 0.99, True),     # a good fit, nothing against it: centiseconds
+    ("c1-gnss.parquet", 0.99, False),   # a good fit, but the GNSS speed says seconds
+])
+def test_the_time_unit_is_refused_only_on_a_good_uncontradicted_fit(log, r, refused,
+                                                                     monkeypatch):
+    """A JSBSim Global 5000 log (seed 1 of the jet scenario) was refused as centiseconds on a
+    fit of 0.0125 +- 0.019 with r 0.13: its airspeed hardly follows the integrated load.  Only a
+    fit that explains the airspeed (``Fit.good``) and that the GNSS speed does not contradict
+    refuses; the same factor from a good fit still does."""
+    from flightrecon.ingest import unit_checks
+
+    monkeypatch.setattr(unit_checks, "double_integral_fit", _fit_returning(0.0125, r))
+    if refused:
+        with pytest.raises(ValidationError, match="wrong unit"):
+            load_quiet(CORPUS / log)
+    else:
+        fl, warns = load_quiet(CORPUS / log)
+        assert len(fl.data) > 0

@@ -210,11 +210,16 @@ def check_time_unit(door: Door) -> None:
         w = span / 45.0
         fit = double_integral_fit(acc, tas, velocity=True, min_dx=3.0, window_s=w,
                                   half_s=w / 4)
-    if fit is not None and (fit.factor < 0.05 or fit.factor > 20.0) and _time_unit(fit.factor):
+    g = _gnss_speed_factor(door)
+    # only a fit that explains the airspeed's changes (fit.good: a time base in another unit
+    # scales them and keeps the agreement) and that the GNSS does not contradict is certain:
+    # a jet whose airspeed the integrated load hardly explains (r 0.13) gave 0.0125 +- 0.019
+    gnss_says_seconds = g is not None and 0.5 < g < 2.0
+    if (fit is not None and fit.good() and not gnss_says_seconds
+            and (fit.factor < 0.05 or fit.factor > 20.0) and _time_unit(fit.factor)):
         door.refuse("time unit", "t_s", fit.factor, _time_unit_message(
             fit.factor, "the airspeed's change and the integrated longitudinal load factor"),
             file=door.file(), column=col)
-    g = _gnss_speed_factor(door)
     if g is not None and (g < 0.05 or g > 20.0) and _time_unit(g):
         door.refuse("time unit", "t_s", g, _time_unit_message(
             g, "the ground speed implied by consecutive GNSS positions and the recorded speed"),
