@@ -181,8 +181,11 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     sources = source_report(run)
     warnings = _run_warnings(run, inp, settings, sources, attitude_note)
     if gap_cal is not None and gap_cal["factor"] is None:
-        warnings.append(f"joint: GNSS gaps {gap_cal['gaps_s'][:3]} s, but {gap_cal['note']}: "
-                        "their position sd is the model's, not calibrated on this flight")
+        # on the console and at the summary's top level: the gaps' sd is not this flight's
+        note = (f"joint: GNSS gaps {gap_cal['gaps_s'][:3]} s, but {gap_cal['note']}: their "
+                "position sd is the model's, not calibrated on this flight")
+        warnings.append(note)
+        _warnings.warn(note, FlightReconWarning, stacklevel=2)
     converged = run.converged
     verdict = _innovation_verdict(run)
     if verdict.gross:
