@@ -185,3 +185,33 @@ def test_withheld_gap_on_the_sample_circuit():
     for ref, c in ((n, "north"), (e, "east")):
         err = t1[f"joint_{c}_m"].to_numpy()[inside] - ref
         assert np.mean(err ** 2 / t1[f"joint_{c}_sd_m"].to_numpy()[inside] ** 2) <= 5.0
+
+
+def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
+    """The held-out smoothing is a second estimate of the same flight: its numerical breakdown
+    must not fail the joint smoother's result.  The run comes back unchanged, without a factor,
+    with the reason (run_joint then warns that the gaps' sd is the model's)."""
+    from pathlib import Path
+
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.ingest import load_flight
+    from flightrecon.ingest.gnss_use import GnssUse
+    from flightrecon.methods.joint import gap_calibration as gcal
+    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.settings import JointSettings
+    from flightrecon.methods.joint.smoother import smooth_joint
+
+    samples = Path(__file__).resolve().parents[1] / "sample_logs"
+    clean = clean_flight(load_flight(samples / "circuit.csv",
+                                     gnss_use=GnssUse(withhold_s=((300.0, 420.0),))))
+    settings = JointSettings()
+    inp = joint_inputs(clean)
+    run = smooth_joint(inp, settings)
+
+    def broken(*a, **k):
+        raise np.linalg.LinAlgError("singular held-out covariance")
+
+    monkeypatch.setattr(gcal, "smooth_joint", broken)
+    out, report = gcal.calibrate_gaps(inp, settings, run)
+    assert out is run
+    assert report["factor"] is None and "singular held-out covariance" in report["note"]
