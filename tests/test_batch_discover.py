@@ -135,3 +135,28 @@ def test_batch_refuses_bad_format_and_out_file(tmp_path):
         batch([log], tmp_path / "out", fmt="xlsx")
     with pytest.raises(OutputError):
         batch([log], log)
+
+
+def test_batch_passes_the_gap_calibration_setting(monkeypatch, tmp_path):
+    """``batch --gap-stretches N`` reaches every flight's settings as for ``reconstruct``."""
+    import contextlib
+    from types import SimpleNamespace
+
+    import flightrecon.batch as fb
+    from flightrecon.cli.main import main as cli_main
+
+    seen = {}
+
+    def fake_batch(inputs, out_dir, **kw):
+        seen["settings"] = kw["settings"]
+        return SimpleNamespace(averages=[], count=lambda s: 0, elapsed_s=0.0, exit_code=0,
+                               summary_csv=tmp_path / "s.csv", averages_csv=tmp_path / "a.csv")
+
+    monkeypatch.setattr(fb, "batch", fake_batch)
+    monkeypatch.setattr(fb, "open_client", lambda *a: contextlib.nullcontext())
+    for args, want in (([], None), (["--gap-stretches", "0"], 0), (["--gap-stretches", "3"], 3)):
+        try:
+            cli_main(["--quiet", "batch", str(tmp_path), "--out", str(tmp_path / "o"), *args])
+        except SystemExit as exc:
+            assert not exc.code
+        assert seen["settings"].joint_gap_stretches == want

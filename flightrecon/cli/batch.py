@@ -36,6 +36,11 @@ from flightrecon.cli.trim import trim_options
 @click.option("--estimate-noise", is_flag=True,
               help="Joint smoother: estimate each source's noise variance from the flight "
                    "itself (expectation-maximisation; docs/joint.md).")
+@click.option("--gap-stretches", "gap_stretches", type=click.IntRange(min=0), default=None,
+              metavar="N",
+              help="Joint smoother, GNSS gaps: calibrate the in-gap position sd on up to N "
+                   "held-out stretches of each flight's own GNSS (default 6; 0: the model's "
+                   "sd; docs/joint.md, \"GNSS gaps\"), as for reconstruct.")
 @click.option("--mapping", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Column-mapping TOML for the logs whose sidecar names no mapping (a "
                    "sidecar's [files] mapping wins, as for reconstruct).")
@@ -47,7 +52,7 @@ from flightrecon.cli.trim import trim_options
 def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
             scheduler: str | None, workers: int | None, store_path: Path | None, force: bool,
             methods: str | None, rate_hz: float | None, k_text: str | None, estimate_noise: bool,
-            mapping: Path | None, fmt: str, no_gnss: bool = False,
+            gap_stretches: int | None, mapping: Path | None, fmt: str, no_gnss: bool = False,
             withhold_gnss: tuple[str, ...] = (), gnss_interval: float | None = None,
             gnss_sd: str | None = None, start: str | None = None,
             end: str | None = None) -> None:
@@ -65,7 +70,8 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
     settings = ReconstructSettings(
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()) if methods else None,
         rate_hz=rate_hz, k=parse_k(k_text) if k_text else None,
-        joint_estimate_noise=estimate_noise, start=start, end=end)
+        joint_estimate_noise=estimate_noise, joint_gap_stretches=gap_stretches, start=start,
+        end=end)
     bar = None
     if not quiet:
         from tqdm import tqdm
