@@ -51,7 +51,7 @@ from flightrecon.estimation.model import (
     with_mean_only_pass,
     workspace,
 )
-from flightrecon.estimation.predict import predict
+from flightrecon.estimation.predict import predict, predict_in_place
 from flightrecon.estimation.smoothing import SmoothedRun, backward_pass
 from flightrecon.estimation.updates import joseph_update
 
@@ -87,9 +87,7 @@ def _workspace(model):
 
 @implements(predict_into, LinearModel)
 def _predict(model, k, x, P, ws):
-    xn, Pn = predict(x, P, model.F[k], model.Q[k])
-    x[:] = xn
-    P[:, :] = Pn
+    predict_in_place(x, P, model.F[k], model.Q[k])
 
 
 @implements(keep_predicted, LinearModel, refcounted=False)

@@ -18,6 +18,7 @@ docs/estimation.md, "Prediction".
 from __future__ import annotations
 
 import numba as nb
+import numpy as np
 
 from flightrecon.estimation.linalg import mm_into, mmt_into
 
@@ -35,23 +36,40 @@ def predict_cov_into(P, F, out, T):
 
 
 @nb.njit(cache=True, nogil=True)
+def add_noise_symmetrised_into(FPFt, Q, out):
+    """``out = Q + F P F^T``, symmetrised as ``(out + out^T) / 2`` (the dense prediction's
+    covariance from :func:`predict_cov_into`'s product; ``out`` may be the old ``P``, not
+    ``FPFt``); no allocation."""
+    n = out.shape[0]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = Q[i, j] + FPFt[i, j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (out[i, j] + out[j, i])
+            out[i, j] = v
+            out[j, i] = v
+
+
+@nb.njit(cache=True, nogil=True)
 def predict(x, P, F, Q):
     """Prediction ``x^- = F x``, ``P^- = F P F^T + Q``, symmetrised as ``(P^- + P^-T) / 2``."""
-    n = x.shape[0]
     x = F @ x
-    Pn = Q.copy()
+    Pn = np.empty_like(Q)
     FPFt = P.copy()
     T = P.copy()
     predict_cov_into(P, F, FPFt, T)
-    for i in range(n):
-        for j in range(n):
-            Pn[i, j] += FPFt[i, j]
-    for i in range(n):
-        for j in range(i + 1, n):
-            v = 0.5 * (Pn[i, j] + Pn[j, i])
-            Pn[i, j] = v
-            Pn[j, i] = v
+    add_noise_symmetrised_into(FPFt, Q, Pn)
     return x, Pn
+
+
+@nb.njit(cache=True, nogil=True)
+def predict_in_place(x, P, F, Q):
+    """:func:`predict` into ``x`` and ``P`` (a model's ``predict_into`` on a dense linear
+    transition: the linear model, the azimuth channel)."""
+    xn, Pn = predict(x, P, F, Q)
+    x[:] = xn
+    P[:, :] = Pn
 
 
 @nb.njit(cache=True, nogil=True)

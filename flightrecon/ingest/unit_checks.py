@@ -215,7 +215,7 @@ def check_time_unit(door: Door) -> None:
     # scales them and keeps the agreement) and that the GNSS does not contradict is certain:
     # a jet whose airspeed the integrated load hardly explains (r 0.13) gave 0.0125 +- 0.019
     gnss_says_seconds = g is not None and 0.5 < g < 2.0
-    if (fit is not None and fit.good() and not gnss_says_seconds
+    if (fit is not None and fit.good(N_MIN) and not gnss_says_seconds
             and (fit.factor < 0.05 or fit.factor > 20.0) and _time_unit(fit.factor)):
         door.refuse("time unit", "t_s", fit.factor, _time_unit_message(
             fit.factor, "the airspeed's change and the integrated longitudinal load factor"),

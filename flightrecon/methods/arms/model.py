@@ -18,7 +18,7 @@ from flightrecon.estimation.model import (
     update_into,
     workspace,
 )
-from flightrecon.estimation.predict import predict_cov_into
+from flightrecon.estimation.predict import add_noise_symmetrised_into, predict_cov_into
 from flightrecon.estimation.updates import joseph_update
 from flightrecon.methods.arms.measurement import radar_rows_into
 
@@ -101,15 +101,9 @@ def _predict(model, k, x, P, ws):
             acc += F[i, j] * x[j]
         xn[i] = acc
     predict_cov_into(P, F, FPFt, T)
+    add_noise_symmetrised_into(FPFt, Q, P)
     for i in range(n):
         x[i] = xn[i]
-        for j in range(n):
-            P[i, j] = Q[i, j] + FPFt[i, j]
-    for i in range(n):
-        for j in range(i + 1, n):
-            v = 0.5 * (P[i, j] + P[j, i])
-            P[i, j] = v
-            P[j, i] = v
 
 
 @implements(keep_predicted, ArmsTrackModel, refcounted=False)

@@ -22,7 +22,7 @@ from flightrecon.estimation.model import (
     update_into,
     workspace,
 )
-from flightrecon.estimation.predict import predict
+from flightrecon.estimation.predict import predict_in_place
 from flightrecon.estimation.updates import joseph_update
 
 __all__ = ["AzimuthModel", "azimuth_model"]
@@ -95,9 +95,7 @@ def _predict(model, k, x, P, ws):
     """``x <- F_k x``, ``P <- F_k P F_k^T + Q_k`` symmetrised (Singer or random-walk matrices;
     :func:`~flightrecon.estimation.predict.predict`: ``F x`` through BLAS, whose summation
     order an element loop does not reproduce for n = 3, hence counted)."""
-    xn, Pn = predict(x, P, model.F[k], model.Q[k])
-    x[:] = xn
-    P[:, :] = Pn
+    predict_in_place(x, P, model.F[k], model.Q[k])
 
 
 @implements(keep_predicted, AzimuthModel, refcounted=False)
