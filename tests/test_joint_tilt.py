@@ -43,6 +43,18 @@ def test_the_memory_is_the_exponential_mean_of_eq_1():
     assert D[0] == 0.0 and np.all(np.diff(D[i60:]) < 0)
 
 
+def test_the_memory_is_scipys_first_order_filter_to_the_bit():
+    """The compiled recursion replaces ``scipy.signal.lfilter([1 - a], [1, -a], u)`` (not
+    imported on a run's path): the same numbers to the bit on a long random driver."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(7)
+    t = np.arange(20000) * 0.0625
+    u = np.abs(rng.normal(size=len(t)))
+    a = float(np.exp(-0.0625 / 60.0))
+    assert np.array_equal(remembered(t, u, 60.0), lfilter([1.0 - a], [1.0, -a], u))
+
+
 def test_psd_is_eq_2_and_off_at_zero():
     t = np.arange(0.0, 200.0, 0.1)
     f = np.tile([0.0, 0.0, -1.0], (len(t), 1))

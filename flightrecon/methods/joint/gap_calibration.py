@@ -18,8 +18,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from flightrecon.errors import FlightReconError
 from flightrecon.geo.frames import geodetic_to_ecef
@@ -215,6 +214,10 @@ def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, f
       others' is covered;
 
     all within ``bounds``."""
+    # imported here: scipy.optimize is a fifth of a second of every run's start, and only a
+    # flight with GNSS gaps gets this far
+    from scipy.optimize import brentq
+
     lo, hi = bounds
     m0 = stretch_nees(held, 1.0)
     dof = 2 * len(held)
@@ -230,8 +233,10 @@ def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, f
     def pooled(target: float):
         return lambda lf: float(np.mean(stretch_nees(held, np.exp(lf)))) - target
 
-    limit = float(chi2.ppf(p_stretch, 1))
-    q_pool = float(chi2.ppf(p_pool, dof) / dof)
+    # chi-square quantiles q(p) = chdtri(dof, 1 - p) (scipy.stats costs a fifth of a second
+    # of every run's start to import)
+    limit = float(chdtri(1, 1.0 - p_stretch))
+    q_pool = float(chdtri(dof, 1.0 - p_pool) / dof)
     f_hat = solve(pooled(1.0))
     f_pool = solve(pooled(q_pool))
     f_floor = solve(lambda lf: float(np.max(stretch_nees(held, np.exp(lf)))) - limit)
