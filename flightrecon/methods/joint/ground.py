@@ -18,12 +18,19 @@ from flightrecon.methods.joint.settings import JointSettings
 def decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -> np.ndarray:
     """True for the first sample of each 1/rate_hz bin, bins counted from ``origin`` (default
     the first sample) (keeps each measurement used once)."""
+    return first_in_bin(t, rate_hz, np.arange(len(t)), origin)
+
+
+def first_in_bin(t: np.ndarray, rate_hz: float, i: np.ndarray, origin: float | None = None
+                 ) -> np.ndarray:
+    """:func:`decimate_mask` at the sample indices ``i`` only (each judged against its
+    predecessor in ``t``), for a few samples of a long record."""
     if rate_hz <= 0:
-        return np.zeros(len(t), bool)
-    b = np.floor((t - (t[0] if origin is None else origin)) * rate_hz + 1e-9).astype(np.int64)
-    keep = np.ones(len(t), bool)
-    keep[1:] = b[1:] != b[:-1]
-    return keep
+        return np.zeros(len(i), bool)
+    t0 = t[0] if origin is None else origin
+    b = np.floor((t[i] - t0) * rate_hz + 1e-9).astype(np.int64)
+    b_prev = np.floor((t[np.maximum(i - 1, 0)] - t0) * rate_hz + 1e-9).astype(np.int64)
+    return (i == 0) | (b != b_prev)
 
 
 def on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
@@ -35,7 +42,13 @@ def on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
         on_ground |= t_in < inp.liftoff_t - 2.0
     if np.isfinite(inp.touchdown_t):
         on_ground |= t_in > inp.touchdown_t + 2.0
-    return on_ground & decimate_mask(t_in, settings.ground_rate_hz) & np.isfinite(inp.heading_rad)
+    # the rate's bins judged on the ground samples only (a long flight's record is mostly
+    # airborne, and this runs on every pass)
+    i = np.flatnonzero(on_ground)
+    i = i[first_in_bin(t_in, settings.ground_rate_hz, i) & np.isfinite(inp.heading_rad[i])]
+    keep = np.zeros(len(t_in), bool)
+    keep[i] = True
+    return keep
 
 
 #: heading change that ends a landing roll [deg] (the phases' line-up rule, 10 deg)
@@ -69,8 +82,11 @@ def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_E
     if not w.any():
         return m
     psi_rw = float(np.arctan2(np.mean(np.sin(psi[w])), np.mean(np.cos(psi[w]))))
-    off = np.degrees(np.abs(np.angle(np.exp(1j * (psi - psi_rw)))))
-    out = np.flatnonzero((t > td + 2.0) & np.isfinite(psi) & (off > exit_deg))
+    # the heading's distance from the roll's on the samples after it only (a long flight's
+    # record before touchdown is most of it, and this runs on every pass)
+    after = np.flatnonzero((t > td + 2.0) & np.isfinite(psi))
+    off = np.degrees(np.abs(np.angle(np.exp(1j * (psi[after] - psi_rw)))))
+    out = after[off > exit_deg]
     if len(out):
         m &= t < t[out[0]]
     return m
