@@ -6,6 +6,14 @@ imported (a second or more), :func:`run` makes every catchable terminating signa
 process quietly with 128 + its number; nothing has been written yet at that point.
 :func:`flightrecon.cli.main.main` then installs the handlers that clean up
 (:func:`flightrecon.cli.main.install_signal_handlers`).
+
+The command line also compiles its kernels at LLVM optimisation level 1 (``NUMBA_OPT=1``,
+unless the environment sets it): a first run on an empty kernel cache spends most of its time
+in LLVM, and level 1 cuts the compilation by 10-15 % while the kernels run as fast as at
+numba's default level 3 and give the same numbers to the bit (their loops are latency-bound
+small-matrix arithmetic without fast-math, where the vectoriser and the unroller of level 3
+find nothing to gain; measured on the 10-hour benchmark flight and the shipped samples,
+docs/performance.md, sixth session).  The library itself changes no numba setting.
 """
 
 from __future__ import annotations
@@ -30,6 +38,8 @@ def run() -> None:
                 signal.signal(s, _quiet_exit)
         except (OSError, ValueError):
             pass
+    # before numba is imported (by the CLI's modules, below): read at its import
+    os.environ.setdefault("NUMBA_OPT", "1")
     from flightrecon.cli.main import main
 
     main()
