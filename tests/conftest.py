@@ -14,6 +14,9 @@ from hypothesis import settings
 # holds, so that a monkeypatched method runs where its test put it (tests/test_coldstart.py
 # turns the child on where it tests it)
 os.environ["FLIGHTRECON_COMPILE_IN_CHILD"] = "0"
+# the kernels compile at the command line's LLVM level (flightrecon/cli/entry.py), so that the
+# tests run the code the CLI runs and a cold cache compiles faster; numba reads it at import
+os.environ.setdefault("NUMBA_OPT", "1")
 
 settings.register_profile("ci", derandomize=True, database=None)
 if os.environ.get("CI"):
