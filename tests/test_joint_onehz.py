@@ -19,6 +19,7 @@ from types import SimpleNamespace
 from typing import Any, cast
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.linalg import expm
 
@@ -335,3 +336,30 @@ def test_missing_accelerations_weigh_their_psd_in_the_step_share():
     _, _, miss9 = held_increments(t, acc, idx, psd)
     assert miss1.sum() == pytest.approx(2.0) and miss9.sum() == pytest.approx(18.0)
     np.testing.assert_allclose(miss9, 9.0 * miss1)
+
+
+def test_what_1hz_samples_of_the_acceleration_lose():
+    """``scripts/onehz_fleet_study.sampled_acceleration_error`` on a known aliasing: a north
+    acceleration 0.2 cos(2 pi t) at 16 Hz (1 Hz, above the 1 Hz samples' Nyquist frequency)
+    reads 0.2 at every whole second, so the trapezoid through [50, 150] s gains 0.2 m/s per
+    second while the true velocity, 0.2 sin(2 pi t) / (2 pi), is back to 0 there: 20 m/s at the
+    end (to 1e-9).  Its variance, 0.02 (m/s^2)^2, lies above 0.5 Hz; the east axis is still:
+    the mean of the two 0.01 within 2 % (the periodogram's leakage of a window that is not a
+    whole number of periods).  At 0.1 Hz nothing is lost."""
+    from tests._scripts import load_script
+    study = load_script("onehz_fleet_study")
+    t = np.arange(0.0, 200.0 + 1e-9, 1.0 / 16.0)
+    w = 2.0 * np.pi
+    truth = pd.DataFrame({"t_s": t, "an_mps2": 0.2 * np.cos(w * t), "ae_mps2": 0.0 * t,
+                          "vn_mps": 0.2 * np.sin(w * t) / w, "ve_mps": 0.0 * t,
+                          "on_ground": np.zeros(len(t), bool)})
+    r = study.sampled_acceleration_error(truth, 50.0, 150.0)
+    assert abs(r["max_dv_1hz_mps"] - 20.0) < 1e-9
+    assert abs(r["hf_var_gap_m2ps4"] / 0.01 - 1.0) < 0.02
+    assert abs(r["hf_var_air_m2ps4"] / 0.01 - 1.0) < 0.02
+    # the same at 0.1 Hz is resolved: the trapezoid's error over a 1 s step of a 0.1 Hz
+    # cosine, h^2 w^2 / 12 of its integral, leaves 0.01 m/s; nothing above 0.5 Hz
+    truth["an_mps2"], truth["vn_mps"] = 0.2 * np.cos(0.1 * w * t), 2.0 * np.sin(0.1 * w * t) / w
+    r = study.sampled_acceleration_error(truth, 50.0, 150.0)
+    assert r["max_dv_1hz_mps"] < 0.02
+    assert r["hf_var_gap_m2ps4"] < 1e-6
