@@ -89,10 +89,12 @@ def derive_n_long(t: np.ndarray, values: dict[str, np.ndarray], file: str
 
     What it costs against a measured channel: (1) ``dV/dt`` is the acceleration relative to
     the air: a wind changing along the track by ``dW/dt`` is missed by ``dW/dt / g0`` (gusts,
-    shear: 0.01 g per 1 m/s in 10 s); (2) the exact relation is ``n_long = (dV/dt/g0 + sin(gamma))
-    cos(alpha) + n_norm sin(alpha)`` (gamma the flight-path angle, alpha the angle of attack):
-    with ``theta = gamma + alpha`` it is the formula above to first order in alpha, the rest
-    ``alpha (n_norm - 1)`` and ``alpha^2`` terms, 0.013 g at 30 deg of bank and 5 deg of alpha;
+    shear: 0.01 g per 1 m/s in 10 s); (2) the angle of attack ``alpha`` (no sideslip, steady
+    alpha): the body x axis sees ``u' + q w`` with ``u = V cos(alpha)``, ``w = V sin(alpha)``, and
+    the body z equation gives ``q V cos(alpha) = g0 (n_norm - cos(theta) cos(phi))``, so
+    ``n_long = (dV/dt / g0) cos(alpha) + sin(theta) + tan(alpha) (n_norm - cos(theta) cos(phi))``:
+    the formula above misses ``alpha (n_norm - cos(theta) cos(phi))`` and ``alpha^2`` terms,
+    0.025 g in a level turn at 30 deg of bank and 5 deg of alpha (n_norm = 1.155);
     (3) the 6 s difference smooths the speed changes and the 1-kt quantum of a Garmin TAS column
     leaves about 0.009 g of noise.  The joint smoother's accelerometer noise is one figure for
     the three axes (not per channel), so it is not widened; the airspeed measurement it fuses
