@@ -26,11 +26,11 @@ from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.smoother import JointRun, smooth_joint
+from flightrecon.methods.joint.smoother import JointRun, smooth_joint, smooth_joint_from
 from flightrecon.methods.joint.track import hermite_positions
 
 __all__ = ["apply_factor", "calibrate_gaps", "calibration_factor", "gnss_gaps",
-           "fix_noise", "heldout_errors", "pseudo_gaps"]
+           "fix_noise", "heldout_errors", "heldout_smoothing", "pseudo_gaps"]
 
 
 def gnss_gaps(inp: JointInputs, min_gap_s: float) -> list[tuple[float, float]]:
@@ -276,6 +276,28 @@ def apply_factor(run: JointRun, gaps: list[tuple[float, float]], f: float) -> Jo
     return replace(run, P_pv=P, var=var)
 
 
+#: the held-out smoothing's passes stop once one moved the track by at most this many times
+#: ``converge_m`` (the smoother's own rule for a step small enough to hold the gust sd)
+HELDOUT_ENOUGH = 10.0
+
+
+def heldout_smoothing(inp_h: JointInputs, settings: JointSettings, run: JointRun) -> JointRun:
+    """The flight smoothed once more without the held-out fixes (``inp_h``): by default
+    ``settings.gap_heldout_passes`` Gauss-Newton passes from the converged ``run`` with its
+    gust sd held (:func:`~flightrecon.methods.joint.smoother.smooth_joint_from`; one pass
+    costs a third of the whole iteration and gives the held-out errors and sd of the whole
+    iteration to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0 the
+    whole iteration again from the nominal."""
+    if settings.gap_heldout_passes <= 0:
+        return smooth_joint(inp_h, settings)
+    s = settings
+    if run.gust is not None and np.isfinite(run.gust.get("sd_mps", np.nan)):
+        s = replace(settings, estimate_gust=False,
+                    noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
+    return smooth_joint_from(inp_h, s, run, settings.gap_heldout_passes,
+                             enough_m=HELDOUT_ENOUGH * settings.converge_m)
+
+
 def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
                    ) -> tuple[JointRun, dict[str, Any] | None]:
     """Held-out gap calibration: where the GNSS has gaps longer than
@@ -301,7 +323,8 @@ def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
     for a, b in stretches:
         keep &= ~((tg > a) & (tg < b))
     try:
-        run_h = smooth_joint(replace(inp, gnss=inp.gnss[keep].reset_index(drop=True)), settings)
+        run_h = heldout_smoothing(replace(inp, gnss=inp.gnss[keep].reset_index(drop=True)),
+                                  settings, run)
     except (FlightReconError, ValueError, ArithmeticError) as exc:
         # the held-out smoothing's own breakdown leaves the flight's result standing: the
         # gaps keep the model's sd, said in the report (and by run_joint's warning)
@@ -322,4 +345,6 @@ def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
     report["stretches_s"] = [[h["t0_s"], h["t1_s"]] for h in held]
     report["heldout_rms_m"] = [float(np.sqrt(np.mean(np.sum(h["e"] ** 2, axis=1))))
                                for h in held]
+    report["heldout_pass_shifts_m"] = [float(i["max_position_change_m"])
+                                       for i in run_h.iterations]
     return apply_factor(run, gaps, cal["factor"]), report

@@ -197,6 +197,10 @@ class JointSettings:
     #                                          of chi-square(1) after the calibration
     gap_pool_p: float = 0.16                 # the factor the held-out errors support at this
     #                                          one-sided level (chi-square(2 stretches) / dof)
+    gap_heldout_passes: int = 3              # the held-out smoothing: at most this many
+    #                                          Gauss-Newton passes from the converged run, fewer
+    #                                          once one moved the track by <= 10 converge_m (0:
+    #                                          the whole iteration again from the nominal)
     estimate_clock: bool = True
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise

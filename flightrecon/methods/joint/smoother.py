@@ -73,6 +73,7 @@ class JointRun:
     converged: bool = False
     stop_reason: str = ""
     gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
+    prior: tuple[np.ndarray, np.ndarray] | None = None   # (x0, P0): the prior of step 0 used
 
 
 def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.ndarray,
@@ -361,6 +362,56 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
                    gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
 
 
+def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun,
+                      passes: int = 1, enough_m: float = 0.0) -> JointRun:
+    """The joint smoother on ``inp`` started from a converged run ``start`` of the same flight
+    (its iterate, nominal, clock offsets, noise factors and step-0 prior), for at most
+    ``passes`` damped Gauss-Newton passes (fewer when they settle, or once a pass moved the
+    track by at most ``enough_m`` [m]: the next step is of second order in it; docs/joint.md,
+    "GNSS gaps":
+    the held-out smoothing of the gap calibration, where ``inp`` is the flight with stretches of
+    GNSS withheld).
+
+    Each pass is one of :func:`smooth_joint`'s later passes (no innovation gate; IRLS weights
+    at the iterate, since the measurement set differs from ``start``'s; the line search on
+    the MAP cost), so the result is :func:`smooth_joint`'s on ``inp`` as far as one
+    Gauss-Newton step from ``start`` reaches: withholding fixes moves the solution only near
+    them, where the models are linear to well under the fixes' noise.  ``settings`` should
+    hold ``start``'s gust sd with ``estimate_gust`` off (the gust estimate is the flight's)."""
+    fl = smoother_flight(inp, settings)
+    if start.prior is not None:
+        fl.x0, fl.P0 = start.prior
+        fl.P0inv = np.linalg.inv(fl.P0)
+    x = start.x
+    st = SmootherState(start.lat_deg.copy(), start.lon_deg.copy(), start.h_m.copy(),
+                       np.ascontiguousarray(x[:, jl.S_VEL]),
+                       {k: v[0] for k, v in start.clock_offsets_s.items()},
+                       {k: v[1] for k, v in start.clock_offsets_s.items()},
+                       np.array([start.noise_scale[name] for name in NOISE_GROUPS.values()]),
+                       psi_hat=np.ascontiguousarray(x[:, jl.IPSI]),
+                       ba_hat=np.ascontiguousarray(x[:, jl.S_ACC_BIAS]), X=x)
+    st.rolls_seen.append(start.roll)
+    history: list[dict[str, Any]] = []
+    last = None
+    for it in range(1, 1 + max(1, passes)):
+        last = None
+        last = _one_pass(fl, st, it)
+        info = last[3]
+        settled = info.pop("_settled")
+        history.append(info)
+        if settled:
+            info["converged"] = True
+            st.converged, st.reason = True, "converged"
+            break
+        if not last[2].ok or info["max_position_change_m"] <= enough_m:
+            break
+    if not st.converged:
+        st.reason = f"warm start: {len(history)} pass(es) from the converged run"
+    assert last is not None
+    return replace(_finish(fl, st, *last[:3], history),
+                   gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
+
+
 def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassResult, step: PassStep,
             history: list[dict[str, Any]]) -> JointRun:
     """The result of the last pass: its iterate (the pass's own smoothed states after a full
@@ -398,7 +449,8 @@ def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassRes
                                  enumerate(NOISE_GROUPS.values())},
                     iterations=history, end_points=end_points(fl.inp, s.noise, mdl.roll),
                     roll=mdl.roll, noise_check=noise_check, cholesky_fallbacks=int(n_fallback),
-                    converged=st.converged, stop_reason=st.reason)
+                    converged=st.converged, stop_reason=st.reason,
+                    prior=None if fl.x0 is None or fl.P0 is None else (fl.x0, fl.P0))
 
 
 def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: SmootherState
