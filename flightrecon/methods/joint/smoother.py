@@ -341,25 +341,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
         n_iter = max(n_iter, settings.noise_iterations)
-    history: list[dict[str, Any]] = []
-    last = None
-    for it in range(n_iter):
-        last = None   # the last pass's models and outputs go before the next pass builds its own
-        last = _one_pass(fl, st, it)
-        info = last[3]
-        settled = info.pop("_settled")
-        history.append(info)
-        if settled:
-            info["converged"] = True
-            st.converged, st.reason = True, "converged"
-            break
-        if not last[2].ok:
-            break
-    if not st.converged:
-        st.reason = stop_reason_of(history, settings)
-    assert last is not None
-    return replace(_finish(fl, st, *last[:3], history),
-                   gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
+    return _passes(fl, st, range(n_iter), settings)
 
 
 def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun,
@@ -391,10 +373,17 @@ def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun
                        psi_hat=np.ascontiguousarray(x[:, jl.IPSI]),
                        ba_hat=np.ascontiguousarray(x[:, jl.S_ACC_BIAS]), X=x)
     st.rolls_seen.append(start.roll)
+    return _passes(fl, st, range(1, 1 + max(1, passes)), settings, enough_m, warm=True)
+
+
+def _passes(fl: SmootherFlight, st: SmootherState, its: range, settings: JointSettings,
+            enough_m: float = -1.0, warm: bool = False) -> JointRun:
+    """The damped Gauss-Newton passes numbered ``its`` until they settle (or a pass failed,
+    or one moved the track by at most ``enough_m``), then the result of the last."""
     history: list[dict[str, Any]] = []
     last = None
-    for it in range(1, 1 + max(1, passes)):
-        last = None
+    for it in its:
+        last = None   # the last pass's models and outputs go before the next pass builds its own
         last = _one_pass(fl, st, it)
         info = last[3]
         settled = info.pop("_settled")
@@ -406,7 +395,8 @@ def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun
         if not last[2].ok or info["max_position_change_m"] <= enough_m:
             break
     if not st.converged:
-        st.reason = f"warm start: {len(history)} pass(es) from the converged run"
+        st.reason = (f"warm start: {len(history)} pass(es) from the converged run" if warm
+                     else stop_reason_of(history, settings))
     assert last is not None
     return replace(_finish(fl, st, *last[:3], history),
                    gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
