@@ -187,16 +187,14 @@ def test_withheld_gap_on_the_sample_circuit():
         assert np.mean(err ** 2 / t1[f"joint_{c}_sd_m"].to_numpy()[inside] ** 2) <= 5.0
 
 
-def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
-    """The held-out smoothing is a second estimate of the same flight: its numerical breakdown
-    must not fail the joint smoother's result.  The run comes back unchanged, without a factor,
-    with the reason (run_joint then warns that the gaps' sd is the model's)."""
+def _circuit_with_a_gap():
+    """The circuit sample with 120 s of GNSS withheld (300-420 s): its joint inputs, the
+    default settings and the converged joint run."""
     from pathlib import Path
 
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
     from flightrecon.ingest.gnss_use import GnssUse
-    from flightrecon.methods.joint import gap_calibration as gcal
     from flightrecon.methods.joint.flight_inputs import joint_inputs
     from flightrecon.methods.joint.settings import JointSettings
     from flightrecon.methods.joint.smoother import smooth_joint
@@ -206,7 +204,16 @@ def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
                                      gnss_use=GnssUse(withhold_s=((300.0, 420.0),))))
     settings = JointSettings()
     inp = joint_inputs(clean)
-    run = smooth_joint(inp, settings)
+    return inp, settings, smooth_joint(inp, settings)
+
+
+def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
+    """The held-out smoothing is a second estimate of the same flight: its numerical breakdown
+    must not fail the joint smoother's result.  The run comes back unchanged, without a factor,
+    with the reason (run_joint then warns that the gaps' sd is the model's)."""
+    from flightrecon.methods.joint import gap_calibration as gcal
+
+    inp, settings, run = _circuit_with_a_gap()
 
     def broken(*a, **k):
         raise np.linalg.LinAlgError("singular held-out covariance")
@@ -225,22 +232,10 @@ def test_the_warm_started_held_out_smoothing_gives_the_whole_iterations_factor()
     the 17 calibrated gaps of scripts/gap_study.py: factors within 0.2 %, held-out NEES
     within 0.3 %; docs/joint.md, "GNSS gaps"), in no more passes than the whole iteration."""
     from dataclasses import replace as dc_replace
-    from pathlib import Path
 
-    from flightrecon.cleaning import clean_flight
-    from flightrecon.ingest import load_flight
-    from flightrecon.ingest.gnss_use import GnssUse
     from flightrecon.methods.joint import gap_calibration as gcal
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
-    from flightrecon.methods.joint.settings import JointSettings
-    from flightrecon.methods.joint.smoother import smooth_joint
 
-    samples = Path(__file__).resolve().parents[1] / "sample_logs"
-    clean = clean_flight(load_flight(samples / "circuit.csv",
-                                     gnss_use=GnssUse(withhold_s=((300.0, 420.0),))))
-    settings = JointSettings()
-    inp = joint_inputs(clean)
-    run = smooth_joint(inp, settings)
+    inp, settings, run = _circuit_with_a_gap()
     _, warm = gcal.calibrate_gaps(inp, settings, run)
     _, cold = gcal.calibrate_gaps(inp, dc_replace(settings, gap_heldout_passes=0), run)
     assert warm is not None and cold is not None
