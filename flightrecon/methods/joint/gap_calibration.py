@@ -22,6 +22,7 @@ from scipy.special import chdtri
 
 from flightrecon.errors import FlightReconError
 from flightrecon.geo.frames import geodetic_to_ecef
+from flightrecon.memory import release_unused
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
@@ -322,6 +323,9 @@ def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
     keep = np.ones(len(tg), bool)
     for a, b in stretches:
         keep &= ~((tg > a) & (tg < b))
+    # what the converged run freed goes back before the second smoothing's buffers are mapped
+    # (its peak would otherwise add to the held-out one; flightrecon/memory.py)
+    release_unused()
     try:
         run_h = heldout_smoothing(replace(inp, gnss=inp.gnss[keep].reset_index(drop=True)),
                                   settings, run)
