@@ -84,18 +84,40 @@ def test_the_child_is_used_only_with_a_core_to_spare(monkeypatch):
     monkeypatch.delenv("FLIGHTRECON_COMPILE_IN_CHILD", raising=False)
     monkeypatch.setattr(coldstart, "kernels_cached", lambda m: m == "joint")
     monkeypatch.setattr(coldstart.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(coldstart, "idle_cores", lambda: 0.1)   # busy now
     for load, used in ((0.4, True), (0.99, True), (1.0, False), (4.2, False)):
         monkeypatch.setattr(coldstart.os, "getloadavg", lambda v=load: (v, v, v))
         assert coldstart.child_methods(["joint", "sns"], 2) == (["sns"] if used else []), load
+    # the average still remembers a busy minute that is over (the README's first run, right
+    # after pip install): a core idle now is a core to spare
+    monkeypatch.setattr(coldstart, "idle_cores", lambda: 0.95)
+    assert coldstart.child_methods(["joint", "sns"], 2) == ["sns"]
+    monkeypatch.setattr(coldstart, "idle_cores", lambda: 0.5)
+    assert coldstart.child_methods(["joint", "sns"], 2) == []
+    # an early child started at the run's start is used whatever the machine reads now (the
+    # parent and the child themselves keep both cores busy)
+    assert coldstart.child_methods(["joint", "sns"], 2, early_started=True) == ["sns"]
     monkeypatch.setenv("FLIGHTRECON_COMPILE_IN_CHILD", "1")  # forced: whatever the load
     assert coldstart.child_methods(["joint", "sns"], 2) == ["sns"]
+
+
+def test_idle_cores_is_a_share_of_the_machine():
+    """Measured from the kernel's counters where they exist: between 0 and the core count."""
+    import os
+    import sys
+
+    idle = coldstart.idle_cores(0.05)
+    if not sys.platform.startswith("linux"):
+        assert idle is None
+        return
+    assert idle is not None and 0.0 <= idle <= (os.cpu_count() or 1) + 1e-9
 
 
 def test_methods_in_the_child_give_the_results_of_one_process(clean, monkeypatch):
     t1, r1, s1 = reconstruct_clean(clean, ReconstructSettings(), workers=1)
     sent = []
 
-    def all_others(chosen, workers):
+    def all_others(chosen, workers, early_started=False):
         sent[:] = [m for m in chosen if m != "joint"]
         return list(sent)
 

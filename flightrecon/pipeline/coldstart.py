@@ -25,6 +25,7 @@ from __future__ import annotations
 import importlib
 import multiprocessing
 import os
+import time
 import warnings
 from concurrent.futures import Future, ProcessPoolExecutor
 from typing import Any
@@ -63,17 +64,50 @@ def kernels_cached(method: str) -> bool:
         return True
 
 
+#: idle cores, measured over :data:`IDLE_SAMPLE_S`, that count as a core to spare (the
+#: parent's own core is busy while it measures)
+SPARE_IDLE_CORES = 0.75
+IDLE_SAMPLE_S = 0.1
+
+
+def idle_cores(interval_s: float = IDLE_SAMPLE_S) -> float | None:
+    """Cores idle over the next ``interval_s`` seconds, from the kernel's CPU counters
+    (``/proc/stat``: idle and I/O-wait time against all time, times the number of cores); None
+    where they cannot be read (not Linux)."""
+    def sample() -> tuple[float, float]:
+        with open("/proc/stat", encoding="ascii") as fh:
+            v = [float(x) for x in fh.readline().split()[1:9]]
+        return v[3] + v[4], sum(v)
+
+    try:
+        idle0, all0 = sample()
+        time.sleep(interval_s)
+        idle1, all1 = sample()
+    except (OSError, ValueError, IndexError):
+        return None
+    if all1 <= all0:
+        return None
+    return (os.cpu_count() or 1) * (idle1 - idle0) / (all1 - all0)
+
+
 def spare_core() -> bool:
     """True when the machine has a core that nobody else uses: the one-minute load average
-    below the number of cores less one (the parent's own).  A child on a busy machine only adds
-    work: it imports the package and compiles the shared kernels a second time, on a core it
-    must share (docs/performance.md: 75 s against 61 s in one process at a load of 4-5 on two
-    cores).  True where the load cannot be read."""
+    below the number of cores less one (the parent's own), or, where the average still
+    remembers a minute that is over (a first run right after ``pip install``, the README's),
+    at least :data:`SPARE_IDLE_CORES` cores idle now (:func:`idle_cores`).  A child on a busy
+    machine only adds work: it imports the package and compiles the shared kernels a second
+    time, on a core it must share (docs/performance.md: 75 s against 61 s in one process at a
+    load of 4-5 on two cores).  True where neither can be read."""
     try:
         load = os.getloadavg()[0]
     except (AttributeError, OSError):
+        load = None
+    if load is not None and load < (os.cpu_count() or 1) - 1:
         return True
-    return load < (os.cpu_count() or 1) - 1
+    idle = idle_cores()
+    if idle is None:
+        return load is None
+    return idle >= SPARE_IDLE_CORES
 
 
 #: methods whose kernels compile in a few seconds (Sabziev: 2.7 s against the joint's and the
@@ -86,12 +120,13 @@ def _mode() -> str:
     return os.environ.get("FLIGHTRECON_COMPILE_IN_CHILD", "").strip()
 
 
-def child_methods(chosen: list[str], workers: int) -> list[str]:
+def child_methods(chosen: list[str], workers: int, early_started: bool = False) -> list[str]:
     """The methods to run in a child process: every chosen method but the joint smoother (and
     but the :data:`QUICK_TO_COMPILE` ones when another goes), when two workers are allowed, the
     joint smoother is among ``chosen`` (it keeps the parent busy), at least one of them is not
-    compiled yet and the machine has a :func:`spare_core`; otherwise none.
-    ``FLIGHTRECON_COMPILE_IN_CHILD``: ``0`` never, ``1`` whatever the load."""
+    compiled yet and the machine has a :func:`spare_core` (not asked again when
+    ``early_started``: an :class:`EarlyChild` was started on it at the run's start); otherwise
+    none.  ``FLIGHTRECON_COMPILE_IN_CHILD``: ``0`` never, ``1`` whatever the load."""
     others = [m for m in chosen if m != "joint"]
     if any(m not in QUICK_TO_COMPILE for m in others):
         others = [m for m in others if m not in QUICK_TO_COMPILE]
@@ -102,7 +137,9 @@ def child_methods(chosen: list[str], workers: int) -> list[str]:
         return []
     if all(kernels_cached(m) for m in others):
         return []
-    if mode != "1" and not spare_core():
+    # an early child (EarlyChild) was started on the machine's state at the run's start: the
+    # two processes now busy would read as no core to spare
+    if mode != "1" and not early_started and not spare_core():
         return []
     return others
 

@@ -96,8 +96,9 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
 
     # on a cold kernel cache the methods other than the joint smoother compile and run in a
     # child process while this one compiles the joint smoother (pipeline/coldstart.py)
-    child = ChildMethods(child_methods(chosen, workers), clean, settings,
-                         early_child.take() if early_child is not None else None)
+    early = early_child.take() if early_child is not None else None
+    child = ChildMethods(child_methods(chosen, workers, early_started=early is not None),
+                         clean, settings, early)
 
     def run(name: str) -> MethodResult:
         if progress:
