@@ -111,6 +111,15 @@ def _sd_or_zero(tr: Any, col: str) -> np.ndarray:
     return np.nan_to_num(tr[col].to_numpy(float), nan=0.0)
 
 
+def _worst_lasting(bad: np.ndarray, excess: np.ndarray, dt: np.ndarray, span_s: float
+                   ) -> int | None:
+    """The sample where ``excess`` is largest among the ``bad`` ones, when they last at least
+    ``span_s`` in all (``dt`` each sample's interval); None for a violation shorter than that."""
+    if not bad.any() or float(dt[bad].sum()) < span_s:
+        return None
+    return int(np.nanargmax(np.where(bad, excess, np.nan)))
+
+
 def _problem(check: str, what: str, spans: list[list[float]], worst: float, limit: float
              ) -> dict[str, Any]:
     return {"check": check, "what": what, "worst": float(worst), "limit": float(limit),
@@ -180,8 +189,8 @@ def _wind_checks(t: np.ndarray, wn: np.ndarray, we: np.ndarray, h: np.ndarray,
     speed = np.hypot(wn, we)
     bad = np.isfinite(speed) & (speed > w_lim) & flight
     dt = np.diff(t, append=t[-1])
-    if bad.any() and float(dt[bad].sum()) >= ev.span_s:
-        i = int(np.nanargmax(np.where(bad, speed - w_lim, np.nan)))
+    i = _worst_lasting(bad, speed - w_lim, dt, ev.span_s)
+    if i is not None:
         out.append(_problem(
             "wind_speed",
             f"wind estimated at {speed[i]:.0f} m/s at {h[i]:.0f} m pressure altitude "
@@ -196,8 +205,8 @@ def _wind_checks(t: np.ndarray, wn: np.ndarray, we: np.ndarray, h: np.ndarray,
         dh[k:-k] = np.abs(h[2 * k:] - h[:-2 * k])
         lim = ev.wind_change_mps + ev.wind_shear_per_s * dh
         bad = np.isfinite(dw) & (dw > lim) & flight
-        if bad.any() and float(dt[bad].sum()) >= ev.span_s:
-            i = int(np.nanargmax(np.where(bad, dw - lim, np.nan)))
+        i = _worst_lasting(bad, dw - lim, dt, ev.span_s)
+        if i is not None:
             out.append(_problem(
                 "wind_change",
                 f"wind estimate changing by {dw[i]:.0f} m/s within "
@@ -223,9 +232,9 @@ def _air_ground(t: np.ndarray, north: np.ndarray, east: np.ndarray, h: np.ndarra
     diff = np.abs(gs - tas_h)
     bad = np.isfinite(diff) & (tas > ev.min_tas_mps) & (diff > lim) & flight
     dt = np.diff(t, append=t[-1])
-    if not bad.any() or float(dt[bad].sum()) < ev.span_s:
+    i = _worst_lasting(bad, diff - lim, dt, ev.span_s)
+    if i is None:
         return []
-    i = int(np.nanargmax(np.where(bad, diff - lim, np.nan)))
     return [_problem(
         "air_ground",
         f"ground speed {gs[i]:.0f} m/s against a horizontal airspeed of {tas_h[i]:.0f} m/s at "
