@@ -76,6 +76,46 @@ class JointRun:
     prior: tuple[np.ndarray, np.ndarray] | None = None   # (x0, P0): the prior of step 0 used
 
 
+class _CovariancePass:
+    """The RTS covariance pass (:func:`~flightrecon.methods.joint.passes.backward`, without
+    the residuals) on a second thread beside the mean pass; :meth:`result` waits for it."""
+
+    def __init__(self, args: tuple[Any, ...]) -> None:
+        self.out: tuple[Any, ...] | None = None
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, args=args, name="joint-covariances")
+        self.thread.start()
+
+    def _run(self, *args: Any) -> None:
+        try:
+            self.out = jp.backward(*args, False)
+        except BaseException as exc:  # re-raised on the thread that waits for it
+            self.error = exc
+
+    def result(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(Pblk, var, Cholesky fallbacks) of the pass, once the thread has finished."""
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+        assert self.out is not None
+        _, Pblk, var, *_, n_fallback = self.out
+        return Pblk, var, int(n_fallback)
+
+
+def _covariances(out: PassResult | None) -> None:
+    """Wait for the smoothed covariances of ``out`` (a pass whose covariance recursion ran on
+    a second thread) and put them in it; its fallback count becomes the larger of the two
+    passes' (and so does its entry's in the iterations, ``out.info``)."""
+    if out is None or out.pending is None:
+        return
+    Pblk, var, n_fallback = out.pending.result()
+    out.pending = None
+    out.Pblk, out.var = Pblk, var
+    out.n_fallback = max(out.n_fallback, n_fallback)
+    if out.info is not None:
+        out.info["cholesky_fallbacks"] = out.n_fallback
+
+
 def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.ndarray,
              xlin: np.ndarray, bufs: tuple[np.ndarray, ...], with_cov: bool,
              first: bool) -> PassResult:
@@ -98,24 +138,12 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
         xs, Pblk, var, _, res, rate, hph, n_fallback = jp.backward(xf, Pf, xp, Pp, *kern_args,
                                                                    True)
     elif with_cov:
-        # the covariance recursion on a second thread (the kernels release the GIL)
-        cov: dict[str, Any] = {}
-
-        def covariances(*args: Any, cov: dict[str, Any] = cov) -> None:
-            try:
-                cov["out"] = jp.backward(*args, False)
-            except BaseException as exc:  # re-raised on the calling thread
-                cov["error"] = exc
-
-        worker = threading.Thread(target=covariances, name="joint-covariances",
-                                  args=(xf, Pf, xp, Pp, *kern_args))
-        worker.start()
+        # the covariance recursion on a second thread (the kernels release the GIL), joined
+        # when its outputs are needed or the buffers are written again (:func:`_covariances`)
+        pending = _CovariancePass((xf, Pf, xp, Pp, *kern_args))
         xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
-        worker.join()
-        if "error" in cov:
-            raise cov["error"]
-        _, Pblk, var, *_, n_fallback_cov = cov["out"]
-        n_fallback = max(n_fallback, n_fallback_cov)
+        return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, None, None,
+                          int(n_fallback), kern_args, scalars, pending)
     else:
         xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
     return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
@@ -261,7 +289,10 @@ def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
     xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
     # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
     # the solution) smooths the states only, the later ones (likely the last) everything
+    _covariances(st.running)   # the last pass's covariance thread reads the buffers
+    st.running = None
     out = _gn_pass(fl, mdl, r, st.weights, xlin, st.bufs, s.estimate_noise or it > 0, it == 0)
+    st.running = out if out.pending is not None else None
     step = _line_search(fl, mdl, st.X, start, out, r, st.weights)
     if not step.ok and s.levenberg_marquardt and start is not None:
         lm = _lm_step(fl, st, mdl, start, r)
@@ -281,6 +312,7 @@ def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
                             "step_size": step.alpha, "lm_lambda": step.lm_lambda,
                             "line_search_evaluations": step.evaluations,
                             "gauss_newton_position_change_m": step.gn_shift_m}
+    out.info = info
     psi_from = 0.0 if st.psi_hat is None else st.psi_hat
     psi_new = np.ascontiguousarray((step.X if step.ok else out.xs)[:, jl.IPSI])
     psi_moved = float(np.max(np.abs(psi_new - psi_from)))
@@ -317,6 +349,7 @@ def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
                                                         initial=0.0)),
                                 st.clock == clock_before and not noise_moved, s, info)
     if not info["_settled"] and (s.estimate_noise or shift > 10.0 * s.converge_m):
+        _covariances(out)
         gust_update(fl, st, out, out.xs if _full_step(step) else X, it)
     return mdl, out, step, info
 
@@ -408,6 +441,8 @@ def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassRes
     step), the smoothed covariances of its linearisation and the noise check."""
     s = fl.settings
     assert st.bufs is not None and st.weights is not None
+    _covariances(out)
+    st.running = None
     xf, Pf, xp, Pp = st.bufs
     full = _full_step(step)
     xs = out.xs if full else step.X

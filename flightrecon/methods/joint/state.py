@@ -31,6 +31,8 @@ class PassResult:
     n_fallback: int
     kern_args: tuple[Any, ...]
     scalars: jl.Scalars
+    pending: Any = None       # the covariance pass still running on its thread (Pblk, var None)
+    info: dict[str, Any] | None = None   # the pass's entry in the iterations
 
 
 @dataclass
@@ -71,6 +73,7 @@ class SmootherState:
     weights: np.ndarray | None = None
     bufs: tuple[np.ndarray, ...] | None = None
     lm_bufs: tuple[np.ndarray, ...] | None = None
+    running: PassResult | None = None   # a pass whose covariance thread reads ``bufs``
     lm_lambda: float = 0.0              # the last accepted Levenberg-Marquardt damping / 10
     converged: bool = False
     reason: str = ""
