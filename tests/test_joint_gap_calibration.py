@@ -244,3 +244,45 @@ def test_the_warm_started_held_out_smoothing_gives_the_whole_iterations_factor()
     assert warm["factor"] == pytest.approx(cold["factor"], rel=0.02)
     assert np.allclose(warm["heldout_rms_m"], cold["heldout_rms_m"], atol=0.5)
     assert 1 <= len(warm["heldout_pass_shifts_m"]) <= len(cold["heldout_pass_shifts_m"])
+
+
+def test_the_held_out_smoothing_reuses_the_runs_fixed_parts_to_the_bit():
+    """The warm start takes the converged run's iteration-independent parts (state grid,
+    increments, attitude means, air-data and baro measurements) when the held-out inputs
+    differ in the GNSS fixes only and the settings in the gust sd only
+    (``smoother._flight_like``): the same held-out run, to the bit, as with the parts built
+    again; any other difference builds them again."""
+    from dataclasses import replace as dc_replace
+
+    from flightrecon.methods.joint import smoother as sm
+    from flightrecon.methods.joint.gap_calibration import heldout_smoothing
+
+    inp, settings, run = _circuit_with_a_gap()
+    assert run.flight is not None
+    inp_h = dc_replace(inp, gnss=inp.gnss.iloc[::2].reset_index(drop=True))
+    s_h = dc_replace(settings, estimate_gust=False,
+                     noise=dc_replace(settings.noise, gust_mps=0.7))
+    reused = sm._flight_like(run.flight, inp_h, s_h)
+    assert reused.Cnb is run.flight.Cnb and reused.static is run.flight.static
+    assert reused.inp is inp_h and reused.settings is s_h and reused.x0 is None
+    # another grid rate, or other inputs than the fixes: built again
+    assert sm._flight_like(run.flight, inp_h, dc_replace(s_h, state_rate_hz=2.0)).Cnb \
+        is not run.flight.Cnb
+    assert sm._flight_like(run.flight, dc_replace(inp_h, tas=inp.tas.copy()), s_h).Cnb \
+        is not run.flight.Cnb
+    warm = heldout_smoothing(inp_h, settings, run)
+    fresh = heldout_smoothing(inp_h, settings, dc_replace(run, flight=None))
+    assert np.array_equal(warm.x, fresh.x) and np.array_equal(warm.var, fresh.var)
+
+
+def test_no_covariance_thread_outlives_the_smoothing():
+    """The passes' covariance recursions run on a second thread that is joined when their
+    outputs are needed or the filter buffers are written again (``smoother._covariances``):
+    none is left when the run is returned, and the run has the smoothed covariances."""
+    import threading
+
+    inp, settings, run = _circuit_with_a_gap()
+    assert not [t for t in threading.enumerate() if t.name == "joint-covariances"]
+    assert run.var is not None and np.all(np.isfinite(run.var))
+    assert np.all(run.var[:, :3] > 0)
+    assert run.cholesky_fallbacks >= 0

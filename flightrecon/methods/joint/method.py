@@ -10,7 +10,7 @@ per-source innovation statistics.
 from __future__ import annotations
 
 import warnings as _warnings
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any
 
 import numpy as np
@@ -176,6 +176,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
         _warnings.warn(attitude_note, FlightReconWarning, stacklevel=2)
     run, settings, wind_rounds = wind_walk_rounds(inp, settings, run)
     run, gap_cal = calibrate_gaps(inp, settings, run)
+    run = replace(run, flight=None)   # its iteration-independent parts go before the track
     track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
