@@ -14,6 +14,7 @@ the withheld fixes' normalised errors give the factor ``f`` of the in-gap excess
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -96,24 +97,34 @@ def pseudo_gaps(inp: JointInputs, gaps: list[tuple[float, float]], *, n_max: int
     return [found[i] for i in pick]
 
 
-def _edge_baseline(T: np.ndarray, P: np.ndarray, a: float, b: float
-                   ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The states strictly inside (a, b) and the covered level there: the covariance ``P``
-    (N, 3, 3) of the last state at or before ``a`` and of the first at or after ``b``,
-    interpolated linearly in time (eq. G1's ``P_b``); None without states on both sides."""
+def _edge_baseline(T: np.ndarray, cov_at: Callable[[np.ndarray], np.ndarray], a: float,
+                   b: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The states strictly inside (a, b) and the covered level there: the covariances
+    ``cov_at(k)`` (K, 3, 3) of the last state at or before ``a`` and of the first at or after
+    ``b``, interpolated linearly in time (eq. G1's ``P_b``); None without states on both
+    sides."""
     i0 = int(np.searchsorted(T, a, side="right")) - 1
     i1 = int(np.searchsorted(T, b, side="left"))
     if i0 < 0 or i1 >= len(T) or i1 - i0 < 2:
         return None
     inside = np.arange(i0 + 1, i1)
     w = ((T[inside] - T[i0]) / (T[i1] - T[i0]))[:, None, None]
-    return inside, (1.0 - w) * P[i0] + w * P[i1]
+    P0, P1 = cov_at(np.array([i0, i1]))
+    return inside, (1.0 - w) * P0 + w * P1
 
 
-def _ned_cov(run: JointRun) -> np.ndarray:
-    """The smoothed position covariance in the local NED frame per state (N, 3, 3)."""
-    C = run.Cen
-    return np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)
+def _ned_cov(run: JointRun, k: np.ndarray) -> np.ndarray:
+    """The smoothed position covariance in the local NED frame at the states ``k`` (K, 3, 3)
+    (each state's on its own: the same numbers whichever states are asked for)."""
+    C = run.Cen[k]
+    return np.einsum("kji,kjl,klm->kim", C, run.P_pv[k, 0:3, 0:3], C)
+
+
+def _around(T: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The states on either side of each time ``t`` (what a linear interpolation in ``T``
+    reads), sorted and unique."""
+    i = np.searchsorted(T, t)
+    return np.unique(np.clip(np.concatenate([i - 1, i]), 0, len(T) - 1))
 
 
 def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
@@ -137,8 +148,9 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
     fx = np.stack(geodetic_to_ecef(g["lat_deg"].to_numpy(float)[sel],
                                    g["lon_deg"].to_numpy(float)[sel], h_s), axis=1)
     d = np.einsum("kji,kj->ki", run.Cen[k], fx - p)[:, :2] - lever[:, :2]
-    Pn = _ned_cov(run)
-    P = np.stack([np.stack([np.interp(tf, T, Pn[:, a, b]) for b in range(3)], axis=1)
+    ks = _around(T, tf)   # the covariance is interpolated to the fixes from these states
+    Pn = _ned_cov(run, ks)
+    P = np.stack([np.stack([np.interp(tf, T[ks], Pn[:, a, b]) for b in range(3)], axis=1)
                   for a in range(3)], axis=1)
     return tf, d, P
 
@@ -170,10 +182,9 @@ def heldout_errors(inp: JointInputs, run: JointRun, stretches: list[tuple[float,
     tg = g["t_s"].to_numpy(float)
     ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
     T = run.t
-    Pn = _ned_cov(run)
     out = []
     for a, b in stretches:
-        base = _edge_baseline(T, Pn, a, b)
+        base = _edge_baseline(T, lambda k: _ned_cov(run, k), a, b)
         sel = np.flatnonzero((tg > a) & (tg < b) & ok)
         if base is None or not len(sel):
             continue
@@ -258,7 +269,7 @@ def apply_factor(run: JointRun, gaps: list[tuple[float, float]], f: float) -> Jo
     var = run.var.copy()
     Ppp = P[:, 0:3, 0:3]
     for a, b in gaps:
-        base = _edge_baseline(T, Ppp, a, b)
+        base = _edge_baseline(T, lambda k: Ppp[k], a, b)
         if base is None:
             continue
         inside, Pb = base
