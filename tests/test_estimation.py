@@ -102,3 +102,28 @@ def test_packed_covariances_round_trip_exactly(n, seed):
     out = np.full((n, n), np.nan)
     unpack_sym(p, out)
     np.testing.assert_array_equal(out, P)
+
+
+@given(st.integers(1, 30), st.integers(0, 2**31 - 1))
+@settings(max_examples=40, deadline=None)
+def test_cholesky_vector_solve_is_the_column_solve_to_the_bit(n, seed):
+    """The mean-only RTS pass's one-vector solve (:func:`cholesky_solve_vector`) gives the
+    numbers of the column solve with one column, to the bit (its results must not move), and
+    solves the system (1e-9 relative to the solution at these conditionings)."""
+    from flightrecon.estimation.linalg import (
+        cholesky_factor,
+        cholesky_solve_columns,
+        cholesky_solve_vector,
+    )
+
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n))
+    P = A @ A.T + n * np.eye(n)
+    b = rng.standard_normal(n)
+    L = np.zeros((n, n))
+    assert cholesky_factor(P, L, 1e-12)
+    x_vec, x_col = np.empty(n), np.empty((n, 1))
+    cholesky_solve_vector(L, b, x_vec)
+    cholesky_solve_columns(L, b.reshape(-1, 1), x_col)
+    np.testing.assert_array_equal(x_vec, x_col[:, 0])
+    np.testing.assert_allclose(P @ x_vec, b, rtol=0, atol=1e-9 * max(1.0, np.abs(b).max()))

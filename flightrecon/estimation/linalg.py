@@ -64,6 +64,25 @@ def cholesky_solve_columns(L, B, X):
 
 
 @nb.njit(cache=True, nogil=True)
+def cholesky_solve_vector(L, b, x):
+    """x = (L L^T)^{-1} b for one right-hand side ``b`` (n,): :func:`cholesky_solve_columns`
+    with one column, the same operations in the same order (so the same numbers to the bit),
+    without the loop over the columns (3 times faster at 26 states: the mean-only RTS
+    pass's solve)."""
+    n = L.shape[0]
+    for i in range(n):
+        v = b[i]
+        for m in range(i):
+            v -= L[i, m] * x[m]
+        x[i] = v * (1.0 / L[i, i])
+    for i in range(n - 1, -1, -1):
+        v = x[i]
+        for m in range(i + 1, n):
+            v -= L[m, i] * x[m]
+        x[i] = v * (1.0 / L[i, i])
+
+
+@nb.njit(cache=True, nogil=True)
 def chol2_into(a: float, b: float, c: float, L: np.ndarray) -> None:
     """Lower Cholesky factor of the PSD 2x2 [[a, b], [b, c]] into ``L`` (semi-definite allowed)."""
     L[0, 1] = 0.0

@@ -37,6 +37,7 @@ import numpy as np
 from flightrecon.estimation.linalg import (
     cholesky_factor,
     cholesky_solve_columns,
+    cholesky_solve_vector,
     solve_sym_eig_into,
 )
 from flightrecon.estimation.manifold import state_minus_into, state_plus_into
@@ -135,7 +136,7 @@ def rts_mean_solve(geom, xp, Pp, xs_next, h_next, rel_tol, L, d, y):
     state_minus_into(geom, xs_next, xp, h_next, d)
     ok = cholesky_factor(Pp, L, rel_tol)
     if ok:
-        cholesky_solve_columns(L, d.reshape((-1, 1)), y.reshape((-1, 1)))
+        cholesky_solve_vector(L, d, y)
     else:
         solve_sym_eig_into(Pp, d.reshape((-1, 1)), FALLBACK_RCOND, y.reshape((-1, 1)))
     return ok
