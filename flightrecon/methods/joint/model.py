@@ -343,11 +343,14 @@ def _cross_times(model, k, y, out, ws):
     z, Pfk = ws[11], ws[10]
     sparse_rmatvec(ws[1], ws[2], ws[3], y, z)
     n = N_STATE
+    # out = sum_b z[b] P_f[b, :] (P_f symmetric): each element the sum over b in order, as
+    # sum_b P_f[a, b] z[b], along contiguous rows (vectorised)
     for a in range(n):
-        v = 0.0
-        for b in range(n):
-            v += Pfk[a, b] * z[b]
-        out[a] = v
+        out[a] = 0.0
+    for b in range(n):
+        zb = z[b]
+        for a in range(n):
+            out[a] += Pfk[b, a] * zb
 
 
 @implements(rts_frame, JointModel, forceinline=True)
