@@ -548,6 +548,10 @@ def test_nose_offset_is_the_angle_between_nose_and_air_velocity(roll, pitch, alp
                       touchdown_t=np.nan, field_h=0.0)
     got = nose_offset(inp)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    # at chosen samples (the air-data measurements'): the whole grid's numbers there
+    pick = np.zeros(n, bool)
+    pick[::7] = True
+    np.testing.assert_array_equal(nose_offset(inp, at=pick), got[pick])
     # about a sin(roll): the nose points to the inside of the turn's air track by that much
     assert abs(want - a * np.sin(np.radians(roll))) <= 0.1 * abs(a) + 1e-12
 

@@ -32,10 +32,12 @@ def nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndar
 
 
 def nose_offset(inp: JointInputs, climb_window_s: float = 2.0,
-                alpha_range_deg: tuple[float, float] = (-10.0, 20.0)) -> np.ndarray:
-    """Heading minus the air velocity's horizontal direction on the input grid [rad], from the
-    angle of attack that the recorded attitude, pressure-altitude rate and airspeed imply
-    (docs/joint.md, "Measurements").
+                alpha_range_deg: tuple[float, float] = (-10.0, 20.0),
+                at: np.ndarray | None = None) -> np.ndarray:
+    """Heading minus the air velocity's horizontal direction on the input grid [rad] (at the
+    input samples ``at``, a boolean mask or indices, when given: the same numbers as the whole
+    grid's there), from the angle of attack that the recorded attitude, pressure-altitude rate
+    and airspeed imply (docs/joint.md, "Measurements").
 
     With no sideslip the air velocity in body axes is V (cos a, 0, sin a); rotated by
     C = R_z(psi) R_y(theta) R_x(phi) its horizontal direction is the heading minus
@@ -51,18 +53,21 @@ def nose_offset(inp: JointInputs, climb_window_s: float = 2.0,
     ``a`` falls outside ``alpha_range_deg`` (a stall, a spin: the heading is not used there
     anyway) the offset is 0.
     """
-    t = inp.t_in
-    phi, theta = np.radians(inp.attitude_deg[:, 0]), np.radians(inp.attitude_deg[:, 1])
+    t_all = inp.t_in
+    sel = slice(None) if at is None else at
+    t = t_all[sel]
+    att = inp.attitude_deg[sel]
+    phi, theta = np.radians(att[:, 0]), np.radians(att[:, 1])
     h = inp.baro_rel_m
     ok_h = np.isfinite(h)
     if ok_h.sum() < 2:
         return np.zeros(len(t))
     half = 0.5 * climb_window_s
-    hp = np.interp(t + half, t[ok_h], h[ok_h])
-    hm = np.interp(t - half, t[ok_h], h[ok_h])
-    span = np.minimum(t + half, t[-1]) - np.maximum(t - half, t[0])
+    hp = np.interp(t + half, t_all[ok_h], h[ok_h])
+    hm = np.interp(t - half, t_all[ok_h], h[ok_h])
+    span = np.minimum(t + half, t_all[-1]) - np.maximum(t - half, t_all[0])
     with np.errstate(invalid="ignore", divide="ignore"):
-        sin_g = np.clip((hp - hm) / np.where(span > 0, span, np.nan) / inp.tas, -1.0, 1.0)
+        sin_g = np.clip((hp - hm) / np.where(span > 0, span, np.nan) / inp.tas[sel], -1.0, 1.0)
         A, B = np.sin(theta), np.cos(phi) * np.cos(theta)
         alpha = np.arccos(np.clip(sin_g / np.hypot(A, B), -1.0, 1.0)) - np.arctan2(B, A)
         delta = np.arctan2(np.sin(phi) * np.sin(alpha),

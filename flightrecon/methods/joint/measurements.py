@@ -217,7 +217,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
         air &= t_in < inp.touchdown_t - settings.crab_s
     psi = inp.heading_rad[air]
     if settings.heading_attack_offset:
-        psi = psi - nose_offset(inp)[air]
+        psi = psi - nose_offset(inp, at=air)
     b.add("air", jl.HEADING, t_in[air], psi, np.radians(nz.heading_deg) ** 2,
           d=inp.tas[air])   # d: the recorded airspeed (the cross-track gust's angle u_c / V)
     # Doppler ground speed and drift (track = heading + drift), at the air-data rate
