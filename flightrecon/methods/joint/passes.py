@@ -13,6 +13,7 @@ mean-only pass.  Both backward passes run with the GIL released (the core's loop
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ from flightrecon.estimation.smoothing import backward_pass
 from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Scalars
 from flightrecon.methods.joint.model import joint_model
 
-__all__ = ["backward", "backward_mean", "filter_buffers", "forward"]
+__all__ = ["BackgroundCovariances", "backward", "backward_mean", "filter_buffers", "forward"]
 
 
 def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ...]:
@@ -109,3 +110,35 @@ def backward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, dyn
     else:
         res_n, res, rate, hph = (np.full(M, np.nan) for _ in range(4))
     return xs, m.Pblk, m.var, res_n, res, rate, hph, n_fallback
+
+
+class BackgroundCovariances:
+    """The RTS covariance pass (:func:`backward`, without the residuals) of the filter
+    buffers ``bufs`` = (xf, Pf, xp, Pp) and the pass's layouts, started on a second thread to
+    run beside the mean pass (:func:`backward_mean`) and whatever follows it until the
+    covariances or the buffers are needed; :meth:`result` waits for it."""
+
+    def __init__(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
+                 geo: Geometry) -> None:
+        self.out: tuple[Any, ...] | None = None
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, args=(bufs, dyn, meas, geo),
+                                       name="joint-covariances")
+        self.thread.start()
+
+    def _run(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
+             geo: Geometry) -> None:
+        try:
+            xf, Pf, xp, Pp = bufs
+            self.out = backward(xf, Pf, xp, Pp, dyn, meas, geo, False)
+        except BaseException as exc:  # re-raised on the thread that waits for it
+            self.error = exc
+
+    def result(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(Pblk, var, Cholesky fallbacks) of the pass, once the thread has finished."""
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+        assert self.out is not None
+        _, Pblk, var, *_, n_fallback = self.out
+        return Pblk, var, int(n_fallback)

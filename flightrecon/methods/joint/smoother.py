@@ -6,14 +6,14 @@ The iterations are an iterated extended Kalman smoother with a line search (Sark
 2020, "Levenberg-Marquardt and line-search extended Kalman smoothers", ICASSP, section 4):
 each pass linearises about the current iterate X and smooths, which gives the Gauss-Newton
 point X_GN; the next iterate is X + alpha (X_GN - X) with alpha = 1, 1/2, 1/4, ... the first
-that does not raise the MAP cost J (:mod:`~flightrecon.methods.joint.cost`).  The robust
+that does not raise the MAP cost J (:mod:`~flightrecon.methods.joint.cost`; the step-size
+control in :mod:`~flightrecon.methods.joint.damping`).  The robust
 weights, the clock offsets, the take-off roll and the noise factors are updated between the
 passes and held fixed within one (the cost is compared under the same ones).
 """
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
@@ -22,19 +22,18 @@ import numpy as np
 from flightrecon.geo.frames import ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import passes as jp
+from flightrecon.methods.joint.damping import full_step, line_search, lm_step
 from flightrecon.methods.joint.gust_rounds import gust_update
 from flightrecon.methods.joint.inputs import JointInputs, TakeoffRoll, end_points, refined_roll
 from flightrecon.methods.joint.linearisation import (
     PassModels,
     SmootherFlight,
-    models_about,
     models_at,
     nominal_states,
     pass_cost,
     pass_scalars,
     scaled_variances,
     smoother_flight,
-    with_pseudo,
 )
 from flightrecon.methods.joint.measurements import Measurements
 from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik, noise_update
@@ -79,32 +78,6 @@ class JointRun:
     flight: SmootherFlight | None = None
 
 
-class _CovariancePass:
-    """The RTS covariance pass (:func:`~flightrecon.methods.joint.passes.backward`, without
-    the residuals) on a second thread beside the mean pass; :meth:`result` waits for it."""
-
-    def __init__(self, args: tuple[Any, ...]) -> None:
-        self.out: tuple[Any, ...] | None = None
-        self.error: BaseException | None = None
-        self.thread = threading.Thread(target=self._run, args=args, name="joint-covariances")
-        self.thread.start()
-
-    def _run(self, *args: Any) -> None:
-        try:
-            self.out = jp.backward(*args, False)
-        except BaseException as exc:  # re-raised on the thread that waits for it
-            self.error = exc
-
-    def result(self) -> tuple[np.ndarray, np.ndarray, int]:
-        """(Pblk, var, Cholesky fallbacks) of the pass, once the thread has finished."""
-        self.thread.join()
-        if self.error is not None:
-            raise self.error
-        assert self.out is not None
-        _, Pblk, var, *_, n_fallback = self.out
-        return Pblk, var, int(n_fallback)
-
-
 def _covariances(out: PassResult | None) -> None:
     """Wait for the smoothed covariances of ``out`` (a pass whose covariance recursion ran on
     a second thread) and put them in it; its fallback count becomes the larger of the two
@@ -143,7 +116,7 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
     elif with_cov:
         # the covariance recursion on a second thread (the kernels release the GIL), joined
         # when its outputs are needed or the buffers are written again (:func:`_covariances`)
-        pending = _CovariancePass((xf, Pf, xp, Pp, *kern_args))
+        pending = jp.BackgroundCovariances((xf, Pf, xp, Pp), *kern_args)
         xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
         return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, None, None,
                           int(n_fallback), kern_args, scalars, pending)
@@ -151,72 +124,6 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
         xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
     return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
                  kern_args, scalars)
-
-
-def _line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
-                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: PassResult,
-                 r: np.ndarray, weights: np.ndarray) -> PassStep:
-    """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
-    X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
-    whose MAP cost does not exceed the cost of X (``start``: its cost, residuals and rates;
-    every cost under this pass's
-    clock offsets, roll, noise factors).  The first pass (no iterate yet) takes the full step;
-    so does every pass with ``line_search`` off (the cost is still evaluated and reported)."""
-    s = fl.settings
-    X_gn = out.xs
-    gn_shift = float(np.max(np.abs(X_gn[:, jl.S_POS] - mdl.pnom)))
-    alpha, evals, gn_cost = 1.0, 0, np.nan
-    while True:
-        Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
-        mc, Xc = models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
-        evals += 1
-        if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
-            res, rate = out.res, out.rate
-            gn_cost = cost["cost"]
-        step = PassStep(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
-        if (X is None or start is None or not s.line_search
-                or (np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"])):
-            return step
-        if evals > s.line_search_halvings:
-            # no step size lowered the cost: the iterate stays (the lowest-cost one)
-            return PassStep(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
-                         gn_cost)
-        del step, mc   # the rejected candidate's models go before the next one's are built
-        alpha *= 0.5
-
-
-def _lm_step(fl: SmootherFlight, st: SmootherState, mdl: PassModels,
-             start: tuple[dict[str, Any], np.ndarray, np.ndarray], r: np.ndarray
-             ) -> PassStep | None:
-    """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
-    the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate,
-    lambda from ``lm_lambda0`` (or ten times the last one) multiplied by 10 until the cost
-    does not exceed the iterate's, at most up to ``lm_lambda_max``; None if none did."""
-    s = fl.settings
-    assert st.X is not None and st.bufs is not None and st.weights is not None
-    if st.lm_bufs is None:  # its own buffers: the plain pass's filter outputs are kept
-        st.lm_bufs = tuple(np.empty_like(b) for b in st.bufs)
-    xf, Pf, xp, Pp = st.lm_bufs
-    assert fl.x0 is not None and fl.P0 is not None
-    sd = np.sqrt(np.diag(fl.P0))
-    lam, evals = max(10.0 * st.lm_lambda, s.lm_lambda0), 0
-    while lam <= s.lm_lambda_max:
-        sc = with_pseudo(pass_scalars(mdl, fl.T, r, st.weights), st.X, sd, lam)
-        jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, st.X)
-        xs = jp.backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
-        mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = pass_cost(fl, mc, Xc, r, st.weights)
-        evals += 1
-        if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
-            st.lm_lambda = lam / 10.0
-            return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan, lam)
-        lam *= 10.0
-    return None
-
-
-def _full_step(step: PassStep) -> bool:  # the accepted iterate is the pass's own smoothed states
-    return step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
 
 
 def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_change: float,
@@ -271,6 +178,22 @@ def _start_cost(fl: SmootherFlight, st: SmootherState, mdl: PassModels, r: np.nd
     return start
 
 
+def _smoothing_pass(fl: SmootherFlight, st: SmootherState, mdl: PassModels, r: np.ndarray,
+                    it: int) -> PassResult:
+    """Pass ``it``'s forward filter and backward pass (:func:`_gn_pass`) on the run's buffers,
+    once the last pass's covariance thread, which reads them, has finished.  EM needs the
+    smoothed covariances in every pass; otherwise the first pass (far from the solution)
+    smooths the states only, the later ones (likely the last) everything."""
+    assert st.bufs is not None and st.weights is not None
+    _covariances(st.running)
+    st.running = None
+    xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
+    out = _gn_pass(fl, mdl, r, st.weights, xlin, st.bufs,
+                   fl.settings.estimate_noise or it > 0, it == 0)
+    st.running = out if out.pending is not None else None
+    return out
+
+
 def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
               ) -> tuple[PassModels, PassResult, PassStep, dict[str, Any]]:
     """One damped Gauss-Newton pass: models about the iterate, its cost, the smoothing pass,
@@ -289,16 +212,10 @@ def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
     if st.X is None and fl.settings.first_pass == "nominal":
         st.X = nominal_states(fl, mdl)
     start = _start_cost(fl, st, mdl, r, reset)
-    xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
-    # EM needs the smoothed covariances in every pass; otherwise the first pass (far from
-    # the solution) smooths the states only, the later ones (likely the last) everything
-    _covariances(st.running)   # the last pass's covariance thread reads the buffers
-    st.running = None
-    out = _gn_pass(fl, mdl, r, st.weights, xlin, st.bufs, s.estimate_noise or it > 0, it == 0)
-    st.running = out if out.pending is not None else None
-    step = _line_search(fl, mdl, st.X, start, out, r, st.weights)
+    out = _smoothing_pass(fl, st, mdl, r, it)
+    step = line_search(fl, mdl, st.X, start, out, r, st.weights)
     if not step.ok and s.levenberg_marquardt and start is not None:
-        lm = _lm_step(fl, st, mdl, start, r)
+        lm = lm_step(fl, st, mdl, start, r)
         if lm is not None:
             step = replace(lm, evaluations=step.evaluations + lm.evaluations,
                            gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
@@ -353,7 +270,7 @@ def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
                                 st.clock == clock_before and not noise_moved, s, info)
     if not info["_settled"] and (s.estimate_noise or shift > 10.0 * s.converge_m):
         _covariances(out)
-        gust_update(fl, st, out, out.xs if _full_step(step) else X, it)
+        gust_update(fl, st, out, out.xs if full_step(step) else X, it)
     return mdl, out, step, info
 
 
@@ -468,7 +385,7 @@ def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassRes
     _covariances(out)
     st.running = None
     xf, Pf, xp, Pp = st.bufs
-    full = _full_step(step)
+    full = full_step(step)
     xs = out.xs if full else step.X
     res = out.res if full else step.res
     Pblk, var, n_fallback = out.Pblk, out.var, out.n_fallback
