@@ -153,3 +153,22 @@ def test_a_failed_child_falls_back_and_a_methods_error_stays_its_own(clean):
     kids._futures["sns"] = own
     with pytest.raises(np.linalg.LinAlgError, match="singular"):
         kids.result("sns", clean, settings)
+
+
+def test_the_first_kernel_loads_on_a_thread_only_from_a_warm_cache(monkeypatch, clean):
+    """numba's first kernel of a run is loaded beside the log's reading only with two workers
+    and only from the cache (compiling it there would hold the interpreter against the
+    reading); the thread is a daemon that ends, and the kernel it names is the cleaning's own,
+    cached one."""
+    mod, name = coldstart.FIRST_KERNEL
+    d = getattr(importlib.import_module(mod), name)
+    assert d._cache._cache_file._index_path.endswith(".nbi")   # a cached kernel
+    assert coldstart.load_first_kernel_early(1) is None
+    monkeypatch.setattr(coldstart, "_cached", lambda spec: False)
+    assert coldstart.load_first_kernel_early(2) is None
+    monkeypatch.setattr(coldstart, "_cached", lambda spec: True)
+    thread = coldstart.load_first_kernel_early(2)
+    assert thread is not None and thread.daemon
+    thread.join(timeout=60)
+    assert not thread.is_alive()
+    assert len(d.signatures) >= 1       # loaded (or compiled, here) in this process

@@ -25,6 +25,7 @@ from __future__ import annotations
 import importlib
 import multiprocessing
 import os
+import threading
 import time
 import warnings
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -46,13 +47,10 @@ KERNEL_SENTINELS: dict[str, tuple[str, ...]] = {
 }
 
 
-def kernels_cached(method: str) -> bool:
-    """True when ``method``'s sentinel kernel has a compiled entry in numba's cache for this
-    source (numba's index file exists and its source stamp matches), or when that cannot be
-    told (then nothing changes: the method runs as on a warm cache)."""
-    spec = KERNEL_SENTINELS.get(method)
-    if spec is None:
-        return True
+def _cached(spec: tuple[str, ...]) -> bool:
+    """True when the kernel ``(module, name[, model class])`` has a compiled entry in numba's
+    cache for this source (numba's index file exists and its source stamp matches; with a
+    model class, that class's specialisation), or when that cannot be told."""
     try:
         dispatcher = getattr(importlib.import_module(spec[0]), spec[1])
         # numba's own index: empty when missing or written for another version of the source
@@ -62,6 +60,43 @@ def kernels_cached(method: str) -> bool:
         return bool(index)
     except Exception:  # noqa: BLE001 - numba internals changed, caching off: do as when warm
         return True
+
+
+def kernels_cached(method: str) -> bool:
+    """True when ``method``'s sentinel kernel has a compiled entry in numba's cache for this
+    source, or when that cannot be told (then nothing changes: the method runs as on a warm
+    cache)."""
+    spec = KERNEL_SENTINELS.get(method)
+    return True if spec is None else _cached(spec)
+
+
+#: the first compiled kernel a reconstruction calls (the cleaning's running median)
+FIRST_KERNEL = ("flightrecon.cleaning.despike", "_running_median_kernel")
+
+
+def _load_first_kernel() -> None:
+    try:
+        import numpy as np
+
+        getattr(importlib.import_module(FIRST_KERNEL[0]), FIRST_KERNEL[1])(np.zeros(3), 1)
+    except Exception:  # noqa: BLE001 - only a head start: the cleaning calls it itself
+        pass
+
+
+def load_first_kernel_early(workers: int) -> threading.Thread | None:
+    """Load the first kernel of a run (:data:`FIRST_KERNEL`) from the cache on a thread while
+    the log is read.  numba sets up its CPU target when a process loads its first kernel (0.2
+    to 0.4 s), which the cleaning would otherwise wait for; reading a log spends part of its
+    time outside the interpreter (Arrow's readers), where the thread runs (docs/performance.md:
+    reading and cleaning the 10-hour flight 0.2 s less).  Only with two ``workers`` and the
+    kernel in the cache (compiling it there would hold the interpreter against the reading; a
+    cold cache has :class:`EarlyChild`).  Returns the thread (a daemon nobody waits for: the
+    cleaning's own call waits on numba's lock where they meet) or None."""
+    if workers < 2 or not _cached(FIRST_KERNEL):
+        return None
+    thread = threading.Thread(target=_load_first_kernel, name="first-kernel", daemon=True)
+    thread.start()
+    return thread
 
 
 #: child processes this process started (the command line's fast exit leaves them to the

@@ -21,7 +21,12 @@ from flightrecon.errors import (
     NoResultError,
 )
 from flightrecon.memory import release_unused
-from flightrecon.pipeline.coldstart import ChildMethods, EarlyChild, child_methods
+from flightrecon.pipeline.coldstart import (
+    ChildMethods,
+    EarlyChild,
+    child_methods,
+    load_first_kernel_early,
+)
 from flightrecon.pipeline.combine import combine
 from flightrecon.pipeline.health import has_finite_track, method_health
 from flightrecon.pipeline.registry import (
@@ -216,7 +221,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
             progress(name)
 
     workers = default_workers() if workers is None else max(1, int(workers))
-    # on a cold kernel cache a child process imports the methods while the log is read
+    # on a cold kernel cache a child process imports the methods while the log is read; on a
+    # warm one numba loads its first kernel meanwhile
+    load_first_kernel_early(workers)
     with warnings.catch_warnings(record=True) as caught, EarlyChild(workers) as early:
         warnings.simplefilter("always")
         flight_warnings, clean, settings, fleet, findings = _load_and_clean(
