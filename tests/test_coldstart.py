@@ -155,7 +155,7 @@ def test_a_failed_child_falls_back_and_a_methods_error_stays_its_own(clean):
         kids.result("sns", clean, settings)
 
 
-def test_the_first_kernel_loads_on_a_thread_only_from_a_warm_cache(monkeypatch, clean):
+def test_the_first_kernel_loads_on_a_thread_only_from_a_warm_cache(monkeypatch):
     """numba's first kernel of a run is loaded beside the log's reading only with two workers
     and only from the cache (compiling it there would hold the interpreter against the
     reading); the thread is a daemon that ends, and the kernel it names is the cleaning's own,
