@@ -286,30 +286,3 @@ def test_no_covariance_thread_outlives_the_smoothing():
     assert run.var is not None and np.all(np.isfinite(run.var))
     assert np.all(run.var[:, :3] > 0)
     assert run.cholesky_fallbacks >= 0
-
-
-def test_the_track_from_state_columns_computed_beside_the_calibration():
-    """run_joint computes the track's state columns on a second thread while the gap
-    calibration smooths once more (``track.track_means``); the calibration changes the
-    covariances only, so the track assembled from those columns is the one computed after
-    it, and columns from other states are refused."""
-    from dataclasses import replace as dc_replace
-    from pathlib import Path
-
-    from flightrecon.cleaning import clean_flight
-    from flightrecon.ingest import load_flight
-    from flightrecon.ingest.gnss_use import GnssUse
-    from flightrecon.methods.joint.gap_calibration import calibrate_gaps
-    from flightrecon.methods.joint.track import joint_track, track_means
-
-    inp, settings, run = _circuit_with_a_gap()
-    samples = Path(__file__).resolve().parents[1] / "sample_logs"
-    clean = clean_flight(load_flight(samples / "circuit.csv",
-                                     gnss_use=GnssUse(withhold_s=((300.0, 420.0),))))
-    means = track_means(clean, run)
-    cal, report = calibrate_gaps(inp, settings, run)
-    assert report is not None and report["factor"] is not None
-    assert cal.x is run.x and not np.array_equal(cal.var, run.var)
-    assert joint_track(clean, cal, means).equals(joint_track(clean, cal))
-    with pytest.raises(ValueError, match="other states"):
-        joint_track(clean, dc_replace(cal, x=cal.x.copy()), means)

@@ -10,7 +10,6 @@ per-source innovation statistics.
 from __future__ import annotations
 
 import warnings as _warnings
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, replace
 from typing import Any
 
@@ -51,7 +50,7 @@ from flightrecon.methods.joint.diagnostics import (
 from flightrecon.methods.joint.flight_inputs import joint_inputs
 from flightrecon.methods.joint.gap_calibration import calibrate_gaps
 from flightrecon.methods.joint.report import corrections_at_middle, fix_report, wind_prior_report
-from flightrecon.methods.joint.track import PREFIX, joint_track, track_means
+from flightrecon.methods.joint.track import PREFIX, joint_track
 from flightrecon.types import CleanFlight, MethodResult
 
 __all__ = ["PREFIX", "run_joint"]
@@ -176,13 +175,9 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     if attitude_note:
         _warnings.warn(attitude_note, FlightReconWarning, stacklevel=2)
     run, settings, wind_rounds = wind_walk_rounds(inp, settings, run)
-    # the track's state columns on a second thread while the gap calibration smooths once
-    # more (it changes the covariances only; its kernels release the interpreter)
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="joint-track") as pool:
-        means = pool.submit(track_means, clean, run)
-        run, gap_cal = calibrate_gaps(inp, settings, run)
+    run, gap_cal = calibrate_gaps(inp, settings, run)
     run = replace(run, flight=None)   # its iteration-independent parts go before the track
-    track = joint_track(clean, run, means.result())
+    track = joint_track(clean, run)
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
     warnings = _run_warnings(run, inp, settings, sources, attitude_note)

@@ -3,9 +3,6 @@ interpolation of the states, their sd in the local level frame, and each sample'
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
-
 import numba as nb
 import numpy as np
 import pandas as pd
@@ -91,18 +88,8 @@ def hermite_kernel(t_out, T, p, v):
     return out
 
 
-@dataclass(frozen=True)
-class TrackMeans:
-    """The columns of the track that the smoothed states give (positions, velocities, wind,
-    sources), without their sd; ``x`` the states they were computed from."""
-
-    columns: dict[str, Any]
-    x: np.ndarray
-
-
-def track_means(clean: CleanFlight, run: JointRun) -> TrackMeans:
-    """The state columns of :func:`joint_track` (positions by cubic Hermite interpolation of
-    the states, velocities and wind interpolated linearly, each sample's sources)."""
+def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
+    """The smoothed trajectory on the input grid, in the output conventions (prefix joint_)."""
     t_out = clean.grid["t_s"].to_numpy(float)
     T = run.t
     x = run.x
@@ -113,39 +100,8 @@ def track_means(clean: CleanFlight, run: JointRun) -> TrackMeans:
     ecef = hermite_positions(t_out, T, x[:, jl.S_POS],
                               np.einsum("kij,kj->ki", run.Cen, x[:, jl.S_VEL]))
     lat, lon, h = ecef_to_geodetic(ecef[:, 0], ecef[:, 1], ecef[:, 2])
-    e, n, u = output_plane(clean.meta).forward(lat, lon, h)
-    p = PREFIX
-    cols = {"t_s": t_out, p + "north_m": n, p + "east_m": e, p + "up_m": u,
-            p + "vn_mps": interp(x[:, jl.IV]), p + "ve_mps": interp(x[:, jl.IV + 1]),
-            p + "vu_mps": -interp(x[:, jl.IV + 2]),
-            p + "lat_deg": lat, p + "lon_deg": lon, p + "alt_m": h,
-            p + "wind_n_mps": interp(x[:, jl.IW]), p + "wind_e_mps": interp(x[:, jl.IW + 1]),
-            p + "sources": pd.array(provenance(run, t_out), dtype="string")}
-    return TrackMeans(cols, x)
-
-
-#: the columns of the joint's track, in their order (all but the time with :data:`PREFIX`)
-_COLUMNS = ("t_s", "north_m", "east_m", "up_m", "north_sd_m", "east_sd_m", "up_sd_m",
-            "vn_mps", "ve_mps", "vu_mps", "vn_sd_mps", "ve_sd_mps", "vu_sd_mps",
-            "lat_deg", "lon_deg", "alt_m", "wind_n_mps", "wind_e_mps",
-            "wind_n_sd_mps", "wind_e_sd_mps", "sources")
-
-
-def joint_track(clean: CleanFlight, run: JointRun, means: TrackMeans | None = None
-                ) -> pd.DataFrame:
-    """The smoothed trajectory on the input grid, in the output conventions (prefix joint_):
-    the state columns (``means``, :func:`track_means` of a run with the same states; computed
-    here without it) and their sd from the run's covariances."""
-    if means is None:
-        means = track_means(clean, run)
-    if means.x is not run.x:
-        raise ValueError("the track's state columns were computed from other states")
-    t_out = means.columns["t_s"]
-    T = run.t
-
-    def interp(v):
-        return np.interp(t_out, T, v)
-
+    plane = output_plane(clean.meta)
+    e, n, u = plane.forward(lat, lon, h)
     C = run.Cen
     # ECEF -> local NED (P_pv holds the position and velocity blocks, in that order)
     Pp = np.einsum("kji,kjl,klm->kim", C, run.P_pv[:, 0:3, 0:3], C)
@@ -153,11 +109,17 @@ def joint_track(clean: CleanFlight, run: JointRun, means: TrackMeans | None = No
     sd_vel = np.sqrt(np.maximum(run.var[:, jl.S_VEL], 0.0))
     sd_w = np.sqrt(np.maximum(run.var[:, jl.S_WIND], 0.0))
     p = PREFIX
-    cols = dict(means.columns)
-    cols.update({p + "north_sd_m": interp(sd_pos[:, 0]), p + "east_sd_m": interp(sd_pos[:, 1]),
-                 p + "up_sd_m": interp(sd_pos[:, 2]),
-                 p + "vn_sd_mps": interp(sd_vel[:, 0]), p + "ve_sd_mps": interp(sd_vel[:, 1]),
-                 p + "vu_sd_mps": interp(sd_vel[:, 2]),
-                 p + "wind_n_sd_mps": interp(sd_w[:, 0]), p + "wind_e_sd_mps": interp(sd_w[:, 1])})
-    names = ["t_s"] + [p + c for c in _COLUMNS[1:]]
-    return pd.DataFrame({name: cols[name] for name in names}, copy=False)
+    cols = {"t_s": t_out,
+            p + "north_m": n, p + "east_m": e, p + "up_m": u,
+            p + "north_sd_m": interp(sd_pos[:, 0]), p + "east_sd_m": interp(sd_pos[:, 1]),
+            p + "up_sd_m": interp(sd_pos[:, 2]),
+            p + "vn_mps": interp(x[:, jl.IV]), p + "ve_mps": interp(x[:, jl.IV + 1]),
+            p + "vu_mps": -interp(x[:, jl.IV + 2]),
+            p + "vn_sd_mps": interp(sd_vel[:, 0]), p + "ve_sd_mps": interp(sd_vel[:, 1]),
+            p + "vu_sd_mps": interp(sd_vel[:, 2]),
+            p + "lat_deg": lat, p + "lon_deg": lon, p + "alt_m": h,
+            p + "wind_n_mps": interp(x[:, jl.IW]), p + "wind_e_mps": interp(x[:, jl.IW + 1]),
+            p + "wind_n_sd_mps": interp(sd_w[:, 0]), p + "wind_e_sd_mps": interp(sd_w[:, 1])}
+    out = pd.DataFrame(cols, copy=False)
+    out[p + "sources"] = pd.array(provenance(run, t_out), dtype="string")
+    return out
