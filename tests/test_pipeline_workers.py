@@ -46,25 +46,3 @@ def test_a_numerical_failure_is_that_methods_error_not_the_runs(monkeypatch):
     assert "sns" not in results and "joint" in results and len(track)
     with pytest.raises(np.linalg.LinAlgError):
         reconstruct_clean(clean, ReconstructSettings(strict=True), workers=1)
-
-
-def test_an_error_of_the_health_checks_stops_the_run(monkeypatch):
-    """Each method's health is judged on its own thread as soon as it is done (beside the
-    methods still running); an error of the checks themselves is still raised by the run
-    (a bug, not the method's failure: a ValueError there is not reported as the method's
-    ``failed`` status), and the health judged on the thread is the one of the result."""
-    import pytest
-
-    from flightrecon.pipeline import run as prun
-
-    clean = clean_flight(load_flight(LOG))
-    _, results, status = reconstruct_clean(clean, ReconstructSettings(), workers=2)
-    for m, res in results.items():
-        assert status[m]["health"] == prun.method_health(res, clean)
-
-    def broken(res, clean):
-        raise ValueError("health check bug")
-
-    monkeypatch.setattr(prun, "method_health", broken)
-    with pytest.raises(ValueError, match="health check bug"):
-        reconstruct_clean(clean, ReconstructSettings(), workers=2)

@@ -105,27 +105,19 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     child = ChildMethods(child_methods(chosen, workers, early_started=early is not None),
                          clean, settings, early)
 
-    def run(name: str) -> tuple[MethodResult, dict[str, Any] | None, BaseException | None]:
-        """The method's result and its health, judged on the method's thread beside the
-        methods still running, or the health checks' error (raised again on the calling
-        thread: it stops the run, it is not the method's own failure)."""
+    def run(name: str) -> MethodResult:
         if progress:
             progress(name)
         if child.handles(name):
-            res = child.result(name, clean, settings)
-        else:
-            try:
-                res = run_method(name, clean, settings)
-            finally:
-                # what the method freed stays in its thread's malloc arena (the CLI does not
-                # let glibc trim), where the other thread's estimator cannot reuse it: handed
-                # back, so that a finished method's peak does not add to the one still
-                # running (docs/performance.md, 10-hour flight: peak 1128 -> 993 MiB)
-                release_unused()
+            return child.result(name, clean, settings)
         try:
-            return res, method_health(res, clean), None
-        except BaseException as exc:  # noqa: BLE001 - raised again on the calling thread
-            return res, None, exc
+            return run_method(name, clean, settings)
+        finally:
+            # what the method freed stays in its thread's malloc arena (the CLI does not let
+            # glibc trim), where the other thread's estimator cannot reuse it: handed back, so
+            # that a finished method's peak does not add to the one still running
+            # (docs/performance.md, 10-hour flight: peak 1128 -> 993 MiB)
+            release_unused()
 
     # with two threads the joint smoother, the longest, starts first and runs beside the others
     order = sorted(chosen, key=lambda name: name != "joint") if workers > 1 else chosen
@@ -133,7 +125,7 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
         futures = {m: pool.submit(run, m) for m in order}
     for m in chosen:
         try:
-            res, health, health_error = futures[m].result()
+            res = futures[m].result()
         except NUMERICAL_FAILURES as exc:
             # one method's failure (bad data it cannot use, or a numerical breakdown: a
             # singular matrix, an overflow) is that method's error, not the whole run's
@@ -143,10 +135,8 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
                 f"numerical failure ({type(exc).__name__}): {exc}")
             status[m] = {"status": "failed", "reason": reason}
             continue
-        if health_error is not None:
-            raise health_error
-        assert health is not None
         results[m] = res
+        health = method_health(res, clean)
         status[m] = {**res.summary, "status": "ok" if health["healthy"] else "unhealthy",
                      "health": health}
         if not health["healthy"]:
