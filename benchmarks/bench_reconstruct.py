@@ -12,7 +12,8 @@ no arrival airfield (a GNSS-only flight, as a cruise segment comes: the frame's 
 first fix, ``--departure`` is not needed), so the Sabziev fusion, which needs the end points,
 does not run; the joint smoother and SNS do.  Stages timed: ingest, cleaning,
 kinematics, each estimator (filter + smoother), combine, export; then the whole
-``flightrecon reconstruct`` command in another subprocess.
+``python -m flightrecon reconstruct`` command in another subprocess (the console command, with
+its own start-up, kernel compilation level and exit; its peak RSS that child's own).
 
 The reference: filterpy's ``KalmanFilter.batch_filter`` + ``rts_smoother`` on a 4-state
 constant-velocity model with as many steps as the 10-hour flight has samples, timed in the same
@@ -107,22 +108,24 @@ def _child(hours: float, workdir: str) -> dict:
 
 
 def _cli_time(hours: float, workdir: str) -> tuple[float, float]:
+    """Wall time [s] and peak RSS [MiB] of the console command ``python -m flightrecon
+    --quiet reconstruct`` on the ``hours``-long log: what a user runs (its start-up, its
+    compilation level, its exit), the peak from the kernel's accounting of that one child
+    (``os.wait4``)."""
     log = Path(workdir) / f"longhaul_{hours:g}h.parquet"
     out = Path(workdir) / f"cli_{hours:g}h.parquet"
-    t0 = time.perf_counter()
-    cmd = [sys.executable, "-c",
-           "import resource,sys;from flightrecon.cli.main import main;\n"
-           "try:\n main(sys.argv[1:])\n"
-           "except SystemExit as e:\n"
-           " print('RSS', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss/1024, file=sys.stderr)"
-           "; raise",
-           "--quiet", "reconstruct", str(log), "-o", str(out)]
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    dt = time.perf_counter() - t0
-    if p.returncode != 0:
-        raise SystemExit(f"reconstruct failed on {log}:\n{p.stderr}")
-    rss = float([ln for ln in p.stderr.splitlines() if ln.startswith("RSS")][-1].split()[1])
-    return dt, rss
+    cmd = [sys.executable, "-m", "flightrecon", "--quiet", "reconstruct", str(log),
+           "-o", str(out)]
+    with tempfile.TemporaryFile() as err:
+        t0 = time.perf_counter()
+        p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
+        _, status, usage = os.wait4(p.pid, 0)
+        dt = time.perf_counter() - t0
+        p.returncode = os.waitstatus_to_exitcode(status)
+        if p.returncode != 0:
+            err.seek(0)
+            raise SystemExit(f"reconstruct failed on {log}:\n{err.read().decode()}")
+    return dt, usage.ru_maxrss / 1024.0
 
 
 def filterpy_reference(n_steps: int, dt: float = 1 / 16) -> float:
