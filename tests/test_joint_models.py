@@ -1041,3 +1041,27 @@ def test_a_landing_roll_angled_off_the_runway_loosens_its_cross_track_rows():
     assert len(g["t"]) > 20
     np.testing.assert_allclose(g["r"], s.noise.ground_mps ** 2
                                + (40.0 * np.sin(np.radians(6.0))) ** 2, rtol=1e-9)
+
+
+def test_background_covariance_pass_raises_its_error_where_it_is_joined(monkeypatch):
+    """The covariance pass on its second thread (``passes.BackgroundCovariances``): its
+    outputs come back from :meth:`result`, and an error of the pass is raised there, on the
+    thread that waits for it, not lost with its thread."""
+
+    from flightrecon.methods.joint import passes as jp
+
+    def fake(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
+        assert residuals is False
+        return xf, "Pblk", "var", None, None, None, None, 3
+
+    monkeypatch.setattr(jp, "backward", fake)
+    bufs = tuple(np.zeros((2, 2)) for _ in range(4))
+    assert jp.BackgroundCovariances(bufs, None, None, None).result() == ("Pblk", "var", 3)
+
+    def broken(*args):
+        raise np.linalg.LinAlgError("not positive definite")
+
+    monkeypatch.setattr(jp, "backward", broken)
+    job = jp.BackgroundCovariances(bufs, None, None, None)
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        job.result()
