@@ -12,6 +12,7 @@ import numpy as np
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import TakeoffRoll
 from flightrecon.methods.joint.linearisation import PassModels
+from flightrecon.methods.joint.passes import BackgroundCovariances
 
 
 @dataclass
@@ -31,7 +32,8 @@ class PassResult:
     n_fallback: int
     kern_args: tuple[Any, ...]
     scalars: jl.Scalars
-    pending: Any = None       # the covariance pass still running on its thread (Pblk, var None)
+    pending: BackgroundCovariances | None = None  # its covariance pass, still on its thread
+    #                                               (Pblk and var None until joined)
     info: dict[str, Any] | None = None   # the pass's entry in the iterations
 
 
