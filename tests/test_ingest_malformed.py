@@ -67,10 +67,13 @@ def _binary(tmp):
     return [tmp / "bin.csv"]
 
 
-def _latin1(tmp):
+def _c1_byte(tmp):
+    # a byte no 8-bit text encoding gives (0x81: undefined in Windows-1252, a C1 control code
+    # in Latin-1) on line 6; a Latin-1 / Windows-1252 file is read (tests/test_garmin_layouts.py)
     lines = CSV_TEXT.splitlines()
-    lines[5] = lines[5] + "é"          # a Latin-1 byte on line 6 = data row 5
-    (tmp / "l.csv").write_bytes(("\n".join(lines) + "\n").encode("latin-1"))
+    body = ("\n".join(lines[:5]) + "\n").encode("ascii")
+    (tmp / "l.csv").write_bytes(body + lines[5].encode("ascii") + b"\x81\n"
+                                + ("\n".join(lines[6:]) + "\n").encode("ascii"))
     return [tmp / "l.csv"]
 
 
@@ -338,7 +341,7 @@ CASES = [
     ("header-only", _header_only, 3, ["no data rows"]),
     ("whitespace-only", _blank, 3, ["empty file"]),
     ("binary-garbage", _binary, 3, ["bin.csv"]),
-    ("latin1-encoding", _latin1, 3, ["not valid UTF-8", "line 6", "data row 5", "Windows-1252"]),
+    ("undecodable-byte", _c1_byte, 3, ["byte 0x81", "line 6", "byte offset", "Windows-1252"]),
     ("utf16-encoding", _utf16, 3, ["UTF-16"]),
     ("parquet-named-csv", _parquet_named_csv, 3, ["Parquet file named '.csv'"]),
     ("truncated-parquet", _truncated_parquet, 3, ["truncated or corrupt Parquet"]),

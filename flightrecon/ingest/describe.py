@@ -34,6 +34,16 @@ def channel_stats(t: np.ndarray, v: np.ndarray) -> dict[str, Any]:
     return out
 
 
+def _recorder(rec: dict[str, Any] | None) -> dict[str, str]:
+    """The recorder's variant and each convention read with its evidence (a Garmin export:
+    ``flightrecon.ingest.garmin``), as ``conventions`` entries."""
+    if not rec:
+        return {}
+    out = {"recorder": str(rec.get("variant", ""))}
+    out.update({f"recorded {k}": str(v) for k, v in rec.get("conventions", {}).items()})
+    return out
+
+
 def describe_flight(flight: Flight) -> dict[str, Any]:
     """JSON-serialisable description of ``flight`` (what ``flightrecon info`` prints)."""
     d = flight.data
@@ -60,6 +70,7 @@ def describe_flight(flight: Flight) -> dict[str, Any]:
             "gnss_alt_m": f"datum: {flight.meta.gnss_alt_datum}",
             "heading_deg": "true, clockwise from north, [0, 360)",
             "body_axes": "FRD; n_norm_g = -f_z/g0 (+1 at rest)",
+            **_recorder(extra.get("recorder")),
             "conversions": list(extra.get("ingest_notes", [])),
         },
         "repairs": list(extra.get("ingest_repairs", [])),

@@ -2,8 +2,9 @@
 
 The format is taken from the suffix (``.csv``/``.txt`` -> CSV, ``.parquet``/``.pq`` -> Parquet)
 and checked against the content: a Parquet file (magic bytes ``PAR1``) named ``.csv``, a binary
-file, a file that is not UTF-8 text or a truncated Parquet file is an :class:`InputFileError`
-naming the file (exit code 3).  Rows with the wrong number of fields are reported with their
+file, bytes that are text in no encoding read here or a truncated Parquet file is an
+:class:`InputFileError` naming the file (exit code 3).  Text is UTF-8; a file a Windows tool
+wrote in Windows-1252 / Latin-1 is read with a warning naming the encoding (:func:`decode_text`).  Rows with the wrong number of fields are reported with their
 1-based data row numbers (header excluded).
 
 Numeric columns are float64.  Empty cells (and Parquet nulls and NaN) mean "not sampled in this
@@ -11,8 +12,9 @@ row", which is normal in multi-rate logs.  In a CSV that uses empty cells for th
 ``NaN`` written by the recorder is an invalid value: it is kept apart in
 :attr:`RawTable.nan_text` so that validation can tell it from a missing sample.
 Text cells that are not numbers are kept as text, and validation reports them; a cell of
-spaces only is an empty cell.  A Garmin glass-cockpit export (``#airframe_info`` first line,
-then a units line, then the header) is read with its units line and airframe line kept
+spaces only is an empty cell.  A Garmin avionics export (``#airframe_info`` or ``#info`` first
+line, then a units line and the short names, or the long names with their units and the short
+names: :mod:`.garmin_layout`) is read with its units and information line kept
 (:attr:`RawTable.units`, :attr:`RawTable.preamble`).  A last row cut short (fewer fields than
 the header and no line end: the recorder stopped while writing it) is dropped with a warning.
 """
@@ -33,8 +35,9 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from flightrecon.errors import InputFileError, SchemaError
+from flightrecon.ingest.garmin_layout import is_garmin_export, parse_layout
 
-__all__ = ["RawTable", "read_table", "sniff_format"]
+__all__ = ["RawTable", "decode_text", "read_table", "sniff_format"]
 
 PARQUET_MAGIC = b"PAR1"
 CSV_SUFFIXES = (".csv", ".txt", ".tsv")
@@ -63,6 +66,8 @@ class RawTable:
         then a units line, then the header; :mod:`flightrecon.ingest.garmin`), else ``""``
     units : source column -> unit text of the file's own units line (Garmin exports)
     preamble : ``key=value`` pairs of a Garmin ``#airframe_info`` line (aircraft, software)
+    long_names : source column -> long name with its unit (Garmin long-name layouts)
+    layout : how a Garmin export names its columns (:mod:`.garmin_layout`), else ``""``
     warnings : repairs made while reading (a short last row dropped), each naming its row
     header_line : 1-based line of the header in the file (data row k is line
         ``header_line + k``)
@@ -79,6 +84,8 @@ class RawTable:
     dialect: str = ""
     units: dict[str, str] = field(default_factory=dict)
     preamble: dict[str, str] = field(default_factory=dict)
+    long_names: dict[str, str] = field(default_factory=dict)
+    layout: str = ""
     warnings: tuple[str, ...] = ()
     header_line: int = 1
 
@@ -143,38 +150,61 @@ def read_table(path: str | os.PathLike) -> RawTable:
 # ------------------------------------------------------------------------------------ CSV
 
 
-def _decode_check(raw: bytes, file: str) -> int:
-    """Check that ``raw`` is UTF-8 text; return the length of a UTF-8 BOM to skip (0 or 3)."""
+#: 8-bit encodings Windows tools write, tried in this order on a file that is not UTF-8
+#: (Windows-1252 is Latin-1 with printable characters where Latin-1 has C1 controls)
+LEGACY_ENCODINGS = ("cp1252",)
+#: bytes Windows-1252 leaves undefined (Latin-1's C1 controls there: never text)
+_CP1252_UNDEFINED = frozenset(b"\x81\x8d\x8f\x90\x9d")
+
+
+def _where(raw: bytes, pos: int) -> str:
+    line = raw.count(b"\n", 0, pos) + 1
+    return f"byte offset {pos} (line {line})"
+
+
+def decode_text(raw: bytes, file: str) -> tuple[bytes, str | None]:
+    """``raw`` as UTF-8 bytes without a BOM, and the warning when it was not UTF-8.
+
+    UTF-8 (with or without its BOM) is read as it is.  A file that is not UTF-8 but decodes as
+    Windows-1252 (or Latin-1, its printable subset from 0xA0: the degree sign 0xB0 of a header
+    such as ``OAT (\u00b0C)``) is read in that encoding with a warning naming it and its first
+    such byte.  Refused (:class:`InputFileError`, exit 3, naming the byte offset and the line):
+    UTF-16, NUL bytes (binary), bytes no 8-bit text encoding gives (0x81, 0x8D, 0x8F, 0x90,
+    0x9D: C1 control codes), and a file mixing UTF-8 with another encoding.
+    """
     if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
         raise InputFileError("file is UTF-16 encoded; re-save it as UTF-8 (CSV text)", file=file)
     nul = raw.find(b"\x00", 0, 1 << 20)
     if nul >= 0:
-        line = raw.count(b"\n", 0, nul) + 1
-        raise InputFileError(f"not a text file: NUL byte at byte {nul} (line {line}); "
-                             "binary data or a wrong encoding", file=file)
+        raise InputFileError(f"not a text file: NUL byte at {_where(raw, nul)}; binary data or "
+                             "a wrong encoding", file=file)
     bom = 3 if raw[:3] == b"\xef\xbb\xbf" else 0
-    if len(raw) > bom and int(np.frombuffer(raw, dtype=np.uint8, offset=bom).max()) < 0x80:
-        return bom                     # plain ASCII (the usual case): valid UTF-8, no decoding
+    body = raw[bom:]
+    if not body or int(np.frombuffer(body, dtype=np.uint8).max()) < 0x80:
+        return body, None            # plain ASCII (the usual case): valid UTF-8, no decoding
     try:
-        raw[bom:].decode("utf-8")
+        body.decode("utf-8")
+        return body, None
     except UnicodeDecodeError as exc:
         pos = bom + exc.start
-        line = raw.count(b"\n", 0, pos) + 1
-        hint = ""
-        try:
-            raw[bom:].decode("cp1252")
-            hint = " (it decodes as Windows-1252/Latin-1: re-save it as UTF-8)"
-        except UnicodeDecodeError:
-            hint = " (binary data?)"
-        row_txt = f"; data row {line - 1}" if line > 1 else " (header)"
-        raise InputFileError(f"not valid UTF-8 text at byte {pos}, line {line}{row_txt}{hint}",
-                             file=file) from None
-    return bom
-
-
-#: first bytes of a Garmin glass-cockpit export (G1000, G3X, Perspective): an airframe line,
-#: a units line starting with ``#``, then the header line
-GARMIN_MAGIC = b"#airframe_info"
+    high = np.flatnonzero(np.frombuffer(raw[:pos], dtype=np.uint8) >= 0x80)
+    if bom or high.size:
+        raise InputFileError(f"not valid UTF-8 at {_where(raw, pos)} (byte 0x{raw[pos]:02X}), "
+                             "although the text before it is UTF-8: mixed encodings; re-save "
+                             "it as UTF-8", file=file)
+    bad = next((i for i in range(pos, len(raw)) if raw[i] in _CP1252_UNDEFINED), None)
+    if bad is not None:
+        raise InputFileError(f"byte 0x{raw[bad]:02X} at {_where(raw, bad)} is text in no "
+                             "encoding flightrecon reads (not UTF-8, Windows-1252 or Latin-1: "
+                             "a C1 control code; binary data?)", file=file)
+    text = body.decode(LEGACY_ENCODINGS[0])
+    c1 = np.frombuffer(body, dtype=np.uint8)
+    name = ("Windows-1252" if ((c1 >= 0x80) & (c1 < 0xA0)).any()
+            else "Windows-1252 / Latin-1 (ISO-8859-1)")
+    return text.encode("utf-8"), (f"{file}: not UTF-8: read as {name} (first byte outside "
+                                  f"UTF-8: 0x{raw[pos]:02X} '{raw[pos:pos + 1].decode('cp1252')}'"
+                                  f" at {_where(raw, pos)}); re-save it as UTF-8 to be sure of "
+                                  "its text")
 
 
 def _read_csv(p: Path) -> RawTable:
@@ -183,23 +213,28 @@ def _read_csv(p: Path) -> RawTable:
         raw = p.read_bytes()
     except OSError as exc:
         raise InputFileError(f"cannot read: {exc.strerror}", file=file) from None
-    bom = _decode_check(raw, file)
-    body = raw[bom:]
+    body, enc_warn = decode_text(raw, file)
     if not body[:65536].strip() and not body.strip():
         raise InputFileError("empty file (no header, no data)", file=file)
-    preamble: list[str] = []
-    if body.startswith(GARMIN_MAGIC):
-        # airframe line and units line before the header (flightrecon/ingest/garmin.py)
-        for _ in range(2):
-            nl = body.find(b"\n")
+    layout = None
+    if is_garmin_export(body[:64]):
+        # information line, then one or two lines of names (and units) before the data
+        # (flightrecon/ingest/garmin_layout.py)
+        head, cut = [], 0
+        for _ in range(3):
+            nl = body.find(b"\n", cut)
             if nl < 0:
-                raise InputFileError("Garmin export with no header line after its "
-                                     "#airframe_info and units lines", file=file)
-            preamble.append(body[:nl].decode("utf-8").rstrip("\r"))
-            body = body[nl + 1:]
-        if not preamble[1].startswith("#"):
-            raise InputFileError("Garmin export: line 2 should be the units line (starting "
-                                 f"with '#'), found: {preamble[1][:60]!r}", file=file)
+                break
+            head.append(body[cut:nl].decode("utf-8").rstrip("\r"))
+            cut = nl + 1
+        if len(head) < 2:
+            raise InputFileError("Garmin export with no column names after its information "
+                                 "line", file=file)
+        delim = _sniff_delimiter(head[1] if not head[1].startswith("#") else head[-1])
+        layout = parse_layout(head, delim)
+        skip = layout.header_lines - 1     # lines before the names line
+        for _ in range(skip):
+            body = body[body.find(b"\n") + 1:]
     first_nl = body.find(b"\n")
     header = body if first_nl < 0 else body[:first_nl]
     if first_nl < 0 or not body[first_nl + 1:first_nl + 65537].strip() \
@@ -207,8 +242,13 @@ def _read_csv(p: Path) -> RawTable:
         raise InputFileError("no data rows (header only)", file=file)
     delim = _sniff_delimiter(header.decode("utf-8"))
     names = [h.strip().strip('"') for h in header.decode("utf-8").rstrip("\r").split(delim)]
+    if layout is not None:
+        names = list(layout.names)
     _check_names(names, file)
-    body, warns = _drop_short_last_row(body, len(names), delim, file, len(preamble) + 1)
+    header_line = layout.header_lines if layout is not None else 1
+    body, warns = _drop_short_last_row(body, len(names), delim, file, header_line)
+    if enc_warn:
+        warns.insert(0, enc_warn)
     read_opts = pacsv.ReadOptions(column_names=names, skip_rows=1, block_size=1 << 24)
     parse_opts = pacsv.ParseOptions(delimiter=delim, ignore_empty_lines=False)
     conv_opts = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True,
@@ -222,23 +262,11 @@ def _read_csv(p: Path) -> RawTable:
             _raise_ragged(buf, names, delim, body, file)
         raise InputFileError(f"cannot parse CSV: {exc}", file=file) from None
     table = _from_arrow(tbl, file, "csv")
-    extra: dict = {"warnings": tuple(warns), "header_line": len(preamble) + 1}
-    if preamble:
-        units = [u.strip() for u in preamble[1].lstrip("#").split(delim)]
-        extra.update(dialect="garmin", preamble=_airframe_info(preamble[0]),
-                     units={n: (units[i] if i < len(units) else "") for i, n in
-                            enumerate(names)})
+    extra: dict = {"warnings": tuple(warns), "header_line": header_line}
+    if layout is not None:
+        extra.update(dialect="garmin", preamble=dict(layout.info), units=dict(layout.units),
+                     long_names=dict(layout.long_names), layout=layout.layout)
     return dataclasses.replace(table, **extra)
-
-
-def _airframe_info(line: str) -> dict[str, str]:
-    """``key=value`` / ``key="value"`` pairs of a Garmin ``#airframe_info`` line."""
-    out: dict[str, str] = {}
-    for part in line.split(",")[1:]:
-        k, eq, v = part.partition("=")
-        if eq and k.strip():
-            out[k.strip()] = v.strip().strip('"')
-    return out
 
 
 def _drop_short_last_row(body: bytes, n_fields: int, delim: str, file: str,

@@ -18,9 +18,11 @@ import numpy as np
 
 from flightrecon.errors import MetadataError, SchemaError
 from flightrecon.ingest.garmin import (
+    GarminReading,
     altimeter_settings_hpa,
     apply_garmin_columns,
     garmin_mapping,
+    garmin_reading,
     merge_with_user,
 )
 from flightrecon.ingest.mapping import MappedTable, Mapping
@@ -61,14 +63,16 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
     warns += list(raw.warnings)
     mp = user_mp
     garmin_used: tuple[str, ...] = ()
+    reading: GarminReading | None = None
     if raw.dialect == "garmin":
-        mp = merge_with_user(garmin_mapping(raw), user_mp)
-        garmin_used = tuple(c for c in ("MagVar", "BaroA", "GndSpd", "TRK", "GPSfix")
-                            if c in raw.columns)
-        notes.append(f"{log}: Garmin export ({raw.preamble.get('airframe_name', 'airframe ?')}"
-                     f", software {raw.preamble.get('system_software_part_number', '?')}) read "
-                     "with the built-in mapping" + (" under the user's mapping" if user_mp
-                                                    else ""))
+        reading = garmin_reading(raw)
+        mp = merge_with_user(garmin_mapping(raw, reading), user_mp)
+        garmin_used = tuple(reading.roles[r] for r in ("magvar", "baro_set", "gs", "trk", "fix",
+                                                       "alt_msl", "vel_n", "vel_e")
+                            if r in reading.roles)
+        notes.append(f"{log}: Garmin export: {reading.variant}; read with the built-in mapping"
+                     + (" under the user's mapping" if user_mp else ""))
+        warns += [f"{log}: {w}" for w in reading.warnings]
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
                      f"{raw.blank_rows[0]})")
@@ -83,9 +87,10 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
                           rows=exc.rows) from None
     if raw.nan_is_missing:
         notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
-    if raw.dialect == "garmin" and mp is not None:
-        mt = apply_garmin_columns(raw, mt, mp, withhold_gnss)
-        meta = _qnh_from_setting(meta, altimeter_settings_hpa(raw, mt), notes)
+    if reading is not None and mp is not None:
+        mt = apply_garmin_columns(raw, mt, mp, withhold_gnss, reading, warns)
+        meta = _qnh_from_setting(meta, altimeter_settings_hpa(raw, mt, reading), notes)
+        meta = _garmin_meta(meta, reading, notes)
     withheld: set[str] = set()
     if withhold_gnss:
         kept = _without_gnss(mt)
@@ -240,6 +245,25 @@ def _qnh_from_setting(meta: FlightMeta, settings: tuple[float, float] | None,
             notes.append(f"{key} = {given:.1f} hPa as given (sidecar or command line); the "
                          f"altimeter setting BaroA in use at the {where} is {val:.1f} hPa")
     return dataclasses.replace(meta, **out) if out else meta
+
+
+def _garmin_meta(meta: FlightMeta, rd: GarminReading, notes: list[str]) -> FlightMeta:
+    """The aircraft a Garmin export names (where the sidecar gives none: it wins), the GPS
+    height's datum its data show, and the variant and conventions read, for ``info``
+    (``extra["recorder"]``)."""
+    out: dict[str, Any] = {}
+    ident = rd.identity
+    if meta.aircraft_id is None and ident.get("aircraft_id"):
+        out["aircraft_id"] = ident["aircraft_id"]
+        notes.append(f"aircraft_id = {ident['aircraft_id']}: the {ident['id_from']} of the "
+                     "export's information line (a sidecar's [flight] aircraft_id wins)")
+    if rd.gnss_datum == "msl" and meta.gnss_alt_datum == "ellipsoid":
+        out["gnss_alt_datum"] = "msl"
+    recorder = {"variant": rd.variant, **{k: v for k, v in ident.items() if k != "id_from"},
+                "conventions": {c.quantity: c.text() for c in rd.conventions}}
+    if rd.undulation_m is not None:
+        recorder["recorded_undulation_m"] = round(rd.undulation_m, 1)
+    return dataclasses.replace(meta, **out, extra={**meta.extra, "recorder": recorder})
 
 
 def _without_gnss(mt: MappedTable) -> MappedTable:
