@@ -67,7 +67,8 @@ def errors_to_gps(track: pd.DataFrame, g: pd.DataFrame) -> tuple[np.ndarray, np.
 def test_info_reads_the_export_as_recorded(capsys):
     code, out, err = run_cli(["info", str(LOG)], capsys)
     assert code == 0, err
-    assert re.search(r"rows:\s+2839\n", out) and "Garmin export: G1000 / G1000 NXi / Perspective (GIFD, Cirrus SR22 Turbo)" in out
+    assert re.search(r"rows:\s+2839\n", out)
+    assert "Garmin export: G1000 / G1000 NXi / Perspective (GIFD, Cirrus SR22 Turbo)" in out
     assert "cut short" in err and "clock steps back" in err
 
 

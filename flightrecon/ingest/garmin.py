@@ -61,7 +61,7 @@ from flightrecon.ingest.garmin_checks import (
     normal_load_offset,
     track_reference,
 )
-from flightrecon.ingest.garmin_time import whole_second_jitter
+from flightrecon.ingest.garmin_time import motion_period_s, motion_rows, regular_rows
 from flightrecon.ingest.mapping import ChannelSpec, MappedTable, Mapping, TimeSpec
 from flightrecon.ingest.readers import RawTable
 from flightrecon.ingest.units import Unit, lookup_unit, to_canonical
@@ -166,7 +166,7 @@ def _resolve(raw: RawTable) -> dict[str, str]:
         return re.sub(r"\s+", " ", x.strip().lower())
 
     by_name = {key(c): c for c in raw.columns}
-    by_long = {}
+    by_long: dict[str, str] = {}
     for c, ln in raw.long_names.items():
         by_long.setdefault(key(re.sub(r"\s*\([^()]*\)\s*$", "", ln)), c)
     out: dict[str, str] = {}
@@ -517,14 +517,20 @@ def apply_garmin_columns(raw: RawTable, mt: MappedTable, used: Mapping,
 
     The variation and the setting are interpolated in time over the rows they miss.  Not
     applied to the GNSS channels when ``withhold_gnss``.  Whole-second stamps that jitter
-    across the second are re-timed first (:func:`.garmin_time.whole_second_jitter`; the
-    warning saying so is appended to ``warns``).
+    about a regular 1 Hz series are re-timed first at the rows' period
+    (:func:`.garmin_time.regular_rows`; the warning saying so is appended to ``warns``).
     """
     rd = reading if reading is not None else garmin_reading(raw)
     roles = rd.roles
     if mt.time_kind == "timestamp" and used.time is not None \
             and used.time.column in (roles.get("time"), roles.get("utc_time")):
-        t_new, note = whole_second_jitter(mt.time)
+        lat, lon, gs = (_si(raw, roles, k) for k in ("lat", "lon", "gs"))
+        period, between = None, None
+        if lat is not None and lon is not None and gs is not None:
+            lat, lon, gs = lat[mt.rows - 1], lon[mt.rows - 1], gs[mt.rows - 1]
+            period = motion_period_s(lat, lon, gs)
+            between = motion_rows(lat, lon, gs, period) if period is not None else None
+        t_new, note = regular_rows(mt.time, period, between)
         if note is not None:
             mt = dataclasses.replace(mt, time=t_new)
             if warns is not None:
@@ -553,8 +559,8 @@ def apply_garmin_columns(raw: RawTable, mt: MappedTable, used: Mapping,
         s_pa = _filled(tsec, setting[mt.rows - 1])
         vals["baro_alt_m"] = pressure_altitude_from_indicated(vals["baro_alt_m"], s_pa)
         notes.append(f"baro_alt_m <- {roles['alt_ind']} at the altimeter setting "
-                     f"{roles['baro_set']} ({np.nanmin(s_pa) / 100:.1f}..{np.nanmax(s_pa) / 100:.1f}"
-                     " hPa) -> pressure altitude (ISA)")
+                     f"{roles['baro_set']} ({np.nanmin(s_pa) / 100:.1f}.."
+                     f"{np.nanmax(s_pa) / 100:.1f} hPa) -> pressure altitude (ISA)")
     if not withhold_gnss and "gnss_lat_deg" in own:
         _gnss_columns(raw, mt, rd, magvar, vals, src, notes)
     if "gnss_alt_m" in own:

@@ -204,9 +204,10 @@ def altitude_datum(alt_m: np.ndarray, alt_p_m: np.ndarray, msl_m: np.ndarray,
                f"{abs(d):.0f} m): read as {builtin} (the built-in convention)")
         return builtin, Convention(column, builtin, "built-in", ev, msg)
     found = "indicated" if abs(r_ind) < abs(r_p) else "pressure"
+    what = "an indicated altitude" if found == "indicated" else "a pressure altitude"
     warn = None if found == builtin else (
-        f"{column}: {ev}: the column is {'an indicated altitude' if found == 'indicated' else 'a pressure altitude'}"
-        f", not {builtin} as the built-in convention says: read so")
+        f"{column}: {ev}: the column is {what}, not {builtin} as the built-in convention "
+        "says: read so")
     return found, Convention(column, found, "data", ev, warn)
 
 

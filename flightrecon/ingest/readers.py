@@ -4,8 +4,9 @@ The format is taken from the suffix (``.csv``/``.txt`` -> CSV, ``.parquet``/``.p
 and checked against the content: a Parquet file (magic bytes ``PAR1``) named ``.csv``, a binary
 file, bytes that are text in no encoding read here or a truncated Parquet file is an
 :class:`InputFileError` naming the file (exit code 3).  Text is UTF-8; a file a Windows tool
-wrote in Windows-1252 / Latin-1 is read with a warning naming the encoding (:func:`decode_text`).  Rows with the wrong number of fields are reported with their
-1-based data row numbers (header excluded).
+wrote in Windows-1252 / Latin-1 is read with a warning naming the encoding
+(:func:`decode_text`).  Rows with the wrong number of fields are reported with their 1-based
+data row numbers (header excluded).
 
 Numeric columns are float64.  Empty cells (and Parquet nulls and NaN) mean "not sampled in this
 row", which is normal in multi-rate logs.  In a CSV that uses empty cells for that, a literal

@@ -259,10 +259,11 @@ def _garmin_meta(meta: FlightMeta, rd: GarminReading, notes: list[str]) -> Fligh
                      "export's information line (a sidecar's [flight] aircraft_id wins)")
     if rd.gnss_datum == "msl" and meta.gnss_alt_datum == "ellipsoid":
         out["gnss_alt_datum"] = "msl"
-    recorder = {"variant": rd.variant, **{k: v for k, v in ident.items() if k != "id_from"},
-                "conventions": {c.quantity: c.text() for c in rd.conventions}}
+    recorder: dict[str, Any] = {"variant": rd.variant,
+                                **{k: v for k, v in ident.items() if k != "id_from"},
+                                "conventions": {c.quantity: c.text() for c in rd.conventions}}
     if rd.undulation_m is not None:
-        recorder["recorded_undulation_m"] = round(rd.undulation_m, 1)
+        recorder["recorded_undulation_m"] = float(np.round(rd.undulation_m, 1))
     return dataclasses.replace(meta, **out, extra={**meta.extra, "recorder": recorder})
 
 
