@@ -72,7 +72,9 @@ def regular_rows(t_ns: np.ndarray, period_s: float | None = None,
     times unchanged and ``None`` otherwise.
 
     Applied when the stamps are whole seconds, their median step is 1 s, at least
-    :data:`MIN_REPEATS` of them repeat the one before and the skipped seconds (steps of 2-3 s)
+    :data:`MIN_REPEATS` of them repeat the one before without the next one skipping a second
+    at once (that pattern alone the time-order repair of :mod:`.timestamps` re-times onto the
+    missing stamp, exactly), and the skipped seconds (steps of 2-3 s)
     number at least half the repeats (the lost seconds come back: a regular series, not a
     coarse clock).  ``period_s``: the rows' period measured otherwise
     (:func:`motion_period_s`); default the stamps' mean step within the runs.  A row is lost
@@ -86,7 +88,10 @@ def regular_rows(t_ns: np.ndarray, period_s: float | None = None,
     d = np.diff(s)
     repeats = int((d == 0).sum())
     skipped = int(((d >= 2) & (d <= GAP_S)).sum())
-    if np.median(d) != 1.0 or repeats < MIN_REPEATS * t.size or skipped < 0.5 * repeats:
+    # a repeat followed at once by a skip (t, t, t + 2) is the time-order repair's to re-time
+    # onto the missing stamp (:mod:`.timestamps`); the rest call for the rows' period
+    unpaired = repeats - int(((d[:-1] == 0) & (d[1:] == 2)).sum())
+    if np.median(d) != 1.0 or unpaired < MIN_REPEATS * t.size or skipped < 0.5 * repeats:
         return t, None
     inside = (d >= 0) & (d <= GAP_S)
     lost = (d == GAP_S).astype(float)            # a step of 3 s: one row lost
