@@ -31,6 +31,8 @@ REST_MPS = 0.26
 FAST_MPS = 25.0
 #: fewest rows a decision rests on
 MIN_ROWS = 20
+#: smallest variation [deg] by which the GPS track tells a magnetic track from a true one
+SEPARATION_DEG = 0.5
 
 
 @dataclass(frozen=True)
@@ -142,8 +144,12 @@ def track_reference(trk_deg: np.ndarray, var_deg: np.ndarray, lat_deg: np.ndarra
     positions above :data:`FAST_MPS`: of ``TRK``, ``TRK + var`` and ``TRK - var`` (``var`` the
     recorded variation, else the WMM's) the one whose median difference is nearest zero.
 
+    Both tracks are the GPS's, so they agree to about 0.1 deg with no drift angle between
+    them: the data tell when the hypotheses are :data:`SEPARATION_DEG` apart or more (the
+    variation's size) and the nearest is within a quarter of that (and 1.5 deg) of zero.
+
     Returns ``(reference, variation sign or None, convention)``; the sign (+1: east positive)
-    when the track is magnetic and the hypotheses are apart by more than 1 deg.
+    when the track is magnetic.
     """
     trk, var, gs = (np.asarray(x, float) for x in (trk_deg, var_deg, gs_mps))
     ptrk = _positions_track(np.asarray(lat_deg, float), np.asarray(lon_deg, float))
@@ -159,7 +165,7 @@ def track_reference(trk_deg: np.ndarray, var_deg: np.ndarray, lat_deg: np.ndarra
     ev = (f"median difference from the track of consecutive GPS positions over "
           f"{int(ok.sum())} rows faster than {FAST_MPS:.0f} m/s: TRK {med['true']:+.2f} deg, "
           f"TRK + variation {med['magnetic']:+.2f} deg")
-    if sep < 1.0 or abs(med[best]) > max(1.5, 0.5 * sep):
+    if sep < SEPARATION_DEG or abs(med[best]) > min(1.5, 0.25 * sep):
         msg = (f"{column}: {ev}: the variation ({sep:.1f} deg) is too small or the track too "
                f"far off to tell true from magnetic: read as {builtin} (the built-in "
                "convention)")
