@@ -355,3 +355,16 @@ def test_jittering_whole_second_stamps_are_re_timed_at_the_rows_period():
     coarse = (1.3e9 + np.floor(np.arange(3000) / 4.0)).astype(np.int64) * 1_000_000_000
     same, none = regular_rows(coarse, 1.0)
     assert none is None and np.array_equal(same, coarse)
+
+
+def test_one_column_files_with_a_windows_1252_header_are_read(tmp_path):
+    """Every CSV reader path: a folder of one-column files whose header has a degree sign in
+    Windows-1252 (before: the file left out as not numeric)."""
+    d = tmp_path / "rec"
+    d.mkdir()
+    for name in ("Pitch", "Roll"):
+        (d / f"{name}.csv").write_bytes(f"{name} (\u00b0)\n".encode("cp1252")
+                                        + b"".join(f"{i * 0.1:.1f}\n".encode() for i in range(50)))
+    raw = read_table(d)
+    assert set(raw.columns) == {"Pitch", "Roll"} and raw.n_rows == 50
+    assert raw.columns["Roll"][10] == pytest.approx(1.0)

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from flightrecon.errors import InputFileError
+from flightrecon.ingest.readers import decode_text
 
 __all__ = ["FOLDER_SUFFIXES", "read_folder"]
 
@@ -37,9 +38,9 @@ FOLDER_SUFFIXES = (".csv", ".txt", ".dat")
 def _one_column(path: Path) -> np.ndarray | None:
     """The numbers of a one-column text file (a first line of text is a header), or
     ``None`` when the file is not one numeric column."""
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError):
+    try:        # UTF-8, or a Windows tool's Windows-1252 / Latin-1 (its header only is text)
+        text = decode_text(path.read_bytes(), str(path))[0].decode("utf-8")
+    except (OSError, InputFileError):
         return None
     lines = text.splitlines()
     while lines and not lines[-1].strip():

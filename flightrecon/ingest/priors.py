@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import warnings
 from itertools import pairwise
 from pathlib import Path
 
@@ -26,11 +27,13 @@ import numpy as np
 import pandas as pd
 
 from flightrecon.errors import (
+    FlightReconWarning,
     InputFileError,
     MetadataError,
     SchemaError,
     ValidationError,
 )
+from flightrecon.ingest.readers import decode_text
 from flightrecon.types import FlightMeta, PositionFix, WindLevel
 
 __all__ = ["DEFAULT_FIX_SD_M", "DEFAULT_WIND_SD_MPS", "check_fix_times", "parse_fix",
@@ -112,11 +115,14 @@ def read_wind_table(path: str | os.PathLike[str]) -> tuple[WindLevel, ...]:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        body, enc_warn = decode_text(path.read_bytes(), str(path))
     except FileNotFoundError:
         raise InputFileError("winds-aloft file not found", file=str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise InputFileError(f"cannot read the winds-aloft file: {exc}", file=str(path)) from None
+    if enc_warn:                        # a Windows tool's Windows-1252 / Latin-1 text
+        warnings.warn(enc_warn, FlightReconWarning, stacklevel=2)
+    text = body.decode("utf-8")
     reader = csv.reader(line for line in text.splitlines() if line.strip())
     try:
         header = [h.strip() for h in next(reader)]
