@@ -288,11 +288,11 @@ def _direction_conventions(raw: RawTable, roles: dict[str, str], layout_g1000: b
     convs: list[Convention] = []
     mv = _si(raw, roles, "magvar")
     wmm = _wmm_declination(raw, roles)
-    sign = 1.0
+    sign, wmm_told = 1.0, False
     if mv is not None and wmm is not None:
         s_wmm, c = magvar_sign_wmm(mv, wmm, roles["magvar"])
         convs.append(c)
-        sign = s_wmm if s_wmm is not None else 1.0
+        sign, wmm_told = (s_wmm, True) if s_wmm is not None else (1.0, False)
     track = "magnetic" if layout_g1000 else "true"
     trk, gs = _si(raw, roles, "trk"), _si(raw, roles, "gs")
     lat, lon = _si(raw, roles, "lat"), _si(raw, roles, "lon")
@@ -302,10 +302,10 @@ def _direction_conventions(raw: RawTable, roles: dict[str, str], layout_g1000: b
         track, s_trk, c = track_reference(trk, var, lat, lon, gs, track, roles["trk"])
         convs.append(c)
         if s_trk is not None and s_trk < 0 and mv is not None:
-            if convs[0].basis == "data":
-                convs.append(Convention(roles["magvar"], "east positive as the WMM says",
-                                        "data", "the track fits the variation of the other "
-                                        "sign", f"{roles['magvar']}: the WMM and the GPS track "
+            if wmm_told:
+                convs.append(Convention(f"{roles['magvar']} sign", "as the WMM says", "data",
+                                        "the GPS track fits the variation of the other sign",
+                                        f"{roles['magvar']}: the WMM and the GPS track "
                                         "disagree on the variation's sign: the WMM's taken"))
             else:
                 sign = -sign
