@@ -368,3 +368,25 @@ def test_one_column_files_with_a_windows_1252_header_are_read(tmp_path):
     raw = read_table(d)
     assert set(raw.columns) == {"Pitch", "Roll"} and raw.n_rows == 50
     assert raw.columns["Roll"][10] == pytest.approx(1.0)
+
+
+def test_standalone_instrument_info_line_and_utc_columns(export, reference, tmp_path):
+    """A standalone instrument's log (``#info`` line, the names twice, UTC date and time
+    columns and no local time, after a public converter writing that format): read in UTC."""
+    ex, meta = export
+    lines = _g3x_text(ex, meta).split("\r\n")
+    swap = {"Date (yyyy-mm-dd)": "UTC Date", "Time (hh:mm:ss)": "UTC Time",
+            "Lcl Date": "UTC Date", "Lcl Time": "UTC Time"}
+    names = [swap.get(c, c) for c in lines[2].split(",")]
+    longs = [swap.get(c, c) for c in lines[1].split(",")]
+    keep = [i for i, c in enumerate(names) if c != "UTCOfst"]
+    rows = [",".join(r.split(",")[i] for i in keep) for r in lines[3:] if r]
+    info = '#info,log_version="1.00",software_part_number="006-B2304-23",software_version="6.40"'
+    p = _write(tmp_path, "g5.csv", "\n".join([info, ",".join(longs[i] for i in keep),
+                                                ",".join(names[i] for i in keep), *rows]) + "\n")
+    raw = read_table(p)
+    assert raw.layout == "long and short names" and "UTC Time" in raw.columns
+    fl, _ = _load(p)
+    assert fl.meta.epoch_utc == reference.meta.epoch_utc       # the export's offset is +00:00
+    _same_channels(fl, reference, tol_alt_m=0.16)
+    assert fl.meta.aircraft_id is None                         # nothing names the aircraft
