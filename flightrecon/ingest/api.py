@@ -101,7 +101,8 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     data, repairs = validated_frame(src, values, warns, notes, declared_units(mp, src),
                                     door, use, gnss_rec)
     _check_priors(meta, data, warns)
-    lat, lon = (data[c].to_numpy(float) if c in data else np.array([])
+    has_fixes = {"gnss_lat_deg", "gnss_lon_deg"} <= set(data.columns)
+    lat, lon = (data[c].to_numpy(float) if has_fixes else np.array([])
                 for c in ("gnss_lat_deg", "gnss_lon_deg"))
     meta = with_flight_geoid(meta, lat, lon,       # EGM96 unless given (flightrecon.geo.geoid)
                              "geoid_undulation_m" in (sc.given if sc is not None else ())
