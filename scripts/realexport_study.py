@@ -131,27 +131,38 @@ def recorded_msl(log: Path, flight: Any) -> pd.DataFrame:
     return d.dropna().reset_index(drop=True)
 
 
-def result_ne(result: Path, clean: Any, t: np.ndarray) -> tuple[np.ndarray, ...]:
-    """A written result's position (north, east in ``clean``'s output plane) and reported sd
-    per axis at ``t``, and its ``alt_msl_m`` (:func:`with_utc_and_msl`)."""
+def result_ne(result: Path, clean: Any, ref: pd.DataFrame) -> tuple[np.ndarray, ...]:
+    """A written result against the GPS ``ref`` (``clean``'s plane) at its times: its offset
+    north and east of each fix [m] (from latitude and longitude with the WGS-84 radii of
+    curvature at the fix: a result without heights, such as a 2-D track, is measured too),
+    its reported sd per axis, and its ``alt_msl_m`` (:func:`with_utc_and_msl`)."""
     from flightrecon.export.writers import read_parquet_metadata, with_utc_and_msl
     from flightrecon.geo.frames import output_plane
+    from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 
-    tr = pd.read_parquet(result)
-    tr = with_utc_and_msl(tr, read_parquet_metadata(result))
-    e, n, _ = output_plane(clean.meta).forward(tr.lat_deg.to_numpy(float),
-                                               tr.lon_deg.to_numpy(float),
-                                               tr.alt_m.to_numpy(float))
+    tr = with_utc_and_msl(pd.read_parquet(result), read_parquet_metadata(result))
+    t = ref.t_s.to_numpy(float)
+    lat_g, lon_g, _ = output_plane(clean.meta).inverse(ref.e.to_numpy(float),
+                                                       ref.n.to_numpy(float),
+                                                       ref.u.to_numpy(float))
     ts = tr.t_s.to_numpy(float)
-    return tuple(np.interp(t, ts, v) for v in
-                 (n, e, tr.north_sd_m.to_numpy(float), tr.east_sd_m.to_numpy(float),
-                  tr.alt_msl_m.to_numpy(float)))
+    lat, lon, sdn, sde, msl = (np.interp(t, ts, tr[c].to_numpy(float)) for c in
+                               ("lat_deg", "lon_deg", "north_sd_m", "east_sd_m", "alt_msl_m"))
+    w = 1.0 - WGS84_E2 * np.sin(np.radians(lat_g)) ** 2
+    n_radius = WGS84_A / np.sqrt(w)
+    dn = np.radians(lat - lat_g) * n_radius * (1.0 - WGS84_E2) / w
+    de = np.radians(lon - lon_g) * n_radius * np.cos(np.radians(lat_g))
+    return dn, de, sdn, sde, msl
 
 
-def msl_errors(result: Path, clean: Any, rec: pd.DataFrame) -> dict[str, float]:
+def msl_errors(result: Path, rec: pd.DataFrame) -> dict[str, Any]:
     """``alt_msl_m`` of a result against the export's ``AltMSL`` over the record."""
-    *_, msl = result_ne(result, clean, rec.t_s.to_numpy())
-    d = msl - rec.alt_msl.to_numpy()
+    from flightrecon.export.writers import read_parquet_metadata, with_utc_and_msl
+
+    t = rec.t_s.to_numpy(float)
+    tr = with_utc_and_msl(pd.read_parquet(result), read_parquet_metadata(result))
+    d = np.interp(t, tr.t_s.to_numpy(float), tr.alt_msl_m.to_numpy(float)) \
+        - rec.alt_msl.to_numpy()
     ok = np.isfinite(d)          # a result without heights (its method's track is 2-D)
     if not ok.any():
         return {"fixes": 0, "fixes_without_result": int(ok.size),
@@ -168,9 +179,9 @@ def horizontal(result: Path, clean: Any, ref: pd.DataFrame, mask: np.ndarray | N
     plane) over ``mask``, and its mean NEES per axis (the fixes' own sd :data:`REF_SD`)."""
     from flightrecon.export.writers import read_parquet_metadata
 
-    n, e, sdn, sde, _ = result_ne(result, clean, ref.t_s.to_numpy())
+    dn, de, sdn, sde, _ = result_ne(result, clean, ref)
     m = np.ones(len(ref), bool) if mask is None else mask
-    dn, de = n[m] - ref.n.to_numpy()[m], e[m] - ref.e.to_numpy()[m]
+    dn, de = dn[m], de[m]
     h = np.hypot(dn, de)
     return {"method": (read_parquet_metadata(result).get("result") or {}).get("method"),
             "rms_m": float(np.sqrt(np.mean(h ** 2))), "max_m": float(np.max(h)),
@@ -197,7 +208,7 @@ def recorder_only(log: Path, flight: Any, work: Path, rec: pd.DataFrame | None
         out["result"] = horizontal(res, clean, ref)
         out["ratio_to_dr"] = out["result"]["rms_m"] / out["dr_linear"]["rms_h_m"]
         if rec is not None:
-            out["alt_msl"] = msl_errors(res, clean, rec)
+            out["alt_msl"] = msl_errors(res, rec)
     return out
 
 
@@ -254,7 +265,7 @@ def study(log: Path, work: Path) -> dict[str, Any]:
     if out["gnss"]["exit"] == 0:
         out["gnss"]["result"] = horizontal(res, clean, ref)
         if rec is not None:
-            out["gnss"]["alt_msl"] = msl_errors(res, clean, rec)
+            out["gnss"]["alt_msl"] = msl_errors(res, rec)
     for key, fn in (("recorder", lambda: recorder_only(log, flight, work, rec)),
                     ("gap_runs", lambda: gaps(log, clean, ref, work))):
         try:
