@@ -84,7 +84,10 @@ class FlightMeta:
     baro_datum : ``"pressure"`` (1013.25 hPa) unless the log says otherwise
     qnh_departure_hpa, qnh_arrival_hpa : sea-level pressure at the airfields, where known
     geoid_undulation_m : ellipsoidal height minus MSL height in the area of the flight (one value
-        per flight; no geoid grid is shipped, so 0 unless given)
+        per flight: the sidecar's or the command line's, else EGM96's at the departure or the
+        first GNSS fix, :mod:`flightrecon.geo.geoid`; 0 for a flight with no position)
+    geoid_model : ``"EGM96"`` when the undulation is the model's (the results' ``alt_msl_m``
+        then takes the model's N at each sample), ``None`` when given
     fixes : known positions at given times (:class:`PositionFix`, ``--fix``), sorted by time
     attitude_source : what measured roll and pitch: ``"ahrs"`` (an attitude and heading
         reference that erects on the accelerometers, wrong after sustained loads), ``"inertial"``
@@ -107,6 +110,7 @@ class FlightMeta:
     qnh_departure_hpa: float | None = None
     qnh_arrival_hpa: float | None = None
     geoid_undulation_m: float = 0.0
+    geoid_model: str | None = None
     attitude_source: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     fixes: tuple[PositionFix, ...] = ()

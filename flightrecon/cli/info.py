@@ -87,7 +87,8 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool, no_gnss: bo
         if m.get(k) is not None:
             click.echo(f"{k + ':':10s} {position_text(m[k])}")
     if m.get("geoid_undulation_m") is not None:
-        click.echo(f"{'geoid:':10s} undulation {m['geoid_undulation_m']:g} m (ellipsoid - MSL)")
+        click.echo(f"{'geoid:':10s} undulation {m['geoid_undulation_m']:g} m (ellipsoid - MSL"
+                   + (f", {m['geoid_model']}" if m.get("geoid_model") else "") + ")")
     header = (f"{'channel':20s} {'unit':5s} {'kind':11s} {'samples':>8s} {'rate_hz':>8s} "
               f"{'gaps':>5s} {'longest_gap_s':>13s} {'min':>10s} {'max':>10s}")
     click.echo(header)

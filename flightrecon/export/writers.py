@@ -116,8 +116,12 @@ def with_utc_and_msl(track: pd.DataFrame, metadata: Mapping[str, Any]) -> pd.Dat
             out.insert(out.columns.get_loc("t_s") + 1, "time_utc", utc)
     n = fl.get("geoid_undulation_m")
     if "alt_m" in out.columns and "alt_msl_m" not in out.columns and isinstance(n, (int, float)):
+        if fl.get("geoid_model") and {"lat_deg", "lon_deg"} <= set(out.columns):
+            from flightrecon.geo.geoid import undulation_m   # the model's N at each sample
+
+            n = undulation_m(out["lat_deg"].to_numpy(float), out["lon_deg"].to_numpy(float))
         out.insert(out.columns.get_loc("alt_m") + 1, "alt_msl_m",
-                   out["alt_m"].to_numpy(float) - float(n))
+                   out["alt_m"].to_numpy(float) - n)
     return out
 
 

@@ -17,9 +17,11 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from flightrecon.errors import FlightReconWarning, MetadataError
+from flightrecon.geo.geoid import with_flight_geoid
 from flightrecon.ingest.door import DoorCheck
 from flightrecon.ingest.frame import declared_units, derived_channels, validated_frame
 from flightrecon.ingest.gnss_use import GnssUse
@@ -99,6 +101,12 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     data, repairs = validated_frame(src, values, warns, notes, declared_units(mp, src),
                                     door, use, gnss_rec)
     _check_priors(meta, data, warns)
+    has_fixes = {"gnss_lat_deg", "gnss_lon_deg"} <= set(data.columns)
+    lat, lon = (data[c].to_numpy(float) if has_fixes else np.array([])
+                for c in ("gnss_lat_deg", "gnss_lon_deg"))
+    meta = with_flight_geoid(meta, lat, lon,       # EGM96 unless given (flightrecon.geo.geoid)
+                             "geoid_undulation_m" in (sc.given if sc is not None else ())
+                             or overrides.get("geoid_undulation_m") is not None, notes)
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "ingest_repairs": [r.as_dict() for r in repairs],
                                             "door": [c.as_dict() for c in door],

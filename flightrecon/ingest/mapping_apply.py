@@ -37,7 +37,8 @@ def identity_specs(columns, exclude: set[str]) -> list[ChannelSpec]:
 
 
 def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None = None,
-                  mapping_file: str | None = None) -> MappedTable:
+                  mapping_file: str | None = None, warns: list[str] | None = None
+                  ) -> MappedTable:
     """Map the raw columns of one file to canonical channels.
 
     Parameters
@@ -47,6 +48,7 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
     group : ``"gnss"`` or ``"radar"`` for a separate measurement file: only that group's
         channels are taken from it
     mapping_file : for messages
+    warns : list the time's warnings are added to (an ambiguous date's order guessed)
 
     Raises
     ------
@@ -71,13 +73,13 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
                        bad_text={k: (m[keep], t) for k, (m, t) in raw.bad_text.items()},
                        nan_is_missing=raw.nan_is_missing)
         rows = rows[keep]
-    time = _convert_time(raw, tspec, rows)
+    notes: list[str] = []
+    time = _convert_time(raw, tspec, rows, warns, notes)
     values: dict[str, np.ndarray] = {}
     nan_text: dict[str, np.ndarray] = {}
     source: dict[str, str] = {}
     derived: dict[str, str] = {}
     magnetic: list[str] = []
-    notes: list[str] = []
     for s in specs:
         if s.derived_from is not None:
             derived[s.channel] = s.derived_from
@@ -252,7 +254,9 @@ def _numeric(col: np.ndarray, file: str, name: str, rows: np.ndarray,
     return num
 
 
-def _convert_time(raw: RawTable, tspec: TimeSpec, rows: np.ndarray) -> np.ndarray:
+def _convert_time(raw: RawTable, tspec: TimeSpec, rows: np.ndarray,
+                  warns: list[str] | None = None, notes: list[str] | None = None
+                  ) -> np.ndarray:
     """Seconds (float64) or UTC nanoseconds (int64) of every row; missing/bad times raise."""
     col = raw.columns[tspec.column]
     file = raw.file
@@ -260,7 +264,8 @@ def _convert_time(raw: RawTable, tspec: TimeSpec, rows: np.ndarray) -> np.ndarra
         from flightrecon.ingest.time_cells import combine_date_time
 
         return combine_date_time(raw, tspec.column, tspec.date_column,
-                                 tspec.utc_offset_column, tspec.format, rows)
+                                 tspec.utc_offset_column, tspec.format, rows, warns,
+                                 notes)
     if tspec.unit == "s":
         if np.issubdtype(col.dtype, np.datetime64):
             raise ValidationError("time column holds timestamps: set unit = \"timestamp\" in the "

@@ -86,6 +86,8 @@ class Sidecar:
     files: dict[str, Path]
     warnings: tuple[str, ...] = ()
     gnss: GnssUse | None = None
+    #: the [flight] keys the file gives (a default is not a value given)
+    given: frozenset[str] = frozenset()
 
 
 def parse_position(text: str, *, what: str = "position") -> Position:
@@ -264,7 +266,8 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
         if k not in ("flight", "departure", "arrival", "station", "files", "gnss"):
             extra[k] = v
     meta = FlightMeta(**kw, extra=extra)
-    return Sidecar(path=file, meta=meta, files=files, warnings=tuple(warns), gnss=gnss)
+    return Sidecar(path=file, meta=meta, files=files, warnings=tuple(warns), gnss=gnss,
+                   given=frozenset(kw))
 
 
 def _ground_distance_m(a: Position, b: Position) -> float:

@@ -30,7 +30,7 @@ from flightrecon.ingest.mapping_apply import apply_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.sidecar import normalise_epoch
-from flightrecon.ingest.time_cells import unset_clock_rows
+from flightrecon.ingest.time_cells import place_time_of_day, unset_clock_rows
 from flightrecon.ingest.timestamps import repair_time_order
 from flightrecon.ingest.validate import check_required, check_time
 from flightrecon.schema import GROUPS
@@ -78,13 +78,14 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
                      f"{raw.blank_rows[0]})")
     raw = _drop_unset_clock(raw, mp, log, warns)
     try:
-        mt = apply_mapping(raw, mp)
+        mt = apply_mapping(raw, mp, warns=warns)
     except SchemaError as exc:          # no time column: point at a mapping beside the log
         hint = _mapping_hint(log) if mp is None else ""
         if not hint:
             raise
         raise SchemaError(f"{exc.message}; {hint}", file=exc.file, column=exc.column,
                           rows=exc.rows) from None
+    mt = place_time_of_day(mt, meta.epoch_utc, _time_column(mt, mp, raw.columns), warns, notes)
     if raw.nan_is_missing:
         notes.append(f"{log}: NaN cells read as 'not sampled' (the file has no empty cells)")
     if reading is not None and mp is not None:
@@ -139,7 +140,9 @@ def add_companion(src: Sources, group: str, path: Path, mp: Mapping | None, meta
     sub = getattr(mp, group) if mp is not None else None
     craw = read_table(path)
     warns += list(craw.warnings)
-    cm = apply_mapping(craw, sub, group=group, mapping_file=mp.file if mp else None)
+    cm = apply_mapping(craw, sub, group=group, mapping_file=mp.file if mp else None,
+                       warns=warns)
+    cm = place_time_of_day(cm, meta.epoch_utc, "time", warns, notes)
     if not cm.values:
         raise SchemaError(f"no {group} columns ({', '.join(GROUPS[group])}) in the "
                           f"{group} file", file=str(path))
