@@ -58,14 +58,12 @@ def fallback_note(summary: dict[str, Any]) -> str | None:
     for a in axes:
         corr = ((summary.get("axes") or {}).get(a) or {}).get("end_correction_m")
         k = ((summary.get("axes") or {}).get(a) or {}).get("k_used")
-        what = f"{_SABZIEV_AXES.get(a, a)} ({a}"
-        what += f", k = {k:.3g}" if k is not None else ""
-        what += ")"
-        if corr is not None:
-            what += f": {corr / 1000.0:+.2f} km removed"
-        parts.append(what)
+        what = [f"k = {k:.3g}"] if k is not None else []
+        what += [f"end correction {corr / 1000.0:+.2f} km"] if corr is not None else []
+        parts.append(f"{_SABZIEV_AXES.get(a, a)} ({a}" + "".join(f", {w}" for w in what) + ")")
     return (f"no root of the end-point condition on {len(axes)} of 3 axes: a fixed "
-            "coefficient and a linear end correction instead (" + "; ".join(parts) + ")")
+            "coefficient and the end miss removed linearly in time instead ("
+            + "; ".join(parts) + ")")
 
 
 def consistency_note(summary: dict[str, Any], healthy: bool) -> str | None:
