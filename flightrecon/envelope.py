@@ -120,16 +120,19 @@ def _height_above_departure(res: MethodResult, clean: CleanFlight, tr_t: np.ndar
                             ) -> np.ndarray | None:
     """The method's height above the departure field (m), or ``None`` when it has none.
 
-    A method with ellipsoidal heights (``<p>alt_m``) gives ``alt - (elev_dep + N)``; the
-    Sabziev fusion's ``sabziev_up_m`` already is a height above the departure field.
+    Only the methods that estimate the vertical are checked: the Sabziev fusion gives its
+    height above the departure field (``sabziev_height_m``), the joint smoother its ellipsoidal
+    height (``joint_alt_m``: ``alt - (elev_dep + N)``).  The others' heights are the recorded
+    pressure altitude or GNSS height they were given (their ``<p>alt_m`` since every prefix
+    carries one, flightrecon/tracks.py): not an estimate to check.
     """
     tr = res.track
     p = res.name + "_"
     dep = clean.meta.departure
-    if f"{p}alt_m" in tr.columns and dep is not None:
+    if res.name == "sabziev" and f"{p}height_m" in tr.columns:
+        return tr[f"{p}height_m"].to_numpy(float)
+    if res.name == "joint" and f"{p}alt_m" in tr.columns and dep is not None:
         return tr[f"{p}alt_m"].to_numpy(float) - (dep.elev_m + clean.meta.geoid_undulation_m)
-    if res.name == "sabziev" and f"{p}up_m" in tr.columns:
-        return tr[f"{p}up_m"].to_numpy(float)
     return None
 
 

@@ -57,12 +57,20 @@ class Envelope:
     min_duration_s: float = 0.5
 
 
+SEVERITIES: tuple[str, ...] = ("info", "caution", "alert")
+"""The events' levels, least to most pressing: ``alert`` for what the aircraft did that an
+investigator looks at first (an exceedance of the envelope, an impact, a record that ends in a
+dive), ``caution`` for what limits the reconstruction there (an outage, a gap, a change of
+source), ``info`` for the rest.  Not "warning": that word is the tool's own doubts about the
+data or a method (the summary's ``warnings``, the console's ``warning:`` lines)."""
+
+
 @dataclass(frozen=True)
 class Event:
     """One event: ``t_s`` (and ``end_t_s`` for a span) in seconds from the UTC epoch.
 
     ``label`` is the short text drawn on the plots, ``detail`` the sentence of the table,
-    ``severity`` ``info``, ``caution`` or ``warning``; ``value`` the peak of an exceedance.
+    ``severity`` one of :data:`SEVERITIES`; ``value`` the peak of an exceedance.
     """
 
     kind: str
@@ -157,7 +165,7 @@ def end_of_record_events(grid: pd.DataFrame, phases: Any,
                   + f"; the record ends {t_end - float(t_imp):.2f} s later")
         return [Event("impact", float(t_imp), f"impact {peak:.1f} g"
                       + (" (saturated)" if sat else ""), detail, end_t_s=t_end,
-                      severity="warning", channel="n_norm_g", value=peak)]
+                      severity="alert", channel="n_norm_g", value=peak)]
     if not ph.get("ends_airborne"):
         return []
     last = t >= t_end - window_s
@@ -181,7 +189,7 @@ def end_of_record_events(grid: pd.DataFrame, phases: Any,
                       "record ends in the air with " + " and ".join(reasons)
                       + f" in its last {window_s:g} s; no impact detected in the loads "
                       "(no load spike at the end): a possible impact the recorder missed",
-                      severity="warning")]
+                      severity="alert")]
     return [Event("end_airborne", t_end, "record ends airborne",
                   "record ends in the air (no touchdown in the record)", severity="caution")]
 
@@ -234,7 +242,7 @@ def exceedance_events(grid: pd.DataFrame, envelope: Envelope = Envelope()) -> li
             peak = float(seg[k])
             out.append(Event("exceedance", float(t[i0]), f"{what} {peak:+.3g} {unit}",
                              f"{what} {rule}: peak {peak:+.4g} {unit} at t = {t[i0 + k]:.1f} s",
-                             end_t_s=float(t[i1]), severity="warning", channel=channel,
+                             end_t_s=float(t[i1]), severity="alert", channel=channel,
                              value=peak))
     return out
 

@@ -49,7 +49,7 @@ def _end(clean, k: tuple[float, float, float], policy: str) -> np.ndarray:
         res = run_sabziev(iv, k=k, policy=policy)
     tr = res.track.dropna(subset=["sabziev_north_m"])
     last = tr.iloc[-1]
-    return np.array([last["sabziev_north_m"], last["sabziev_up_m"], last["sabziev_east_m"]])
+    return np.array([last["sabziev_north_m"], last["sabziev_height_m"], last["sabziev_east_m"]])
 
 
 def one(seed: int) -> dict[str, Any]:

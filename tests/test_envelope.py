@@ -29,7 +29,8 @@ def _clean(t: np.ndarray, tas: float = 60.0, baro: np.ndarray | None = None) -> 
 
 def _sabziev(t, north, east, up) -> MethodResult:
     return MethodResult("sabziev", pd.DataFrame({"t_s": t, "sabziev_north_m": north,
-                                                 "sabziev_east_m": east, "sabziev_up_m": up}),
+                                                 "sabziev_east_m": east, "sabziev_up_m": up,
+                                                 "sabziev_height_m": up}),
                         {"converged": True})
 
 

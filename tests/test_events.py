@@ -38,7 +38,7 @@ def test_load_factor_exceedance_span_and_peak():
     assert len(ev) == 1
     e = ev[0]
     assert e.channel == "n_norm_g" and e.t_s == 100.0 and e.end_t_s == 103.0
-    assert e.value == pytest.approx(3.1) and e.severity == "warning"
+    assert e.value == pytest.approx(3.1) and e.severity == "alert"
 
 
 def test_upset_attitude_and_short_blips_ignored():
@@ -94,7 +94,7 @@ def test_steep_descent_at_the_end_of_record_is_no_impact_without_one_detected():
     ev = end_of_record_events(g, ph)
     # an impact is detected (cleaning/impact.py), never assumed from the descent alone
     assert len(ev) == 1 and ev[0].kind == "end_airborne" and ev[0].t_s == 60.0
-    assert ev[0].severity == "warning" and "falling at 4" in ev[0].detail
+    assert ev[0].severity == "alert" and "falling at 4" in ev[0].detail
     g["baro_alt_m"] = 1000.0
     ev = end_of_record_events(g, ph)
     assert [e.kind for e in ev] == ["end_airborne"] and ev[0].severity == "caution"

@@ -45,7 +45,7 @@ def track(n=400, dt=0.5):
 
 def summary():
     ev = [Event("liftoff", 10.0, "lift-off", "lift-off"),
-          Event("exceedance", 50.0, "bank +50 deg", "bank", end_t_s=60.0, severity="warning"),
+          Event("exceedance", 50.0, "bank +50 deg", "bank", end_t_s=60.0, severity="alert"),
           Event("fixes", 0.0, "200 GNSS fixes", "fixes", end_t_s=199.5)]
     return {"flight": {"flight_id": "F1", "epoch_utc": EPOCH, "geoid_undulation_m": -22.0},
             "events": events_table(ev, EPOCH)}

@@ -47,7 +47,7 @@ def synthetic_result():
                          "baro_alt_m": 3 * t + 10})
     events = [Event("liftoff", 20.0, "lift-off", "lift-off"),
               Event("exceedance", 100.0, "bank +50 deg", "bank beyond 45 deg", end_t_s=110.0,
-                    severity="warning"),
+                    severity="alert"),
               Event("source_change", 300.0, "horizontal position: joint -> sns", "change",
                     severity="caution"),
               Event("touchdown", 580.0, "touchdown", "touchdown")]

@@ -86,8 +86,12 @@ def test_adapter_matches_the_end_point_and_reports():
     res = run_sabziev(clean, policy="paper")
     tr, s = res.track, res.summary
     assert res.name == "sabziev" and s["converged"] and s["mode"] == "boundary-value"
-    assert list(tr.columns[:7]) == ["t_s", "sabziev_north_m", "sabziev_east_m", "sabziev_up_m",
-                                    "sabziev_vn_mps", "sabziev_ve_mps", "sabziev_vu_mps"]
+    # the one builder's columns (flightrecon/tracks.py): the plane position, the fusion's
+    # height above the departure airfield, the plane's up, WGS-84, the velocities
+    assert list(tr.columns[:11]) == ["t_s", "sabziev_north_m", "sabziev_east_m",
+                                     "sabziev_height_m", "sabziev_up_m", "sabziev_lat_deg",
+                                     "sabziev_lon_deg", "sabziev_alt_m", "sabziev_vn_mps",
+                                     "sabziev_ve_mps", "sabziev_vu_mps"]
     inside = np.zeros(len(tr), bool)
     inside[sl] = True
     assert tr.loc[inside].notna().all().all()
@@ -96,7 +100,7 @@ def test_adapter_matches_the_end_point_and_reports():
     last = tr.loc[inside].iloc[-1]
     assert abs(last["sabziev_north_m"] - end["north_m"]) < 1.0
     assert abs(last["sabziev_east_m"] - end["east_m"]) < 1.0
-    assert abs(last["sabziev_up_m"] - end["up_pressure_m"]) < 1.0
+    assert abs(last["sabziev_height_m"] - end["up_pressure_m"]) < 1.0
     for axis in ("x", "y", "z"):
         a = s["axes"][axis]
         assert a["converged"] and a["branch"] == "negative" and abs(a["residual_m"]) < 1e-3
@@ -108,7 +112,7 @@ def test_adapter_matches_the_end_point_and_reports():
     # measured RMS), horizontal within the dead-reckoning error budget of the synthetic sensors
     # (1 % airspeed scale + 0.5 deg heading bias over 900 s: ~1 km uncorrected, measured RMS
     # after the end-point fit ~0.1 km; bound 0.5 km)
-    up = tr["sabziev_up_m"].to_numpy()[sl]
+    up = tr["sabziev_height_m"].to_numpy()[sl]
     assert np.sqrt(np.mean((up - f["truth"][:, 1]) ** 2)) < 30.0
     north = tr["sabziev_north_m"].to_numpy()[sl]
     east = tr["sabziev_east_m"].to_numpy()[sl]

@@ -48,7 +48,7 @@ def _ends(res, sl):
     tr, end = res.track, res.summary["end_point"]
     last = tr.iloc[sl].iloc[-1]
     return (last["sabziev_north_m"] - end["north_m"], last["sabziev_east_m"] - end["east_m"],
-            last["sabziev_up_m"] - end["up_m"])
+            last["sabziev_height_m"] - end["up_m"])
 
 
 def test_stable_policy_meets_the_end_point_and_follows_the_truth():
@@ -63,7 +63,7 @@ def test_stable_policy_meets_the_end_point_and_follows_the_truth():
     assert res.track.iloc[sl].notna().all().all()
     assert all(abs(x) < END_TOL_M for x in _ends(res, sl))
     assert s["k1"] < 0 and s["k2"] < 0 and s["k3"] < 0
-    up = res.track["sabziev_up_m"].to_numpy()[sl]
+    up = res.track["sabziev_height_m"].to_numpy()[sl]
     assert np.sqrt(np.mean((up - f["truth"][:, 1]) ** 2)) < 10.0
     for j, c in ((0, "sabziev_north_m"), (2, "sabziev_east_m")):
         x = res.track[c].to_numpy()[sl]

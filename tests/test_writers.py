@@ -112,7 +112,7 @@ def test_combine_assembles_the_result_table():
     from flightrecon.geo.atmosphere import isa_pressure_pa, pressure_altitude_m
     from flightrecon.geo.frames import output_plane
     from flightrecon.pipeline import combine
-    from flightrecon.pipeline.combine import _height_to_plane_up
+    from flightrecon.tracks import plane_up_of_height
     from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position
 
     n = 400
@@ -144,7 +144,8 @@ def test_combine_assembles_the_result_table():
     j["joint_sources"] = pd.array(["air+gnss_pos"] * n, dtype="string")
     sab_up = 20.0 + 0.4 * t
     sab_up[60:70] = np.nan
-    sab = track("sabziev", sabziev_up_m=sab_up, sabziev_up_sd_m=np.full(n, 5.0))
+    # the fusion's own vertical is its height above the departure airfield
+    sab = track("sabziev", sabziev_height_m=sab_up, sabziev_up_sd_m=np.full(n, 5.0))
     results = {"joint": MethodResult("joint", j, {}), "sns": MethodResult("sns", track("sns"), {}),
                "sabziev": MethodResult("sabziev", sab, {})}
     # a method with a hole in its track is never healthy (issue #39): by its own verdict
@@ -161,7 +162,7 @@ def test_combine_assembles_the_result_table():
     np.testing.assert_array_equal(out["up_source"].to_numpy(dtype=object), ups)
     plane = output_plane(meta)
     e, nn = out["east_m"].to_numpy(), out["north_m"].to_numpy()
-    up_all = _height_to_plane_up(plane, e, nn, height)[0]
+    up_all = plane_up_of_height(plane, e, nn, height)[0]
     assert np.nanmax(np.abs(up_all - height)) > 100.0  # the conversion matters here
     np.testing.assert_array_equal(out["up_m"].to_numpy()[~j_ok], up_all[~j_ok])
     np.testing.assert_array_equal(out["up_m"].to_numpy()[j_ok], j_up[j_ok])

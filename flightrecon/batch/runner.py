@@ -123,7 +123,8 @@ def _records(out: dict[str, Any]):
     fit = cal = None
     sab = out.get("sabziev")
     # an unhealthy (impossible) Sabziev track is not the aircraft's: its fit is not recorded
-    if sab is not None and sab.get("mode") == "boundary-value" and sab.get("status") == "ok":
+    if (sab is not None and sab.get("mode") == "boundary-value"
+            and sab.get("status") in ("ok", "fallback")):   # healthy (pipeline/status.py)
         fit = from_sabziev_summary(sab, **common)
     if out.get("joint") is not None:
         cal = from_joint_summary(out["joint"], conditions=out.get("conditions"), log_sha256=h,

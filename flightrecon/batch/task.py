@@ -56,7 +56,7 @@ def accuracy_indicators(track: Any, summary: dict[str, Any]) -> dict[str, Any]:
 
 def _sabziev_for_store(summary: dict[str, Any]) -> dict[str, Any] | None:
     sab = summary.get("methods", {}).get("sabziev")
-    if not sab or sab.get("status") not in ("ok", "unhealthy"):
+    if not sab or sab.get("status") not in ("ok", "fallback", "unhealthy"):
         return None
     return {k: v for k, v in sab.items() if k != "history"}  # history: large, not needed
 

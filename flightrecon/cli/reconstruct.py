@@ -252,12 +252,13 @@ def _mean(rows: list[list[float]]) -> float:
 
 
 def _events_line(summary: dict) -> str:
-    """One line: lift-off / touchdown in UTC and the count of cautions and warnings."""
+    """One line: lift-off / touchdown in UTC and the count of the events' alerts and cautions
+    (their levels: :data:`flightrecon.events.SEVERITIES`; "warning" is the tool's own lines)."""
     ev = summary.get("events") or []
     key = [e for e in ev if e.get("kind") in ("liftoff", "touchdown", "impact", "end_airborne")]
     text = ", ".join(f"{e['label']} {(e.get('utc') or '')[11:19] or ('t = %.1f s' % e['t_s'])}"
                      + (" UTC" if e.get("utc") else "") for e in key)
-    n_warn = sum(1 for e in ev if e.get("severity") == "warning")
+    n_alert = sum(1 for e in ev if e.get("severity") == "alert")
     n_caut = sum(1 for e in ev if e.get("severity") == "caution")
-    return (f"  events: {text or 'no lift-off or touchdown in the record'}; {n_warn} warning(s), "
+    return (f"  events: {text or 'no lift-off or touchdown in the record'}; {n_alert} alert(s), "
             f"{n_caut} caution(s) in the summary's events table")

@@ -119,7 +119,7 @@ _KML_STYLES = (
     + "".join(f'<Style id="event-{sev}"><IconStyle><color>{col}</color><scale>0.9</scale>'
               "</IconStyle><LabelStyle><scale>0.8</scale></LabelStyle></Style>"
               for sev, col in (("info", "ff00ff00"), ("caution", "ff00c0ff"),
-                               ("warning", "ff0000ff"))))
+                               ("alert", "ff0000ff"))))
 
 
 def write_kml(path: str | Path, track: pd.DataFrame, name: str,

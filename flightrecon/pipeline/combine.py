@@ -11,6 +11,7 @@ import pandas as pd
 
 from flightrecon.pipeline.health import method_health
 from flightrecon.pipeline.registry import ALL_METHODS, DEFAULT_PRIORITY
+from flightrecon.tracks import plane_up_of_height
 from flightrecon.types import CleanFlight, MethodResult
 
 
@@ -74,13 +75,13 @@ def combine(clean: CleanFlight, results: dict[str, MethodResult],
     # Sabziev and pressure heights are heights above the departure airfield: turn them into
     # tangent-plane up (the plane falls below the ellipsoid with distance, 31 m at 20 km)
     if tj is None:
-        up, lat, lon, alt = _height_to_plane_up(plane, east, north, up)
+        up, lat, lon, alt = plane_up_of_height(plane, east, north, up)
     else:
         j_ok = np.isfinite(tj["joint_up_m"].to_numpy())
         need = ~j_ok
         need[1:] |= ~j_ok[:-1]
         need[:-1] |= ~j_ok[1:]
-        up = _height_to_plane_up(plane, east, north, up, where=need)[0]
+        up = plane_up_of_height(plane, east, north, up, where=need)[0]
     dt = np.gradient(t) if n > 1 else np.ones(n)
     vu = np.gradient(up) / dt if n > 1 else np.full(n, np.nan)
     extra: dict[str, Any] = {}
@@ -156,9 +157,11 @@ def _heights(clean: CleanFlight, results: dict[str, MethodResult], healthy: dict
     up_source = np.zeros(n, dtype=np.int8)  # index into _UP_NAMES
     p_height, p_sd = _pressure_height(clean)
     sab = results.get("sabziev")
-    if sab is not None and healthy["sabziev"] and "sabziev_up_m" in sab.track.columns:
+    if sab is not None and healthy["sabziev"] and "sabziev_height_m" in sab.track.columns:
+        # the fusion's own vertical: its height above the departure airfield (its up_m is that
+        # height in the plane at its own position; the default's horizontal may be another's)
         su = grid_track("sabziev")
-        v = su["sabziev_up_m"].to_numpy()
+        v = su["sabziev_height_m"].to_numpy()
         ok = np.isfinite(v)
         up[ok] = v[ok]
         up_source[ok] = 1
@@ -245,30 +248,3 @@ def _combine_table(out: dict[str, Any], results: dict[str, MethodResult], t: np.
             if c != "t_s":
                 out[c] = tr[c].to_numpy()
     return pd.DataFrame(out)
-
-
-def _height_to_plane_up(plane, east, north, height_above_origin, where=None):
-    """Tangent-plane ``up`` of points given by plane (east, north) and height above the plane's
-    origin along the local vertical; returns (up, lat, lon, ellipsoidal height).
-
-    Two fixed-point steps (the local vertical is within a few mrad of the plane's normal for
-    flights of a few hundred km) give millimetres.  With the boolean mask ``where`` only those
-    points are converted (each point's conversion is independent of the others): ``up`` is the
-    input height elsewhere and ``lat, lon, h`` are ``None``.
-    """
-    h_in = np.asarray(height_above_origin, float)
-    if where is not None:
-        up = h_in.copy()
-        idx = np.flatnonzero(where)
-        if len(idx):
-            up[idx] = _height_to_plane_up(plane, np.asarray(east)[idx],
-                                          np.asarray(north)[idx], h_in[idx])[0]
-        return up, None, None, None
-    target = plane.h0_m + h_in
-    up = h_in.copy()
-    ok = np.isfinite(east) & np.isfinite(north) & np.isfinite(up)
-    for _ in range(3):
-        lat, lon, h = plane.inverse(east, north, up)
-        up = np.where(ok, up + (target - h), up)
-    lat, lon, h = plane.inverse(east, north, up)
-    return up, lat, lon, h

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from flightrecon.pipeline.status import stopped_short
 from flightrecon.types import CleanFlight, MethodResult
 
 
@@ -88,10 +89,7 @@ def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[s
             out["problems"].append({"what": "no finite position (only infinite values)",
                                     "check": "finite", "spans_s": []})
     s = res.summary
-    if s.get("converged") is False:
-        out["problems"].append({"what": "did not converge"
-                                + (f" ({s['stop_reason']})" if s.get("stop_reason") else ""),
-                                "check": "converged", "spans_s": []})
+    _convergence(s, out)
     if s.get("healthy") is False:
         out["problems"].append({"what": self_verdict_reason(s), "check": "self",
                                 "spans_s": []})
@@ -104,6 +102,25 @@ def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[s
                                     "spans_s": prob["spans_s"]})
     out["healthy"] = not out["problems"]
     return out
+
+
+def _convergence(s: dict[str, Any], out: dict[str, Any]) -> None:
+    """The convergence check, in place on ``out``: a method that says it did not converge is
+    unhealthy, unless it stopped short with a bounded remaining movement (the joint smoother's
+    ``settling``, flightrecon/methods/joint/settling.py: within 0.1 sd, or its sd widened by
+    it), which ``out["stopped_short"]`` then says."""
+    if s.get("converged") is not False:
+        return
+    short = stopped_short(s)
+    if short is not None:
+        out["stopped_short"] = short
+        return
+    settle = s.get("settling") or {}
+    why = s.get("stop_reason") or ""
+    if settle.get("sentence"):
+        why = f"{why}; {settle['sentence']}" if why else str(settle["sentence"])
+    out["problems"].append({"what": "did not converge" + (f" ({why})" if why else ""),
+                            "check": "converged", "spans_s": []})
 
 
 def has_finite_track(res: MethodResult) -> bool:

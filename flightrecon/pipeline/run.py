@@ -37,6 +37,7 @@ from flightrecon.pipeline.registry import (
     available_methods,
     run_method,
 )
+from flightrecon.pipeline.status import FEEDS_DEFAULT, method_status
 from flightrecon.pipeline.summary import build_summary, result_choice
 from flightrecon.types import CleanFlight, Flight, MethodResult
 
@@ -137,17 +138,15 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
             continue
         results[m] = res
         health = method_health(res, clean)
-        status[m] = {**res.summary, "status": "ok" if health["healthy"] else "unhealthy",
-                     "health": health}
-        if not health["healthy"]:
-            status[m]["reason"] = "; ".join(pr["what"] for pr in health["problems"])
-            if settings.strict:
-                raise ConvergenceError(f"method '{m}' is unhealthy: {status[m]['reason']} "
-                                       "(--strict)")
+        status[m] = method_status(res, health)
+        if settings.strict and status[m]["status"] in ("unhealthy", "stopped"):
+            # --strict: a method that stopped short of its convergence test fails it too
+            raise ConvergenceError(f"method '{m}' is {status[m]['status']}: "
+                                   f"{status[m]['reason']} (--strict)")
     if not results:
         raise MetadataError("no estimator could run on this flight: " + "; ".join(
             f"{m}: {s.get('reason')}" for m, s in status.items()))
-    healthy = {m: status[m]["status"] == "ok" for m in results}
+    healthy = {m: status[m]["status"] in FEEDS_DEFAULT for m in results}
     if not any(has_finite_track(r) for r in results.values()):
         raise NoResultError("no method produced a finite track, nothing was written: "
                             + _reasons(status))

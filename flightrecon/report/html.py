@@ -95,7 +95,7 @@ def opening_paragraph(track: pd.DataFrame, summary: Mapping[str, Any]) -> str:
                 "it, its status and its warnings are unknown. Reconstruct again or keep the "
                 "<code>.summary.json</code> beside the result.</p>")
     main = max(share, key=share.get) if share else None
-    if joint is not None and joint.get("status") == "ok" and main == "joint":
+    if joint is not None and joint.get("status") in ("ok", "stopped") and main == "joint":
         parts.append("The reconstructed track comes from the <b>joint smoother</b>, which "
                      "fuses every source (loads and attitude, air data, pressure altitude"
                      + (", GNSS" if (summary.get("measurements") or {}).get("gnss_fixes")
@@ -301,8 +301,10 @@ table{border-collapse:collapse;margin:.5em 0;font-size:90%}
 td,th{border:1px solid #ccc;
 padding:3px 6px;text-align:left;vertical-align:top}
 thead th{background:#eee}
-tr.warning td{background:#fde8e8}
+tr.alert td{background:#fde8e8}
 tr.caution td{background:#fff6dd}
+tr.st-fallback td,
+tr.st-stopped td{background:#fff6dd}
 tr.st-unhealthy td,
 tr.st-failed td{background:#fde8e8}
 tr.st-skipped td{color:#777}

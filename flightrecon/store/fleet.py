@@ -126,7 +126,8 @@ def record_flight(store_path: str | Path | None, rec: Reconstruction,
     reasons = []
     # an unhealthy (physically impossible) track is not the aircraft's: nothing of it recorded
     if sab is not None and sab.summary.get("mode") == "boundary-value":
-        if status.get("sabziev", {}).get("status") == "ok":
+        # a fallback's axes without a root are recorded as such (records.py): its roots are
+        if status.get("sabziev", {}).get("status") in ("ok", "fallback"):
             fit = from_sabziev_summary(sab.summary, **common)
         else:
             st = status.get("sabziev", {})

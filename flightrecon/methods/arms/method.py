@@ -151,13 +151,14 @@ def _north_convergence(plane: TangentPlane, x_m, y_m, u_m) -> np.ndarray:
 
 def _to_output(src: TangentPlane, dst: TangentPlane, x, y, u):
     """Map points of ``src`` to ``dst``: (east, north) and the 2x2 Jacobian (K, 2, 2) of the
-    horizontal mapping (finite difference over 100 m; the mapping is affine to 1e-9 over that)."""
+    horizontal mapping (finite difference over 100 m; the mapping is affine to 1e-9 over that),
+    and the points' up in ``dst`` with their (lat, lon, ellipsoidal height)."""
     step = 100.0
     xs = np.concatenate([x, x + step, x])
     ys = np.concatenate([y, y, y + step])
     us = np.concatenate([u, u, u])
     lat, lon, h = src.inverse(xs, ys, us)
-    e, n, _ = dst.forward(lat, lon, h)
+    e, n, up = dst.forward(lat, lon, h)
     K = len(x)
     e0, e1, e2 = e[:K], e[K:2 * K], e[2 * K:]
     n0, n1, n2 = n[:K], n[K:2 * K], n[2 * K:]
@@ -166,7 +167,7 @@ def _to_output(src: TangentPlane, dst: TangentPlane, x, y, u):
     J[:, 0, 1] = (e2 - e0) / step
     J[:, 1, 0] = (n1 - n0) / step
     J[:, 1, 1] = (n2 - n0) / step
-    return e0, n0, J
+    return e0, n0, J, up[:K], (lat[:K], lon[:K], h[:K])
 
 
 # --------------------------------------------------------------------------------------------
@@ -411,7 +412,7 @@ def _grid_track(clean: CleanFlight, est, tp: np.ndarray, splane, oplane, dh_at,
     dh_k = dh_at(tk)
     uk = np.nan_to_num(dh_k) - plane_drop_m(np.hypot(pos[:, 0], pos[:, 1]),
                                            station(meta).lat_deg)
-    east, north, J = _to_output(splane, oplane, pos[:, 0], pos[:, 1], uk)
+    east, north, J, up, geodetic = _to_output(splane, oplane, pos[:, 0], pos[:, 1], uk)
     Vs = air_all.at(tk, max_gap_s=settings.air_max_gap_s)
     airv = Vs - dv
     Ca = Cd + model.sigma_air_mps ** 2 * np.eye(2)
@@ -431,6 +432,10 @@ def _grid_track(clean: CleanFlight, est, tp: np.ndarray, splane, oplane, dh_at,
     out.add_horizontal("vn", "ve", "mps", vel, Cv, Rl, order="en")
     out.add_horizontal("dvn", "dve", "mps", dv, Cd, Rl, order="en")
     out.add_horizontal("air_vn", "air_ve", "mps", airv, Ca, Rl, order="en")
+    # the height: the pressure altitude's above the station (0 where it has none: no alt_m)
+    fin = np.isfinite(dh_k)
+    out.add_place(oplane, east, north, up=np.where(fin, up, np.nan),
+                  geodetic=(geodetic[0], geodetic[1], np.where(fin, geodetic[2], np.nan)))
     return out.frame(), inside, dh_k, np.einsum("kij,kj->ki", Rl, dv)
 
 

@@ -295,7 +295,7 @@ def _grid_track(run, rt, pos_g: np.ndarray, tg: np.ndarray, ig: np.ndarray,
                    np.stack([rd * ce - r * om * se, r * ce], -1)], -2)
     Cv = Jr @ Pr @ Jr.transpose(0, 2, 1) + Je @ P[:, :2, :2] @ Je.transpose(0, 2, 1)
     lat, lon, h = stp.inverse(e_st, n_st, up_st)
-    e_out, n_out, _ = plane_out.forward(lat, lon, h)
+    e_out, n_out, u_out = plane_out.forward(lat, lon, h)
     # into the output's axes: positions' covariance into the output plane's (north, east),
     # velocities and theirs into the local level at the aircraft (true north there)
     Mp = horizontal_rotation(stp.lat0_deg, stp.lon0_deg, plane_out.lat0_deg,
@@ -309,6 +309,7 @@ def _grid_track(run, rt, pos_g: np.ndarray, tg: np.ndarray, ig: np.ndarray,
     out.add("range", "m", r, np.sqrt(var_r))
     out.add_horizontal("north", "east", "m", np.c_[n_out, e_out], Cp, Mp, value_is_output=True)
     out.add_horizontal("vn", "ve", "mps", np.c_[vn_st, ve_st], Cv, Mv)
+    out.add_place(plane_out, e_out, n_out, up=u_out, geodetic=(lat, lon, h))
     return out.frame()
 
 

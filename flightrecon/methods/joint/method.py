@@ -50,6 +50,7 @@ from flightrecon.methods.joint.diagnostics import (
 from flightrecon.methods.joint.flight_inputs import joint_inputs
 from flightrecon.methods.joint.gap_calibration import calibrate_gaps
 from flightrecon.methods.joint.report import corrections_at_middle, fix_report, wind_prior_report
+from flightrecon.methods.joint.settling import settling, settling_sentence, widened_track_sd
 from flightrecon.methods.joint.track import PREFIX, joint_track
 from flightrecon.types import CleanFlight, MethodResult
 
@@ -178,6 +179,9 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     run, gap_cal = calibrate_gaps(inp, settings, run)
     run = replace(run, flight=None)   # its iteration-independent parts go before the track
     track = joint_track(clean, run)
+    settle = settling(run)
+    if settle is not None and settle["verdict"] == "widened":
+        widened_track_sd(track, run.t, settle["remaining_k_m"])
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
     warnings = _run_warnings(run, inp, settings, sources, attitude_note)
@@ -212,4 +216,9 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
                               "gap_calibration": gap_cal,
                               "corrections": corrections, "sources": sources,
                               "warnings": warnings})
+    if settle is not None:
+        # stopped short of the convergence test: how far the passes still had to go
+        # (settling.py); the pipeline's health reads it (status "stopped")
+        summary["settling"] = {k: v for k, v in settle.items() if k != "remaining_k_m"}
+        summary["settling"]["sentence"] = settling_sentence(settle)
     return MethodResult(name="joint", track=track, summary=summary)

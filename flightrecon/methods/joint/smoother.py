@@ -76,6 +76,9 @@ class JointRun:
     # the iteration-independent parts it was smoothed with (for a warm start on the same
     # flight: :func:`smooth_joint_from`); None once the run leaves the method
     flight: SmootherFlight | None = None
+    # the last pass's position change per state [m] when the passes stopped unconverged
+    # (settling.settling); None when they converged
+    last_shift_m: np.ndarray | None = None
 
 
 def _covariances(out: PassResult | None) -> None:
@@ -406,6 +409,8 @@ def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassRes
             xs, Pblk, var, res, n_fallback, xf, innov, innov_var, r = redo
             lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
     history[-1]["stop_reason"] = st.reason
+    shift = (None if st.converged or not step.ok else
+             np.linalg.norm(step.X[:, jl.S_POS] - mdl.pnom, axis=1))
     return JointRun(t=fl.T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
                     Cen=mdl.Cen, meas=mdl.meas, weights=st.weights,
                     resid_norm=res / np.sqrt(r),
@@ -417,7 +422,7 @@ def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassRes
                     roll=mdl.roll, noise_check=noise_check, cholesky_fallbacks=int(n_fallback),
                     converged=st.converged, stop_reason=st.reason,
                     prior=None if fl.x0 is None or fl.P0 is None else (fl.x0, fl.P0),
-                    flight=fl)
+                    flight=fl, last_shift_m=shift)
 
 
 def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: SmootherState

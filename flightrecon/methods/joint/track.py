@@ -13,6 +13,7 @@ from flightrecon.methods.joint import (
     JointRun,
 )
 from flightrecon.methods.joint import layout as jl
+from flightrecon.tracks import TrackColumns
 from flightrecon.types import CleanFlight
 
 PREFIX = "joint_"
@@ -108,18 +109,17 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     sd_pos = np.sqrt(np.maximum(np.einsum("kii->ki", Pp), 0.0))
     sd_vel = np.sqrt(np.maximum(run.var[:, jl.S_VEL], 0.0))
     sd_w = np.sqrt(np.maximum(run.var[:, jl.S_WIND], 0.0))
-    p = PREFIX
-    cols = {"t_s": t_out,
-            p + "north_m": n, p + "east_m": e, p + "up_m": u,
-            p + "north_sd_m": interp(sd_pos[:, 0]), p + "east_sd_m": interp(sd_pos[:, 1]),
-            p + "up_sd_m": interp(sd_pos[:, 2]),
-            p + "vn_mps": interp(x[:, jl.IV]), p + "ve_mps": interp(x[:, jl.IV + 1]),
-            p + "vu_mps": -interp(x[:, jl.IV + 2]),
-            p + "vn_sd_mps": interp(sd_vel[:, 0]), p + "ve_sd_mps": interp(sd_vel[:, 1]),
-            p + "vu_sd_mps": interp(sd_vel[:, 2]),
-            p + "lat_deg": lat, p + "lon_deg": lon, p + "alt_m": h,
-            p + "wind_n_mps": interp(x[:, jl.IW]), p + "wind_e_mps": interp(x[:, jl.IW + 1]),
-            p + "wind_n_sd_mps": interp(sd_w[:, 0]), p + "wind_e_sd_mps": interp(sd_w[:, 1])}
-    out = pd.DataFrame(cols, copy=False)
-    out[p + "sources"] = pd.array(provenance(run, t_out), dtype="string")
-    return out
+    # through the one builder (flightrecon/tracks.py): the plane position, its up, latitude,
+    # longitude and ellipsoidal height from the smoother's own earth-fixed position
+    out = TrackColumns(PREFIX.rstrip("_"), t_out)
+    out.add("north", "m", n, interp(sd_pos[:, 0]))
+    out.add("east", "m", e, interp(sd_pos[:, 1]))
+    out.add_place(plane, e, n, up=u, up_sd=interp(sd_pos[:, 2]), geodetic=(lat, lon, h))
+    out.add("vn", "mps", interp(x[:, jl.IV]), interp(sd_vel[:, 0]))
+    out.add("ve", "mps", interp(x[:, jl.IV + 1]), interp(sd_vel[:, 1]))
+    out.add("vu", "mps", -interp(x[:, jl.IV + 2]), interp(sd_vel[:, 2]))
+    out.add("wind_n", "mps", interp(x[:, jl.IW]), interp(sd_w[:, 0]))
+    out.add("wind_e", "mps", interp(x[:, jl.IW + 1]), interp(sd_w[:, 1]))
+    track = out.frame()
+    track[PREFIX + "sources"] = pd.array(provenance(run, t_out), dtype="string")
+    return track

@@ -16,8 +16,9 @@ choices the paper leaves open are documented in docs/sabziev.md, "The adapter":
   sea-level pressure ``QNH`` is ``H_p(E, QNH) = pressure_altitude(p_ISA(E) * QNH / 1013.25)``
   (the ISA profile scaled to the QNH; about ``E - 8.3 m/hPa * (QNH - 1013.25)`` near sea
   level).  ``h = baro_alt_m - H_p(dep)`` and ``y_T = H_p(arr) - H_p(dep)``; the output
-  ``sabziev_up_m`` is this pressure-consistent height above the departure airfield (the same
-  datum as the pipeline's baro fallback).
+  ``sabziev_height_m`` is this pressure-consistent height above the departure airfield (the
+  same datum as the pipeline's baro fallback), and ``sabziev_up_m`` the same point's up in
+  the output tangent plane, as for every prefix (:mod:`flightrecon.tracks`).
 * Lift-off velocity: ``clean.phases.liftoff_velocity_ned_mps``; when unknown (record starts in
   the air), the air-derived velocity (plus wind) and the baro climb rate at the first sample.
 * Wind: from ``wind_speed_mps`` / ``wind_from_deg`` (meteorological, blowing from) when the
@@ -181,7 +182,7 @@ def _summary_of(p: _Inputs, sol: SabzievSolution, frame: dict[str, Any], k: Any,
     """The track on the grid and the summary, with the bridge sd, the conditioning, the
     vertical reference's checks and the self-check's problems (``health_problems``)."""
     t, sl = p.t, p.sl
-    track = sabziev_track(p.t_all, sl, sol, k_sd, p.origin, origin_sd)
+    track = sabziev_track(p.t_all, sl, sol, k_sd, p.origin, origin_sd, p.plane)
     summary = sabziev_summary(sol, k, k_sd, t, p.v0, p.end_info, warn, hold, vertical_rule)
     if k_sd is None and p.end_ned is not None and policy == "stable":
         end_sd = (p.fix_end.sd_m if p.arr is None and p.fix_end is not None
@@ -262,8 +263,9 @@ def run_sabziev(clean: CleanFlight, *, k: tuple[float, float, float] | None = No
     -------
     MethodResult
         ``track`` on the grid times: ``sabziev_north_m``, ``sabziev_east_m``, ``sabziev_up_m``
-        (tangent plane at the departure airfield; up is the pressure-consistent height above
-        it), ``sabziev_vn_mps``, ``sabziev_ve_mps``, ``sabziev_vu_mps``, NaN outside
+        (tangent plane at the departure airfield), ``sabziev_height_m`` (the
+        pressure-consistent height above it), ``sabziev_lat_deg``, ``sabziev_lon_deg``,
+        ``sabziev_alt_m``, ``sabziev_vn_mps``, ``sabziev_ve_mps``, ``sabziev_vu_mps``, NaN outside
         lift-off..touchdown, plus ``*_sd_*`` columns when ``k_sd`` is given.  ``summary``:
         ``converged``, ``k1..k3``, ``axes`` (per-axis report), ``history`` (Newton ``[k, F]``
         per axis), ``wind_modelled``, ``warnings``.

@@ -131,33 +131,30 @@ LIFTOFF_GIVEN_SD_M = 10.0
 
 
 def sabziev_track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray,
-           origin_sd_m: float = 0.0) -> pd.DataFrame:
-    """The output columns, built in one (N, m) float block (one DataFrame block, no copies);
-    with ``k_sd`` the sd columns, the horizontal ones with ``origin_sd_m`` in quadrature."""
-    n = len(t_all)
-    names = (("sabziev_north_m", 0), ("sabziev_east_m", 2), ("sabziev_up_m", 1))
-    vnames = (("sabziev_vn_mps", 0), ("sabziev_ve_mps", 2), ("sabziev_vu_mps", 1))
-    offset = (origin[0], origin[2], origin[1])  # Sabziev order: north, up, east
-    cols = ["t_s"] + [c for c, _ in names] + [c for c, _ in vnames]
+                  origin_sd_m: float = 0.0, plane: Any = None) -> pd.DataFrame:
+    """The output columns through the one builder (:class:`flightrecon.tracks.TrackColumns`):
+    north, east in the output plane, the fusion's height above the departure airfield
+    (``sabziev_height_m``) and from it the plane's up, latitude, longitude and ellipsoidal
+    height (``plane``: the output plane; without it, no ``up``/``lat``/``lon``/``alt``),
+    the velocities; with ``k_sd`` the sd columns, the horizontal ones with ``origin_sd_m`` in
+    quadrature."""
+    from flightrecon.tracks import TrackColumns
+
+    out = TrackColumns("sabziev", t_all, sl)
+    # Sabziev order: north (0), up (1), east (2); ``origin`` is (north, east, up)
+    offset = (origin[0], origin[2], origin[1])
+    pos = [sol.xyz_m[:, j] + offset[j] for j in range(3)]
+    psd = vsd = None
     if k_sd is not None:
-        # order as before: per axis (north, up, east) the position then the velocity spread
-        for (cname, _), (vname, _) in zip(sorted(names, key=lambda x: x[1]),
-                                          sorted(vnames, key=lambda x: x[1])):
-            cols += [cname.replace("_m", "_sd_m"), vname.replace("_mps", "_sd_mps")]
-    block = np.full((n, len(cols)), np.nan)
-    block[:, 0] = t_all
-    for c, (_cname, j) in enumerate(names, start=1):
-        block[sl, c] = sol.xyz_m[:, j] + offset[j]
-    for c, (_vname, j) in enumerate(vnames, start=4):
-        block[sl, c] = sol.vxyz_mps[:, j]
-    if k_sd is not None:
-        psd = sol.position_sd_m(k_sd)
-        vsd = sol.velocity_sd_mps(k_sd)
-        for j in range(3):
-            floor = origin_sd_m if j != 1 else 0.0  # horizontal (north 0, east 2) only
-            block[sl, 7 + 2 * j] = np.hypot(psd[:, j], floor)
-            block[sl, 8 + 2 * j] = vsd[:, j]
-    return pd.DataFrame(block, columns=cols, copy=False)
+        psd, vsd = sol.position_sd_m(k_sd), sol.velocity_sd_mps(k_sd)
+    for name, j in (("north", 0), ("east", 2)):
+        out.add(name, "m", pos[j], None if psd is None else np.hypot(psd[:, j], origin_sd_m))
+    if plane is not None:
+        out.add_place(plane, pos[2], pos[0], height=pos[1],
+                      up_sd=None if psd is None else psd[:, 1])
+    for name, j in (("vn", 0), ("ve", 2), ("vu", 1)):
+        out.add(name, "mps", sol.vxyz_mps[:, j], None if vsd is None else vsd[:, j])
+    return out.frame()
 
 
 def bridge_sd_columns(track: pd.DataFrame, sl: slice, t: np.ndarray, start_sd_m: float,

@@ -58,8 +58,10 @@ from flightrecon.methods.sns.inputs import (  # noqa: F401  (re-exported: tests,
 from flightrecon.methods.sns.settings import SNS_NOISE_KEYS, sns_noise_with  # noqa: F401
 from flightrecon.types import CleanFlight, MethodResult
 
-TRACK_COLUMNS = ("t_s", "sns_north_m", "sns_east_m", "sns_north_sd_m", "sns_east_sd_m",
-                 "sns_vn_mps", "sns_ve_mps", "sns_vn_sd_mps", "sns_ve_sd_mps")
+HORIZONTAL_COLUMNS = ("sns_north_m", "sns_north_sd_m", "sns_east_m", "sns_east_sd_m",
+                      "sns_vn_mps", "sns_vn_sd_mps", "sns_ve_mps", "sns_ve_sd_mps")
+#: the track's columns, in order (:func:`sns_track`)
+TRACK_COLUMNS = ("t_s", *HORIZONTAL_COLUMNS, "sns_up_m", "sns_lat_deg", "sns_lon_deg", "sns_alt_m")
 
 
 @dataclass(frozen=True)
@@ -216,6 +218,26 @@ def plane_track(sol: SnsSolution, plane, *, out: np.ndarray | None = None
     return {"north_m": out[0], "east_m": out[1], "north_sd_m": out[2], "east_sd_m": out[3]}
 
 
+def sns_track(sol: SnsSolution, plane, t: np.ndarray) -> pd.DataFrame:
+    """The track's columns through the one builder (:class:`flightrecon.tracks.TrackColumns`):
+    the plane position and its sd (:func:`plane_track`), its up, latitude, longitude and
+    ellipsoidal height (the smoother's own latitude and longitude; its height is the GNSS
+    height, or the pressure altitude's where a fix has none, that the filter was given), and the
+    local-level velocity with its sd."""
+    from flightrecon.tracks import TrackColumns
+
+    pt = plane_track(sol, plane)
+    lat, lon = np.rad2deg(sol.lat), np.rad2deg(sol.lon)
+    _, _, up = plane.forward(lat, lon, sol.h)
+    out = TrackColumns("sns", t)
+    out.add("north", "m", pt["north_m"], pt["north_sd_m"])
+    out.add("east", "m", pt["east_m"], pt["east_sd_m"])
+    out.add("vn", "mps", sol.v_ne[:, 0], np.sqrt(sol.P_v[:, 0, 0]))
+    out.add("ve", "mps", sol.v_ne[:, 1], np.sqrt(sol.P_v[:, 1, 1]))
+    out.add_place(plane, pt["east_m"], pt["north_m"], up=up, geodetic=(lat, lon, sol.h))
+    return out.frame()
+
+
 def corrections_summary(sol: SnsSolution, k: int = -1) -> dict[str, Any]:
     """Estimated corrections (true minus measured) with standard deviations at filter step k.
 
@@ -249,9 +271,10 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     Returns
     -------
     MethodResult
-        ``name="sns"``; track columns ``t_s``, ``sns_north_m``, ``sns_east_m`` (output tangent
-        plane), ``sns_north_sd_m``, ``sns_east_sd_m``, ``sns_vn_mps``, ``sns_ve_mps`` (true
-        north/east), ``sns_vn_sd_mps``, ``sns_ve_sd_mps``; summary with model, form, corrections
+        ``name="sns"``; track columns :data:`TRACK_COLUMNS`: ``sns_north_m``, ``sns_east_m``
+        (output tangent plane) with their sd, ``sns_vn_mps``, ``sns_ve_mps`` (true
+        north/east) with their sd, ``sns_up_m``, ``sns_lat_deg``, ``sns_lon_deg``,
+        ``sns_alt_m`` (as the default's columns); summary with model, form, corrections
         and their standard deviations, fixes used, GNSS gaps, innovation statistics.
     """
     if noise is None and noise_overrides:
@@ -259,19 +282,11 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     sol = solve_sns(clean, model=model, form=form, filter_rate_hz=filter_rate_hz, noise=noise)
     plane = output_plane(clean.meta)
     t = clean.grid["t_s"].to_numpy(float)
-    # one (columns, rows) block filled in place and wrapped without a copy
-    block = np.empty((len(TRACK_COLUMNS), len(t)))
-    block[0] = t
-    plane_track(sol, plane, out=block[1:5])
-    block[5] = sol.v_ne[:, 0]
-    block[6] = sol.v_ne[:, 1]
-    np.sqrt(sol.P_v[:, 0, 0], out=block[7])
-    np.sqrt(sol.P_v[:, 1, 1], out=block[8])
-    track = pd.DataFrame(block.T, columns=list(TRACK_COLUMNS), copy=False)
+    track = sns_track(sol, plane, t)
     # NIS per fix with the rank of its innovation covariance as degrees of freedom
     verdict = chi_square_verdict(sol.run.nis, sol.run.rank)
     nis_ratio = verdict.mean
-    finite = bool(np.isfinite(block).all())
+    finite = bool(np.isfinite(track[list(HORIZONTAL_COLUMNS)].to_numpy()).all())
     dt_fix = np.diff(sol.fix_t)
     min_gap = 3.0 * float(np.median(dt_fix)) if len(dt_fix) else 0.0
     summary: dict[str, Any] = {
