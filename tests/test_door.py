@@ -18,14 +18,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _shared import CORPUS
 
 from flightrecon.cli.main import main
 from flightrecon.errors import ValidationError
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.evidence import double_integral_fit, turn_rate_fit
 from flightrecon.sim.ed112 import ed112_export, ed112_mapping
-
-from _shared import CORPUS
 
 # every test reading the corpus is marked shared_data: skipped where ../shared is absent,
 # required in CI (tests/conftest.py); without it one placeholder log keeps them listed

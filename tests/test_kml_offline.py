@@ -73,5 +73,5 @@ def test_reconstructed_kml_needs_no_network(tmp_path):
     assert run_cli(["reconstruct", str(SAMPLES / "circuit.parquet"), "--methods", "joint",
                     "-o", str(out)]) == 0
     root = ET.parse(out).getroot()
-    assert root.find(f".//{{http://www.google.com/kml/ext/2.2}}Track") is not None
+    assert root.find(".//{http://www.google.com/kml/ext/2.2}Track") is not None
     assert offline_problems(out) == []
