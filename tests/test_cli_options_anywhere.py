@@ -144,3 +144,57 @@ def test_verbose_prints_each_stage(tmp_path, capsys):
     assert lines[-1].startswith("clean: done in ")
     times = [float(ln.split("(t = ")[1].split(" s)")[0]) for ln in lines[:-1]]
     assert times == sorted(times)
+
+
+# ------------------------------------------------------------------ warnings on the console
+
+
+@pytest.fixture()
+def log_with_extra_column(tmp_path) -> Path:
+    """The shipped circuit with one column the schema does not know: a warning on reading."""
+    import shutil
+
+    import pandas as pd
+
+    d = pd.read_csv(SAMPLES / "circuit.csv")
+    d["mystery"] = 1.0
+    log = tmp_path / "extra.csv"
+    d.to_csv(log, index=False)
+    shutil.copy(SAMPLES / "circuit.meta.toml", tmp_path / "extra.meta.toml")
+    return log
+
+
+@pytest.mark.parametrize("cmd", ["clean", "reconstruct", "info"])
+def test_every_command_prints_the_tools_warnings_one_way(cmd, log_with_extra_column, capsys):
+    """The same warning, from ``clean`` (which printed Python's ``<file>.py:<line>:
+    FlightReconWarning: ...`` and the source line), ``reconstruct`` and ``info``: one line
+    ``  warning: <message>`` on stderr, nothing of Python's format."""
+    log = log_with_extra_column
+    out = {"clean": ["-o", str(log.with_name("g.parquet"))],
+           "reconstruct": ["--methods", "joint", "-o", str(log.with_name("r.csv"))],
+           "info": []}[cmd]
+    assert _code([cmd, str(log), *out]) == 0
+    err = capsys.readouterr().err.splitlines()
+    want = f"  warning: {log}: 1 column(s) not in the schema and not mapped, ignored: mystery"
+    assert err.count(want) == 1, err
+    assert not [ln for ln in err if "FlightReconWarning" in ln or ".py:" in ln], err
+
+
+def test_other_warnings_keep_pythons_format(capsys):
+    """A warning that is not the tool's own (a library's) goes to the display in force
+    before (Python's, or whatever replaced it); the tool's own is a console line."""
+    import warnings
+
+    from flightrecon.cli.console import console_warnings
+    from flightrecon.errors import FlightReconWarning
+
+    shown: list[str] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = lambda message, category, *a, **k: shown.append(
+            f"{category.__name__}: {message}")
+        with console_warnings():
+            warnings.warn("ours", FlightReconWarning, stacklevel=1)
+            warnings.warn("theirs", DeprecationWarning, stacklevel=1)
+    assert capsys.readouterr().err == "  warning: ours\n"
+    assert shown == ["DeprecationWarning: theirs"]

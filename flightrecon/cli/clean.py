@@ -18,6 +18,8 @@ from flightrecon.cli.common import (
 from flightrecon.cli.trim import trim_options
 
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
+#: version of the ``flightrecon`` metadata block of the cleaned Parquet tables (docs/output.md)
+CLEAN_SCHEMA_VERSION = 1
 
 
 def output_paths(out: Path) -> dict[str, Path]:
@@ -73,8 +75,9 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
             if key != "grid" and len(df) == 0:
                 continue
             if fmt == "parquet":
-                write_parquet(pub.file(paths[key]), df, {"cleaning": {
-                    k: v for k, v in doc.items() if k != "report"}, "table": key})
+                write_parquet(pub.file(paths[key]), df, {
+                    "schema_version": CLEAN_SCHEMA_VERSION, "table": key,
+                    "cleaning": {k: v for k, v in doc.items() if k != "report"}})
             else:
                 write_csv(pub.file(paths[key]), df)
             written.append(paths[key])
