@@ -180,6 +180,25 @@ def test_every_command_prints_the_tools_warnings_one_way(cmd, log_with_extra_col
     assert not [ln for ln in err if "FlightReconWarning" in ln or ".py:" in ln], err
 
 
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_quiet_keeps_the_warnings_off_the_console_and_in_the_report(where, tmp_path,
+                                                                    log_with_extra_column,
+                                                                    capsys):
+    """With --quiet (before or after the subcommand) ``clean`` prints only the paths written,
+    as ``reconstruct`` does; its warnings are in <stem>.cleaning.json either way."""
+    import json
+
+    out = tmp_path / "q.parquet"
+    args = ["clean", str(log_with_extra_column), "-o", str(out)]
+    assert _code(["--quiet", *args] if where == "before" else [*args, "--quiet"]) == 0
+    cap = capsys.readouterr()
+    assert cap.err == ""
+    assert cap.out.splitlines()[0] == f"wrote {out}"
+    report = json.loads(out.with_name("q.cleaning.json").read_text())
+    assert report["warnings"] == [f"{log_with_extra_column}: 1 column(s) not in the schema "
+                                  "and not mapped, ignored: mystery"]
+
+
 def test_other_warnings_keep_pythons_format(capsys):
     """A warning that is not the tool's own (a library's) goes to the display in force
     before (Python's, or whatever replaced it); the tool's own is a console line."""

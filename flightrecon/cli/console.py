@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Any, TextIO
 
 import click
@@ -32,18 +32,44 @@ def echo_warning(message: object) -> None:
 
 
 @contextlib.contextmanager
-def console_warnings() -> Iterator[None]:
-    """While active, the tool's warnings are shown with :func:`echo_warning`; others as
-    before.  The previous display (and the filters) are restored on exit."""
+def console_warnings(settings: Mapping[str, Any] | None = None) -> Iterator[None]:
+    """While active, the tool's warnings are shown with :func:`echo_warning`, or not at all
+    when ``settings`` (the run's shared options, read when a warning comes: ``--quiet`` may
+    follow the subcommand) has ``quiet``, as ``reconstruct`` never printed them then (they
+    are in its summary, and in the report ``clean`` writes); other warnings as before.  The
+    previous display (and the filters) are restored on exit."""
     with warnings.catch_warnings():
         previous = warnings.showwarning
 
         def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
                  file: TextIO | None = None, line: str | None = None) -> Any:
             if issubclass(category, FlightReconWarning):
-                echo_warning(message)
+                if not (settings and settings.get("quiet")):
+                    echo_warning(message)
                 return None
             return previous(message, category, filename, lineno, file, line)
 
         warnings.showwarning = show
         yield
+
+
+@contextlib.contextmanager
+def collected_warnings() -> Iterator[list[str]]:
+    """While active, each of the tool's warnings is also kept, once per message, in the list
+    yielded (for a report file), and shown as it comes by the display in force (the console's,
+    :func:`console_warnings`)."""
+    kept: list[str] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FlightReconWarning)   # each message once, below
+        previous = warnings.showwarning
+
+        def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                 file: TextIO | None = None, line: str | None = None) -> Any:
+            if issubclass(category, FlightReconWarning):
+                if str(message) in kept:
+                    return None
+                kept.append(str(message))
+            return previous(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        yield kept

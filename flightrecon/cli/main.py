@@ -42,7 +42,8 @@ class _Group(click.Group):
         from flightrecon.cli.console import console_warnings
 
         try:
-            with console_warnings():   # the tool's warnings as console lines, every command
+            # the tool's warnings as console lines, every command; none with --quiet
+            with console_warnings(ctx.ensure_object(dict)):
                 return super().invoke(ctx)
         except BrokenPipeError as exc:  # before click turns it into a silent exit 1
             raise _PipeClosed() from exc
