@@ -63,7 +63,9 @@ def _print_version(ctx: click.Context, param: click.Parameter, value: bool) -> N
 #: and after it (:func:`add_console_options`), with the same meaning
 CONSOLE_OPTIONS = (
     ("debug", ("--debug",), "Show the full traceback on errors."),
-    ("quiet", ("--quiet", "-q"), "No progress bars or chatter (for scripts)."),
+    ("quiet", ("--quiet", "-q"),
+     "No progress bars, chatter or warnings on the console (for scripts); reconstruct and "
+     "clean keep their warnings in the summary and the cleaning report."),
     ("verbose", ("--verbose", "-v"),
      "Print each stage as it starts, with the time elapsed (also when the output is not a "
      "terminal)."),
