@@ -11,7 +11,6 @@ radians, milliseconds, knots) must still be refused.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import warnings
 from pathlib import Path
@@ -19,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _shared import CORPUS
 
 from flightrecon.cli.main import main
 from flightrecon.errors import ValidationError
@@ -26,15 +26,10 @@ from flightrecon.ingest import load_flight
 from flightrecon.ingest.evidence import double_integral_fit, turn_rate_fit
 from flightrecon.sim.ed112 import ed112_export, ed112_mapping
 
-ROOT = Path(__file__).resolve().parents[1]
-CORPUS = ROOT.parent / "shared" / "corpus"
+# every test reading the corpus is marked shared_data: skipped where ../shared is absent,
+# required in CI (tests/conftest.py); without it one placeholder log keeps them listed
 LOGS = sorted(p.name for p in CORPUS.glob("c*-*.parquet")
-              if not p.name.endswith("truth.parquet")) if CORPUS.is_dir() else []
-
-if not LOGS:                    # CI lays shared/ beside the clone: there it must be found
-    if os.environ.get("CI"):
-        raise RuntimeError(f"the independent corpus is missing: {CORPUS}")
-    pytestmark = pytest.mark.skip(reason=f"no independent corpus at {CORPUS}")
+              if not p.name.endswith("truth.parquet")) or ["corpus-absent"]
 
 
 def _meta(log: str) -> dict:
@@ -74,6 +69,7 @@ def _copy(tmp_path: Path, name: str, df: pd.DataFrame | None = None) -> Path:
 # ------------------------------------------------------------------ accepted, reconstructed
 
 
+@pytest.mark.shared_data
 @pytest.mark.parametrize("log", LOGS)
 def test_every_corpus_log_passes_the_door_without_a_unit_word(log):
     fl, warns = load_quiet(CORPUS / log)
@@ -85,6 +81,7 @@ def test_every_corpus_log_passes_the_door_without_a_unit_word(log):
     assert 0.8 < fig["baro_alt_m unit"] < 1.2
 
 
+@pytest.mark.shared_data
 @pytest.mark.parametrize("log", LOGS)
 def test_corpus_logs_reconstruct_to_a_finite_track(tmp_path, capsys, log):
     """Recorder only, with GNSS, body rates instead of heading, horizontal GNSS: exit 0 and a
@@ -111,6 +108,7 @@ def _c1(gnss: bool = False) -> pd.DataFrame:
     return pd.read_parquet(CORPUS / ("c1-gnss.parquet" if gnss else "c1-fdr.parquet"))
 
 
+@pytest.mark.shared_data
 @pytest.mark.parametrize("gnss", [False, True])
 def test_pressure_altitude_in_feet_is_refused(tmp_path, gnss):
     d = _c1(gnss)
@@ -121,6 +119,7 @@ def test_pressure_altitude_in_feet_is_refused(tmp_path, gnss):
     assert "used as declared" in str(ex.value)       # says how to override
 
 
+@pytest.mark.shared_data
 def test_gnss_height_in_feet_is_refused_and_named(tmp_path):
     d = _c1(True)
     d["gnss_alt_m"] = d["gnss_alt_m"] / 0.3048
@@ -129,6 +128,7 @@ def test_gnss_height_in_feet_is_refused_and_named(tmp_path):
     assert ex.value.column == "gnss_alt_m"
 
 
+@pytest.mark.shared_data
 @pytest.mark.parametrize("gnss", [False, True])
 def test_airspeed_in_knots_is_refused_with_or_without_gnss(tmp_path, gnss):
     """Without GNSS the coordinated turns say it (heading rate = g0 tan(roll) / V)."""
@@ -139,6 +139,7 @@ def test_airspeed_in_knots_is_refused_with_or_without_gnss(tmp_path, gnss):
     assert ex.value.column == "tas_mps"
 
 
+@pytest.mark.shared_data
 def test_airspeed_in_metres_per_second_declared_knots_is_said_loudly(tmp_path, capsys):
     """A mapping declaring knots for a column in m/s (the fuzzer's IAS_KT x 0.514: track 1.7
     km off, exit 0, no word): the user's word is used, with a warning on the console."""
@@ -164,6 +165,7 @@ def test_airspeed_in_metres_per_second_declared_knots_is_said_loudly(tmp_path, c
     assert "used as declared" in err and "likely unit m/s" in err
 
 
+@pytest.mark.shared_data
 def test_attitude_in_radians_is_refused(tmp_path):
     d = _c1(True)
     for c in ("roll_deg", "pitch_deg", "heading_deg"):
@@ -172,6 +174,7 @@ def test_attitude_in_radians_is_refused(tmp_path):
         load_quiet(_copy(tmp_path, "rad.parquet", d))
 
 
+@pytest.mark.shared_data
 def test_time_in_milliseconds_is_refused(tmp_path):
     d = _c1(False)
     d["t_s"] = d["t_s"] * 1000.0
@@ -182,6 +185,7 @@ def test_time_in_milliseconds_is_refused(tmp_path):
 # ------------------------------------------------------------------ low rates, holes
 
 
+@pytest.mark.shared_data
 def test_low_rate_export_passes_the_door(tmp_path):
     """The ED-112 minimum rates (loads 8/4 Hz, roll 2 Hz, magnetic heading, airspeed and
     pressure altitude in feet 1 Hz, each in its frame slot) through a mapping: accepted, no
@@ -208,6 +212,7 @@ def test_low_rate_export_passes_the_door(tmp_path):
         load_quiet(log, mapping=tmp_path / "n.toml", meta_overrides=over)
 
 
+@pytest.mark.shared_data
 def test_mostly_missing_channel_is_reported(tmp_path):
     """n_long_g 90 % literal NaN at random rows: a warning naming the channel (the fuzzer's
     1.3 km silent error)."""
@@ -219,6 +224,7 @@ def test_mostly_missing_channel_is_reported(tmp_path):
     assert any("n_long_g" in w and "mostly missing" in w for w in warns), warns
 
 
+@pytest.mark.shared_data
 def test_info_lists_each_check_with_its_verdict(capsys):
     code, out, err = run(["info", CORPUS / "c1-gnss.parquet"], capsys)
     assert code == 0, err
@@ -232,6 +238,7 @@ def test_info_lists_each_check_with_its_verdict(capsys):
     assert {c["verdict"] for c in checks} <= {"passed", "warned", "refused", "skipped"}
 
 
+@pytest.mark.shared_data
 def test_info_shows_the_checks_before_a_refusal(tmp_path, capsys):
     d = _c1(False)
     d["baro_alt_m"] = d["baro_alt_m"] / 0.3048
@@ -282,6 +289,7 @@ def _fit_returning(factor: float, r: float):
     return lambda *a, **k: Fit(factor, r, 25.0, 0.019, "windows")
 
 
+@pytest.mark.shared_data
 @pytest.mark.parametrize("log, r, refused", [
     ("c1-fdr.parquet", 0.13, False),    # the fit does not explain the airspeed: no evidence
     ("c1-fdr.parquet", 0.99, True),     # a good fit, nothing against it: centiseconds

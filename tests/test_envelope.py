@@ -14,6 +14,7 @@ import pytest
 
 from flightrecon.cli.main import main
 from flightrecon.envelope import Envelope, central_rate, envelope_problems, second_rate
+from flightrecon.errors import FlightReconWarning
 from flightrecon.types import CleanFlight, FlightMeta, MethodResult, Position
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
@@ -202,7 +203,8 @@ def test_seed_sample_sabziev_is_unhealthy_by_its_height():
     from flightrecon.ingest import load_flight
     from flightrecon.pipeline import ReconstructSettings, method_health, run_method
 
-    clean = clean_flight(load_flight(SAMPLES / "seed-ads-arms.parquet"))
+    with pytest.warns(FlightReconWarning, match="the record ends fast"):   # at 89 m/s
+        clean = clean_flight(load_flight(SAMPLES / "seed-ads-arms.parquet"))
     assert clean.meta.arrival is not None and clean.meta.arrival.elev_m == 1000.0
     sea = replace(clean.meta, arrival=replace(clean.meta.arrival, elev_m=0.0))
     clean = replace(clean, meta=sea)

@@ -11,16 +11,19 @@ import pytest
 from _scripts import load_script
 
 from flightrecon.cleaning import clean_flight
-from flightrecon.errors import ValidationError
+from flightrecon.errors import FlightReconWarning, ValidationError
 from flightrecon.sim import simulate
 from flightrecon.types import Flight
 
 study = load_script("heading_from_rates_study")
+#: what the cleaning says when it propagates the heading from the rates
+FROM_RATES = "heading from the body rates"
 
 
 @pytest.fixture(scope="module")
 def run():
-    return study.one_run(study.SEED0)
+    with pytest.warns(FlightReconWarning, match=FROM_RATES):
+        return study.one_run(study.SEED0)
 
 
 def test_with_gnss_within_1_5_of_heading(run):
@@ -63,7 +66,8 @@ def test_no_anchor_refused():
 
 
 def test_report_and_grid_columns():
-    cf = clean_flight(_rates_flight(with_gnss=True, runway=False))
+    with pytest.warns(FlightReconWarning, match=FROM_RATES):
+        cf = clean_flight(_rates_flight(with_gnss=True, runway=False))
     (rep,) = [e for e in cf.report if e["action"] == "heading_from_rates"]
     assert "GNSS track" in rep["why"] and "runway" not in rep["why"]
     assert {"heading_deg", "heading_sd_deg"} <= set(cf.grid.columns)
@@ -75,7 +79,8 @@ def test_dead_heading_replaced():
     r = simulate("circuit", seed=5002)
     log, _ = study.rates_log(r.log, r.truth, np.random.default_rng(2))
     log["heading_deg"] = np.where(log["roll_deg"].notna(), 123.0, np.nan)   # a dead channel
-    cf = clean_flight(Flight(data=log, meta=r.meta))
+    with pytest.warns(FlightReconWarning, match=FROM_RATES + r" \(heading never changes"):
+        cf = clean_flight(Flight(data=log, meta=r.meta))
     assert any(e["action"] == "heading_from_rates" and "dead" in e["why"] for e in cf.report)
     assert np.ptp(cf.grid["heading_deg"]) > 90.0
 
@@ -88,10 +93,13 @@ def test_heading_reference_grid_with_runways_only_true_with_gnss():
     from flightrecon.methods.sabziev.flight_inputs import heading_reference
     from flightrecon.methods.sabziev.method import run_sabziev
 
-    cf = clean_flight(_rates_flight(with_gnss=False, runway=True))
+    with pytest.warns(FlightReconWarning, match=FROM_RATES):
+        cf = clean_flight(_rates_flight(with_gnss=False, runway=True))
     assert heading_reference(cf) == "grid"
     assert run_sabziev(cf).summary["frame"]["frame"].startswith("flat")
-    assert heading_reference(clean_flight(_rates_flight(with_gnss=True, runway=False))) == "true"
+    with pytest.warns(FlightReconWarning, match=FROM_RATES):
+        cf = clean_flight(_rates_flight(with_gnss=True, runway=False))
+    assert heading_reference(cf) == "true"
 
 
 def test_meridian_convergence_of_an_arrival_runway():

@@ -7,6 +7,7 @@ import pytest
 
 from flightrecon.cli.main import main
 from flightrecon.errors import (
+    FlightReconWarning,
     InputFileError,
     MetadataError,
     SchemaError,
@@ -93,8 +94,10 @@ def log(tmp_path_factory):
 
 def test_carried_in_the_metadata(log, tmp_path):
     w = _write(tmp_path, "alt_msl_m,from_deg,speed_mps\n0,270,5\n2000,280,9\n")
-    f = load_flight(log, meta_overrides={"fixes": ["60,40.1,48.5,1000,50", "30,40.1,48.4"],
-                                         "wind_aloft": str(w)})
+    with pytest.warns(FlightReconWarning, match=r"known positions \(--fix\) and a "
+                      r"winds-aloft prior \(--wind\): used by the joint smoother"):
+        f = load_flight(log, meta_overrides={"fixes": ["60,40.1,48.5,1000,50", "30,40.1,48.4"],
+                                             "wind_aloft": str(w)})
     assert [x.t_s for x in f.meta.fixes] == [30.0, 60.0]  # sorted by time
     assert f.meta.fixes[1].sd_m == 50.0 and f.meta.fixes[1].alt_msl_m == 1000.0
     assert [lv.alt_msl_m for lv in f.meta.wind_aloft] == [0.0, 2000.0]

@@ -6,7 +6,7 @@ import pytest
 from test_cleaning_synth import LIFTOFF_S, TD_S, synthetic_flight
 
 from flightrecon.cleaning import clean_flight, detect_phases
-from flightrecon.errors import ValidationError
+from flightrecon.errors import FlightReconWarning, ValidationError
 from flightrecon.types import Flight
 
 # Acceptance tolerance of the issue: lift-off and touchdown within 1 s of the truth.
@@ -46,7 +46,9 @@ def test_record_cut_in_the_air():
     flight, _ = synthetic_flight(5)
     d = flight.data
     cut = d[(d["t_s"] >= 150.0) & (d["t_s"] <= 400.0)].reset_index(drop=True)
-    ph = clean_flight(Flight(cut, flight.meta)).phases
+    with pytest.warns(FlightReconWarning, match=r"the arrival given .* is not where this "
+                      "record ends: it ends in the air"):
+        ph = clean_flight(Flight(cut, flight.meta)).phases
     assert ph.starts_airborne and ph.ends_airborne
     assert np.isnan(ph.liftoff_t_s) and np.isnan(ph.touchdown_t_s)
     assert all(np.isnan(ph.liftoff_velocity_ned_mps))
@@ -61,7 +63,8 @@ def test_ground_only_record_has_no_phases():
     flight, _ = synthetic_flight(6)
     d = flight.data
     ground = d[d["t_s"] <= 50.0].reset_index(drop=True)  # taxi and the start of the roll
-    clean = clean_flight(Flight(ground, flight.meta))
+    with pytest.warns(FlightReconWarning, match="the record ends fast"):   # mid-roll
+        clean = clean_flight(Flight(ground, flight.meta))
     ph = clean.phases
     assert not ph.starts_airborne and np.isnan(ph.liftoff_t_s) and np.isnan(ph.touchdown_t_s)
     assert any(r["action"] == "no_liftoff" for r in clean.report)

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from flightrecon.cleaning import clean_flight
+from flightrecon.errors import FlightReconWarning
 from flightrecon.geo.frames import offset_latlon
 from flightrecon.geo.wind import wind_aloft_ne
 from flightrecon.methods.baselines import dead_reckoning
@@ -107,7 +108,8 @@ def test_airborne_end_is_the_last_position_with_its_sd():
     log = r.log[r.log["t_s"] <= 300.0].reset_index(drop=True)
     tr = r.truth[r.truth["t_s"] <= 300.0].iloc[-1]
     last = Position(float(tr["lat_deg"]), float(tr["lon_deg"]), float(tr["alt_msl_m"]))
-    clean = clean_flight(Flight(data=log, meta=replace(r.meta, arrival=last)))
+    with pytest.warns(FlightReconWarning, match="the record ends fast"):
+        clean = clean_flight(Flight(data=log, meta=replace(r.meta, arrival=last)))
     assert clean.phases.ends_airborne
     inp = joint_inputs(clean)
     nz = JointNoise()

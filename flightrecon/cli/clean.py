@@ -18,6 +18,8 @@ from flightrecon.cli.common import (
 from flightrecon.cli.trim import trim_options
 
 _SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".csv": "csv"}
+#: version of the ``flightrecon`` metadata block of the cleaned Parquet tables (docs/output.md)
+CLEAN_SCHEMA_VERSION = 1
 
 
 def output_paths(out: Path) -> dict[str, Path]:
@@ -39,14 +41,14 @@ def output_paths(out: Path) -> dict[str, Path]:
             "radar": Path(f"{stem}.radar{out.suffix}"), "report": Path(f"{stem}.cleaning.json")}
 
 
-def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str, Any]
-                        ) -> list[Path]:
+def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str, Any],
+                        warned: list[str] | None = None) -> list[Path]:
     """Write a :class:`~flightrecon.types.CleanFlight` beside ``out``, atomically.
 
     The grid goes to ``out`` (Parquet or CSV by suffix), the GNSS fixes and radar plots (when
     present) to ``<stem>.gnss.<ext>`` / ``<stem>.radar.<ext>``, and the report with the grid
-    rate, phases and settings to ``<stem>.cleaning.json``.  No path may be an input file.
-    Returns the paths written.
+    rate, phases, settings and the tool's warnings (``warned``) to ``<stem>.cleaning.json``.
+    No path may be an input file.  Returns the paths written.
     """
     from flightrecon.export.atomic import Publication, check_not_input, write_text_atomic
     from flightrecon.export.encode import to_json
@@ -64,6 +66,7 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
         "settings": settings,
         "inputs": [str(p) for p in inputs],
         "report": list(clean.report),
+        "warnings": list(warned or ()),
     }
     fmt = _SUFFIXES[out.suffix.lower()]
     written = []
@@ -73,8 +76,9 @@ def write_clean_outputs(clean, out: Path, inputs: list[Path], settings: dict[str
             if key != "grid" and len(df) == 0:
                 continue
             if fmt == "parquet":
-                write_parquet(pub.file(paths[key]), df, {"cleaning": {
-                    k: v for k, v in doc.items() if k != "report"}, "table": key})
+                write_parquet(pub.file(paths[key]), df, {
+                    "schema_version": CLEAN_SCHEMA_VERSION, "table": key,
+                    "cleaning": {k: v for k, v in doc.items() if k != "report"}})
             else:
                 write_csv(pub.file(paths[key]), df)
             written.append(paths[key])
@@ -119,6 +123,7 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
     """
     from flightrecon.cleaning import CleaningSettings, clean_flight
     from flightrecon.cli.common import errors_name_file, run_inputs
+    from flightrecon.cli.console import collected_warnings
     from flightrecon.cli.progress import stage_progress
     from flightrecon.export.atomic import check_outputs, sweep_leftovers
     from flightrecon.ingest import load_flight
@@ -133,7 +138,7 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
                                 start=start, end=end)
     quiet = bool(ctx.obj and ctx.obj.get("quiet"))
     with stage_progress(quiet, ["ingest", "cleaning", "write"], "clean") as stage:
-        with errors_name_file(log, sidecar):
+        with errors_name_file(log, sidecar), collected_warnings() as warned:
             stage("ingest")
             flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                                  gnss_use=gnss_use)
@@ -146,7 +151,7 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
             "clock_offsets_s": dict(settings.clock_offsets_s),
             "despike": None if settings.despike is None else asdict(settings.despike),
             "phases": None if settings.phases is None else asdict(settings.phases),
-            "start": start, "end": end})
+            "start": start, "end": end}, warned)
     if as_json:
         click.echo(written[-1].read_text(encoding="utf-8").rstrip("\n"))
         return

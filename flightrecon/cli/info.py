@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from flightrecon.cli.common import gnss_use_from_options, gnss_use_options, input_options
+from flightrecon.cli.console import echo_warning
 
 
 def _fmt(v, spec: str = ".3g", none: str = "-") -> str:
@@ -104,7 +105,7 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool, no_gnss: bo
         click.echo(f"  converted: {n}")
     _echo_door(info["door"])
     for w in info["warnings"]:
-        click.echo(f"warning: {w}", err=True)
+        echo_warning(w)
 
 
 def _echo_door(checks: list[dict]) -> None:

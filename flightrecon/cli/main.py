@@ -39,8 +39,12 @@ class _PipeClosed(Exception):
 
 class _Group(click.Group):
     def invoke(self, ctx: click.Context):
+        from flightrecon.cli.console import console_warnings
+
         try:
-            return super().invoke(ctx)
+            # the tool's warnings as console lines, every command; none with --quiet
+            with console_warnings(ctx.ensure_object(dict)):
+                return super().invoke(ctx)
         except BrokenPipeError as exc:  # before click turns it into a silent exit 1
             raise _PipeClosed() from exc
 
@@ -55,17 +59,62 @@ def _print_version(ctx: click.Context, param: click.Parameter, value: bool) -> N
     ctx.exit()
 
 
+#: the options of the whole command line: (name, flags, help); accepted before the subcommand
+#: and after it (:func:`add_console_options`), with the same meaning
+CONSOLE_OPTIONS = (
+    ("debug", ("--debug",), "Show the full traceback on errors."),
+    ("quiet", ("--quiet", "-q"),
+     "No progress bars, chatter or warnings on the console (for scripts); reconstruct and "
+     "clean keep their warnings in the summary and the cleaning report."),
+    ("verbose", ("--verbose", "-v"),
+     "Print each stage as it starts, with the time elapsed (also when the output is not a "
+     "terminal)."),
+)
+
+
+def _set_console_option(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    """Record a console option given after a subcommand in the run's shared settings (the
+    ``obj`` every context of the run shares with the root); a flag is never unset there."""
+    if value and param.name:
+        ctx.ensure_object(dict)[param.name] = True
+        _check_quiet_or_verbose(ctx)
+
+
+def _check_quiet_or_verbose(ctx: click.Context) -> None:
+    """``--quiet`` and ``--verbose`` together: a usage error (exit 2)."""
+    if ctx.obj.get("quiet") and ctx.obj.get("verbose"):
+        raise click.UsageError("--quiet and --verbose exclude each other", ctx=ctx)
+
+
+def add_console_options(cmd: click.Command) -> None:
+    """Give ``cmd`` and every subcommand under it the options of :data:`CONSOLE_OPTIONS`, so
+    that ``flightrecon reconstruct LOG --quiet`` means what ``flightrecon --quiet reconstruct
+    LOG`` means."""
+    for name, flags, text in CONSOLE_OPTIONS:
+        if not any(p.name == name for p in cmd.params):
+            cmd.params.append(click.Option([name, *flags], is_flag=True, help=text,
+                                           show_default=False, expose_value=False,
+                                           callback=_set_console_option))
+    if isinstance(cmd, click.Group):
+        for sub in cmd.commands.values():
+            add_console_options(sub)
+
+
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("--version", is_flag=True, expose_value=False, is_eager=True,
               callback=_print_version, help="Show the version and exit.")
-@click.option("--debug", is_flag=True, help="Show the full traceback on errors.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bars or chatter (for scripts).")
+@click.option(*CONSOLE_OPTIONS[0][1], is_flag=True, help=CONSOLE_OPTIONS[0][2])
+@click.option(*CONSOLE_OPTIONS[1][1], is_flag=True, help=CONSOLE_OPTIONS[1][2])
+@click.option(*CONSOLE_OPTIONS[2][1], is_flag=True, help=CONSOLE_OPTIONS[2][2])
 @click.pass_context
-def cli(ctx: click.Context, debug: bool, quiet: bool) -> None:
-    """Reconstruct an aircraft's trajectory from its recorded flight data."""
+def cli(ctx: click.Context, debug: bool, quiet: bool, verbose: bool) -> None:
+    """Reconstruct an aircraft's trajectory from its recorded flight data.
+
+    --debug, --quiet and --verbose may also follow the subcommand
+    (flightrecon reconstruct LOG --quiet)."""
     ctx.ensure_object(dict)
-    ctx.obj["debug"] = debug
-    ctx.obj["quiet"] = quiet
+    ctx.obj.update(debug=debug, quiet=quiet, verbose=verbose)
+    _check_quiet_or_verbose(ctx)
 
 
 for _name in COMMAND_MODULES:
@@ -75,6 +124,7 @@ for _name in COMMAND_MODULES:
         if exc.name != _name:
             raise
         continue
+    add_console_options(_mod.command)
     cli.add_command(_mod.command)
 
 

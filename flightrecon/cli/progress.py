@@ -62,7 +62,12 @@ def stage_progress(quiet: bool, stages: Iterable[str], desc: str = "flightrecon"
                    ) -> Iterator[Callable[[str], None]]:
     """A tqdm bar over the expected ``stages`` on stderr; yields ``stage(name)`` to call as
     each stage starts (unknown names extend the total).  The elapsed time keeps running
-    between stages.  Silent with ``quiet`` or when stderr is not a terminal."""
+    between stages.  Silent with ``quiet`` or when stderr is not a terminal; with
+    ``--verbose`` (:func:`verbose_asked`) one line per stage instead (:func:`stage_lines`)."""
+    if not quiet and verbose_asked():
+        with stage_lines(desc) as line:
+            yield line
+        return
     if quiet or not sys.stderr.isatty():
         yield lambda name: None
         return
@@ -100,6 +105,29 @@ def stage_progress(quiet: bool, stages: Iterable[str], desc: str = "flightrecon"
         with lock:
             bar.update(bar.total - bar.n)
             bar.close()
+
+
+def verbose_asked() -> bool:
+    """True when the command line was given ``--verbose`` (before or after the subcommand:
+    :data:`flightrecon.cli.main.CONSOLE_OPTIONS`)."""
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx is not None and isinstance(ctx.obj, dict) and ctx.obj.get("verbose"))
+
+
+@contextlib.contextmanager
+def stage_lines(desc: str) -> Iterator[Callable[[str], None]]:
+    """``--verbose``: one line on stderr as each stage starts, with the seconds since the
+    stages began (``reconstruct: cleaning (t = 1.2 s)``), and one when they end; the same on a
+    terminal and in a log file."""
+    import time
+
+    t0 = time.perf_counter()
+
+    def stage(name: str) -> None:
+        click.echo(f"{desc}: {name} (t = {time.perf_counter() - t0:.1f} s)", err=True)
+
+    yield stage
+    click.echo(f"{desc}: done in {time.perf_counter() - t0:.1f} s", err=True)
 
 
 def check_format(path: Path, fmt: str | None, param: str = "-o") -> str:

@@ -18,6 +18,7 @@ from flightrecon.cli.common import (
     read_noise_file,
     read_sns_noise_file,
 )
+from flightrecon.cli.console import echo_warning
 from flightrecon.cli.trim import trim_options
 
 
@@ -165,7 +166,7 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
         except NoResultError as exc:     # the warnings first: they may say why
             if not quiet:
                 for w in exc.warnings:
-                    click.echo(f"  warning: {w}", err=True)
+                    echo_warning(w)
             raise
         stage("export")
         page = publish_reconstruction(rec, out, summ, out_fmt, report_dir, store_path,
@@ -238,7 +239,7 @@ def _print_outcome(summary: dict) -> None:
     verdicts = {f"{name} unhealthy: {st.get('reason')}" for name, st in summary["methods"].items()}
     for w in summary["warnings"]:
         if w not in verdicts:
-            click.echo(f"  warning: {w}", err=True)
+            echo_warning(w)
     res = summary.get("result") or {}
     if res.get("method"):
         click.echo(f"  result from {res['method']}: {res['why']}", err=True)

@@ -109,12 +109,14 @@ def _kml_event_marks(metadata: Mapping[str, Any] | None, t: np.ndarray, lat: np.
     return marks
 
 
-#: the KML styles: the line, the aircraft, and the events by severity
+#: the KML styles: the line, the aircraft, and the events by severity.  No style names an
+#: image: an ``IconStyle`` without an ``Icon`` is drawn with the viewer's own placemark icon
+#: (tinted by ``color``), so a replay opened with no network shows every mark; an ``Icon``
+#: linking a web server's image shows a broken-image mark there (issue 53)
 _KML_STYLES = (
     '<Style id="line"><LineStyle><color>ff0080ff</color><width>3</width></LineStyle>'
     "</Style>"
-    '<Style id="aircraft"><IconStyle><scale>1.1</scale><Icon><href>'
-    "http://maps.google.com/mapfiles/kml/shapes/airports.png</href></Icon></IconStyle>"
+    '<Style id="aircraft"><IconStyle><color>ffffff00</color><scale>1.3</scale></IconStyle>'
     "<LineStyle><color>ff00ffff</color><width>2</width></LineStyle></Style>"
     + "".join(f'<Style id="event-{sev}"><IconStyle><color>{col}</color><scale>0.9</scale>'
               "</IconStyle><LabelStyle><scale>0.8</scale></LabelStyle></Style>"

@@ -147,11 +147,28 @@ def write_parquet(path: str | Path, track: pd.DataFrame, metadata: Mapping[str, 
 
 
 def read_parquet_metadata(path: str | Path) -> dict[str, Any]:
-    """The ``flightrecon`` metadata block of a result Parquet file."""
+    """The ``flightrecon`` metadata block of a Parquet file this tool wrote: a JSON object
+    (UTF-8, standard JSON; docs/output.md, "Formats"); ``{}`` when the file has none.
+
+    Raises
+    ------
+    InputFileError
+        If the block is not a JSON object (a file written by something else under our key).
+    """
+    from flightrecon.errors import InputFileError
+
     md = pq.read_schema(path).metadata or {}
     if METADATA_KEY not in md:
         return {}
-    return json.loads(md[METADATA_KEY].decode("utf-8"))
+    try:
+        doc = json.loads(md[METADATA_KEY].decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputFileError(f"its '{METADATA_KEY.decode()}' metadata is not JSON ({exc})",
+                             file=str(path)) from exc
+    if not isinstance(doc, dict):
+        raise InputFileError(f"its '{METADATA_KEY.decode()}' metadata is not a JSON object",
+                             file=str(path))
+    return doc
 
 
 def write_geojson(path: str | Path, track: pd.DataFrame, properties: Mapping[str, Any],
