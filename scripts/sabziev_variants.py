@@ -51,6 +51,7 @@ from sabziev_flights import (  # noqa: E402
     evaluate,
     jsbsim_flight,
 )
+from table_header import header  # noqa: E402
 
 from flightrecon.types import WindLevel  # noqa: E402
 
@@ -254,7 +255,7 @@ def write_tables(rows: list[dict[str, Any]], out: Path, elapsed: float,
                      f"| {_f(r['hor_rms_drl_m'])} | {_f(r['hor_rms_dr_m'])} | "
                      f"{_f(ratio, '.2f')} | {_f(r['up_rms_m'], '.1f')} | {ks} | {nf} | "
                      f"{r['health'][:90]} |")
-    (out / "sabziev_variants.md").write_text("\n".join(lines) + "\n")
+    (out / "sabziev_variants.md").write_text(header() + "\n".join(lines) + "\n")
 
 
 def main(argv: list[str] | None = None) -> None:
