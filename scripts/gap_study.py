@@ -48,7 +48,7 @@ from flightrecon.sim import simulate, write_simulation
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from table_header import header  # noqa: E402
+from table_header import command_line, header  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "tables"
@@ -209,7 +209,7 @@ def main() -> None:
     if not args.no_write:
         OUT.mkdir(parents=True, exist_ok=True)
         (OUT / "gap_nees.json").write_text(json.dumps(
-            {"seed": args.seed, "runs": runs, "aggregate": {
+            {"command": command_line(), "seed": args.seed, "runs": runs, "aggregate": {
                 w: aggregate(ok, w) for w in ("before", "after")}},
             indent=1, default=float) + "\n")
         (OUT / "gap_nees.md").write_text(md)

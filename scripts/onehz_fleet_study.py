@@ -75,7 +75,7 @@ from onehz_study import (  # noqa: E402  (the real export's study)
     joint_errors,
     with_gaps,
 )
-from table_header import header  # noqa: E402
+from table_header import command_line, header  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "tables"
@@ -412,7 +412,8 @@ def main() -> None:
                 print(json.dumps(r, indent=1, default=float), flush=True)
                 runs.append(r)
                 (OUT / f"{name}.json").write_text(json.dumps(
-                    {"seeds": args.seeds, "runs": runs}, indent=1, default=float) + "\n")
+                    {"command": command_line(), "seeds": args.seeds, "runs": runs}, indent=1,
+                    default=float) + "\n")
     ok = [r for r in runs if "error" not in r]
     (OUT / f"{name}.md").write_text(header() + markdown(ok, args.seeds) + "".join(
         f"\nNot measured: {r['scenario']} {r['airframe']} s{r['seed']}: {r['error']}\n"

@@ -50,7 +50,7 @@ from flightrecon.types import CleanFlight, Flight
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from table_header import header  # noqa: E402
+from table_header import command_line, header  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 LOG = ROOT / "sample_logs" / "g1000_sr22_LFQA_20220417.csv"
@@ -269,7 +269,8 @@ def main() -> None:
         print(json.dumps(r["gaps"], indent=1))
     name = "onehz" + (f"_{args.tag}" if args.tag else "")
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / f"{name}.json").write_text(json.dumps(r, indent=1) + "\n")
+    (OUT / f"{name}.json").write_text(json.dumps({"command": command_line(), **r}, indent=1)
+                                         + "\n")
     if len(r) == 3:
         (OUT / f"{name}.md").write_text(header() + markdown(r))
 
