@@ -30,6 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from mc_joint import errors, noise_from_sensors  # noqa: E402
+from table_header import command_line  # noqa: E402
 
 import flightrecon.methods.joint.flight_inputs as jm  # noqa: E402
 from flightrecon.cleaning import clean_flight  # noqa: E402
@@ -164,7 +165,8 @@ def main() -> None:
         print(json.dumps(row), flush=True)
     if a.write:
         path = ROOT / "docs" / "tables" / "impact_study.json"
-        path.write_text(json.dumps({"runs": rows, "sample_logs": logs}, indent=1) + "\n")
+        path.write_text(json.dumps({"command": command_line(), "runs": rows, "sample_logs": logs},
+                                   indent=1) + "\n")
         print(f"wrote {path}")
 
 

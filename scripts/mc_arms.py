@@ -26,10 +26,15 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import matplotlib
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from table_header import header  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -216,8 +221,8 @@ def main(argv=None) -> None:
     if not write:
         print("fewer than 200 runs: docs not written (use --write)")
         return
-    (tabdir / "arms_consistency.md").write_text(table1)
-    (tabdir / "arms_linearisation.md").write_text(table2)
+    (tabdir / "arms_consistency.md").write_text(header() + table1)
+    (tabdir / "arms_linearisation.md").write_text(header() + table2)
 
     # ---------------- figures
     plots, air = _inputs(sc, 0)

@@ -17,6 +17,7 @@ tests (``tests/test_azimuth_mc.py``).
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -31,6 +32,10 @@ from flightrecon.methods.azimuth import (
     track_range,
     wrap_pi,
 )
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from table_header import header  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -496,22 +501,26 @@ def main(argv=None) -> None:
               figs / "azimuth_outage.png", outage=(mean_out, mean_out + 30.0))
     hdr_r = ["case", "estimate", "azimuth", "rate", "acceleration"]
     (tables / "azimuth_ratio.md").write_text(
-        "Singer / aided RMS error ratio over the turns (all runs and samples inside the turns), "
+        header()
+        + "Singer / aided RMS error ratio over the turns (all runs and samples inside the turns), "
         f"{M} runs per case; Singer tuned per case.\n\n" + _md_table(hdr_r, ratio_rows))
     (tables / "azimuth_singer_tuning.md").write_text(
-        f"Singer grid search ({args.tune_runs} runs per point), alpha_m in {ALPHAS} 1/s, "
+        header()
+        + f"Singer grid search ({args.tune_runs} runs per point), alpha_m in {ALPHAS} 1/s, "
         f"sigma_m in {SIGMAS} m/s^2; score = time-averaged filter azimuth RMS [deg].\n\n"
         + _md_table(["case", "alpha_m [1/s]", "sigma_m [m/s^2]", "best score", "worst score"],
                     tune_rows))
     (tables / "azimuth_nees.md").write_text(
-        f"Run-averaged NEES (3 states, {M} runs): mean over time and fraction of times inside "
+        header()
+        + f"Run-averaged NEES (3 states, {M} runs): mean over time and fraction of times inside "
         f"the 95 % band [{lo:.2f}, {hi:.2f}].\n\n"
         + _md_table(["case", "model", "estimate", "mean NEES", "fraction inside"], nees_rows))
     (tables / "azimuth_smoother_gain.md").write_text(
-        "Smoother gain: filter RMS / smoother RMS over the turns.\n\n"
+        header() + "Smoother gain: filter RMS / smoother RMS over the turns.\n\n"
         + _md_table(["case", "model", "azimuth", "rate", "acceleration"], smooth_rows))
     (tables / "azimuth_outage.md").write_text(
-        "30 s radar outage starting 5 s into the first turn (ASR 0.15 deg, 4 s scan; on-board "
+        header()
+        + "30 s radar outage starting 5 s into the first turn (ASR 0.15 deg, 4 s scan; on-board "
         f"data at 1 Hz continue), {M} runs: RMS azimuth error [deg] t s after the outage began; "
         "the same runs without outage for reference; RMS rate error [deg/s] at 30 s.\n\n"
         + _md_table(["model", "estimate", "az @10 s", "az @20 s", "az @30 s",

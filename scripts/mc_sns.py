@@ -1,4 +1,4 @@
-"""Monte Carlo study of the SNS dead-reckoning filter and smoother (METHODS.md section 4).
+"""Monte Carlo study of the SNS dead-reckoning filter and smoother (docs/methods.md, section 4).
 
 Writes ``docs/tables/sns_*.md`` and ``docs/figures/sns_*.png``.  Fixed seeds; run from the
 repository root::
@@ -8,9 +8,10 @@ repository root::
 
 The generator (:func:`simulate`) is self-consistent with the filter's model: the truth is flown
 with the recorder readings held between samples (ground velocity = air velocity + wind), in the
-moving local-level frame; the sensors carry the systematic errors of METHODS.md section 4 (heading
-bias, wind error, Doppler scale, drift bias) drawn from the filter's priors, plus white noise
-per sample; GNSS fixes at 1 Hz, offset from the recorder grid, with the antenna on a lever arm.
+moving local-level frame; the sensors carry the systematic errors of docs/methods.md section 4
+(heading bias, wind error, Doppler scale, drift bias) drawn from the filter's priors, plus
+white noise per sample; GNSS fixes at 1 Hz, offset from the recorder grid, with the antenna on a
+lever arm.
 The tests (``tests/test_sns_mc.py``) import this module.
 """
 
@@ -27,6 +28,10 @@ import pandas as pd
 from flightrecon.methods import sns as core
 from flightrecon.methods.sns.method import radii_with_height, solve_sns
 from flightrecon.types import CleanFlight, FlightMeta, Position
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from table_header import header  # noqa: E402
 
 G0 = 9.80665
 LEVER_ARM_M = (6.0, 0.5, -2.0)
@@ -314,7 +319,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append([label, "heading corr sd [deg], median / max",
                      f"{np.median(psi_sd):.3f} / {np.max(psi_sd):.3f}", "", ""])
     (tables / "sns_coverage.md").write_text(
-        f"Coverage of the reported 2-sigma intervals of the smoothed corrections at the end of "
+        header()
+        + f"Coverage of the reported 2-sigma intervals of the smoothed corrections at the end of "
         f"a 1-hour flight with turns of 90-180 deg ({R} runs per model, seeds 1000+).  "
         f"z = error / reported sd.\n\n"
         + _md_table(["model", "quantity", "2-sigma coverage [%]", "sd of z", "mean of z"], rows))
@@ -341,7 +347,8 @@ def main(argv: list[str] | None = None) -> int:
     fig.savefig(figs / "sns_nees.png", dpi=110)
     plt.close(fig)
     (tables / "sns_nees.md").write_text(
-        f"Run-averaged NEES of the filtered 5-state (position, three corrections), every 30 s "
+        header()
+        + f"Run-averaged NEES of the filtered 5-state (position, three corrections), every 30 s "
         f"of a 1-hour flight, {R} runs (seeds 2000+).  95 % band for the average of {R} "
         f"chi-square(5) values: [{lo:.2f}, {hi:.2f}]; expected 5.\n\n"
         + _md_table(["model", "form", "time-mean of averaged NEES", "% check times in band",
@@ -356,7 +363,8 @@ def main(argv: list[str] | None = None) -> int:
                       f"{100 * np.mean(d['f_cov']):.1f}", f"{100 * np.mean(d['s_cov']):.1f}",
                       f"{np.mean(d['f_out']):.2f}", f"{np.mean(d['s_out']):.2f}"])
     (tables / "sns_gaps.md").write_text(
-        f"GNSS dropouts in a 1-hour heading-airspeed flight, {R} runs (seeds 3000+).  Horizontal "
+        header()
+        + f"GNSS dropouts in a 1-hour heading-airspeed flight, {R} runs (seeds 3000+).  Horizontal "
         f"position error norms [m], averaged over runs; coverage = share of in-gap samples and "
         f"components with |error| <= 2 reported sd.\n\n"
         + _md_table(["gap", "filter err at gap end", "smoother err mid-gap",

@@ -67,6 +67,7 @@ from flightrecon.sim.glass_cockpit import write_glass_cockpit
 from flightrecon.types import CleanFlight, Flight
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
 from onehz_study import (  # noqa: E402  (the real export's study)
     corrections,
     dr_in_gap,
@@ -74,6 +75,7 @@ from onehz_study import (  # noqa: E402  (the real export's study)
     joint_errors,
     with_gaps,
 )
+from table_header import command_line, header  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "tables"
@@ -391,8 +393,8 @@ def main() -> None:
     name = "onehz_fleet" + (f"_{args.tag}" if args.tag else "")
     if args.markdown_only:
         done = json.loads((OUT / f"{name}.json").read_text())
-        (OUT / f"{name}.md").write_text(markdown([r for r in done["runs"] if "error" not in r],
-                                                 done["seeds"]))
+        (OUT / f"{name}.md").write_text(header() + markdown(
+            [r for r in done["runs"] if "error" not in r], done["seeds"]))
         return
     flights = [FLIGHTS[i] for i in args.flights] if args.flights else list(FLIGHTS)
     OUT.mkdir(parents=True, exist_ok=True)
@@ -410,9 +412,10 @@ def main() -> None:
                 print(json.dumps(r, indent=1, default=float), flush=True)
                 runs.append(r)
                 (OUT / f"{name}.json").write_text(json.dumps(
-                    {"seeds": args.seeds, "runs": runs}, indent=1, default=float) + "\n")
+                    {"command": command_line(), "seeds": args.seeds, "runs": runs}, indent=1,
+                    default=float) + "\n")
     ok = [r for r in runs if "error" not in r]
-    (OUT / f"{name}.md").write_text(markdown(ok, args.seeds) + "".join(
+    (OUT / f"{name}.md").write_text(header() + markdown(ok, args.seeds) + "".join(
         f"\nNot measured: {r['scenario']} {r['airframe']} s{r['seed']}: {r['error']}\n"
         for r in runs if "error" in r))
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 import warnings
 from dataclasses import replace
@@ -46,6 +47,10 @@ from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.methods.baselines import dead_reckoning
 from flightrecon.methods.joint.method import run_joint
 from flightrecon.types import CleanFlight, Flight
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from table_header import command_line, header  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 LOG = ROOT / "sample_logs" / "g1000_sr22_LFQA_20220417.csv"
@@ -264,9 +269,10 @@ def main() -> None:
         print(json.dumps(r["gaps"], indent=1))
     name = "onehz" + (f"_{args.tag}" if args.tag else "")
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / f"{name}.json").write_text(json.dumps(r, indent=1) + "\n")
+    (OUT / f"{name}.json").write_text(json.dumps({"command": command_line(), **r}, indent=1)
+                                         + "\n")
     if len(r) == 3:
-        (OUT / f"{name}.md").write_text(markdown(r))
+        (OUT / f"{name}.md").write_text(header() + markdown(r))
 
 
 if __name__ == "__main__":

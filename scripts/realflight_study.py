@@ -580,6 +580,13 @@ def markdown_table(results: list[dict[str, Any]]) -> str:
     return "\n".join(rows)
 
 
+def regenerate_line(a: argparse.Namespace) -> str:
+    """The table's first line: the command that wrote it, the data folder as ``DIR/matlab``
+    (where the reader fetched it; a local path says nothing to another reader)."""
+    cases = (" --cases " + " ".join(a.cases)) if a.cases else ""
+    return f"Regenerate: `python scripts/realflight_study.py --data DIR/matlab{cases}`\n\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, required=True,
@@ -620,9 +627,10 @@ def main(argv: list[str] | None = None) -> int:
     if tmp is not None:
         tmp.cleanup()
     doc = {"generated_utc": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+           "command": regenerate_line(a).split("`")[1],
            "flights": {k: {x: v for x, v in f.items()} for k, f in facts.items()},
            "cases": results}
-    table = markdown_table(results)
+    table = regenerate_line(a) + markdown_table(results)
     print(table)
     if not a.no_write:
         TABLE_JSON.write_text(json.dumps(doc, indent=1, default=str) + "\n")

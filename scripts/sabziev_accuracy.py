@@ -38,11 +38,16 @@ Writes ``docs/tables/sabziev_accuracy.md`` and ``docs/figures/sabziev_accuracy.p
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 import warnings
 from pathlib import Path
 
 import matplotlib
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from table_header import header  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -192,7 +197,7 @@ def write_table(results: dict, path: Path, seeds: list[int], elapsed: float) -> 
                              f"{s['converged']} |")
         lines.append("")
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines))
+    path.write_text(header() + "\n".join(lines))
 
 
 def plot_flight(f: dict, title: str, path: Path) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +25,10 @@ from flightrecon.cleaning import clean_flight
 from flightrecon.geo.frames import msl_to_ellipsoid, output_plane
 from flightrecon.methods.baselines import dead_reckoning
 from flightrecon.types import CleanFlight, Flight, MethodResult, Position
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from table_header import header  # noqa: E402
 
 SHARED = Path(os.environ.get("FLIGHTRECON_SHARED",
                               Path(__file__).resolve().parents[2] / "shared"))
@@ -255,7 +260,7 @@ def write_tables(rows: list[dict[str, Any]], out: Path, elapsed: float,
 
     lines += ["", f"**stable** (default): {summ(st)}.", "",
               f"**paper** (both branches, NaN without a root): {summ(pa)}.", ""]
-    (out / f"{name}.md").write_text("\n".join(lines))
+    (out / f"{name}.md").write_text(header() + "\n".join(lines))
 
 
 def study(out: Path, flights: tuple[tuple[str, int, dict[str, Any]], ...] = FLIGHTS,

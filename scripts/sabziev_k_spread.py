@@ -31,6 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from sabziev_flights import jsbsim_flight  # noqa: E402
+from table_header import header  # noqa: E402
 
 from flightrecon.methods.baselines import dead_reckoning  # noqa: E402
 from flightrecon.methods.sabziev.method import run_sabziev  # noqa: E402
@@ -132,7 +133,7 @@ def write(rows: list[dict[str, Any]], out: Path) -> None:
             lines.append(f"* {ax} ({name}): {len(roots)} of {len(rows)} flights with a root; "
                          f"negative branch: {_stats(neg)}; positive: {_stats(pos)}")
         lines.append("")
-    (out / "sabziev_k_spread.md").write_text("\n".join(lines))
+    (out / "sabziev_k_spread.md").write_text(header() + "\n".join(lines))
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -19,10 +19,15 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import matplotlib
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from table_header import header  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -153,7 +158,8 @@ def run(seeds: int, out_dir: Path) -> None:
                  f"{100 * fal / cl:.3f} |")
     (out_dir / "tables").mkdir(parents=True, exist_ok=True)
     (out_dir / "figures").mkdir(parents=True, exist_ok=True)
-    (out_dir / "tables" / "signals_study.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    (out_dir / "tables" / "signals_study.md").write_text(
+        header() + "\n".join(lines) + "\n", encoding="utf-8")
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.5))
     for a, col, title in ((ax[0], "liftoff_err_s", "lift-off"), (ax[1], "touchdown_err_s",
                                                                  "touchdown")):
