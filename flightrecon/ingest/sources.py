@@ -23,7 +23,7 @@ from flightrecon.ingest.garmin import (
     garmin_mapping,
     merge_with_user,
 )
-from flightrecon.ingest.mapping import MappedTable, Mapping
+from flightrecon.ingest.mapping import MappedTable, Mapping, with_frame_rate
 from flightrecon.ingest.mapping_apply import apply_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
 from flightrecon.ingest.readers import read_table
@@ -50,13 +50,15 @@ class Sources:
     magnetic: dict[str, tuple[str, str]]
     derive_long: bool = False
     ignored: tuple[str, ...] = ()
+    derive_lat: bool = False
 
 
 def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorted: bool,
-             warns: list[str], notes: list[str], withhold_gnss: bool = False
-             ) -> tuple[Sources, FlightMeta]:
+             warns: list[str], notes: list[str], withhold_gnss: bool = False,
+             frame_rate_hz: float | None = None) -> tuple[Sources, FlightMeta]:
     """The recorder log through its mapping (a Garmin export's built-in one under the user's):
-    schema checks, time base, time order."""
+    schema checks, time base, time order; ``frame_rate_hz`` (``--frame-rate``): a recorder
+    whose time is its frame count (:func:`.mapping.with_frame_rate`)."""
     raw = read_table(log)
     warns += list(raw.warnings)
     mp = user_mp
@@ -69,6 +71,9 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
                      f", software {raw.preamble.get('system_software_part_number', '?')}) read "
                      "with the built-in mapping" + (" under the user's mapping" if user_mp
                                                     else ""))
+    if frame_rate_hz is not None:
+        mp, note = with_frame_rate(mp, frame_rate_hz, raw.columns)
+        (warns if "not used" in note else notes).append(f"{log}: {note}")
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
                      f"{raw.blank_rows[0]})")
@@ -106,6 +111,9 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
     derive_long = "n_long_g" not in present and {"tas_mps", "pitch_deg"} <= present
     if derive_long:
         present.add("n_long_g")
+    derive_lat = "n_lat_g" not in present and "n_norm_g" in present
+    if derive_lat:
+        present.add("n_lat_g")
     if "heading_deg" not in present and {"q_dps", "r_dps"} <= present:
         present.add("heading_deg")
         notes.append("no heading channel: the heading is propagated from the body rates at "
@@ -125,7 +133,7 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
                 nan_text={k: v[sel] for k, v in mt.nan_text.items()})
     magnetic = {c: (str(log), mt.source_column[c]) for c in mt.magnetic}
     return Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic,
-                   derive_long, tuple(ignored)), meta
+                   derive_long, tuple(ignored), derive_lat), meta
 
 
 def add_companion(src: Sources, group: str, path: Path, mp: Mapping | None, meta: FlightMeta,
@@ -253,7 +261,7 @@ def _without_gnss(mt: MappedTable) -> MappedTable:
 
 def _time_column(mt: MappedTable, mp: Mapping | None, columns) -> str:
     if mp is not None and mp.time is not None:
-        return mp.time.column
+        return mp.time.column or "(frame count)"
     return "t_s" if "t_s" in columns else "time_utc"
 
 
