@@ -13,8 +13,10 @@ row", which is normal in multi-rate logs.  In a CSV that uses empty cells for th
 Text cells that are not numbers are kept as text, and validation reports them; a cell of
 spaces only is an empty cell.  A Garmin glass-cockpit export (``#airframe_info`` first line,
 then a units line, then the header) is read with its units line and airframe line kept
-(:attr:`RawTable.units`, :attr:`RawTable.preamble`).  A last row cut short (fewer fields than
-the header and no line end: the recorder stopped while writing it) is dropped with a warning.
+(:attr:`RawTable.units`, :attr:`RawTable.preamble`); so is a parameter dump's units line under
+its header (:mod:`flightrecon.ingest.units_line`, :mod:`flightrecon.ingest.ed112`).  A last row
+cut short (fewer fields than the header and no line end: the recorder stopped while writing it)
+is dropped with a warning.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from flightrecon.errors import InputFileError, SchemaError
+from flightrecon.ingest.units_line import DUMP_DIALECT, units_line
 
 __all__ = ["RawTable", "read_table", "sniff_format"]
 
@@ -60,8 +63,11 @@ class RawTable:
     nan_is_missing : the file marks unsampled cells with NaN (Parquet, or a CSV without any
         empty cell), so ``nan_text`` is empty: NaN cannot tell an invalid value there
     dialect : ``"garmin"`` for a Garmin glass-cockpit export (``#airframe_info`` first line,
-        then a units line, then the header; :mod:`flightrecon.ingest.garmin`), else ``""``
-    units : source column -> unit text of the file's own units line (Garmin exports)
+        then a units line, then the header; :mod:`flightrecon.ingest.garmin`),
+        ``"ed112-dump"`` for a parameter dump (the header, then a units line;
+        :mod:`flightrecon.ingest.ed112`), else ``""``
+    units : source column -> unit text of the file's own units line (Garmin exports,
+        parameter dumps)
     preamble : ``key=value`` pairs of a Garmin ``#airframe_info`` line (aircraft, software)
     warnings : repairs made while reading (a short last row dropped), each naming its row
     header_line : 1-based line of the header in the file (data row k is line
@@ -208,6 +214,10 @@ def _read_csv(p: Path) -> RawTable:
     delim = _sniff_delimiter(header.decode("utf-8"))
     names = [h.strip().strip('"') for h in header.decode("utf-8").rstrip("\r").split(delim)]
     _check_names(names, file)
+    dump_units = None if preamble else _units_line(body, first_nl, names, delim)
+    if dump_units is not None:           # a parameter dump's units line (.units_line): skipped
+        second_nl = body.find(b"\n", first_nl + 1)
+        body = body[:first_nl + 1] + (body[second_nl + 1:] if second_nl >= 0 else b"")
     body, warns = _drop_short_last_row(body, len(names), delim, file, len(preamble) + 1)
     read_opts = pacsv.ReadOptions(column_names=names, skip_rows=1, block_size=1 << 24)
     parse_opts = pacsv.ParseOptions(delimiter=delim, ignore_empty_lines=False)
@@ -223,12 +233,23 @@ def _read_csv(p: Path) -> RawTable:
         raise InputFileError(f"cannot parse CSV: {exc}", file=file) from None
     table = _from_arrow(tbl, file, "csv")
     extra: dict = {"warnings": tuple(warns), "header_line": len(preamble) + 1}
+    if dump_units is not None:
+        extra.update(dialect=DUMP_DIALECT, units=dump_units)
     if preamble:
         units = [u.strip() for u in preamble[1].lstrip("#").split(delim)]
         extra.update(dialect="garmin", preamble=_airframe_info(preamble[0]),
                      units={n: (units[i] if i < len(units) else "") for i, n in
                             enumerate(names)})
     return dataclasses.replace(table, **extra)
+
+
+def _units_line(body: bytes, first_nl: int, names: list[str], delim: str
+                ) -> dict[str, str] | None:
+    """The units of a parameter dump's second line (:func:`.units_line.units_line`), else
+    ``None``."""
+    end = body.find(b"\n", first_nl + 1)
+    line = body[first_nl + 1:end if end >= 0 else len(body)].decode("utf-8").rstrip("\r")
+    return units_line(names, next(csv.reader([line], delimiter=delim), []))
 
 
 def _airframe_info(line: str) -> dict[str, str]:

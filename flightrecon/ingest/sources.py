@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from flightrecon.errors import MetadataError, SchemaError
+from flightrecon.ingest.ed112 import dump_mapping
 from flightrecon.ingest.garmin import (
     altimeter_settings_hpa,
     apply_garmin_columns,
@@ -30,6 +31,7 @@ from flightrecon.ingest.readers import read_table
 from flightrecon.ingest.sidecar import normalise_epoch
 from flightrecon.ingest.time_cells import unset_clock_rows
 from flightrecon.ingest.timestamps import repair_time_order
+from flightrecon.ingest.units_line import DUMP_DIALECT
 from flightrecon.ingest.validate import check_required, check_time
 from flightrecon.schema import GROUPS
 from flightrecon.types import FlightMeta
@@ -71,6 +73,11 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
                      f", software {raw.preamble.get('system_software_part_number', '?')}) read "
                      "with the built-in mapping" + (" under the user's mapping" if user_mp
                                                     else ""))
+    dump_used: tuple[str, ...] = ()
+    if raw.dialect == DUMP_DIALECT:      # a parameter dump: header, units line (.ed112)
+        raw, mp, dump_used, n, w = dump_mapping(raw, user_mp)
+        notes += n
+        warns += w
     if frame_rate_hz is not None:
         mp, note = with_frame_rate(mp, frame_rate_hz, raw.columns)
         (warns if "not used" in note else notes).append(f"{log}: {note}")
@@ -97,7 +104,7 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
         withheld = set(mt.source_column.values()) - set(kept.source_column.values())
         mt = kept
     used = (set(mt.source_column.values()) | set(_time_columns(mp, raw.columns))
-            | set(garmin_used) | withheld)   # withheld GNSS columns are said so, not "ignored"
+            | set(garmin_used) | set(dump_used) | withheld)   # withheld GNSS: said, not "ignored"
     ignored = [c for c in raw.columns if c not in used]
     if ignored:
         shown = ", ".join(ignored[:8]) + (" ..." if len(ignored) > 8 else "")
