@@ -100,3 +100,19 @@ def test_an_airline_decode_with_the_normal_load_alone_reads_through_its_mapping(
     assert {"n_lat_g", "n_long_g", "tas_mps"} <= set(derived)
     assert np.all(fl.data["n_lat_g"].dropna().to_numpy() == 0.0)
     assert fl.data["n_lat_g"].notna().sum() == len(dec)
+
+
+def test_the_joint_smoother_widens_its_loads_noise_for_the_assumed_lateral_load(tmp_path):
+    from flightrecon.cleaning import clean_flight
+    from flightrecon.methods.joint import JointSettings
+    from flightrecon.methods.joint.data_settings import (
+        DERIVED_LAT_ACCEL_NOISE,
+        derived_lat_noise,
+    )
+
+    base = JointSettings()
+    assumed = clean_flight(load(without(tmp_path, "n_lat_g")))
+    widened = derived_lat_noise(assumed, base).noise.accel_noise_mps2_sqrt_hz
+    assert widened == DERIVED_LAT_ACCEL_NOISE > base.noise.accel_noise_mps2_sqrt_hz
+    recorded = clean_flight(load(SAMPLES / "handmade.csv"))
+    assert derived_lat_noise(recorded, base) == base

@@ -180,9 +180,8 @@ def derive_n_lat(t: np.ndarray, values: dict[str, np.ndarray], file: str
     out = np.where(np.isnan(n), np.nan, 0.0)
     note = (f"{file}: n_lat_g not recorded: taken as 0 g, the lateral load of coordinated "
             "flight (misses the side force of a sideslip and of ground turns: a few "
-            "hundredths of a g in the air; the estimators' uncertainty is not widened for it, "
-            "so their sd may be too small through slips: docs/ingest.md, 'Normal acceleration "
-            "alone')")
+            "hundredths of a g in the air; the joint smoother widens its loads' noise for it, "
+            "the other estimators do not: docs/ingest.md, 'Normal acceleration alone')")
     return out, note
 
 
