@@ -147,7 +147,7 @@ def derive_n_lat(t: np.ndarray, values: dict[str, np.ndarray], file: str
     In body axes the lateral specific force is ``f_y = m^-1 (Y_aero + Y_thrust)``: the side
     force of the airframe, which the pilot (or the yaw damper) holds near zero by centring the
     ball, whatever the bank: in a coordinated turn the horizontal component of the lift, not a
-    side force, turns the aircraft, and ``n_lat = 0`` (METHODS.md, "Conventions": the
+    side force, turns the aircraft, and ``n_lat = 0`` (docs/schema.md, "Conventions": the
     body-to-NED rotation of ``g0 [n_long, n_lat, -n_norm]`` gives the turn's centripetal
     acceleration ``g0 n_norm sin(phi)`` through the bank angle).  The estimators use the three
     loads only through that rotation, so what is missed is the side force itself: a sideslip
