@@ -2,7 +2,7 @@
 no mapping (issue 49, item 6; docs/ingest.md, "Parameter dumps of a flight data recorder"):
 the header of mnemonics, the units line under it, the frame and subframe counters as the time.
 The rows are generated from a simulated flight's ED-112 minimum-rate export
-(:func:`flightrecon.sim.ed112.ed112_export`)."""
+(:func:`flightrecon.sim.ed112.ed112_export`) by scripts/ed112_dump_study.py's ``write_dump``."""
 
 from __future__ import annotations
 
@@ -16,12 +16,12 @@ import pytest
 from flightrecon.errors import ValidationError
 from flightrecon.ingest import load_flight, read_table
 from flightrecon.sim import simulate, write_simulation
-from flightrecon.sim.ed112 import ED112_PARAMETERS, ed112_export
+from flightrecon.sim.ed112 import ed112_export
 from tests._cli import run_cli
+from tests._scripts import load_script
 
-#: rows a subframe (one second) of the generated dump: the fastest parameter's rate (VRTG)
-ROWS_PER_S = 8
-FIRST_FRAME = 4094           # the 12-bit frame counter wraps two frames in
+STUDY = load_script("ed112_dump_study")
+FIRST_FRAME = STUDY.FIRST_FRAME           # the 12-bit frame counter wraps two frames in
 
 
 @pytest.fixture(scope="module")
@@ -39,31 +39,9 @@ def flight(tmp_path_factory):
 
 def write_dump(folder: Path, ex: pd.DataFrame, name: str = "dump.csv",
                lat_positive_left: bool = False) -> tuple[Path, np.ndarray]:
-    """The export as a parameter dump: one row per eighth of a second, each sample in the row
-    of its slot, FRAME and SUBFRAME counters (4 subframes a frame, 1-based), the header of the
-    export's mnemonics and the units line under it.  Returns the path and each row's time."""
-    j = np.floor(ex["TIME"].to_numpy() * ROWS_PER_S + 1e-9).astype(int)
-    n = int(j.max()) + 1
-    n -= n % (4 * ROWS_PER_S)                   # whole frames
-    sec = np.arange(n) // ROWS_PER_S
-    out = {"FRAME": (FIRST_FRAME + sec // 4) % 4096, "SUBFRAME": sec % 4 + 1}
-    units = ["", ""]
-    for p in ED112_PARAMETERS:
-        if p.column not in ex.columns:
-            continue
-        col = np.full(n, np.nan)
-        ok = ex[p.column].notna().to_numpy() & (j < n)
-        col[j[ok]] = ex[p.column].to_numpy()[ok]
-        # the export counts the lateral load positive left (sign -1); a dump that counts it
-        # positive right is read as it is
-        out[p.column] = col if (p.channel != "n_lat_g" or lat_positive_left) else -col
-        units.append(p.unit)
-    df = pd.DataFrame(out)
-    path = folder / name
-    with open(path, "w") as fh:
-        fh.write(",".join(df.columns) + "\n" + ",".join(units) + "\n")
-        df.to_csv(fh, header=False, index=False, na_rep="")
-    return path, np.arange(n) / ROWS_PER_S
+    """The export as a parameter dump (scripts/ed112_dump_study.py, ``write_dump``): eight
+    rows a subframe, ``FRAME`` / ``SUBFRAME`` counters from frame 4094, the units line."""
+    return STUDY.write_dump(folder, ex, name, lat_positive_left)
 
 
 def load(path: Path, sidecar: Path, **kw):
