@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from flightrecon.errors import ValidationError
+from flightrecon.errors import SchemaError, ValidationError
 from flightrecon.ingest import load_flight, read_table
 from flightrecon.sim import simulate, write_simulation
 from flightrecon.sim.ed112 import ed112_export
@@ -131,3 +131,32 @@ def test_a_frame_counter_that_goes_back_is_refused_naming_the_row(flight, tmp_pa
     with pytest.raises(ValidationError) as exc:
         load(path, d / "c.meta.toml")
     assert "frame counter goes back" in str(exc.value) and "39" in str(exc.value)
+
+
+def test_a_dump_with_a_time_column_in_seconds_reads_it(flight, tmp_path):
+    d, _, ex = flight
+    path, t_rows = write_dump(tmp_path, ex)
+    df = pd.read_csv(path, skiprows=[1]).drop(columns=["FRAME", "SUBFRAME"])
+    df.insert(0, "TIME", 100.0 + t_rows)
+    with open(tmp_path / "timed.csv", "w") as fh:
+        fh.write(",".join(df.columns) + "\ns," + ",".join(
+            read_table(path).units[c] for c in df.columns[1:]) + "\n")
+        df.to_csv(fh, header=False, index=False, na_rep="")
+    fl = load(tmp_path / "timed.csv", d / "c.meta.toml")
+    assert fl.data["t_s"].iloc[0] == pytest.approx(100.0)
+    assert "TIME" not in " ".join(w for w in fl.warnings if "ignored" in w)
+
+
+def test_a_dump_without_a_time_takes_the_frame_rate(flight, tmp_path):
+    d, _, ex = flight
+    path, t_rows = write_dump(tmp_path, ex)
+    df = pd.read_csv(path, skiprows=[1]).drop(columns=["FRAME", "SUBFRAME"])
+    units = [read_table(path).units[c] for c in df.columns]
+    with open(tmp_path / "frames.csv", "w") as fh:
+        fh.write(",".join(df.columns) + "\n" + ",".join(units) + "\n")
+        df.to_csv(fh, header=False, index=False, na_rep="")
+    with pytest.raises(SchemaError, match="--frame-rate"):
+        load(tmp_path / "frames.csv", d / "c.meta.toml")
+    fl = load(tmp_path / "frames.csv", d / "c.meta.toml", frame_rate_hz=8.0)
+    np.testing.assert_allclose(fl.data["t_s"].to_numpy(),
+                               t_rows[fl.data["row"].to_numpy() - 1], atol=1e-9)
