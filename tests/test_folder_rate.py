@@ -147,3 +147,15 @@ def test_a_bad_command_line_rate_is_refused(tmp_path):
     folder, mapping = write_folder(tmp_path, [])
     with pytest.raises(MappingError, match="--frame-rate must be a positive"):
         load(folder, mapping=mapping, frame_rate_hz=0.0)
+
+
+def test_reconstruct_takes_the_frame_rate(tmp_path):
+    folder, mapping = write_folder(tmp_path, [])
+    out = tmp_path / "r.csv"
+    code = run_cli(["reconstruct", str(folder), "--mapping", str(mapping), "--sidecar",
+                    str(tmp_path / "rec.meta.toml"), "--frame-rate", "8", "--methods",
+                    "joint", "-o", str(out)])
+    assert code == 0
+    t = pd.read_csv(out)["t_s"].to_numpy()
+    assert t[0] >= 0.0 and t[-1] <= 240.0 + 1e-6 and t[-1] > 200.0
+    assert json.loads((tmp_path / "r.summary.json").read_text())["result"]["method"] == "joint"
