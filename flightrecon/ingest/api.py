@@ -35,9 +35,8 @@ PathLike = str | os.PathLike
 
 def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike | None = None,
                 mapping: PathLike | None = None, sidecar: PathLike | None = None,
-                meta_overrides: dict[str, Any] | None = None,
-                allow_unsorted: bool = False, gnss_use: GnssUse | None = None,
-                frame_rate_hz: float | None = None) -> Flight:
+                meta_overrides: dict[str, Any] | None = None, allow_unsorted: bool = False,
+                gnss_use: GnssUse | None = None, frame_rate_hz: float | None = None) -> Flight:
     """Load and validate a flight.
 
     Parameters
@@ -57,9 +56,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
         ``reconstruct --no-gnss``; ``withhold_s`` windows, ``interval_s`` thinning,
         ``h_sd_m`` / ``v_sd_m`` the receiver's sd); each option given wins over the
         sidecar's ``[gnss]`` table (docs/ingest.md, "Using the GNSS")
-    frame_rate_hz : frames a second of a recorder whose time is its frame count (no time
-        column or file; ``--frame-rate``): row ``k`` at ``(k - 1) / frame_rate_hz`` s; it wins
-        over the mapping's ``[time] rate_hz`` (docs/ingest.md, "Frame count as the time")
+    frame_rate_hz : frames a second of a recorder timed by its frame count (``--frame-rate``)
 
     Returns
     -------

@@ -27,7 +27,7 @@ from flightrecon.ingest.garmin import (
 from flightrecon.ingest.mapping import MappedTable, Mapping, with_frame_rate
 from flightrecon.ingest.mapping_apply import apply_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
-from flightrecon.ingest.readers import read_table
+from flightrecon.ingest.readers import RawTable, read_table
 from flightrecon.ingest.sidecar import normalise_epoch
 from flightrecon.ingest.time_cells import unset_clock_rows
 from flightrecon.ingest.timestamps import repair_time_order
@@ -73,14 +73,7 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
                      f", software {raw.preamble.get('system_software_part_number', '?')}) read "
                      "with the built-in mapping" + (" under the user's mapping" if user_mp
                                                     else ""))
-    dump_used: tuple[str, ...] = ()
-    if raw.dialect == DUMP_DIALECT:      # a parameter dump: header, units line (.ed112)
-        raw, mp, dump_used, n, w = dump_mapping(raw, user_mp)
-        notes += n
-        warns += w
-    if frame_rate_hz is not None:
-        mp, note = with_frame_rate(mp, frame_rate_hz, raw.columns)
-        (warns if "not used" in note else notes).append(f"{log}: {note}")
+    raw, mp, dump_used = _dump_and_rate(raw, mp, user_mp, frame_rate_hz, log, warns, notes)
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
                      f"{raw.blank_rows[0]})")
@@ -141,6 +134,23 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
     magnetic = {c: (str(log), mt.source_column[c]) for c in mt.magnetic}
     return Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic,
                    derive_long, tuple(ignored), derive_lat), meta
+
+
+def _dump_and_rate(raw: RawTable, mp: Mapping | None, user_mp: Mapping | None,
+                   frame_rate_hz: float | None, log: Path, warns: list[str], notes: list[str]
+                   ) -> tuple[RawTable, Mapping | None, tuple[str, ...]]:
+    """A parameter dump's built-in mapping under the user's (:func:`.ed112.dump_mapping`),
+    then the command line's frame rate (:func:`.mapping.with_frame_rate`): the table, the
+    mapping and the dump's time columns."""
+    dump_used: tuple[str, ...] = ()
+    if raw.dialect == DUMP_DIALECT:      # a parameter dump: header, units line (.ed112)
+        raw, mp, dump_used, n, w = dump_mapping(raw, user_mp)
+        notes += n
+        warns += w
+    if frame_rate_hz is not None:
+        mp, note = with_frame_rate(mp, frame_rate_hz, raw.columns)
+        (warns if "not used" in note else notes).append(f"{log}: {note}")
+    return raw, mp, dump_used
 
 
 def add_companion(src: Sources, group: str, path: Path, mp: Mapping | None, meta: FlightMeta,

@@ -189,8 +189,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                 settings: ReconstructSettings = ReconstructSettings(),
                 progress: Callable[[str], None] | None = None,
                 store: str | Path | None = None, use_fleet_coefficients: bool = False,
-                record: bool = True, workers: int | None = None,
-                gnss_use: GnssUse | None = None,
+                record: bool = True, workers: int | None = None, gnss_use: GnssUse | None = None,
                 frame_rate_hz: float | None = None) -> Reconstruction:
     """Load, validate, clean and reconstruct a flight from its recorder log.
 
@@ -212,8 +211,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     gnss_use : how the GNSS fixes are used (withheld, windows, interval, receiver's sd;
         :class:`flightrecon.ingest.gnss_use.GnssUse`, the keyword of
         :func:`flightrecon.ingest.load_flight`)
-    frame_rate_hz : a recorder whose time is its frame count: its frames a second (the
-        keyword of :func:`flightrecon.ingest.load_flight`, ``--frame-rate``)
+    frame_rate_hz : frames a second of a recorder timed by its frame count (``--frame-rate``)
 
     Returns
     -------
@@ -230,10 +228,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     with warnings.catch_warnings(record=True) as caught, EarlyChild(workers) as early:
         warnings.simplefilter("always")
         flight_warnings, clean, settings, fleet, findings = _load_and_clean(
-            log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-            meta_overrides=meta_overrides, settings=settings, stage=stage, store=store,
-            use_fleet_coefficients=use_fleet_coefficients, gnss_use=gnss_use,
-            frame_rate_hz=frame_rate_hz)
+            log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar, stage=stage, store=store,
+            meta_overrides=meta_overrides, settings=settings, gnss_use=gnss_use,
+            use_fleet_coefficients=use_fleet_coefficients, frame_rate_hz=frame_rate_hz)
         track, results, status = reconstruct_clean(clean, settings, progress=stage,
                                                    workers=workers, early_child=early)
     warn_list = flight_warnings + [str(w.message) for w in caught
