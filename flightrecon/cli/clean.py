@@ -114,7 +114,8 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
             gnss_clock_offset: float, radar_clock_offset: float, as_json: bool,
             no_gnss: bool = False, withhold_gnss: tuple[str, ...] = (),
             gnss_interval: float | None = None, gnss_sd: str | None = None,
-            start: str | None = None, end: str | None = None) -> None:
+            start: str | None = None, end: str | None = None,
+            frame_rate_hz: float | None = None) -> None:
     """Clean LOG: despike, unwrap, resample the input channels onto one grid, keep the GNSS fixes
     and radar plots at their own times, detect lift-off and touchdown.
 
@@ -141,7 +142,7 @@ def command(ctx: click.Context, *, log: Path, out: Path, rate_hz: float | None,
         with errors_name_file(log, sidecar), collected_warnings() as warned:
             stage("ingest")
             flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-                                 gnss_use=gnss_use)
+                                 gnss_use=gnss_use, frame_rate_hz=frame_rate_hz)
             stage("cleaning")
             clean = clean_flight(flight, rate_hz=rate_hz, settings=settings)
         stage("write")

@@ -13,7 +13,8 @@ from flightrecon.errors import MetadataError
 
 
 def input_options(f):
-    """The options naming a flight's companion files: --gnss, --radar, --mapping, --sidecar."""
+    """The options naming a flight's companion files: --gnss, --radar, --mapping, --sidecar;
+    and --frame-rate for a recorder whose time is its frame count."""
     path = click.Path(dir_okay=False, path_type=Path)
     for opt in reversed((
         click.option("--gnss", type=path, help="Separate GNSS file."),
@@ -21,6 +22,10 @@ def input_options(f):
         click.option("--mapping", type=path, help="Column-mapping TOML for a foreign log."),
         click.option("--sidecar", type=path,
                      help="Metadata TOML (default: <log stem>.meta.toml beside the log)."),
+        click.option("--frame-rate", "frame_rate_hz", type=float, metavar="HZ",
+                     help="Frames a second of a recorder whose time is its frame count (a "
+                          "folder of one-column files or a table with no time column): row k "
+                          "at (k-1)/HZ s; wins over the mapping's [time] rate_hz."),
     )):
         f = opt(f)
     return f

@@ -48,7 +48,7 @@ def position_text(p) -> str:
 @gnss_use_options
 def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool, no_gnss: bool = False,
             withhold_gnss: tuple[str, ...] = (), gnss_interval: float | None = None,
-            gnss_sd: str | None = None) -> None:
+            gnss_sd: str | None = None, frame_rate_hz: float | None = None) -> None:
     """Show the channels, rates, duration, gaps and metadata of LOG (validating it); reads
     only, writes nothing."""
     import warnings
@@ -64,7 +64,7 @@ def command(log: Path, gnss, radar, mapping, sidecar, as_json: bool, no_gnss: bo
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FlightReconWarning)
             flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-                                 gnss_use=gnss_use)
+                                 gnss_use=gnss_use, frame_rate_hz=frame_rate_hz)
     except DoorRefusal as exc:          # the checks up to the refusal, then the error
         if as_json:
             click.echo(to_json({"door": [c.as_dict() for c in exc.checks]}))

@@ -110,7 +110,7 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
             gnss_sd, aircraft_id, methods, k_text, rate_hz,
             arms_form, arms_linearisation, azimuth_model, sns_model, sns_form, noise_file, estimate_noise,
             gap_stretches, store_path, use_fleet_coefficients, strict, keep_unhealthy, workers, output, fmt,
-            summary_path, report_dir, start=None, end=None) -> None:
+            summary_path, report_dir, start=None, end=None, frame_rate_hz=None) -> None:
     """Reconstruct the trajectory of LOG and write it with its uncertainty and a summary.
 
     Writes the result (-o, default <log stem>.recon.parquet beside the log), the summary
@@ -162,7 +162,8 @@ def command(ctx: click.Context, *, log: Path, gnss, radar, mapping, sidecar, dep
             rec = reconstruct(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
                               meta_overrides=overrides, settings=settings, progress=stage,
                               store=store_path, use_fleet_coefficients=use_fleet_coefficients,
-                              workers=workers, record=False, gnss_use=gnss_use)
+                              workers=workers, record=False, gnss_use=gnss_use,
+                              frame_rate_hz=frame_rate_hz)
         except NoResultError as exc:     # the warnings first: they may say why
             if not quiet:
                 for w in exc.warnings:

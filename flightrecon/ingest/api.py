@@ -37,8 +37,8 @@ PathLike = str | os.PathLike
 
 def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike | None = None,
                 mapping: PathLike | None = None, sidecar: PathLike | None = None,
-                meta_overrides: dict[str, Any] | None = None,
-                allow_unsorted: bool = False, gnss_use: GnssUse | None = None) -> Flight:
+                meta_overrides: dict[str, Any] | None = None, allow_unsorted: bool = False,
+                gnss_use: GnssUse | None = None, frame_rate_hz: float | None = None) -> Flight:
     """Load and validate a flight.
 
     Parameters
@@ -58,6 +58,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
         ``reconstruct --no-gnss``; ``withhold_s`` windows, ``interval_s`` thinning,
         ``h_sd_m`` / ``v_sd_m`` the receiver's sd); each option given wins over the
         sidecar's ``[gnss]`` table (docs/ingest.md, "Using the GNSS")
+    frame_rate_hz : frames a second of a recorder timed by its frame count (``--frame-rate``)
 
     Returns
     -------
@@ -91,7 +92,8 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     radar = radar if radar is not None else companion.get("radar")
     mapping = mapping if mapping is not None else companion.get("mapping")
     mp: Mapping | None = load_mapping(mapping) if mapping is not None else None
-    src, meta = read_log(log, mp, meta, allow_unsorted, warns, notes, withhold_gnss)
+    src, meta = read_log(log, mp, meta, allow_unsorted, warns, notes, withhold_gnss,
+                         frame_rate_hz)
     for group, path in (("gnss", gnss), ("radar", radar)):
         if path is not None:
             add_companion(src, group, Path(path), mp, meta, allow_unsorted, warns, notes)
@@ -127,6 +129,8 @@ def _derived(src: Sources) -> dict[str, str]:
     out = {ch: f"from {kind}_mps, sat_degc and baro_alt_m" for ch, kind in src.mt.derived.items()}
     if src.derive_long:
         out["n_long_g"] = "(dV/dt)/g0 + sin(pitch) from tas_mps and pitch_deg"
+    if src.derive_lat:
+        out["n_lat_g"] = "0 g: the lateral load of coordinated flight (no lateral accelerometer)"
     return out
 
 

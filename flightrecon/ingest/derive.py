@@ -9,6 +9,8 @@
 * Longitudinal load factor from airspeed and pitch, for recorders without a longitudinal
   accelerometer (Garmin glass cockpits): ``n_long = (dV/dt) / g0 + sin(pitch)``
   (:func:`derive_n_long`).
+* Lateral load factor of coordinated flight, for recorders with the normal acceleration alone
+  (many airline recorders): ``n_lat = 0`` (:func:`derive_n_lat`).
 * Magnetic -> true: ``true = magnetic + D`` with the World Magnetic Model declination D at the
   flight date (:mod:`flightrecon.geo.magnetic`), evaluated along the GNSS track when the log has
   GNSS positions, else at the departure airfield.
@@ -24,8 +26,8 @@ from flightrecon.geo.atmosphere import cas_to_tas, isa_temperature_k
 from flightrecon.geo.magnetic import decimal_year, declination_deg, magnetic_to_true
 from flightrecon.types import FlightMeta
 
-__all__ = ["DECLINATION_POINTS", "N_LONG_HALF_WINDOW_S", "derive_n_long", "derive_tas",
-           "true_from_magnetic"]
+__all__ = ["DECLINATION_POINTS", "N_LONG_HALF_WINDOW_S", "derive_n_lat", "derive_n_long",
+           "derive_tas", "true_from_magnetic"]
 
 #: number of points along the GNSS track where the WMM is evaluated (then interpolated in time)
 DECLINATION_POINTS = 48
@@ -135,6 +137,51 @@ def derive_n_long(t: np.ndarray, values: dict[str, np.ndarray], file: str
     note = (f"{file}: n_long_g not recorded: derived as (dV/dt)/g0 + sin(pitch) from tas_mps and "
             f"pitch_deg (dV/dt over +-{h:g} s; misses along-track wind changes and "
             "angle-of-attack terms of order 0.01 g: docs/ingest.md)")
+    return out, note
+
+
+def derive_n_lat(t: np.ndarray, values: dict[str, np.ndarray], file: str
+                 ) -> tuple[np.ndarray, str]:
+    """Lateral load factor [g] of coordinated flight, for a log with no lateral accelerometer.
+
+    In body axes the lateral specific force is ``f_y = m^-1 (Y_aero + Y_thrust)``: the side
+    force of the airframe, which the pilot (or the yaw damper) holds near zero by centring the
+    ball, whatever the bank: in a coordinated turn the horizontal component of the lift, not a
+    side force, turns the aircraft, and ``n_lat = 0`` (docs/schema.md, "Conventions": the
+    body-to-NED rotation of ``g0 [n_long, n_lat, -n_norm]`` gives the turn's centripetal
+    acceleration ``g0 n_norm sin(phi)`` through the bank angle).  The estimators use the three
+    loads only through that rotation, so what is missed is the side force itself: a sideslip
+    ``beta`` gives ``n_lat ~ (q S CY_beta beta) / (m g0)``, a few hundredths of a g in a
+    slip or a crabbed approach, and on the ground the whole centripetal acceleration of a taxi
+    turn (``V psi_dot / g0``, 0.1 g at 10 m/s and 6 deg/s) and the side load of a crosswind
+    roll.  Its cost is measured on the JSBSim fleet (docs/ingest.md, "Normal acceleration
+    alone").
+
+    Parameters
+    ----------
+    t : (N,) seconds
+    values : channels on the rows (``n_norm_g`` needed; NaN where not sampled)
+    file : for the note
+
+    Returns
+    -------
+    n_lat : (N,) 0 on the rows where ``n_norm_g`` was sampled, NaN elsewhere [g]
+    note : what was assumed (for the ingest notes and the summary's warnings)
+
+    Raises
+    ------
+    SchemaError
+        ``n_norm_g`` missing or without a sample.
+    """
+    n = values.get("n_norm_g")
+    if n is None or not np.any(~np.isnan(n)):
+        raise SchemaError("n_lat_g is not recorded and cannot be taken as coordinated flight's "
+                          "without n_norm_g", file=file, column="n_norm_g")
+    out = np.where(np.isnan(n), np.nan, 0.0)
+    note = (f"{file}: n_lat_g not recorded: taken as 0 g, the lateral load of coordinated "
+            "flight (misses the side force of a sideslip and of ground turns: a few "
+            "hundredths of a g in the air; the joint smoother widens its loads' noise for it, "
+            "the other estimators do not: docs/ingest.md, 'Normal acceleration alone')")
     return out, note
 
 

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from flightrecon.ingest.derive import derive_n_long, derive_tas, true_from_magnetic
+from flightrecon.ingest.derive import derive_n_lat, derive_n_long, derive_tas, true_from_magnetic
 from flightrecon.ingest.door import DeclaredUnit, DoorCheck, DoorRefusal
 from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.gnss_use import GnssUse
@@ -39,6 +39,10 @@ def derived_channels(src: Sources, meta: FlightMeta, log: Path, warns: list[str]
         notes += n
     if src.derive_long:
         values["n_long_g"], note = derive_n_long(rows.t, values, str(log))
+        notes.append(note)
+        warns.append(note)
+    if src.derive_lat:
+        values["n_lat_g"], note = derive_n_lat(rows.t, values, str(log))
         notes.append(note)
         warns.append(note)
     return values

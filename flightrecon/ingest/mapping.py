@@ -7,6 +7,9 @@ is documented with an example in ``docs/ingest.md``::
     column = "TIME"        # source column
     unit = "s"             # "s" (seconds from the flight's epoch_utc) or "timestamp"
     format = "%H:%M:%S"    # optional strptime format for text timestamps (default ISO-8601)
+    # or, for a recorder whose time is its frame count (no time column):
+    # rate_hz = 10         # frames a second: row k at (k - 1) / rate_hz s; with column = a
+    #                      # frame counter, at counter / rate_hz s
 
     [channels.n_norm_g]
     column = "VRTG"
@@ -38,6 +41,7 @@ derived channel whose source channels are neither mapped nor in the data file.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import os
 import re
@@ -63,6 +67,7 @@ __all__ = [
     "Mapping",
     "TimeSpec",
     "load_mapping",
+    "with_frame_rate",
 ]
 
 #: canonical time columns recognised without a mapping: seconds or UTC timestamps
@@ -74,7 +79,13 @@ DERIVED_OK = {"tas_mps": {"cas": "cas_mps", "ias": "ias_mps"}}
 
 @dataclass(frozen=True)
 class TimeSpec:
-    """Where the time is: ``column`` in ``unit`` ``"s"`` or ``"timestamp"`` (``format`` optional)."""
+    """Where the time is: ``column`` in ``unit`` ``"s"`` or ``"timestamp"`` (``format`` optional).
+
+    With ``rate_hz`` the time is the frame count at that rate (a recorder with no time column,
+    :func:`flightrecon.ingest.mapping_apply.frame_seconds`): ``column`` empty (``""``, which
+    names no column: a mapping's names are never empty), the data row ``k`` at
+    ``(k - 1) / rate_hz`` s; ``column`` a frame counter, at ``counter / rate_hz`` s.
+    """
 
     column: str
     unit: str
@@ -83,6 +94,8 @@ class TimeSpec:
     #: offsets (``+02:00``, local time = UTC + offset): :func:`.time_cells.combine_date_time`
     date_column: str | None = None
     utc_offset_column: str | None = None
+    #: frames a second of a recorder whose time is its frame count
+    rate_hz: float | None = None
 
 
 @dataclass(frozen=True)
@@ -270,9 +283,13 @@ def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
     time = None
     if "time" in doc:
         t = _table(doc["time"], file, f"{prefix}time")
-        _only(t, {"column", "unit", "format", "date_column", "utc_offset_column"}, file,
-              f"{prefix}time")
-        col = _str(t, "column", file, f"{prefix}time", required=True)
+        _only(t, {"column", "unit", "format", "date_column", "utc_offset_column", "rate_hz"},
+              file, f"{prefix}time")
+        frame = _frame_time(t, file, f"{prefix}time") if "rate_hz" in t else None
+        if frame is None and "column" not in t:
+            raise _error(f"[{prefix}time]: missing key 'column' (the time column), or rate_hz "
+                         "for a recorder whose time is its frame count", file, f"{prefix}time")
+        col = _str(t, "column", file, f"{prefix}time", required=frame is None)
         date_col = _str(t, "date_column", file, f"{prefix}time", required=False)
         ofs_col = _str(t, "utc_offset_column", file, f"{prefix}time", required=False)
         unit = _str(t, "unit", file, f"{prefix}time", required=False) or (
@@ -285,7 +302,7 @@ def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
             raise _error(f"[{prefix}time] date_column / utc_offset_column need unit = "
                          "\"timestamp\"", file, f"{prefix}time", "unit", column=col)
         fmt = _str(t, "format", file, f"{prefix}time", required=False)
-        time = TimeSpec(str(col), unit, fmt, date_col, ofs_col)   # required: never None here
+        time = frame or TimeSpec(str(col), unit, fmt, date_col, ofs_col)   # col never None
     chans: list[ChannelSpec] = []
     targets = _table(doc.get("channels", {}), file, f"{prefix}channels")
     group = prefix.rstrip(".") or None
@@ -314,6 +331,59 @@ def _parse(doc: dict, file: str, prefix: str, allow_sub: bool) -> Mapping:
         if allow_sub and g in doc:
             sub[g] = _parse(_table(doc[g], file, g), file, f"{g}.", allow_sub=False)
     return Mapping(file=file, time=time, channels=tuple(chans), **sub)
+
+
+def _frame_time(t: dict, file: str, where: str) -> TimeSpec:
+    """``[time] rate_hz = R`` (with an optional frame-counter ``column``): the time of a
+    recorder that writes its frame count, not a time (:class:`TimeSpec`)."""
+    rate = _number(t, "rate_hz", 0.0, file, where, None)
+    if rate <= 0.0:
+        raise _error(f"[{where}]: rate_hz must be a positive number of frames a second, got "
+                     f"{t['rate_hz']!r}", file, where, "rate_hz")
+    other = sorted(set(t) - {"rate_hz", "column", "unit"})
+    if other:
+        raise _error(f"[{where}]: with rate_hz the time is the frame count: {other[0]} does "
+                     "not apply (a frame-counter column is named by 'column')", file, where,
+                     other[0])
+    if t.get("unit", "s") != "s":
+        raise _error(f"[{where}]: with rate_hz the time is in seconds (unit = \"s\"), got "
+                     f"unit = {t['unit']!r}", file, where, "unit")
+    col = _str(t, "column", file, where, required=False)
+    return TimeSpec(col or "", "s", rate_hz=rate)
+
+
+def with_frame_rate(mapping: Mapping | None, rate_hz: float, columns
+                    ) -> tuple[Mapping | None, str]:
+    """The mapping with its time taken as the frame count at ``rate_hz`` (the command line's
+    ``--frame-rate``), and a note saying what was done.
+
+    The command line wins over the mapping's own ``rate_hz`` (the note gives both); a file
+    with a time of its own (the mapping's time column in seconds or timestamps, else a
+    ``t_s`` / ``time_utc`` column) keeps it: the rate is not used, and the note says so.
+
+    Raises
+    ------
+    MappingError
+        ``rate_hz`` is not a positive finite number.
+    """
+    if not (np.isfinite(rate_hz) and rate_hz > 0.0):
+        raise MappingError(f"--frame-rate must be a positive number of frames a second, got "
+                           f"{rate_hz!r}")
+    own = mapping.time if mapping is not None else None
+    if own is not None and own.rate_hz is None:
+        return mapping, (f"--frame-rate {rate_hz:g} Hz not used: the mapping's [time] reads "
+                         f"the time from column '{own.column}'")
+    found = next((c for c, _ in DEFAULT_TIME_COLUMNS if c in columns), None)
+    if own is None and found is not None:
+        return mapping, (f"--frame-rate {rate_hz:g} Hz not used: the file has its own time "
+                         f"column '{found}'")
+    note = f"time: the frame count at {rate_hz:g} Hz (--frame-rate)"
+    if own is not None and own.rate_hz != rate_hz:
+        note += f", in place of the mapping's rate_hz = {own.rate_hz:g}"
+    spec = TimeSpec(own.column if own is not None else "", "s", rate_hz=float(rate_hz))
+    if mapping is None:
+        return Mapping(file="--frame-rate", time=spec, channels=()), note
+    return dataclasses.replace(mapping, time=spec), note
 
 
 def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:

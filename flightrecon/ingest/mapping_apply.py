@@ -24,7 +24,13 @@ from flightrecon.ingest.readers import RawTable
 from flightrecon.ingest.units import lookup_unit, to_canonical
 from flightrecon.schema import BY_NAME, GROUPS
 
-__all__ = ["apply_mapping", "identity_specs", "mapping_location"]
+__all__ = ["FRAME_RATE_HINT", "apply_mapping", "frame_seconds", "identity_specs",
+           "mapping_location"]
+
+#: how to read a recorder whose time is its frame count (the refusal of a file with no time)
+FRAME_RATE_HINT = ("a recorder whose time is its frame count (one row per frame, no time "
+                   "column or file): give its rate once, with --frame-rate HZ or rate_hz = HZ "
+                   "in the mapping's [time] table (docs/ingest.md, 'Frame count as the time')")
 
 
 def identity_specs(columns, exclude: set[str]) -> list[ChannelSpec]:
@@ -74,7 +80,8 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
                        nan_is_missing=raw.nan_is_missing)
         rows = rows[keep]
     notes: list[str] = []
-    time = _convert_time(raw, tspec, rows, warns, notes)
+    time = (frame_seconds(raw, tspec, rows) if tspec.rate_hz is not None
+            else _convert_time(raw, tspec, rows, warns, notes))
     values: dict[str, np.ndarray] = {}
     nan_text: dict[str, np.ndarray] = {}
     source: dict[str, str] = {}
@@ -190,11 +197,11 @@ def _time_spec(raw: RawTable, mapping: Mapping | None, mfile: str | None,
                 break
     if tspec is None:
         raise SchemaError("no time column: expected 't_s' (seconds from epoch_utc) or "
-                          "'time_utc' (UTC timestamps), or a [time] table in a mapping file",
-                          file=raw.file)
+                          "'time_utc' (UTC timestamps), or a [time] table in a mapping file; "
+                          + FRAME_RATE_HINT, file=raw.file)
     for key, c in (("column", tspec.column), ("date_column", tspec.date_column),
                    ("utc_offset_column", tspec.utc_offset_column)):
-        if c is not None and c not in raw.columns:
+        if c and c not in raw.columns:
             table = f"{group}.time" if group else "time"
             close = difflib.get_close_matches(c, list(raw.columns), n=1)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
@@ -252,6 +259,28 @@ def _numeric(col: np.ndarray, file: str, name: str, rows: np.ndarray,
         raise ValidationError(f"non-numeric value(s), first: '{first}'", file=file, column=name,
                               rows=rows[bad])
     return num
+
+
+def frame_seconds(raw: RawTable, tspec: TimeSpec, rows: np.ndarray) -> np.ndarray:
+    """Seconds of every row of a recorder whose time is its frame count at ``tspec.rate_hz``:
+    ``(k - 1) / rate_hz`` for data row ``k`` (the first frame at 0 s; an empty line skipped
+    keeps its frame), or ``counter / rate_hz`` with a frame-counter column ``tspec.column``.
+
+    Raises
+    ------
+    ValidationError
+        A frame counter that is missing, not a whole number, or not a number.
+    """
+    rate = float(tspec.rate_hz or 0.0)
+    if not tspec.column:
+        return (rows.astype(np.float64) - 1.0) / rate
+    col = raw.columns[tspec.column]
+    n = _numeric(col, raw.file, tspec.column, rows, raw.bad_text.get(tspec.column))
+    bad = np.flatnonzero(~np.isfinite(n) | (np.abs(n - np.round(n)) > 1e-6))
+    if bad.size:
+        raise ValidationError("frame counter missing or not a whole number", file=raw.file,
+                              column=tspec.column, rows=rows[bad])
+    return n / rate
 
 
 def _convert_time(raw: RawTable, tspec: TimeSpec, rows: np.ndarray,

@@ -16,7 +16,8 @@ Text cells that are not numbers are kept as text, and validation reports them; a
 spaces only is an empty cell.  A Garmin avionics export (``#airframe_info`` or ``#info`` first
 line, then a units line and the short names, or the long names with their units and the short
 names: :mod:`.garmin_layout`) is read with its units and information line kept
-(:attr:`RawTable.units`, :attr:`RawTable.preamble`).  A last row cut short (fewer fields than
+(:attr:`RawTable.units`, :attr:`RawTable.preamble`); so is a parameter dump's units line under
+its header (:mod:`flightrecon.ingest.units_line`, :mod:`flightrecon.ingest.ed112`).  A last row cut short (fewer fields than
 the header and no line end: the recorder stopped while writing it) is dropped with a warning.
 """
 
@@ -37,6 +38,7 @@ import pyarrow.parquet as pq
 
 from flightrecon.errors import InputFileError, SchemaError
 from flightrecon.ingest.garmin_layout import is_garmin_export, parse_layout
+from flightrecon.ingest.units_line import DUMP_DIALECT, units_line
 
 __all__ = ["RawTable", "decode_text", "read_table", "sniff_format"]
 
@@ -64,8 +66,11 @@ class RawTable:
     nan_is_missing : the file marks unsampled cells with NaN (Parquet, or a CSV without any
         empty cell), so ``nan_text`` is empty: NaN cannot tell an invalid value there
     dialect : ``"garmin"`` for a Garmin glass-cockpit export (``#airframe_info`` first line,
-        then a units line, then the header; :mod:`flightrecon.ingest.garmin`), else ``""``
-    units : source column -> unit text of the file's own units line (Garmin exports)
+        then a units line, then the header; :mod:`flightrecon.ingest.garmin`),
+        ``"ed112-dump"`` for a parameter dump (the header, then a units line;
+        :mod:`flightrecon.ingest.ed112`), else ``""``
+    units : source column -> unit text of the file's own units line (Garmin exports,
+        parameter dumps)
     preamble : ``key=value`` pairs of a Garmin ``#airframe_info`` line (aircraft, software)
     long_names : source column -> long name with its unit (Garmin long-name layouts)
     layout : how a Garmin export names its columns (:mod:`.garmin_layout`), else ``""``
@@ -247,6 +252,10 @@ def _read_csv(p: Path) -> RawTable:
         names = list(layout.names)
     _check_names(names, file)
     header_line = layout.header_lines if layout is not None else 1
+    dump_units = None if layout is not None else _units_line(body, first_nl, names, delim)
+    if dump_units is not None:           # a parameter dump's units line (.units_line): skipped
+        second_nl = body.find(b"\n", first_nl + 1)
+        body = body[:first_nl + 1] + (body[second_nl + 1:] if second_nl >= 0 else b"")
     body, warns = _drop_short_last_row(body, len(names), delim, file, header_line)
     if enc_warn:
         warns.insert(0, enc_warn)
@@ -264,10 +273,21 @@ def _read_csv(p: Path) -> RawTable:
         raise InputFileError(f"cannot parse CSV: {exc}", file=file) from None
     table = _from_arrow(tbl, file, "csv")
     extra: dict = {"warnings": tuple(warns), "header_line": header_line}
+    if dump_units is not None:
+        extra.update(dialect=DUMP_DIALECT, units=dump_units)
     if layout is not None:
         extra.update(dialect="garmin", preamble=dict(layout.info), units=dict(layout.units),
                      long_names=dict(layout.long_names), layout=layout.layout)
     return dataclasses.replace(table, **extra)
+
+
+def _units_line(body: bytes, first_nl: int, names: list[str], delim: str
+                ) -> dict[str, str] | None:
+    """The units of a parameter dump's second line (:func:`.units_line.units_line`), else
+    ``None``."""
+    end = body.find(b"\n", first_nl + 1)
+    line = body[first_nl + 1:end if end >= 0 else len(body)].decode("utf-8").rstrip("\r")
+    return units_line(names, next(csv.reader([line], delimiter=delim), []))
 
 
 def _drop_short_last_row(body: bytes, n_fields: int, delim: str, file: str,

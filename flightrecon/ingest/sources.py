@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from flightrecon.errors import MetadataError, SchemaError
+from flightrecon.ingest.ed112 import dump_mapping
 from flightrecon.ingest.garmin import (
     GarminReading,
     altimeter_settings_hpa,
@@ -25,13 +26,14 @@ from flightrecon.ingest.garmin import (
     garmin_reading,
     merge_with_user,
 )
-from flightrecon.ingest.mapping import MappedTable, Mapping
+from flightrecon.ingest.mapping import MappedTable, Mapping, with_frame_rate
 from flightrecon.ingest.mapping_apply import apply_mapping
 from flightrecon.ingest.merge import Rows, merge_rows
-from flightrecon.ingest.readers import read_table
+from flightrecon.ingest.readers import RawTable, read_table
 from flightrecon.ingest.sidecar import normalise_epoch
 from flightrecon.ingest.time_cells import place_time_of_day, unset_clock_rows
 from flightrecon.ingest.timestamps import repair_time_order
+from flightrecon.ingest.units_line import DUMP_DIALECT
 from flightrecon.ingest.validate import check_required, check_time
 from flightrecon.schema import GROUPS
 from flightrecon.types import FlightMeta
@@ -52,13 +54,15 @@ class Sources:
     magnetic: dict[str, tuple[str, str]]
     derive_long: bool = False
     ignored: tuple[str, ...] = ()
+    derive_lat: bool = False
 
 
 def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorted: bool,
-             warns: list[str], notes: list[str], withhold_gnss: bool = False
-             ) -> tuple[Sources, FlightMeta]:
+             warns: list[str], notes: list[str], withhold_gnss: bool = False,
+             frame_rate_hz: float | None = None) -> tuple[Sources, FlightMeta]:
     """The recorder log through its mapping (a Garmin export's built-in one under the user's):
-    schema checks, time base, time order."""
+    schema checks, time base, time order; ``frame_rate_hz`` (``--frame-rate``): a recorder
+    whose time is its frame count (:func:`.mapping.with_frame_rate`)."""
     raw = read_table(log)
     warns += list(raw.warnings)
     mp = user_mp
@@ -73,6 +77,7 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
         notes.append(f"{log}: Garmin export: {reading.variant}; read with the built-in mapping"
                      + (" under the user's mapping" if user_mp else ""))
         warns += [f"{log}: {w}" for w in reading.warnings]
+    raw, mp, dump_used = _dump_and_rate(raw, mp, user_mp, frame_rate_hz, log, warns, notes)
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
                      f"{raw.blank_rows[0]})")
@@ -98,7 +103,7 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
         withheld = set(mt.source_column.values()) - set(kept.source_column.values())
         mt = kept
     used = (set(mt.source_column.values()) | set(_time_columns(mp, raw.columns))
-            | set(garmin_used) | withheld)   # withheld GNSS columns are said so, not "ignored"
+            | set(garmin_used) | set(dump_used) | withheld)   # withheld GNSS: said, not "ignored"
     ignored = [c for c in raw.columns if c not in used]
     if ignored:
         shown = ", ".join(ignored[:8]) + (" ..." if len(ignored) > 8 else "")
@@ -112,6 +117,9 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
     derive_long = "n_long_g" not in present and {"tas_mps", "pitch_deg"} <= present
     if derive_long:
         present.add("n_long_g")
+    derive_lat = "n_lat_g" not in present and "n_norm_g" in present
+    if derive_lat:
+        present.add("n_lat_g")
     if "heading_deg" not in present and {"q_dps", "r_dps"} <= present:
         present.add("heading_deg")
         notes.append("no heading channel: the heading is propagated from the body rates at "
@@ -131,7 +139,24 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
                 nan_text={k: v[sel] for k, v in mt.nan_text.items()})
     magnetic = {c: (str(log), mt.source_column[c]) for c in mt.magnetic}
     return Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic,
-                   derive_long, tuple(ignored)), meta
+                   derive_long, tuple(ignored), derive_lat), meta
+
+
+def _dump_and_rate(raw: RawTable, mp: Mapping | None, user_mp: Mapping | None,
+                   frame_rate_hz: float | None, log: Path, warns: list[str], notes: list[str]
+                   ) -> tuple[RawTable, Mapping | None, tuple[str, ...]]:
+    """A parameter dump's built-in mapping under the user's (:func:`.ed112.dump_mapping`),
+    then the command line's frame rate (:func:`.mapping.with_frame_rate`): the table, the
+    mapping and the dump's time columns."""
+    dump_used: tuple[str, ...] = ()
+    if raw.dialect == DUMP_DIALECT:      # a parameter dump: header, units line (.ed112)
+        raw, mp, dump_used, n, w = dump_mapping(raw, user_mp)
+        notes += n
+        warns += w
+    if frame_rate_hz is not None:
+        mp, note = with_frame_rate(mp, frame_rate_hz, raw.columns)
+        (warns if "not used" in note else notes).append(f"{log}: {note}")
+    return raw, mp, dump_used
 
 
 def add_companion(src: Sources, group: str, path: Path, mp: Mapping | None, meta: FlightMeta,
@@ -281,7 +306,7 @@ def _without_gnss(mt: MappedTable) -> MappedTable:
 
 def _time_column(mt: MappedTable, mp: Mapping | None, columns) -> str:
     if mp is not None and mp.time is not None:
-        return mp.time.column
+        return mp.time.column or "(frame count)"
     return "t_s" if "t_s" in columns else "time_utc"
 
 

@@ -108,8 +108,10 @@ def check_time(t: np.ndarray, rows: np.ndarray, file: str, column: str, *,
 
 
 #: required channels that ingest derives when they are not recorded, from these channels
-#: (:func:`flightrecon.ingest.derive.derive_n_long`)
-DERIVABLE: dict[str, tuple[str, ...]] = {"n_long_g": ("tas_mps", "pitch_deg")}
+#: (:func:`flightrecon.ingest.derive.derive_n_long`, :func:`~flightrecon.ingest.derive.
+#: derive_n_lat`: coordinated flight's lateral load beside a recorded normal load)
+DERIVABLE: dict[str, tuple[str, ...]] = {"n_long_g": ("tas_mps", "pitch_deg"),
+                                         "n_lat_g": ("n_norm_g",)}
 
 
 def check_required(channels, file: str, other_columns=(), mapping_hint: str = "") -> None:

@@ -188,8 +188,8 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
                 settings: ReconstructSettings = ReconstructSettings(),
                 progress: Callable[[str], None] | None = None,
                 store: str | Path | None = None, use_fleet_coefficients: bool = False,
-                record: bool = True, workers: int | None = None,
-                gnss_use: GnssUse | None = None) -> Reconstruction:
+                record: bool = True, workers: int | None = None, gnss_use: GnssUse | None = None,
+                frame_rate_hz: float | None = None) -> Reconstruction:
     """Load, validate, clean and reconstruct a flight from its recorder log.
 
     Parameters
@@ -210,6 +210,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     gnss_use : how the GNSS fixes are used (withheld, windows, interval, receiver's sd;
         :class:`flightrecon.ingest.gnss_use.GnssUse`, the keyword of
         :func:`flightrecon.ingest.load_flight`)
+    frame_rate_hz : frames a second of a recorder timed by its frame count (``--frame-rate``)
 
     Returns
     -------
@@ -226,9 +227,9 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     with warnings.catch_warnings(record=True) as caught, EarlyChild(workers) as early:
         warnings.simplefilter("always")
         flight_warnings, clean, settings, fleet, findings = _load_and_clean(
-            log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-            meta_overrides=meta_overrides, settings=settings, stage=stage, store=store,
-            use_fleet_coefficients=use_fleet_coefficients, gnss_use=gnss_use)
+            log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar, stage=stage, store=store,
+            meta_overrides=meta_overrides, settings=settings, gnss_use=gnss_use,
+            use_fleet_coefficients=use_fleet_coefficients, frame_rate_hz=frame_rate_hz)
         track, results, status = reconstruct_clean(clean, settings, progress=stage,
                                                    workers=workers, early_child=early)
     warn_list = flight_warnings + [str(w.message) for w in caught
@@ -267,7 +268,8 @@ def _load_and_clean(log: str | Path, *, gnss: str | Path | None, radar: str | Pa
                     mapping: str | Path | None, sidecar: str | Path | None,
                     meta_overrides: dict[str, Any] | None, settings: ReconstructSettings,
                     stage: Callable[[str], None], store: str | Path | None,
-                    use_fleet_coefficients: bool, gnss_use: GnssUse | None = None
+                    use_fleet_coefficients: bool, gnss_use: GnssUse | None = None,
+                    frame_rate_hz: float | None = None
                     ) -> tuple[list[str], CleanFlight, ReconstructSettings,
                                dict[str, Any] | None, list[dict[str, Any]]]:
     """Ingest, the fleet's settings (if asked), cleaning and the plausibility checks (each
@@ -282,7 +284,8 @@ def _load_and_clean(log: str | Path, *, gnss: str | Path | None, radar: str | Pa
 
     stage("ingest")
     flight: Flight = load_flight(log, gnss=gnss, radar=radar, mapping=mapping, sidecar=sidecar,
-                                 meta_overrides=meta_overrides, gnss_use=gnss_use)
+                                 meta_overrides=meta_overrides, gnss_use=gnss_use,
+                                 frame_rate_hz=frame_rate_hz)
     check_reconstructable(flight)   # a log too short: refused with the minimum
     fleet = None
     if use_fleet_coefficients:

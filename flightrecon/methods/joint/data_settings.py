@@ -1,6 +1,7 @@
 """The joint smoother's settings as the data call for them: the priors of a heading from the
-body rates and of a derived ``n_long_g``, the pressure-altitude scale from the SAT, the loads'
-sampling noise of a slow record, and the wind walk re-estimated where the wind outran it."""
+body rates and of a derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g``, the
+pressure-altitude scale from the SAT, the loads' sampling noise of a slow record, and the wind
+walk re-estimated where the wind outran it."""
 
 from __future__ import annotations
 
@@ -59,6 +60,27 @@ def derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSet
     extra = tuple(p for p in (("accel_scale_x", 0.0, DERIVED_LONG_SCALE_SD),
                               ("accel_bias_x_g", 0.0, DERIVED_LONG_BIAS_G)) if p[0] not in given)
     return replace(settings, priors=(*settings.priors, *extra))
+
+
+#: white acceleration noise [m/s^2/sqrt(Hz)] for an ``n_lat_g`` taken as coordinated flight's
+#: (0 g) at ingest (flightrecon/ingest/derive.py, ``derive_n_lat``): the side force it misses
+#: is a Gauss-Markov acceleration of sd ``s`` 0.02-0.03 g (0.2-0.25 m/s^2; the JSBSim T-6's
+#: air work: 0.026 g RMS, 60-s means to 0.017 g) and correlation time ``tau`` of tens of
+#: seconds, whose white equivalent is ``sqrt(2 s^2 tau)`` = 0.9-1.5; the loads' noise is one
+#: figure for the three axes.  Measured (docs/ingest.md, "Normal acceleration alone"): the
+#: sensor budget's 0.05 left NEES of 3-22 where the side force persists, 1.0 brings them to 1.5
+#: at most
+DERIVED_LAT_ACCEL_NOISE = 1.0
+
+
+def derived_lat_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """The loads' white noise for an ``n_lat_g`` assumed at ingest (``derived_channels``):
+    :data:`DERIVED_LAT_ACCEL_NOISE`, never below the settings'."""
+    if "n_lat_g" not in (clean.meta.extra.get("derived_channels") or {}):
+        return settings
+    nz = settings.noise
+    return replace(settings, noise=replace(nz, accel_noise_mps2_sqrt_hz=max(
+        nz.accel_noise_mps2_sqrt_hz, DERIVED_LAT_ACCEL_NOISE)))
 
 
 def airborne_samples(inp: JointInputs) -> np.ndarray:

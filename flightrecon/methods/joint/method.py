@@ -34,6 +34,7 @@ from flightrecon.methods.joint.attitude_source import (
 )
 from flightrecon.methods.joint.data_settings import (
     derived_heading_noise,
+    derived_lat_noise,
     derived_long_priors,
     sampled_loads_noise,
     temperature_baro_prior,
@@ -170,6 +171,7 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
     settings = settings or JointSettings()
     settings = derived_heading_noise(clean, settings)
     settings = derived_long_priors(clean, settings)
+    settings = derived_lat_noise(clean, settings)
     inp = joint_inputs(clean)
     settings, tilt_ev, attitude_note = _settings_for(clean, inp, settings)
     run = smooth_joint(inp, settings)
