@@ -38,6 +38,7 @@ from flightrecon.pipeline.registry import (
     run_method,
 )
 from flightrecon.pipeline.summary import build_summary, result_choice
+from flightrecon.pipeline.unit_doubts import DOUBTFUL, doubt
 from flightrecon.types import CleanFlight, Flight, MethodResult
 
 if TYPE_CHECKING:
@@ -139,6 +140,9 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
         health = method_health(res, clean)
         status[m] = {**res.summary, "status": "ok" if health["healthy"] else "unhealthy",
                      "health": health}
+        doubted = doubt(m, clean.meta.extra) if health["healthy"] else None
+        if doubted:     # a unit the door doubts or that was overridden (unit_doubts.py)
+            status[m].update(status=DOUBTFUL, reason=f"the door's evidence: {doubted}")
         if not health["healthy"]:
             status[m]["reason"] = "; ".join(pr["what"] for pr in health["problems"])
             if settings.strict:
@@ -147,7 +151,7 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     if not results:
         raise MetadataError("no estimator could run on this flight: " + "; ".join(
             f"{m}: {s.get('reason')}" for m, s in status.items()))
-    healthy = {m: status[m]["status"] == "ok" for m in results}
+    healthy = {m: status[m]["status"] in ("ok", DOUBTFUL) for m in results}
     if not any(has_finite_track(r) for r in results.values()):
         raise NoResultError("no method produced a finite track, nothing was written: "
                             + _reasons(status))
