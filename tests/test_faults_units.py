@@ -76,11 +76,14 @@ def test_attitude_in_radians_in_deg_columns_is_refused(tmp_path, capsys):
 
 def test_attitude_in_radian_range_without_evidence_is_a_warning(tmp_path):
     """All three attitude channels inside the radian range but nothing to test them with
-    (no longitudinal load factor, no GNSS velocity): a warning naming the likely unit."""
+    (no longitudinal load factor, no GNSS velocity, no turn in the normal load factor): a
+    warning naming the likely unit.  (With the normal load's turns the log is refused:
+    ``tests/test_faults_contradicted.py``.)"""
     d = HANDMADE.copy()
     for c in ("roll_deg", "pitch_deg", "heading_deg"):
         d[c] = np.radians(d[c])
     d["n_long_g"] = np.where(d["n_long_g"].notna(), 0.0, np.nan)
+    d["n_norm_g"] = np.where(d["n_norm_g"].notna(), 1.0, np.nan)
     d = d.drop(columns=["gnss_vn_mps", "gnss_ve_mps"])
     p = write(tmp_path, "radw", d)
     _, warns = load_quiet(p)

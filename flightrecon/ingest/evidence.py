@@ -355,6 +355,9 @@ def wind_triangle_fit(data: pd.DataFrame, segment_s: float = 600.0) -> Fit | Non
 #: :data:`TURN_SHARE` of the record's 99th percentile, and in which the mean normal load factor
 #: exceeds the wings-level one by :data:`TURN_DN` (a bank of 11 deg: the loads show a turn)
 TURN_MIN_S = 6.0
+#: a longer turn (a spiral, a holding) is cut into pieces of this length, each a piece of
+#: evidence (the turbulence's gusts decorrelate within a few seconds) [s]
+TURN_PIECE_S = 10.0
 TURN_SHARE = 0.4
 TURN_DN = 0.02
 #: half-width of the mean over which the load factor and the roll are taken [s]
@@ -381,7 +384,8 @@ def _pieces_fit(f: list[float], what: str) -> Fit | None:
 
 
 def _turns(tc: np.ndarray, rr: np.ndarray, air: np.ndarray) -> list[np.ndarray]:
-    """Index arrays of the turns by the recorded roll (module docstring, :data:`TURN_MIN_S`)."""
+    """Index arrays of the turns by the recorded roll (module docstring, :data:`TURN_MIN_S`),
+    a long turn cut into pieces of about :data:`TURN_PIECE_S`."""
     if air.sum() < 20:
         return []
     thr = TURN_SHARE * float(np.percentile(rr[air], 99))
@@ -389,8 +393,25 @@ def _turns(tc: np.ndarray, rr: np.ndarray, air: np.ndarray) -> list[np.ndarray]:
         return []
     m = np.concatenate([[False], air & (rr >= thr), [False]]).astype(np.int8)
     d = np.diff(m)
-    return [np.arange(a, b) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))
-            if b - a >= TURN_MIN_S]
+    out = []
+    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        n = max(1, int((b - a) // TURN_PIECE_S))
+        out += [k for k in np.array_split(np.arange(a, b), n) if k.size >= TURN_MIN_S]
+    return out
+
+
+def _turned(psi: tuple[np.ndarray, np.ndarray], t0: float, t1: float) -> float:
+    """How far the heading (unwrapped at 360) turned from ``t0`` to ``t1``: the sum of its
+    steps, less the steps ten times the median one (the wraps of a heading in another unit:
+    6.28 for radians)."""
+    t, h = psi
+    i = np.flatnonzero((t >= t0) & (t <= t1))
+    if i.size < 2:
+        return float(abs(np.interp(t1, t, h) - np.interp(t0, t, h)))
+    d = np.diff(h[i])
+    med = float(np.median(np.abs(d)))
+    keep = np.abs(d) <= 10.0 * med if med > 0 else np.ones(d.size, bool)
+    return float(abs(d[keep].sum()))
 
 
 def turn_attitude_fits(data: pd.DataFrame, half_s: float = TURN_HALF_S) -> dict[str, Fit]:
@@ -400,13 +421,13 @@ def turn_attitude_fits(data: pd.DataFrame, half_s: float = TURN_HALF_S) -> dict[
     mean normal load factor over the wings-level one, ``n``, is that of a level coordinated
     turn at the bank ``acos(1/n)``:
 
-    * roll: ``sqrt(mean(1/cos(roll) - 1) / (n - 1))``, the roll read as degrees against the
-      bank the loads show (about 1; 1/57.3 for radians in a degree column);
+    * roll: the mean |roll| against the bank the loads show, ``acos(1/n)`` in degrees (about
+      1; 1/57.3 for radians in a degree column);
     * heading: the heading's change over the turn against ``g0 tan(acos(1/n)) T / V`` (about
       1; 1/57.3 for radians, 57.3 for degrees declared as radians).
 
-    A climbing turn or turbulence scatters the pieces by 10-20 %; one piece per turn.  A
-    channel with fewer than two turns has no entry.
+    A climbing turn or turbulence scatters the pieces by 10-20 %; one piece per turn, or per
+    :data:`TURN_PIECE_S` of a long one.  A channel with fewer than two pieces has no entry.
     """
     n, roll = own_samples(data, "n_norm_g", 32), own_samples(data, "roll_deg")
     if n is None or roll is None:
@@ -434,15 +455,14 @@ def turn_attitude_fits(data: pd.DataFrame, half_s: float = TURN_HALF_S) -> dict[
         dn = float(np.mean(ns[k])) / n0 - 1.0
         if dn < TURN_DN:
             continue
-        x = float(np.mean(1.0 / np.cos(np.radians(np.minimum(rr[k], 89.0))) - 1.0))
-        f_roll.append(np.sqrt(x / dn))
+        bank_deg = float(np.degrees(np.arccos(1.0 / (1.0 + dn))))
+        f_roll.append(float(np.mean(rr[k])) / bank_deg)
         if psi is None or v is None or tc[k[0]] < psi[0][0] or tc[k[-1]] > psi[0][-1]:
             continue
-        span = abs(float(np.interp(tc[k[-1]], *psi) - np.interp(tc[k[0]], *psi)))
-        bank = np.arccos(1.0 / (1.0 + dn))
-        expect = np.degrees(G0 * np.tan(bank) * (tc[k[-1]] - tc[k[0]]) / float(np.mean(v[k])))
+        expect = np.degrees(G0 * np.tan(np.radians(bank_deg)) * (tc[k[-1]] - tc[k[0]])
+                            / float(np.mean(v[k])))
         if expect >= 10.0:
-            f_head.append(span / expect)
+            f_head.append(_turned(psi, tc[k[0]], tc[k[-1]]) / expect)
     out: dict[str, Fit] = {}
     for name, f, what in (("roll_deg", f_roll, "turns (roll against the bank acos(1/n_norm))"),
                           ("heading_deg", f_head, "turns (heading change against "

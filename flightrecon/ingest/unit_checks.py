@@ -127,9 +127,9 @@ def _heading_misfits(door: Door) -> tuple[float, float] | None:
 
 
 #: a roll or heading factor from the turns (:func:`turn_attitude_fits`) names a unit with
-#: this many turns agreeing (a circuit has three or four; the factor is 57 times off the
-#: physical band, far beyond any turn's scatter)
-ATTITUDE_TURNS_MIN = 3.0
+#: this many pieces of turn agreeing (a circuit gives 5-11, a spiral dive 4-6; the factor is
+#: 57 times off the physical band, far beyond any turn's scatter of 5-10 %)
+ATTITUDE_TURNS_MIN = 4.0
 
 
 def _attitude_from_turns(door: Door) -> dict[str, tuple[str | None, Fit]]:

@@ -36,7 +36,8 @@ _GROUPS = {"roll/pitch/heading": _ATTITUDE, "t_s": (*_LOADS, *_ATTITUDE, "tas_mp
 def unit_doubts(door: Iterable[Mapping[str, Any]]) -> dict[str, str]:
     """Channel -> why its unit is in doubt, from the door's unit checks (module docstring)."""
     out: dict[str, str] = {}
-    for c in door:
+    # an overridden contradiction first: it is certain, a doubt is not
+    for c in sorted(door, key=lambda c: c.get("verdict") != "overridden"):
         if not str(c.get("check", "")).endswith(" unit"):
             continue
         if c.get("verdict") not in ("warned", "overridden"):
@@ -53,5 +54,6 @@ def unit_doubts(door: Iterable[Mapping[str, Any]]) -> dict[str, str]:
 def doubt(method: str, extra: Mapping[str, Any]) -> str | None:
     """Why ``method``'s result is doubtful (the flight's metadata ``extra``), else ``None``."""
     doubts = unit_doubts(extra.get("door") or ())
-    hits = dict.fromkeys(doubts[c] for c in METHOD_INPUTS.get(method, ()) if c in doubts)
+    inputs = METHOD_INPUTS.get(method, ())
+    hits = dict.fromkeys(text for c, text in doubts.items() if c in inputs)
     return "; ".join(hits) if hits else None
