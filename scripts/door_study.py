@@ -297,6 +297,59 @@ def svv_logs(tmp: Path, rows: list[dict], matlab: Path) -> None:
         study_log(name, df, tmp, {}, 52.3, 4.76, "2020-03-09T09:00:00Z", rows, export=False)
 
 
+#: the Citation II folder's files whose unit the mutations change: file -> (what, the unit
+#: recorded, the other unit)
+SVV_UNITS = {"Ahrs1_Roll": ("roll", "deg", "rad"), "Ahrs1_Pitch": ("pitch", "deg", "rad"),
+             "Dadc1_tas": ("airspeed", "kt", "m/s"), "Dadc1_alt": ("pressure altitude", "ft", "m")}
+
+
+def svv_folder_logs(tmp: Path, rows: list[dict], matlab: Path) -> None:
+    """The Citation II folders read as ``scripts/realflight_study.py`` reads them (the tool's
+    one-column folder reader, its mapping and sidecar: recorder channels, no GPS), then the
+    mapping declaring another unit for a file, and a file rewritten in another unit."""
+    import shutil
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import realflight_study as rf
+
+    for name, folder in (("Citation ref", matlab), ("Citation B22", matlab / "Our-data")):
+        if not folder.is_dir():
+            continue
+        df, stems = rf.analyst_table(folder)
+        stem = name.split()[-1].lower()
+        side = rf.write_case(rf.flight_facts(df), stems, tmp / stem, stem, arrival="none",
+                             gnss=False)
+        mapping = (tmp / stem / f"{stem}.mapping.toml").read_text()
+        r = {"log": name, "format": "one-column folder through its mapping",
+             **door(folder, sidecar=side)}
+        r["mutations"], r["mutation_causes"] = {}, {}
+        for i, (f, (what, unit, other)) in enumerate(SVV_UNITS.items()):
+            key = f'column = "{stems[f]}"\nunit = "{unit}"'
+            assert key in mapping, f
+            m = tmp / stem / f"m{i}.toml"
+            m.write_text(mapping.replace(key, f'column = "{stems[f]}"\nunit = "{other}"'))
+            kind = f"{what} in {unit}, declared {other}"
+            res = door(folder, sidecar=side, mapping=m)
+            r["mutations"][kind] = outcome(res)
+            r["mutation_causes"][kind] = (res.get("error") or " | ".join(
+                res.get("unit_warnings") or []))[:240]
+            bad = tmp / stem / f"data{i}"
+            shutil.copytree(folder, bad, ignore=shutil.ignore_patterns("Our-data"))
+            v = pd.read_csv(bad / f"{stems[f]}.csv", header=None)
+            v[0] = {"rad": np.radians, "m/s": lambda x: x / KT,
+                    "m": lambda x: x * 0.3048}[other](v[0])
+            v.to_csv(bad / f"{stems[f]}.csv", header=False, index=False)
+            kind = f"{what} in {other}, declared {unit}"
+            res = door(bad, sidecar=side)
+            r["mutations"][kind] = outcome(res)
+            r["mutation_causes"][kind] = (res.get("error") or " | ".join(
+                res.get("unit_warnings") or []))[:240]
+            shutil.rmtree(bad)
+        rows.append(r)
+        print(f"{name:34s} folder: accepted={r['accepted']} {_tally(r['mutations'])}",
+              flush=True)
+
+
 def markdown(rows: list[dict]) -> str:
     head = ("| log | format | accepted | time | baro | GNSS height | airspeed | attitude | "
             "unit warnings | injected ft / rad / ms / kt refused | unit mutations refused / "
@@ -340,6 +393,7 @@ def mutation_table(rows: list[dict]) -> str:
     for r in rows:
         for k, v in (r.get("mutations") or {}).items():
             fmt = "ED-112" if r["format"].startswith("ED-112") else (
+                "Citation folder" if r["format"].startswith("one-column") else
                 "mapping" if k.startswith("mapping: ") else "canonical")
             kinds.setdefault((fmt, k.removeprefix("mapping: ")), []).append((r["log"], v))
     out = ["", "| rates, columns | unit mutation | logs | refused | warned | silent "
@@ -379,6 +433,7 @@ def main() -> None:
         jsbsim_logs(tmp, rows, args.seeds)
         if args.svv:
             svv_logs(tmp, rows, args.svv)
+            svv_folder_logs(tmp, rows, args.svv)
         for g in args.garmin:
             for fmt, kw in (("glass-cockpit CSV as recorded", {}),
                             ("glass-cockpit CSV, GPS withheld",
