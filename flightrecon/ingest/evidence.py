@@ -405,10 +405,10 @@ def _turned(psi: tuple[np.ndarray, np.ndarray], t0: float, t1: float) -> float:
     steps, less the steps ten times the median one (the wraps of a heading in another unit:
     6.28 for radians)."""
     t, h = psi
-    i = np.flatnonzero((t >= t0) & (t <= t1))
-    if i.size < 2:
+    i0, i1 = np.searchsorted(t, t0, "left"), np.searchsorted(t, t1, "right")
+    if i1 - i0 < 2:
         return float(abs(np.interp(t1, t, h) - np.interp(t0, t, h)))
-    d = np.diff(h[i])
+    d = np.diff(h[i0:i1])
     med = float(np.median(np.abs(d)))
     keep = np.abs(d) <= 10.0 * med if med > 0 else np.ones(d.size, bool)
     return float(abs(d[keep].sum()))
