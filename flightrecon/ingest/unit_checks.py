@@ -147,11 +147,12 @@ def _attitude_from_turns(door: Door) -> dict[str, tuple[str | None, Fit]]:
 
 
 def _attitude_evidence(door: Door, like: dict[str, bool]
-                       ) -> tuple[dict[str, tuple[str, float, str]], list[tuple[str, str]]]:
+                       ) -> tuple[dict[str, tuple[str, float, str]],
+                                  list[tuple[str, str, float]]]:
     """The channels the physics shows in another angle unit (channel -> unit, factor,
     evidence), and the doubts in words."""
     found: dict[str, tuple[str, float, str]] = {}
-    doubts: list[tuple[str, str]] = []
+    doubts: list[tuple[str, str, float]] = []
     for name, (unit, fit) in _attitude_from_turns(door).items():
         what = "roll" if name == "roll_deg" else "heading's change"
         text = (f"the {what} is {fit.factor:.3g} times what the turns the load factors show "
@@ -159,7 +160,8 @@ def _attitude_evidence(door: Door, like: dict[str, bool]
         if unit is not None:
             found[name] = (unit, fit.factor, text)
         elif not plausible_fit(fit) and fit.good(2.0):
-            doubts.append((name, f"{door.where(name)}: {text}; not certain: check its unit"))
+            doubts.append((name, f"{door.where(name)}: {text}; not certain: check its unit",
+                           fit.factor))
     rad = 1.0 / float(np.degrees(1.0))
     if like["pitch_deg"] and "pitch_deg" not in found:
         m = _pitch_misfits(door)
@@ -200,8 +202,8 @@ def check_attitude_units(door: Door) -> None:
                      + (f" ({', '.join(names[1:])} too)" if len(names) > 1 else "")
                      + (f"; {', '.join(also)} also never leave the radian range" if also
                         else ""))
-    for name, text in doubts:
-        door.warn(check, name, None, text)
+    for name, text, factor in doubts:
+        door.warn(check, name, factor, text)
     if all(like.values()):
         door.warn(check, "roll/pitch/heading", None,
                   f"{door.file()}: roll_deg, pitch_deg and heading_deg never leave +-3.2 "
