@@ -160,8 +160,11 @@ def _attitude_evidence(door: Door, like: dict[str, bool]
         if unit is not None:
             found[name] = (unit, fit.factor, text)
         elif not plausible_fit(fit) and fit.good(2.0):
-            doubts.append((name, f"{door.where(name)}: {text}; not certain: check its unit",
-                           fit.factor))
+            # the heading's turn expected is at the recorded airspeed: both are in doubt
+            both = name == "heading_deg"
+            doubts.append(("heading_deg/tas_mps" if both else name,
+                           f"{door.where(name)}: {text}; not certain: check its unit"
+                           + (" and the airspeed's" if both else ""), fit.factor))
     rad = 1.0 / float(np.degrees(1.0))
     if like["pitch_deg"] and "pitch_deg" not in found:
         m = _pitch_misfits(door)
@@ -456,6 +459,11 @@ def check_gnss_height(door: Door, baro_fit: Fit | None) -> None:
 # ------------------------------------------------------------------ airspeed
 
 
+def _fit_name(f: Fit) -> str:
+    return ("heading against the loads' turns" if "bank" in f.what else
+            "turns" if "turn" in f.what else "wind triangle")
+
+
 def check_airspeed(door: Door) -> None:
     """True airspeed against coordinated turns and the GNSS wind triangle (module docstring):
     certain when a good fit names a unit and no other witness contradicts it."""
@@ -464,7 +472,12 @@ def check_airspeed(door: Door) -> None:
         return
     declared = door.unit_of(name, "m/s")
     table = candidate_units("speed", declared.unit)
-    fits = [f for f in (turn_rate_fit(door.data), wind_triangle_fit(door.data)) if f is not None]
+    # the heading's turns against the loads' turn rate at the recorded airspeed: the heading
+    # in degrees (the attitude check has passed it) leaves the airspeed's factor (issue #50:
+    # an ED-112 spiral dive at 1 Hz, its roll-based turns too few, gave 1.82 for knots)
+    loads = turn_attitude_fits(door.data).get("heading_deg")
+    fits = [f for f in (turn_rate_fit(door.data), wind_triangle_fit(door.data), loads)
+            if f is not None]
     if not fits:
         door.record(check, name, "skipped", None, "no coordinated turn and no GNSS velocity "
                     "through a turn")
@@ -472,8 +485,7 @@ def check_airspeed(door: Door) -> None:
     units = [certain_unit(f, table) for f in fits]
     named = {u for u in units if u is not None}
     plausible = [f for f in fits if plausible_fit(f) and f.good(N_MIN)]
-    evidence = "; ".join(f"{'turns' if 'turn' in f.what else 'wind triangle'}: {f.text()}"
-                         for f in fits)
+    evidence = "; ".join(f"{_fit_name(f)}: {f.text()}" for f in fits)
     if len(named) == 1 and not plausible:
         unit = named.pop()
         text = (f"the true airspeed is {fits[units.index(unit)].factor:.2f} times what the "

@@ -33,6 +33,13 @@ _GROUPS = {"roll/pitch/heading": _ATTITUDE, "t_s": (*_LOADS, *_ATTITUDE, "tas_mp
                                                      "baro_alt_m", "gnss_alt_m")}
 
 
+def _channels(channel: str) -> tuple[str, ...]:
+    """The channels a door record is about (``heading_deg/tas_mps``: both)."""
+    if channel in _GROUPS:
+        return _GROUPS[channel]
+    return tuple(channel.split("/"))
+
+
 def unit_doubts(door: Iterable[Mapping[str, Any]]) -> dict[str, str]:
     """Channel -> why its unit is in doubt, from the door's unit checks (module docstring)."""
     out: dict[str, str] = {}
@@ -46,7 +53,7 @@ def unit_doubts(door: Iterable[Mapping[str, Any]]) -> dict[str, str]:
         what = ("used against a certain contradiction (unit_confirmed)"
                 if c["verdict"] == "overridden" else "its unit doubted")
         text = (f"{c['channel']} {what}" + (f", factor {fig:.3g}" if fig is not None else ""))
-        for ch in _GROUPS.get(str(c["channel"]), (str(c["channel"]),)):
+        for ch in _channels(str(c["channel"])):
             out.setdefault(ch, text)
     return out
 
