@@ -483,7 +483,10 @@ def check_airspeed(door: Door) -> None:
                     "through a turn")
         return
     units = [certain_unit(f, table) for f in fits]
-    named = {u for u in units if u is not None}
+    # the loads' turns are the coarser witness (the bank from the load factor: 2.15 for knots
+    # on a JSBSim circuit, nearer mph's 2.24): it names the unit only where the others do not
+    named = {u for f, u in zip(fits, units) if u is not None and f is not loads} or (
+        {units[-1]} if loads is not None and units[-1] is not None else set())
     plausible = [f for f in fits if plausible_fit(f) and f.good(N_MIN)]
     evidence = "; ".join(f"{_fit_name(f)}: {f.text()}" for f in fits)
     if len(named) == 1 and not plausible:
