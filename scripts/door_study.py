@@ -357,8 +357,9 @@ def markdown(rows: list[dict]) -> str:
     out = []
     for r in rows:
         if "checks" not in r:
-            out.append(f"| {r['log']} | {r['format']} | {r.get('accepted', '-')} | "
-                       f"{r.get('error', '')[:80]} ||||||||")
+            acc = {True: "yes", False: "**no**"}.get(r.get("accepted"), "-")
+            out.append(f"| {r['log']} | {r['format']} | {acc}: {r.get('error', '')[:160]} "
+                       "||||||||")
             continue
         cells = []
         for k in UNIT_CHECKS:
@@ -396,8 +397,15 @@ def mutation_table(rows: list[dict]) -> str:
                 "Citation folder" if r["format"].startswith("one-column") else
                 "mapping" if k.startswith("mapping: ") else "canonical")
             kinds.setdefault((fmt, k.removeprefix("mapping: ")), []).append((r["log"], v))
+    why: dict[tuple[str, str], set[str]] = {}
+    for r in rows:
+        for k, c in (r.get("mutation_causes") or {}).items():
+            fmt = "ED-112" if r["format"].startswith("ED-112") else (
+                "Citation folder" if r["format"].startswith("one-column") else
+                "mapping" if k.startswith("mapping: ") else "canonical")
+            why.setdefault((fmt, k.removeprefix("mapping: ")), set()).add(_cause(c))
     out = ["", "| rates, columns | unit mutation | logs | refused | warned | silent "
-           "(the logs) |", "|---|---|---|---|---|---|"]
+           "(the logs) | refused by |", "|---|---|---|---|---|---|---|"]
     for (fmt, k), res in kinds.items():
         silent = [lg for lg, v in res if v == "silent"]
         other = sorted({v for _, v in res if v.startswith("refused (")})
@@ -405,8 +413,22 @@ def mutation_table(rows: list[dict]) -> str:
                    f"{sum(v.startswith('refused') for _, v in res)}"
                    + (f" ({', '.join(other)})" if other else "")
                    + f" | {sum(v == 'warned' for _, v in res)} | {len(silent)}"
-                   + (f" ({', '.join(silent)})" if silent else "") + " |")
+                   + (f" ({', '.join(silent)})" if silent else "") + " | "
+                   + ", ".join(sorted(why.get((fmt, k), ()))) + " |")
     return "\n".join(out) + "\n"
+
+
+#: the door's evidence a refusal's message names -> its short name in the table
+CAUSES = (("turns the load factors show", "the loads' turns"),
+          ("sin(pitch)", "pitch against n_long"), ("GNSS track", "GNSS track"),
+          ("is declared in rad (", "radian range"), ("true airspeed is", "airspeed (turns, wind)"),
+          ("pressure altitude changes", "vertical acceleration"),
+          ("GNSS height", "GNSS height"), ("physical range", "range check"))
+
+
+def _cause(text: str) -> str:
+    """The short name of the evidence a refusal's (or a warning's) message gives."""
+    return next((name for key, name in CAUSES if key in text), "other")
 
 
 def _shown(p: Path) -> str:
@@ -456,14 +478,20 @@ def main() -> None:
                                                         indent=1, default=float))
     command = "python scripts/door_study.py " + " ".join(
         a if not Path(a).is_absolute() else _shown(Path(a)) for a in sys.argv[1:])
-    args.out.with_suffix(".md").write_text(
-        f"Command: `{command}`\n\n"
-        f"Logs accepted: {n_ok} of {len(good)}; injected unit errors refused: "
-        f"{summary['injected_refused']} of {len(inj)}; unit mutations (issue #50): "
-        f"{summary['mutations_refused']} refused, {summary['mutations_warned']} warned, "
-        f"{summary['mutations_silent']} accepted silently, of {len(muts)}.\n\n"
-        + markdown(rows))
+    write_markdown(args.out, command, summary, rows)
     print(summary)
+
+
+def write_markdown(out: Path, command: str, summary: dict, rows: list[dict]) -> None:
+    """The table (``.md``) with its command, from the rows."""
+    n_ok, good = summary["accepted"], summary["logs"]
+    out.with_suffix(".md").write_text(
+        f"Command: `{command}`\n\n"
+        f"Logs accepted: {n_ok} of {good}; injected unit errors refused: "
+        f"{summary['injected_refused']} of {summary['injected']}; unit mutations (issue #50): "
+        f"{summary['mutations_refused']} refused, {summary['mutations_warned']} warned, "
+        f"{summary['mutations_silent']} accepted silently, of {summary['mutations']}.\n\n"
+        + markdown(rows))
 
 
 if __name__ == "__main__":
