@@ -140,16 +140,27 @@ def test_airspeed_in_knots_is_refused_with_or_without_gnss(tmp_path, gnss):
 
 
 @pytest.mark.shared_data
-def test_airspeed_in_metres_per_second_declared_knots_is_said_loudly(tmp_path, capsys):
+def test_airspeed_in_metres_per_second_declared_knots_is_refused_unless_confirmed(tmp_path,
+                                                                                 capsys):
     """A mapping declaring knots for a column in m/s (the fuzzer's IAS_KT x 0.514: track 1.7
-    km off, exit 0, no word): the user's word is used, with a warning on the console."""
+    km off, exit 0, no word): the turns contradict the declared unit with certainty, so the
+    log is refused naming the mapping's line (issue #50); with ``unit_confirmed = true`` the
+    user's word is used, recorded as ``overridden``, and said on the console."""
     d = _c1(False).rename(columns={"tas_mps": "TAS"})
-    d["TAS"] = d["TAS"] * 1.0   # the m/s values, declared kt below
     log = _copy(tmp_path, "kmps.parquet", d)
     (tmp_path / "m.toml").write_text('[channels.tas_mps]\ncolumn = "TAS"\nunit = "kt"\n')
+    with pytest.raises(ValidationError, match="likely unit m/s") as ex:
+        load_quiet(log, mapping=tmp_path / "m.toml")
+    assert "m.toml line 3, [channels.tas_mps] unit" in str(ex.value)
+    assert "unit_confirmed = true" in str(ex.value)
+    (tmp_path / "m.toml").write_text('[channels.tas_mps]\ncolumn = "TAS"\nunit = "kt"\n'
+                                     'unit_confirmed = true\n')
     fl, warns = load_quiet(log, mapping=tmp_path / "m.toml")
-    hit = [w for w in warns if "TAS" in w and "used as declared" in w]
+    hit = [w for w in warns if "TAS" in w and "unit_confirmed = true" in w]
     assert hit and "likely unit m/s" in hit[0], warns
+    door = {c["check"]: c for c in fl.meta.extra["door"]}
+    assert door["tas_mps unit"]["verdict"] == "overridden"
+    assert 0.45 < door["tas_mps unit"]["figure"] < 0.6
     meta = _meta("c1-fdr")
     try:
         main(["reconstruct", str(log), "--mapping", str(tmp_path / "m.toml"), "-o",
@@ -162,7 +173,7 @@ def test_airspeed_in_metres_per_second_declared_knots_is_said_loudly(tmp_path, c
     # the airspeed 0.51 times too small: the joint's track is not physically possible (its
     # height leaves the pressure altitude); the warning that says why comes first
     assert code in (0, 8)
-    assert "used as declared" in err and "likely unit m/s" in err
+    assert "unit_confirmed = true" in err and "likely unit m/s" in err
 
 
 @pytest.mark.shared_data

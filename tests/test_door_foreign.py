@@ -1,6 +1,6 @@
 """Issue #39, silent wrong units: the fuzzer's kinds on the shipped foreign export (no GNSS),
-each now refused when certain or said loudly (console and summary) when the mapping declared
-the unit (docs/door.md)."""
+each now refused when certain (also against a unit the mapping declared, issue #50) or said
+loudly (console and summary) when not (docs/door.md)."""
 
 from __future__ import annotations
 
@@ -33,32 +33,27 @@ def _warnings(path: Path) -> list[str]:
     return [str(x.message) for x in w]
 
 
-def test_metres_per_second_in_a_knots_column_is_said_with_the_factor(tmp_path, capsys):
+def test_metres_per_second_in_a_knots_column_is_refused_with_the_factor(tmp_path, capsys):
     """IAS_KT x 0.514 (m/s written where the mapping declares knots): the coordinated turns
-    give 0.52 (the shipped log: 1.08, IAS read as CAS); the declared unit is used, and the
-    warning names the column, the mapping's table and the likely unit, on the console and in
-    the summary's top-level warnings."""
+    give 0.52 (the shipped log: 1.08, IAS read as CAS), a certain contradiction of the
+    declared unit: refused (exit 5) naming the column, the mapping's line, the factor and the
+    likely unit (issue #50; it was used as declared with a warning)."""
     d = pd.read_csv(SAMPLES / "foreign.csv")
     d["IAS_KT"] = d["IAS_KT"] * 0.514
     log = _foreign(tmp_path, "ms", d)
-    warns = [w for w in _warnings(log) if "used as declared" in w]
-    assert warns and "IAS_KT" in warns[0] and "[channels.ias_mps]" in warns[0]
-    assert "likely unit m/s" in warns[0]
-    fig = float(warns[0].split("the true airspeed is ")[1].split(" times")[0])
-    assert 0.45 < fig < 0.6
     try:
-        main(["reconstruct", str(log), "--mapping", str(MAPPING), "--methods", "joint",
-              "-o", str(tmp_path / "r.parquet")])
+        main(["--quiet", "reconstruct", str(log), "--mapping", str(MAPPING), "--methods",
+              "joint", "-o", str(tmp_path / "r.parquet")])
         code = 0
     except SystemExit as exc:
         code = int(exc.code or 0)
     err = capsys.readouterr().err
-    assert "used as declared" in err
-    if code == 0:
-        summary = json.loads((tmp_path / "r.summary.json").read_text())
-        assert any("used as declared" in w for w in summary["warnings"])
-    else:
-        assert code == 8
+    assert code == 5, err
+    assert "IAS_KT" in err and "likely unit m/s" in err
+    assert "foreign.mapping.toml line" in err and "[channels.ias_mps] unit" in err
+    fig = float(err.split("the true airspeed is ")[1].split(" times")[0])
+    assert 0.45 < fig < 0.6
+    assert not (tmp_path / "r.parquet").exists()
 
 
 def test_a_channel_mostly_literal_nan_is_reported(tmp_path):

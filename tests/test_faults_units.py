@@ -76,11 +76,14 @@ def test_attitude_in_radians_in_deg_columns_is_refused(tmp_path, capsys):
 
 def test_attitude_in_radian_range_without_evidence_is_a_warning(tmp_path):
     """All three attitude channels inside the radian range but nothing to test them with
-    (no longitudinal load factor, no GNSS velocity): a warning naming the likely unit."""
+    (no longitudinal load factor, no GNSS velocity, no turn in the normal load factor): a
+    warning naming the likely unit.  (With the normal load's turns the log is refused:
+    ``tests/test_faults_contradicted.py``.)"""
     d = HANDMADE.copy()
     for c in ("roll_deg", "pitch_deg", "heading_deg"):
         d[c] = np.radians(d[c])
     d["n_long_g"] = np.where(d["n_long_g"].notna(), 0.0, np.nan)
+    d["n_norm_g"] = np.where(d["n_norm_g"].notna(), 1.0, np.nan)
     d = d.drop(columns=["gnss_vn_mps", "gnss_ve_mps"])
     p = write(tmp_path, "radw", d)
     _, warns = load_quiet(p)
@@ -144,21 +147,38 @@ def test_pressure_altitude_in_feet_read_as_metres_by_a_mapping_is_refused(tmp_pa
     assert "m.toml [channels.baro_alt_m]" in msg and "used as declared" in msg
 
 
-def test_a_unit_declared_in_the_mapping_wins_with_a_loud_warning(tmp_path, capsys):
-    """The user's word wins (issue #34): feet declared as metres explicitly is used as
-    declared, with a warning that names the mapping, the factor and the likely unit; it
-    reaches the console of a reconstruction."""
+def test_a_unit_declared_in_the_mapping_and_contradicted_is_refused_unless_confirmed(
+        tmp_path, capsys):
+    """Feet declared as metres explicitly: the physics contradicts it with certainty, so it
+    is refused naming the mapping's line (issue #50: it was used as declared, and the
+    reconstruction ended in exit 8 'no method produced a physically possible track').  With
+    ``unit_confirmed = true`` the user's word wins, recorded as ``overridden`` with its
+    figure, on the console of a reconstruction and in its summary."""
     m = _foreign_with_altitude_unit(tmp_path, '\nunit = "m"')
+    code, err = run(["reconstruct", tmp_path / "foreign.csv", "--mapping", m, "-o",
+                     tmp_path / "r.parquet"], capsys)
+    assert code == 5, err
+    assert "ALT_FT" in err and "likely unit ft" in err and "m.toml line" in err
+    assert "[channels.baro_alt_m] unit = \"m\"" in err and "unit_confirmed = true" in err
+    m = _foreign_with_altitude_unit(tmp_path, '\nunit = "m"\nunit_confirmed = true')
     fl, warns = load_quiet(tmp_path / "foreign.csv", mapping=m)
-    hit = [w for w in warns if "ALT_FT" in w and "used as declared" in w]
+    hit = [w for w in warns if "ALT_FT" in w and "unit_confirmed = true" in w]
     assert hit and "likely unit ft" in hit[0] and 'unit = "m"' in hit[0], warns
     door = {c["check"]: c for c in fl.meta.extra["door"]}
-    assert door["baro_alt_m unit"]["verdict"] == "warned"
+    assert door["baro_alt_m unit"]["verdict"] == "overridden"
     assert 2.6 < door["baro_alt_m unit"]["figure"] < 3.9
     # the values are the file's, as declared (not converted from feet)
     raw = pd.read_csv(tmp_path / "foreign.csv")["ALT_FT"].dropna().to_numpy()
     got = fl.data["baro_alt_m"].dropna().to_numpy()
     assert np.allclose(np.sort(got)[[0, -1]], np.sort(raw)[[0, -1]])
+
+
+def test_unit_confirmed_without_a_unit_is_a_mapping_error(tmp_path, capsys):
+    """``unit_confirmed`` confirms a written unit: alone, or not a boolean, it is a mapping
+    error (exit 6) naming its line."""
+    m = _foreign_with_altitude_unit(tmp_path, '\nunit_confirmed = true')
+    code, err = run(["info", tmp_path / "foreign.csv", "--mapping", m], capsys)
+    assert code == 6 and "unit_confirmed" in err and "line" in err, err
 
 
 def test_ten_row_airborne_log_is_refused_with_the_minimum(tmp_path, capsys):

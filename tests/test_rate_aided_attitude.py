@@ -29,8 +29,10 @@ def _flight(with_rates: bool, rng):
     q = dth * np.cos(P) + dpsi * np.sin(P) * np.cos(T)
     r = -dth * np.sin(P) + dpsi * np.cos(P) * np.cos(T)
     att = (np.arange(len(t)) % 16) == 0          # attitude at 1 Hz, rates at 16 Hz
-    d = pd.DataFrame({"t_s": t, "n_long_g": 0.0, "n_lat_g": 0.0, "n_norm_g": 1.0,
-                      "tas_mps": 80.0, "baro_alt_m": 1000.0})
+    # the normal load of the coordinated turn (a channel constant over the record is dead and
+    # dropped by the cleaning, cleaning/dead.py: this one sets the 16 Hz grid)
+    d = pd.DataFrame({"t_s": t, "n_long_g": 0.0, "n_lat_g": 0.0,
+                      "n_norm_g": 1.0 / np.cos(P), "tas_mps": 80.0, "baro_alt_m": 1000.0})
     for name, v in (("roll_deg", phi), ("pitch_deg", th), ("heading_deg", psi % 360.0)):
         d[name] = np.where(att, v, np.nan)
     if with_rates:

@@ -1,7 +1,8 @@
 """``clean_flight``: from a validated :class:`~flightrecon.types.Flight` to a
 :class:`~flightrecon.types.CleanFlight`.
 
-Order: resolve time stamps -> unwrap angles -> despike input channels -> bring inputs onto the
+Order: resolve time stamps -> unwrap angles -> despike input channels -> drop dead or stuck
+channels (cleaning/dead.py: treated as absent) -> bring inputs onto the
 uniform grid (short gaps bridged, long gaps flagged, anti-alias on downsampling; recorder
 saturation flagged) -> measurement tables at their own (clock-offset) times -> phase detection
 -> impact at the record's end.  ``docs/signals.md`` documents each
@@ -17,6 +18,7 @@ import pandas as pd
 
 from flightrecon.cleaning.arrival_end import arrival_not_end
 from flightrecon.cleaning.attitude import heading_from_rates, heading_needed
+from flightrecon.cleaning.dead import drop_dead_channels
 from flightrecon.cleaning.despike import DespikeSettings
 from flightrecon.cleaning.impact import with_impact
 from flightrecon.cleaning.origin import with_origin
@@ -186,6 +188,8 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         work, report = run_steps(data, steps)
     except (TypeError, ValueError) as exc:  # non-numeric channel content
         raise ValidationError(f"cannot clean the log: {exc}") from exc
+    work, dead = drop_dead_channels(work)   # a dead or stuck channel is absent (dead.py)
+    report.extend(dead)
     grid, rate, rep = resample_inputs(work, rate_hz, settings.max_gap_s)
     report.extend(rep)
     sat_masks, rep = detect_saturation(work)   # samples at the recorder's range (impact, dive)
@@ -202,6 +206,8 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     report.extend(rep)
     grid = saturation_on_grid(wrap_roll(grid), sat_masks)
     why = heading_needed(grid)
+    why = next((e["why"].split(": treated")[0] for e in dead
+                if e["channel"] == "heading_deg"), why) if why else why
     if why is not None:
         grid, rep = _heading_from_body_rates(grid, tables["gnss"], meta, settings, why,
                                              trimmed)

@@ -11,7 +11,9 @@ check                  rule (defaults)
 =====================  ========================================================================
 frozen_channel         an input channel exactly constant for >= 120 s while airborne (a stuck
                        sensor or a recorder repeating its last word)
-dead_channel           an input channel constant over the whole record
+dead_channel           an input channel constant over the whole record, or over all of the
+                       flight (stuck): dropped by the cleaning, treated as absent
+                       (:mod:`flightrecon.cleaning.dead`)
 out_of_envelope        |roll| > 70 deg, |pitch| > 35 deg, n_norm outside [-1, 3.5] g while
                        airborne (possible, but not in transport operations: look at it)
 below_stall            true airspeed < 25 m/s for >= 5 s while airborne
@@ -71,7 +73,8 @@ def frozen_channels(clean: CleanFlight, min_s: float = 120.0) -> list[dict[str, 
     g = clean.grid
     t = g["t_s"].to_numpy(float)
     air = _airborne(clean)
-    out = []
+    out = [_finding("dead_channel", e["channel"], e["why"]) for e in clean.report
+           if e.get("action") == "dead_channel"]
     for ch in CONTINUOUS:
         if ch not in g.columns:
             continue

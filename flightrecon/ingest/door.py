@@ -31,6 +31,7 @@ UNIT_SIZES: dict[str, dict[str, float]] = {
     "length": {"m": 1.0, "ft": FOOT_M},
     "speed": {"m/s": 1.0, "kt": KNOT_MPS, "km/h": 1.0 / 3.6, "mph": 0.44704,
               "ft/s": FOOT_M},
+    "angle": {"deg": 1.0, "rad": float(np.degrees(1.0))},
 }
 #: a unit is named when the factor lies within this relative band of the unit's factor: wide
 #: enough for the atmosphere (pressure altitude against height, +-15 % over ISA +-40 K) and a
@@ -46,27 +47,37 @@ SE_MARGIN = 3.0
 
 
 @dataclass(frozen=True)
-
-
 class DeclaredUnit:
-    """The unit a channel's source column is read in.
+    """The unit a channel's source column is read in, and where that unit comes from.
 
     Attributes
     ----------
     unit : its name (``"ft"``, ``"kt"``; the canonical unit for a canonical column)
-    explicit : declared with ``unit = ...`` in a mapping file (the user's word: it wins)
+    explicit : declared with ``unit = ...`` in a mapping file (the user's word: it wins over
+        a doubt, not over a certain contradiction unless ``confirmed``)
     table : the mapping file and its table for the channel (``m.toml [channels.baro_alt_m]``)
         when a mapping maps it, for messages
+    location : where in the mapping the unit comes from, with its line (``mapping file m.toml
+        line 37, [channels.baro_alt_m] unit``; the ``column`` key when no unit is written)
+    confirmed : ``unit_confirmed = true`` beside it: used as declared even against a certain
+        contradiction, which is then recorded (verdict ``overridden``)
     """
 
     unit: str
     explicit: bool = False
     table: str | None = None
+    location: str | None = None
+    confirmed: bool = False
 
     @property
     def where(self) -> str:
-        """``m.toml [channels.baro_alt_m] unit = "m"``: where the unit was declared."""
-        return f"{self.table} unit = \"{self.unit}\"" if self.table else "its column name"
+        """Where the unit comes from, for messages: the mapping's file, line and key, or the
+        canonical column name."""
+        if self.location is None and self.table is None:
+            return "the canonical column name"
+        at = self.location or self.table
+        return (f"{at} = \"{self.unit}\"" if self.explicit else
+                f"{at} (no unit written: the channel's {self.unit})")
 
 
 @dataclass(frozen=True)
@@ -77,7 +88,8 @@ class DoorCheck:
     ----------
     check : what was checked (``"baro_alt_m unit"``)
     channel : the channel judged
-    verdict : ``"passed"``, ``"warned"``, ``"refused"`` or ``"skipped"``
+    verdict : ``"passed"``, ``"warned"``, ``"refused"``, ``"skipped"`` or ``"overridden"`` (a
+        certain contradiction of a unit the mapping confirms with ``unit_confirmed = true``)
     figure : the number behind the verdict (a factor; ``None`` when skipped)
     detail : the evidence in words
     """

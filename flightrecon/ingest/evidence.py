@@ -19,6 +19,11 @@ The fits (docs/ingest.md, "The door"):
 * :func:`turn_rate_fit`: in a coordinated turn the heading turns at ``g0 tan(roll) / V``
   (``V`` the true airspeed): the factor ``median(psi_dot V / (g0 tan roll))`` is about 1 for a
   true airspeed in m/s and the unit's factor otherwise (1.94 for knots), with no GNSS.
+* :func:`turn_attitude_fits`: the turns the loads show, with no GNSS and no attitude: a
+  steady normal load factor ``n`` above :data:`TURN_N` is a level coordinated turn at the
+  bank ``acos(1/n)`` turning at ``g0 tan(bank) / V``; the recorded roll against that bank and
+  the recorded heading's rate against that turn rate are about 1 for angles in degrees and
+  1/57.3 for radians in a degree column (57.3 for degrees declared as radians).
 * :func:`wind_triangle_fit`: GNSS ground velocity = ``s`` x air velocity from the true
   airspeed and heading + a wind constant over each ten minutes; the turns of the flight
   separate ``s`` from the wind (a straight flight cannot: then no fit).
@@ -39,6 +44,7 @@ __all__ = [
     "double_integral_fit",
     "long_acceleration",
     "own_samples",
+    "turn_attitude_fits",
     "turn_rate_fit",
     "vertical_acceleration",
     "wind_triangle_fit",
@@ -342,3 +348,126 @@ def wind_triangle_fit(data: pd.DataFrame, segment_s: float = 600.0) -> Fit | Non
     se_s = float(np.sqrt(sigma ** 2 / sxx * 10.0))
     r = float(max(0.0, 1.0 - sigma / max(float(np.std(np.concatenate(raw))), 1e-9)))
     return Fit(1.0 / s, r, n_eff, se_s / s ** 2, "10 s of GNSS velocity", r_min=0.75)
+
+
+
+#: a turn is a stretch of at least this many seconds [s] whose mean |roll| stays above
+#: :data:`TURN_SHARE` of the record's 99th percentile, and in which the mean normal load factor
+#: exceeds the wings-level one by :data:`TURN_DN` (a bank of 11 deg: the loads show a turn)
+TURN_MIN_S = 6.0
+#: a longer turn (a spiral, a holding) is cut into pieces of this length, each a piece of
+#: evidence (the turbulence's gusts decorrelate within a few seconds) [s]
+TURN_PIECE_S = 10.0
+TURN_SHARE = 0.4
+TURN_DN = 0.02
+#: half-width of the mean over which the load factor and the roll are taken [s]
+TURN_HALF_S = 2.0
+
+
+def _window_mean(tc: np.ndarray, s: tuple[np.ndarray, np.ndarray], half_s: float
+                 ) -> np.ndarray:
+    """Mean of a channel over ``tc +- half_s`` from its own samples (trapezoidal)."""
+    ts, v = s
+    c = _cumtrapz(ts, v)
+    return (np.interp(tc + half_s, ts, c) - np.interp(tc - half_s, ts, c)) / (2 * half_s)
+
+
+def _pieces_fit(f: list[float], what: str) -> Fit | None:
+    """A factor as the median of independent pieces' factors; agreement ``1 - MAD/median``."""
+    x = np.asarray([v for v in f if np.isfinite(v) and v > 0])
+    if x.size < 2:
+        return None
+    med = float(np.median(x))
+    mad = 1.4826 * float(np.median(np.abs(x - med)))
+    return Fit(med, float(max(0.0, 1.0 - mad / med)), float(x.size),
+               1.2533 * max(mad, 1e-3 * med) / np.sqrt(x.size), what, r_min=0.75)
+
+
+def _turns(tc: np.ndarray, rr: np.ndarray, air: np.ndarray) -> list[np.ndarray]:
+    """Index arrays of the turns by the recorded roll (module docstring, :data:`TURN_MIN_S`),
+    a long turn cut into pieces of about :data:`TURN_PIECE_S`."""
+    if air.sum() < 20:
+        return []
+    thr = TURN_SHARE * float(np.percentile(rr[air], 99))
+    if thr <= 0:
+        return []
+    m = np.concatenate([[False], air & (rr >= thr), [False]]).astype(np.int8)
+    d = np.diff(m)
+    out = []
+    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        n = max(1, int((b - a) // TURN_PIECE_S))
+        out += [k for k in np.array_split(np.arange(a, b), n) if k.size >= TURN_MIN_S]
+    return out
+
+
+def _turned(psi: tuple[np.ndarray, np.ndarray], t0: float, t1: float) -> float:
+    """How far the heading (unwrapped at 360) turned from ``t0`` to ``t1``: the sum of its
+    steps, less the steps ten times the median one (the wraps of a heading in another unit:
+    6.28 for radians)."""
+    t, h = psi
+    i0, i1 = np.searchsorted(t, t0, "left"), np.searchsorted(t, t1, "right")
+    if i1 - i0 < 2:
+        return float(abs(np.interp(t1, t, h) - np.interp(t0, t, h)))
+    d = np.diff(h[i0:i1])
+    med = float(np.median(np.abs(d)))
+    keep = np.abs(d) <= 10.0 * med if med > 0 else np.ones(d.size, bool)
+    return float(abs(d[keep].sum()))
+
+
+def turn_attitude_fits(data: pd.DataFrame, half_s: float = TURN_HALF_S) -> dict[str, Fit]:
+    """The roll's and the heading's factors from the turns the loads show (module docstring).
+
+    The turns are found by the recorded roll whatever its unit (:func:`_turns`); in each, the
+    mean normal load factor over the wings-level one, ``n``, is that of a level coordinated
+    turn at the bank ``acos(1/n)``:
+
+    * roll: the mean |roll| against the bank the loads show, ``acos(1/n)`` in degrees (about
+      1; 1/57.3 for radians in a degree column);
+    * heading: the heading's change over the turn against ``g0 tan(acos(1/n)) T / V`` (about
+      1; 1/57.3 for radians, 57.3 for degrees declared as radians).
+
+    A climbing turn or turbulence scatters the pieces by 10-20 %; one piece per turn, or per
+    :data:`TURN_PIECE_S` of a long one.  A channel with fewer than two pieces has no entry.
+    """
+    n, roll = own_samples(data, "n_norm_g", 32), own_samples(data, "roll_deg")
+    if n is None or roll is None:
+        return {}
+    lo, hi = max(n[0][0], roll[0][0]) + half_s, min(n[0][-1], roll[0][-1]) - half_s
+    tc = np.arange(lo, hi, 1.0)
+    if tc.size < 20:
+        return {}
+    ns = _window_mean(tc, n, half_s)
+    rr = _window_mean(tc, (roll[0], np.abs(roll[1])), half_s)
+    tas = own_samples(data, "tas_mps")
+    v = _at(tc, tas) if tas is not None else None
+    air = (v > 30.0) if v is not None else np.ones(tc.size, bool)
+    turns = _turns(tc, rr, air)
+    if not turns:
+        return {}
+    level = air.copy()
+    for k in turns:
+        level[k] = False
+    n0 = float(np.median(ns[level])) if level.sum() >= 10 else 1.0
+    hd = own_samples(data, "heading_deg")
+    psi = None if hd is None else (hd[0], np.unwrap(hd[1], period=360.0))
+    f_roll, f_head = [], []
+    for k in turns:
+        dn = float(np.mean(ns[k])) / n0 - 1.0
+        if dn < TURN_DN:
+            continue
+        bank_deg = float(np.degrees(np.arccos(1.0 / (1.0 + dn))))
+        f_roll.append(float(np.mean(rr[k])) / bank_deg)
+        if psi is None or v is None or tc[k[0]] < psi[0][0] or tc[k[-1]] > psi[0][-1]:
+            continue
+        expect = np.degrees(G0 * np.tan(np.radians(bank_deg)) * (tc[k[-1]] - tc[k[0]])
+                            / float(np.mean(v[k])))
+        if expect >= 10.0:
+            f_head.append(_turned(psi, tc[k[0]], tc[k[-1]]) / expect)
+    out: dict[str, Fit] = {}
+    for name, f, what in (("roll_deg", f_roll, "turns (roll against the bank acos(1/n_norm))"),
+                          ("heading_deg", f_head, "turns (heading change against "
+                                                  "g0 tan(bank) T / V)")):
+        fit = _pieces_fit(f, what)
+        if fit is not None:
+            out[name] = fit
+    return out

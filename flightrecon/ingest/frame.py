@@ -16,6 +16,7 @@ from flightrecon.ingest.door import DeclaredUnit, DoorCheck, DoorRefusal
 from flightrecon.ingest.gnss_quality import apply_gnss_quality
 from flightrecon.ingest.gnss_use import GnssUse
 from flightrecon.ingest.mapping import Mapping
+from flightrecon.ingest.mapping_apply import mapping_location
 from flightrecon.ingest.physics import door_checks
 from flightrecon.ingest.sources import Sources
 from flightrecon.ingest.polarity import check_polarity
@@ -50,7 +51,8 @@ def derived_channels(src: Sources, meta: FlightMeta, log: Path, warns: list[str]
 
 def declared_units(mp: Mapping | None, src: Sources) -> dict[str, DeclaredUnit]:
     """The unit each mapped channel's column is read in, and whether the mapping wrote it
-    (the user's word: it wins over the door's physics; docs/ingest.md, "The door").  A true
+    (the user's word: it wins over a doubt of the door's physics, and over a certain
+    contradiction only when confirmed; docs/door.md), with the mapping's line.  A true
     airspeed computed from CAS or IAS is judged in its source's unit."""
     out: dict[str, DeclaredUnit] = {}
     for m, table in ((mp, "channels"), (getattr(mp, "gnss", None), "gnss.channels"),
@@ -59,8 +61,11 @@ def declared_units(mp: Mapping | None, src: Sources) -> dict[str, DeclaredUnit]:
             continue
         for spec in m.channels:
             if spec.unit is not None:
-                out[spec.channel] = DeclaredUnit(spec.unit.name, spec.unit_declared,
-                                                 f"{m.file} [{table}.{spec.channel}]")
+                key = "unit" if spec.unit_declared else "column"
+                out[spec.channel] = DeclaredUnit(
+                    spec.unit.name, spec.unit_declared, f"{m.file} [{table}.{spec.channel}]",
+                    mapping_location(m.file, f"{table}.{spec.channel}", key),
+                    spec.unit_confirmed)
     kind = src.mt.derived.get("tas_mps")
     if kind is not None and f"{kind}_mps" in out:
         out["tas_mps"] = out[f"{kind}_mps"]

@@ -113,7 +113,9 @@ class ChannelSpec:
     reference : ``"true"`` or ``"magnetic"`` (heading-like channels only)
     derived_from : ``"cas"`` or ``"ias"`` for ``tas_mps`` computed from the air data
     unit_declared : the unit was written in the mapping (``unit = ...``): the user's word,
-        which wins over the door's physics checks (docs/ingest.md, "The door")
+        which wins over a doubt of the door's physics checks (docs/door.md)
+    unit_confirmed : ``unit_confirmed = true``: the unit is used as declared even where the
+        door's physics contradicts it with certainty (recorded in the summary; docs/door.md)
     """
 
     channel: str
@@ -125,6 +127,7 @@ class ChannelSpec:
     scale: float = 1.0
     offset: float = 0.0
     unit_declared: bool = False
+    unit_confirmed: bool = False
 
 
 @dataclass(frozen=True)
@@ -391,7 +394,8 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
         hint = _did_you_mean(name, [c for c in BY_NAME if BY_NAME[c].kind != "time"])
         raise _error(f"[{where}]: unknown channel '{name}'{hint}", file, where)
     spec = _table(spec, file, where)
-    _only(spec, {"column", "unit", "sign", "reference", "from", "scale", "offset"}, file, where)
+    _only(spec, {"column", "unit", "sign", "reference", "from", "scale", "offset",
+                 "unit_confirmed"}, file, where)
     ch = BY_NAME[name]
     if "from" in spec:
         src = spec["from"]
@@ -430,8 +434,12 @@ def _parse_channel(name: str, spec, file: str, where: str) -> ChannelSpec:
     if scale == 0.0:
         raise _error(f"[{where}]: scale must not be zero", file, where, "scale", column=col)
     offset = _number(spec, "offset", 0.0, file, where, col)
+    confirmed = spec.get("unit_confirmed", False)
+    if not isinstance(confirmed, bool) or (confirmed and "unit" not in spec):
+        raise _error(f"[{where}]: unit_confirmed must be true or false, beside a unit = ... "
+                     f"(got {confirmed!r})", file, where, "unit_confirmed", column=col)
     return ChannelSpec(name, col, unit, float(sign), ref, scale=scale, offset=offset,
-                       unit_declared="unit" in spec)
+                       unit_declared="unit" in spec, unit_confirmed=confirmed)
 
 
 def _number(t: dict, key: str, default: float, file: str, where: str, col: str | None

@@ -91,7 +91,7 @@ def apply_mapping(raw: RawTable, mapping: Mapping | None, *, group: str | None =
         if s.derived_from is not None:
             derived[s.channel] = s.derived_from
             continue
-        col, v = _converted(raw, s, rows)
+        col, v = _converted(raw, s, rows, mfile, f"{group}." if group else "")
         values[s.channel] = v
         source[s.channel] = col
         if col in raw.nan_text:
@@ -210,19 +210,49 @@ def _time_spec(raw: RawTable, mapping: Mapping | None, mfile: str | None,
     return tspec
 
 
-def _converted(raw: RawTable, s: ChannelSpec, rows: np.ndarray) -> tuple[str, np.ndarray]:
+def _converted(raw: RawTable, s: ChannelSpec, rows: np.ndarray, mfile: str | None = None,
+               prefix: str = "") -> tuple[str, np.ndarray]:
     """One source column (its name, its values) as numbers in the canonical unit: scale, unit,
-    sign, offset."""
+    sign, offset (an angle declared in radians checked to be one, :func:`_check_radians`)."""
     if s.column is None or s.unit is None:
         raise MappingError(f"channel {s.channel} has neither a source column and unit nor a "
                            "derivation", file=raw.file)
     arr = _numeric(raw.columns[s.column], raw.file, s.column, rows, raw.bad_text.get(s.column))
-    v = to_canonical(arr * s.scale if s.scale != 1.0 else arr, s.unit)
+    arr = arr * s.scale if s.scale != 1.0 else arr
+    _check_radians(arr, s, raw.file, mfile, prefix)
+    v = to_canonical(arr, s.unit)
     if s.sign < 0:
         v = -v
     if s.offset != 0.0:
         v = v + s.offset
     return s.column, v
+
+
+#: an angle in radians lies within +-2 pi (a heading 0..2 pi, an attitude +-pi): a column
+#: declared in radians with more than this share of its values beyond is in degrees
+RADIAN_OUTSIDE_SHARE = 0.05
+
+
+def _check_radians(arr: np.ndarray, s: ChannelSpec, file: str, mfile: str | None,
+                   prefix: str) -> None:
+    """Refuse an angle declared in radians whose values cannot be radians (issue #50: a
+    magnetic heading in degrees declared ``rad`` was read 57 times too large, wrapped, and
+    gave a track 7 km off with exit 0): certain, whatever the flight, naming the mapping's
+    line (exit 5)."""
+    if s.unit is None or s.unit.name != "rad" or s.column is None:
+        return
+    f = arr[np.isfinite(arr)]
+    if f.size < 8:
+        return
+    out = np.abs(f) > 2 * np.pi + 0.01
+    if out.mean() <= RADIAN_OUTSIDE_SHARE:
+        return
+    where = mapping_location(mfile, f"{prefix}channels.{s.channel}", "unit")
+    raise ValidationError(
+        f"{s.channel} is declared in rad ({where} = \"rad\"), but "
+        f"{100 * out.mean():.0f} % of its values lie beyond +-2 pi (up to {np.abs(f).max():.4g}), "
+        f"which no angle in radians does: likely unit deg (factor 57.3). Declare unit = "
+        "\"deg\" there", file=file, column=s.column)
 
 
 def _mapping_note(s: ChannelSpec) -> str | None:

@@ -13,12 +13,15 @@ from flightrecon.ingest.evidence import (
     double_integral_fit,
     long_acceleration,
     own_samples,
+    turn_attitude_fits,
     turn_rate_fit,
     vertical_acceleration,
     wind_triangle_fit,
 )
 from flightrecon.ingest.door import (
     N_MIN,
+    PHYSICAL_BAND,
+    SE_MARGIN,
     RECONSTRUCT_INPUTS,
     UNIT_BAND,
     DeclaredUnit,
@@ -123,56 +126,96 @@ def _heading_misfits(door: Door) -> tuple[float, float] | None:
     return misfit(hv), misfit(np.radians(hv))
 
 
+#: a roll or heading factor from the turns (:func:`turn_attitude_fits`) names a unit with
+#: this many pieces of turn agreeing (a circuit gives 5-11, a spiral dive 4-6; the factor is
+#: 57 times off the physical band, far beyond any turn's scatter of 5-10 %)
+ATTITUDE_TURNS_MIN = 4.0
+
+
+def _attitude_from_turns(door: Door) -> dict[str, tuple[str | None, Fit]]:
+    """Roll and heading against the turns the loads show: channel -> (the unit named with
+    certainty or ``None``, the fit)."""
+    out: dict[str, tuple[str | None, Fit]] = {}
+    for name, fit in turn_attitude_fits(door.data).items():
+        table = candidate_units("angle", door.unit_of(name, "deg").unit)
+        unit = nearest_unit(fit.factor, table, UNIT_BAND)
+        sure = (unit is not None and fit.good(ATTITUDE_TURNS_MIN)
+                and not (fit.factor - SE_MARGIN * fit.se <= PHYSICAL_BAND[1]
+                         and fit.factor + SE_MARGIN * fit.se >= PHYSICAL_BAND[0]))
+        out[name] = (unit if sure else None, fit)
+    return out
+
+
+def _attitude_evidence(door: Door, like: dict[str, bool]
+                       ) -> tuple[dict[str, tuple[str, float, str]],
+                                  list[tuple[str, str, float]]]:
+    """The channels the physics shows in another angle unit (channel -> unit, factor,
+    evidence), and the doubts in words."""
+    found: dict[str, tuple[str, float, str]] = {}
+    doubts: list[tuple[str, str, float]] = []
+    for name, (unit, fit) in _attitude_from_turns(door).items():
+        what = "roll" if name == "roll_deg" else "heading's change"
+        text = (f"the {what} is {fit.factor:.3g} times what the turns the load factors show "
+                f"give ({fit.text()})")
+        if unit is not None:
+            found[name] = (unit, fit.factor, text)
+        elif not plausible_fit(fit) and fit.good(2.0):
+            # the heading's turn expected is at the recorded airspeed: both are in doubt
+            both = name == "heading_deg"
+            doubts.append(("heading_deg/tas_mps" if both else name,
+                           f"{door.where(name)}: {text}; not certain: check its unit"
+                           + (" and the airspeed's" if both else ""), fit.factor))
+    rad = 1.0 / float(np.degrees(1.0))
+    if like["pitch_deg"] and "pitch_deg" not in found:
+        m = _pitch_misfits(door)
+        if m is not None and m[0] < 0.5 * m[1] and m[1] > 0.01:
+            found["pitch_deg"] = ("rad", rad, f"n_long_g fits sin(pitch) with pitch in radians "
+                                  f"(median misfit {m[0]:.3f} g) and not in degrees "
+                                  f"({m[1]:.3f} g)")
+    if like["heading_deg"] and "heading_deg" not in found:
+        m = _heading_misfits(door)
+        if m is not None and m[0] < 0.35 and m[1] > 2 * m[0]:
+            found["heading_deg"] = ("rad", rad, f"heading fits the GNSS track angle in radians "
+                                    f"(median {np.degrees(m[0]):.0f} deg off) and not in "
+                                    f"degrees ({np.degrees(m[1]):.0f} deg off)")
+    return found, doubts
+
+
 def check_attitude_units(door: Door) -> None:
-    """Refuse attitude in radians in ``_deg`` columns when the physics confirms it."""
+    """Refuse roll, pitch or heading in another angle unit than the one they are read in
+    when the physics shows it with certainty: the turns the loads show (roll, heading), the
+    longitudinal load (pitch), the GNSS track (heading); warn on a doubt."""
     like = {n: _radian_like(door.data[n].to_numpy(dtype=float)
                             if n in door.data.columns else None, heading=(n == "heading_deg"))
             for n in ("roll_deg", "pitch_deg", "heading_deg")}
-    if not any(like.values()):
-        door.record("attitude unit", "roll/pitch/heading", "passed", None,
-                    "the attitude leaves the radian range")
-        return
-    confirmed: list[str] = []
-    evidence: list[str] = []
-    if like["pitch_deg"]:
-        m = _pitch_misfits(door)
-        if m is not None and m[0] < 0.5 * m[1] and m[1] > 0.01:
-            confirmed.append("pitch_deg")
-            evidence.append(f"n_long_g fits sin(pitch) with pitch in radians (median misfit "
-                            f"{m[0]:.3f} g) and not in degrees ({m[1]:.3f} g)")
-    if like["heading_deg"]:
-        m = _heading_misfits(door)
-        if m is not None and m[0] < 0.35 and m[1] > 2 * m[0]:
-            confirmed.append("heading_deg")
-            evidence.append(f"heading fits the GNSS track angle in radians (median "
-                            f"{np.degrees(m[0]):.0f} deg off) and not in degrees "
-                            f"({np.degrees(m[1]):.0f} deg off)")
-    explicit = [n for n in confirmed if door.unit_of(n, "deg").explicit]
-    if explicit:
-        d = door.unit_of(explicit[0], "deg")
-        door.warn("attitude unit", explicit[0], None,
-                  f"{door.where(explicit[0])}: declared in {d.unit} by {d.where}, but "
-                  f"{'; '.join(evidence)}: used as declared (likely unit rad)")
-        return
-    if confirmed:
-        also = [n for n, v in like.items() if v and n not in confirmed]
-        names = confirmed + also
-        door.refuse(
-            "attitude unit", names[0], None,
-            f"{', '.join(names)} look like radians recorded in degree columns (likely unit "
-            f"rad): {'; '.join(evidence)}"
-            + (f"; {', '.join(also)} also never leave the radian range" if also else "")
-            + ". Declare unit = \"rad\" in a mapping file; if degrees are right, declare "
-            "unit = \"deg\" there and it is used as declared, with a warning (docs/ingest.md)",
-            file=door.file(names[0]), column=door.col(names[0]))
+    found, doubts = _attitude_evidence(door, like)
+    check = "attitude unit"
+    for name, (unit, factor, text) in list(found.items()):
+        d = door.unit_of(name, "deg")
+        if d.confirmed:
+            contradicted(door, check, name, factor, unit, d, text)
+            del found[name]
+    if found:
+        names = list(found)
+        also = [n for n, v in like.items() if v and n not in found
+                and door.unit_of(n, "deg").unit == "deg"]
+        unit, factor, _ = found[names[0]]
+        contradicted(door, check, names[0], factor, unit, door.unit_of(names[0], "deg"),
+                     "; ".join(f"{n}: {found[n][2]}" for n in names)
+                     + (f" ({', '.join(names[1:])} too)" if len(names) > 1 else "")
+                     + (f"; {', '.join(also)} also never leave the radian range" if also
+                        else ""))
+    for name, text, factor in doubts:
+        door.warn(check, name, factor, text)
     if all(like.values()):
-        door.warn("attitude unit", "roll/pitch/heading", None,
+        door.warn(check, "roll/pitch/heading", None,
                   f"{door.file()}: roll_deg, pitch_deg and heading_deg never leave +-3.2 "
                   "(heading 0..6.3) over the whole record: radians in degree columns? (likely "
                   "unit rad; nothing in the log could confirm it)")
-    else:
-        door.record("attitude unit", "roll/pitch/heading", "passed", None,
-                    "no channel fits radians better than degrees")
+    elif not doubts:
+        door.record(check, "roll/pitch/heading", "passed", None,
+                    "no channel fits another angle unit better than its own"
+                    if any(like.values()) else "the attitude leaves the radian range")
 
 
 # ------------------------------------------------------------------ time unit
@@ -269,20 +312,29 @@ def _haversine(lat1, lon1, lat2, lon2):
 # ------------------------------------------------------------------ altitudes
 
 
-def _unit_message(door: Door, name: str, real: str, declared: DeclaredUnit, evidence: str
-                  ) -> str:
-    there = declared.table or f"a mapping file ([channels.{name}])"
-    return (f"{evidence}: {name} is in {real}, read as {declared.unit} (likely unit {real}). "
-            f"Declare unit = \"{real}\" in {there}; if {declared.unit} is right, declare "
-            f"unit = \"{declared.unit}\" there and it is used as declared, with a warning "
-            "(docs/ingest.md, \"The door\")")
-
-
-def _declared_wins(door: Door, check: str, name: str, fit_factor: float, real: str,
-                   declared: DeclaredUnit, evidence: str) -> None:
-    door.warn(check, name, fit_factor,
-              f"{door.where(name)}: declared in {declared.unit} by {declared.where}, but "
-              f"{evidence} (likely unit {real}): used as declared, as the mapping says")
+def contradicted(door: Door, check: str, name: str, factor: float, real: str,
+                 declared: DeclaredUnit, evidence: str) -> None:
+    """A unit the physics contradicts with certainty: refused (exit 5), naming the file, the
+    column, where the unit comes from (the mapping's file and line, or the canonical column
+    name), the factor, the likely unit and how to override; used as declared only when the
+    mapping confirms it (``unit_confirmed = true``), recorded as ``overridden`` (docs/door.md).
+    """
+    if declared.confirmed:
+        text = (f"{door.where(name)}: used in {declared.unit} as confirmed by "
+                f"{declared.where} with unit_confirmed = true, against the door's evidence: "
+                f"{evidence} (factor {factor:.3g}, likely unit {real})")
+        door.record(check, name, "overridden", factor, text)
+        door.warnings.append(text)
+        return
+    there = declared.table or (f"a mapping file's [channels.{name}] (column = "
+                               f"\"{door.col(name)}\")")
+    door.refuse(check, name, factor,
+                f"{evidence}: {name} is in {real}, read as {declared.unit} (likely unit {real}; "
+                f"factor {factor:.3g}; the unit {declared.unit} comes from {declared.where}). "
+                f"Declare unit = \"{real}\" in {there}; if {declared.unit} is right, declare "
+                f"unit = \"{declared.unit}\" with unit_confirmed = true there: it is then used "
+                "as declared and the summary records the contradiction (docs/door.md)",
+                file=door.file(name), column=door.col(name))
 
 
 def check_baro(door: Door) -> Fit | None:
@@ -313,11 +365,8 @@ def check_baro(door: Door) -> Fit | None:
                       f"height changes {slope[0]:.2f} times as fast as it (r {slope[1]:.3f}): "
                       "check the load factors and attitude, and this column's unit")
             return fit
-        if declared.explicit:
-            _declared_wins(door, check, name, fit.factor, unit, declared, evidence)
-            return fit
-        door.refuse(check, name, fit.factor, _unit_message(door, name, unit, declared, evidence),
-                    file=door.file(name), column=door.col(name))
+        contradicted(door, check, name, fit.factor, unit, declared, evidence)
+        return fit
     slope = door.gnss_baro_slope()
     gnss_agrees = slope is not None and slope[1] > 0.98 and nearest_unit(slope[0], {"1": 1.0}, 0.3)
     if plausible_fit(fit) and fit.good(N_MIN):
@@ -404,15 +453,15 @@ def check_gnss_height(door: Door, baro_fit: Fit | None) -> None:
                     "mapping file; declared units are used as declared, with a warning",
                     file=door.file("gnss_alt_m"), column=door.col("gnss_alt_m"))
         return
-    text = f"{evidence}; {why}"
-    if dec.explicit:
-        _declared_wins(door, check, who, f, real, dec, text)
-        return
-    door.refuse(check, who, f, _unit_message(door, who, real, dec, text),
-                file=door.file(who), column=door.col(who))
+    contradicted(door, check, who, f, real, dec, f"{evidence}; {why}")
 
 
 # ------------------------------------------------------------------ airspeed
+
+
+def _fit_name(f: Fit) -> str:
+    return ("heading against the loads' turns" if "bank" in f.what else
+            "turns" if "turn" in f.what else "wind triangle")
 
 
 def check_airspeed(door: Door) -> None:
@@ -423,25 +472,29 @@ def check_airspeed(door: Door) -> None:
         return
     declared = door.unit_of(name, "m/s")
     table = candidate_units("speed", declared.unit)
-    fits = [f for f in (turn_rate_fit(door.data), wind_triangle_fit(door.data)) if f is not None]
+    # the heading's turns against the loads' turn rate at the recorded airspeed: the heading
+    # in degrees (the attitude check has passed it) leaves the airspeed's factor (issue #50:
+    # an ED-112 spiral dive at 1 Hz, its roll-based turns too few, gave 1.82 for knots)
+    loads = turn_attitude_fits(door.data).get("heading_deg")
+    fits = [f for f in (turn_rate_fit(door.data), wind_triangle_fit(door.data), loads)
+            if f is not None]
     if not fits:
         door.record(check, name, "skipped", None, "no coordinated turn and no GNSS velocity "
                     "through a turn")
         return
     units = [certain_unit(f, table) for f in fits]
-    named = {u for u in units if u is not None}
+    # the loads' turns are the coarser witness (the bank from the load factor: 2.15 for knots
+    # on a JSBSim circuit, nearer mph's 2.24): it names the unit only where the others do not
+    named = {u for f, u in zip(fits, units) if u is not None and f is not loads} or (
+        {units[-1]} if loads is not None and units[-1] is not None else set())
     plausible = [f for f in fits if plausible_fit(f) and f.good(N_MIN)]
-    evidence = "; ".join(f"{'turns' if 'turn' in f.what else 'wind triangle'}: {f.text()}"
-                         for f in fits)
+    evidence = "; ".join(f"{_fit_name(f)}: {f.text()}" for f in fits)
     if len(named) == 1 and not plausible:
         unit = named.pop()
         text = (f"the true airspeed is {fits[units.index(unit)].factor:.2f} times what the "
                 f"physics gives ({evidence})")
-        if declared.explicit:
-            _declared_wins(door, check, name, fits[0].factor, unit, declared, text)
-            return
-        door.refuse(check, name, fits[0].factor, _unit_message(
-            door, name, unit, declared, text), file=door.file(name), column=door.col(name))
+        contradicted(door, check, name, fits[units.index(unit)].factor, unit, declared, text)
+        return
     worst = max(fits, key=lambda f: abs(np.log(max(f.factor, 1e-9))))
     suspect = nearest_unit(worst.factor, table, UNIT_BAND)
     if suspect and not plausible:

@@ -204,14 +204,19 @@ class MethodSpec:
 # -- when each method can run ------------------------------------------------------------------
 
 def _joint_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
-    needed = [c for c in ("n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg",
-                          "heading_deg", "tas_mps") if c not in clean.grid.columns]
-    return None if not needed else f"missing input channels {', '.join(needed)}"
+    from flightrecon.cleaning.dead import missing_inputs
+
+    return missing_inputs(clean.grid, clean.report, (
+        "n_long_g", "n_lat_g", "n_norm_g", "roll_deg", "pitch_deg", "heading_deg", "tas_mps"))
 
 
 def _sabziev_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
-    from flightrecon.methods.sabziev.flight_inputs import end_fix
+    from flightrecon.cleaning.dead import missing_inputs
+    from flightrecon.methods.sabziev.flight_inputs import REQUIRED_CHANNELS, end_fix
 
+    missing = missing_inputs(clean.grid, clean.report, REQUIRED_CHANNELS)
+    if missing:       # a dead channel is dropped by the cleaning (cleaning/dead.py)
+        return missing
     if clean.meta.arrival is not None or s.k is not None or end_fix(clean) is not None:
         return None
     if "arrival_not_end" in clean.meta.extra:    # given, but the record ends in the air
@@ -233,7 +238,14 @@ def _radar_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
 
 
 def _sns_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
+    from flightrecon.cleaning.dead import missing_inputs
+
     has_gnss = len(clean.gnss) > 0 and "gnss_lat_deg" in clean.gnss.columns
+    doppler = s.sns_model != "airspeed" and "doppler_gs_mps" in clean.grid.columns
+    missing = missing_inputs(clean.grid, clean.report,
+                             ("heading_deg", *(() if doppler else ("tas_mps",))))
+    if has_gnss and missing:  # a dead channel is dropped by the cleaning (cleaning/dead.py)
+        return missing
     if has_gnss:
         return None
     use = (clean.meta.extra.get("gnss_use") or {}).get("options") or {}

@@ -39,6 +39,7 @@ from flightrecon.pipeline.registry import (
 )
 from flightrecon.pipeline.status import FEEDS_DEFAULT, method_status
 from flightrecon.pipeline.summary import build_summary, result_choice
+from flightrecon.pipeline.unit_doubts import DOUBTFUL, doubt
 from flightrecon.types import CleanFlight, Flight, MethodResult
 
 if TYPE_CHECKING:
@@ -139,6 +140,11 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
         results[m] = res
         health = method_health(res, clean)
         status[m] = method_status(res, health)
+        doubted = doubt(m, clean.meta.extra) if status[m]["status"] in FEEDS_DEFAULT else None
+        if doubted:     # a unit the door doubts or that was overridden (unit_doubts.py)
+            before = status[m].get("reason")
+            status[m].update(status=DOUBTFUL, reason=f"the door's evidence: {doubted}"
+                             + (f"; {before}" if before else ""))
         if settings.strict and status[m]["status"] in ("unhealthy", "stopped"):
             # --strict: a method that stopped short of its convergence test fails it too
             raise ConvergenceError(f"method '{m}' is {status[m]['status']}: "

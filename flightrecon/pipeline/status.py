@@ -10,6 +10,9 @@ summary (README, "Each method's status word"; docs/output.md, "Method health").
 | ``stopped`` | healthy, but it stopped short of its convergence test (the joint smoother at
   its cap of passes) while its passes still contracted; the reason gives how far more passes
   would move it and whether its sd was widened by that |
+| ``doubtful`` | healthy, but a channel it leans on has a unit the door doubts, or one used
+  against a certain contradiction the mapping confirmed (:mod:`.unit_doubts`); set by the
+  pipeline, the reason gives the channel and the figure |
 | ``unhealthy`` | it ran but failed a health check (the reason follows) |
 | ``failed`` / ``skipped`` | set by the pipeline: an error, or not run |
 
@@ -25,9 +28,10 @@ from __future__ import annotations
 from typing import Any
 
 from flightrecon.estimation.consistency import GROSS_FACTOR
+from flightrecon.pipeline.unit_doubts import DOUBTFUL
 from flightrecon.types import MethodResult
 
-FEEDS_DEFAULT: tuple[str, ...] = ("ok", "fallback", "stopped")
+FEEDS_DEFAULT: tuple[str, ...] = ("ok", "fallback", "stopped", DOUBTFUL)
 """The statuses of a healthy method: its track may feed the default result."""
 
 STOPPED_VERDICTS: tuple[str, ...] = ("settled", "widened")

@@ -34,6 +34,9 @@ STATUS_MEANING = {
     "unhealthy": "ran, but failed a health check (no convergence, a non-finite position, a "
                  "lost covariance, or a track outside the physical envelope of the flight): kept "
                  "in the file for comparison, never used for the default result",
+    "doubtful": "ran and its track is physically possible, but it leans on a channel whose "
+                "unit the door's evidence doubts, or that was used against a certain "
+                "contradiction the mapping confirmed (reason and figures given)",
     "failed": "stopped with an error (reason given): no track",
     "skipped": "not run: the data do not allow it (reason given) or it was not asked for",
 }
