@@ -486,7 +486,7 @@ def write_markdown(out: Path, command: str, summary: dict, rows: list[dict]) -> 
     """The table (``.md``) with its command, from the rows."""
     n_ok, good = summary["accepted"], summary["logs"]
     out.with_suffix(".md").write_text(
-        f"Command: `{command}`\n\n"
+        f"Regenerate: `{command}`\n\n"
         f"Logs accepted: {n_ok} of {good}; injected unit errors refused: "
         f"{summary['injected_refused']} of {summary['injected']}; unit mutations (issue #50): "
         f"{summary['mutations_refused']} refused, {summary['mutations_warned']} warned, "

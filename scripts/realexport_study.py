@@ -290,9 +290,9 @@ def _run_cell(r: dict[str, Any] | None) -> str:
 
 def markdown(results: list[dict[str, Any]], command: str) -> str:
     """The tables of docs/tables/realexports.md."""
-    lines = ["# Real recorder exports through the command line", "",
-             f"Made by `{command}` (scripts/realexport_study.py; the figures in "
-             "realexports.json). Against each export's own GPS; bars of issue 49: recorder "
+    lines = [f"Regenerate: `{command}`", "", "# Real recorder exports through the command line",
+             "", "The figures are in realexports.json. Against each export's own GPS; bars of "
+             "issue 49: recorder "
              f"only at most {BAR_RECORDER:g} x dead reckoning with a linear end correction, each "
              f"gap at most {BAR_GAP:g} x dead reckoning with the wind of the minute before, "
              f"mean NEES per gap and axis at most {BAR_NEES:g}, alt_msl_m within "

@@ -12,13 +12,10 @@ from _scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLES = sorted((ROOT / "docs" / "tables").glob("*.md"))
-#: pages edited on other branches when this test was written (each still names the maths page
-#: of the project's former shared folder or its corpus): drop a name once its page is mended
-NOT_YET = {"door.md", "output.md", "ingest.md", "door_study.md"}
 REGENERATE = re.compile(r"^Regenerate: `python (scripts/[\w.]+\.py)( [^`]*)?`$")
 
 
-@pytest.mark.parametrize("table", [t for t in TABLES if t.name not in NOT_YET],
+@pytest.mark.parametrize("table", TABLES,
                          ids=lambda t: t.name)
 def test_every_table_starts_with_the_command_that_writes_it(table: Path) -> None:
     """A table in docs/tables whose origin a reader cannot rerun is a snapshot: the first line
@@ -42,8 +39,6 @@ def test_the_real_flights_table_names_its_command() -> None:
 def test_nothing_points_outside_the_repository(page: Path) -> None:
     """The maths, the conventions and the data a page relies on are in the repository: no
     reference to the former shared folder, its METHODS.md or a path above the checkout."""
-    if page.name in NOT_YET:
-        pytest.skip(f"{page.name} is mended on another branch")
     text = page.read_text(encoding="utf-8")
     for pattern in (r"METHODS\.md", r"\.\./shared", r"shared folder", r"\]\(\.\./\.\./"):
         hits = [line for line in text.splitlines() if re.search(pattern, line)]
