@@ -64,7 +64,9 @@ def corpus_flight(i: int) -> TruthFlight:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         flight = load_flight(d / f"c{i}-fdr.parquet",
-                             meta_overrides={"departure": dep, "arrival": arr})
+                             # the corpus gives ellipsoidal heights (README there): no geoid
+                             meta_overrides={"departure": dep, "arrival": arr,
+                                             "geoid_undulation_m": 0.0})
         clean = clean_flight(flight)
     tr = pd.read_parquet(d / f"c{i}-truth.parquet")
     t_epoch = 0.0  # the recorder log and the truth share their time origin

@@ -55,7 +55,7 @@ def test_every_style_and_mark_needs_no_network(tmp_path):
     """A replay with the aircraft and one event of each severity: every placemark's style is
     in the document, and nothing points outside it."""
     ev = [Event("liftoff", 10.0, "lift-off", "lift-off"),
-          Event("exceedance", 30.0, "bank +50 deg", "bank", end_t_s=35.0, severity="warning"),
+          Event("exceedance", 30.0, "bank +50 deg", "bank", end_t_s=35.0, severity="alert"),
           Event("gap", 50.0, "GNSS gap", "gap", end_t_s=60.0, severity="caution")]
     meta = {"flight": {"flight_id": "F1", "epoch_utc": EPOCH, "geoid_undulation_m": -22.0},
             "events": events_table(ev, EPOCH)}
@@ -63,7 +63,7 @@ def test_every_style_and_mark_needs_no_network(tmp_path):
     assert offline_problems(p) == []
     root = ET.parse(p).getroot()
     used = {u.text for u in root.iter(f"{KML}styleUrl")}
-    assert {"#line", "#aircraft", "#event-info", "#event-warning", "#event-caution"} <= used
+    assert {"#line", "#aircraft", "#event-info", "#event-alert", "#event-caution"} <= used
 
 
 def test_reconstructed_kml_needs_no_network(tmp_path):

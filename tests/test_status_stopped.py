@@ -111,7 +111,8 @@ def test_strict_refuses_a_stopped_method(monkeypatch):
     monkeypatch.setattr(run, "run_method", lambda name, clean, settings: res)
     monkeypatch.setattr(run, "_chosen_methods", lambda clean, settings: (["joint"], {}))
     monkeypatch.setattr(run, "method_health", lambda r, clean: method_health(r))
-    clean = SimpleNamespace(grid=pd.DataFrame({"t_s": np.arange(5.0)}))
+    clean = SimpleNamespace(grid=pd.DataFrame({"t_s": np.arange(5.0)}),
+                            meta=SimpleNamespace(extra={}))
     with pytest.raises(ConvergenceError, match="stopped"):
         run.reconstruct_clean(clean, registry.ReconstructSettings(strict=True), workers=1)
 

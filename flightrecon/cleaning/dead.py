@@ -21,6 +21,8 @@ A channel constant only for a while is not dropped: the plausibility check
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 import numpy as np
 import pandas as pd
 
@@ -69,13 +71,16 @@ def _why_dead(work: pd.DataFrame, name: str) -> str | None:
     return None
 
 
-def drop_dead_channels(work: pd.DataFrame) -> tuple[pd.DataFrame, list[dict]]:
+def drop_dead_channels(work: pd.DataFrame, derived: Collection[str] = ()
+                       ) -> tuple[pd.DataFrame, list[dict]]:
     """``work`` without its dead or stuck input channels, and a report entry for each
-    (action ``dead_channel``: treated as absent)."""
+    (action ``dead_channel``: treated as absent).  The channels ``derived`` at ingest (not
+    recorded: e.g. the lateral load of coordinated flight, constant by construction) are not
+    judged."""
     report = []
     drop = []
     for name in CHANNELS:
-        if name not in work.columns:
+        if name not in work.columns or name in derived:
             continue
         why = _why_dead(work, name)
         if why is not None:

@@ -188,7 +188,8 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         work, report = run_steps(data, steps)
     except (TypeError, ValueError) as exc:  # non-numeric channel content
         raise ValidationError(f"cannot clean the log: {exc}") from exc
-    work, dead = drop_dead_channels(work)   # a dead or stuck channel is absent (dead.py)
+    derived = tuple(flight.meta.extra.get("derived_channels") or {})
+    work, dead = drop_dead_channels(work, derived)   # a dead or stuck one is absent (dead.py)
     report.extend(dead)
     grid, rate, rep = resample_inputs(work, rate_hz, settings.max_gap_s)
     report.extend(rep)
