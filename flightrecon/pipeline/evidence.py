@@ -160,29 +160,26 @@ def choose_order(checks: dict[str, list[Check]], priority: Sequence[str]
                 "; every healthy track is, so the priority stands"
         return healthy, why
     why.update(refuted)
-    rms = {m: _held_out_rms(checks[m]) for m in eligible}
+    held = {m: r for m in eligible if (r := _held_out_rms(checks[m])) is not None}
     order = list(eligible)
     groups: dict[frozenset[str], list[str]] = {}
-    for m in eligible:
-        r = rms[m]
-        if r is not None:
-            groups.setdefault(r[0], []).append(m)
+    for m, (points, _) in held.items():
+        groups.setdefault(points, []).append(m)
     for members in groups.values():
         if len(members) < 2:
             continue
         slots = sorted(order.index(m) for m in members)
-        ranked = sorted(members, key=lambda m: (rms[m][1], priority.index(m)))  # type: ignore[index]
+        ranked = sorted(members, key=lambda m: (held[m][1], list(priority).index(m)))
         for s, m in zip(slots, ranked):
             order[s] = m
         for m in members:
-            others = ", ".join(f"{o} {rms[o][1]:.0f} m" for o in ranked if o != m)  # type: ignore[index]
+            others = ", ".join(f"{o} {held[o][1]:.0f} m" for o in ranked if o != m)
             why[m] = (f"ranked by its RMS miss of the points held out from it "
-                      f"({len(rms[m][0])}; {rms[m][1]:.0f} m against {others})")  # type: ignore[index]
+                      f"({len(held[m][0])}; {held[m][1]:.0f} m against {others})")
     for m in eligible:
         if m not in why:
-            r = rms[m]
-            ev = (f"its held-out points ({len(r[0])}) met within {HELD_OUT_K:g} sd, "
-                  "no other track checked on the same points" if r is not None
+            ev = (f"its held-out points ({len(held[m][0])}) met within {HELD_OUT_K:g} sd, "
+                  "no other track checked on the same points" if m in held
                   else "no point of this flight was held out from it")
             why[m] = f"in the priority {' > '.join(priority)}: {ev}"
     return order, why
