@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _cli import run_cli
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.geo.frames import output_plane
@@ -24,8 +25,6 @@ from flightrecon.ingest import load_flight
 from flightrecon.pipeline import method_health
 from flightrecon.pipeline.health import END_POINT_K
 from flightrecon.types import MethodResult, Position
-
-from _cli import run_cli
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 CIRCUIT = SAMPLES / "circuit.parquet"
@@ -104,3 +103,47 @@ def test_a_track_ending_away_from_the_arrival_given_is_marked(circuit, tmp_path)
     assert "from the arrival given (the aircraft's position at the last sample)" in st["reason"]
     assert s["result"]["method"] is None
     assert np.isfinite(st["health"]["problems"][-1]["spans_s"][0][0])
+
+
+@pytest.fixture(scope="module")
+def regional_recorder_only():
+    """The regional flight (59 minutes, a climb to 4.4 km) without its GNSS, both ends known,
+    and its dead reckoning with the linear end correction."""
+    from flightrecon.ingest.gnss_use import GnssUse
+    from flightrecon.track_evidence import corrected_dead_reckoning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        clean = clean_flight(load_flight(SAMPLES / "regional.parquet",
+                                         gnss_use=GnssUse(withhold=True)))
+    got = corrected_dead_reckoning(clean)
+    assert got is not None
+    return clean, got[0], got[1]
+
+
+def _sheared(clean, dr: pd.DataFrame, t_end: float, shear_mps_per_km: float) -> MethodResult:
+    """Dead reckoning displaced by what a wind shear of ``shear_mps_per_km`` over the flight's
+    height profile does to it once pinned at both ends (|B(t)| times the shear,
+    :func:`flightrecon.methods.baselines.profile_wind_sd_m`), sd 300 m per axis."""
+    from flightrecon.methods.baselines import profile_wind_sd_m
+
+    t = dr["t_s"].to_numpy(float)
+    h = np.interp(t, clean.grid["t_s"].to_numpy(float), clean.grid["baro_alt_m"].to_numpy(float))
+    x = profile_wind_sd_m(t, h, clean.phases.liftoff_t_s, t_end, shear_mps_per_km / 1000.0)
+    tr = pd.DataFrame({"t_s": t, "joint_north_m": dr["north_m"].to_numpy(float) + x,
+                       "joint_east_m": dr["east_m"].to_numpy(float),
+                       "joint_north_sd_m": 300.0, "joint_east_sd_m": 300.0})
+    return MethodResult(name="joint", track=tr, summary={})
+
+
+def test_the_baseline_carries_its_one_wind_over_the_height_profile(regional_recorder_only):
+    """A track that differs from dead reckoning as a shear of 9 m/s per km (3 sd of the
+    baseline's shear) would make it differ (up to 16 km on the climb to 4.4 km) is the
+    baseline's error, not the track's: not refused for leaving dead reckoning (before the
+    baseline's height-profile sd: refused, 6.5 sd at worst). A shear of 30 m/s per km (10 sd;
+    54 km) is still refused: overconfident."""
+    clean, dr, t_end = regional_recorder_only
+    h = method_health(_sheared(clean, dr, t_end, 9.0), clean)
+    assert not [p for p in h["problems"] if p["check"] == "dead_reckoning"], h["problems"]
+    h = method_health(_sheared(clean, dr, t_end, 30.0), clean)
+    assert [p for p in h["problems"] if p["check"] == "dead_reckoning"], h["problems"]
