@@ -21,7 +21,12 @@ import pandas as pd
 
 from flightrecon.cleaning.plausibility import time_spans
 from flightrecon.envelope import central_rate, half_window, horizontal_track
-from flightrecon.methods.baselines import ARRIVAL_POINT_SD_M, DR_WALK_MPS_SQRT_S, bridge_sd_m
+from flightrecon.methods.baselines import (
+    ARRIVAL_POINT_SD_M,
+    DR_WALK_MPS_SQRT_S,
+    bridge_sd_m,
+    profile_wind_sd_m,
+)
 from flightrecon.types import CleanFlight, MethodResult
 
 
@@ -61,7 +66,10 @@ class Evidence:
         of a wind random walk of ``dr_walk_mps_per_sqrt_s`` (twice the joint smoother's
         default; twice the walk the joint smoother re-estimated for the flight where it found
         the wind moving faster than its default, summary ``wind_walk``) integrated and pinned
-        at both ends, with a floor of ``dr_floor_m``
+        at both ends, with a floor of ``dr_floor_m``, and that of its one wind over the
+        flight's height profile (:func:`flightrecon.methods.baselines.profile_wind_sd_m`): a
+        track is refused for claiming more than the two can share, never for being better
+        than the baseline where the baseline's own error explains the difference
     """
 
     wind_surface_mps: float = 40.0
@@ -409,7 +417,12 @@ def _dr_check(res: MethodResult, clean: CleanFlight, t: np.ndarray, north: np.nd
     tr = res.track
     p = res.name + "_"
     sdn, sde = _sd_or_zero(tr, f"{p}north_sd_m"), _sd_or_zero(tr, f"{p}east_sd_m")
-    sd_dr = np.sqrt(ev.dr_floor_m ** 2 + sd_end ** 2
+    # the baseline's own error carried: its wind's random walk in time and its one wind over
+    # the flight's height profile (a climb through a shear: methods/baselines.py)
+    hp = _grid_on(clean, "baro_alt_m", t)
+    prof = (np.zeros(len(t)) if hp is None
+            else profile_wind_sd_m(t, hp, ph.liftoff_t_s, t_end))
+    sd_dr = np.sqrt(ev.dr_floor_m ** 2 + sd_end ** 2 + prof ** 2
                     + bridge_sd_m(t, ph.liftoff_t_s, t_end, dr_walk(res, ev)) ** 2)
     # per axis: each axis of the corrected dead reckoning has sd_dr
     zn = np.abs(north - dn) / np.sqrt(sd_dr ** 2 + sdn ** 2)

@@ -21,6 +21,44 @@ airfield's reference point stands for where the aircraft touched down: the joint
 ``endpoint_h_m``)."""
 
 
+SHEAR_SD_MPS_PER_M = 3.0e-3
+"""Sd [m/s per m of height] per horizontal axis of the wind's unknown change with height
+behind a dead reckoning that holds one wind over the flight (zero, recorded or a table: the
+linear end correction turns whatever it holds into one mean wind): the thermal-wind shear of
+the mid-latitude troposphere, a jet of 30-40 m/s at 10-12 km over a surface wind of a few m/s
+(Holton, *An Introduction to Dynamic Meteorology*, 4th ed., section 3.4), 3 m/s per km.  A
+climb through a 55 m/s jet at 10.7 km (108 kt over Riyadh-Jeddah) is 1.7 sd of it."""
+
+
+def profile_wind_sd_m(t_s: np.ndarray, h_m: np.ndarray, t0_s: float, t1_s: float,
+                      shear_sd_mps_per_m: float = SHEAR_SD_MPS_PER_M) -> np.ndarray:
+    """Position sd [m] per horizontal axis of a dead reckoning corrected linearly to both ends
+    when the wind changes with height by an unknown shear ``g`` of sd ``shear_sd_mps_per_m``:
+    the wind ``w0 + g (h - h0)`` integrated from ``t0_s`` and pinned at ``t1_s`` leaves::
+
+        x(t) = g B(t),   B(t) = H(t) - (s / T) H(t1),   H(t) = integral of h from t0 to t
+
+    (``s = t - t0``, ``T = t1 - t0``; the mean wind and ``h0`` fall out with the correction),
+    so its sd is ``shear_sd |B(t)|``: zero at both ends and at a level flight, largest where
+    the height spent away from the flight's mean height has accumulated (a long climb to
+    cruise).  ``h_m`` is the pressure altitude on ``t_s`` (NaN taken as its neighbours)."""
+    t = np.asarray(t_s, float)
+    h = np.asarray(h_m, float)
+    ok = np.isfinite(h)
+    if ok.sum() < 2 or t1_s <= t0_s:
+        return np.zeros(len(t))
+    h = np.interp(t, t[ok], h[ok])
+    inside = (t >= t0_s) & (t <= t1_s)
+    hi = np.where(inside, h, 0.0)
+    dt = np.diff(t, prepend=t[0])
+    H = np.cumsum(hi * dt)
+    k1 = int(np.searchsorted(t, t1_s, side="right")) - 1
+    H_end = float(H[max(k1, 0)])
+    s = np.clip(t - t0_s, 0.0, t1_s - t0_s)
+    B = np.where(inside, H - s / (t1_s - t0_s) * H_end, 0.0)
+    return shear_sd_mps_per_m * np.abs(B)
+
+
 def bridge_sd_m(t_s: np.ndarray, t0_s: float, t1_s: float, walk_mps_per_sqrt_s: float
                 ) -> np.ndarray:
     """Position sd [m] of a dead reckoning corrected linearly to both ends when the wind is a

@@ -5,6 +5,7 @@ and its agreement with the evidence (:mod:`flightrecon.envelope`,
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -100,8 +101,127 @@ def method_health(res: MethodResult, clean: CleanFlight | None = None) -> dict[s
         for prob in envelope_problems(res, clean) + evidence_problems(res, clean):
             out["problems"].append({"what": prob["what"], "check": prob["check"],
                                     "spans_s": prob["spans_s"]})
+        if not any(pr["check"] in ("arrival", "end_point") for pr in out["problems"]):
+            out["problems"] += end_point_problems(res, clean)
     out["healthy"] = not out["problems"]
     return out
+
+
+END_POINT_K = 4.0
+"""A given end point is met when the track's end is within this many sd of it per axis (the
+end point's own sd combined with the track's, the track's taken at most as wide as the end
+point's: a track that used the end point knows its end at least that well)."""
+
+
+@dataclass(frozen=True)
+class EndPoint:
+    """The end point the user gave, in the output plane: when (``t_s``), where (``north_m``,
+    ``east_m``; one or more references, the airfield's reference point and its runway
+    threshold), how well (``sd_m`` per horizontal axis) and what it is in words."""
+
+    t_s: float
+    north_m: tuple[float, ...]
+    east_m: tuple[float, ...]
+    sd_m: float
+    what: str
+
+
+def given_end_point(clean: CleanFlight) -> EndPoint | None:
+    """The track's given end point: the arrival at touchdown for a record that ends on the
+    ground, or at the last sample for a record that ends fast and keeps it (short final, a
+    fast roll-out, a hand-off: flightrecon/cleaning/arrival_end.py), both with the sd
+    :data:`~flightrecon.methods.baselines.ARRIVAL_POINT_SD_M` (the airfield's reference point
+    standing for where the aircraft is: a record cut on short final below the 150 m that keeps
+    the arrival is within a few km of it, so the joint smoother's 100 m of a hand-off point
+    would refuse a good track), else a known position (``--fix``) within
+    :data:`flightrecon.track_evidence.END_FIX_S` of the record's end (its own sd); ``None``
+    without one, or after a ground impact."""
+    from flightrecon.geo.frames import output_plane
+    from flightrecon.methods.baselines import ARRIVAL_POINT_SD_M
+    from flightrecon.track_evidence import END_FIX_S
+
+    meta, ph, g = clean.meta, clean.phases, clean.grid
+    if ph is None or not len(g) or np.isfinite(getattr(ph, "impact_t_s", float("nan"))):
+        return None
+    try:
+        plane = output_plane(meta)
+    except Exception:   # no frame: nothing to hold the track against
+        return None
+    t_last = float(g["t_s"].iloc[-1])
+    arr = meta.arrival
+    refs: list[tuple[float, float, float]] = []
+    if arr is not None:
+        h = arr.elev_m + meta.geoid_undulation_m
+        refs.append((arr.lat_deg, arr.lon_deg, h))
+        if ph.ends_airborne:
+            t_end, sd, what = t_last, ARRIVAL_POINT_SD_M, \
+                "the arrival given (the aircraft's position at the last sample)"
+        elif np.isfinite(ph.touchdown_t_s):
+            t_end, sd, what = float(ph.touchdown_t_s), ARRIVAL_POINT_SD_M, \
+                "the arrival given (touchdown about the airfield's reference point)"
+            if arr.threshold_lat_deg is not None and arr.threshold_lon_deg is not None:
+                refs.append((arr.threshold_lat_deg, arr.threshold_lon_deg, h))
+        else:
+            return None
+    else:
+        ends = [f for f in meta.fixes if t_last - END_FIX_S <= f.t_s <= t_last]
+        if not ends:
+            return None
+        fx = ends[-1]
+        alt = fx.alt_msl_m if fx.alt_msl_m is not None else 0.0
+        refs.append((fx.lat_deg, fx.lon_deg, alt + meta.geoid_undulation_m))
+        t_end, sd, what = float(fx.t_s), float(fx.sd_m), \
+            f"the known position at the record's end (t = {fx.t_s:.0f} s)"
+    ne = [plane.forward(lat, lon, h) for lat, lon, h in refs]
+    return EndPoint(t_end, tuple(float(n) for _, n, _ in ne),
+                    tuple(float(e) for e, _, _ in ne), float(sd), what)
+
+
+def end_point_miss(res: MethodResult, end: EndPoint) -> tuple[float, float] | None:
+    """The track's miss of the given end point: the distance [m] and its largest per-axis
+    ratio to the combined sd (:data:`END_POINT_K`), at the end's time or the track's last
+    finite sample before it, the nearest of the end's references; ``None`` without a track
+    there."""
+    tr, p = res.track, res.name + "_"
+    if f"{p}north_m" not in tr.columns or not len(tr):
+        return None
+    t = tr["t_s"].to_numpy(float)
+    n, e = tr[f"{p}north_m"].to_numpy(float), tr[f"{p}east_m"].to_numpy(float)
+    fin = np.flatnonzero(np.isfinite(n) & np.isfinite(e) & (t <= end.t_s + 1e-6))
+    if not len(fin) or end.t_s - t[fin[-1]] > 60.0:
+        return None
+    i = int(fin[-1])
+    sds = []
+    for c in (f"{p}north_sd_m", f"{p}east_sd_m"):
+        v = float(tr[c].to_numpy(float)[i]) if c in tr.columns else 0.0
+        sds.append(min(v, end.sd_m) if np.isfinite(v) else end.sd_m)
+    best = (np.inf, np.inf)
+    for nr, er in zip(end.north_m, end.east_m):
+        dn, de = n[i] - nr, e[i] - er
+        z = max(abs(dn) / np.hypot(end.sd_m, sds[0]), abs(de) / np.hypot(end.sd_m, sds[1]))
+        if z < best[1]:
+            best = (float(np.hypot(dn, de)), float(z))
+    return best
+
+
+def end_point_problems(res: MethodResult, clean: CleanFlight) -> list[dict[str, Any]]:
+    """A track that does not meet the end point the user gave (:func:`given_end_point`)
+    within :data:`END_POINT_K` sd per axis: unhealthy, with the miss in km and in sd.  The
+    track's own sd counts only up to the end point's: a track that ends with an sd wider than
+    the end point's did not honour it, and a wide sd does not excuse the miss (an A320 export
+    whose track ended 12.6 km from the arrival with its own east sd of 11.6 km, exit 0)."""
+    end = given_end_point(clean)
+    if end is None:
+        return []
+    got = end_point_miss(res, end)
+    if got is None or got[1] <= END_POINT_K:
+        return []
+    d, z = got
+    return [{"what": f"the track ends {d / 1000:.2f} km from {end.what}: {z:.1f} sd of the end "
+                     f"point (sd {end.sd_m:.0f} m per axis, at most {END_POINT_K:g}): the end "
+                     "point was given and the track does not honour it",
+             "check": "end_point", "spans_s": [[end.t_s, end.t_s]], "worst": z,
+             "limit": END_POINT_K}]
 
 
 def _convergence(s: dict[str, Any], out: dict[str, Any]) -> None:

@@ -156,8 +156,24 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
     if not any(has_finite_track(r) for r in results.values()):
         raise NoResultError("no method produced a finite track, nothing was written: "
                             + _reasons(status))
-    track = combine(clean, results, healthy=healthy)
+    order, evidence = default_order(clean, results, healthy)
+    track = combine(clean, results, priority=order,
+                    healthy={m: healthy[m] and m in order for m in results})
+    # the choice's evidence travels with the table to the summary (result_choice)
+    track.attrs["default_choice"] = {"order": order, "evidence": evidence}
     return track, results, status
+
+
+def default_order(clean: CleanFlight, results: dict[str, MethodResult],
+                  healthy: dict[str, bool]) -> tuple[list[str], dict[str, Any]]:
+    """The order in which the healthy tracks feed the default and the evidence behind it
+    (:mod:`flightrecon.pipeline.evidence`)."""
+    from flightrecon.pipeline.evidence import choose_order, evidence_summary, track_checks
+    from flightrecon.pipeline.registry import DEFAULT_PRIORITY
+
+    checks = track_checks(results, healthy, clean)
+    order, why = choose_order(checks, DEFAULT_PRIORITY)
+    return order, evidence_summary(checks, order, why)
 
 
 def _reasons(status: dict[str, Any]) -> str:
@@ -246,7 +262,7 @@ def reconstruct(log: str | Path, *, gnss: str | Path | None = None, radar: str |
     inputs = [p for p in (log, gnss, radar, mapping, sidecar) if p is not None]
     summary = build_summary(clean, settings, status, inputs=inputs, warnings_=warn_list)
     summary["plausibility"] = findings
-    summary["result"] = result_choice(track, status)
+    summary["result"] = result_choice(track, status, **track.attrs.pop("default_choice", {}))
     from flightrecon.events import detect_events, events_table
 
     summary["events"] = events_table(detect_events(clean, track, status), clean.meta.epoch_utc)

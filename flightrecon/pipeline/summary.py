@@ -72,25 +72,41 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
 
 
 def result_choice(track: pd.DataFrame, status: dict[str, Any],
-                  priority: Sequence[str] = DEFAULT_PRIORITY) -> dict[str, Any]:
+                  order: Sequence[str] | None = None,
+                  evidence: dict[str, Any] | None = None) -> dict[str, Any]:
     """Which method the default (unprefixed) result comes from, and why, for the summary.
+
+    ``order``: the order in which the healthy tracks fed the default, chosen by the evidence
+    of the flight (:func:`flightrecon.pipeline.evidence.choose_order`; default the fixed
+    :data:`DEFAULT_PRIORITY`); ``evidence``: per healthy method its rank, why, and its checks
+    (:func:`flightrecon.pipeline.evidence.evidence_summary`).
 
     Returns
     -------
     dict
         ``method``: the source of most samples (``None`` when no healthy method covers any);
         ``fractions``: fraction of the grid samples from each source; ``why``: a sentence;
-        ``not_used``: for each method ahead of it in the priority, why it is not the source.
+        ``not_used``: for each method ahead of it in the priority, why it is not the source;
+        ``order`` and ``evidence`` as given.
     """
+    priority = list(order) if order is not None else list(DEFAULT_PRIORITY)
     n = len(track)
     counts = track["source"].value_counts(dropna=True)  # Arrow strings: no Python loop
     fractions = {str(k): float(c) / n for k, c in counts.items() if k and n}
     method = max(fractions, key=lambda k: fractions[k]) if fractions else None
+    ev = evidence or {}
     not_used = {}
-    for m in priority:
+    for m in DEFAULT_PRIORITY:
         if m == method:
             break
         st = status.get(m, {})
+        if m in ev and m not in priority:   # healthy, refuted by a held-out point
+            not_used[m] = f"{st.get('status', 'not run')}, {ev[m]['why']}"
+            continue
+        if m in priority and priority.index(m) > (priority.index(method)
+                                                  if method in priority else -1):
+            not_used[m] = f"{st.get('status')}, after it: {ev.get(m, {}).get('why', '')}"
+            continue
         not_used[m] = f"{st.get('status', 'not run')}" + (
             f": {st['reason']}" if st.get("reason") else "")
     if method is None:
@@ -98,9 +114,16 @@ def result_choice(track: pd.DataFrame, status: dict[str, Any],
                + "; ".join(f"{m} {r}" for m, r in not_used.items()))
     else:
         share = fractions[method]
-        why = (f"{method} is the first healthy method in the priority "
+        why = (f"{method} is the first of the healthy tracks in the order "
                f"{' > '.join(priority)}" + (f" and gives {100 * share:.1f} % of the samples"
                                             if share < 0.999 else ""))
+        if method in ev:
+            why += f" ({ev[method]['why']})"
         if not_used:
-            why += "; ahead of it: " + "; ".join(f"{m} {r}" for m, r in not_used.items())
-    return {"method": method, "fractions": fractions, "why": why, "not_used": not_used}
+            why += "; the others: " + "; ".join(f"{m} {r}" for m, r in not_used.items())
+    out: dict[str, Any] = {"method": method, "fractions": fractions, "why": why,
+                           "not_used": not_used}
+    if order is not None:
+        out["order"] = priority
+        out["evidence"] = ev
+    return out
