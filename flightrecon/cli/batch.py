@@ -106,6 +106,8 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
     click.echo(f"{res.count('ok')} ok, {res.count('failed')} failed, {res.count('skipped')} "
                f"skipped in {res.elapsed_s:.1f} s")
     click.echo(f"wrote {res.summary_csv}")
+    if res.summary_parquet is not None:
+        click.echo(f"wrote {res.summary_parquet}")
     click.echo(f"wrote {res.averages_csv}")
     if res.exit_code:
         # SystemExit, not ctx.exit: the CLI runs click with standalone_mode=False, which turns
