@@ -161,12 +161,14 @@ def table(runs: list[dict[str, float]]) -> list[str]:
             continue
         lines.append(f"  {k:28s} {med(k):6.2f}")
         lines += [f"    {c:26s} {med(c):6.2f}" for c in children.get(k, []) if c in keys]
-    serial = sum(med(k) for k in top if k in keys and not k.startswith("method "))
-    overlap = [statistics.median(max((r.get(m, 0.0) for m in methods), default=0.0)
-                                 for r in runs)]
-    other = med("command") - (serial - med("interpreter start/exit") - med("imports")) - overlap[0]
+    def other(r: dict[str, float]) -> float:
+        serial = sum(r.get(k, 0.0) for k in top if not k.startswith("method ")
+                     and k not in ("interpreter start/exit", "imports"))
+        return r["command"] - serial - max((r.get(m, 0.0) for m in methods), default=0.0)
+
+    other_s = statistics.median(other(r) for r in runs)
     each = ", ".join(f"{r['process']:.2f}" for r in runs)
-    lines += [f"  {'other (set-up, output)':28s} {other:6.2f}",
+    lines += [f"  {'other (set-up, output)':28s} {other_s:6.2f}",
               f"  {'whole process':28s} {med('process'):6.2f}  (runs: {each})"]
     return lines
 

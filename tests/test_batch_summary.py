@@ -1,12 +1,11 @@
 """The batch's summary table as Parquet (``batch_summary.parquet``, docs/batch.md "Tables"): one
 typed column per CSV column, the same rows as ``batch_summary.csv``, for ok, failed and
-skipped flights."""
+skipped flights; the number of flights told before any runs (the progress bar's total)."""
 
 from __future__ import annotations
 
 import csv
 import math
-from pathlib import Path
 
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -66,7 +65,9 @@ def two_batches(tmp_path_factory):
     out = tmp_path_factory.mktemp("out")
     with distributed.Client(processes=False, n_workers=1, threads_per_worker=1,
                             dashboard_address=None) as client:
-        r1 = batch([logs], out, client=client)
+        totals: list[int] = []
+        r1 = batch([logs], out, client=client, started=totals.append)
+        assert totals == [2], "the number of flights is told once, before any flight runs"
         t1 = pq.read_table(out / "batch_summary.parquet")
         r2 = batch([logs], out, client=client)
         t2 = pq.read_table(out / "batch_summary.parquet")

@@ -235,7 +235,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
           settings: ReconstructSettings = ReconstructSettings(), store: str | Path | None = None,
           force: bool = False, progress: Callable[[FlightOutcome, int], None] | None = None,
           fmt: str = "parquet", mapping: str | Path | None = None,
-          gnss_use: GnssUse | None = None) -> BatchResult:
+          gnss_use: GnssUse | None = None,
+          started: Callable[[int], None] | None = None) -> BatchResult:
     """Reconstruct many flights on a Dask cluster; record their coefficients; summarise.
 
     Parameters
@@ -257,6 +258,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
         GnssUse`: withheld, windows, interval, receiver's sd; a sidecar's ``[gnss]`` is merged
         with it as for ``reconstruct``); part of the settings' key, so a re-run with other GNSS
         options redoes the flights
+    started : called once with the number of flights, as soon as the logs are found (before
+        any flight is checked or run: a progress bar's total)
 
     Returns
     -------
@@ -278,6 +281,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
 
     sweep_leftovers(out_dir)
     entries = discover_logs(inputs, out_dir)
+    if started is not None:
+        started(len(entries))
     store_path = None if store is None else Path(store)
     key = settings_key(settings, fmt, store_path, gnss_use)
     db = CoefficientStore(store_path) if store_path is not None else None
