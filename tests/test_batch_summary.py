@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import csv
 import math
+from pathlib import Path
 
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
 from flightrecon.batch import SUMMARY_COLUMNS, SUMMARY_TYPES, batch, write_summary_parquet
+from flightrecon.batch.discover import is_log_name
 from flightrecon.sim.io import write_simulation
 from flightrecon.sim.scenarios import simulate_fleet
 
@@ -20,6 +22,11 @@ ARROW = {"string": pa.string(), "float64": pa.float64(), "int64": pa.int64(), "b
 
 def test_every_column_typed():
     assert set(SUMMARY_TYPES) == set(SUMMARY_COLUMNS)
+
+
+def test_the_parquet_table_is_not_a_log():
+    """A batch's output folder given as the next batch's input: its table is not a flight."""
+    assert not is_log_name(Path("batch_summary.parquet"))
 
 
 def test_rows_written_with_their_types(tmp_path):
