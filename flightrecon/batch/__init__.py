@@ -17,11 +17,14 @@ from flightrecon.batch.runner import (
                                       AVERAGE_COLUMNS,
                                       FORMATS,
                                       SUMMARY_COLUMNS,
+                                      SUMMARY_TYPES,
                                       BatchResult,
                                       FlightOutcome,
                                       batch,
+                                      write_summary_parquet,
 )
 from flightrecon.batch.task import run_flight
 
-__all__ = ["AVERAGE_COLUMNS", "FORMATS", "SUMMARY_COLUMNS", "BatchResult", "FlightOutcome",
-           "LogEntry", "batch", "discover_logs", "open_client", "run_flight"]
+__all__ = ["AVERAGE_COLUMNS", "FORMATS", "SUMMARY_COLUMNS", "SUMMARY_TYPES", "BatchResult",
+           "FlightOutcome", "LogEntry", "batch", "discover_logs", "open_client", "run_flight",
+           "write_summary_parquet"]

@@ -29,7 +29,8 @@ COMPANION_TAGS: frozenset[str] = frozenset({
     "mapping", "report", "manifest", "averages"})
 
 #: files the batch itself writes in its output folder
-BATCH_FILES: frozenset[str] = frozenset({"batch_summary.csv", "aircraft_averages.csv"})
+BATCH_FILES: frozenset[str] = frozenset({"batch_summary.csv", "batch_summary.parquet",
+                                         "aircraft_averages.csv"})
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 

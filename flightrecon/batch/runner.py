@@ -40,6 +40,16 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "sns_nis_per_dof", "north_sd_m_median", "east_sd_m_median", "up_sd_m_median", "warnings",
     "elapsed_s", "result")
 
+#: the Parquet type of each summary column (``batch_summary.parquet``): the CSV's columns with
+#: their types kept; a missing value is null
+SUMMARY_TYPES: dict[str, str] = {
+    **{c: "string" for c in ("input", "name", "status", "error", "aircraft_id", "flight_id",
+                             "stored", "sources", "result")},
+    **{c: "float64" for c in ("duration_s", "k1", "k2", "k3", "joint_mean_nis",
+                              "sns_nis_per_dof", "north_sd_m_median", "east_sd_m_median",
+                              "up_sd_m_median", "elapsed_s")},
+    "exit_code": "int64", "warnings": "int64", "sabziev_converged": "bool"}
+
 #: columns of ``aircraft_averages.csv`` (per axis: fits used, mean, sd, branch)
 AVERAGE_COLUMNS: tuple[str, ...] = ("aircraft_id", "n_flights") + tuple(
     f"{a}_{q}" for a in ("k1", "k2", "k3") for q in ("n", "mean", "sd", "branch"))
@@ -66,6 +76,7 @@ class BatchResult:
     averages : rows of ``aircraft_averages.csv`` (:data:`AVERAGE_COLUMNS`)
     summary_csv, averages_csv : the tables written
     elapsed_s : wall time of the batch
+    summary_parquet : the summary table as Parquet (:data:`SUMMARY_TYPES`)
     """
 
     outcomes: tuple[FlightOutcome, ...]
@@ -73,6 +84,7 @@ class BatchResult:
     summary_csv: Path
     averages_csv: Path
     elapsed_s: float
+    summary_parquet: Path | None = None
 
     def count(self, status: str) -> int:
         """Number of flights with ``status``."""
@@ -179,6 +191,35 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]
     return path
 
 
+def _typed(value: Any, kind: str) -> Any:
+    """A summary cell as its Parquet column's type (None: null)."""
+    if value is None or (isinstance(value, str) and value == "" and kind != "string"):
+        return None
+    if kind == "string":
+        return str(value)
+    if kind == "float64":
+        return float(value)
+    if kind == "int64":
+        return int(value)
+    return bool(value)
+
+
+def write_summary_parquet(path: Path, rows: Sequence[dict[str, Any]]) -> Path:
+    """The summary table as Parquet, one typed column per :data:`SUMMARY_COLUMNS`."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from flightrecon.export.atomic import atomic_path
+
+    types = {"string": pa.string(), "float64": pa.float64(), "int64": pa.int64(),
+             "bool": pa.bool_()}
+    table = pa.table({c: pa.array([_typed(r.get(c), SUMMARY_TYPES[c]) for r in rows],
+                                  type=types[SUMMARY_TYPES[c]]) for c in SUMMARY_COLUMNS})
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+    return path
+
+
 def _average_rows(stats_list) -> list[dict[str, Any]]:
     rows = []
     for st in stats_list:
@@ -194,7 +235,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
           settings: ReconstructSettings = ReconstructSettings(), store: str | Path | None = None,
           force: bool = False, progress: Callable[[FlightOutcome, int], None] | None = None,
           fmt: str = "parquet", mapping: str | Path | None = None,
-          gnss_use: GnssUse | None = None) -> BatchResult:
+          gnss_use: GnssUse | None = None,
+          started: Callable[[int], None] | None = None) -> BatchResult:
     """Reconstruct many flights on a Dask cluster; record their coefficients; summarise.
 
     Parameters
@@ -216,6 +258,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
         GnssUse`: withheld, windows, interval, receiver's sd; a sidecar's ``[gnss]`` is merged
         with it as for ``reconstruct``); part of the settings' key, so a re-run with other GNSS
         options redoes the flights
+    started : called once with the number of flights, as soon as the logs are found (before
+        any flight is checked or run: a progress bar's total)
 
     Returns
     -------
@@ -237,6 +281,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
 
     sweep_leftovers(out_dir)
     entries = discover_logs(inputs, out_dir)
+    if started is not None:
+        started(len(entries))
     store_path = None if store is None else Path(store)
     key = settings_key(settings, fmt, store_path, gnss_use)
     db = CoefficientStore(store_path) if store_path is not None else None
@@ -261,10 +307,13 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     averages = _average_rows(stats_list)
     summary_csv = _write_csv(confined(out_dir, "batch_summary.csv"), SUMMARY_COLUMNS,
                              [o.row for o in ordered])
+    summary_parquet = write_summary_parquet(confined(out_dir, "batch_summary.parquet"),
+                                     [o.row for o in ordered])
     averages_csv = _write_csv(confined(out_dir, "aircraft_averages.csv"), AVERAGE_COLUMNS,
                               averages)
     return BatchResult(outcomes=ordered, averages=tuple(averages), summary_csv=summary_csv,
-                       averages_csv=averages_csv, elapsed_s=time.perf_counter() - t_start)
+                       averages_csv=averages_csv, elapsed_s=time.perf_counter() - t_start,
+                       summary_parquet=summary_parquet)
 
 
 class _BatchRun:

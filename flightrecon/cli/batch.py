@@ -79,6 +79,11 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
         bar = tqdm(total=None, desc="batch", unit=" flight", file=sys.stderr, leave=True)
     counts = {"ok": 0, "failed": 0, "skipped": 0}
 
+    def started(total: int) -> None:
+        if bar is not None:
+            bar.total = total
+            bar.refresh()
+
     def progress(oc, total: int) -> None:
         counts[oc.status] += 1
         if bar is not None:
@@ -94,7 +99,7 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
         with open_client(scheduler, workers) as client:
             res = batch(list(inputs), out_dir, client=client, settings=settings,
                         store=store_path, force=force, progress=progress, fmt=fmt,
-                        mapping=mapping, gnss_use=gnss_use)
+                        mapping=mapping, gnss_use=gnss_use, started=started)
     finally:
         if bar is not None:
             bar.close()
@@ -106,6 +111,8 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
     click.echo(f"{res.count('ok')} ok, {res.count('failed')} failed, {res.count('skipped')} "
                f"skipped in {res.elapsed_s:.1f} s")
     click.echo(f"wrote {res.summary_csv}")
+    if getattr(res, "summary_parquet", None) is not None:
+        click.echo(f"wrote {res.summary_parquet}")
     click.echo(f"wrote {res.averages_csv}")
     if res.exit_code:
         # SystemExit, not ctx.exit: the CLI runs click with standalone_mode=False, which turns
