@@ -14,6 +14,7 @@ import pytest
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.cli.main import main
+from flightrecon.errors import FlightReconWarning
 from flightrecon.ingest import load_flight
 from flightrecon.pipeline.unit_doubts import doubt, unit_doubts
 
@@ -193,7 +194,7 @@ def test_a_heading_stuck_through_the_flight_is_dropped():
     assert hit and hit[0]["channel"] == "heading_deg" and "stuck" in hit[0]["why"]
 
 
-@pytest.mark.skipif(not (CORPUS / "c1-rates.parquet").is_file(), reason="no shared corpus")
+@pytest.mark.shared_data
 def test_a_dead_heading_is_replaced_by_the_body_rates():
     """With body rates, a dead heading is replaced by the heading propagated from them and
     anchored on the GNSS track (cleaning/attitude.py), not used."""
@@ -201,8 +202,9 @@ def test_a_dead_heading_is_replaced_by_the_body_rates():
     d["heading_deg"] = 0.0
     meta = json.loads((CORPUS / "c1-meta.json").read_text())
     lat, lon, elev = meta["departure"]
-    fl = load_flight_from(d, f"{lat},{lon},{elev}")
-    clean = clean_flight(fl)
+    with pytest.warns(FlightReconWarning, match="heading from the body rates"):
+        fl = load_flight_from(d, f"{lat},{lon},{elev}")
+        clean = clean_flight(fl)
     acts = {e["action"] for e in clean.report if e["channel"] == "heading_deg"}
     assert {"dead_channel", "heading_from_rates"} <= acts
     assert np.ptp(clean.grid["heading_deg"].to_numpy()) > 90.0
