@@ -247,8 +247,10 @@ def study(log: Path) -> dict[str, Any]:
     return {"export": log.name, "rows": rows}
 
 
-def markdown(results: list[dict[str, Any]]) -> str:
-    out = [header(),
+def markdown(results: list[dict[str, Any]], extra: list[Path]) -> str:
+    """The two tables; the command names a further export by its file name only (it lives
+    outside the repository)."""
+    out = [header(argv=[p.name for p in extra]),
            "| export | " + " | ".join(CASES) + " | dead reckoning + linear |",
            "|---|" + "---|" * (len(CASES) + 1)]
     for r in results:
@@ -280,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     logs = sorted(REALDATA.glob("g1000_*.csv")) + list(a.exports)
     results = [study(p) for p in logs]
-    md = markdown(results)
+    md = markdown(results, list(a.exports))
     print(md)
     if not a.no_write:
         (OUT / "joint_recorder_ablation.md").write_text(md)
