@@ -271,15 +271,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     from flightrecon.store import stats as store_stats
 
     t_start = time.perf_counter()
-    if fmt not in FORMATS:
-        raise OutputError(f"unknown format '{fmt}' (choose from {', '.join(FORMATS)})")
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise OutputError("the output folder is a file", file=str(out_dir))
-    out_dir.mkdir(parents=True, exist_ok=True)
-    from flightrecon.export.atomic import sweep_leftovers
-
-    sweep_leftovers(out_dir)
+    out_dir = _output_folder(out_dir, fmt)
     entries = discover_logs(inputs, out_dir)
     if started is not None:
         started(len(entries))
@@ -308,12 +300,27 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     summary_csv = _write_csv(confined(out_dir, "batch_summary.csv"), SUMMARY_COLUMNS,
                              [o.row for o in ordered])
     summary_parquet = write_summary_parquet(confined(out_dir, "batch_summary.parquet"),
-                                     [o.row for o in ordered])
+                                            [o.row for o in ordered])
     averages_csv = _write_csv(confined(out_dir, "aircraft_averages.csv"), AVERAGE_COLUMNS,
                               averages)
     return BatchResult(outcomes=ordered, averages=tuple(averages), summary_csv=summary_csv,
                        averages_csv=averages_csv, elapsed_s=time.perf_counter() - t_start,
                        summary_parquet=summary_parquet)
+
+
+def _output_folder(out_dir: str | Path, fmt: str) -> Path:
+    """The batch's output folder, created, with what an interrupted batch left half-written
+    swept away; an unknown format or a file in its place is refused."""
+    from flightrecon.export.atomic import sweep_leftovers
+
+    if fmt not in FORMATS:
+        raise OutputError(f"unknown format '{fmt}' (choose from {', '.join(FORMATS)})")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise OutputError("the output folder is a file", file=str(out))
+    out.mkdir(parents=True, exist_ok=True)
+    sweep_leftovers(out)
+    return out
 
 
 class _BatchRun:

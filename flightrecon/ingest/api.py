@@ -76,12 +76,7 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     notes: list[str] = []
     log = Path(log)
     overrides = dict(meta_overrides or {})
-    use = gnss_use or GnssUse()
-    if "withhold_gnss" in overrides:
-        warnings.warn("load_flight: meta_overrides['withhold_gnss'] is deprecated; use "
-                      "gnss_use=GnssUse(withhold=True)", DeprecationWarning, stacklevel=2)
-        if bool(overrides.pop("withhold_gnss")):
-            use = dataclasses.replace(use, withhold=True)
+    use = _deprecated_withhold(overrides, gnss_use or GnssUse())
     sc, meta, companion = _metadata(log, sidecar, overrides or None, warns)
     use = use.over(sc.gnss if sc is not None else None)
     withhold_gnss = use.withhold
@@ -103,12 +98,8 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     data, repairs = validated_frame(src, values, warns, notes, declared_units(mp, src),
                                     door, use, gnss_rec)
     _check_priors(meta, data, warns)
-    has_fixes = {"gnss_lat_deg", "gnss_lon_deg"} <= set(data.columns)
-    lat, lon = (data[c].to_numpy(float) if has_fixes else np.array([])
-                for c in ("gnss_lat_deg", "gnss_lon_deg"))
-    meta = with_flight_geoid(meta, lat, lon,       # EGM96 unless given (flightrecon.geo.geoid)
-                             "geoid_undulation_m" in (sc.given if sc is not None else ())
-                             or overrides.get("geoid_undulation_m") is not None, notes)
+    meta = _geoid(meta, data, "geoid_undulation_m" in (sc.given if sc is not None else ())
+                  or overrides.get("geoid_undulation_m") is not None, notes)
     meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
                                             "ingest_repairs": [r.as_dict() for r in repairs],
                                             "door": [c.as_dict() for c in door],
@@ -121,6 +112,26 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
     return Flight(data=data, meta=meta, sources=tuple(src.files), warnings=tuple(warns))
+
+
+def _deprecated_withhold(overrides: dict[str, Any], use: GnssUse) -> GnssUse:
+    """``use`` with the former ``meta_overrides['withhold_gnss']`` key taken out of
+    ``overrides`` and honoured, with a :class:`DeprecationWarning`."""
+    if "withhold_gnss" in overrides:
+        warnings.warn("load_flight: meta_overrides['withhold_gnss'] is deprecated; use "
+                      "gnss_use=GnssUse(withhold=True)", DeprecationWarning, stacklevel=3)
+        if bool(overrides.pop("withhold_gnss")):
+            use = dataclasses.replace(use, withhold=True)
+    return use
+
+
+def _geoid(meta: FlightMeta, data: pd.DataFrame, given: bool, notes: list[str]) -> FlightMeta:
+    """The flight's geoid undulation: EGM96 at its fixes or departure unless the sidecar or the
+    caller ``given`` one (:func:`flightrecon.geo.geoid.with_flight_geoid`)."""
+    has_fixes = {"gnss_lat_deg", "gnss_lon_deg"} <= set(data.columns)
+    lat, lon = (data[c].to_numpy(float) if has_fixes else np.array([])
+                for c in ("gnss_lat_deg", "gnss_lon_deg"))
+    return with_flight_geoid(meta, lat, lon, given, notes)
 
 
 def _derived(src: Sources) -> dict[str, str]:

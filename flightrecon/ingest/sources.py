@@ -65,18 +65,7 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
     whose time is its frame count (:func:`.mapping.with_frame_rate`)."""
     raw = read_table(log)
     warns += list(raw.warnings)
-    mp = user_mp
-    garmin_used: tuple[str, ...] = ()
-    reading: GarminReading | None = None
-    if raw.dialect == "garmin":
-        reading = garmin_reading(raw)
-        mp = merge_with_user(garmin_mapping(raw, reading), user_mp)
-        garmin_used = tuple(reading.roles[r] for r in ("magvar", "baro_set", "gs", "trk", "fix",
-                                                       "alt_msl", "vel_n", "vel_e")
-                            if r in reading.roles)
-        notes.append(f"{log}: Garmin export: {reading.variant}; read with the built-in mapping"
-                     + (" under the user's mapping" if user_mp else ""))
-        warns += [f"{log}: {w}" for w in reading.warnings]
+    reading, mp, garmin_used = _garmin_preset(raw, user_mp, log, warns, notes)
     raw, mp, dump_used = _dump_and_rate(raw, mp, user_mp, frame_rate_hz, log, warns, notes)
     if raw.blank_rows.size:
         warns.append(f"{log}: {raw.blank_rows.size} empty row(s) skipped (first: row "
@@ -109,21 +98,7 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
         shown = ", ".join(ignored[:8]) + (" ..." if len(ignored) > 8 else "")
         warns.append(f"{log}: {len(ignored)} column(s) not in the schema and not mapped, "
                      f"ignored: {shown}")
-    present = set(mt.values) | set(mt.derived)
-    if "tas_mps" not in present and ("cas_mps" in present or "ias_mps" in present):
-        present.add("tas_mps")
-        mt = dataclasses.replace(mt, derived={**mt.derived, "tas_mps": "cas" if "cas_mps"
-                                              in present else "ias"})
-    derive_long = "n_long_g" not in present and {"tas_mps", "pitch_deg"} <= present
-    if derive_long:
-        present.add("n_long_g")
-    derive_lat = "n_lat_g" not in present and "n_norm_g" in present
-    if derive_lat:
-        present.add("n_lat_g")
-    if "heading_deg" not in present and {"q_dps", "r_dps"} <= present:
-        present.add("heading_deg")
-        notes.append("no heading channel: the heading is propagated from the body rates at "
-                     "cleaning (docs/signals.md, 'Heading from the body rates')")
+    mt, present, derive_long, derive_lat = _present_channels(mt, notes)
     check_required(present, str(log), ignored,
                    mapping_hint="" if mp is not None else _mapping_hint(log))
     notes += list(mt.notes)
@@ -140,6 +115,48 @@ def read_log(log: Path, user_mp: Mapping | None, meta: FlightMeta, allow_unsorte
     magnetic = {c: (str(log), mt.source_column[c]) for c in mt.magnetic}
     return Sources(mt, rows, epoch_ns, [str(log)], [dict(mt.source_column)], magnetic,
                    derive_long, tuple(ignored), derive_lat), meta
+
+
+def _garmin_preset(raw: RawTable, user_mp: Mapping | None, log: Path, warns: list[str],
+                   notes: list[str]
+                   ) -> tuple[GarminReading | None, Mapping | None, tuple[str, ...]]:
+    """A Garmin export's reading (variant, columns' roles, conventions checked on the data),
+    its built-in mapping under the user's, and the columns read through two-column conventions
+    (:mod:`.garmin`); the user's mapping and nothing else for any other table."""
+    if raw.dialect != "garmin":
+        return None, user_mp, ()
+    reading = garmin_reading(raw)
+    mp = merge_with_user(garmin_mapping(raw, reading), user_mp)
+    used = tuple(reading.roles[r] for r in ("magvar", "baro_set", "gs", "trk", "fix",
+                                             "alt_msl", "vel_n", "vel_e") if r in reading.roles)
+    notes.append(f"{log}: Garmin export: {reading.variant}; read with the built-in mapping"
+                 + (" under the user's mapping" if user_mp else ""))
+    warns += [f"{log}: {w}" for w in reading.warnings]
+    return reading, mp, used
+
+
+def _present_channels(mt: MappedTable, notes: list[str]
+                      ) -> tuple[MappedTable, set[str], bool, bool]:
+    """The channels the log has or that can be made from it: the true airspeed from CAS or
+    IAS (at cleaning), ``n_long_g`` derived from airspeed and pitch, ``n_lat_g`` assumed 0
+    (coordinated flight) where only ``n_norm_g`` is recorded, the heading from the body rates;
+    returns the table (its ``derived`` updated), the set and the two derivation flags."""
+    present = set(mt.values) | set(mt.derived)
+    if "tas_mps" not in present and ("cas_mps" in present or "ias_mps" in present):
+        present.add("tas_mps")
+        mt = dataclasses.replace(mt, derived={**mt.derived, "tas_mps": "cas" if "cas_mps"
+                                              in present else "ias"})
+    derive_long = "n_long_g" not in present and {"tas_mps", "pitch_deg"} <= present
+    if derive_long:
+        present.add("n_long_g")
+    derive_lat = "n_lat_g" not in present and "n_norm_g" in present
+    if derive_lat:
+        present.add("n_lat_g")
+    if "heading_deg" not in present and {"q_dps", "r_dps"} <= present:
+        present.add("heading_deg")
+        notes.append("no heading channel: the heading is propagated from the body rates at "
+                     "cleaning (docs/signals.md, 'Heading from the body rates')")
+    return mt, present, derive_long, derive_lat
 
 
 def _dump_and_rate(raw: RawTable, mp: Mapping | None, user_mp: Mapping | None,
