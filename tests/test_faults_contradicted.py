@@ -202,8 +202,9 @@ def test_a_dead_heading_is_replaced_by_the_body_rates():
     d["heading_deg"] = 0.0
     meta = json.loads((CORPUS / "c1-meta.json").read_text())
     lat, lon, elev = meta["departure"]
+    with pytest.warns(FlightReconWarning, match="outside the physical range"):
+        fl = load_flight_from(d, f"{lat},{lon},{elev}")   # the corpus's first airspeed sample
     with pytest.warns(FlightReconWarning, match="heading from the body rates"):
-        fl = load_flight_from(d, f"{lat},{lon},{elev}")
         clean = clean_flight(fl)
     acts = {e["action"] for e in clean.report if e["channel"] == "heading_deg"}
     assert {"dead_channel", "heading_from_rates"} <= acts
