@@ -12,3 +12,10 @@ def run_cli(args: list[str]) -> int:
     except SystemExit as exc:
         return int(exc.code or 0)
     return 0
+
+
+def run_cli_stderr(args: list, capsys) -> tuple[int, str]:
+    """Run ``flightrecon --quiet ARGS`` in-process; return its exit code and what it wrote on
+    stderr (``capsys`` of the calling test)."""
+    code = run_cli([str(a) for a in args])
+    return code, capsys.readouterr().err

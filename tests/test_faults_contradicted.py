@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _cli import run_cli_stderr
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.cli.main import main
@@ -23,13 +24,7 @@ SAMPLES = ROOT / "sample_logs"
 CORPUS = ROOT.parent / "shared" / "corpus"
 
 
-def run(args, capsys) -> tuple[int, str]:
-    try:
-        main(["--quiet", *[str(a) for a in args]])
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    return code, capsys.readouterr().err
+run = run_cli_stderr
 
 
 def _circuit(tmp_path: Path, name: str, df: pd.DataFrame) -> Path:

@@ -16,21 +16,15 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from _cli import run_cli_stderr
 
-from flightrecon.cli.main import main
 from flightrecon.export.atomic import TMP_TAG, Publication, sweep_leftovers
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "sample_logs"
 
 
-def run(args, capsys) -> tuple[int, str]:
-    try:
-        main(["--quiet", *[str(a) for a in args]])
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    return code, capsys.readouterr().err
+run = run_cli_stderr
 
 
 def digest(folder: Path) -> dict[str, str]:

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _cli import run_cli_stderr
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from flightrecon.cli.main import main
 from flightrecon.errors import ValidationError
 from flightrecon.ingest import load_flight
 from flightrecon.ingest.physics import MIN_DURATION_S, MIN_INPUT_SAMPLES
@@ -31,13 +31,7 @@ def write(d: Path, name: str, df: pd.DataFrame, sidecar: str = "handmade") -> Pa
     return p
 
 
-def run(args, capsys) -> tuple[int, str]:
-    try:
-        main(["--quiet", *[str(a) for a in args]])
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    return code, capsys.readouterr().err
+run = run_cli_stderr
 
 
 def load_quiet(path, **kw):
