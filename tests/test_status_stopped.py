@@ -16,7 +16,12 @@ import pandas as pd
 import pytest
 
 from flightrecon.errors import ConvergenceError
-from flightrecon.methods.joint.settling import SETTLE_SD_FRACTION, settling, widened_track_sd
+from flightrecon.methods.joint.settling import (
+    SETTLE_SD_FRACTION,
+    settling,
+    settling_sentence,
+    widened_track_sd,
+)
 from flightrecon.pipeline.health import method_health
 from flightrecon.pipeline.status import FEEDS_DEFAULT, method_status
 from flightrecon.types import MethodResult
@@ -49,6 +54,22 @@ def test_a_contracting_run_is_bounded_by_its_geometric_tail():
     # the same movement against an sd a hundred times larger is within the tolerance
     s = settling(_run(shifts, last, sd_m=100.0))
     assert s["remaining_over_sd"] <= SETTLE_SD_FRACTION and s["verdict"] == "settled"
+
+
+def test_a_run_still_moving_by_more_than_its_sd_is_unbounded():
+    """The geometric tail is a bound only inside the region where the passes converge at the
+    rate seen: a contracting run whose last pass still moved a state by more than its sd (the
+    Citation reference flight recorder only: 8.5 km a pass, contracting by 0.991) is unbounded,
+    not given an sd of a thousand kilometres."""
+    shifts = [8000.0 * 0.99 ** i for i in range(10)]
+    s = settling(_run(shifts, np.array([shifts[-1]]), sd_m=30.0))
+    assert s["contraction"] == pytest.approx(0.99)
+    assert s["last_change_over_sd"] > 100.0
+    assert s["verdict"] == "unbounded" and "remaining_m" not in s
+    assert "far from where its passes converge" in settling_sentence(s)
+    # the same contraction once the passes move it by less than its sd: bounded
+    s = settling(_run([x / 1e4 for x in shifts], np.array([shifts[-1] / 1e4]), sd_m=30.0))
+    assert s["verdict"] in ("settled", "widened")
 
 
 def test_the_slowest_contraction_of_the_last_passes_bounds_it():
