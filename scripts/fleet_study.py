@@ -89,7 +89,7 @@ RATIO_BAR = {"canonical": 0.7, "ed112": 1.0}
 VERTICAL_BAR_M = 40.0
 
 
-def _interp_errors(track: pd.DataFrame, truth: pd.DataFrame, airborne: np.ndarray
+def interp_errors(track: pd.DataFrame, truth: pd.DataFrame, airborne: np.ndarray
                    ) -> dict[str, float]:
     """RMS horizontal and vertical errors and NEES of ``track`` (``joint_`` columns or bare)
     interpolated to the airborne truth samples inside its coverage."""
@@ -223,7 +223,7 @@ def one_run(airframe: str, scenario: str, overrides: dict, seed: int, tmp: Path)
         if j is None:
             row["joint"] = {"error": err}
         else:
-            row["joint"] = _interp_errors(j.track, truth, airborne)
+            row["joint"] = interp_errors(j.track, truth, airborne)
             h = method_health(j, clean)
             row["healthy"] = bool(h["healthy"])
             row["health_problems"] = [p["what"] for p in h["problems"]][:4]
@@ -239,7 +239,7 @@ def one_run(airframe: str, scenario: str, overrides: dict, seed: int, tmp: Path)
             row["ends"].update(_touchdown_truth(j.track, truth, r.sensor_truth["events"],
                                                 flight.meta, j.summary))
         d, err = _attempt(dead_reckoning, clean, corrected=True)
-        row["dr_linear"] = {"error": err} if d is None else _interp_errors(d, truth, airborne)
+        row["dr_linear"] = {"error": err} if d is None else interp_errors(d, truth, airborne)
         rows.append(row)
     return rows
 

@@ -34,7 +34,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from flightrecon.cleaning import clean_flight
@@ -44,33 +43,15 @@ from flightrecon.methods.baselines import dead_reckoning
 from flightrecon.pipeline import ReconstructSettings, run_method
 from flightrecon.sim import simulate, write_simulation
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from fleet_study import interp_errors as errors  # noqa: E402  (RMS and NEES at truth samples)
+
 CASES = (("c172p", "jsbsim-circuit", {}), ("pc7", "jsbsim-airwork", {}),
          ("c310", "jsbsim-xc", {"scale": 0.2}), ("737", "jsbsim-circuit", {}),
          ("t6texan2", "jsbsim-airwork", {}))
 """(aircraft, scenario, overrides): a light single, a turboprop and a twin, a jet, an aerobatic
 trainer's air work (the cross-country shortened as in the fleet study, docs/jsbsim.md)."""
-
-
-def errors(track: pd.DataFrame, truth: pd.DataFrame, sel: np.ndarray) -> dict[str, float]:
-    """RMS horizontal error [m] and mean NEES per horizontal axis of ``track`` (``joint_``
-    columns or bare) at the truth samples ``sel`` inside the track's span."""
-    p = "joint_" if "joint_north_m" in track.columns else ""
-    t = truth["t_s"].to_numpy()[sel]
-    tt = track["t_s"].to_numpy(float)
-
-    def at(col: str) -> np.ndarray:
-        return np.interp(t, tt, track[col].to_numpy(float))
-    en = at(f"{p}north_m") - truth["north_m"].to_numpy()[sel]
-    ee = at(f"{p}east_m") - truth["east_m"].to_numpy()[sel]
-    ok = (t >= tt[0]) & (t <= tt[-1]) & np.isfinite(en) & np.isfinite(ee)
-    out = {"rms_h_m": float(np.sqrt(np.mean(en[ok] ** 2 + ee[ok] ** 2))) if ok.any()
-           else math.nan}
-    if f"{p}north_sd_m" in track.columns:
-        sn, se = at(f"{p}north_sd_m"), at(f"{p}east_sd_m")
-        g = ok & (sn > 0) & (se > 0)
-        out["nees_n"] = float(np.mean((en[g] / sn[g]) ** 2))
-        out["nees_e"] = float(np.mean((ee[g] / se[g]) ** 2))
-    return out
 
 
 def gap_window(truth: pd.DataFrame, gap_s: float) -> tuple[float, float]:
