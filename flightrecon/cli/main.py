@@ -205,8 +205,16 @@ _first_signal: list[int] = []
 def _on_signal(signum: int, frame) -> None:
     """Raise :class:`Interrupted` in the main thread; while outputs are being published the
     signal waits (:func:`flightrecon.export.atomic.deferred_signals`); a second signal while
-    the first one's clean-up runs is ignored, so the clean-up is not cut short."""
+    the first one's clean-up runs is ignored, so the clean-up is not cut short.
+
+    A signal that lands on the import machinery's own frames (a module being imported at C
+    level, e.g. by a C callback) is not raised there, where the C caller would print it as a
+    bare traceback and go on: it is delivered again 50 ms later, once the import has moved
+    on (:func:`_redeliver`)."""
     if _first_signal:
+        return
+    if frame is not None and frame.f_code.co_filename.startswith("<frozen importlib"):
+        _redeliver(signum)
         return
     _first_signal.append(signum)
     raise Interrupted(signum)
@@ -220,15 +228,20 @@ def _on_unraisable(unraisable: Any) -> None:
     exc = unraisable.exc_value
     if isinstance(exc, Interrupted):
         _first_signal.clear()
-        timer = threading.Timer(0.05, signal.pthread_kill,
-                                (threading.main_thread().ident, exc.signum))
-        timer.daemon = True
-        timer.start()
+        _redeliver(exc.signum)
         return
     _previous_unraisablehook[0](unraisable)
 
 
 _previous_unraisablehook: list[Any] = [sys.unraisablehook]
+
+
+def _redeliver(signum: int, delay_s: float = 0.05) -> None:
+    """Send ``signum`` to the main thread again after ``delay_s`` (a daemon timer)."""
+    timer = threading.Timer(delay_s, signal.pthread_kill,
+                            (threading.main_thread().ident, signum))
+    timer.daemon = True
+    timer.start()
 
 
 def install_signal_handlers() -> dict[int, Any]:
