@@ -8,13 +8,11 @@ FOOT_M = 0.3048
 FPM_MPS = FOOT_M / 60.0
 HPA_PA = 100.0
 
-# WGS-84: the ellipsoid's defining parameters (flightrecon.geo.wgs84, equal to PROJ's; no heavy
-# import), its radii of curvature from one formula in flightrecon.geo.ellipsoid; geodesy itself
-# goes through pyproj
-from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2, WGS84_F  # noqa: E402
+# WGS-84: the ellipsoid's defining parameters are in flightrecon.geo.wgs84 (equal to PROJ's; no
+# heavy import), its radii of curvature from one formula in flightrecon.geo.ellipsoid; geodesy
+# itself goes through pyproj
 
 WGS84_OMEGA = 7.292115e-5
 """Earth rotation rate [rad/s] (WGS-84 defining constant)."""
 
-__all__ = ["FOOT_M", "FPM_MPS", "G0", "HPA_PA", "KNOT_MPS", "WGS84_A", "WGS84_E2", "WGS84_F",
-           "WGS84_OMEGA"]
+__all__ = ["FOOT_M", "FPM_MPS", "G0", "HPA_PA", "KNOT_MPS", "WGS84_OMEGA"]

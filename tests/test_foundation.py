@@ -105,7 +105,7 @@ def test_wgs84_parameters_equal_proj():
     import (so the ingest and ``info`` need no pyproj): they must equal PROJ's to the bit."""
     from pyproj.crs import Ellipsoid
 
-    from flightrecon.constants import WGS84_A, WGS84_E2, WGS84_F
+    from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2, WGS84_F
 
     e = Ellipsoid.from_name("WGS84")
     assert WGS84_A == float(e.semi_major_metre)

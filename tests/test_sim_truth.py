@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 from pyproj import Geod
 from scipy.integrate import quad, solve_ivp
 
-from flightrecon.constants import G0, WGS84_A, WGS84_E2
+from flightrecon.constants import G0
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 from flightrecon.geo.atmosphere import pressure_altitude_m
 from flightrecon.geo.frames import TangentPlane, geodetic_to_ecef, output_plane
 from flightrecon.sim import acceleration_from_loads, simulate

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from flightrecon.constants import WGS84_A, WGS84_E2, WGS84_F
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2, WGS84_F
 
 __all__ = ["GAMMA_EQUATOR", "GAMMA_POLE", "normal_gravity"]
 

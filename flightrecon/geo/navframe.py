@@ -20,10 +20,11 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flightrecon.constants import WGS84_A, WGS84_E2, WGS84_OMEGA
+from flightrecon.constants import WGS84_OMEGA
 from flightrecon.errors import ValidationError
 from flightrecon.geo.ellipsoid import radii_from_sin
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 
 __all__ = [
     "MAX_ABS_LAT_DEG",

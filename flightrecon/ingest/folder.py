@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from flightrecon.errors import InputFileError
-from flightrecon.ingest.readers import decode_text
+from flightrecon.ingest.encoding import decode_text
 
 __all__ = ["FOLDER_SUFFIXES", "read_folder"]
 

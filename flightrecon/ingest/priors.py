@@ -33,7 +33,7 @@ from flightrecon.errors import (
     SchemaError,
     ValidationError,
 )
-from flightrecon.ingest.readers import decode_text
+from flightrecon.ingest.encoding import decode_text
 from flightrecon.types import FlightMeta, PositionFix, WindLevel
 
 __all__ = ["DEFAULT_FIX_SD_M", "DEFAULT_WIND_SD_MPS", "check_fix_times", "parse_fix",

@@ -55,7 +55,7 @@ class ReconstructSettings:
         gaps")
     joint_priors : ``(error, mean, sd)`` priors of the joint smoother's sensor-error states
         (names of :data:`flightrecon.methods.joint.PRIOR_STATES`), e.g. an aircraft's fleet
-        calibration (:func:`flightrecon.store.fleet.fleet_settings`); replace ``joint.priors``
+        calibration (:func:`flightrecon.pipeline.fleet.fleet_settings`); replace ``joint.priors``
         when given
     strict : raise on the first method that fails, does not converge or is unhealthy
     keep_unhealthy : when no method is healthy, return (and let the CLI write) the unhealthy

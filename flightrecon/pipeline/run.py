@@ -28,6 +28,7 @@ from flightrecon.pipeline.coldstart import (
     load_first_kernel_early,
 )
 from flightrecon.pipeline.combine import combine
+from flightrecon.pipeline.fleet import fleet_settings, record_flight
 from flightrecon.pipeline.health import has_finite_track, method_health
 from flightrecon.pipeline.registry import (
     ALL_METHODS,
@@ -179,26 +180,6 @@ def default_order(clean: CleanFlight, results: dict[str, MethodResult],
 def _reasons(status: dict[str, Any]) -> str:
     return "; ".join(f"{m} {s.get('status')}" + (f" ({s['reason']})" if s.get("reason") else "")
                      for m, s in status.items())
-
-
-def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
-                   aircraft_id: str | None, at_utc: str | None = None,
-                   configuration: str | None = None
-                   ) -> tuple[ReconstructSettings, dict[str, Any]]:
-    """Settings with the aircraft's fleet calibration (the joint smoother's priors) and its
-    fleet-mean Sabziev coefficients (:func:`flightrecon.store.fleet.fleet_settings`)."""
-    from flightrecon.store.fleet import fleet_settings as _fleet_settings
-
-    return _fleet_settings(settings, store_path, aircraft_id, at_utc, configuration)
-
-
-def record_flight(store_path: str | Path | None, rec: Reconstruction,
-                  log: str | Path | None = None) -> dict[str, Any]:
-    """Record the flight's Sabziev fit and joint sensor calibration in the store
-    (:func:`flightrecon.store.fleet.record_flight`)."""
-    from flightrecon.store.fleet import record_flight as _record_flight
-
-    return _record_flight(store_path, rec, log)
 
 
 record_coefficients = record_flight  # the earlier name

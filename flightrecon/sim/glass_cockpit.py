@@ -299,7 +299,7 @@ def write_glass_cockpit(result: Any, path: str | Path, *, utc_offset_min: int = 
         The written paths by role (``export``, ``meta``).
     """
     from flightrecon.export.atomic import write_text_atomic
-    from flightrecon.sim.io import meta_toml, sibling
+    from flightrecon.sim.sidecar import meta_toml, sibling
 
     path = Path(path)
     ex = glass_cockpit_export(result.log, result.truth, result.meta,

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flightrecon.constants import WGS84_A, WGS84_E2
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 from flightrecon.errors import ValidationError
 from flightrecon.geo.frames import offset_latlon
 from flightrecon.sim.autopilot import GAINS, Autopilot, leg_geometry, wrap180

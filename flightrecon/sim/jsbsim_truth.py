@@ -34,7 +34,8 @@ from flightrecon.sim.jsbsim_scenarios import (
     schedule,
 )
 from flightrecon.sim.recorder import record_log
-from flightrecon.sim.scenarios import json_ready
+from flightrecon.sim.result import SimResult
+from flightrecon.sim.scenario_sensors import json_ready
 from flightrecon.sim.sensors import (
     AirspeedSensor,
     AttitudeSensor,
@@ -129,8 +130,6 @@ def simulate_jsbsim(name: str, seed: int = 0, **overrides: Any):
     FlightReconError
         When the ``jsbsim`` package is not installed.
     """
-    from flightrecon.sim.scenarios import SimResult
-
     cfg = jsbsim_config(name, **overrides)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValidationError(f"the seed must be a non-negative integer, got {seed!r}")

@@ -41,6 +41,7 @@ from flightrecon.sim.routes import (  # noqa: F401 - ARP_OFFSET_M, circuit_touch
     circuit_touchdown_m,
 )
 from flightrecon.sim.scenario_sensors import json_ready, scenario_sensor_models, scenario_sensor_truth
+from flightrecon.sim.result import SimResult
 from flightrecon.sim.sensors import Faults, gauss_markov, wrap360
 from flightrecon.sim.trajectory import FlightPlan, simulate_truth
 from flightrecon.sim.weather import Atmosphere, WindField, qnh_hpa
@@ -55,24 +56,6 @@ __all__ = [
     "simulate",
     "simulate_fleet",
 ]
-
-@dataclass(frozen=True, eq=False)
-class SimResult:
-    """A simulated flight.
-
-    Attributes
-    ----------
-    log : recorded multi-rate log, canonical columns (what an estimator gets)
-    truth : truth on the uniform truth grid (``t_s`` first; see docs/simulator.md)
-    meta : flight metadata (what the sidecar carries)
-    sensor_truth : persistent sensor errors, weather, events, injected faults (JSON-able)
-    """
-
-    log: pd.DataFrame
-    truth: pd.DataFrame
-    meta: FlightMeta
-    sensor_truth: dict[str, Any]
-
 
 @dataclass(frozen=True)
 class _Scenario:

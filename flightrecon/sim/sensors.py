@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 from scipy.signal import lfilter
 
-from flightrecon.constants import WGS84_A, WGS84_E2
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 from flightrecon.errors import ValidationError
 from flightrecon.geo.frames import TangentPlane
 from flightrecon.sim.kinematics import dcm_body_to_ned

@@ -36,7 +36,7 @@ import numba
 import numpy as np
 import pandas as pd
 
-from flightrecon.constants import WGS84_A, WGS84_E2
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 from flightrecon.errors import ValidationError
 from flightrecon.geo.atmosphere import pressure_altitude_m
 from flightrecon.geo.frames import TangentPlane

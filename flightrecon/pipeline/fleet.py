@@ -1,7 +1,8 @@
 """What the store gives a reconstruction and takes from it (docs/store.md): the aircraft's
 fleet calibration and coefficients as settings (:func:`fleet_settings`), and the record of a
-reconstructed flight (:func:`record_flight`).  The pipeline calls these; they live here so that
-the store's rules stay in one package."""
+reconstructed flight (:func:`record_flight`).  The pipeline's side of the store: the store
+(:mod:`flightrecon.store`) keeps and averages, this module turns its figures into settings
+and a reconstruction into its records."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 from flightrecon.errors import MetadataError
 
 if TYPE_CHECKING:
-    from flightrecon.pipeline import Reconstruction, ReconstructSettings
+    from flightrecon.pipeline.registry import Reconstruction, ReconstructSettings
 
 
 def fleet_settings(settings: ReconstructSettings, store_path: str | Path | None,
