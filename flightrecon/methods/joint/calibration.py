@@ -388,8 +388,8 @@ def calibrate_gaps(problem: JointProblem, run: JointRun
 
 def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
     """The PSD ``r`` of the loads' velocity random walk where a record sampled slower than
-    its accelerations (:func:`sampled_loads_noise` set) has the loads as the wind's only
-    witness, else 0 [m^2/s^3].
+    its accelerations (:func:`~flightrecon.methods.joint.problem.sampled_loads_noise` set)
+    has the loads as the wind's only witness, else 0 [m^2/s^3].
 
     Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the
     smoother learns the wind's change only as the ground velocity's change from the loads

@@ -72,7 +72,8 @@ class JointInputs:
         ``qv_extra``; a derived ``n_long_g`` where the airspeed comes alive: larger,
         :func:`airspeed_floor_psd`)
     end_points : where and when the record is tied to its airfields (:class:`EndPoint`,
-        :func:`end_points`), built once by :func:`joint_inputs`; empty: none
+        :func:`end_points`), built once by
+        :func:`~flightrecon.methods.joint.problem.joint_inputs`; empty: none
     """
 
     t_in: np.ndarray
@@ -261,8 +262,9 @@ def runway_end(inp: JointInputs, nz: JointNoise, which: str, t_run: float,
 
 def end_points(inp: JointInputs, nz: JointNoise) -> tuple[EndPoint, ...]:
     """The end-point constraints: where and when the record is tied to its airfields (built
-    once with the inputs, :func:`joint_inputs`; the smoother moves the runway departure's
-    time with its refined take-off roll, :func:`end_points_at`).
+    once with the inputs, :func:`~flightrecon.methods.joint.problem.joint_inputs`; the
+    smoother moves the runway departure's time with its refined take-off roll,
+    :func:`end_points_at`).
 
     With a runway's threshold and direction known: :func:`runway_end` (the departure at the
     start of the take-off roll ``inp.roll``, the arrival at touchdown).  Otherwise the

@@ -290,7 +290,8 @@ def recorded_channels(g: pd.DataFrame, meta: FlightMeta, lat_deg: float) -> dict
 
 def joint_inputs(clean: CleanFlight, noise: JointNoise | None = None) -> JointInputs:
     """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base), with the
-    take-off roll and the end points (:func:`end_points`, under ``noise``: the settings'
+    take-off roll and the end points
+    (:func:`~flightrecon.methods.joint.inputs.end_points`, under ``noise``: the settings'
     ``JointNoise``, the defaults where not given)."""
     meta = clean.meta
     # the departure, or without one the frame origin from the first fix (cleaning/origin.py)
@@ -388,8 +389,9 @@ def output_frame(clean: CleanFlight) -> OutputFrame:
 
 def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> JointProblem:
     """The joint smoother's problem on ``clean`` (:class:`JointProblem`): the settings the
-    flight's channels call for (:func:`derived_heading_noise`, :func:`derived_long_priors`,
-    :func:`derived_lat_noise`), the inputs with their end points
+    flight's channels call for (:mod:`~flightrecon.methods.joint.settings`:
+    ``derived_heading_noise``, ``derived_long_priors``, ``derived_lat_noise``), the inputs
+    with their end points
     (:func:`~flightrecon.methods.joint.inputs.joint_inputs`), then the settings the inputs
     call for (:func:`resolved_settings`); every choice with its evidence."""
     given = settings or JointSettings()
