@@ -341,10 +341,8 @@ def choices_between(before: JointSettings, after: JointSettings,
 
 #: why each data-driven setting was chosen (the evidence it reads)
 WHY = {
-    "heading": "a heading propagated from the body rates: the grid's heading_sd_deg (its "
-               "largest and its growth over the record)",
-    "long": "n_long_g derived from airspeed and pitch at ingest (its errors are the missed "
-            "angle of attack and along-track wind, not a sensor's)",
+    "heading": "a heading propagated from the body rates: the grid's heading_sd_deg",
+    "long": "n_long_g derived from airspeed and pitch at ingest: not a sensor's errors",
     "lat": "n_lat_g assumed (coordinated flight) at ingest: its missed side force",
     "sampling": "the loads' airborne sample-to-sample differences (a slow record)",
     "sat": "the recorded static air temperature's deviation from the ISA (airborne)",
