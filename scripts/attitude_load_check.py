@@ -61,7 +61,7 @@ def windows(data: Path, flight: str, window_s: float, start_s: float | None = No
     of ``flightrecon/methods/joint/tilt.py``)."""
     from flightrecon.cleaning import CleaningSettings, clean_flight
     from flightrecon.ingest import load_flight
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.problem import joint_inputs
 
     folder = data if flight == "ref" else data / "Our-data"
     df, stems = rs.analyst_table(folder)

@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mc_joint import errors, noise_from_sensors  # noqa: E402
 from table_header import command_line  # noqa: E402
 
-import flightrecon.methods.joint.flight_inputs as jm  # noqa: E402
+import flightrecon.methods.joint.problem as jm  # noqa: E402
 from flightrecon.cleaning import clean_flight  # noqa: E402
 from flightrecon.ingest.api import load_flight  # noqa: E402
 from flightrecon.methods.joint import JointSettings  # noqa: E402

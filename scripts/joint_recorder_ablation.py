@@ -51,6 +51,7 @@ from realexport_study import GROUND_MPS, REALDATA, _load, ground_ends  # noqa: E
 from table_header import header  # noqa: E402
 
 import flightrecon.methods.joint.method as joint_method  # noqa: E402
+import flightrecon.methods.joint.problem as joint_problem  # noqa: E402
 from flightrecon.geo.geoid import undulation_m  # noqa: E402
 from flightrecon.ingest.gnss_use import GnssUse  # noqa: E402
 from flightrecon.methods.joint.settings import JointNoise, JointSettings  # noqa: E402
@@ -88,10 +89,10 @@ def stand_fixes(flight: Any, sd_m: float = 10.0) -> list[str]:
 
 def with_gps_loads(ref: pd.DataFrame):
     """``joint_inputs`` with the airborne horizontal acceleration taken from the GPS velocity."""
-    base = joint_method.joint_inputs
+    base = joint_problem.joint_inputs
 
-    def inputs(clean: Any) -> Any:
-        inp = base(clean)
+    def inputs(clean: Any, noise: Any = None) -> Any:
+        inp = base(clean, noise)
         t = ref.t_s.to_numpy(float)
         a = np.gradient(np.c_[ref.vn, ref.ve], t, axis=0)
         ti = inp.t_in
@@ -208,16 +209,16 @@ def run_case(log: Path, name: str, case: dict[str, Any], flight: Any, ref_flight
     ref = gps_reference(ref_flight, clean)
     settings = replace(JointSettings(), noise=replace(JointNoise(), **case.get("noise", {})),
                        **case.get("settings", {}))
-    base = joint_method.joint_inputs
+    base = joint_problem.joint_inputs
     if case.get("gps_loads"):
-        base, joint_method.joint_inputs = with_gps_loads(ref)
+        base, joint_problem.joint_inputs = with_gps_loads(ref)
     t0 = time.perf_counter()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             j = joint_method.run_joint(clean, settings=settings)
     finally:
-        joint_method.joint_inputs = base
+        joint_problem.joint_inputs = base
     tr = j.track
     dn = np.interp(ref.t_s, tr.t_s, tr.joint_north_m) - ref.n
     de = np.interp(ref.t_s, tr.t_s, tr.joint_east_m) - ref.e

@@ -23,9 +23,9 @@ from flightrecon.methods.joint import smoother as sm
 from flightrecon.methods.joint import updates as upd
 from flightrecon.methods.joint.cost import map_cost, robust_loss
 from flightrecon.methods.joint.dynamics import add_process_noise, transition
-from flightrecon.methods.joint.flight_inputs import joint_inputs
 from flightrecon.methods.joint.method import run_joint
 from flightrecon.methods.joint.observation import measure
+from flightrecon.methods.joint.problem import joint_inputs
 from flightrecon.types import Flight
 
 mc = load_script("mc_joint")

@@ -1,4 +1,4 @@
-"""Held-out calibration of the position sd inside GNSS gaps (methods/joint/gap_calibration.py;
+"""Held-out calibration of the position sd inside GNSS gaps (methods/joint/calibration.py;
 docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches")."""
 
 from __future__ import annotations
@@ -10,13 +10,14 @@ import pandas as pd
 import pytest
 from scipy.stats import chi2
 
-from flightrecon.methods.joint.gap_calibration import (
+from flightrecon.methods.joint.calibration import (
     apply_factor,
     calibration_factor,
     gnss_gaps,
     pseudo_gaps,
     stretch_nees,
 )
+from flightrecon.methods.joint.problem import JointProblem
 
 BOUNDS = (1e-3, 1e3)
 
@@ -195,7 +196,7 @@ def _circuit_with_a_gap():
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
     from flightrecon.ingest.gnss_use import GnssUse
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.problem import joint_inputs
     from flightrecon.methods.joint.settings import JointSettings
     from flightrecon.methods.joint.smoother import smooth_joint
 
@@ -211,7 +212,7 @@ def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
     """The held-out smoothing is a second estimate of the same flight: its numerical breakdown
     must not fail the joint smoother's result.  The run comes back unchanged, without a factor,
     with the reason (run_joint then warns that the gaps' sd is the model's)."""
-    from flightrecon.methods.joint import gap_calibration as gcal
+    from flightrecon.methods.joint import calibration as gcal
 
     inp, settings, run = _circuit_with_a_gap()
 
@@ -219,7 +220,7 @@ def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
         raise np.linalg.LinAlgError("singular held-out covariance")
 
     monkeypatch.setattr(gcal, "heldout_smoothing", broken)
-    out, report = gcal.calibrate_gaps(inp, settings, run)
+    out, report = gcal.calibrate_gaps(JointProblem(inp, settings), run)
     assert out is run
     assert report["factor"] is None and "singular held-out covariance" in report["note"]
 
@@ -233,11 +234,12 @@ def test_the_warm_started_held_out_smoothing_gives_the_whole_iterations_factor()
     within 0.3 %; docs/joint.md, "GNSS gaps"), in no more passes than the whole iteration."""
     from dataclasses import replace as dc_replace
 
-    from flightrecon.methods.joint import gap_calibration as gcal
+    from flightrecon.methods.joint import calibration as gcal
 
     inp, settings, run = _circuit_with_a_gap()
-    _, warm = gcal.calibrate_gaps(inp, settings, run)
-    _, cold = gcal.calibrate_gaps(inp, dc_replace(settings, gap_heldout_passes=0), run)
+    _, warm = gcal.calibrate_gaps(JointProblem(inp, settings), run)
+    _, cold = gcal.calibrate_gaps(JointProblem(inp, dc_replace(settings, gap_heldout_passes=0)),
+                                  run)
     assert warm is not None and cold is not None
     assert warm["factor"] is not None and cold["factor"] is not None
     assert warm["stretches_s"] == cold["stretches_s"]
@@ -255,7 +257,7 @@ def test_the_held_out_smoothing_reuses_the_runs_fixed_parts_to_the_bit():
     from dataclasses import replace as dc_replace
 
     from flightrecon.methods.joint import smoother as sm
-    from flightrecon.methods.joint.gap_calibration import heldout_smoothing
+    from flightrecon.methods.joint.calibration import heldout_problem, heldout_smoothing
 
     inp, settings, run = _circuit_with_a_gap()
     assert run.flight is not None
@@ -270,8 +272,12 @@ def test_the_held_out_smoothing_reuses_the_runs_fixed_parts_to_the_bit():
         is not run.flight.Cnb
     assert sm._flight_like(run.flight, dc_replace(inp_h, tas=inp.tas.copy()), s_h).Cnb \
         is not run.flight.Cnb
-    warm = heldout_smoothing(inp_h, settings, run)
-    fresh = heldout_smoothing(inp_h, settings, dc_replace(run, flight=None))
+    keep = np.zeros(len(inp.gnss), bool)
+    keep[::2] = True
+    problem_h = heldout_problem(JointProblem(inp, settings), keep, run)
+    assert problem_h.inputs.gnss.equals(inp_h.gnss)
+    warm = heldout_smoothing(problem_h, run)
+    fresh = heldout_smoothing(problem_h, dc_replace(run, flight=None))
     assert np.array_equal(warm.x, fresh.x) and np.array_equal(warm.var, fresh.var)
 
 

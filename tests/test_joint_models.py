@@ -163,7 +163,7 @@ def test_mean_only_backward_pass_gives_the_covariance_pass_states():
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
     from flightrecon.methods.joint import JointSettings, smooth_joint
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.problem import joint_inputs
 
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
     run = smooth_joint(joint_inputs(clean_flight(load_flight(log))), JointSettings(iterations=1))
@@ -285,7 +285,7 @@ def captured_passes():
     import flightrecon.methods.joint as J
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.problem import joint_inputs
 
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
     inp = joint_inputs(clean_flight(load_flight(log)))
@@ -339,7 +339,7 @@ def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypat
     import flightrecon.methods.joint as J
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.problem import joint_inputs
 
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
     inp = joint_inputs(clean_flight(load_flight(log)))
@@ -799,7 +799,7 @@ def test_a_wind_that_turns_faster_than_its_random_walk_is_named():
 
 
 def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
-    """Guards the wind walk's rounds (joint_method._wind_walk_rounds): the turning wind of the
+    """Guards the wind walk's rounds (calibration.wind_walk_rounds): the turning wind of the
     test above, chi-square 106 on its worst 10-minute window against the default walk, gets
     the walk 0.05 sqrt(106 / 2) = 0.364 m/s/sqrt(s) in one round, after which the same wind
     is a typical one (chi-square 2.0); a steady wind keeps the default and no round; with
@@ -809,7 +809,10 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     from dataclasses import replace
     from types import SimpleNamespace
 
-    import flightrecon.methods.joint.data_settings as jm
+    import pandas as pd
+
+    import flightrecon.methods.joint.calibration as jm
+    from flightrecon.methods.joint.problem import JointProblem
     from flightrecon.methods.joint.settings import JointSettings
     from flightrecon.track_evidence import Evidence, dr_walk
 
@@ -824,14 +827,22 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     turning = fake_run(22.0 * np.c_[np.cos(ang), np.sin(ang)])
     calls = []
     monkeypatch.setattr(jm, "smooth_joint", lambda inp, s: calls.append(s) or turning)
-    run, s, rounds = jm.wind_walk_rounds(None, JointSettings(), turning)
+    stand_in = SimpleNamespace(gnss=pd.DataFrame(), radar=pd.DataFrame(), fixes=None,
+                               wind_ne=None, doppler_gs=None, wind_aloft=None,
+                               liftoff_t=np.nan, touchdown_t=np.nan)
+
+    def problem(settings):
+        return JointProblem(stand_in, settings)  # type: ignore[arg-type]
+    adjusted, run, rounds = jm.wind_walk_rounds(problem(JointSettings()), turning)
+    s = adjusted.settings
     chord = 2 * 22.0 * np.sin(np.radians(100.0 / 6))
     z2 = chord ** 2 / (0.05 ** 2 * 600.0)
     assert len(rounds) == 1 and len(calls) == 1 and rounds[0]["z2"] == pytest.approx(z2)
     assert s.noise.wind_rw_mps_sqrt_s == pytest.approx(0.05 * np.sqrt(z2 / 2.0))
     steady = fake_run(np.tile([5.0, -3.0], (n, 1)))
-    assert jm.wind_walk_rounds(None, JointSettings(), steady)[2] == []
-    assert jm.wind_walk_rounds(None, replace(JointSettings(), wind_rounds=0), turning)[2] == []
+    assert jm.wind_walk_rounds(problem(JointSettings()), steady)[2] == []
+    assert jm.wind_walk_rounds(problem(replace(JointSettings(), wind_rounds=0)), turning)[2] == []
+    assert [c.setting for c in adjusted.choices] == ["noise.wind_rw_mps_sqrt_s"]
     res = SimpleNamespace(summary={"wind_walk": {"wind_rw_mps_sqrt_s": 0.364,
                                                  "rounds": rounds}})
     assert dr_walk(res, Evidence()) == pytest.approx(0.728)
@@ -962,8 +973,8 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
 
 def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeypatch):
     """Guards the wind-walk check where the loads are the wind's only witness
-    (diagnostics.wind_walk_check with ``loads_psd_m2ps3``, joint_method.inertial_wind_share,
-    joint_method._wind_walk_rounds): 4 m/s turning 100 deg in 30 minutes, a 10-minute chord
+    (diagnostics.wind_walk_check with ``loads_psd_m2ps3``, calibration.inertial_wind_share,
+    calibration.wind_walk_rounds): 4 m/s turning 100 deg in 30 minutes, a 10-minute chord
     of 2.29 m/s, passes the bound (chi-square 3.5 against the walk's 1.5 m^2/s^2) but a 1 Hz
     record's loads (sampling 0.28 m/s^2/sqrt(Hz) per axis: r = 0.0809 m^2/s^3, r L = 48.5)
     let a smoother see only the share Q / (Q + r L) = 0.030 of a change, so the same smoothed
@@ -977,8 +988,9 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
 
     import pandas as pd
 
-    import flightrecon.methods.joint.data_settings as jm
+    import flightrecon.methods.joint.calibration as jm
     from flightrecon.methods.joint.diagnostics import wind_walk_check
+    from flightrecon.methods.joint.problem import JointProblem
     from flightrecon.methods.joint.settings import JointSettings
 
     t = np.arange(0.0, 2400.0, 1.0)
@@ -1017,7 +1029,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
 
     calls = []
     monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s: calls.append(s) or turning)
-    run, s, rounds = jm.wind_walk_rounds(inp, one_hz, turning)
+    _, run, rounds = jm.wind_walk_rounds(JointProblem(inp, one_hz), turning)  # type: ignore[arg-type]
     q1 = (z2 * (Q + r * 600.0) / limit - r * 600.0) / 600.0
     assert rounds[0]["z2"] == pytest.approx(z2, rel=1e-9)
     assert calls[0].noise.wind_rw_mps_sqrt_s == pytest.approx(np.sqrt(q1), rel=1e-9)

@@ -34,9 +34,12 @@ from flightrecon.geo.pressure_height import MIN_SAT_SAMPLES
 from flightrecon.methods.joint import JointSettings
 from flightrecon.methods.joint import dynamics as jd
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.data_settings import sampled_loads_noise, temperature_baro_prior
-from flightrecon.methods.joint.flight_inputs import baro_field_reference_m
 from flightrecon.methods.joint.nominal import q_vector
+from flightrecon.methods.joint.problem import (
+    baro_field_reference_m,
+    sampled_loads_noise,
+    temperature_baro_prior,
+)
 from flightrecon.methods.joint.settings import JointNoise
 from flightrecon.types import FlightMeta, Position
 
@@ -169,7 +172,7 @@ def test_derived_long_load_is_not_used_where_the_airspeed_comes_alive():
     654 s): the derived n_long_g's +-3 s difference spans the jump on the 6 samples from 3 s
     before the first live reading to 2 s after it, and at the landing roll's end likewise;
     nowhere else (at rest, all dead; in flight, all alive)."""
-    from flightrecon.methods.joint.flight_inputs import airspeed_floor_windows
+    from flightrecon.methods.joint.inputs import airspeed_floor_windows
     t = np.arange(0.0, 100.0)
     tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))
     tas[80:] = 0.0
@@ -186,7 +189,7 @@ def test_the_airspeed_floor_window_leaves_the_roll_s_speed_unknown():
     the take-off, 0 at the landing roll's end: the floor 1), W its 6 s: the velocity change
     across it is then unknown by about V (sqrt(PSD W) = V) instead of the 2.4 m/s of the
     default 1 (m/s^2)^2/Hz; 1 elsewhere."""
-    from flightrecon.methods.joint.flight_inputs import airspeed_floor_psd, airspeed_floor_windows
+    from flightrecon.methods.joint.inputs import airspeed_floor_psd, airspeed_floor_windows
 
     t = np.arange(0.0, 100.0)
     tas = np.where(t < 10, 0.0, 14.9 + 1.5 * (t - 10))

@@ -196,9 +196,8 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
     import pandas as pd
 
     from flightrecon.cleaning import clean_flight
-    from flightrecon.methods.joint import end_points
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
     from flightrecon.methods.joint.method import run_joint
+    from flightrecon.methods.joint.problem import joint_inputs
     from flightrecon.types import Flight
 
     ratios, rests = [], 0
@@ -206,17 +205,17 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
         r = mc.make_flight("recorder", seed)
         clean = clean_flight(Flight(data=r.log, meta=r.meta))
         nz = mc.noise_from_sensors(r.sensor_truth)
-        inp = joint_inputs(clean)
-        ends = {e["which"]: e for e in end_points(inp, nz)}
-        assert ends["departure"]["model"] == ends["arrival"]["model"] == "runway"
-        assert ends["departure"]["point"][:2] == pytest.approx(r.meta.departure.threshold,
-                                                               abs=1e-9)
+        inp = joint_inputs(clean, nz)
+        ends = {e.which: e for e in inp.end_points}
+        assert ends["departure"].model == ends["arrival"].model == "runway"
+        assert ends["departure"].point[:2] == pytest.approx(r.meta.departure.threshold,
+                                                            abs=1e-9)
         # the touchdown from the recorded flare (inputs.float_touchdown), its sd the screen
         # crossing's scatter and the runway wind over the float
-        fl = ends["arrival"]["flare"]
-        assert ends["arrival"]["sd_m"][0] == pytest.approx(
-            np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * fl["float_s"]), rel=1e-12)
-        assert ends["arrival"]["point"][:2] != pytest.approx(r.meta.arrival.threshold, abs=1e-6)
+        fl = ends["arrival"].flare
+        assert fl is not None and ends["arrival"].sd_m[0] == pytest.approx(
+            np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * fl.float_s), rel=1e-12)
+        assert ends["arrival"].point[:2] != pytest.approx(r.meta.arrival.threshold, abs=1e-6)
         settings = mc.JointSettings(noise=nz)
         j = run_joint(clean, settings=settings)
         # the simulated circuit stands lined up, then rolls (slow spool-up: 2-4 m/s after
@@ -239,13 +238,13 @@ def test_runway_thresholds_place_the_end_points_along_the_runway():
         meta = replace(r.meta, departure=replace(r.meta.departure, **bare),
                        arrival=replace(r.meta.arrival, **bare))
         clean0 = clean_flight(Flight(data=r.log, meta=meta))
-        assert {e["model"] for e in end_points(joint_inputs(clean0), nz)} == {"reference"}
+        assert {e.model for e in joint_inputs(clean0, nz).end_points} == {"reference"}
         j0 = run_joint(clean0, settings=settings)
         air = ~r.truth["on_ground"].to_numpy(bool)
         ratios.append(mc.errors(j.track, "joint_", r.truth, air)["rms_h_m"]
                       / mc.errors(j0.track, "joint_", r.truth, air)["rms_h_m"])
         m = pd.DataFrame({"t_s": r.truth["t_s"]}).merge(j.track, on="t_s", how="left")
-        for t_end in (ends["departure"]["t_s"], ends["arrival"]["t_s"]):
+        for t_end in (ends["departure"].t_s, ends["arrival"].t_s):
             i = int(np.searchsorted(r.truth["t_s"], t_end))
             for c in ("north", "east"):
                 err = m[f"joint_{c}_m"].iloc[i] - r.truth[f"{c}_m"].iloc[i]
@@ -273,7 +272,7 @@ def test_missing_attitude_is_held_and_reported_not_zero():
     from dataclasses import replace
 
     from flightrecon.geo.kinematics import body_to_ned_matrix
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.problem import joint_inputs
 
     clean = _circuit_clean()
     g = clean.grid.copy()
@@ -298,7 +297,7 @@ def test_joint_inputs_need_the_departure_for_gravity():
 
     from flightrecon.errors import MetadataError
     from flightrecon.geo.kinematics import kinematic_acceleration_ned
-    from flightrecon.methods.joint.flight_inputs import joint_inputs
+    from flightrecon.methods.joint.problem import joint_inputs
 
     clean = _circuit_clean()
     with pytest.raises(MetadataError, match="departure"):
@@ -344,10 +343,11 @@ def test_float_touchdown_integrates_the_airspeed_from_the_screen_height():
         f = float_touchdown(inp, nz)
         t_glide = (nz.screen_height_m - 3.0) / (70.0 * np.tan(np.radians(3.0)))
         # the 1 s running mean and the 0.25 s grid: the crossing within one sample
-        assert f["float_s"] == pytest.approx(float_s + t_glide, abs=0.3)
-        assert f["touchdown_m"] == pytest.approx(70.0 * (float_s + t_glide), abs=70.0 * 0.3)
-        assert f["sd_m"] == pytest.approx(
-            np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * f["float_s"]), rel=1e-12)
+        assert f is not None
+        assert f.float_s == pytest.approx(float_s + t_glide, abs=0.3)
+        assert f.touchdown_m == pytest.approx(70.0 * (float_s + t_glide), abs=70.0 * 0.3)
+        assert f.sd_m == pytest.approx(
+            np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * f.float_s), rel=1e-12)
     # no pressure altitude: the fixed touchdown_m (no flare measured)
     inp, _ = _approach_inputs(5.0, with_baro=False)
     assert float_touchdown(inp, nz) is None

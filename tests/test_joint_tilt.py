@@ -12,8 +12,8 @@ import pytest
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.ingest import load_flight
-from flightrecon.methods.joint.flight_inputs import joint_inputs
 from flightrecon.methods.joint.linearisation import smoother_flight
+from flightrecon.methods.joint.problem import joint_inputs
 from flightrecon.methods.joint.settings import JointNoise, JointSettings
 from flightrecon.methods.joint.tilt import load_departure_g, remembered, tilt_psd
 

@@ -105,7 +105,7 @@ def test_an_airline_decode_with_the_normal_load_alone_reads_through_its_mapping(
 def test_the_joint_smoother_widens_its_loads_noise_for_the_assumed_lateral_load(tmp_path):
     from flightrecon.cleaning import clean_flight
     from flightrecon.methods.joint import JointSettings
-    from flightrecon.methods.joint.data_settings import (
+    from flightrecon.methods.joint.settings import (
         DERIVED_LAT_ACCEL_NOISE,
         derived_lat_noise,
     )

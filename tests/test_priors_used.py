@@ -19,10 +19,9 @@ from flightrecon.geo.frames import offset_latlon
 from flightrecon.geo.wind import wind_aloft_ne
 from flightrecon.methods.baselines import dead_reckoning
 from flightrecon.methods.joint import JointNoise, JointSettings
-from flightrecon.methods.joint.flight_inputs import joint_inputs
-from flightrecon.methods.joint.inputs import end_points
 from flightrecon.methods.joint.measurements import wind_prior_measurements
 from flightrecon.methods.joint.method import run_joint
+from flightrecon.methods.joint.problem import joint_inputs
 from flightrecon.types import Flight, PositionFix, WindLevel
 
 SAMPLES = __import__("pathlib").Path(__file__).resolve().parents[1] / "sample_logs"
@@ -111,11 +110,11 @@ def test_airborne_end_is_the_last_position_with_its_sd():
     with pytest.warns(FlightReconWarning, match="the record ends fast"):
         clean = clean_flight(Flight(data=log, meta=replace(r.meta, arrival=last)))
     assert clean.phases.ends_airborne
-    inp = joint_inputs(clean)
     nz = JointNoise()
-    arr = [e for e in end_points(inp, nz) if e["which"] == "arrival"][0]
-    assert arr["model"] == "last_position" and arr["t_s"] == inp.t_in[-1]
-    assert arr["sd_m"] == (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)
+    inp = joint_inputs(clean, nz)
+    arr = [e for e in inp.end_points if e.which == "arrival"][0]
+    assert arr.model == "last_position" and arr.t_s == inp.t_in[-1]
+    assert arr.sd_m == (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)
     res = run_joint(clean)
     end = res.track.iloc[-1]
     t_end = float(end["t_s"])

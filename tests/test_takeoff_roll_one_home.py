@@ -19,7 +19,7 @@ import pytest
 from flightrecon.cleaning import clean_flight, ground_roll, phases
 from flightrecon.ingest import load_flight
 from flightrecon.methods import joint
-from flightrecon.methods.joint.flight_inputs import joint_inputs
+from flightrecon.methods.joint.problem import joint_inputs
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 

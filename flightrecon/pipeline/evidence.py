@@ -84,7 +84,7 @@ def _fix_checks(name: str, res: MethodResult, clean: CleanFlight) -> list[Check]
 
 def _gap_checks(res: MethodResult) -> list[Check]:
     """The joint smoother's held-out GNSS stretches (its gap calibration,
-    flightrecon/methods/joint/gap_calibration.py): the RMS miss of each stretch's withheld
+    flightrecon/methods/joint/calibration.py): the RMS miss of each stretch's withheld
     fixes and the root of its largest mean NEES per axis with the calibrated sd."""
     gc = res.summary.get("gap_calibration") or {}
     rms = gc.get("heldout_rms_m") or []

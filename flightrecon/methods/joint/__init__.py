@@ -2,7 +2,9 @@
 
 The state, its propagation by the kinematic accelerations from load factors and attitude, and
 the measurement models are in :mod:`flightrecon.methods.joint.layout` and the compiled kernels
-beside it.  This package builds their inputs from a cleaned flight, runs the forward filter
+beside it.  This package builds the problem once from a cleaned flight
+(:mod:`~flightrecon.methods.joint.problem`: the inputs, the end points, the settings the data
+call for), runs the forward filter
 and the RTS backward pass, and iterates (Gauss-Newton about the smoothed trajectory) with
 
 * the linearisation refreshed on the smoothed trajectory (nominal positions through pyproj);
@@ -29,9 +31,11 @@ from __future__ import annotations
 
 from flightrecon.methods.joint.diagnostics import source_report
 from flightrecon.methods.joint.inputs import (
+    EndPoint,
     JointInputs,
     TakeoffRoll,
     end_points,
+    end_points_at,
     enu_to_ecef_matrix,
     refined_roll,
     takeoff_roll,
@@ -43,6 +47,12 @@ from flightrecon.methods.joint.measurements import (
 )
 from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik
 from flightrecon.methods.joint.nominal import attitude_jacobian, relinearised_increments
+from flightrecon.methods.joint.problem import (
+    JointProblem,
+    SettingChoice,
+    joint_inputs,
+    joint_problem,
+)
 from flightrecon.methods.joint.settings import (
     POSITIVE_NOISE,
     PRIOR_STATES,
@@ -55,8 +65,9 @@ from flightrecon.methods.joint.smoother import JointRun, smooth_joint
 
 __all__ = [
     "SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
-    "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "takeoff_roll", "refined_roll",
-    "end_points", "attitude_jacobian", "relinearised_increments", "Measurements",
+    "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "joint_inputs", "takeoff_roll",
+    "refined_roll", "EndPoint", "end_points", "end_points_at", "JointProblem", "SettingChoice",
+    "joint_problem", "attitude_jacobian", "relinearised_increments", "Measurements",
     "static_measurements", "build_measurements", "NOISE_GROUPS", "innovation_loglik", "JointRun",
     "smooth_joint", "source_report",
 ]

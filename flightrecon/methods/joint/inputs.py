@@ -1,10 +1,13 @@
-"""Inputs of the joint smoother: :class:`JointInputs`, the take-off roll refined with the
-smoothed lift-off speed (the detection itself:
-:func:`flightrecon.cleaning.ground_roll.takeoff_roll`) and the end points."""
+"""What the joint smoother reads (:class:`JointInputs`, read from a cleaned flight by
+:func:`flightrecon.methods.joint.problem.joint_inputs`): its end points (:class:`EndPoint`,
+built once with the inputs), the take-off roll (the detection itself:
+:func:`flightrecon.cleaning.ground_roll.takeoff_roll`; from the flight phases:
+:func:`phases_roll`; refined with the smoothed lift-off speed: :func:`refined_roll`) and the
+airspeed-floor windows of a derived ``n_long_g``."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -14,6 +17,7 @@ from flightrecon.cleaning.ground_roll import TakeoffRoll, takeoff_roll
 from flightrecon.geo.frames import offset_latlon
 from flightrecon.geo.kinematics import body_to_ned_matrix
 from flightrecon.geo.navframe import ned_to_ecef_matrix
+from flightrecon.ingest.derive import N_LONG_HALF_WINDOW_S
 from flightrecon.methods.joint.layout import G0 as G0_MPS2
 from flightrecon.methods.joint.settings import JointNoise
 
@@ -66,7 +70,10 @@ class JointInputs:
     missing_psd : white-acceleration PSD [(m/s^2)^2/Hz] standing for each input sample's
         acceleration where it is missing (Ni,), or None: 1 everywhere (the dynamics'
         ``qv_extra``; a derived ``n_long_g`` where the airspeed comes alive: larger,
-        :func:`flightrecon.methods.joint.flight_inputs.airspeed_floor_psd`)
+        :func:`airspeed_floor_psd`)
+    end_points : where and when the record is tied to its airfields (:class:`EndPoint`,
+        :func:`end_points`), built once by
+        :func:`~flightrecon.methods.joint.problem.joint_inputs`; empty: none
     """
 
     t_in: np.ndarray
@@ -98,6 +105,7 @@ class JointInputs:
     fixes: np.ndarray | None = None
     wind_aloft: np.ndarray | None = None
     missing_psd: np.ndarray | None = None
+    end_points: tuple[EndPoint, ...] = ()
 
     def body_to_ned(self, i: int | np.ndarray | slice = slice(None)) -> np.ndarray:
         """Body-to-NED rotations C = R_z(heading) R_y(pitch) R_x(roll) of the input samples
@@ -130,7 +138,7 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
                                           + vnom[k_lo, 1] * np.sin(psi_lo)),
                            accel_bias_mps2=bias, not_before_t=inp.lineup_t)
     # a refinement that finds no roll keeps the one found before (the phases' where the
-    # recorded loads do not reach back through the roll: joint_method.phases_roll)
+    # recorded loads do not reach back through the roll: phases_roll)
     return refined if np.isfinite(refined.start_t) else roll
 
 
@@ -142,8 +150,48 @@ def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
     return lat, lon, float(thr[2])
 
 
+@dataclass(frozen=True)
+class Flare:
+    """The touchdown's distance past the arrival threshold measured from the recorded flare
+    (:func:`float_touchdown`): the air distance ``touchdown_m`` flown from the screen height
+    (crossed at ``screen_t_s``, ``float_s`` before touchdown), its sd ``sd_m``."""
+
+    touchdown_m: float
+    sd_m: float
+    screen_t_s: float
+    float_s: float
+
+
+@dataclass(frozen=True)
+class EndPoint:
+    """One end-point constraint of the record (:func:`end_points`): where and when it is tied
+    to an airfield or a last known position.
+
+    Attributes
+    ----------
+    which : "departure" or "arrival"
+    model : "runway" (along / across the runway from its threshold), "reference" (the
+        airfield reference point) or "last_position" (a record ending in the air or at an
+        impact)
+    t_s : time of the constraint (the runway departure's: the take-off roll's start, moved
+        with the smoother's refined roll by :func:`end_points_at`)
+    point : (lat, lon, h_ellipsoidal) of the constrained point's mean
+    sd_m : (along, cross, vertical) for the runway model, (north, east, vertical) otherwise
+    runway_rad : the runway's true direction (runway model), else None
+    flare : the touchdown measured from the recorded flare (runway arrival), else None
+    """
+
+    which: str
+    model: str
+    t_s: float
+    point: tuple[float, float, float]
+    sd_m: tuple[float, float, float]
+    runway_rad: float | None = None
+    flare: Flare | None = None
+
+
 def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
-                    smooth_s: float = 1.0) -> dict[str, float] | None:
+                    smooth_s: float = 1.0) -> Flare | None:
     """The touchdown's distance past the arrival threshold from the recorded flare.
 
     An approach crosses the threshold at the screen height :math:`h_s` (``screen_height_m``,
@@ -163,10 +211,10 @@ def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
 
     Returns
     -------
-    dict or None
-        ``touchdown_m``, ``sd_m``, ``screen_t_s``, ``float_s``; ``None`` (the fixed
-        ``touchdown_m``) without a touchdown, a pressure altitude or an airspeed there, or
-        when the record does not climb above the screen height within ``look_back_s``.
+    Flare or None
+        ``None`` (the fixed ``touchdown_m``) without a touchdown, a pressure altitude or an
+        airspeed there, or when the record does not climb above the screen height within
+        ``look_back_s``.
     """
     td = inp.touchdown_t
     h_s = nz.screen_height_m
@@ -192,32 +240,41 @@ def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
         return None
     dist = float(np.trapezoid(vv, t[seg]))
     sd = float(np.hypot(nz.screen_along_sd_m, nz.float_wind_mps * (td - t_s)))
-    return {"touchdown_m": dist, "sd_m": sd, "screen_t_s": t_s, "float_s": float(td - t_s)}
+    return Flare(touchdown_m=dist, sd_m=sd, screen_t_s=t_s, float_s=float(td - t_s))
 
 
-def end_points(inp: JointInputs, nz: JointNoise,
-               roll: TakeoffRoll | None = None) -> list[dict[str, Any]]:
-    """The end-point constraints: where and when the record is tied to its airfields.
+def runway_end(inp: JointInputs, nz: JointNoise, which: str, t_run: float,
+               threshold: tuple[float, float, float], runway_rad: float) -> EndPoint:
+    """The runway model of end ``which``: the take-off roll starts at the departure threshold
+    (along-runway sd ``roll_start_sd_m``), the touchdown is ``touchdown_m`` past the arrival
+    threshold (sd ``touchdown_sd_m``) or the distance measured from the recorded flare
+    (:func:`float_touchdown`); across the runway the centreline (``runway_halfwidth_m``),
+    vertically the airfield elevation (``endpoint_v_m``)."""
+    dist, sd = ((0.0, nz.roll_start_sd_m) if which == "departure"
+                else (nz.touchdown_m, nz.touchdown_sd_m))
+    flare = float_touchdown(inp, nz) if which == "arrival" else None
+    if flare is not None:
+        dist, sd = flare.touchdown_m, flare.sd_m
+    return EndPoint(which, "runway", float(t_run),
+                    _along_runway_point(threshold, runway_rad, dist),
+                    (sd, nz.runway_halfwidth_m, nz.endpoint_v_m), float(runway_rad), flare)
 
-    With a runway's threshold and direction known: the take-off roll starts at the departure
-    threshold (along-runway sd ``roll_start_sd_m``; the time from :func:`takeoff_roll`), and
-    the touchdown is ``touchdown_m`` past the arrival threshold (sd ``touchdown_sd_m``); across
-    the runway the centreline holds (``runway_halfwidth_m``). Otherwise the airfield reference
-    point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every
-    horizontal direction. Vertically the airfield elevation, ``endpoint_v_m``.  A record that
-    ends in the air or at an impact (``inp.ends_airborne``) has no arrival airfield: its
-    arrival is the last known position (a radar hand-off, the wreckage) and is applied at the
-    last sample as that position, ``last_position_h_m`` per horizontal axis and
-    ``endpoint_v_m`` vertically (model "last_position"; docs/wind.md, "End points").  ``roll``
-    replaces ``inp.roll`` (the smoother refines it with its smoothed lift-off speed).
 
-    Returns
-    -------
-    list of dict
-        Keys ``which`` ("departure" / "arrival"), ``model`` ("runway" / "reference" /
-        "last_position"), ``t_s``, ``point`` (lat, lon, h_ellipsoidal: the constrained point's
-        mean), ``runway_rad`` and ``sd_m`` (along, cross, vertical) for the runway model,
-        (north, east, vertical) otherwise.
+def end_points(inp: JointInputs, nz: JointNoise) -> tuple[EndPoint, ...]:
+    """The end-point constraints: where and when the record is tied to its airfields (built
+    once with the inputs, :func:`~flightrecon.methods.joint.problem.joint_inputs`; the
+    smoother moves the runway departure's time with its refined take-off roll,
+    :func:`end_points_at`).
+
+    With a runway's threshold and direction known: :func:`runway_end` (the departure at the
+    start of the take-off roll ``inp.roll``, the arrival at touchdown).  Otherwise the
+    airfield reference point at lift-off / touchdown (or the first / last sample),
+    ``endpoint_h_m`` in every horizontal direction, vertically the airfield elevation,
+    ``endpoint_v_m``.  A record that ends in the air or at an impact (``inp.ends_airborne``)
+    has no arrival airfield: its arrival is the last known position (a radar hand-off, the
+    wreckage) and is applied at the last sample as that position, ``last_position_h_m`` per
+    horizontal axis and ``endpoint_v_m`` vertically (model "last_position"; docs/wind.md,
+    "End points").
     """
     out = []
     t_in = inp.t_in
@@ -225,32 +282,46 @@ def end_points(inp: JointInputs, nz: JointNoise,
                                 ("arrival", inp.arrival, inp.thresholds[1], inp.runway_rad[1])):
         if pos is None:
             continue
+        point = (float(pos[0]), float(pos[1]), float(pos[2]))
         if which == "arrival" and inp.ends_airborne:
-            out.append({"which": which, "model": "last_position", "t_s": float(t_in[-1]),
-                        "point": tuple(pos), "runway_rad": None,
-                        "sd_m": (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)})
+            out.append(EndPoint(which, "last_position", float(t_in[-1]), point,
+                                (nz.last_position_h_m, nz.last_position_h_m, nz.endpoint_v_m)))
             continue
-        t_run = (inp.roll if roll is None else roll).start_t if which == "departure" \
-            else inp.touchdown_t
+        t_run = inp.roll.start_t if which == "departure" else inp.touchdown_t
         if thr is not None and rw is not None and np.isfinite(t_run):
-            dist, sd = ((0.0, nz.roll_start_sd_m) if which == "departure"
-                        else (nz.touchdown_m, nz.touchdown_sd_m))
-            flare = float_touchdown(inp, nz) if which == "arrival" else None
-            if flare is not None:
-                dist, sd = flare["touchdown_m"], flare["sd_m"]
-            out.append({"which": which, "model": "runway", "t_s": float(t_run),
-                        "point": _along_runway_point(thr, rw, dist), "runway_rad": float(rw),
-                        "sd_m": (sd, nz.runway_halfwidth_m, nz.endpoint_v_m),
-                        **({"flare": flare} if flare is not None else {})})
+            out.append(runway_end(inp, nz, which, t_run, thr, rw))
             continue
         if which == "departure":
             tt = inp.liftoff_t if np.isfinite(inp.liftoff_t) else t_in[0]
         else:
             tt = inp.touchdown_t if np.isfinite(inp.touchdown_t) else t_in[-1]
-        out.append({"which": which, "model": "reference", "t_s": float(tt), "point": tuple(pos),
-                    "runway_rad": None,
-                    "sd_m": (nz.endpoint_h_m, nz.endpoint_h_m, nz.endpoint_v_m)})
-    return out
+        out.append(EndPoint(which, "reference", float(tt), point,
+                            (nz.endpoint_h_m, nz.endpoint_h_m, nz.endpoint_v_m)))
+    return tuple(out)
+
+
+def end_points_at(ends: tuple[EndPoint, ...], roll: TakeoffRoll) -> tuple[EndPoint, ...]:
+    """The end points ``ends`` with the runway departure at the start of ``roll`` (the
+    smoother's refined take-off roll, :func:`refined_roll`: it has a start wherever the
+    inputs' roll has one, so the model chosen at the build holds)."""
+    return tuple(replace(e, t_s=float(roll.start_t))
+                 if e.which == "departure" and e.model == "runway" else e for e in ends)
+
+
+def with_end_points(inp: JointInputs, nz: JointNoise) -> JointInputs:
+    """``inp`` with its end points (:func:`end_points`) under the noise settings ``nz``."""
+    return replace(inp, end_points=end_points(inp, nz))
+
+
+def airborne_samples(inp: JointInputs) -> np.ndarray:
+    """Input samples from lift-off to touchdown (the whole record where either is unknown)."""
+    t = inp.t_in
+    air = np.ones(len(t), bool)
+    if np.isfinite(inp.liftoff_t):
+        air &= t >= inp.liftoff_t
+    if np.isfinite(inp.touchdown_t):
+        air &= t <= inp.touchdown_t
+    return air
 
 
 def nearest_index(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
@@ -259,3 +330,95 @@ def nearest_index(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
     j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)
     p = np.clip(j - 1, 0, len(t) - 1)
     return np.where(np.abs(tq - t[p]) < np.abs(tq - t[j]), p, j)
+
+
+def without_floor_loads(inp: JointInputs) -> JointInputs:
+    """A derived ``n_long_g``'s loads taken as missing through the airspeed-floor windows
+    (:func:`airspeed_floor_windows`), with the PSD of the unknown velocity change there
+    (:func:`airspeed_floor_psd`); before the take-off roll's search: its rest is found by
+    integrating the acceleration back from lift-off, which through these samples is not
+    known."""
+    dead = airspeed_floor_windows(inp.t_in, inp.tas)
+    if not dead.any():
+        return inp
+    acc = inp.acc_ned.copy()
+    acc[dead] = np.nan
+    return replace(inp, acc_ned=acc, missing_psd=airspeed_floor_psd(inp.t_in, inp.tas, dead),
+                   notes=(*inp.notes, (
+                       f"joint: n_long_g derived from an airspeed that reads 0 below its floor: "
+                       f"the loads of {int(dead.sum())} sample(s) where it comes alive or dies "
+                       "(the derivative's window holds both) are taken as missing, the velocity "
+                       "change across each such window unknown by the airspeed there")))
+
+
+def phases_roll(ph: Any, settle_s: float = 10.0) -> TakeoffRoll:
+    """The take-off roll of the cleaning's phases (``roll_start_t_s`` after ``lineup_t_s``:
+    the ground speed integrated back from the fast run on the cleaning's grid), where the
+    joint's own search finds none: it integrates the acceleration back from lift-off, which a
+    1 Hz record whose ``n_long_g`` is derived from an airspeed that reads 0 below its floor
+    does not have through the roll's first seconds (:func:`airspeed_floor_windows`).  The rest
+    is the line-up to ``settle_s`` before the roll start, as in
+    :func:`flightrecon.cleaning.ground_roll.takeoff_roll`; none where the phases found a rolling
+    take-off (the roll starting at the line-up)."""
+    start = float(getattr(ph, "roll_start_t_s", np.nan))
+    lineup = float(getattr(ph, "lineup_t_s", np.nan))
+    if not (np.isfinite(start) and np.isfinite(lineup) and start > lineup):
+        return TakeoffRoll()
+    end = start - settle_s
+    return TakeoffRoll(start, (lineup, end) if end > lineup else (np.nan, np.nan))
+
+
+#: a recorded airspeed at most this is "below the air-data computer's floor" [m/s] (1 kt: the
+#: rounding of an airspeed recorded in whole knots that reads 0)
+AIRSPEED_DEAD_MPS = 0.52
+
+
+def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
+                           half_window_s: float = N_LONG_HALF_WINDOW_S) -> np.ndarray:
+    """Samples whose derived ``n_long_g`` spans an airspeed coming alive or dying.
+
+    An air-data computer reads 0 below its floor (about 30 kt on the Garmin export) and jumps
+    to the floor one sample into the take-off roll (0 to 14.9 m/s in 1 s there).  The derived
+    channel, ``(dV/dt)/g0 + sin(pitch)`` with ``dV/dt`` the centred difference over
+    ``+-half_window_s`` (flightrecon/ingest/derive.py), turns the jump into an acceleration
+    (0.25-0.38 g for 6 s where the GPS ground speed shows 0.15 g): the integrated roll then
+    has the lift-off ground speed wrong by the airspeed at the floor less the ground speed
+    there (the headwind, about 5 m/s), which the smoother takes out of the airspeed scale and
+    the wind.  True where the window ``[t - h, t + h]`` holds both an airspeed at most
+    :data:`AIRSPEED_DEAD_MPS` and one above it: there the acceleration is not known, and
+    the smoother's missing-loads process noise applies.
+    """
+    ok = np.isfinite(tas)
+    out = np.zeros(len(t), bool)
+    if ok.sum() < 2:
+        return out
+    tv, dead = t[ok], (tas[ok] <= AIRSPEED_DEAD_MPS).astype(float)
+    # fraction of dead samples within the window (cumulative counts)
+    cum = np.r_[0.0, np.cumsum(dead)]
+    lo = np.searchsorted(tv, t - half_window_s - 1e-9, side="left")
+    hi = np.searchsorted(tv, t + half_window_s + 1e-9, side="right")
+    n_dead = cum[hi] - cum[lo]
+    return (n_dead > 0) & (n_dead < hi - lo)
+
+
+def airspeed_floor_psd(t: np.ndarray, tas: np.ndarray, dead: np.ndarray) -> np.ndarray:
+    """The missing accelerations' PSD [(m/s^2)^2/Hz] per input sample (``JointInputs.
+    missing_psd``): 1 outside the windows of :func:`airspeed_floor_windows`; in each of
+    them (a contiguous run of ``dead`` samples, ``W`` seconds) ``V^2 / W``, ``V`` the largest
+    airspeed there, so that the velocity change across the window is unknown by about the
+    airspeed the indicator comes alive at.  Through such a window the aircraft accelerates
+    (a take-off roll: 0.1-0.3 g for the 6 s the derivative's window spans, 6-18 m/s) where the
+    default's zero-mean 1 m/s^2/sqrt(Hz) allowed 2.4 m/s: the ground speed after it was held
+    short of the truth by most of that, and the smoother took the shortfall as a headwind it
+    then kept (the G1000 export with its departure alone: 5.4 m/s of east wind, 3 sd, a track
+    15.7 km off at the end, docs/ingest.md)."""
+    psd = np.ones(len(t))
+    idx = np.flatnonzero(dead)
+    if idx.size == 0:
+        return psd
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
+    for r in runs:
+        w = float(t[r[-1]] - t[r[0]]) + (float(np.median(np.diff(t))) if len(t) > 1 else 1.0)
+        v = float(np.nanmax(tas[r])) if np.isfinite(tas[r]).any() else 0.0
+        psd[r] = max(v * v / max(w, 1e-6), 1.0)
+    return psd

@@ -20,7 +20,7 @@ from flightrecon.methods.joint.ground import (
 from flightrecon.methods.joint.inputs import (
     JointInputs,
     TakeoffRoll,
-    end_points,
+    end_points_at,
     nearest_index,
     refined_roll,
 )
@@ -394,21 +394,22 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
 
 def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
                            T: np.ndarray, Cen: np.ndarray, roll: TakeoffRoll) -> None:
-    """The end points (:func:`end_points`): the runway model along / across the runway and
-    vertically, the reference model in north, east, down."""
-    for ep in end_points(inp, settings.noise, roll):
-        lat, lon, h = ep["point"]
+    """The end points (``inp.end_points``, the runway departure at the start of ``roll``:
+    :func:`end_points_at`): the runway model along / across the runway and vertically, the
+    reference model in north, east, down."""
+    for ep in end_points_at(inp.end_points, roll):
+        lat, lon, h = ep.point
         pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
-        tt = np.array([ep["t_s"]])
-        if ep["model"] in ("reference", "last_position"):
-            _add_ned_components(b, T, Cen, "endpoint", tt, None, ep["sd_m"], "pos", pe[None, :])
+        tt = np.array([ep.t_s])
+        if ep.model in ("reference", "last_position") or ep.runway_rad is None:
+            _add_ned_components(b, T, Cen, "endpoint", tt, None, ep.sd_m, "pos", pe[None, :])
             continue
         k = nearest_index(T, tt)[0]
         tau = tt[0] - T[k]
-        psi = ep["runway_rad"]
+        psi = ep.runway_rad
         Ca = ned_to_ecef_matrix(lat, lon)[0]
         for u, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
-                          [0.0, 0.0, 1.0]), ep["sd_m"]):
+                          [0.0, 0.0, 1.0]), ep.sd_m):
             u = np.asarray(u)
             H = np.zeros((1, jl.N_STATE))
             H[0, jl.S_POS] = Ca @ u

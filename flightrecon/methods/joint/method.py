@@ -1,10 +1,12 @@
 """Adapter: the joint post-flight smoother on a cleaned flight (the default result).
 
-Builds :class:`flightrecon.methods.joint.JointInputs` from a
-:class:`flightrecon.types.CleanFlight`, runs :func:`flightrecon.methods.joint.smooth_joint` and
-returns its track on the input grid with the prefix ``joint_`` (the pipeline writes it as the
-unprefixed default result) and a summary with the estimated sensor errors, clock offsets and
-per-source innovation statistics.
+Builds the problem once (:func:`flightrecon.methods.joint.problem.joint_problem`: the inputs,
+the end points, the settings the data call for), solves it
+(:func:`flightrecon.methods.joint.smooth_joint`), solves the adjusted problems of the
+calibrations (:mod:`~flightrecon.methods.joint.calibration`) and returns the track on the
+input grid with the prefix ``joint_`` (the pipeline writes it as the unprefixed default
+result) and a summary with the estimated sensor errors, clock offsets and per-source
+innovation statistics.  Nothing here reads the cleaned flight after the problem is built.
 """
 
 from __future__ import annotations
@@ -18,62 +20,27 @@ import pandas as pd
 
 from flightrecon.errors import FlightReconWarning
 from flightrecon.estimation.consistency import ChiSquareVerdict, chi_square_verdict
-from flightrecon.geo.atmosphere import field_pressure_altitude_m
-from flightrecon.methods.joint import (
-    JointInputs,
-    JointRun,
-    JointSettings,
-    smooth_joint,
-    source_report,
-)
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.attitude_source import (
-    attitude_source_noise,
-    gnss_tilt_evidence,
-    tilt_noise_open,
-)
-from flightrecon.methods.joint.data_settings import (
-    derived_heading_noise,
-    derived_lat_noise,
-    derived_long_priors,
-    sampled_loads_noise,
-    temperature_baro_prior,
-    wind_walk_rounds,
-)
+from flightrecon.methods.joint.calibration import calibrate_gaps, wind_walk_rounds
 from flightrecon.methods.joint.diagnostics import (
     clock_warnings,
     far_warning,
     gust_warnings,
     implausible_corrections,
+    source_report,
     wind_walk_check,
     wind_walk_warning,
 )
-from flightrecon.methods.joint.flight_inputs import joint_inputs
-from flightrecon.methods.joint.gap_calibration import calibrate_gaps
+from flightrecon.methods.joint.inputs import JointInputs
+from flightrecon.methods.joint.problem import JointProblem, joint_problem
 from flightrecon.methods.joint.report import corrections_at_middle, fix_report, wind_prior_report
+from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.settling import settling, settling_sentence, widened_track_sd
+from flightrecon.methods.joint.smoother import JointRun, smooth_joint
 from flightrecon.methods.joint.track import PREFIX, joint_track
 from flightrecon.types import CleanFlight, MethodResult
 
-__all__ = ["PREFIX", "run_joint"]
-
-
-def _settings_for(clean: CleanFlight, inp: JointInputs, settings: JointSettings
-                  ) -> tuple[JointSettings, dict[str, Any] | None, str | None]:
-    """The settings as this flight's data call for them (:mod:`~flightrecon.methods.joint.
-    data_settings`, :mod:`~flightrecon.methods.joint.attitude_source`): the loads' sampling
-    noise, the pressure-altitude scale's prior from the SAT, the attitude reference's tilt
-    noise (with the GNSS evidence of it and the note for the user)."""
-    settings = sampled_loads_noise(inp, settings)
-    if clean.meta.departure is not None and "sat_degc" in clean.grid.columns:
-        settings = temperature_baro_prior(
-            inp, clean.grid["sat_degc"].to_numpy(float),
-            field_pressure_altitude_m(clean.meta.departure.elev_m,
-                                      clean.meta.qnh_departure_hpa), settings)
-    tilt_ev = (gnss_tilt_evidence(clean, inp, settings)
-               if tilt_noise_open(clean, inp, settings) else None)
-    settings, attitude_note = attitude_source_noise(clean, inp, settings, tilt_ev)
-    return settings, tilt_ev, attitude_note
+__all__ = ["PREFIX", "joint_result", "run_joint"]
 
 
 def _run_warnings(run: JointRun, inp: JointInputs, settings: JointSettings,
@@ -122,14 +89,15 @@ def _innovation_verdict(run: JointRun) -> ChiSquareVerdict:
                                                                        1.0), np.nan))
 
 
-def _summary(clean: CleanFlight, inp: JointInputs, run: JointRun, settings: JointSettings,
-             track: pd.DataFrame, *, verdict: ChiSquareVerdict, healthy: bool, converged: bool,
+def _summary(problem: JointProblem, run: JointRun, track: pd.DataFrame, *,
+             verdict: ChiSquareVerdict, healthy: bool, converged: bool,
              extra: dict[str, Any]) -> dict[str, Any]:
     """The joint method's summary (docs/output.md, "The joint smoother's summary"): health,
     consistency, iterations, the data-chosen settings, the corrections, clock offsets, noise,
     end points, take-off roll, fixes, wind prior, sources, settings and warnings; ``extra``
-    the run's ``wind_rounds``, ``gap_calibration``, ``tilt_ev``, ``corrections``, ``sources``
-    and ``warnings``."""
+    the run's ``wind_rounds``, ``gap_calibration``, ``corrections``, ``sources`` and
+    ``warnings``."""
+    settings, frame = problem.settings, problem.frame
     return {
         "healthy": healthy,
         "consistency": verdict.as_dict(),
@@ -142,58 +110,79 @@ def _summary(clean: CleanFlight, inp: JointInputs, run: JointRun, settings: Join
                       "rounds": extra["wind_rounds"]},
         "gap_calibration": extra["gap_calibration"],
         "state_rate_hz": settings.state_rate_hz,
-        "attitude_tilt": {"source": clean.meta.attitude_source,
+        "attitude_tilt": {"source": None if frame is None else frame.attitude_source,
                           "gain_mps2_per_g": settings.noise.ahrs_tilt_mps2_per_g,
-                          "gnss_evidence": extra["tilt_ev"]},
+                          "gnss_evidence": problem.tilt_evidence},
         "corrections": extra["corrections"],
         "clock_offsets_s": {k: {"value": o, "sd": sd}
                             for k, (o, sd) in run.clock_offsets_s.items()},
         "noise_scale": run.noise_scale,
         "noise_check": run.noise_check,
-        "end_points": [{"which": e["which"], "model": e["model"], "t_s": e["t_s"],
-                        "lat_deg": e["point"][0], "lon_deg": e["point"][1],
-                        "runway_true_deg": (None if e["runway_rad"] is None
-                                            else float(np.degrees(e["runway_rad"]) % 360.0)),
-                        "sd_m": list(e["sd_m"]),
-                        **({"flare": e["flare"]} if "flare" in e else {})}
+        "end_points": [{"which": e.which, "model": e.model, "t_s": e.t_s,
+                        "lat_deg": e.point[0], "lon_deg": e.point[1],
+                        "runway_true_deg": (None if e.runway_rad is None
+                                            else float(np.degrees(e.runway_rad) % 360.0)),
+                        "sd_m": list(e.sd_m),
+                        **({"flare": asdict(e.flare)} if e.flare is not None else {})}
                        for e in run.end_points],
         "takeoff_roll": {"start_t_s": run.roll.start_t, "rest_t_s": list(run.roll.rest_t)},
-        "fixes": fix_report(clean, track),
-        "wind_prior": wind_prior_report(inp, settings, clean),
+        "fixes": [] if frame is None else fix_report(frame, track),
+        "wind_prior": wind_prior_report(problem),
         "sources": extra["sources"],
         "settings": asdict(settings),
+        "chosen_settings": [asdict(c) for c in problem.choices],
         "warnings": extra["warnings"],
     }
 
 
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
-    """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.methods.joint`)."""
-    settings = settings or JointSettings()
-    settings = derived_heading_noise(clean, settings)
-    settings = derived_long_priors(clean, settings)
-    settings = derived_lat_noise(clean, settings)
-    inp = joint_inputs(clean)
-    settings, tilt_ev, attitude_note = _settings_for(clean, inp, settings)
-    run = smooth_joint(inp, settings)
-    if attitude_note:
-        _warnings.warn(attitude_note, FlightReconWarning, stacklevel=2)
-    run, settings, wind_rounds = wind_walk_rounds(inp, settings, run)
-    run, gap_cal = calibrate_gaps(inp, settings, run)
+    """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.methods.joint`):
+    the problem built once (:func:`~flightrecon.methods.joint.problem.joint_problem`), then
+    solved (:func:`joint_result`)."""
+    return joint_result(joint_problem(clean, settings))
+
+
+def joint_result(problem: JointProblem) -> MethodResult:
+    """The joint smoother's result on ``problem``: solved, its wind walk re-estimated and its
+    GNSS gaps calibrated (each an adjusted problem solved again:
+    :mod:`~flightrecon.methods.joint.calibration`), then the track and the summary."""
+    run = smooth_joint(problem.inputs, problem.settings)
+    if problem.attitude_note:
+        _warnings.warn(problem.attitude_note, FlightReconWarning, stacklevel=3)
+    problem, run, wind_rounds = wind_walk_rounds(problem, run)
+    run, gap_cal = calibrate_gaps(problem, run)
     run = replace(run, flight=None)   # its iteration-independent parts go before the track
-    track = joint_track(clean, run)
+    if problem.frame is None:
+        raise ValueError("the joint result needs the problem's output frame "
+                         "(joint_problem builds it)")
+    track = joint_track(problem.frame.t_s, problem.frame.plane, run)
     settle = settling(run)
     if settle is not None and settle["verdict"] == "widened":
         widened_track_sd(track, run.t, settle["remaining_k_m"])
+    summary = _checked_summary(problem, run, track, wind_rounds, gap_cal)
+    if settle is not None:
+        # stopped short of the convergence test: how far the passes still had to go
+        # (settling.py); the pipeline's health reads it (status "stopped")
+        summary["settling"] = {k: v for k, v in settle.items() if k != "remaining_k_m"}
+        summary["settling"]["sentence"] = settling_sentence(settle)
+    return MethodResult(name="joint", track=track, summary=summary)
+
+
+def _checked_summary(problem: JointProblem, run: JointRun, track: pd.DataFrame,
+                     wind_rounds: list[dict[str, Any]], gap_cal: dict[str, Any] | None
+                     ) -> dict[str, Any]:
+    """The summary with the run's checks: finite states, the innovations' chi-square, the
+    corrections' plausibility, the wind walk, with their warnings."""
+    inp, settings = problem.inputs, problem.settings
     finite = np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0)
     sources = source_report(run)
-    warnings = _run_warnings(run, inp, settings, sources, attitude_note)
+    warnings = _run_warnings(run, inp, settings, sources, problem.attitude_note)
     if gap_cal is not None and gap_cal["factor"] is None:
         # on the console and at the summary's top level: the gaps' sd is not this flight's
         note = (f"joint: GNSS gaps {gap_cal['gaps_s'][:3]} s, but {gap_cal['note']}: their "
                 "position sd is the model's, not calibrated on this flight")
         warnings.append(note)
-        _warnings.warn(note, FlightReconWarning, stacklevel=2)
-    converged = run.converged
+        _warnings.warn(note, FlightReconWarning, stacklevel=4)
     verdict = _innovation_verdict(run)
     if verdict.gross:
         warnings.append(f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the "
@@ -211,16 +200,9 @@ def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> M
             f"{settings.noise.wind_rw_mps_sqrt_s:.3g} m/s/sqrt(s)")
     if wind_walk is not None:
         warnings.append(wind_walk_warning(wind_walk))
-    summary = _summary(clean, inp, run, settings, track, verdict=verdict,
-                       healthy=bool(finite) and not verdict.gross and not far
-                       and wind_walk is None, converged=bool(finite) and converged,
-                       extra={"wind_rounds": wind_rounds, "tilt_ev": tilt_ev,
-                              "gap_calibration": gap_cal,
-                              "corrections": corrections, "sources": sources,
-                              "warnings": warnings})
-    if settle is not None:
-        # stopped short of the convergence test: how far the passes still had to go
-        # (settling.py); the pipeline's health reads it (status "stopped")
-        summary["settling"] = {k: v for k, v in settle.items() if k != "remaining_k_m"}
-        summary["settling"]["sentence"] = settling_sentence(settle)
-    return MethodResult(name="joint", track=track, summary=summary)
+    return _summary(problem, run, track, verdict=verdict,
+                    healthy=bool(finite) and not verdict.gross and not far
+                    and wind_walk is None, converged=bool(finite) and run.converged,
+                    extra={"wind_rounds": wind_rounds, "gap_calibration": gap_cal,
+                           "corrections": corrections, "sources": sources,
+                           "warnings": warnings})

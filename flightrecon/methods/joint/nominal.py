@@ -7,7 +7,7 @@ import numba as nb
 import numpy as np
 
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.inputs import JointInputs, end_points
+from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.settings import PRIOR_STATES, JointNoise
 
 
@@ -183,7 +183,7 @@ def initial_estimate(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: floa
     return x0, P0
 
 
-def nominal_trajectory(inp: JointInputs, idx: np.ndarray, nz: JointNoise):
+def nominal_trajectory(inp: JointInputs, idx: np.ndarray):
     """Iteration-0 linearisation trajectory on the state grid.
 
     Air-data dead reckoning (airspeed and heading, plus the recorded wind) integrated on the
@@ -191,7 +191,7 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray, nz: JointNoise):
     length), heights from pressure altitude; then tied to the data that fix position: to the
     GNSS fixes where there are any (the differences at the fixes, interpolated linearly in time;
     the track between fixes keeps the shape of the dead reckoning), otherwise to the end points
-    of :func:`end_points` (started at the departure one; a correction growing linearly from it
+    ``inp.end_points`` (started at the departure one; a correction growing linearly from it
     to the arrival one, as the DR+linear baseline).
     Only the starting point of the Gauss-Newton iterations: it decides how many are needed,
     not where they converge.
@@ -210,10 +210,10 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray, nz: JointNoise):
     if len(g):
         gok = (np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
                & np.isfinite(g["t_s"].to_numpy(float)))
-    ends = {ep["which"]: ep for ep in end_points(inp, nz)}
+    ends = {ep.which: ep for ep in inp.end_points}
     ref, t_ref = None, t[0]
     if "departure" in ends:
-        ref, t_ref = ends["departure"]["point"], ends["departure"]["t_s"]
+        ref, t_ref = ends["departure"].point, ends["departure"].t_s
     if ref is None and gok.any():
         i0 = int(np.flatnonzero(gok)[0])
         ref = (float(g["lat_deg"].iloc[i0]), float(g["lon_deg"].iloc[i0]),
@@ -245,7 +245,7 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray, nz: JointNoise):
         if okh.any():
             h = h + np.interp(T, tg[okh], hg[okh] - np.interp(tg[okh], T, h))
     elif "arrival" in ends and np.isfinite(inp.touchdown_t):
-        t_end, (lat_end, lon_end, _) = ends["arrival"]["t_s"], ends["arrival"]["point"]
+        t_end, (lat_end, lon_end, _) = ends["arrival"].t_s, ends["arrival"].point
         k_end = int(np.clip(np.searchsorted(T, t_end), 0, len(T) - 1))
         dlat = lat_end - lat[k_end]
         dlon = (lon_end - lon[k_end] + 180.0) % 360.0 - 180.0

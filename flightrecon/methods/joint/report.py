@@ -8,17 +8,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from flightrecon.geo.frames import output_plane
-from flightrecon.methods.joint import (
-    JointInputs,
-    JointRun,
-    JointSettings,
-    prior_of,
-)
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.measurements import wind_prior_measurements
+from flightrecon.methods.joint.problem import JointProblem, OutputFrame
+from flightrecon.methods.joint.settings import JointSettings, prior_of
+from flightrecon.methods.joint.smoother import JointRun
 from flightrecon.methods.joint.track import PREFIX
-from flightrecon.types import CleanFlight
 
 
 def corrections_at_middle(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
@@ -59,18 +54,18 @@ def correction_items(item) -> dict[str, Any]:
     }
 
 
-def fix_report(clean: CleanFlight, track: pd.DataFrame) -> list[dict[str, Any]]:
+def fix_report(frame: OutputFrame, track: pd.DataFrame) -> list[dict[str, Any]]:
     """Per known position (``--fix``): the smoothed track's offset from it at its time, north
     and east [m], with the fix's sd and the track's sd there; ``used`` False (and no offsets)
     for a fix outside the reconstructed span (a record trimmed with ``--start`` / ``--end``)."""
-    if not clean.meta.fixes:
+    if not frame.fixes:
         return []
-    plane = output_plane(clean.meta)
+    plane = frame.plane
     t = track["t_s"].to_numpy(float)
     p = PREFIX
     out: list[dict[str, Any]] = []
     h_tr = track[p + "alt_m"].to_numpy(float)
-    for f in clean.meta.fixes:
+    for f in frame.fixes:
         if not t[0] <= f.t_s <= t[-1]:
             out.append({"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg,
                         "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m, "used": False})
@@ -78,7 +73,7 @@ def fix_report(clean: CleanFlight, track: pd.DataFrame) -> list[dict[str, Any]]:
         # the fix at the track's height where it has none (the tangent plane's north and east
         # of a point move with its height: 1.6 m per km of height at 10 km from the origin)
         h = (float(np.interp(f.t_s, t, h_tr)) if f.alt_msl_m is None
-             else f.alt_msl_m + clean.meta.geoid_undulation_m)
+             else f.alt_msl_m + frame.geoid_undulation_m)
         e, n, _u = plane.forward(f.lat_deg, f.lon_deg, h)
         dn = float(np.interp(f.t_s, t, track[p + "north_m"].to_numpy(float)) - float(n))
         de = float(np.interp(f.t_s, t, track[p + "east_m"].to_numpy(float)) - float(e))
@@ -93,14 +88,14 @@ def fix_report(clean: CleanFlight, track: pd.DataFrame) -> list[dict[str, Any]]:
     return out
 
 
-def wind_prior_report(inp: JointInputs, settings: JointSettings,
-                       clean: CleanFlight) -> dict[str, Any] | None:
+def wind_prior_report(problem: JointProblem) -> dict[str, Any] | None:
     """Which winds-aloft prior the smoother used (docs/wind.md): its levels, the
     pseudo-measurements and their sd."""
-    if inp.wind_aloft is None:
+    inp, settings = problem.inputs, problem.settings
+    if inp.wind_aloft is None or problem.frame is None:
         return None
     tw, _w, sd, rho = wind_prior_measurements(inp, settings)
-    lv = clean.meta.wind_aloft
+    lv = problem.frame.wind_levels
     return {"levels": len(lv), "alt_msl_m": [lv[0].alt_msl_m, lv[-1].alt_msl_m],
             "correlation_s_m_spacing": list(settings.wind_prior),
             "pseudo_measurements": len(tw), "t_s": [float(x) for x in tw],

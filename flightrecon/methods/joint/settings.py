@@ -1,13 +1,17 @@
-"""Settings of the joint smoother: the sources, their noise (:class:`JointNoise`) and the
-iteration options (:class:`JointSettings`)."""
+"""Settings of the joint smoother: the sources, their noise (:class:`JointNoise`), the
+iteration options (:class:`JointSettings`), the sensor-error priors (:data:`PRIOR_STATES`) and
+the settings a cleaned flight's channels call for (a heading from the body rates, a derived
+``n_long_g``, an assumed ``n_lat_g``; those the smoother's inputs call for:
+:mod:`~flightrecon.methods.joint.problem`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from flightrecon.methods.joint import layout as jl
+from flightrecon.types import CleanFlight
 
 SOURCES = ("air", "baro", "gnss_pos", "gnss_vel", "radar", "endpoint", "ground", "runway",
            "doppler", "wind", "fix", "wind_aloft")
@@ -37,7 +41,7 @@ class JointNoise:
     accel_sampling_mps2_sqrt_hz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #                                          extra white acceleration per NED axis (added in
     #                                          PSD to accel_noise): the loads' sampling, set
-    #                                          from the record (joint_method.sampled_loads_noise)
+    #                                          from the record (problem.sampled_loads_noise)
     wind_prior_mps: float = 15.0
     wind_rw_mps_sqrt_s: float = 0.05         # wind change with time
     wind_shear_mps_per_sqrt_m: float = 0.05  # wind change with altitude beyond the gradient:
@@ -188,7 +192,7 @@ class JointSettings:
     wind_rw_max_mps_sqrt_s: float = 1.0      # the re-estimated walk kept below this
     gap_stretches: int = 6                   # GNSS gaps: held-out stretches of the gaps'
     #                                          length that calibrate the in-gap position sd
-    #                                          (gap_calibration.py; 0: off)
+    #                                          (calibration.py; 0: off)
     gap_min_s: float = 30.0                  # a GNSS gap: no horizontal fix for longer
     gap_guard_s: float = 60.0                # stretches this far from the gaps, the ends and
     #                                          each other
@@ -258,3 +262,62 @@ def prior_of(name: str, settings: JointSettings) -> tuple[float, float]:
         if n == name:
             return float(mean), float(sd)
     return 0.0, float(getattr(settings.noise, PRIOR_STATES[name][2]))
+
+
+def derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """A heading propagated from the body rates (``heading_sd_deg`` on the grid, cleaning's
+    ``heading_from_rates``) has a slowly varying error (anchor offset, gyro-bias drift): the
+    heading-bias state's prior is widened to its largest sd and its random walk to what lets
+    the bias follow that sd's growth over the record (both never below the settings)."""
+    g = clean.grid
+    if "heading_sd_deg" not in g.columns:
+        return settings
+    sd = g["heading_sd_deg"].to_numpy(float)
+    if not np.isfinite(sd).any():
+        return settings
+    nz = settings.noise
+    span = max(float(g["t_s"].iloc[-1] - g["t_s"].iloc[0]), 1.0)
+    prior = max(nz.heading_bias_deg, float(np.nanmax(sd)))
+    rw = max(nz.heading_bias_rw_deg_sqrt_s, float(np.nanmax(sd)) / np.sqrt(span))
+    return replace(settings, noise=replace(nz, heading_bias_deg=prior,
+                                           heading_bias_rw_deg_sqrt_s=rw))
+
+
+#: prior sd of the forward accelerometer's scale error and bias when ``n_long_g`` was not
+#: recorded but derived from airspeed and pitch at ingest (flightrecon/ingest/derive.py): its
+#: error is no sensor's, but the missed angle-of-attack and along-track wind terms (order
+#: 0.01 g, a few per cent of the channel); the sensor budget (0.5 %, 0.003 g) is too tight
+DERIVED_LONG_SCALE_SD = 0.1
+DERIVED_LONG_BIAS_G = 0.01
+
+
+def derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """Wider priors of the forward accelerometer's scale and bias for a derived ``n_long_g``
+    (ingest's ``derived_channels``); a prior the user gave for them is kept."""
+    if "n_long_g" not in (clean.meta.extra.get("derived_channels") or {}):
+        return settings
+    given = {p[0] for p in settings.priors}
+    extra = tuple(p for p in (("accel_scale_x", 0.0, DERIVED_LONG_SCALE_SD),
+                              ("accel_bias_x_g", 0.0, DERIVED_LONG_BIAS_G)) if p[0] not in given)
+    return replace(settings, priors=(*settings.priors, *extra))
+
+
+#: white acceleration noise [m/s^2/sqrt(Hz)] for an ``n_lat_g`` taken as coordinated flight's
+#: (0 g) at ingest (flightrecon/ingest/derive.py, ``derive_n_lat``): the side force it misses
+#: is a Gauss-Markov acceleration of sd ``s`` 0.02-0.03 g (0.2-0.25 m/s^2; the JSBSim T-6's
+#: air work: 0.026 g RMS, 60-s means to 0.017 g) and correlation time ``tau`` of tens of
+#: seconds, whose white equivalent is ``sqrt(2 s^2 tau)`` = 0.9-1.5; the loads' noise is one
+#: figure for the three axes.  Measured (docs/ingest.md, "Normal acceleration alone"): the
+#: sensor budget's 0.05 left NEES of 3-22 where the side force persists, 1.0 brings them to 1.5
+#: at most
+DERIVED_LAT_ACCEL_NOISE = 1.0
+
+
+def derived_lat_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
+    """The loads' white noise for an ``n_lat_g`` assumed at ingest (``derived_channels``):
+    :data:`DERIVED_LAT_ACCEL_NOISE`, never below the settings'."""
+    if "n_lat_g" not in (clean.meta.extra.get("derived_channels") or {}):
+        return settings
+    nz = settings.noise
+    return replace(settings, noise=replace(nz, accel_noise_mps2_sqrt_hz=max(
+        nz.accel_noise_mps2_sqrt_hz, DERIVED_LAT_ACCEL_NOISE)))

@@ -24,7 +24,13 @@ from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import passes as jp
 from flightrecon.methods.joint.damping import full_step, line_search, lm_step
 from flightrecon.methods.joint.gust_rounds import gust_update
-from flightrecon.methods.joint.inputs import JointInputs, TakeoffRoll, end_points, refined_roll
+from flightrecon.methods.joint.inputs import (
+    EndPoint,
+    JointInputs,
+    TakeoffRoll,
+    end_points_at,
+    refined_roll,
+)
 from flightrecon.methods.joint.linearisation import (
     PassModels,
     SmootherFlight,
@@ -64,7 +70,7 @@ class JointRun:
     clock_offsets_s: dict[str, tuple[float, float]]  # (value, sd): seconds added to the stamps
     noise_scale: dict[str, float]
     iterations: list[dict[str, Any]]
-    end_points: list[dict[str, Any]]   # as used in the last pass (end_points)
+    end_points: tuple[EndPoint, ...]   # as used in the last pass (end_points_at)
     roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
     noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
     cholesky_fallbacks: int = 0  # last pass's steps whose Cholesky failed (general solve)
@@ -287,7 +293,7 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     iterations stopped.
     """
     fl = smoother_flight(inp, settings)
-    lat, lon, h = nominal_trajectory(inp, fl.idx, settings.noise)
+    lat, lon, h = nominal_trajectory(inp, fl.idx)
     # nominal velocity (runway constraints): air data at first, then the smoothed velocity
     tas0 = np.nan_to_num(inp.tas[fl.idx])
     psi0 = np.nan_to_num(inp.heading_rad[fl.idx])
@@ -418,7 +424,7 @@ def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassRes
                     clock_offsets_s={k: (st.clock[k], st.clock_sd[k]) for k in st.clock},
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
-                    iterations=history, end_points=end_points(fl.inp, s.noise, mdl.roll),
+                    iterations=history, end_points=end_points_at(fl.inp.end_points, mdl.roll),
                     roll=mdl.roll, noise_check=noise_check, cholesky_fallbacks=int(n_fallback),
                     converged=st.converged, stop_reason=st.reason,
                     prior=None if fl.x0 is None or fl.P0 is None else (fl.x0, fl.P0),

@@ -7,14 +7,11 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
-from flightrecon.geo.frames import ecef_to_geodetic, output_plane
-from flightrecon.methods.joint import (
-    SOURCES,
-    JointRun,
-)
+from flightrecon.geo.frames import TangentPlane, ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint.settings import SOURCES
+from flightrecon.methods.joint.smoother import JointRun
 from flightrecon.tracks import TrackColumns
-from flightrecon.types import CleanFlight
 
 PREFIX = "joint_"
 
@@ -89,9 +86,9 @@ def hermite_kernel(t_out, T, p, v):
     return out
 
 
-def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
-    """The smoothed trajectory on the input grid, in the output conventions (prefix joint_)."""
-    t_out = clean.grid["t_s"].to_numpy(float)
+def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun) -> pd.DataFrame:
+    """The smoothed trajectory at the times ``t_out`` (the input grid's), in the output
+    conventions (prefix joint_) on the output tangent ``plane``."""
     T = run.t
     x = run.x
 
@@ -101,7 +98,6 @@ def joint_track(clean: CleanFlight, run: JointRun) -> pd.DataFrame:
     ecef = hermite_positions(t_out, T, x[:, jl.S_POS],
                               np.einsum("kij,kj->ki", run.Cen, x[:, jl.S_VEL]))
     lat, lon, h = ecef_to_geodetic(ecef[:, 0], ecef[:, 1], ecef[:, 2])
-    plane = output_plane(clean.meta)
     e, n, u = plane.forward(lat, lon, h)
     C = run.Cen
     # ECEF -> local NED (P_pv holds the position and velocity blocks, in that order)

@@ -1,5 +1,9 @@
-"""Held-out calibration of the position sd inside GNSS gaps (docs/joint.md, "GNSS gaps: the
-sd calibrated on held-out stretches").
+"""What the joint smoother calibrates on its own solution, each as an adjusted problem
+(:class:`~flightrecon.methods.joint.problem.JointProblem`, :func:`dataclasses.replace`)
+solved again: the wind walk re-estimated where the smoothed wind outran it
+(:func:`wind_walk_rounds`), and the position sd inside GNSS gaps calibrated on held-out
+stretches (:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out
+stretches").
 
 Inside a GNSS gap the smoothed position's variance grows with the process noise that carries
 the track across it, mostly the wind's random walk; its default (0.05 m/s/sqrt(s)) is right
@@ -25,14 +29,17 @@ from flightrecon.errors import FlightReconError
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.memory import release_unused
 from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint.diagnostics import wind_walk_check
 from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
+from flightrecon.methods.joint.problem import JointProblem, SettingChoice
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.smoother import JointRun, smooth_joint, smooth_joint_from
 from flightrecon.methods.joint.track import hermite_positions
 
 __all__ = ["apply_factor", "calibrate_gaps", "calibration_factor", "gnss_gaps",
-           "fix_noise", "heldout_errors", "heldout_smoothing", "pseudo_gaps"]
+           "fix_noise", "heldout_errors", "heldout_smoothing", "inertial_wind_share",
+           "pseudo_gaps", "wind_walk_rounds"]
 
 
 def gnss_gaps(inp: JointInputs, min_gap_s: float) -> list[tuple[float, float]]:
@@ -293,31 +300,46 @@ def apply_factor(run: JointRun, gaps: list[tuple[float, float]], f: float) -> Jo
 HELDOUT_ENOUGH = 10.0
 
 
-def heldout_smoothing(inp_h: JointInputs, settings: JointSettings, run: JointRun) -> JointRun:
-    """The flight smoothed once more without the held-out fixes (``inp_h``): by default
-    ``settings.gap_heldout_passes`` Gauss-Newton passes from the converged ``run`` with its
-    gust sd held (:func:`~flightrecon.methods.joint.smoother.smooth_joint_from`; one pass
-    costs a third of the whole iteration and gives the held-out errors and sd of the whole
-    iteration to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0 the
-    whole iteration again from the nominal."""
-    if settings.gap_heldout_passes <= 0:
-        return smooth_joint(inp_h, settings)
+def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> JointProblem:
+    """The problem without the held-out fixes (``keep`` False: withheld) and, for the warm
+    start (``settings.gap_heldout_passes`` > 0), with the gust sd of ``run`` held (the gust
+    estimate is the flight's)."""
+    inp, settings = problem.inputs, problem.settings
+    held = replace(inp, gnss=inp.gnss[keep].reset_index(drop=True))
     s = settings
-    if run.gust is not None and np.isfinite(run.gust.get("sd_mps", np.nan)):
+    if (settings.gap_heldout_passes > 0 and run.gust is not None
+            and np.isfinite(run.gust.get("sd_mps", np.nan))):
         s = replace(settings, estimate_gust=False,
                     noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
-    return smooth_joint_from(inp_h, s, run, settings.gap_heldout_passes,
-                             enough_m=HELDOUT_ENOUGH * settings.converge_m)
+    return replace(problem, inputs=held, settings=s, choices=(
+        *problem.choices, *([SettingChoice("noise.gust_mps", s.noise.gust_mps,
+                                           "held at the converged run's estimate for the "
+                                           "held-out smoothing")] if s is not settings else [])))
 
 
-def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
+def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
+    """The flight smoothed once more without the held-out fixes (``problem_h``,
+    :func:`heldout_problem`): by default ``settings.gap_heldout_passes`` Gauss-Newton passes
+    from the converged ``run`` (:func:`~flightrecon.methods.joint.smoother.smooth_joint_from`;
+    one pass costs a third of the whole iteration and gives the held-out errors and sd of the
+    whole iteration to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0
+    the whole iteration again from the nominal."""
+    s = problem_h.settings
+    if s.gap_heldout_passes <= 0:
+        return smooth_joint(problem_h.inputs, s)
+    return smooth_joint_from(problem_h.inputs, s, run, s.gap_heldout_passes,
+                             enough_m=HELDOUT_ENOUGH * s.converge_m)
+
+
+def calibrate_gaps(problem: JointProblem, run: JointRun
                    ) -> tuple[JointRun, dict[str, Any] | None]:
     """Held-out gap calibration: where the GNSS has gaps longer than
     ``settings.gap_min_s``, withhold up to ``settings.gap_stretches`` stretches of their
-    lengths, smooth once more, measure the held-out NEES and rescale the real gaps' position
-    variance by the factor (:func:`calibration_factor`).  Returns the run (unchanged without
-    gaps, with ``gap_stretches`` 0 or without room for a stretch) and the report (None
-    without gaps)."""
+    lengths, smooth the adjusted problem (:func:`heldout_problem`) from ``run``, measure the
+    held-out NEES and rescale the real gaps' position variance by the factor
+    (:func:`calibration_factor`).  Returns the run (unchanged without gaps, with
+    ``gap_stretches`` 0 or without room for a stretch) and the report (None without gaps)."""
+    inp, settings = problem.inputs, problem.settings
     if settings.gap_stretches <= 0:
         return run, None
     gaps = gnss_gaps(inp, settings.gap_min_s)
@@ -338,8 +360,7 @@ def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
     # (its peak would otherwise add to the held-out one; flightrecon/memory.py)
     release_unused()
     try:
-        run_h = heldout_smoothing(replace(inp, gnss=inp.gnss[keep].reset_index(drop=True)),
-                                  settings, run)
+        run_h = heldout_smoothing(heldout_problem(problem, keep, run), run)
     except (FlightReconError, ValueError, ArithmeticError) as exc:
         # the held-out smoothing's own breakdown leaves the flight's result standing: the
         # gaps keep the model's sd, said in the report (and by run_joint's warning)
@@ -363,3 +384,112 @@ def calibrate_gaps(inp: JointInputs, settings: JointSettings, run: JointRun
     report["heldout_pass_shifts_m"] = [float(i["max_position_change_m"])
                                        for i in run_h.iterations]
     return apply_factor(run, gaps, cal["factor"]), report
+
+
+def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
+    """The PSD ``r`` of the loads' velocity random walk where a record sampled slower than
+    its accelerations (:func:`~flightrecon.methods.joint.problem.sampled_loads_noise` set)
+    has the loads as the wind's only witness, else 0 [m^2/s^3].
+
+    Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the
+    smoother learns the wind's change only as the ground velocity's change from the loads
+    less the air velocity's; the loads' error integrates to a velocity random walk of PSD
+    ``r = accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` with ``s`` the horizontal
+    ``accel_sampling_mps2_sqrt_hz``.  The smoothed wind change is then the share
+    ``kappa = Q / (Q + r L)`` of the observed one (``Q`` the wind model's variance over L;
+    :func:`~flightrecon.methods.joint.diagnostics.wind_walk_check`): of a 1 Hz export
+    ``r`` is about 0.08 m^2/s^3 (JSBSim's fleet; 0.011 the shipped G1000 export) and over
+    ten minutes of the default walk (``Q`` = 1.5 m^2/s^2) ``kappa`` is 0.03 (0.19), where a
+    wind that turns moves the smoothed wind by little.  A recorder-rate log (no sampling
+    term; ``r`` the budget 0.0025, ``kappa`` 1/2) or any other source of the wind: 0 (the
+    check's bound, ``kappa = 1``, within a factor 2 there)."""
+    nz = settings.noise
+    s = nz.accel_sampling_mps2_sqrt_hz
+    if (not (s[0] > 0 or s[1] > 0) or len(inp.gnss) or len(inp.radar)
+            or (inp.fixes is not None and len(inp.fixes)) or inp.wind_ne is not None
+            or inp.doppler_gs is not None or inp.wind_aloft is not None):
+        return 0.0
+    return float(nz.accel_noise_mps2_sqrt_hz ** 2 + 0.5 * (s[0] ** 2 + s[1] ** 2))
+
+
+#: how long after lift-off and before touchdown the rolls still witness the wind where the
+#: loads are its only other witness: a derived ``n_long_g``'s bias prior (0.01 g) alone
+#: integrates to 6 m/s in a minute, beyond the wind walk's 0.4 m/s (0.05 m/s/sqrt(s))
+ROLL_WITNESS_S = 60.0
+#: false-alarm probability of the wind-walk check where the loads are the wind's only
+#: witness: the share kappa leaves out the other witnesses (the end points, the estimated
+#: load biases), so its chi-square overstates a change and the check asks for stronger
+#: evidence than the bound's 1 %
+LOADS_WITNESS_P_FALSE = 1e-4
+
+
+def wind_walk_rounds(problem: JointProblem, run: JointRun
+                     ) -> tuple[JointProblem, JointRun, list[dict[str, Any]]]:
+    """Where the smoothed wind moved faster than its random walk allows
+    (:func:`~flightrecon.methods.joint.diagnostics.wind_walk_check`, with the loads' PSD
+    ``r`` of :func:`inertial_wind_share`), the walk re-estimated from the flight and the
+    smoother run again, at most ``settings.wind_rounds`` times.
+
+    The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from
+    the height flown through, the loads' ``r L``) has ``z^2 = |dw|^2 / (kappa Q)`` with
+    ``kappa = Q / (Q + r L)``: the observed change ``|do|^2 = |dw|^2 / kappa^2`` is
+    ``z^2 (Q + r L)``.  With ``r = 0`` (another witness of the wind) the walk is scaled so
+    that this window would be a typical one, its chi-square at the mean 2 of chi-square(2):
+    ``q' = q z^2 / 2`` (the smoothed change of a walk shrinks towards zero by the data's
+    weight, so an estimate can be low and the rounds climb).  Where the loads are the only
+    witness (``r > 0``) the worst window's change is mostly the loads' error, and the walk is
+    the smallest that the check accepts, ``|do|^2 = limit (Q' + r L)``:
+
+        q' L = z^2 (Q + r L) / limit - r L - Q_h
+
+    Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``, until the smoothed wind is
+    within the walk (docs/joint.md, "Wind and turbulence": JSBSim's holding, 22 m/s turning
+    100 deg in 30 minutes).  Returns the last run, its settings and the rounds (the walk each
+    started from, the check's chi-square and limit, the loads' PSD)."""
+    rounds: list[dict[str, Any]] = []
+    inp, settings = problem.inputs, problem.settings
+    r = inertial_wind_share(inp, settings)
+    within = None
+    if r > 0:   # windows clear of the rolls (a record without both: the check as it is)
+        if not (np.isfinite(inp.liftoff_t) and np.isfinite(inp.touchdown_t)):
+            r = 0.0
+        else:
+            within = (inp.liftoff_t + ROLL_WITNESS_S, inp.touchdown_t - ROLL_WITNESS_S)
+    for _ in range(max(0, settings.wind_rounds)):
+        nz = problem.settings.noise
+        c = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m,
+                            loads_psd_m2ps3=r, within_s=within,
+                            p_false=LOADS_WITNESS_P_FALSE if r > 0 else 0.01)
+        if c is None or nz.wind_rw_mps_sqrt_s >= settings.wind_rw_max_mps_sqrt_s:
+            break
+        rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
+                       "limit": c["limit"], "loads_psd_m2ps3": r})
+        problem = wind_walk_adjusted(problem, c, r)
+        run = smooth_joint(problem.inputs, problem.settings)
+    return problem, run, rounds
+
+
+def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
+                       loads_psd_m2ps3: float) -> JointProblem:
+    """The problem with the wind walk the check ``check``
+    (:func:`~flightrecon.methods.joint.diagnostics.wind_walk_check`) calls for
+    (:func:`wind_walk_rounds`), never below the present one, kept below
+    ``wind_rw_max_mps_sqrt_s``; the choice and its evidence appended."""
+    settings = problem.settings
+    nz, c, r = settings.noise, check, loads_psd_m2ps3
+    L = c["t1_s"] - c["t0_s"]
+    q = nz.wind_rw_mps_sqrt_s ** 2
+    q_h = c["walk_var_m2ps2"] - q * L
+    if r > 0:
+        q_new = (c["z2"] * (c["walk_var_m2ps2"] + c["loads_var_m2ps2"]) / c["limit"]
+                 - c["loads_var_m2ps2"] - q_h) / L
+    else:
+        q_new = q * 0.5 * c["z2"]
+    q_new = max(q_new, q)
+    walk = min(float(np.sqrt(q_new)), settings.wind_rw_max_mps_sqrt_s)
+    why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
+           f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
+           f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
+    return replace(problem, settings=replace(settings, noise=replace(
+        nz, wind_rw_mps_sqrt_s=walk)), choices=(
+        *problem.choices, SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why)))
