@@ -41,7 +41,8 @@ def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ..
 
 def forward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, x0: np.ndarray,
             P0: np.ndarray, dyn: Dynamics, meas: Scalars, geo: Geometry, gate: float,
-            xlin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            xlin: np.ndarray, clock: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Forward extended Kalman filter with sequential scalar updates (the model's
     ``predict_into`` and ``update_into``, :mod:`~flightrecon.methods.joint.model`).
 
@@ -53,11 +54,16 @@ def forward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, x0: 
     Fills ``xf``, ``Pf``, ``xp``, ``Pp`` (:func:`filter_buffers`; an empty ``Pp`` is not filled:
     the backward passes then recompute each predicted covariance, bit for bit the same) and
     returns, per measurement, the innovation, its variance (before inflation) and the inflation
-    factor (NaN, NaN, 1 for a measurement of weight 0).
+    factor (NaN, NaN, 1 for a measurement of weight 0), and the normal equations of the clock
+    offsets' Gauss-Newton step (A00, A01, A11, b0, b1: :func:`~flightrecon.methods.joint.
+    model._clock_column_update`) when ``clock`` gives each measurement's clock column (0 GNSS,
+    1 radar, -1 none) and the rate of its prediction the gradient does not give (None: an
+    empty array).
     """
-    model = joint_model((xf, Pf, xp, Pp), dyn, meas, geo, gate, xlin, forward=True)
+    model = joint_model((xf, Pf, xp, Pp), dyn, meas, geo, gate, xlin, forward=True,
+                        clock=clock)
     forward_pass(model, x0, P0, xf.shape[0])
-    return model.nu, model.S, model.infl
+    return model.nu, model.S, model.infl, model.cnorm
 
 
 def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,

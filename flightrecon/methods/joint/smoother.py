@@ -40,7 +40,12 @@ from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik, noi
 from flightrecon.methods.joint.nominal import initial_estimate, nominal_trajectory, q_vector
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.state import PassResult, PassStep, SmootherState
-from flightrecon.methods.joint.updates import clock_update, robust_weights, stop_reason_of
+from flightrecon.methods.joint.updates import (
+    clock_columns,
+    clock_step,
+    robust_weights,
+    stop_reason_of,
+)
 
 
 @dataclass(frozen=True)
@@ -109,8 +114,10 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
     gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
     if not first and s.line_search and not s.gate_damped:
         gate = 0.0
-    innov, innov_var, infl = jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars, mdl.geo,
-                                        gate, xlin)
+    cols = clock_columns(mdl.meas) if s.estimate_clock else None
+    innov, innov_var, infl, normal = jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars,
+                                                mdl.geo, gate, xlin, cols)
+    clock = None if cols is None else (cols, normal)
     kern_args = (mdl.dyn, scalars._replace(r=r * infl), mdl.geo)
     hph = Pblk = var = None
     if s.estimate_noise:
@@ -122,11 +129,11 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
         pending = jp.BackgroundCovariances((xf, Pf, xp, Pp), *kern_args)
         xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
         return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, None, None,
-                          int(n_fallback), kern_args, scalars, pending)
+                          int(n_fallback), kern_args, scalars, pending, clock=clock)
     else:
         xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
     return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
-                 kern_args, scalars)
+                      kern_args, scalars, clock=clock)
 
 
 def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_change: float,
@@ -251,8 +258,10 @@ def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
     clock_before = dict(st.clock)
     scale_used = st.scale.copy()
     st.weights = robust_weights(step.res / np.sqrt(r), st.weights, s)
-    if s.estimate_clock:
-        clock_update(mdl.meas, step.res, step.rate, st.weights, r, st.clock, st.clock_sd, info)
+    if out.clock is not None:
+        # the offsets' Gauss-Newton step of this pass (a Levenberg-Marquardt step is not it)
+        clock_step(*out.clock, step.alpha if step.lm_lambda == 0.0 else 0.0, st.clock,
+                   st.clock_sd, info)
     noise_moved = False
     if s.estimate_noise:
         # measurements taken at face value in this pass: full weight, not gated
@@ -443,7 +452,7 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: Smoot
     w_before = out.scalars.w
     scalars1 = out.scalars._replace(r=r1)
     xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
-    innov1, innov_var1, infl1 = jp.forward(
+    innov1, innov_var1, infl1, _ = jp.forward(
         xf1, Pf1, xp1, Pp1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
         s.innovation_gate if s.robust else 0.0, xlin)
     sel = (w_before >= 1.0) & (out.infl <= 1.0) & (infl1 <= 1.0)
