@@ -48,7 +48,7 @@ class Measurements:
     d: np.ndarray
     start: np.ndarray       # (N+1,)
     # (M,) the rate of change with the measurement's time of the prediction, where the
-    # kernel's gradient does not give it (GNSS velocities: the nominal's acceleration); 0
+    # kernel's gradient does not give it (GNSS velocities: their own acceleration); 0
     # elsewhere (the clock offsets' Gauss-Newton column)
     rate: np.ndarray | None = None
 
@@ -281,7 +281,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     """
     nz = settings.noise
     b = (static if static is not None else static_measurements(inp, settings, T)).copy()
-    _gnss_measurements(b, inp, settings, T, Cen, clock, pnom, vnom)
+    _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
     # height (then at the substitute height, as a GNSS fix without one)
     if inp.fixes is not None and len(inp.fixes):
@@ -330,8 +330,8 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
     measurements, whose rows the kernel builds from the step's frame with the tau term) or a
     velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to
     ``b``.  A velocity is carried to its own time as the position is: h = v_i + a_i tau with
-    ``acc`` (N, 3) the nominal's NED acceleration on the state grid (None: h = v_i, the
-    velocity at the step)."""
+    ``acc`` (M, 2) the north and east acceleration at each (None: h = v_i, the velocity at the
+    step)."""
     k = nearest_index(T, t)
     tau = np.asarray(t, float) - T[k]
     for i in range(3 if kind == "pos" else 2):
@@ -340,7 +340,7 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
             z = np.einsum("mj,mj->m", Cen[k][:, :, i], ecef)
             b.add(source, jl.NED_POS, t, z, r, index=i)
         else:
-            a_i = np.zeros(len(t)) if acc is None else acc[k, i]
+            a_i = np.zeros(len(t)) if acc is None else acc[:, i]
             b.add(source, jl.STATE, t, comp_vals[i], r, d=a_i * tau, index=jl.IV + i, rate=a_i)
 
 
@@ -357,17 +357,19 @@ def _substitute_height(inp: JointInputs, T: np.ndarray, t: np.ndarray,
 
 def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
                        T: np.ndarray, Cen: np.ndarray, clock: dict[str, float],
-                       pnom: np.ndarray | None, vnom: np.ndarray | None = None) -> None:
+                       pnom: np.ndarray | None) -> None:
     """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities,
-    at their own times shifted by ``clock["gnss"]``, with the receiver's per-fix accuracy.
+    at their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the
+    receiver's per-fix accuracy.
 
     Each is carried from its state step to its own time, the fixes by the state's velocity,
-    the velocities by the nominal's acceleration (``vnom`` (N, 3) differentiated on the grid):
-    a velocity taken 0.4 s from its step in a 3 m/s^2 turn differs from the step's by
-    1.2 m/s, and a velocity compared at the step instead held a clock offset's estimate near
-    zero (a circuit with its GNSS stamped 0.375 s late: -0.05 s estimated, the track 23 m
-    RMS from the truth; with the velocities at their times -0.37 s, test
-    ``test_gnss_clock_offset_recovered``)."""
+    the velocities by their own acceleration (:func:`gnss_acceleration`; not the iterate's,
+    which would make the measurement function depend on the trajectory beyond the state at
+    its step: the Gauss-Newton step was then no descent direction of the cost, and the line
+    search failed on two real G1000 exports).  A velocity taken 0.4 s from its step in a
+    3 m/s^2 turn differs from the step's by 1.2 m/s; compared at the step, the velocities held
+    the clock offset's estimate near zero (a circuit with its GNSS stamped 0.375 s late:
+    -0.05 s, the track 23 m RMS from the truth; test ``test_gnss_clock_offset_recovered``)."""
     nz = settings.noise
     g = inp.gnss
     if not len(g):
@@ -405,12 +407,36 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     _add_ned_components(b, T, Cen, "gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
     if {"vn_mps", "ve_mps"} <= set(g.columns):
         sd_vel = per_fix_sd(g, "vel_sd_mps", nz.gnss_vel_mps)
-        acc = None
-        if vnom is not None and len(T) > 2:
-            acc = np.gradient(np.asarray(vnom, float), T, axis=0)
-        _add_ned_components(b, T, Cen, "gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
-                                                    g["ve_mps"].to_numpy() - v_arm[:, 1]),
-                            (sd_vel, sd_vel), "vel", acc=acc)
+        vel = (g["vn_mps"].to_numpy() - v_arm[:, 0], g["ve_mps"].to_numpy() - v_arm[:, 1])
+        # the velocities' own clock offset (the positions' where none is given)
+        tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
+        acc = gnss_acceleration(tv, np.column_stack(vel))
+        _add_ned_components(b, T, Cen, "gnss_vel", tv, vel, (sd_vel, sd_vel), "vel", acc=acc)
+
+
+def gnss_acceleration(t: np.ndarray, v: np.ndarray, max_gap_s: float = 2.5) -> np.ndarray:
+    """The north and east acceleration at each GNSS velocity (times ``t`` (M,), velocities
+    ``v`` (M, 2)): the central difference of the neighbouring velocities, one-sided at an end
+    or beside a gap longer than ``max_gap_s``, zero without a neighbour within it or where a
+    velocity is missing.  Fixed by the data (not by the iterate), so the velocity's
+    prediction v_k + a tau is linear in the state at its step.  Its noise is small: 0.1 m/s
+    per velocity over 2 s is 0.07 m/s^2, 0.035 m/s at a quarter second from the step."""
+    t = np.asarray(t, float)
+    v = np.asarray(v, float)
+    M = len(t)
+    a = np.zeros((M, v.shape[1]))
+    if M < 2:
+        return a
+    dt = np.diff(t)
+    dv = np.diff(v, axis=0)
+    ok = (dt > 0) & (dt <= max_gap_s) & np.all(np.isfinite(dv), axis=1)
+    slope = np.where(ok[:, None], dv / np.where(dt > 0, dt, 1.0)[:, None], np.nan)
+    left = np.r_[[np.full(v.shape[1], np.nan)], slope]     # slope to the previous velocity
+    right = np.r_[slope, [np.full(v.shape[1], np.nan)]]    # slope to the next
+    both = np.isfinite(left) & np.isfinite(right)
+    a = np.where(both, 0.5 * (left + right), np.where(np.isfinite(left), left,
+                                                       np.where(np.isfinite(right), right, 0.0)))
+    return a
 
 
 def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,

@@ -79,7 +79,11 @@ from flightrecon.methods.joint.layout import (
 )
 from flightrecon.methods.joint.observation import measure_into
 
-__all__ = ["JointModel", "joint_model"]
+__all__ = ["N_CLOCK", "JointModel", "joint_model"]
+
+N_CLOCK = 3
+"""Clock offsets the forward pass can carry as filter columns (GNSS positions, radar, GNSS
+velocities: :data:`~flightrecon.methods.joint.updates.CLOCK_SOURCES`)."""
 
 
 @with_mean_only_pass
@@ -102,8 +106,10 @@ class JointModel(NamedTuple):
     Clock offsets (forward pass; (0,): not estimated): ``ccol`` (M,) the clock column of each
     measurement (0 GNSS, 1 radar, -1 none), ``crate`` (M,) the rate of the prediction with the
     measurement's time where its gradient does not give it (GNSS velocities: the nominal's
-    acceleration; 0 elsewhere) and ``cnorm`` (5,) the normal equations of
-    the offsets' Gauss-Newton step accumulated over the pass (:func:`_clock_column_update`).
+    acceleration; 0 elsewhere), ``cnorm`` (C, C + 1) the normal equations [A b] of the
+    offsets' Gauss-Newton step accumulated over the pass (:func:`_clock_column_update`; (0, 0):
+    not estimated), ``cxf``, ``cxp`` (C, N, n) the offsets' filter columns after and before
+    each step's updates (C = 3: GNSS positions, radar, GNSS velocities).
     """
 
 
@@ -128,6 +134,8 @@ class JointModel(NamedTuple):
     ccol: np.ndarray
     crate: np.ndarray
     cnorm: np.ndarray
+    cxf: np.ndarray
+    cxp: np.ndarray
 
 
 def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,
@@ -138,8 +146,8 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
     buffers of a ``forward`` pass (innovations NaN, inflations 1) or of a backward pass: the
     ``residuals`` (and H P_s H^T; NaN until computed) and the smoothed ``covariances``
     blocks.  ``clock`` (a forward pass; None: no clock offsets) the clock column of each
-    measurement (0 GNSS, 1 radar, -1 none) and its ``crate``: the pass then accumulates the
-    offsets' normal equations in ``cnorm``."""
+    measurement (-1 none) and its ``crate``: the pass then accumulates the offsets' normal
+    equations in ``cnorm``."""
     xf, Pf, xp, Pp = bufs
     N, n = xf.shape
     M = len(meas.mtype)
@@ -157,7 +165,9 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
         np.empty((N if covariances else 0, 6, 6)), np.empty((N if covariances else 0, n)),
         np.empty(0, dtype=np.int64) if clock is None else clock[0].astype(np.int64),
         np.empty(0) if clock is None else np.asarray(clock[1], float),
-        np.empty(0) if clock is None else np.zeros(5))
+        np.zeros((0, 0)) if clock is None else np.zeros((N_CLOCK, N_CLOCK + 1)),
+        np.zeros((N_CLOCK, 0 if clock is None else N, n)),
+        np.zeros((N_CLOCK, 0 if clock is None else N, n)))
 
 
 # ---- helpers at one step ----
@@ -231,41 +241,39 @@ def _position_rate(H, Cen, k, x):
 
 
 @nb.njit(cache=True, nogil=True)
-def _clock_column_update(j, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm):
+def _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm, ng):
     """The clock offsets' columns of the augmented filter at scalar measurement j
     (docs/joint.md, "Filter, smoother, iterations", item 4).
 
     A measurement stamped t_m and used at t_m + c + dc predicts h + g dc, g = dh/dtau its
     rate at the linearisation point (of a position, :func:`_position_rate`, plus ``crate``).
-    With the offsets' step dc = (dc_gnss, dc_radar) as constant regression parameters of the
-    pass's linearised model, the filtered state is
-    x(dc) = x(0) - X_g dc and the innovations nu(dc) = nu - nu_g . dc, where the columns X_g
-    (``xg``, (2, n)) are the same filter run on the data g_c = g [column of j is c] from zero,
-    with no control input: nu_g,c = g_c - H X_g,c, X_g,c <- X_g,c + K nu_g,c (K = P H^T / S,
+    With the offsets' step dc (one per column: :data:`~flightrecon.methods.joint.updates.
+    CLOCK_SOURCES`) as constant regression parameters of the
+    pass's linearised model, the filtered state is x(dc) = x(0) - X_g dc and the innovations
+    nu(dc) = nu - nu_g . dc, where the columns X_g (``xg[:, k]``, (C, n) at step k) are the
+    same filter run on the data g_c = g [column of j is c] from zero, with no control input:
+    nu_g,c = g_c - H X_g,c, X_g,c <- X_g,c + K nu_g,c (K = P H^T / S,
     the gain of this update) and X_g,c <- F_k X_g,c between the steps (the augmented Kalman
     filter: de Jong 1991, "The diffuse Kalman filter", Ann. Stat. 19, 1073-1083; Durbin &
     Koopman 2012, "Time series analysis by state space methods", 6.2.2).  The pass's MAP cost
     profiled over the track is then sum_j (nu_j - nu_g,j . dc)^2 / S_j + const, so the
     Gauss-Newton step of the offsets jointly with the track solves A dc = b with
-    A = sum nu_g nu_g^T / S and b = sum nu_g nu / S; ``cnorm`` accumulates
-    (A00, A01, A11, b0, b1), and A^-1 is the offsets' covariance."""
-    c = ccol[j]
-    ng0 = g if c == 0 else 0.0
-    ng1 = g if c == 1 else 0.0
-    for a in range(nh):
-        i = hnz[a]
-        ng0 -= H[i] * xg[0, i]
-        ng1 -= H[i] * xg[1, i]
+    A = sum nu_g nu_g^T / S and b = sum nu_g nu / S; ``cnorm`` (C, C + 1) accumulates [A b],
+    and A^-1 is the offsets' covariance.  ``ng`` (C,) scratch."""
+    nc = xg.shape[0]
+    for c in range(nc):
+        ng[c] = g if ccol[j] == c else 0.0
+        for a in range(nh):
+            ng[c] -= H[hnz[a]] * xg[c, k, hnz[a]]
     inv_s = 1.0 / S
-    cnorm[0] += ng0 * ng0 * inv_s
-    cnorm[1] += ng0 * ng1 * inv_s
-    cnorm[2] += ng1 * ng1 * inv_s
-    cnorm[3] += ng0 * nu * inv_s
-    cnorm[4] += ng1 * nu * inv_s
-    for a in range(xg.shape[1]):
+    for c in range(nc):
+        for d in range(nc):
+            cnorm[c, d] += ng[c] * ng[d] * inv_s
+        cnorm[c, nc] += ng[c] * nu * inv_s
+    for a in range(xg.shape[2]):
         ka = PH[a] * inv_s
-        xg[0, a] += ka * ng0
-        xg[1, a] += ka * ng1
+        for c in range(nc):
+            xg[c, k, a] += ka * ng[c]
 
 
 # ---- the model protocol (estimation.model) ----
@@ -273,13 +281,12 @@ def _clock_column_update(j, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm):
 @implements(workspace, JointModel, forceinline=True)
 def _workspace(model):
     """Scratch of both passes: F_k dense and row-compressed, the products' buffers, a
-    measurement's gradient and its nonzero indices, P_p[k+1] and P_f[k] unpacked; the clock
-    offsets' two filter columns (:func:`_clock_column_update`; zero at the start)."""
+    measurement's gradient and its nonzero indices, P_p[k+1] and P_f[k] unpacked."""
     n = N_STATE
     return (np.empty((n, n)), np.empty((n, n), dtype=np.int64), np.empty((n, n)),
             np.empty(n, dtype=np.int64), np.empty((n, n)), np.empty(n), np.empty(n),
             np.empty(n), np.empty(n, dtype=np.int64), np.empty((n, n)), np.empty((n, n)),
-            np.empty(n), np.zeros((2, n)))
+            np.empty(n), np.empty(N_CLOCK))
 
 
 @implements(predict_into, JointModel, refcounted=False, forceinline=True)
@@ -291,11 +298,10 @@ def _predict(model, k, x, P, ws):
     _transition_rows(F, cols, vals, cnt, k, dyn)
     predict_sparse(x, P, cols, vals, cnt, xn, B)  # x <- F x, P <- F P F^T
     if model.cnorm.shape[0] > 0:  # the clock offsets' columns: X_g <- F_k X_g
-        xg = ws[12]
-        for c in range(2):
-            sparse_matvec(cols, vals, cnt, xg[c], xn)
+        for c in range(model.cxf.shape[0]):
+            sparse_matvec(cols, vals, cnt, model.cxf[c, k - 1], xn)
             for i in range(N_STATE):
-                xg[c, i] = xn[i]
+                model.cxp[c, k, i] = xn[i]
     Cen, dP, dV = dyn.Cen, dyn.dP, dyn.dV
     for i in range(3):  # + the control input (the recorded increments) and Q_k
         for m in range(3):
@@ -333,6 +339,10 @@ def _update(model, k, x, P, ws):
     nu_out, s_out, infl = model.nu, model.S, model.infl
     clocks = model.cnorm.shape[0] > 0
     n = N_STATE  # a constant: the loops below unroll (as in the filter before the core)
+    if clocks:  # the clock offsets' columns enter the step as predicted (0 at step 0)
+        for c in range(model.cxf.shape[0]):
+            for i in range(n):
+                model.cxf[c, k, i] = model.cxp[c, k, i]
     for j in range(mstart[k], mstart[k + 1]):
         if mw[j] <= 0.0:
             continue
@@ -379,7 +389,8 @@ def _update(model, k, x, P, ws):
             r = r_new
             S = HPH + r
         if clocks:
-            _clock_column_update(j, g, nu, S, H, hnz, nh, PH, ws[12], model.ccol, model.cnorm)
+            _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, model.cxf, model.ccol,
+                                 model.cnorm, ws[12])
         # the short form P - PH PH^T / S (not the Joseph form, which it equals only at this
         # optimal gain, to rounding)
         scalar_update_short(x, P, PH, nu, S)

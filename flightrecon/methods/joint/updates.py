@@ -26,9 +26,12 @@ def robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettin
     return w
 
 
-CLOCK_SOURCES = (("gnss", ("gnss_pos", "gnss_vel")), ("radar", ("radar",)))
-"""The clock offsets estimated, in the order of the forward pass's clock columns, and the
-sources each shifts."""
+CLOCK_SOURCES = (("gnss", ("gnss_pos",)), ("radar", ("radar",)),
+                 ("gnss_velocity", ("gnss_vel",)))
+"""The clock offsets estimated, in the order of the forward pass's clock columns
+(:data:`~flightrecon.methods.joint.model.N_CLOCK`), and the sources each shifts.  The GNSS
+velocities have their own: on the real G1000 exports the ground speed and track lag the
+positions (docs/joint.md, "Filter, smoother, iterations", item 4)."""
 
 CLOCK_MIN_MEASUREMENTS = 10
 """Fewer measurements of a source than this: its offset is not estimated."""
@@ -54,9 +57,30 @@ def clock_columns(meas: Measurements) -> tuple[np.ndarray, np.ndarray] | None:
     return cols, np.zeros(len(cols)) if meas.rate is None else meas.rate
 
 
-def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], normal: np.ndarray, alpha: float,
-               clock: dict[str, float], clock_sd: dict[str, float], info: dict[str, Any]
-               ) -> None:
+def clock_covariance(cols: np.ndarray, normal: np.ndarray
+                     ) -> tuple[list[int], np.ndarray, np.ndarray] | None:
+    """The clock columns estimated (those with :data:`CLOCK_MIN_MEASUREMENTS` and a positive
+    normal equation), the offsets' covariance A^-1 and their Gauss-Newton step A^-1 b from the
+    forward pass's normal equations ``normal`` = [A b] (C, C + 1) (:func:`clock_step`); None
+    when none is estimated or A is singular."""
+    nc = normal.shape[0]
+    act = [c for c in range(nc)
+           if np.sum(cols == c) >= CLOCK_MIN_MEASUREMENTS and normal[c, c] > 0.0]
+    if not act:
+        return None
+    A = normal[:, :nc][np.ix_(act, act)]
+    try:
+        cov = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0.0):
+        return None
+    return act, cov, cov @ normal[act, nc]
+
+
+def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndarray, ...],
+               alpha: float, clock: dict[str, float], clock_sd: dict[str, float],
+               info: dict[str, Any]) -> None:
     """The clock offsets' Gauss-Newton step jointly with the track, in place, in seconds added
     to each source's time stamps (the convention of `clean --gnss-clock-offset /
     --radar-clock-offset`; docs/joint.md, "Filter, smoother, iterations", item 4).
@@ -64,7 +88,8 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], normal: np.ndarray, al
     A measurement stamped t_m, taken at t_m + c_true and used at t_m + c has residual
     hdot (c_true - c).  The pass's forward filter carried the offsets as constant parameters
     of its linearised model (:func:`~flightrecon.methods.joint.model._clock_column_update`)
-    and accumulated ``normal`` = (A00, A01, A11, b0, b1): the step dc = A^-1 b minimises the
+    and accumulated (its ``outputs``' first) the normal equations [A b]:
+    the step dc = A^-1 b minimises the
     pass's cost profiled over the track (the track given the offsets is what the pass
     smoothed; moved by dc it is the next pass's business), A^-1 the offsets' covariance.  The
     step is scaled by the line search's ``alpha`` (0: a Levenberg-Marquardt step, which is not
@@ -77,22 +102,14 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], normal: np.ndarray, al
     what was left (32-50 passes on the four real G1000 exports with their GPS, 6-17 now) and
     its sd, that of a known track, was 4 times (a simulated circuit: 1.2 ms, 4.9 ms now) to
     20 times (those exports: 0.9-2.1 ms, 16-29 ms now) too small."""
-    cols = clock_cols[0]
-    act = [c for c in range(len(CLOCK_SOURCES))
-           if np.sum(cols == c) >= CLOCK_MIN_MEASUREMENTS and normal[2 * c] > 0.0]
-    if not act:
+    est = clock_covariance(clock_cols[0], outputs[0])
+    if est is None:
         return
-    A = np.array([[normal[0], normal[1]], [normal[1], normal[2]]])[np.ix_(act, act)]
-    b = normal[3:5][act]
-    try:
-        cov = np.linalg.inv(A)
-    except np.linalg.LinAlgError:
-        return
-    d = cov @ b
+    act, cov, d = est
     for i, c in enumerate(act):
         name = CLOCK_SOURCES[c][0]
-        sd = float(np.sqrt(cov[i, i])) if cov[i, i] > 0 else np.nan
-        if not np.isfinite(sd) or not np.isfinite(d[i]):
+        sd = float(np.sqrt(cov[i, i]))
+        if not np.isfinite(d[i]):
             continue
         clock_sd[name] = sd
         step = float(alpha * d[i])
