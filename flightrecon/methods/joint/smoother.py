@@ -119,7 +119,7 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
     gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
     if not first and s.line_search and not s.gate_damped:
         gate = 0.0
-    cols = clock_columns(mdl.meas) if s.estimate_clock else None
+    cols = clock_columns(mdl.meas, s) if s.estimate_clock else None
     innov, innov_var, infl, normal = jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars,
                                                 mdl.geo, gate, xlin, cols)
     clock = None if cols is None else (cols, normal)
