@@ -50,11 +50,22 @@ def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
 
 
 def clock_warnings(run: JointRun) -> list[str]:
-    """A warning per clock offset estimated beyond 3 sd and 0.05 s (it was corrected)."""
-    return [f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated and corrected "
-            f"(seconds added to the {name} times, as `clean --{name}-clock-offset` takes it)"
-            for name, (o, sd) in run.clock_offsets_s.items()
-            if np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05]
+    """A warning per clock offset estimated beyond 3 sd and 0.05 s (it was corrected).  The
+    GNSS velocities' offset has no option of its own: `clean --gnss-clock-offset` shifts the
+    positions and the velocities together, and the smoother estimates the velocities' from
+    there."""
+    out = []
+    for name, (o, sd) in run.clock_offsets_s.items():
+        if not (np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05):
+            continue
+        how = (f"seconds added to the {name} times, as `clean --{name}-clock-offset` takes it"
+               if name != "gnss_velocity" else
+               "seconds added to the GNSS velocities' times, on top of any "
+               "`clean --gnss-clock-offset`: the receiver's ground speed and track lag or lead "
+               "its positions")
+        out.append(f"joint: {name} clock offset {o:+.2f} s (sd {sd:.2f} s) estimated and "
+                   f"corrected ({how})")
+    return out
 
 
 IMPLAUSIBLE_PRIOR_SD = 8.0

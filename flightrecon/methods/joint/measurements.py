@@ -47,6 +47,10 @@ class Measurements:
     hrow: np.ndarray        # (M,) row of H, -1 where the measurement has none
     d: np.ndarray
     start: np.ndarray       # (N+1,)
+    # (M,) the rate of change with the measurement's time of the prediction, where the
+    # kernel's gradient does not give it (GNSS velocities: their own acceleration); 0
+    # elsewhere (the clock offsets' Gauss-Newton column)
+    rate: np.ndarray | None = None
 
 
 def per_fix_sd(g, column: str, default: float) -> np.ndarray:
@@ -73,7 +77,7 @@ class _MeasBuilder:
         b.n_rows = self.n_rows
         return b
 
-    def add(self, source: str, mtype: int, t, z, r, H=None, d=None, index=None):
+    def add(self, source: str, mtype: int, t, z, r, H=None, d=None, index=None, rate=None):
         t = np.asarray(t, float)
         z = np.asarray(z, float)
         m = len(t)
@@ -89,13 +93,15 @@ class _MeasBuilder:
             hrow = self.n_rows + np.arange(m)
             self.H.append(Hm)
             self.n_rows += m
+        rt = np.zeros(m) if rate is None else np.broadcast_to(np.asarray(rate, float), (m,))
         self.parts.append({"source": np.full(m, SOURCES.index(source)), "mtype": np.full(m, mtype),
-                           "t": t, "z": z, "r": r, "hrow": hrow, "d": dm, "ok": ok})
+                           "t": t, "z": z, "r": r, "hrow": hrow, "d": dm, "ok": ok,
+                           "rate": rt})
 
     def build(self) -> Measurements:
         T = self.T
         N = len(T)
-        keys = ("source", "mtype", "t", "z", "r", "hrow", "d", "ok")
+        keys = ("source", "mtype", "t", "z", "r", "hrow", "d", "ok", "rate")
         cat = {k: np.concatenate([p[k] for p in self.parts]) if self.parts else np.zeros(0)
                for k in keys}
         H = np.concatenate(self.H) if self.H else np.zeros((0, self.n))
@@ -117,7 +123,7 @@ class _MeasBuilder:
                             mtype=cat["mtype"][order].astype(np.int64), z=cat["z"][order],
                             r=cat["r"][order], t=cat["t"][order], H=np.ascontiguousarray(H),
                             hrow=cat["hrow"][order].astype(np.int64), d=cat["d"][order],
-                            start=start.astype(np.int64))
+                            start=start.astype(np.int64), rate=cat["rate"][order])
 
 
 @nb.njit(cache=True, nogil=True)
@@ -319,19 +325,23 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
 
 
 def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source: str, t, comp_vals,
-                    sd, kind: str = "pos", ecef=None) -> None:
+                    sd, kind: str = "pos", ecef=None, acc: np.ndarray | None = None) -> None:
     """Add the NED components of a position (given in ECEF, ``kind="pos"``: three ``NED_POS``
     measurements, whose rows the kernel builds from the step's frame with the tau term) or a
     velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to
-    ``b``."""
+    ``b``.  A velocity is carried to its own time as the position is: h = v_i + a_i tau with
+    ``acc`` (M, 2) the north and east acceleration at each (None: h = v_i, the velocity at the
+    step)."""
     k = nearest_index(T, t)
+    tau = np.asarray(t, float) - T[k]
     for i in range(3 if kind == "pos" else 2):
         r = np.broadcast_to(sd[i] ** 2, (len(t),))
         if kind == "pos":   # c_i . p + v_i tau, c_i the NED axis i in ECEF at the step
             z = np.einsum("mj,mj->m", Cen[k][:, :, i], ecef)
             b.add(source, jl.NED_POS, t, z, r, index=i)
         else:
-            b.add(source, jl.STATE, t, comp_vals[i], r, index=jl.IV + i)
+            a_i = np.zeros(len(t)) if acc is None else acc[:, i]
+            b.add(source, jl.STATE, t, comp_vals[i], r, d=a_i * tau, index=jl.IV + i, rate=a_i)
 
 
 def _substitute_height(inp: JointInputs, T: np.ndarray, t: np.ndarray,
@@ -349,7 +359,17 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
                        T: np.ndarray, Cen: np.ndarray, clock: dict[str, float],
                        pnom: np.ndarray | None) -> None:
     """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities,
-    at their own times shifted by ``clock["gnss"]``, with the receiver's per-fix accuracy."""
+    at their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the
+    receiver's per-fix accuracy.
+
+    Each is carried from its state step to its own time, the fixes by the state's velocity,
+    the velocities by their own acceleration (:func:`gnss_acceleration`; not the iterate's,
+    which would make the measurement function depend on the trajectory beyond the state at
+    its step: the Gauss-Newton step was then no descent direction of the cost, and the line
+    search failed on two real G1000 exports).  A velocity taken 0.4 s from its step in a
+    3 m/s^2 turn differs from the step's by 1.2 m/s; compared at the step, the velocities held
+    the clock offset's estimate near zero (a circuit with its GNSS stamped 0.375 s late:
+    -0.05 s, the track 23 m RMS from the truth; test ``test_gnss_clock_offset_recovered``)."""
     nz = settings.noise
     g = inp.gnss
     if not len(g):
@@ -387,9 +407,36 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     _add_ned_components(b, T, Cen, "gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
     if {"vn_mps", "ve_mps"} <= set(g.columns):
         sd_vel = per_fix_sd(g, "vel_sd_mps", nz.gnss_vel_mps)
-        _add_ned_components(b, T, Cen, "gnss_vel", tg, (g["vn_mps"].to_numpy() - v_arm[:, 0],
-                                                    g["ve_mps"].to_numpy() - v_arm[:, 1]),
-                        (sd_vel, sd_vel), "vel")
+        vel = (g["vn_mps"].to_numpy() - v_arm[:, 0], g["ve_mps"].to_numpy() - v_arm[:, 1])
+        # the velocities' own clock offset (the positions' where none is given)
+        tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
+        acc = gnss_acceleration(tv, np.column_stack(vel))
+        _add_ned_components(b, T, Cen, "gnss_vel", tv, vel, (sd_vel, sd_vel), "vel", acc=acc)
+
+
+def gnss_acceleration(t: np.ndarray, v: np.ndarray, max_gap_s: float = 2.5) -> np.ndarray:
+    """The north and east acceleration at each GNSS velocity (times ``t`` (M,), velocities
+    ``v`` (M, 2)): the central difference of the neighbouring velocities, one-sided at an end
+    or beside a gap longer than ``max_gap_s``, zero without a neighbour within it or where a
+    velocity is missing.  Fixed by the data (not by the iterate), so the velocity's
+    prediction v_k + a tau is linear in the state at its step.  Its noise is small: 0.1 m/s
+    per velocity over 2 s is 0.07 m/s^2, 0.035 m/s at a quarter second from the step."""
+    t = np.asarray(t, float)
+    v = np.asarray(v, float)
+    M = len(t)
+    a = np.zeros((M, v.shape[1]))
+    if M < 2:
+        return a
+    dt = np.diff(t)
+    dv = np.diff(v, axis=0)
+    ok = (dt > 0) & (dt <= max_gap_s) & np.all(np.isfinite(dv), axis=1)
+    slope = np.where(ok[:, None], dv / np.where(dt > 0, dt, 1.0)[:, None], np.nan)
+    left = np.r_[[np.full(v.shape[1], np.nan)], slope]     # slope to the previous velocity
+    right = np.r_[slope, [np.full(v.shape[1], np.nan)]]    # slope to the next
+    both = np.isfinite(left) & np.isfinite(right)
+    a = np.where(both, 0.5 * (left + right), np.where(np.isfinite(left), left,
+                                                       np.where(np.isfinite(right), right, 0.0)))
+    return a
 
 
 def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,

@@ -57,6 +57,7 @@ from flightrecon.estimation.predict import (
     predict_cov_sparse,
     predict_sparse,
     sparse_left_product,
+    sparse_matvec,
     sparse_rmatvec,
     sparse_rows,
 )
@@ -78,7 +79,11 @@ from flightrecon.methods.joint.layout import (
 )
 from flightrecon.methods.joint.observation import measure_into
 
-__all__ = ["JointModel", "joint_model"]
+__all__ = ["N_CLOCK", "JointModel", "joint_model"]
+
+N_CLOCK = 3
+"""Clock offsets the forward pass can carry as filter columns (GNSS positions, radar, GNSS
+velocities: :data:`~flightrecon.methods.joint.updates.CLOCK_SOURCES`)."""
 
 
 @with_mean_only_pass
@@ -97,6 +102,14 @@ class JointModel(NamedTuple):
     of sqrt(R)), the ``rate`` dh/dtau and ``hph`` (H P_s H^T, in the covariance pass only)
     ((0,): not computed); per step ``Pblk`` (N, 6, 6) the position-velocity block of P_s and
     ``var`` (N, n) its diagonal ((0, ...): the mean-only pass).
+
+    Clock offsets (forward pass; (0,): not estimated): ``ccol`` (M,) the clock column of each
+    measurement (0 GNSS, 1 radar, -1 none), ``crate`` (M,) the rate of the prediction with the
+    measurement's time where its gradient does not give it (GNSS velocities: the nominal's
+    acceleration; 0 elsewhere), ``cnorm`` (C, C + 1) the normal equations [A b] of the
+    offsets' Gauss-Newton step accumulated over the pass (:func:`_clock_column_update`; (0, 0):
+    not estimated), ``cxf``, ``cxp`` (C, N, n) the offsets' filter columns after and before
+    each step's updates (C = 3: GNSS positions, radar, GNSS velocities).
     """
 
 
@@ -118,15 +131,23 @@ class JointModel(NamedTuple):
     hph: np.ndarray
     Pblk: np.ndarray
     var: np.ndarray
+    ccol: np.ndarray
+    crate: np.ndarray
+    cnorm: np.ndarray
+    cxf: np.ndarray
+    cxp: np.ndarray
 
 
 def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,
                 gate: float = 0.0, xlin: np.ndarray | None = None, forward: bool = False,
-                residuals: bool = False, covariances: bool = False) -> JointModel:
+                residuals: bool = False, covariances: bool = False,
+                clock: tuple[np.ndarray, np.ndarray] | None = None) -> JointModel:
     """A :class:`JointModel` on the filter buffers ``bufs`` = (xf, Pf, xp, Pp), with the output
     buffers of a ``forward`` pass (innovations NaN, inflations 1) or of a backward pass: the
     ``residuals`` (and H P_s H^T; NaN until computed) and the smoothed ``covariances``
-    blocks."""
+    blocks.  ``clock`` (a forward pass; None: no clock offsets) the clock column of each
+    measurement (-1 none) and its ``crate``: the pass then accumulates the offsets' normal
+    equations in ``cnorm``."""
     xf, Pf, xp, Pp = bufs
     N, n = xf.shape
     M = len(meas.mtype)
@@ -141,7 +162,12 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
         np.ones(M) if forward else none,
         np.full(m_res, np.nan), np.full(m_res, np.nan), np.full(m_res, np.nan),
         np.full(m_res, np.nan),
-        np.empty((N if covariances else 0, 6, 6)), np.empty((N if covariances else 0, n)))
+        np.empty((N if covariances else 0, 6, 6)), np.empty((N if covariances else 0, n)),
+        np.empty(0, dtype=np.int64) if clock is None else clock[0].astype(np.int64),
+        np.empty(0) if clock is None else np.asarray(clock[1], float),
+        np.zeros((0, 0)) if clock is None else np.zeros((N_CLOCK, N_CLOCK + 1)),
+        np.zeros((N_CLOCK, 0 if clock is None else N, n)),
+        np.zeros((N_CLOCK, 0 if clock is None else N, n)))
 
 
 # ---- helpers at one step ----
@@ -197,13 +223,57 @@ def _residuals_at(k, x, meas, geo, Cen, H, res, res_n, rate, P, hph):
         if t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
             rate[j] = 0.0
             continue
-        rd = 0.0  # H holds the gradient (for LINEAR, the measurement's row of mH)
-        for m in range(3):
-            s = 0.0
-            for i in range(3):
-                s += H[IP + i] * Cen[k, i, m]
-            rd += s * x[IV + m]
-        rate[j] = rd
+        rate[j] = _position_rate(H, Cen, k, x)
+
+
+@nb.njit(cache=True, nogil=True)
+def _position_rate(H, Cen, k, x):
+    """dh/dtau of a measurement of the position with gradient ``H`` (for ``LINEAR``, its row
+    of mH) at state ``x``: (dh/dp) C_en[k] v, the change of the predicted measurement with
+    its time."""
+    rd = 0.0
+    for m in range(3):
+        s = 0.0
+        for i in range(3):
+            s += H[IP + i] * Cen[k, i, m]
+        rd += s * x[IV + m]
+    return rd
+
+
+@nb.njit(cache=True, nogil=True)
+def _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm, ng):
+    """The clock offsets' columns of the augmented filter at scalar measurement j
+    (docs/joint.md, "Filter, smoother, iterations", item 4).
+
+    A measurement stamped t_m and used at t_m + c + dc predicts h + g dc, g = dh/dtau its
+    rate at the linearisation point (of a position, :func:`_position_rate`, plus ``crate``).
+    With the offsets' step dc (one per column: :data:`~flightrecon.methods.joint.updates.
+    CLOCK_SOURCES`) as constant regression parameters of the
+    pass's linearised model, the filtered state is x(dc) = x(0) - X_g dc and the innovations
+    nu(dc) = nu - nu_g . dc, where the columns X_g (``xg[:, k]``, (C, n) at step k) are the
+    same filter run on the data g_c = g [column of j is c] from zero, with no control input:
+    nu_g,c = g_c - H X_g,c, X_g,c <- X_g,c + K nu_g,c (K = P H^T / S,
+    the gain of this update) and X_g,c <- F_k X_g,c between the steps (the augmented Kalman
+    filter: de Jong 1991, "The diffuse Kalman filter", Ann. Stat. 19, 1073-1083; Durbin &
+    Koopman 2012, "Time series analysis by state space methods", 6.2.2).  The pass's MAP cost
+    profiled over the track is then sum_j (nu_j - nu_g,j . dc)^2 / S_j + const, so the
+    Gauss-Newton step of the offsets jointly with the track solves A dc = b with
+    A = sum nu_g nu_g^T / S and b = sum nu_g nu / S; ``cnorm`` (C, C + 1) accumulates [A b],
+    and A^-1 is the offsets' covariance.  ``ng`` (C,) scratch."""
+    nc = xg.shape[0]
+    for c in range(nc):
+        ng[c] = g if ccol[j] == c else 0.0
+        for a in range(nh):
+            ng[c] -= H[hnz[a]] * xg[c, k, hnz[a]]
+    inv_s = 1.0 / S
+    for c in range(nc):
+        for d in range(nc):
+            cnorm[c, d] += ng[c] * ng[d] * inv_s
+        cnorm[c, nc] += ng[c] * nu * inv_s
+    for a in range(xg.shape[2]):
+        ka = PH[a] * inv_s
+        for c in range(nc):
+            xg[c, k, a] += ka * ng[c]
 
 
 # ---- the model protocol (estimation.model) ----
@@ -216,7 +286,7 @@ def _workspace(model):
     return (np.empty((n, n)), np.empty((n, n), dtype=np.int64), np.empty((n, n)),
             np.empty(n, dtype=np.int64), np.empty((n, n)), np.empty(n), np.empty(n),
             np.empty(n), np.empty(n, dtype=np.int64), np.empty((n, n)), np.empty((n, n)),
-            np.empty(n))
+            np.empty(n), np.empty(N_CLOCK))
 
 
 @implements(predict_into, JointModel, refcounted=False, forceinline=True)
@@ -227,6 +297,11 @@ def _predict(model, k, x, P, ws):
     F, cols, vals, cnt, B, xn = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]
     _transition_rows(F, cols, vals, cnt, k, dyn)
     predict_sparse(x, P, cols, vals, cnt, xn, B)  # x <- F x, P <- F P F^T
+    if model.cnorm.shape[0] > 0:  # the clock offsets' columns: X_g <- F_k X_g
+        for c in range(model.cxf.shape[0]):
+            sparse_matvec(cols, vals, cnt, model.cxf[c, k - 1], xn)
+            for i in range(N_STATE):
+                model.cxp[c, k, i] = xn[i]
     Cen, dP, dV = dyn.Cen, dyn.dP, dyn.dV
     for i in range(3):  # + the control input (the recorded increments) and Q_k
         for m in range(3):
@@ -262,7 +337,12 @@ def _update(model, k, x, P, ws):
     xlin = model.xlin
     gate = model.gate
     nu_out, s_out, infl = model.nu, model.S, model.infl
+    clocks = model.cnorm.shape[0] > 0
     n = N_STATE  # a constant: the loops below unroll (as in the filter before the core)
+    if clocks:  # the clock offsets' columns enter the step as predicted (0 at step 0)
+        for c in range(model.cxf.shape[0]):
+            for i in range(n):
+                model.cxf[c, k, i] = model.cxp[c, k, i]
     for j in range(mstart[k], mstart[k + 1]):
         if mw[j] <= 0.0:
             continue
@@ -270,6 +350,8 @@ def _update(model, k, x, P, ws):
         if xlin.shape[0] > 0:
             hx = measure_into(H, j, k, xlin[k], mtype, mz, mtau, mH, mrow, md, Cen, pnom,
                               hnom, pst, Cst)
+            g = (_position_rate(H, Cen, k, xlin[k]) + model.crate[j]
+                 if clocks and model.ccol[j] >= 0 else 0.0)
             nu = mz[j] - hx
             if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 nu = wrap_pi(nu)
@@ -279,6 +361,8 @@ def _update(model, k, x, P, ws):
         else:
             hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom,
                               pst, Cst)
+            g = (_position_rate(H, Cen, k, x) + model.crate[j]
+                 if clocks and model.ccol[j] >= 0 else 0.0)
             nu = mz[j] - hx
             if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 nu = wrap_pi(nu)
@@ -304,6 +388,9 @@ def _update(model, k, x, P, ws):
             infl[j] = r_new / r
             r = r_new
             S = HPH + r
+        if clocks:
+            _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, model.cxf, model.ccol,
+                                 model.cnorm, ws[12])
         # the short form P - PH PH^T / S (not the Joseph form, which it equals only at this
         # optimal gain, to rounding)
         scalar_update_short(x, P, PH, nu, S)

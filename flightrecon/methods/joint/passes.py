@@ -24,7 +24,8 @@ from flightrecon.estimation.smoothing import backward_pass
 from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Scalars
 from flightrecon.methods.joint.model import joint_model
 
-__all__ = ["BackgroundCovariances", "backward", "backward_mean", "filter_buffers", "forward"]
+__all__ = ["BackgroundCovariances", "backward", "backward_mean", "filter_buffers", "forward",
+           "smoothed_columns"]
 
 
 def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ...]:
@@ -41,7 +42,8 @@ def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ..
 
 def forward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, x0: np.ndarray,
             P0: np.ndarray, dyn: Dynamics, meas: Scalars, geo: Geometry, gate: float,
-            xlin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            xlin: np.ndarray, clock: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
     """Forward extended Kalman filter with sequential scalar updates (the model's
     ``predict_into`` and ``update_into``, :mod:`~flightrecon.methods.joint.model`).
 
@@ -53,11 +55,17 @@ def forward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, x0: 
     Fills ``xf``, ``Pf``, ``xp``, ``Pp`` (:func:`filter_buffers`; an empty ``Pp`` is not filled:
     the backward passes then recompute each predicted covariance, bit for bit the same) and
     returns, per measurement, the innovation, its variance (before inflation) and the inflation
-    factor (NaN, NaN, 1 for a measurement of weight 0).
+    factor (NaN, NaN, 1 for a measurement of weight 0), and the clock offsets' outputs when
+    ``clock`` gives each measurement's clock column (0 GNSS, 1 radar, -1 none) and the rate of
+    its prediction the gradient does not give: the normal equations of their Gauss-Newton
+    step (A00, A01, A11, b0, b1: :func:`~flightrecon.methods.joint.model.
+    _clock_column_update`) and their filter columns after and before each step's updates
+    (2, N, n) (None: empty arrays).
     """
-    model = joint_model((xf, Pf, xp, Pp), dyn, meas, geo, gate, xlin, forward=True)
+    model = joint_model((xf, Pf, xp, Pp), dyn, meas, geo, gate, xlin, forward=True,
+                        clock=clock)
     forward_pass(model, x0, P0, xf.shape[0])
-    return model.nu, model.S, model.infl
+    return model.nu, model.S, model.infl, (model.cnorm, model.cxf, model.cxp)
 
 
 def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,
@@ -70,6 +78,20 @@ def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: G
     unpack_sym(Pf[N - 1], P_last)
     n_fallback = backward_pass(model, xf, xp, xs, P_last if with_cov else np.empty((0, 0)))
     return xs, model, int(n_fallback)
+
+
+def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.ndarray,
+                     dyn: Dynamics, meas: Scalars, geo: Geometry) -> np.ndarray:
+    """The clock offsets' smoothed columns X_s,g (2, N, n) from their filtered and predicted
+    ones (:func:`forward`'s, the same pass's ``Pf``, ``Pp``): the mean-only RTS recursion
+    x_s[k] = x_f[k] + C (x_s[k+1] - x_p[k+1]) is linear in (x_f, x_p) with no input of its
+    own, so on the columns it gives d x_s / d c up to sign: the track moved by an offset
+    error dc is x_s - X_s,g dc, and an offset of covariance Sigma adds X_s,g Sigma X_s,g^T to
+    the track's (the marginal covariance of the state augmented by the constant offsets)."""
+    out = np.empty_like(cxf)
+    for c in range(cxf.shape[0]):
+        out[c] = _backward((cxf[c], Pf, cxp[c], Pp), dyn, meas, geo, False, False)[0]
+    return out
 
 
 def backward_mean(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray,

@@ -35,6 +35,9 @@ class PassResult:
     pending: BackgroundCovariances | None = None  # its covariance pass, still on its thread
     #                                               (Pblk and var None until joined)
     info: dict[str, Any] | None = None   # the pass's entry in the iterations
+    # the clock columns and rates of its forward pass, and the offsets' outputs of it (normal
+    # equations, filter columns after and before each step's updates: passes.forward)
+    clock: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]] | None = None
 
 
 @dataclass
