@@ -319,7 +319,7 @@ def pinv_sym(S: np.ndarray, rcond: float):
     return Sp, rank
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def mm_into(A, B, out):
     """``out = A @ B`` for small matrices (plain loops: no allocation, no BLAS call overhead).
 
@@ -338,7 +338,7 @@ def mm_into(A, B, out):
                     out[i, j] += a * B[l, j]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def mmt_into(A, B, out):
     """``out = A @ B.T`` for small matrices (row-update order, as :func:`mm_into`)."""
     n, kk = A.shape
@@ -353,7 +353,7 @@ def mmt_into(A, B, out):
                     out[i, j] += a * B[j, l]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def mdmt_acc_into(A, dg, B, out):
     """``out += A @ diag(dg) @ B.T`` for small matrices (row-update order, as :func:`mm_into`)."""
     n, kk = A.shape

@@ -46,7 +46,7 @@ from flightrecon.estimation.manifold import state_minus_into, state_plus_into
 FALLBACK_RCOND = 1e-15
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rts_gain_into(CT, Pp, rel_tol, L, GT, G):
     """``G = C P_p^-1`` and ``GT = G^T = P_p^-1 C^T`` from ``CT`` (n, n); ``L`` (n, n) scratch.
 
@@ -65,7 +65,7 @@ def rts_gain_into(CT, Pp, rel_tol, L, GT, G):
     return ok
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rts_step(geom, filtered, predicted, smoothed_next, CT, heights, rel_tol, out, work):
     """One RTS backward step (module docstring).
 
@@ -126,7 +126,7 @@ def rts_step_work(n):
             np.empty((n, n)), np.empty(n), np.empty(n))
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rts_mean_solve(geom, xp, Pp, xs_next, h_next, rel_tol, L, d, y):
     """``y = P_p^-1 (x_s,next (-) x_p)`` (the mean-only step's solve; module docstring).
 
