@@ -324,7 +324,10 @@ def mm_into(A, B, out):
     """``out = A @ B`` for small matrices (plain loops: no allocation, no BLAS call overhead).
 
     Row-update order (``out[i, :] += A[i, l] B[l, :]``): the inner loop carries no dependency
-    chain, which matters more than anything else at these sizes.
+    chain, which matters more than anything else at these sizes.  Inlined at numba's IR level
+    (as :func:`mmt_into` and :func:`mdmt_acc_into`): otherwise compiled once per array layout
+    it is called with (four in the SNS's prediction) on a cold cache (docs/performance.md,
+    "The first run").
     """
     n, kk = A.shape
     m = B.shape[1]

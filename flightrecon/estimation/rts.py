@@ -27,6 +27,10 @@ solved through its symmetric eigen-decomposition instead
 matrix, as a general solve gives it; the minimum-norm solution of a singular one); the step
 returns False so that the caller counts and reports it.  docs/estimation.md, "The RTS
 backward step".
+
+:func:`rts_gain_into`, :func:`rts_step` and :func:`rts_mean_solve` are inlined at numba's IR
+level into their callers (``inline="always"``): no compilation of their own, once per calling
+loop and geometry, on a cold cache (docs/performance.md, "The first run").
 """
 
 from __future__ import annotations
