@@ -7,18 +7,22 @@ Usage (from a folder outside every checkout, a new kernel cache, one process)::
 
 runs ``flightrecon`` with the given arguments in this process with a listener on numba's
 ``numba:compile``, ``numba:llvm_lock`` and ``numba:run_pass`` events (every thread), then
-prints: the wall time; the time under numba's LLVM lock (LLVM's optimisation and code
-generation); per top-level kernel its compilation with everything compiled inside it, and the
-LLVM part of that; per function its own compilation (its span less the compilations nested in
-it), the LLVM part, and how many signatures were compiled; and the functions compiled for more
-than one signature, with them (docs/performance.md, 2026-12-04).  With a warm cache nothing is
-compiled and the tables are empty.
+prints: the wall time, the process's CPU time and the load (on a shared machine the CPU time
+is the figure to compare: the wall times below stretch with the load); the time under numba's
+LLVM lock (LLVM's optimisation and code generation); per top-level kernel (the estimation
+core's loops per model class, ``[JointModel]``) its compilation with everything compiled
+inside it, and the LLVM part of that; per function, every one compiled, its own compilation
+(its span less the compilations nested in it), the LLVM part, and how many signatures were
+compiled; and the functions compiled for more than one signature, with them
+(docs/performance.md, "The first run").  With a warm cache nothing is compiled and the tables
+are empty.
 """
 
 from __future__ import annotations
 
 import collections
 import os
+import resource
 import sys
 import threading
 import time
@@ -30,6 +34,19 @@ def _name(event) -> str:
     """``module.qualname`` of a compile event's dispatcher (the package prefix dropped)."""
     f = event.data["dispatcher"].py_func
     return f"{f.__module__.replace('flightrecon.', '')}.{f.__qualname__}"
+
+
+def _model(event) -> str:
+    """`` [Model]`` when the compiled signature's first argument is a model of the estimation
+    core's loops (a named tuple: one compilation of the loop per model class), else ``''``."""
+    args = event.data.get("args") or ()
+    cls = getattr(args[0], "instance_class", None) if args else None
+    return f" [{cls.__name__}]" if cls is not None else ""
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def main(argv: list[str]) -> None:
@@ -55,11 +72,13 @@ def main(argv: list[str]) -> None:
     for k, listener in rec.items():
         ev.register(k, listener)
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
     try:
         cli_main(argv)
     except SystemExit:
         pass
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - cpu0
     for k, listener in rec.items():
         ev.unregister(k, listener)
 
@@ -78,9 +97,9 @@ def main(argv: list[str]) -> None:
             name = _name(e) if e.kind == "numba:compile" else e.kind
             if e.kind == "numba:compile":
                 dispatchers[name] = e.data["dispatcher"]
-            st.append([e.kind, name, ts, 0.0])
+            st.append([e.kind, name, ts, 0.0, _model(e) if e.kind == "numba:compile" else ""])
             continue
-        kind, name, t1, nested = st.pop()
+        kind, name, t1, nested, model = st.pop()
         d = ts - t1
         if kind == "numba:llvm_lock":
             if not any(s[0] == kind for s in st):  # the outermost hold of the lock
@@ -88,7 +107,7 @@ def main(argv: list[str]) -> None:
                 comps = [s for s in st if s[0] == "numba:compile"]
                 if comps:
                     own_llvm[comps[-1][1]] += d
-                    top_llvm[comps[0][1]] += d
+                    top_llvm[comps[0][1] + comps[0][4]] += d
         elif kind == "numba:compile":
             own[name] += d - nested
             n_sig[name] += 1
@@ -96,14 +115,17 @@ def main(argv: list[str]) -> None:
             if comps:
                 comps[-1][3] += d
             else:
-                top[name] += d
-    print(f"wall {wall:.1f} s; compilation {sum(own.values()):.1f} s of {len(own)} functions "
+                top[name + model] += d
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"wall {wall:.1f} s; CPU time of this process {cpu:.1f} s "
+          f"(its children {_children_cpu():.1f} s); load at the end {load:.1f}")
+    print(f"compilation {sum(own.values()):.1f} s of {len(own)} functions "
           f"({sum(n_sig.values())} compilations); under the LLVM lock {llvm_total:.1f} s")
     print("\ntop-level kernels: compilation with what it compiled inside / of which LLVM [s]")
-    for name, v in sorted(top.items(), key=lambda kv: -kv[1])[:25]:
+    for name, v in sorted(top.items(), key=lambda kv: -kv[1]):
         print(f"  {v:6.2f} {top_llvm[name]:6.2f}  {name}")
     print("\nown compilation / of which LLVM [s], signatures")
-    for name, v in sorted(own.items(), key=lambda kv: -kv[1])[:40]:
+    for name, v in sorted(own.items(), key=lambda kv: -kv[1]):
         print(f"  {v:6.2f} {own_llvm[name]:6.2f}  x{n_sig[name]}  {name}")
     print("\nfunctions compiled for more than one signature")
     for name, disp in sorted(dispatchers.items()):

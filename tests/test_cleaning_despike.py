@@ -128,17 +128,22 @@ def test_speed_576k():
     assert time.perf_counter() - t0 < 10.0
 
 
-def test_running_median_kernel_equals_pandas():
-    """The numba sorted-window kernel gives the same numbers as pandas' centred rolling median
-    (ends truncated), for odd and even effective windows and many ties."""
-    from flightrecon.cleaning.despike import _running_median
+def test_running_median_kernel_equals_pandas(monkeypatch):
+    """The numba sorted-window kernel and the plain numpy running median (short series) give
+    the same numbers as pandas' centred rolling median (ends truncated), for odd and even
+    effective windows and many ties."""
+    from flightrecon.cleaning import despike
+    from flightrecon.cleaning.despike import _running_median, _running_median_kernel
 
     rng = np.random.default_rng(9)
     for n in (1, 2, 5, 15, 16, 301):
         x = np.round(rng.normal(0, 1, n), 1)
         for w in (0, 1, 7):
             ref = pd.Series(x).rolling(2 * w + 1, center=True, min_periods=1).median()
-            np.testing.assert_array_equal(_running_median(x, w), ref.to_numpy())
+            np.testing.assert_array_equal(_running_median_kernel(x, w), ref.to_numpy())
+            for limit in (0, n):   # compiled, numpy
+                monkeypatch.setattr(despike, "NUMPY_MEDIAN_MAX_SAMPLES", limit)
+                np.testing.assert_array_equal(_running_median(x, w), ref.to_numpy())
 
 
 def _spiky(rng, n, quantum):
@@ -177,7 +182,7 @@ def test_median_at_equals_running_median(monkeypatch):
     (truncated, even-length windows) included, whole windows sorted in one block or several;
     a read-only channel gives the same running median as a writable copy."""
     from flightrecon.cleaning import despike
-    from flightrecon.cleaning.despike import _median_at, _running_median
+    from flightrecon.cleaning.despike import _median_at, _running_median, _running_median_kernel
 
     rng = np.random.default_rng(12)
     for block in (65536, 3):
@@ -186,9 +191,11 @@ def test_median_at_equals_running_median(monkeypatch):
             x = np.round(rng.normal(0, 1, n), 1)
             idx = np.arange(n)
             for w in (0, 1, 7):
-                np.testing.assert_array_equal(_median_at(x, idx, w), _running_median(x, w))
+                ref = _running_median_kernel(x, w)
+                np.testing.assert_array_equal(_median_at(x, idx, w), ref)
                 some = rng.permutation(n)[: n // 2]
-                np.testing.assert_array_equal(_median_at(x, some, w), _running_median(x, w)[some])
+                np.testing.assert_array_equal(_median_at(x, some, w), ref[some])
+    monkeypatch.setattr(despike, "NUMPY_MEDIAN_MAX_SAMPLES", 0)   # the compiled path
     x = rng.normal(0, 1, 50)
     ro = x.copy()
     ro.flags.writeable = False

@@ -158,8 +158,8 @@ def test_a_failed_child_falls_back_and_a_methods_error_stays_its_own(clean):
 def test_the_first_kernel_loads_on_a_thread_only_from_a_warm_cache(monkeypatch):
     """numba's first kernel of a run is loaded beside the log's reading only with two workers
     and only from the cache (compiling it there would hold the interpreter against the
-    reading); the thread is a daemon that ends, and the kernel it names is the cleaning's own,
-    cached one."""
+    reading); the thread is a daemon that ends, and the kernel it names is a cached one, loaded
+    for the argument types a run calls it with (no second signature)."""
     mod, name = coldstart.FIRST_KERNEL
     d = getattr(importlib.import_module(mod), name)
     assert d._cache._cache_file._index_path.endswith(".nbi")   # a cached kernel
@@ -172,3 +172,8 @@ def test_the_first_kernel_loads_on_a_thread_only_from_a_warm_cache(monkeypatch):
     thread.join(timeout=60)
     assert not thread.is_alive()
     assert len(d.signatures) >= 1       # loaded (or compiled, here) in this process
+    from flightrecon.methods.joint.tilt import remembered
+
+    n_sig = len(d.signatures)
+    remembered(np.arange(5.0), np.ones(5), 2.0)   # the run's own call: the same signature
+    assert len(d.signatures) == n_sig

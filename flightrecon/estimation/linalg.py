@@ -319,12 +319,15 @@ def pinv_sym(S: np.ndarray, rcond: float):
     return Sp, rank
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def mm_into(A, B, out):
     """``out = A @ B`` for small matrices (plain loops: no allocation, no BLAS call overhead).
 
     Row-update order (``out[i, :] += A[i, l] B[l, :]``): the inner loop carries no dependency
-    chain, which matters more than anything else at these sizes.
+    chain, which matters more than anything else at these sizes.  Inlined at numba's IR level
+    (as :func:`mmt_into` and :func:`mdmt_acc_into`): otherwise compiled once per array layout
+    it is called with (four in the SNS's prediction) on a cold cache (docs/performance.md,
+    "The first run").
     """
     n, kk = A.shape
     m = B.shape[1]
@@ -338,7 +341,7 @@ def mm_into(A, B, out):
                     out[i, j] += a * B[l, j]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def mmt_into(A, B, out):
     """``out = A @ B.T`` for small matrices (row-update order, as :func:`mm_into`)."""
     n, kk = A.shape
@@ -353,7 +356,7 @@ def mmt_into(A, B, out):
                     out[i, j] += a * B[j, l]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def mdmt_acc_into(A, dg, B, out):
     """``out += A @ diag(dg) @ B.T`` for small matrices (row-update order, as :func:`mm_into`)."""
     n, kk = A.shape

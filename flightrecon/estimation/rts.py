@@ -27,6 +27,10 @@ solved through its symmetric eigen-decomposition instead
 matrix, as a general solve gives it; the minimum-norm solution of a singular one); the step
 returns False so that the caller counts and reports it.  docs/estimation.md, "The RTS
 backward step".
+
+:func:`rts_gain_into`, :func:`rts_step` and :func:`rts_mean_solve` are inlined at numba's IR
+level into their callers (``inline="always"``): no compilation of their own, once per calling
+loop and geometry, on a cold cache (docs/performance.md, "The first run").
 """
 
 from __future__ import annotations
@@ -46,7 +50,7 @@ from flightrecon.estimation.manifold import state_minus_into, state_plus_into
 FALLBACK_RCOND = 1e-15
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rts_gain_into(CT, Pp, rel_tol, L, GT, G):
     """``G = C P_p^-1`` and ``GT = G^T = P_p^-1 C^T`` from ``CT`` (n, n); ``L`` (n, n) scratch.
 
@@ -65,7 +69,7 @@ def rts_gain_into(CT, Pp, rel_tol, L, GT, G):
     return ok
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rts_step(geom, filtered, predicted, smoothed_next, CT, heights, rel_tol, out, work):
     """One RTS backward step (module docstring).
 
@@ -126,7 +130,7 @@ def rts_step_work(n):
             np.empty((n, n)), np.empty(n), np.empty(n))
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def rts_mean_solve(geom, xp, Pp, xs_next, h_next, rel_tol, L, d, y):
     """``y = P_p^-1 (x_s,next (-) x_p)`` (the mean-only step's solve; module docstring).
 

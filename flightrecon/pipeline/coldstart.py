@@ -70,15 +70,18 @@ def kernels_cached(method: str) -> bool:
     return True if spec is None else _cached(spec)
 
 
-#: the first compiled kernel a reconstruction calls (the cleaning's running median)
-FIRST_KERNEL = ("flightrecon.cleaning.despike", "_running_median_kernel")
+#: a compiled kernel every reconstruction with the joint smoother calls early, with
+#: arguments of the types it is called with (a float array and a float): the tilt evidence's
+#: lag (the cleaning's running median, the first kernel of a run before, is plain numpy on
+#: short flights: cleaning/despike.py)
+FIRST_KERNEL = ("flightrecon.methods.joint.tilt", "_first_order_lag")
 
 
 def _load_first_kernel() -> None:
     try:
         import numpy as np
 
-        getattr(importlib.import_module(FIRST_KERNEL[0]), FIRST_KERNEL[1])(np.zeros(3), 1)
+        getattr(importlib.import_module(FIRST_KERNEL[0]), FIRST_KERNEL[1])(np.zeros(3), 0.5)
     except Exception:  # noqa: BLE001 - only a head start: the cleaning calls it itself
         pass
 

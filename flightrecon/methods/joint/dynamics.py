@@ -29,7 +29,7 @@ from flightrecon.methods.joint.layout import (
 )
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def wrap_pi(a):
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 

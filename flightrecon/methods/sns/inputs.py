@@ -177,7 +177,8 @@ def _at(t: np.ndarray, cum: np.ndarray, v: np.ndarray, tq: np.ndarray,
 
 def radii_with_height(lat: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`flightrecon.methods.sns.radii` on arrays: ``(M + h, N + h)`` [m]."""
-    m, n = radii_from_sin(np.sin(lat))
+    # numpy on arrays (the same operations, the same numbers): no compiled array version
+    m, n = radii_from_sin.py_func(np.sin(lat))
     return m + h, n + h
 
 
