@@ -112,21 +112,19 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndar
     A measurement stamped t_m, taken at t_m + c_true and used at t_m + c has residual
     hdot (c_true - c).  The pass's forward filter carried the offsets as constant parameters
     of its linearised model (:func:`~flightrecon.methods.joint.model._clock_column_update`)
-    and accumulated (its ``outputs``' first) the normal equations [A b]:
-    the step dc = A^-1 b minimises the
-    pass's cost profiled over the track (the track given the offsets is what the pass
-    smoothed; moved by dc it is the next pass's business), A^-1 the offsets' covariance.  The
-    step is scaled by the line search's ``alpha`` (0: a Levenberg-Marquardt step, which is not
-    the pass's Gauss-Newton step; the offsets then stay) and taken when it exceeds
-    :data:`CLOCK_STILL_SD` of its sd, and by an offset still at zero only beyond
-    :data:`CLOCK_DETECT_SD` of it (as before: applied beyond 3 sd).
+    and accumulated (its ``outputs``' first) the normal equations [A b]: the step
+    dc = A^-1 b minimises the pass's cost profiled over the track (the track given the
+    offsets is what the pass smoothed; moved by dc it is the next pass's business), A^-1 the
+    offsets' covariance.  The step is scaled by the line search's ``alpha`` (0: a
+    Levenberg-Marquardt step, which is not the pass's Gauss-Newton step; the offsets then
+    stay) and taken when it exceeds :data:`CLOCK_STILL_SD` of its sd, and by an offset still
+    at zero only beyond :data:`CLOCK_DETECT_SD` of it (as before: applied beyond 3 sd).
 
-    Before, the offsets were fitted between the passes by weighted
-    least squares of the smoothed residuals against hdot, the track held: the smoother had
-    already absorbed most of the offset into the track, so each fit recovered about 1.4 % of
-    what was left (32-50 passes on the four real G1000 exports with their GPS, 6-17 now) and
-    its sd, that of a known track, was 4 times (a simulated circuit: 1.2 ms, 4.9 ms now) to
-    20 times (those exports: 0.9-2.1 ms, 16-29 ms now) too small."""
+    Before, the offsets were fitted between the passes by weighted least squares of the
+    smoothed residuals against hdot, the track held: the smoother had already absorbed most
+    of the offset into the track, so each fit recovered about 1.4 % of what was left (32-50
+    passes on the four real G1000 exports with their GPS, 6-18 now) and its sd, that of a
+    known track, was 4 times too small (a simulated circuit: 1.2 ms, 4.9-6.0 ms now)."""
     est = clock_covariance(clock_cols[0], outputs[0])
     if est is None:
         return
