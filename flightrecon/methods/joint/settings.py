@@ -206,6 +206,10 @@ class JointSettings:
     #                                          once one moved the track by <= 10 converge_m (0:
     #                                          the whole iteration again from the nominal)
     estimate_clock: bool = True
+    long_load_derived: bool = False          # the forward load factor was derived from the
+    #                                          airspeed at ingest (derived_long_priors): the
+    #                                          GNSS positions' clock offset is then held
+    #                                          (updates.clock_columns)
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
     noise_tol: float = 0.01                  # EM stops when no variance moves by more
@@ -293,13 +297,14 @@ DERIVED_LONG_BIAS_G = 0.01
 
 def derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSettings:
     """Wider priors of the forward accelerometer's scale and bias for a derived ``n_long_g``
-    (ingest's ``derived_channels``); a prior the user gave for them is kept."""
+    (ingest's ``derived_channels``), and ``long_load_derived`` set; a prior the user gave for
+    them is kept."""
     if "n_long_g" not in (clean.meta.extra.get("derived_channels") or {}):
         return settings
     given = {p[0] for p in settings.priors}
     extra = tuple(p for p in (("accel_scale_x", 0.0, DERIVED_LONG_SCALE_SD),
                               ("accel_bias_x_g", 0.0, DERIVED_LONG_BIAS_G)) if p[0] not in given)
-    return replace(settings, priors=(*settings.priors, *extra))
+    return replace(settings, priors=(*settings.priors, *extra), long_load_derived=True)
 
 
 #: white acceleration noise [m/s^2/sqrt(Hz)] for an ``n_lat_g`` taken as coordinated flight's

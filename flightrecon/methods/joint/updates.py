@@ -51,9 +51,9 @@ the track's uncertainty the offset's own uncertainty carries."""
 
 def derived_long(settings: JointSettings) -> bool:
     """Whether the forward load factor is derived from the airspeed (ingest's derived
-    ``n_long_g``, given the wider prior of its scale error: data_settings.derived_long_priors,
-    sd 0.1 against the sensor budget's 0.005)."""
-    return any(p[0] == "accel_scale_x" and p[2] >= 0.05 for p in settings.priors)
+    ``n_long_g``; set by :func:`~flightrecon.methods.joint.settings.derived_long_priors` when
+    the problem is built)."""
+    return settings.long_load_derived
 
 
 def clock_columns(meas: Measurements, settings: JointSettings
