@@ -4,7 +4,6 @@ loudly (console and summary) when not (docs/door.md)."""
 
 from __future__ import annotations
 
-import json
 import shutil
 import warnings
 from pathlib import Path

@@ -10,7 +10,7 @@ import pytest
 from flightrecon.events import Event, events_table
 from flightrecon.report import make_figures, write_report
 from flightrecon.report.html import opening_paragraph
-from flightrecon.report.plots import FIGURES, wind_from_speed, correction_rows
+from flightrecon.report.plots import FIGURES, correction_rows, wind_from_speed
 
 EPOCH = "2026-01-01T10:00:00Z"
 

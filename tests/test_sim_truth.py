@@ -16,9 +16,9 @@ from pyproj import Geod
 from scipy.integrate import quad, solve_ivp
 
 from flightrecon.constants import G0
-from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 from flightrecon.geo.atmosphere import pressure_altitude_m
 from flightrecon.geo.frames import TangentPlane, geodetic_to_ecef, output_plane
+from flightrecon.geo.wgs84 import WGS84_A, WGS84_E2
 from flightrecon.sim import acceleration_from_loads, simulate
 from flightrecon.sim.kinematics import coordinated_roll_rad, loads_from_acceleration
 from flightrecon.sim.plan import PlanBuilder

@@ -40,11 +40,8 @@ from flightrecon.methods.joint.inputs import (
     refined_roll,
     takeoff_roll,
 )
-from flightrecon.methods.joint.measurements import (
-    Measurements,
-    build_measurements,
-    static_measurements,
-)
+from flightrecon.methods.joint.layout import Measurements
+from flightrecon.methods.joint.measurements import build_measurements, static_measurements
 from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik
 from flightrecon.methods.joint.nominal import attitude_jacobian, relinearised_increments
 from flightrecon.methods.joint.problem import (
@@ -61,7 +58,8 @@ from flightrecon.methods.joint.settings import (
     JointSettings,
     prior_of,
 )
-from flightrecon.methods.joint.smoother import JointRun, smooth_joint
+from flightrecon.methods.joint.smoother import smooth_joint
+from flightrecon.methods.joint.state import JointRun
 
 __all__ = [
     "SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",

@@ -34,7 +34,8 @@ from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
 from flightrecon.methods.joint.problem import JointProblem, SettingChoice
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.smoother import JointRun, smooth_joint, smooth_joint_from
+from flightrecon.methods.joint.smoother import smooth_joint, smooth_joint_from
+from flightrecon.methods.joint.state import JointRun
 from flightrecon.methods.joint.track import hermite_positions
 
 __all__ = ["apply_factor", "calibrate_gaps", "calibration_factor", "gnss_gaps",

@@ -13,14 +13,18 @@ import numpy as np
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import passes as jp
 from flightrecon.methods.joint.linearisation import (
-    PassModels,
-    SmootherFlight,
     models_about,
     pass_cost,
     pass_scalars,
     with_pseudo,
 )
-from flightrecon.methods.joint.state import PassResult, PassStep, SmootherState
+from flightrecon.methods.joint.state import (
+    PassModels,
+    PassResult,
+    PassStep,
+    SmootherFlight,
+    SmootherState,
+)
 
 __all__ = ["full_step", "line_search", "lm_step"]
 

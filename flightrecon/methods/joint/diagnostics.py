@@ -9,7 +9,7 @@ import numpy as np
 
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.settings import SOURCES
-from flightrecon.methods.joint.smoother import JointRun
+from flightrecon.methods.joint.state import JointRun
 
 
 def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:

@@ -9,9 +9,8 @@ from dataclasses import replace
 import numpy as np
 
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.linearisation import SmootherFlight
 from flightrecon.methods.joint.nominal import q_vector
-from flightrecon.methods.joint.state import PassResult, SmootherState
+from flightrecon.methods.joint.state import PassResult, SmootherFlight, SmootherState
 from flightrecon.methods.joint.turbulence import gust_sd_estimate
 
 

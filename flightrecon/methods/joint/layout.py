@@ -65,6 +65,7 @@ minus the step's time (the state is carried to the measurement time by the veloc
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -137,3 +138,29 @@ class Geometry(NamedTuple):
     hnom: np.ndarray      # (N,) nominal ellipsoidal heights
     pst: np.ndarray       # (3,) station ECEF position
     Cst: np.ndarray       # (3, 3) station ENU -> ECEF
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Scalar measurements sorted by state step (types: :mod:`~flightrecon.methods.joint.layout`).
+
+    Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]``; for ``NED_POS`` and
+    ``STATE`` ``hrow`` is the axis or the state index (their rows are built in the kernel), -1
+    for the others: the table stays small (a stored row is 26 numbers; GNSS positions and
+    velocities at 1 Hz over 10 hours are 175 000 of them).
+    """
+
+    step: np.ndarray
+    source: np.ndarray      # index into SOURCES
+    mtype: np.ndarray
+    z: np.ndarray
+    r: np.ndarray
+    t: np.ndarray           # measurement time, recorder time base
+    H: np.ndarray           # (M_linear, n)
+    hrow: np.ndarray        # (M,) row of H, -1 where the measurement has none
+    d: np.ndarray
+    start: np.ndarray       # (N+1,)
+    # (M,) the rate of change with the measurement's time of the prediction, where the
+    # kernel's gradient does not give it (GNSS velocities: their own acceleration); 0
+    # elsewhere (the clock offsets' Gauss-Newton column)
+    rate: np.ndarray | None = None

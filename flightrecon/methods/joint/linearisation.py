@@ -6,7 +6,6 @@ frames) and the MAP cost of an iterate (:func:`pass_cost`, the kernel in
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -16,11 +15,7 @@ from flightrecon.geo.navframe import frame_rate_acceleration, ned_to_ecef_matrix
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.cost import map_cost
 from flightrecon.methods.joint.inputs import JointInputs, TakeoffRoll, enu_to_ecef_matrix
-from flightrecon.methods.joint.measurements import (
-    Measurements,
-    build_measurements,
-    static_measurements,
-)
+from flightrecon.methods.joint.measurements import build_measurements, static_measurements
 from flightrecon.methods.joint.noise import noise_groups
 from flightrecon.methods.joint.nominal import (
     attitude_step_means,
@@ -30,52 +25,9 @@ from flightrecon.methods.joint.nominal import (
     state_grid,
 )
 from flightrecon.methods.joint.settings import JointSettings
+from flightrecon.methods.joint.state import PassModels, SmootherFlight
 from flightrecon.methods.joint.tilt import tilt_psd
 from flightrecon.methods.joint.turbulence import gust_decay
-
-
-@dataclass
-class SmootherFlight:
-    """What the iterations hold fixed: the state grid, the held-input increments, the
-    attitude step means, the process noise, the station and the prior of x_0."""
-
-    inp: JointInputs
-    settings: JointSettings
-    idx: np.ndarray           # input samples that are state steps
-    T: np.ndarray
-    dt: np.ndarray
-    acc: np.ndarray
-    dV: np.ndarray
-    dP: np.ndarray
-    Cnb: np.ndarray
-    Csf: np.ndarray
-    Jatt: np.ndarray
-    qv_extra: np.ndarray
-    q: np.ndarray
-    ga: np.ndarray            # gust decay over each step (turbulence.gust_decay)
-    static: Any
-    pst: np.ndarray
-    Cst: np.ndarray
-    x0: np.ndarray | None = None
-    P0: np.ndarray | None = None
-    P0inv: np.ndarray | None = None
-
-
-@dataclass
-class PassModels:
-    """The dynamics, measurements and geometry built about one linearisation point."""
-
-    lat: np.ndarray
-    lon: np.ndarray
-    h: np.ndarray
-    pnom: np.ndarray
-    Cen: np.ndarray
-    meas: Measurements
-    dyn: jl.Dynamics
-    geo: jl.Geometry
-    roll: TakeoffRoll
-    clock: dict[str, float]
-    groups: np.ndarray
 
 
 def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numba as nb
 import numpy as np
 
@@ -24,33 +22,8 @@ from flightrecon.methods.joint.inputs import (
     nearest_index,
     refined_roll,
 )
+from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
-
-
-@dataclass(frozen=True)
-class Measurements:
-    """Scalar measurements sorted by state step (types: :mod:`~flightrecon.methods.joint.layout`).
-
-    Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]``; for ``NED_POS`` and
-    ``STATE`` ``hrow`` is the axis or the state index (their rows are built in the kernel), -1
-    for the others: the table stays small (a stored row is 26 numbers; GNSS positions and
-    velocities at 1 Hz over 10 hours are 175 000 of them).
-    """
-
-    step: np.ndarray
-    source: np.ndarray      # index into SOURCES
-    mtype: np.ndarray
-    z: np.ndarray
-    r: np.ndarray
-    t: np.ndarray           # measurement time, recorder time base
-    H: np.ndarray           # (M_linear, n)
-    hrow: np.ndarray        # (M,) row of H, -1 where the measurement has none
-    d: np.ndarray
-    start: np.ndarray       # (N+1,)
-    # (M,) the rate of change with the measurement's time of the prediction, where the
-    # kernel's gradient does not give it (GNSS velocities: their own acceleration); 0
-    # elsewhere (the clock offsets' Gauss-Newton column)
-    rate: np.ndarray | None = None
 
 
 def per_fix_sd(g, column: str, default: float) -> np.ndarray:

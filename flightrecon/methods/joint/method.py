@@ -36,7 +36,8 @@ from flightrecon.methods.joint.problem import JointProblem, joint_problem
 from flightrecon.methods.joint.report import corrections_at_middle, fix_report, wind_prior_report
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.settling import settling, settling_sentence, widened_track_sd
-from flightrecon.methods.joint.smoother import JointRun, smooth_joint
+from flightrecon.methods.joint.smoother import smooth_joint
+from flightrecon.methods.joint.state import JointRun
 from flightrecon.methods.joint.track import PREFIX, joint_track
 from flightrecon.types import CleanFlight, MethodResult
 

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.measurements import Measurements
+from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 NOISE_GROUPS = {("air", jl.TAS): "air_tas", ("air", jl.HEADING): "air_heading",

@@ -12,7 +12,7 @@ from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.measurements import wind_prior_measurements
 from flightrecon.methods.joint.problem import JointProblem, OutputFrame
 from flightrecon.methods.joint.settings import JointSettings, prior_of
-from flightrecon.methods.joint.smoother import JointRun
+from flightrecon.methods.joint.state import JointRun
 from flightrecon.methods.joint.track import PREFIX
 
 

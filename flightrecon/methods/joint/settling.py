@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from flightrecon.methods.joint.smoother import JointRun
+from flightrecon.methods.joint.state import JointRun
 
 SETTLE_SD_FRACTION = 0.1
 """A remaining movement of at most this fraction of a state's smallest position sd is left out

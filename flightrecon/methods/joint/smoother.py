@@ -17,7 +17,7 @@ passes as the track does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
@@ -28,15 +28,11 @@ from flightrecon.methods.joint import passes as jp
 from flightrecon.methods.joint.damping import full_step, line_search, lm_step
 from flightrecon.methods.joint.gust_rounds import gust_update
 from flightrecon.methods.joint.inputs import (
-    EndPoint,
     JointInputs,
-    TakeoffRoll,
     end_points_at,
     refined_roll,
 )
 from flightrecon.methods.joint.linearisation import (
-    PassModels,
-    SmootherFlight,
     models_at,
     nominal_states,
     pass_cost,
@@ -44,11 +40,17 @@ from flightrecon.methods.joint.linearisation import (
     scaled_variances,
     smoother_flight,
 )
-from flightrecon.methods.joint.measurements import Measurements
 from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik, noise_update
 from flightrecon.methods.joint.nominal import initial_estimate, nominal_trajectory, q_vector
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.state import PassResult, PassStep, SmootherState
+from flightrecon.methods.joint.state import (
+    JointRun,
+    PassModels,
+    PassResult,
+    PassStep,
+    SmootherFlight,
+    SmootherState,
+)
 from flightrecon.methods.joint.updates import (
     CLOCK_SOURCES,
     clock_columns,
@@ -57,44 +59,6 @@ from flightrecon.methods.joint.updates import (
     robust_weights,
     stop_reason_of,
 )
-
-
-@dataclass(frozen=True)
-class JointRun:
-    """Result of :func:`smooth_joint` on the state grid."""
-
-    t: np.ndarray
-    x: np.ndarray            # smoothed states (N, n)
-    P_pv: np.ndarray         # smoothed position-velocity covariance block (ECEF p, NED v)
-    var: np.ndarray          # smoothed state variances (N, n)
-    xf: np.ndarray           # filtered states
-    lat_deg: np.ndarray
-    lon_deg: np.ndarray
-    h_m: np.ndarray          # ellipsoidal height
-    Cen: np.ndarray
-    meas: Measurements
-    weights: np.ndarray
-    resid_norm: np.ndarray
-    innov: np.ndarray
-    innov_var: np.ndarray
-    clock_offsets_s: dict[str, tuple[float, float]]  # (value, sd): seconds added to the stamps
-    noise_scale: dict[str, float]
-    iterations: list[dict[str, Any]]
-    end_points: tuple[EndPoint, ...]   # as used in the last pass (end_points_at)
-    roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
-    noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
-    cholesky_fallbacks: int = 0  # last pass's steps whose Cholesky failed (general solve)
-    # convergence: the test of docs/joint.md ("Filter, smoother, iterations"), and why not
-    converged: bool = False
-    stop_reason: str = ""
-    gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
-    prior: tuple[np.ndarray, np.ndarray] | None = None   # (x0, P0): the prior of step 0 used
-    # the iteration-independent parts it was smoothed with (for a warm start on the same
-    # flight: :func:`smooth_joint_from`); None once the run leaves the method
-    flight: SmootherFlight | None = None
-    # the last pass's position change per state [m] when the passes stopped unconverged
-    # (settling.settling); None when they converged
-    last_shift_m: np.ndarray | None = None
 
 
 def _covariances(out: PassResult | None) -> None:

@@ -10,7 +10,7 @@ import pandas as pd
 from flightrecon.geo.frames import TangentPlane, ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.settings import SOURCES
-from flightrecon.methods.joint.smoother import JointRun
+from flightrecon.methods.joint.state import JointRun
 from flightrecon.tracks import TrackColumns
 
 PREFIX = "joint_"

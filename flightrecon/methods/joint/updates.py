@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from flightrecon.methods.joint.measurements import Measurements
+from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 
