@@ -153,6 +153,9 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
     M = len(meas.mtype)
     none = np.empty(0)
     m_res = M if residuals else 0
+    # the clock columns up to the last one a measurement uses (a 10-hour flight's three
+    # (N, n) columns before and after the update are 45 MB: the radar's, last, only with radar)
+    nc = 0 if clock is None else int(max(np.max(clock[0], initial=-1) + 1, 1))
     return JointModel(
         dyn, meas, geo, float(gate),
         np.zeros((0, n)) if xlin is None else xlin,
@@ -165,9 +168,9 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
         np.empty((N if covariances else 0, 6, 6)), np.empty((N if covariances else 0, n)),
         np.empty(0, dtype=np.int64) if clock is None else clock[0].astype(np.int64),
         np.empty(0) if clock is None else np.asarray(clock[1], float),
-        np.zeros((0, 0)) if clock is None else np.zeros((N_CLOCK, N_CLOCK + 1)),
-        np.zeros((N_CLOCK, 0 if clock is None else N, n)),
-        np.zeros((N_CLOCK, 0 if clock is None else N, n)))
+        np.zeros((0, 0)) if clock is None else np.zeros((nc, nc + 1)),
+        np.zeros((nc, 0 if clock is None else N, n)),
+        np.zeros((nc, 0 if clock is None else N, n)))
 
 
 # ---- helpers at one step ----

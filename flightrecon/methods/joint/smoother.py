@@ -435,7 +435,7 @@ def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pbl
         return Pblk, var
     act, cov = [act[i] for i in keep], cov[np.ix_(keep, keep)]
     _, cxf, cxp = out.clock[1]
-    cols = jp.smoothed_columns(cxf, cxp, Pf, Pp, *out.kern_args)[act]   # (a, N, n)
+    cols = jp.smoothed_columns(cxf[act], cxp[act], Pf, Pp, *out.kern_args)   # (a, N, n)
     # X Sigma X^T per step: its diagonal, and its position-velocity block
     xsig = np.einsum("aki,ab->bki", cols, cov)
     var = var + np.einsum("aki,aki->ki", xsig, cols)
