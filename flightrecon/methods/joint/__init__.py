@@ -11,8 +11,9 @@ and the RTS backward pass, and iterates (Gauss-Newton about the smoothed traject
 * robust re-weighting: each measurement's smoothed residual, normalised by its own standard
   deviation sqrt(R - H P_s H^T), enters a Huber weight (threshold ``huber_c``), so a source that
   jumps (a GNSS offset of 500 m for a minute) is down-weighted rather than trusted;
-* clock offsets of the GNSS and radar against the recorder estimated by weighted least squares
-  of the smoothed residuals against the rate of each predicted measurement.  An offset is the
+* clock offsets of the GNSS positions, GNSS velocities and radar against the recorder
+  estimated jointly with the track (constant columns of the forward filter: their Gauss-Newton
+  step and covariance from its normal equations, ``updates.clock_step``).  An offset is the
   number of seconds to *add* to the source's time stamps, as ``flightrecon clean
   --radar-clock-offset`` takes it: a plot stamped t_m that belongs to true time t_m + c has
   residual hdot * c;

@@ -32,7 +32,8 @@ CLOCK_SOURCES = (("gnss", ("gnss_pos",)), ("gnss_velocity", ("gnss_vel",)),
 (:data:`~flightrecon.methods.joint.model.N_CLOCK`), and the sources each shifts.  The GNSS
 velocities have their own: on the real G1000 exports the ground speed and track lag the
 positions (docs/joint.md, "Filter, smoother, iterations", item 4).  The radar last: a flight
-without one carries two columns, not three (:func:`~flightrecon.methods.joint.model.joint_model`)."""
+without one carries two columns, not three
+(:func:`~flightrecon.methods.joint.model.joint_model`)."""
 
 CLOCK_MIN_MEASUREMENTS = 10
 """Fewer measurements of a source than this: its offset is not estimated."""
