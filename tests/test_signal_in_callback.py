@@ -34,12 +34,17 @@ except m.Interrupted as exc:
 """
 
 
+def _run(script: str) -> subprocess.CompletedProcess:
+    """``script`` in a fresh interpreter with this checkout's package."""
+    return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=60)
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 def test_a_signal_swallowed_by_a_callback_still_interrupts_the_run():
     """Guards: the interrupt is delivered again once the callback has returned (the run
     stops with the signal's exit path), and nothing is printed."""
-    p = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
-                       cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=60)
+    p = _run(SCRIPT)
     assert p.stdout.strip() == "interrupted 15", p.stdout + p.stderr
     assert "Traceback" not in p.stderr and "Exception ignored" not in p.stderr, p.stderr
 
@@ -66,7 +71,6 @@ def test_a_signal_on_the_import_machinery_is_delivered_after_it():
     started from C, which printed the exception as a bare traceback in
     ``test_fuzz_signal[SIGINT-1.0s]``) is not raised there but delivered again a moment
     later, and still ends the run."""
-    p = subprocess.run([sys.executable, "-c", SCRIPT_IMPORT], capture_output=True, text=True,
-                       cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=60)
+    p = _run(SCRIPT_IMPORT)
     assert p.stdout.split() == ["deferred", "interrupted", "15"], p.stdout + p.stderr
     assert "Traceback" not in p.stderr, p.stderr
