@@ -31,10 +31,10 @@ def test_mean_only_pass_gives_the_covariance_pass_means():
     through the gain G = C P_p^-1 of the full step: the same means; the Cholesky solve of a
     2 x 2 P_p with condition number below 1e6 loses at most 1e-10 relative."""
     run = _run()
-    full = rts_smooth(run.x, run.P, run.x_pred, run.P_pred, run.F)
+    full = rts_smooth(run.x, run.P, run.x_pred, run.P_pred, run.diagnostics["F"])
     N, n = run.x.shape
     empty = np.empty((0, 0))
-    model = LinearModel(run.F, empty.reshape(0, 0, 0), empty, empty.reshape(0, 0, 0),
+    model = LinearModel(run.diagnostics["F"], empty.reshape(0, 0, 0), empty, empty.reshape(0, 0, 0),
                         empty.reshape(0, 0, 0), run.x, run.P, run.x_pred, run.P_pred, empty,
                         empty.reshape(0, 0, 0), np.empty(0), np.empty(0, dtype=np.int64),
                         np.empty((0, n, n)))

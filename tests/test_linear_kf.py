@@ -56,7 +56,7 @@ def test_matches_textbook_filter():
     # Joseph form and the simple form agree to rounding for the optimal gain
     np.testing.assert_allclose(run.x, xr, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(run.P, Pr, rtol=1e-8, atol=1e-10)
-    assert np.all(run.n_meas[::7] == 0)
+    assert np.all(run.diagnostics["n_meas"][::7] == 0)
 
 
 def test_nees_in_chi_square_band_monte_carlo():

@@ -225,7 +225,7 @@ def test_consistent_prediction_equals_methods_formula(model):
               - B @ G.T @ K.T @ Phi.T)
     np.testing.assert_allclose(run.P_pred[1], expect, rtol=1e-9,
                                atol=1e-9 * np.abs(expect).max())
-    np.testing.assert_allclose(run.cross[0], Pplus @ Phi.T - K @ G @ B.T, rtol=1e-9,
+    np.testing.assert_allclose(run.diagnostics["cross"][0], Pplus @ Phi.T - K @ G @ B.T, rtol=1e-9,
                                atol=1e-9 * np.abs(expect).max())
     seed = core.sns_filter(inp, x0, P0, noise, model=model, form=core.FORM_SEED)
     np.testing.assert_allclose(seed.P_pred[1], Phi @ Pplus @ Phi.T + B @ B.T, rtol=1e-9,
@@ -233,7 +233,7 @@ def test_consistent_prediction_equals_methods_formula(model):
     # the state correction B G^T S^+ nu moves only the position
     dn, de = core.boxminus(run.x_pred[1, 0], run.x_pred[1, 1], seed.x_pred[1, 0],
                            seed.x_pred[1, 1], 3000.0)
-    assert np.isfinite(run.nis[0]) and run.rank[0] == 4
+    assert np.isfinite(run.diagnostics["nis"][0]) and run.diagnostics["rank"][0] == 4
     assert np.hypot(dn, de) > 0.0
     np.testing.assert_allclose(run.x_pred[1, 2:], seed.x_pred[1, 2:], atol=1e-15)
 
@@ -248,7 +248,7 @@ def test_singular_innovation_covariance_uses_pseudo_inverse():
     inp1, _, _ = _one_step_inputs(model, fixes_twice=False)
     r2 = core.sns_filter(inp2, x0, P0, noise, model=model)
     r1 = core.sns_filter(inp1, x0, P0, noise, model=model)
-    assert r2.rank[0] == 4 and r1.rank[0] == 4
+    assert r2.diagnostics["rank"][0] == 4 and r1.diagnostics["rank"][0] == 4
     np.testing.assert_allclose(r2.x[0], r1.x[0], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(r2.P[0], r1.P[0], rtol=1e-6, atol=1e-6 * np.abs(P0).max())
     assert np.isfinite(r2.P_pred).all()

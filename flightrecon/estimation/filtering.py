@@ -72,7 +72,9 @@ class FilterRun:
     ``x``/``P`` the filtered estimates (N, n) / (N, n, n), ``x_pred``/``P_pred`` the one-step
     predictions (``x_pred[0] = x0``); ``diagnostics`` the method's per-step or per-measurement
     records (innovations ``nu``, their covariances ``S``, normalised innovations ``nis``, ...),
-    by name; ``model`` what the backward pass needs of the method (its model, or None).
+    by name, read as ``run.diagnostics["nis"]`` (which names a method records is in its
+    filter's docstring); ``model`` what the backward pass needs of the method (its model, or
+    None).
     """
 
     x: np.ndarray
@@ -82,9 +84,3 @@ class FilterRun:
     diagnostics: dict[str, np.ndarray] = field(default_factory=dict)
     model: Any = None
 
-    def __getattr__(self, name: str) -> np.ndarray:
-        # the method's diagnostics read as attributes (run.nu, run.nis), as filterpy's names
-        diags = object.__getattribute__(self, "diagnostics")
-        if name in diags:
-            return diags[name]
-        raise AttributeError(name)

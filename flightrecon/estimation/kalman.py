@@ -219,7 +219,7 @@ def rts_smooth(x, P, x_pred, P_pred, F) -> SmoothedRun:
 def rts_smooth_run(run: FilterRun) -> SmoothedRun:
     """Smooth a :class:`~flightrecon.estimation.filtering.FilterRun` of :func:`kalman_filter`
     (or any run with the diagnostic ``F``)."""
-    return rts_smooth(run.x, run.P, run.x_pred, run.P_pred, run.F)
+    return rts_smooth(run.x, run.P, run.x_pred, run.P_pred, run.diagnostics["F"])
 
 
 __all__ = ["FilterRun", "LinearModel", "SmoothedRun", "joseph_update", "kalman_filter",

@@ -15,7 +15,7 @@ its geometry, and takes the smoothed estimate of each step into its own outputs.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
@@ -129,18 +129,10 @@ def backward_pass(model, x_f, x_p, x_s, P_last):
 
 @dataclass(frozen=True)
 class SmoothedRun:
-    """A smoothed run of any method: state ``x`` (N, n), covariance ``P`` (N, n, n) (or the
-    blocks the method keeps, see ``outputs``), the number of ``cholesky_fallbacks`` (steps whose
-    predicted covariance failed its factorisation; reported, never silent) and the method's
-    other smoothed ``outputs`` by name (gains ``G``, residuals, ...)."""
+    """A smoothed run of any method: state ``x`` (N, n), covariance ``P`` (N, n, n), and the
+    number of ``cholesky_fallbacks`` (steps whose predicted covariance failed its
+    factorisation; reported, never silent)."""
 
     x: np.ndarray
     P: np.ndarray
     cholesky_fallbacks: int = 0
-    outputs: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def __getattr__(self, name: str) -> np.ndarray:
-        outs = object.__getattribute__(self, "outputs")
-        if name in outs:
-            return outs[name]
-        raise AttributeError(name)

@@ -374,17 +374,18 @@ def _filter(form: str, linearisation: str, settings: ArmsSettings, model: A.Arms
                                converted_at=settings.converted_at, smooth=settings.smooth,
                                extra_times=tg[_thin(tg, settings.output_rate_hz,
                                                     "output_rate_hz")])
-        return (jr, int(jr.filt.radar_used.sum()) + 1, int(jr.filt.air_used.sum()), jr.filt.nu,
-                jr.filt.S)
+        d = jr.filt.diagnostics
+        return jr, int(d["radar_used"].sum()) + 1, int(d["air_used"].sum()), d["nu"], d["S"]
     cr = A.run_cascade(plots, air_all, model, linearisation=linearisation,
                        converted_at=settings.converted_at, smooth=settings.smooth,
                        air_max_gap_s=settings.air_max_gap_s)
-    radar_used = int(cr.stage1.filt.radar_used.sum()) + 1
-    air_used = int(cr.stage2.filt.n_meas.astype(bool).sum())
-    nu = np.concatenate([cr.stage1.filt.nu[:, :2], cr.stage2.filt.nu], axis=1)
+    d1, d2 = cr.stage1.filt.diagnostics, cr.stage2.filt.diagnostics
+    radar_used = int(d1["radar_used"].sum()) + 1
+    air_used = int(d2["n_meas"].astype(bool).sum())
+    nu = np.concatenate([d1["nu"][:, :2], d2["nu"]], axis=1)
     S = np.full((len(plots.t_s), 4, 4), np.nan)
-    S[:, :2, :2] = cr.stage1.filt.S[:, :2, :2]
-    S[:, 2:, 2:] = cr.stage2.filt.S
+    S[:, :2, :2] = d1["S"][:, :2, :2]
+    S[:, 2:, 2:] = d2["S"]
     return cr, radar_used, air_used, nu, S
 
 

@@ -52,12 +52,12 @@ class AzimuthRun:
     @property
     def nis_eps(self) -> np.ndarray:
         """Normalised azimuth innovations squared (chi-square, 1 dof, where a plot was used)."""
-        return self.filt.nis_eps
+        return self.filt.diagnostics["nis_eps"]
 
     @property
     def nis_z(self) -> np.ndarray:
         """Normalised transverse-acceleration innovations squared (1 dof)."""
-        return self.filt.nis_z
+        return self.filt.diagnostics["nis_z"]
 
 
 def _checked_events(t_s, eps_meas_rad, eps_var_rad2, range_track: RangeTrack):

@@ -61,4 +61,4 @@ def track_range(t_s, r_meas_m, r_var_m2, *, q_range_m2ps3: float) -> RangeTrack:
     run = kalman_filter(np.array([r_meas[0], 0.0]), P0, F, Q, z[:, None],
                         np.array([[1.0, 0.0]]), R)
     sm = rts_smooth_run(run)
-    return RangeTrack(sm.x[:, 0].copy(), sm.x[:, 1].copy(), sm.P, run.nis)
+    return RangeTrack(sm.x[:, 0].copy(), sm.x[:, 1].copy(), sm.P, run.diagnostics["nis"])

@@ -284,7 +284,7 @@ def run_sns(clean: CleanFlight, *, model: str = "auto", form: str = "consistent"
     t = clean.grid["t_s"].to_numpy(float)
     track = sns_track(sol, plane, t)
     # NIS per fix with the rank of its innovation covariance as degrees of freedom
-    verdict = chi_square_verdict(sol.run.nis, sol.run.rank)
+    verdict = chi_square_verdict(sol.run.diagnostics["nis"], sol.run.diagnostics["rank"])
     nis_ratio = verdict.mean
     finite = bool(np.isfinite(track[list(HORIZONTAL_COLUMNS)].to_numpy()).all())
     dt_fix = np.diff(sol.fix_t)
