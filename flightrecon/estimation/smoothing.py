@@ -16,6 +16,7 @@ its geometry, and takes the smoothed estimate of each step into its own outputs.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -24,6 +25,8 @@ from numba.extending import overload
 
 from flightrecon.estimation.manifold import state_plus_into
 from flightrecon.estimation.model import (
+    FloatArray,
+    ModelT,
     cross_times_into,
     cross_transposed_into,
     keep_smoothed,
@@ -37,14 +40,16 @@ from flightrecon.estimation.rts import rts_mean_solve, rts_step, rts_step_work
 __all__ = ["SmoothedRun", "backward_pass", "mean_only_pass", "smoothed_step"]
 
 
-def smoothed_step(model, k, x_f, x_p, x_s, Ps, ws, work):
+def smoothed_step(model: ModelT, k: int, x_f: FloatArray, x_p: FloatArray, x_s: FloatArray,
+                  Ps: FloatArray, ws: Any, work: tuple[FloatArray, ...]) -> bool:
     """One backward step of :func:`backward_pass` into ``x_s[k]`` (and ``Ps``): the RTS step
     with covariances, or the mean-only step where ``Ps`` is empty (0, 0).  A model class
     registered ``with_mean_only_pass`` (estimation.model) gets both steps in one compilation
     of the loop, chosen at run time (the mean-only pass is then no second compilation); any
     other class gets only the covariance step.  Returns False where the predicted covariance
-    failed its Cholesky factorisation."""
-    raise NotImplementedError("compiled only (numba overload)")
+    failed its Cholesky factorisation.  Compiled only (its two forms are the overload below);
+    the Python body only raises."""
+    raise NotImplementedError("smoothed_step runs only inside the compiled backward_pass")
 
 
 def mean_only_pass(model) -> bool:
