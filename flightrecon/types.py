@@ -6,7 +6,8 @@ ingest -> :class:`Flight` -> cleaning -> :class:`CleanFlight` -> estimators -> :
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import pandas as pd
@@ -71,6 +72,63 @@ class WindLevel:
 
 
 @dataclass(frozen=True)
+class IngestRecord:
+    """What reading the log did and found, recorded by :func:`flightrecon.ingest.load_flight`
+    for the cleaning report, the estimators, the summary and ``flightrecon info`` (JSON-ready
+    entries, in the order they were made).
+
+    Attributes
+    ----------
+    notes : the conversions and decisions of the reading, one sentence each
+    repairs : the validation repairs (``flightrecon.ingest.validate.Repair.as_dict``: values
+        outside the physical range, ...)
+    door : every check of the door with its figure and verdict
+        (``flightrecon.ingest.door.DoorCheck.as_dict``, docs/door.md)
+    mapping, sidecar : the column-mapping and the metadata file read (``None``: none)
+    derived_channels : channel -> how it was computed at ingest (not recorded); the estimators
+        widen their error model for these
+    ignored_columns : the log's columns mapped to no channel
+    gnss_use : the analyst's GNSS options (``options``) and the fixes they removed
+        (:mod:`flightrecon.ingest.gnss_use`); empty when none was given
+    recorder : the variant and conventions a Garmin export shows
+        (:mod:`flightrecon.ingest.garmin`); ``None`` for other logs
+    """
+
+    notes: tuple[str, ...] = ()
+    repairs: tuple[dict[str, Any], ...] = ()
+    door: tuple[dict[str, Any], ...] = ()
+    mapping: str | None = None
+    sidecar: str | None = None
+    derived_channels: Mapping[str, str] = field(default_factory=dict)
+    ignored_columns: tuple[str, ...] = ()
+    gnss_use: Mapping[str, Any] = field(default_factory=dict)
+    recorder: Mapping[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class ArrivalNotEnd:
+    """The evidence that the arrival given is not where the record ends (it ends in the air):
+    the cleaning then drops the arrival (:mod:`flightrecon.cleaning.arrival_end`).
+
+    Attributes
+    ----------
+    arrival : the arrival given
+    t_end_s : time of the record's last sample [s]
+    tas_mps : true airspeed over the last second [m/s]
+    height_above_field_m : height above the arrival field over the last second [m]
+    margin_m : the height that proves it [m]
+    qnh_hpa : the arrival's QNH used for the height, ``None`` when not known (standard pressure)
+    """
+
+    arrival: Position
+    t_end_s: float
+    tas_mps: float
+    height_above_field_m: float
+    margin_m: float
+    qnh_hpa: float | None
+
+
+@dataclass(frozen=True)
 class FlightMeta:
     """Flight metadata, from the command line or a sidecar file next to the log.
 
@@ -96,6 +154,11 @@ class FlightMeta:
     wind_aloft : winds-aloft prior by altitude (:class:`WindLevel`, ``--wind``), sorted
     origin : origin of the output frame when no departure is given: the first GNSS fix (or radar
         plot) of the record, set by the cleaning layer (MSL elevation); never an airfield
+    configuration : the aircraft configuration the flight was flown in (the sidecar's
+        ``[flight] configuration``, for the coefficient store; ``None`` when not given)
+    ingest : what reading the log did and found (:class:`IngestRecord`)
+    arrival_not_end : why the arrival given was dropped (:class:`ArrivalNotEnd`), else ``None``
+    extra : the sidecar's keys and tables this schema does not know, as read (free-form)
     """
 
     aircraft_id: str | None = None
@@ -116,6 +179,26 @@ class FlightMeta:
     fixes: tuple[PositionFix, ...] = ()
     wind_aloft: tuple[WindLevel, ...] = ()
     origin: Position | None = None
+    configuration: str | None = None
+    ingest: IngestRecord = field(default_factory=IngestRecord)
+    arrival_not_end: ArrivalNotEnd | None = None
+
+
+#: the fields of :class:`FlightMeta` that are records of the processing, not the flight's
+#: declared metadata (left out of :func:`declared_metadata`)
+RECORD_FIELDS = ("extra", "ingest", "arrival_not_end")
+
+
+def declared_metadata(meta: FlightMeta) -> dict[str, Any]:
+    """``meta`` as a JSON-ready dict of the flight's metadata (the summary's ``flight``,
+    ``info``'s ``metadata``): every field but the records of the processing
+    (:data:`RECORD_FIELDS`), and ``configuration`` only when given."""
+    d = asdict(meta)
+    for name in RECORD_FIELDS:
+        d.pop(name)
+    if d["configuration"] is None:
+        d.pop("configuration")
+    return d
 
 
 @dataclass(frozen=True)

@@ -61,7 +61,7 @@ def door(path: Path, **kw) -> dict:
             fl = load_flight(path, **kw)
         except FlightReconError as exc:
             return {"accepted": False, "error": str(exc), "exit": exc.exit_code}
-    checks = {c["check"]: c for c in fl.meta.extra["door"] if c["check"] in UNIT_CHECKS}
+    checks = {c["check"]: c for c in fl.meta.ingest.door if c["check"] in UNIT_CHECKS}
     return {"accepted": True,
             "checks": {k: {"verdict": v["verdict"], "figure": v["figure"]}
                        for k, v in checks.items()},

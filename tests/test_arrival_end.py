@@ -53,12 +53,13 @@ def test_cut_in_the_air_the_arrival_is_dropped_with_the_evidence(circuit):
     c, warns = _clean(circuit, 450.0)
     assert c.phases.ends_airborne
     assert c.meta.arrival is None
-    rec = c.meta.extra["arrival_not_end"]
-    assert rec["arrival"]["lat_deg"] == arr.lat_deg
-    assert rec["height_above_field_m"] == pytest.approx(
+    rec = c.meta.arrival_not_end
+    assert rec is not None
+    assert rec.arrival.lat_deg == arr.lat_deg
+    assert rec.height_above_field_m == pytest.approx(
         _truth_height_above_field(450.0, arr.elev_m), abs=30.0)
-    assert rec["height_above_field_m"] > MARGIN_QNH_M
-    assert rec["tas_mps"] == pytest.approx(70.0, abs=2.0)
+    assert rec.height_above_field_m > MARGIN_QNH_M
+    assert rec.tas_mps == pytest.approx(70.0, abs=2.0)
     msg = [w for w in warns if "is not where this record ends" in w]
     assert len(msg) == 1 and "m/s" in msg[0] and "above the arrival field" in msg[0]
     assert [r["action"] for r in c.report if r["channel"] == "arrival"] == ["arrival_not_end"]

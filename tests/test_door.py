@@ -74,9 +74,9 @@ def _copy(tmp_path: Path, name: str, df: pd.DataFrame | None = None) -> Path:
 def test_every_corpus_log_passes_the_door_without_a_unit_word(log):
     fl, warns = load_quiet(CORPUS / log)
     assert not [w for w in warns if "unit" in w], warns
-    verdicts = {(c["check"], c["channel"]): c["verdict"] for c in fl.meta.extra["door"]}
+    verdicts = {(c["check"], c["channel"]): c["verdict"] for c in fl.meta.ingest.door}
     assert verdicts[("baro_alt_m unit", "baro_alt_m")] == "passed"
-    fig = {c["check"]: c["figure"] for c in fl.meta.extra["door"]}
+    fig = {c["check"]: c["figure"] for c in fl.meta.ingest.door}
     # pressure altitude against geometric height in ISA+5 / ISA-10: within the atmosphere's band
     assert 0.8 < fig["baro_alt_m unit"] < 1.2
 
@@ -158,7 +158,7 @@ def test_airspeed_in_metres_per_second_declared_knots_is_refused_unless_confirme
     fl, warns = load_quiet(log, mapping=tmp_path / "m.toml")
     hit = [w for w in warns if "TAS" in w and "unit_confirmed = true" in w]
     assert hit and "likely unit m/s" in hit[0], warns
-    door = {c["check"]: c for c in fl.meta.extra["door"]}
+    door = {c["check"]: c for c in fl.meta.ingest.door}
     assert door["tas_mps unit"]["verdict"] == "overridden"
     assert 0.45 < door["tas_mps unit"]["figure"] < 0.6
     meta = _meta("c1-fdr")
@@ -212,7 +212,7 @@ def test_low_rate_export_passes_the_door(tmp_path):
     over = {"epoch_utc": "2026-01-01T10:00:00Z", "departure": f"{lat},{lon},0"}
     fl, warns = load_quiet(log, mapping=tmp_path / "m.toml", meta_overrides=over)
     assert not [w for w in warns if "unit" in w], warns
-    fig = {c["check"]: c for c in fl.meta.extra["door"]}
+    fig = {c["check"]: c for c in fl.meta.ingest.door}
     assert fig["baro_alt_m unit"]["verdict"] == "passed"
     assert 0.85 < fig["baro_alt_m unit"]["figure"] < 1.15
     # the same export with its feet read as metres (the unit left out of the mapping) is

@@ -67,6 +67,6 @@ def test_the_shipped_foreign_export_passes_every_unit_check(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fl = load_flight(SAMPLES / "foreign.csv", mapping=MAPPING)
-    verdicts = {c["check"]: c["verdict"] for c in fl.meta.extra["door"]}
+    verdicts = {c["check"]: c["verdict"] for c in fl.meta.ingest.door}
     for check in ("time unit", "baro_alt_m unit", "tas_mps unit", "attitude unit"):
         assert verdicts[check] == "passed", verdicts

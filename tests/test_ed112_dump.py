@@ -90,7 +90,7 @@ def test_a_dump_reads_as_recorded_with_no_mapping(flight, tmp_path):
     lat = data["n_lat_g"].notna()
     # the sign (the lateral load is mostly white noise here: not 1)
     assert np.corrcoef(data["n_lat_g"][lat], truth("n_lat_g")[lat])[0, 1] > 0.5
-    notes = " ".join(fl.meta.extra["ingest_notes"])
+    notes = " ".join(fl.meta.ingest.notes)
     assert "parameter dump" in notes and "1 wrap(s) of the 12-bit frame counter" in notes
     assert any("taken as magnetic" in w for w in fl.warnings)
     assert any("positive toward the right" in w for w in fl.warnings)

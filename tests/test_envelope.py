@@ -233,8 +233,8 @@ def test_seed_sample_arrival_at_sea_level_is_not_its_end():
         warnings.simplefilter("always")
         clean = clean_flight(replace(flight, meta=sea))
     assert clean.meta.arrival is None
-    ev = clean.meta.extra["arrival_not_end"]
-    assert 950.0 < ev["height_above_field_m"] < 1050.0
+    ev = clean.meta.arrival_not_end
+    assert ev is not None and 950.0 < ev.height_above_field_m < 1050.0
     assert any("not where this record ends" in str(x.message) for x in w)
 
 

@@ -158,10 +158,10 @@ def test_a_doubted_unit_makes_the_methods_leaning_on_it_doubtful():
             {"check": "baro_alt_m unit", "channel": "baro_alt_m", "verdict": "passed",
              "figure": 0.97, "detail": ""}]
     assert set(unit_doubts(door)) == {"tas_mps"}
-    assert "factor 1.7" in (doubt("joint", {"door": door}) or "")
-    assert doubt("azimuth", {"door": door}) is None
+    assert "factor 1.7" in (doubt("joint", door) or "")
+    assert doubt("azimuth", door) is None
     door[0]["verdict"] = "passed"
-    assert doubt("joint", {"door": door}) is None
+    assert doubt("joint", door) is None
 
 
 def test_a_heading_zero_from_start_to_end_is_not_used(tmp_path, capsys):

@@ -158,7 +158,7 @@ def test_a_unit_declared_in_the_mapping_and_contradicted_is_refused_unless_confi
     fl, warns = load_quiet(tmp_path / "foreign.csv", mapping=m)
     hit = [w for w in warns if "ALT_FT" in w and "unit_confirmed = true" in w]
     assert hit and "likely unit ft" in hit[0] and 'unit = "m"' in hit[0], warns
-    door = {c["check"]: c for c in fl.meta.extra["door"]}
+    door = {c["check"]: c for c in fl.meta.ingest.door}
     assert door["baro_alt_m unit"]["verdict"] == "overridden"
     assert 2.6 < door["baro_alt_m unit"]["figure"] < 3.9
     # the values are the file's, as declared (not converted from feet)

@@ -94,14 +94,14 @@ def test_the_command_line_rate_reads_the_folder_and_wins_over_the_mapping(tmp_pa
     assert code == 0 and json.loads(out)["duration_s"] == pytest.approx(240.0)
     fl = load(folder, mapping=mapping, frame_rate_hz=RATE_HZ)
     assert fl.data["t_s"].iloc[-1] == pytest.approx(240.0)
-    assert any("frame count at 8 Hz" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("frame count at 8 Hz" in n for n in fl.meta.ingest.notes)
     # the mapping says 8 Hz; the command line's 4 Hz wins, and the note gives both
     (tmp_path / "b").mkdir()
     folder2, mapping2 = write_folder(tmp_path / "b", ["[time]", "rate_hz = 8"])
     fl2 = load(folder2, mapping=mapping2, frame_rate_hz=4.0)
     assert fl2.data["t_s"].iloc[-1] == pytest.approx(480.0)
     assert any("in place of the mapping's rate_hz = 8" in n
-               for n in fl2.meta.extra["ingest_notes"])
+               for n in fl2.meta.ingest.notes)
 
 
 def test_a_file_with_its_own_time_keeps_it_and_says_the_rate_was_not_used(tmp_path):

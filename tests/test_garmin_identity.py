@@ -66,5 +66,5 @@ def test_a_sidecar_names_the_aircraft_over_the_export(tmp_path, sidecar_id):
         (tmp_path / "x.meta.toml").write_text(f'[flight]\naircraft_id = "{sidecar_id}"\n')
         fl = load_flight(p)
     assert fl.meta.aircraft_id == sidecar_id
-    assert fl.meta.extra["recorder"]["system_id"] == "24B0000AA"
+    assert fl.meta.ingest.recorder["system_id"] == "24B0000AA"
     assert Path(fl.sources[0]) == p

@@ -78,7 +78,7 @@ def _write(tmp: Path, name: str, text: str, encoding: str = "utf-8") -> Path:
 
 
 def _recorded(fl) -> dict[str, str]:
-    return fl.meta.extra["recorder"]["conventions"]
+    return fl.meta.ingest.recorder["conventions"]
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +106,7 @@ def _same_channels(fl, ref, tol_alt_m: float = 0.5) -> None:
 def test_perspective_export_names_its_variant_and_conventions():
     """The shipped Perspective+ export: each convention decided by its own figures."""
     fl, _ = _load(SAMPLE)
-    rec = fl.meta.extra["recorder"]
+    rec = fl.meta.ingest.recorder
     assert rec["variant"].startswith("G1000 / G1000 NXi / Perspective (GIFD, Cirrus SR22 Turbo)")
     assert "AltInd + BaroA" in rec["variant"]
     conv = rec["conventions"]
@@ -135,7 +135,7 @@ def test_old_g1000_altb_ft_baro_is_read(export, reference, tmp_path):
     lines[1] = ",".join(units)
     fl, _ = _load(_write(tmp_path, "altb.csv", "\n".join(lines)))
     _same_channels(fl, reference)
-    assert "AltB + BaroA" in fl.meta.extra["recorder"]["variant"]
+    assert "AltB + BaroA" in fl.meta.ingest.recorder["variant"]
     assert _recorded(fl)["AltB"].startswith("indicated (data:")
     assert fl.meta.aircraft_id == "24B0000AA"
 
@@ -241,7 +241,7 @@ def test_g3x_touch_layout_reads_as_the_g1000_layout(export, reference, tmp_path)
     assert "Baro Setting" in raw.columns and "GPS Fix Status" in raw.columns
     fl, warns = _load(p)
     _same_channels(fl, reference, tol_alt_m=0.16)
-    rec = fl.meta.extra["recorder"]
+    rec = fl.meta.ingest.recorder
     assert rec["variant"].startswith("G3X / G3X Touch (GDU 460)")
     assert "altitude from AltP" in rec["variant"]
     conv = rec["conventions"]
@@ -260,7 +260,7 @@ def test_long_names_only_layout_is_read(export, tmp_path):
     assert raw.layout == "long names" and raw.header_line == 2
     assert "Normal Acceleration" in raw.columns
     fl, _ = _load(p)
-    assert fl.meta.extra["recorder"]["conventions"]["Normal Acceleration"].startswith("n (")
+    assert fl.meta.ingest.recorder["conventions"]["Normal Acceleration"].startswith("n (")
 
 
 # ------------------------------------------------------------------- the information line
@@ -285,7 +285,7 @@ def test_sidecar_aircraft_id_wins_over_the_export(tmp_path):
     (tmp_path / "x.meta.toml").write_text('[flight]\naircraft_id = "F-HXYZ"\n')
     fl, _ = _load(p)
     assert fl.meta.aircraft_id == "F-HXYZ"
-    assert fl.meta.extra["recorder"]["system_id"] == "25B289D04"
+    assert fl.meta.ingest.recorder["system_id"] == "25B289D04"
 
 
 # ----------------------------------------------------------------- legacy 8-bit encodings

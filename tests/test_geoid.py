@@ -83,13 +83,13 @@ def test_model_when_not_given(tmp_path):
     assert fl.meta.geoid_model == MODEL
     assert fl.meta.geoid_undulation_m == pytest.approx(undulation_m(40.46, 50.05), abs=0.01)
     assert abs(fl.meta.geoid_undulation_m) > 5.0        # not the 0 m of before
-    assert any("EGM96 at the departure airfield" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("EGM96 at the departure airfield" in n for n in fl.meta.ingest.notes)
 
 
 def test_given_value_wins(tmp_path):
     fl = _flight(tmp_path, "geoid_undulation_m = 0.0\n")
     assert fl.meta.geoid_undulation_m == 0.0 and fl.meta.geoid_model is None
-    assert any("as given" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("as given" in n for n in fl.meta.ingest.notes)
     fl = _flight(tmp_path, meta_overrides={"geoid_undulation_m": -12.5})
     assert fl.meta.geoid_undulation_m == -12.5 and fl.meta.geoid_model is None
 

@@ -92,7 +92,7 @@ def test_quality_flags_and_hdop_at_ingest(tmp_path):
         fl = load_flight(tmp_path / "q.csv")
     masked = fl.data["gnss_lat_deg"].to_numpy()[fix[[10, 11, 12, 20]]]
     assert np.isnan(masked).all()
-    (rep,) = [r for r in fl.meta.extra["ingest_repairs"] if r["channel"] == "gnss_quality"]
+    (rep,) = [r for r in fl.meta.ingest.repairs if r["channel"] == "gnss_quality"]
     assert rep["count"] == 4 and rep["rows"] == [int(i) + 1 for i in fix[[10, 11, 12, 20]]]
     sd = fl.data["gnss_h_sd_m"].to_numpy()[fix]
     assert np.allclose(sd, 1.2 * 3.0 / np.sqrt(2.0))

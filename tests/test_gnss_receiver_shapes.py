@@ -49,7 +49,7 @@ def test_latitude_in_steps_of_111_m_gets_its_rounding_in_the_fix_sd(tmp_path):
     want = np.hypot(3.0, 0.001 * 111_320.0 / np.sqrt(12.0))
     assert sd.size == fl.data["gnss_lat_deg"].notna().sum()
     np.testing.assert_allclose(sd, want, rtol=1e-6)
-    assert any("recorded in steps" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("recorded in steps" in n for n in fl.meta.ingest.notes)
 
 
 def test_a_fix_written_again_at_the_recorders_rate_is_used_once(tmp_path):

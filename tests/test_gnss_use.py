@@ -54,7 +54,7 @@ def test_interval_windows_and_record_on_circuit():
     tf = _fix_times(fl)
     expect = np.array([s for s in range(0, 901, 2) if not 100 <= s <= 200], float)
     np.testing.assert_array_equal(tf, expect)
-    rec = fl.meta.extra["gnss_use"]
+    rec = fl.meta.ingest.gnss_use
     assert rec["fixes_read"] == 901 and rec["interval_dropped"] == 450
     assert rec["withheld_windows"] == [{"start_s": 100.0, "end_s": 200.0, "fixes_withheld": 51}]
     assert rec["fixes_used"] == 400 == tf.size
@@ -100,7 +100,7 @@ def test_receiver_sd_given_and_the_rounding_added_per_axis(tmp_path):
                                rtol=1e-6)
     np.testing.assert_allclose(d["gnss_v_sd_m"].to_numpy()[fix], np.hypot(20.0, r_v),
                                rtol=1e-6)
-    rec = fl.meta.extra["gnss_use"]
+    rec = fl.meta.ingest.gnss_use
     assert rec["given_h_sd_m"] == 14.0 and rec["given_v_sd_m"] == 20.0
     assert rec["rounding_h_sd_m"] == pytest.approx(r_h, rel=1e-6)
     assert rec["rounding_v_sd_m"] == pytest.approx(r_v, rel=1e-6)
@@ -122,7 +122,7 @@ def test_user_sd_wins_over_the_log_figure_with_a_note(tmp_path):
     sd = fl.data["gnss_h_sd_m"].dropna().to_numpy()
     assert sd.size == 901 and np.all(sd == 7.0)
     assert any("in place of the log's (recorded) on 901" in n
-               for n in fl.meta.extra["ingest_notes"])
+               for n in fl.meta.ingest.notes)
 
 
 def test_sidecar_gnss_table_and_the_keyword_wins_option_by_option(tmp_path):

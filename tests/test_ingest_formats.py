@@ -60,7 +60,7 @@ def test_garmin_export_loads_as_recorded(garmin):
     assert "n_long_g not recorded: derived" in text                 # wall 4
     assert "column(s) not in the schema and not mapped, ignored" in text
     assert fl.meta.epoch_utc == "2022-04-17T12:48:47Z"              # UTCOfst +00:00
-    assert fl.meta.extra["derived_channels"]["n_long_g"].startswith("(dV/dt)/g0")
+    assert fl.meta.ingest.derived_channels["n_long_g"].startswith("(dV/dt)/g0")
     d = fl.data
     # 2841 rows read, 2 before the clock was set: 2839 rows at 1 Hz, strictly increasing
     assert len(d) == 2839 and np.all(np.diff(d.t_s) == 1.0)
@@ -133,7 +133,7 @@ def test_garmin_derived_long_load_at_rest_is_sin_pitch(garmin):
 def test_garmin_gnss_withheld(garmin):
     fl, _ = load_quiet(GARMIN, gnss_use=GnssUse(withhold=True))
     assert not [c for c in fl.data.columns if c.startswith("gnss_")]
-    assert any("GNSS withheld" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("GNSS withheld" in n for n in fl.meta.ingest.notes)
     # everything else as with the GNSS
     np.testing.assert_array_equal(fl.data.heading_deg, garmin[0].data.heading_deg)
 
@@ -147,7 +147,7 @@ def test_user_mapping_overrides_the_garmin_preset(tmp_path):
                  '[channels.pitch_deg]\ncolumn = "Pitch"\nsign = -1\n')
     fl, _ = load_quiet(GARMIN, mapping=m)
     base, _ = load_quiet(GARMIN)
-    notes = "\n".join(fl.meta.extra["ingest_notes"])
+    notes = "\n".join(fl.meta.ingest.notes)
     assert "WMM" in notes and "HDG + MagVar" not in notes
     np.testing.assert_allclose(fl.data.pitch_deg, -base.data.pitch_deg)
     # WMM and the avionics' variation agree within 0.5 deg there
@@ -364,9 +364,9 @@ def test_garmin_altimeter_setting_is_the_qnh_unless_given(garmin):
     assert field_pressure_altitude_m(89.3, fl.meta.qnh_departure_hpa) == pytest.approx(
         rest, abs=3.0)
     assert any(n.startswith("qnh_departure_hpa = 1022.0 hPa: the altimeter setting BaroA")
-               for n in fl.meta.extra["ingest_notes"])
+               for n in fl.meta.ingest.notes)
     mine, _ = load_quiet(GARMIN, meta_overrides={"qnh_departure_hpa": 1013.0})
     assert mine.meta.qnh_departure_hpa == 1013.0
     assert mine.meta.qnh_arrival_hpa == fl.meta.qnh_arrival_hpa
     assert any("1013.0 hPa as given" in n and "1022.0 hPa" in n
-               for n in mine.meta.extra["ingest_notes"])
+               for n in mine.meta.ingest.notes)

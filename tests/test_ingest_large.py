@@ -55,7 +55,7 @@ def test_ten_hour_log_one_impossible_value(tmp_path):
     _write(tmp_path / "bad.csv", 576_000, bad_row=400_001, bad_col="tas_mps", bad_value="9999")
     with pytest.warns(Warning, match="row.s. 400001"):
         fl = load_flight(tmp_path / "bad.csv")
-    (rep,) = fl.meta.extra["ingest_repairs"]
+    (rep,) = fl.meta.ingest.repairs
     assert rep["rows"] == [400_001] and rep["action"] == "masked" and rep["count"] == 1
     assert np.isnan(fl.data["tas_mps"].iloc[400_000])
     assert np.count_nonzero(np.isnan(fl.data["tas_mps"].to_numpy())) == 1

@@ -95,7 +95,7 @@ def test_foreign_names_units_signs_round_trip(tmp_path):
     # TAS on the rows where CAS was recorded; the rounding of CAS to 10 digits keeps 1e-7 m/s
     ok = d.tas_mps.notna()
     np.testing.assert_allclose(fl.data.tas_mps[ok], d.tas_mps[ok], atol=1e-6)
-    assert any("VRTG" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("VRTG" in n for n in fl.meta.ingest.notes)
 
 
 @pytest.mark.parametrize("h_m,p_hpa,t_k", [
@@ -165,7 +165,7 @@ def test_magnetic_heading_to_true_through_load_flight(tmp_path):
     fl = load_flight(tmp_path / "m.csv", mapping=tmp_path / "m.toml")
     h = fl.data.heading_deg.dropna().to_numpy()
     assert np.all(np.abs(h - 101.28) < 0.006)
-    assert any("magnetic -> true" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("magnetic -> true" in n for n in fl.meta.ingest.notes)
 
 
 def test_magnetic_uses_gnss_track_when_present(tmp_path):
@@ -182,7 +182,7 @@ def test_magnetic_uses_gnss_track_when_present(tmp_path):
     got = (fl.data.heading_deg - d.HDG_MAG).dropna().to_numpy()
     got = (got + 180.0) % 360.0 - 180.0
     assert np.all(np.abs(got - float(d_ref)) < 0.05)
-    assert any("GNSS track" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("GNSS track" in n for n in fl.meta.ingest.notes)
 
 
 def test_mapping_sub_tables_for_gnss_file(tmp_path):

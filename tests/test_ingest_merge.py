@@ -184,4 +184,4 @@ def test_nan_for_unsampled_cells_is_not_a_storm(tmp_path):
         fl = load_flight(tmp_path / name)
         pd.testing.assert_frame_equal(fl.data.drop(columns="src_file"),
                                       ref.drop(columns="src_file"))
-        assert any("NaN cells read as 'not sampled'" in n for n in fl.meta.extra["ingest_notes"])
+        assert any("NaN cells read as 'not sampled'" in n for n in fl.meta.ingest.notes)

@@ -78,7 +78,7 @@ def test_rest_noise_and_spikes_are_repaired_and_reported(tmp_path):
     d.to_csv(tmp_path / "rest.csv", index=False)
     with pytest.warns(Warning, match="outside the physical range"):
         fl = load_flight(tmp_path / "rest.csv")
-    reps = {r["action"]: r for r in fl.meta.extra["ingest_repairs"]}
+    reps = {r["action"]: r for r in fl.meta.ingest.repairs}
     assert set(reps) == {"clipped", "masked"}
     assert reps["masked"]["rows"] == [int(i) + 1 for i in spikes]
     assert reps["masked"]["count"] == 2 and reps["masked"]["column"] == "tas_mps"
@@ -113,4 +113,4 @@ def test_impact_load_clipped(tmp_path):
     with pytest.warns(Warning, match="clipped"):
         fl = load_flight(tmp_path / "imp.csv")
     assert fl.data["n_norm_g"].iloc[i] == 10.0
-    assert fl.meta.extra["ingest_repairs"][0]["action"] == "clipped"
+    assert fl.meta.ingest.repairs[0]["action"] == "clipped"

@@ -98,7 +98,7 @@ def test_offset_scale_applied(tmp_path):
         assert np.array_equal(np.isnan(a), np.isnan(b)), c
         # unit round trip x / f * f: a few ulp
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12, equal_nan=True, err_msg=c)
-    notes = fl.meta.extra["ingest_notes"]
+    notes = fl.meta.ingest.notes
     assert any("n_norm_g <- NZ_M1 [g] +1 g" in n for n in notes)
     assert any("n_lat_g <- NY_CENTI x 0.01 [g] x -1" in n for n in notes)
 

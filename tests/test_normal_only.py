@@ -42,8 +42,8 @@ def test_a_log_without_the_lateral_load_takes_coordinated_flights(tmp_path):
     sampled = ref["n_norm_g"].notna().to_numpy()
     assert np.all(d["n_lat_g"].to_numpy()[sampled] == 0.0)
     assert np.isnan(d["n_lat_g"].to_numpy()[~sampled]).all()
-    assert "n_lat_g" in fl.meta.extra["derived_channels"]
-    assert "coordinated flight" in fl.meta.extra["derived_channels"]["n_lat_g"]
+    assert "n_lat_g" in fl.meta.ingest.derived_channels
+    assert "coordinated flight" in fl.meta.ingest.derived_channels["n_lat_g"]
     assert any("n_lat_g not recorded" in w and "coordinated flight" in w for w in fl.warnings)
     # the recorded channels are untouched
     np.testing.assert_allclose(d["n_norm_g"].to_numpy()[sampled], ref["n_norm_g"][sampled])
@@ -96,7 +96,7 @@ def test_an_airline_decode_with_the_normal_load_alone_reads_through_its_mapping(
         "[channels.cas_mps]", 'column = "CAS_KT"', 'unit = "kt"',
         "[channels.baro_alt_m]", 'column = "ALT_STD_FT"', 'unit = "ft"']) + "\n")
     fl = load(log, mapping=m)
-    derived = fl.meta.extra["derived_channels"]
+    derived = fl.meta.ingest.derived_channels
     assert {"n_lat_g", "n_long_g", "tas_mps"} <= set(derived)
     assert np.all(fl.data["n_lat_g"].dropna().to_numpy() == 0.0)
     assert fl.data["n_lat_g"].notna().sum() == len(dec)

@@ -109,7 +109,7 @@ def test_reads_back_as_recorded(circuit, exported):
     assert np.nanmax(np.abs(d["tas_mps"] - _log_at(log, t, "tas_mps"))) <= 0.51 * KNOT_MPS
     assert np.nanmax(np.abs(d["sat_degc"] - _log_at(log, t, "sat_degc"))) <= 0.051
     # no longitudinal channel in the file: derived by the reader
-    assert "n_long_g" in flight.meta.extra.get("derived_channels", [])
+    assert "n_long_g" in flight.meta.ingest.derived_channels
 
     # GNSS: the log's fixes, ellipsoidal height, velocity from GndSpd along TRK + MagVar
     for c, tol in (("gnss_lat_deg", 6e-8), ("gnss_lon_deg", 6e-8), ("gnss_alt_m", 0.02)):

@@ -24,7 +24,7 @@ from flightrecon.methods.joint.settling import (
 )
 from flightrecon.pipeline.health import method_health
 from flightrecon.pipeline.status import FEEDS_DEFAULT, method_status
-from flightrecon.types import MethodResult
+from flightrecon.types import FlightMeta, MethodResult
 
 ROOT = Path(__file__).resolve().parents[1]
 REALDATA = ROOT.parent / "shared" / "realdata"
@@ -133,7 +133,7 @@ def test_strict_refuses_a_stopped_method(monkeypatch):
     monkeypatch.setattr(run, "_chosen_methods", lambda clean, settings: (["joint"], {}))
     monkeypatch.setattr(run, "method_health", lambda r, clean: method_health(r))
     clean = SimpleNamespace(grid=pd.DataFrame({"t_s": np.arange(5.0)}),
-                            meta=SimpleNamespace(extra={}))
+                            meta=FlightMeta())
     with pytest.raises(ConvergenceError, match="stopped"):
         run.reconstruct_clean(clean, registry.ReconstructSettings(strict=True), workers=1)
 

@@ -51,7 +51,7 @@ def test_time_of_day_rolls_over_midnight_forward(tmp_path):
     t = fl.data.t_s.to_numpy()
     np.testing.assert_allclose(t, d.t_s - 65.0, atol=1e-6)
     assert np.all(np.diff(t) > 0)
-    assert any("placed on 2026-03-15" in n for n in fl.meta.extra["ingest_notes"])
+    assert any("placed on 2026-03-15" in n for n in fl.meta.ingest.notes)
 
 
 def test_time_of_day_without_epoch_warns_and_keeps_relative_times(tmp_path):

@@ -20,7 +20,7 @@ The evidence (:func:`arrival_not_end`), over the record's last second (the grid 
   +-35 hPa about the standard 1013.25 hPa: 8.4 m/hPa x 35 hPa).
 
 Both hold: the arrival is dropped from the flight's metadata (no estimator uses it), kept in
-``meta.extra["arrival_not_end"]`` with the evidence, and a warning and a cleaning-report entry
+``meta.arrival_not_end`` with the evidence, and a warning and a cleaning-report entry
 (``arrival_not_end``) name it.  The airspeed holds but not the height: the arrival is kept as the
 end point, with a warning.  That is an arrival given at the aircraft's own height, where the
 record ends (a radar hand-off: the joint smoother's ``last_position`` end point, docs/joint.md),
@@ -40,7 +40,7 @@ import pandas as pd
 from flightrecon.cleaning.report import report_entry
 from flightrecon.errors import FlightReconWarning
 from flightrecon.geo.atmosphere import field_pressure_altitude_m
-from flightrecon.types import FlightMeta, FlightPhases
+from flightrecon.types import ArrivalNotEnd, FlightMeta, FlightPhases
 
 __all__ = ["MARGIN_QNH_M", "MARGIN_STANDARD_M", "arrival_not_end"]
 
@@ -76,7 +76,7 @@ def arrival_not_end(grid: pd.DataFrame, phases: FlightPhases | None, meta: Fligh
     Returns
     -------
     meta, report
-        ``meta`` without ``arrival`` (and with ``extra["arrival_not_end"]``) when the evidence
+        ``meta`` without ``arrival`` (and with ``arrival_not_end``) when the evidence
         holds, else ``meta`` itself; the cleaning-report entries (``arrival_not_end`` or
         ``arrival_end_airborne``; none when the record does not end fast with an arrival).
     """
@@ -107,9 +107,8 @@ def arrival_not_end(grid: pd.DataFrame, phases: FlightPhases | None, meta: Fligh
            "not used as the track's end point by any method (docs/signals.md, 'An arrival "
            "for a record that ends airborne')")
     warnings.warn(msg, FlightReconWarning, stacklevel=4)
-    rec = {"arrival": dataclasses.asdict(arr), "t_end_s": t_end, "tas_mps": tas,
-           "height_above_field_m": float(height), "margin_m": margin, "qnh_hpa": qnh}
-    meta = dataclasses.replace(meta, arrival=None,
-                               extra={**meta.extra, "arrival_not_end": rec})
+    rec = ArrivalNotEnd(arrival=arr, t_end_s=t_end, tas_mps=tas,
+                        height_above_field_m=float(height), margin_m=margin, qnh_hpa=qnh)
+    meta = dataclasses.replace(meta, arrival=None, arrival_not_end=rec)
     return meta, [report_entry("arrival", "arrival_not_end", msg, count=1, t_s=[t_end],
                                height_above_field_m=float(height), tas_mps=tas)]

@@ -38,7 +38,7 @@ from flightrecon.cleaning.timebase import check_clock_offsets, measurement_table
 from flightrecon.cleaning.trim import trim_flight
 from flightrecon.errors import FlightReconError, ValidationError
 from flightrecon.schema import GROUPS
-from flightrecon.types import CleanFlight, Flight, FlightMeta, FlightPhases
+from flightrecon.types import CleanFlight, Flight, FlightMeta, FlightPhases, IngestRecord
 
 __all__ = ["CleaningSettings", "clean_flight"]
 
@@ -66,20 +66,20 @@ class CleaningSettings:
     end: float | str | None = None
 
 
-def _ingest_notes_entries(extra: dict) -> list[dict]:
+def _ingest_notes_entries(record: IngestRecord) -> list[dict]:
     """Cleaning-report entries for what ingest left out or made up: the log's columns mapped
     to no channel (``ignored_columns``) and the channels derived, not recorded
     (``derived_channel``, docs/ingest.md)."""
     out = []
-    ignored = list(extra.get("ignored_columns") or ())
+    ignored = list(record.ignored_columns)
     if ignored:
         out.append(report_entry("*", "ignored_columns", "columns of the log mapped to no "
                                 "channel (not in the schema, not in the mapping): not used",
                                 count=len(ignored), columns=", ".join(ignored)))
-    for ch, how in (extra.get("derived_channels") or {}).items():
+    for ch, how in record.derived_channels.items():
         out.append(report_entry(ch, "derived_channel", f"not recorded: computed at ingest as "
                                 f"{how}", count=0))
-    use = extra.get("gnss_use") or {}
+    use = record.gnss_use
     if use.get("options"):
         opts = use["options"]
         said = "; ".join(t for t in (
@@ -188,7 +188,7 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
         work, report = run_steps(data, steps)
     except (TypeError, ValueError) as exc:  # non-numeric channel content
         raise ValidationError(f"cannot clean the log: {exc}") from exc
-    derived = tuple(flight.meta.extra.get("derived_channels") or {})
+    derived = tuple(flight.meta.ingest.derived_channels)
     work, dead = drop_dead_channels(work, derived)   # a dead or stuck one is absent (dead.py)
     report.extend(dead)
     grid, rate, rep = resample_inputs(work, rate_hz, settings.max_gap_s)
@@ -196,8 +196,8 @@ def clean_flight(flight: Flight, *, rate_hz: float | None = None,
     sat_masks, rep = detect_saturation(work)   # samples at the recorder's range (impact, dive)
     report.extend(rep)
     # repairs made at validation (values outside the physical range), first in the report
-    ingest = [_repair_entry(r) for r in flight.meta.extra.get("ingest_repairs", ())]
-    ingest += _ingest_notes_entries(flight.meta.extra)
+    ingest = [_repair_entry(r) for r in flight.meta.ingest.repairs]
+    ingest += _ingest_notes_entries(flight.meta.ingest)
     report[:0] = ingest + trim_rep
     tables = _measurement_tables(work, offsets, report)
     meta, rep = with_origin(flight.meta, grid, tables["gnss"], tables["radar"])

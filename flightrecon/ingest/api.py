@@ -100,15 +100,13 @@ def load_flight(log: PathLike, *, gnss: PathLike | None = None, radar: PathLike 
     _check_priors(meta, data, warns)
     meta = _geoid(meta, data, "geoid_undulation_m" in (sc.given if sc is not None else ())
                   or overrides.get("geoid_undulation_m") is not None, notes)
-    meta = dataclasses.replace(meta, extra={**meta.extra, "ingest_notes": notes,
-                                            "ingest_repairs": [r.as_dict() for r in repairs],
-                                            "door": [c.as_dict() for c in door],
-                                            "mapping": None if mp is None else mp.file,
-                                            "derived_channels": _derived(src),
-                                            "ignored_columns": list(src.ignored),
-                                            "gnss_use": gnss_rec or ({"options": use.as_dict()}
-                                                                     if use.any else {}),
-                                            "sidecar": None if sc is None else sc.path})
+    record = dataclasses.replace(
+        meta.ingest, notes=tuple(notes), repairs=tuple(r.as_dict() for r in repairs),
+        door=tuple(c.as_dict() for c in door), mapping=None if mp is None else mp.file,
+        derived_channels=_derived(src), ignored_columns=tuple(src.ignored),
+        gnss_use=gnss_rec or ({"options": use.as_dict()} if use.any else {}),
+        sidecar=None if sc is None else sc.path)
+    meta = dataclasses.replace(meta, ingest=record)
     for w in warns:
         warnings.warn(w, FlightReconWarning, stacklevel=2)
     return Flight(data=data, meta=meta, sources=tuple(src.files), warnings=tuple(warns))

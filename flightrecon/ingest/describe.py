@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import dataclasses
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from flightrecon.schema import BY_NAME
-from flightrecon.types import Flight
+from flightrecon.types import Flight, declared_metadata
 
 __all__ = ["GAP_FACTOR", "channel_stats", "describe_flight"]
 
@@ -34,7 +34,7 @@ def channel_stats(t: np.ndarray, v: np.ndarray) -> dict[str, Any]:
     return out
 
 
-def _recorder(rec: dict[str, Any] | None) -> dict[str, str]:
+def _recorder(rec: Mapping[str, Any] | None) -> dict[str, str]:
     """The recorder's variant and each convention read with its evidence (a Garmin export:
     ``flightrecon.ingest.garmin``), as ``conventions`` entries."""
     if not rec:
@@ -55,8 +55,7 @@ def describe_flight(flight: Flight) -> dict[str, Any]:
             continue
         chans[name] = {"unit": ch.unit, "kind": ch.kind, "group": ch.group or None,
                        **channel_stats(t, d[name].to_numpy())}
-    meta = dataclasses.asdict(flight.meta)
-    extra = meta.pop("extra", {})
+    record = flight.meta.ingest
     return {
         "sources": list(flight.sources),
         "rows": len(d),
@@ -64,18 +63,18 @@ def describe_flight(flight: Flight) -> dict[str, Any]:
         "end_s": float(t[-1]) if t.size else None,
         "duration_s": float(t[-1] - t[0]) if t.size else 0.0,
         "channels": chans,
-        "metadata": meta,
+        "metadata": declared_metadata(flight.meta),
         "conventions": {
             "baro_alt_m": f"datum: {flight.meta.baro_datum}",
             "gnss_alt_m": f"datum: {flight.meta.gnss_alt_datum}",
             "heading_deg": "true, clockwise from north, [0, 360)",
             "body_axes": "FRD; n_norm_g = -f_z/g0 (+1 at rest)",
-            **_recorder(extra.get("recorder")),
-            "conversions": list(extra.get("ingest_notes", [])),
+            **_recorder(record.recorder),
+            "conversions": list(record.notes),
         },
-        "repairs": list(extra.get("ingest_repairs", [])),
-        "door": list(extra.get("door", [])),
-        "mapping": extra.get("mapping"),
-        "sidecar": extra.get("sidecar"),
+        "repairs": list(record.repairs),
+        "door": list(record.door),
+        "mapping": record.mapping,
+        "sidecar": record.sidecar,
         "warnings": list(flight.warnings),
     }

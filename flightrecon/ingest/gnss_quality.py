@@ -189,7 +189,7 @@ def apply_gnss_quality(cols: dict[str, np.ndarray], t: np.ndarray, prov: Provena
     -------
     warnings, repairs, notes, record
         ``record``: what the options did and the rounding added per axis (empty when neither
-        applies), for ``FlightMeta.extra["gnss_use"]``.
+        applies), for ``FlightMeta.ingest.gnss_use``.
     """
     warns: list[str] = []
     repairs: list[Repair] = []

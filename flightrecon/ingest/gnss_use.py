@@ -29,7 +29,7 @@ at the recorder's rate masked) and before the rounding of positions recorded in 
    (:func:`.gnss_quality.apply_gnss_quality`): the analyst gives the receiver's error, the
    tool the export's.
 
-What was done is recorded in ``FlightMeta.extra["gnss_use"]`` (counts of fixes kept,
+What was done is recorded in ``FlightMeta.ingest.gnss_use`` (counts of fixes kept,
 thinned and withheld per window, the sd given and the rounding added), reported in the
 summary's ``measurements`` and in the cleaning report.
 """
@@ -226,7 +226,7 @@ def apply_gnss_use(cols: dict[str, np.ndarray], t: np.ndarray, use: GnssUse | No
     Returns
     -------
     warnings, notes, record
-        ``record`` is what goes to ``FlightMeta.extra["gnss_use"]`` (empty when nothing was
+        ``record`` is what goes to ``FlightMeta.ingest.gnss_use`` (empty when nothing was
         asked).
     """
     if use is None or not use.any or use.withhold:

@@ -50,7 +50,7 @@ import numpy as np
 
 from flightrecon.errors import MetadataError
 from flightrecon.ingest.gnss_use import GnssUse, gnss_use_from_table
-from flightrecon.types import FlightMeta, Position
+from flightrecon.types import RECORD_FIELDS, FlightMeta, Position
 
 __all__ = [
     "LOG_SUFFIXES",
@@ -65,7 +65,7 @@ __all__ = [
 LOG_SUFFIXES = (".csv", ".txt", ".tsv", ".parquet", ".pq", ".parq")
 FLIGHT_KEYS = {"aircraft_id", "flight_id", "epoch_utc", "gnss_alt_datum", "baro_datum",
                "geoid_undulation_m", "gnss_lever_arm_m", "qnh_departure_hpa", "qnh_arrival_hpa",
-               "attitude_source"}
+               "attitude_source", "configuration"}
 POSITION_KEYS = ("lat_deg", "lon_deg", "elev_m", "runway_true_deg", "threshold_lat_deg",
                  "threshold_lon_deg")
 THRESHOLD_MAX_M = 10_000.0
@@ -321,6 +321,8 @@ def _threshold(t: dict[str, Any], pos: Position, name: str, file: str) -> Positi
 
 
 def _flight_value(k: str, v: Any, file: str) -> Any:
+    if k == "configuration":  # free text for the coefficient store (docs/store.md)
+        return str(v)
     if k in ("aircraft_id", "flight_id"):
         if not isinstance(v, (str, int)) or isinstance(v, bool):
             raise MetadataError(f"[flight] {k} must be a string", file=file)
@@ -375,7 +377,7 @@ def apply_overrides(meta: FlightMeta, overrides: dict[str, Any] | None) -> Fligh
     """
     if not overrides:
         return meta
-    names = {f.name for f in dataclasses.fields(FlightMeta)} - {"extra"}
+    names = {f.name for f in dataclasses.fields(FlightMeta)} - set(RECORD_FIELDS)
     kw: dict[str, Any] = {}
     for k, v in overrides.items():
         if v is None:

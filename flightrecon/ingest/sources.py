@@ -295,7 +295,7 @@ def _qnh_from_setting(meta: FlightMeta, settings: tuple[float, float] | None,
 def _garmin_meta(meta: FlightMeta, rd: GarminReading, notes: list[str]) -> FlightMeta:
     """The aircraft a Garmin export names (where the sidecar gives none: it wins), the GPS
     height's datum its data show, and the variant and conventions read, for ``info``
-    (``extra["recorder"]``)."""
+    (``ingest.recorder``)."""
     out: dict[str, Any] = {}
     ident = rd.identity
     if meta.aircraft_id is None and ident.get("aircraft_id"):
@@ -309,7 +309,8 @@ def _garmin_meta(meta: FlightMeta, rd: GarminReading, notes: list[str]) -> Fligh
                                 "conventions": {c.quantity: c.text() for c in rd.conventions}}
     if rd.undulation_m is not None:
         recorder["recorded_undulation_m"] = float(np.round(rd.undulation_m, 1))
-    return dataclasses.replace(meta, **out, extra={**meta.extra, "recorder": recorder})
+    return dataclasses.replace(meta, **out,
+                               ingest=dataclasses.replace(meta.ingest, recorder=recorder))
 
 
 def _without_gnss(mt: MappedTable) -> MappedTable:

@@ -219,11 +219,11 @@ def _sabziev_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
         return missing
     if clean.meta.arrival is not None or s.k is not None or end_fix(clean) is not None:
         return None
-    if "arrival_not_end" in clean.meta.extra:    # given, but the record ends in the air
-        r = clean.meta.extra["arrival_not_end"]
+    r = clean.meta.arrival_not_end
+    if r is not None:    # given, but the record ends in the air
         return (f"the arrival given is not where the record ends (it ends in the air, "
-                f"{r['height_above_field_m']:.0f} m above that field at "
-                f"{r['tas_mps']:.0f} m/s) and no coefficients are given: give a --fix at the "
+                f"{r.height_above_field_m:.0f} m above that field at "
+                f"{r.tas_mps:.0f} m/s) and no coefficients are given: give a --fix at the "
                 "end of the record, or --k / fleet coefficients")
     return ("no arrival point and no coefficients (give --arrival, a --fix at the end of the "
             "record, or --k / fleet coefficients)")
@@ -248,7 +248,7 @@ def _sns_can_run(clean: CleanFlight, s: ReconstructSettings) -> str | None:
         return missing
     if has_gnss:
         return None
-    use = (clean.meta.extra.get("gnss_use") or {}).get("options") or {}
+    use = clean.meta.ingest.gnss_use.get("options") or {}
     return ("the GNSS withheld (--no-gnss or the sidecar's [gnss])" if use.get("withhold")
             else "no GNSS fixes in the data")
 

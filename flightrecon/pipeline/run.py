@@ -141,7 +141,7 @@ def reconstruct_clean(clean: CleanFlight, settings: ReconstructSettings = Recons
         results[m] = res
         health = method_health(res, clean)
         status[m] = method_status(res, health)
-        doubted = doubt(m, clean.meta.extra) if status[m]["status"] in FEEDS_DEFAULT else None
+        doubted = doubt(m, clean.meta.ingest.door) if status[m]["status"] in FEEDS_DEFAULT else None
         if doubted:     # a unit the door doubts or that was overridden (unit_doubts.py)
             before = status[m].get("reason")
             status[m].update(status=DOUBTFUL, reason=f"the door's evidence: {doubted}"
@@ -294,7 +294,7 @@ def _load_and_clean(log: str | Path, *, gnss: str | Path | None, radar: str | Pa
     if use_fleet_coefficients:
         settings, fleet = fleet_settings(settings, store, flight.meta.aircraft_id,
                                          at_utc=flight.meta.epoch_utc,
-                                         configuration=flight.meta.extra.get("configuration"))
+                                         configuration=flight.meta.configuration)
     stage("cleaning")
     clean = clean_flight(flight, rate_hz=settings.rate_hz,
                          settings=CleaningSettings(start=settings.start, end=settings.end))

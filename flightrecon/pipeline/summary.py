@@ -13,7 +13,7 @@ import pandas as pd
 
 from flightrecon import __version__
 from flightrecon.pipeline.registry import DEFAULT_PRIORITY, ReconstructSettings
-from flightrecon.types import CleanFlight
+from flightrecon.types import CleanFlight, declared_metadata
 
 SUMMARY_SCHEMA_VERSION = 1
 
@@ -30,12 +30,6 @@ def sha256_file(path: str | Path, chunk: int = 1 << 20) -> str:
     return h.hexdigest()
 
 
-def _meta_dict(meta) -> dict[str, Any]:
-    d = asdict(meta)
-    d.pop("extra", None)
-    return d
-
-
 def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dict[str, Any], *,
                   inputs: Sequence[str | Path] = (), warnings_: Sequence[str] = ()
                   ) -> dict[str, Any]:
@@ -46,16 +40,16 @@ def build_summary(clean: CleanFlight, settings: ReconstructSettings, status: dic
         "software": {"name": "flightrecon", "version": __version__,
                      "python": platform.python_version()},
         "inputs": [{"path": str(p), "sha256": sha256_file(p)} for p in inputs if Path(p).is_file()],
-        "flight": _meta_dict(clean.meta),
+        "flight": declared_metadata(clean.meta),
         "settings": settings.to_dict(),
         "grid": {"rate_hz": clean.rate_hz, "samples": len(clean.grid),
                  "t0_s": float(clean.grid["t_s"].iloc[0]) if len(clean.grid) else None,
                  "t1_s": float(clean.grid["t_s"].iloc[-1]) if len(clean.grid) else None},
         "measurements": {"gnss_fixes": len(clean.gnss), "radar_plots": len(clean.radar),
                          # the analyst's GNSS options and the rounding added (ingest/gnss_use.py)
-                         "gnss_use": dict(clean.meta.extra.get("gnss_use") or {})},
+                         "gnss_use": dict(clean.meta.ingest.gnss_use)},
         # every check of the door with its figure and verdict (docs/door.md)
-        "door": list(clean.meta.extra.get("door", [])),
+        "door": list(clean.meta.ingest.door),
         "phases": None if ph is None else asdict(ph),
         "cleaning": {"actions": len(clean.report), "report": list(clean.report)[:200]},
         "output": {

@@ -58,9 +58,10 @@ def unit_doubts(door: Iterable[Mapping[str, Any]]) -> dict[str, str]:
     return out
 
 
-def doubt(method: str, extra: Mapping[str, Any]) -> str | None:
-    """Why ``method``'s result is doubtful (the flight's metadata ``extra``), else ``None``."""
-    doubts = unit_doubts(extra.get("door") or ())
+def doubt(method: str, door: Iterable[Mapping[str, Any]]) -> str | None:
+    """Why ``method``'s result is doubtful (the door's checks of the flight,
+    ``FlightMeta.ingest.door``), else ``None``."""
+    doubts = unit_doubts(door)
     inputs = METHOD_INPUTS.get(method, ())
     hits = dict.fromkeys(text for c, text in doubts.items() if c in inputs)
     return "; ".join(hits) if hits else None

@@ -126,8 +126,7 @@ def flight_conditions(clean: Any) -> dict[str, Any]:
         lo, hi = np.percentile(v, [5, 95])
         return (float(lo), float(hi))
 
-    cfg = clean.meta.extra.get("configuration", "") if clean.meta.extra else ""
-    return {"configuration": str(cfg), "duration_s": float(t[-1] - t[0]) if len(t) > 1 else 1.0,
+    return {"configuration": clean.meta.configuration or "", "duration_s": float(t[-1] - t[0]) if len(t) > 1 else 1.0,
             "tas_range_mps": pct("tas_mps"), "alt_range_m": pct("baro_alt_m")}
 
 

@@ -310,7 +310,7 @@ def joint_inputs(clean: CleanFlight, noise: JointNoise | None = None) -> JointIn
         lever_arm=(float(la[0]), float(la[1]), float(la[2])),
         lineup_t=float(getattr(ph, "lineup_t_s", np.nan)) if ph is not None else np.nan,
         ends_airborne=bool(ph is not None and ph.ends_airborne))
-    if "n_long_g" in (meta.extra.get("derived_channels") or {}):
+    if "n_long_g" in meta.ingest.derived_channels:
         inp = without_floor_loads(inp)
     if not (ph is not None and ph.starts_airborne):
         roll = takeoff_roll(inp.t_in, inp.acc_ned, inp.heading_rad, inp.tas, inp.liftoff_t,

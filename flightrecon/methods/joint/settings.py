@@ -299,7 +299,7 @@ def derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSet
     """Wider priors of the forward accelerometer's scale and bias for a derived ``n_long_g``
     (ingest's ``derived_channels``), and ``long_load_derived`` set; a prior the user gave for
     them is kept."""
-    if "n_long_g" not in (clean.meta.extra.get("derived_channels") or {}):
+    if "n_long_g" not in clean.meta.ingest.derived_channels:
         return settings
     given = {p[0] for p in settings.priors}
     extra = tuple(p for p in (("accel_scale_x", 0.0, DERIVED_LONG_SCALE_SD),
@@ -321,7 +321,7 @@ DERIVED_LAT_ACCEL_NOISE = 1.0
 def derived_lat_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
     """The loads' white noise for an ``n_lat_g`` assumed at ingest (``derived_channels``):
     :data:`DERIVED_LAT_ACCEL_NOISE`, never below the settings'."""
-    if "n_lat_g" not in (clean.meta.extra.get("derived_channels") or {}):
+    if "n_lat_g" not in clean.meta.ingest.derived_channels:
         return settings
     nz = settings.noise
     return replace(settings, noise=replace(nz, accel_noise_mps2_sqrt_hz=max(
