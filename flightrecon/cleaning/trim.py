@@ -98,6 +98,4 @@ def trim_flight(flight: Flight, start: float | str | None = None,
                        start_s=float("nan") if t0 is None else t0,
                        end_s=float("nan") if t1 is None else t1,
                        kept_rows=int(keep.sum()))
-    meta = dataclasses.replace(flight.meta, extra={**flight.meta.extra,
-                                                   "trim_s": [t0, t1]})
-    return dataclasses.replace(flight, data=out, meta=meta), [rep]
+    return dataclasses.replace(flight, data=out), [rep]
