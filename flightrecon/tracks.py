@@ -54,6 +54,12 @@ class TrackColumns:
         if sd is not None:
             self._put(f"{self.prefix}_{quantity}_sd_{unit}", np.asarray(sd, dtype=np.float64))
 
+    def add_sd(self, quantity: str, unit: str, sd: np.ndarray) -> None:
+        """``<prefix>_<quantity>_sd_<unit>`` alone: the sd of a column whose value came without
+        one, from another error model than the value's (the Sabziev bridge's dead-reckoning
+        sd)."""
+        self._put(f"{self.prefix}_{quantity}_sd_{unit}", np.asarray(sd, dtype=np.float64))
+
     def add_horizontal(self, north: str, east: str, unit: str, value: np.ndarray,
                        cov: np.ndarray, to_output: np.ndarray | None = None, *,
                        order: str = "ne", value_is_output: bool = False) -> None:

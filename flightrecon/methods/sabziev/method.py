@@ -72,7 +72,7 @@ from flightrecon.methods.sabziev.result import (
     LIFTOFF_GIVEN_SD_M,
     LIFTOFF_SD_M,
     add_conditioning,
-    bridge_sd_columns,
+    bridge_sd,
     finite_or_none,
     resolve_coefficients,
     sabziev_summary,
@@ -182,12 +182,15 @@ def _summary_of(p: _Inputs, sol: SabzievSolution, frame: dict[str, Any], k: Any,
     """The track on the grid and the summary, with the bridge sd, the conditioning, the
     vertical reference's checks and the self-check's problems (``health_problems``)."""
     t, sl = p.t, p.sl
-    track = sabziev_track(p.t_all, sl, sol, k_sd, p.origin, origin_sd, p.plane)
-    summary = sabziev_summary(sol, k, k_sd, t, p.v0, p.end_info, warn, hold, vertical_rule)
+    sd_m, sd_entry = None, None
     if k_sd is None and p.end_ned is not None and policy == "stable":
         end_sd = (p.fix_end.sd_m if p.arr is None and p.fix_end is not None
                   else ARRIVAL_POINT_SD_M)
-        summary["track_sd"] = bridge_sd_columns(track, sl, t, origin_sd, end_sd)
+        sd_m, sd_entry = bridge_sd(t, origin_sd, end_sd)
+    track = sabziev_track(p.t_all, sl, sol, k_sd, p.origin, origin_sd, p.plane, sd_m)
+    summary = sabziev_summary(sol, k, k_sd, t, p.v0, p.end_info, warn, hold, vertical_rule)
+    if sd_entry is not None:
+        summary["track_sd"] = sd_entry
     summary["wind_source"] = p.wind_source
     summary["policy"] = policy
     summary["k_defaults"] = k_defaults

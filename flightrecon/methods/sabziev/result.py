@@ -131,13 +131,15 @@ LIFTOFF_GIVEN_SD_M = 10.0
 
 
 def sabziev_track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray,
-                  origin_sd_m: float = 0.0, plane: Any = None) -> pd.DataFrame:
+                  origin_sd_m: float = 0.0, plane: Any = None,
+                  bridge_sd_m: np.ndarray | None = None) -> pd.DataFrame:
     """The output columns through the one builder (:class:`flightrecon.tracks.TrackColumns`):
     north, east in the output plane, the fusion's height above the departure airfield
     (``sabziev_height_m``) and from it the plane's up, latitude, longitude and ellipsoidal
     height (``plane``: the output plane; without it, no ``up``/``lat``/``lon``/``alt``),
     the velocities; with ``k_sd`` the sd columns, the horizontal ones with ``origin_sd_m`` in
-    quadrature."""
+    quadrature; without ``k_sd``, ``bridge_sd_m`` (the covered rows, :func:`bridge_sd`), if
+    given, as the north and east sd, after the velocities."""
     from flightrecon.tracks import TrackColumns
 
     out = TrackColumns("sabziev", t_all, sl)
@@ -154,22 +156,22 @@ def sabziev_track(t_all, sl, sol: SabzievSolution, k_sd, origin: np.ndarray,
                       up_sd=None if psd is None else psd[:, 1])
     for name, j in (("vn", 0), ("ve", 2), ("vu", 1)):
         out.add(name, "mps", sol.vxyz_mps[:, j], None if vsd is None else vsd[:, j])
+    if bridge_sd_m is not None and psd is None:
+        out.add_sd("north", "m", bridge_sd_m)
+        out.add_sd("east", "m", bridge_sd_m)
     return out.frame()
 
 
-def bridge_sd_columns(track: pd.DataFrame, sl: slice, t: np.ndarray, start_sd_m: float,
-                       end_sd_m: float) -> dict[str, Any]:
-    """The horizontal sd columns of a boundary-value track without a fleet spread of ``k``
-    (``sabziev_north_sd_m``, ``sabziev_east_sd_m``, in place on ``track``'s rows ``sl``): the
-    stable track is in effect a dead reckoning corrected to both ends, and its sd that of
-    :func:`flightrecon.methods.baselines.corrected_track_sd_m` (the lift-off point's sd, the
-    end point's, the wind's random walk between them).  Returns the model's summary entry."""
+def bridge_sd(t: np.ndarray, start_sd_m: float, end_sd_m: float
+              ) -> tuple[np.ndarray, dict[str, Any]]:
+    """The horizontal sd [m] at the times ``t`` of a boundary-value track without a fleet
+    spread of ``k`` (:func:`sabziev_track` writes it as ``sabziev_north_sd_m`` and
+    ``sabziev_east_sd_m``): the stable track is in effect a dead reckoning corrected to both
+    ends, and its sd that of :func:`flightrecon.methods.baselines.corrected_track_sd_m` (the
+    lift-off point's sd, the end point's, the wind's random walk between them).  Returns the sd
+    and the model's summary entry."""
     sd = corrected_track_sd_m(t, float(t[0]), float(t[-1]), start_sd_m, end_sd_m)
-    for c in ("sabziev_north_sd_m", "sabziev_east_sd_m"):
-        col = np.full(len(track), np.nan)
-        col[sl] = sd
-        track[c] = col
-    return {"model": "dead reckoning corrected to both ends (fusion.baselines."
+    return sd, {"model": "dead reckoning corrected to both ends (fusion.baselines."
                      "corrected_track_sd_m)", "start_sd_m": start_sd_m, "end_sd_m": end_sd_m,
             "wind_walk_mps_sqrt_s": DR_WALK_MPS_SQRT_S, "largest_sd_m": float(np.max(sd))}
 
