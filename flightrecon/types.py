@@ -114,10 +114,12 @@ class ArrivalNotEnd:
     ----------
     arrival : the arrival given
     t_end_s : time of the record's last sample [s]
-    tas_mps : true airspeed over the last second [m/s]
-    height_above_field_m : height above the arrival field over the last second [m]
-    margin_m : the height that proves it [m]
-    qnh_hpa : the arrival's QNH used for the height, ``None`` when not known (standard pressure)
+    tas_mps : true airspeed over the record's last second (median) [m/s]
+    height_above_field_m : pressure altitude over the last second (median) above the arrival
+        field's [m]
+    margin_m : the height that proves an airborne end [m]
+    qnh_hpa : the QNH used for the field's pressure altitude (the arrival's, else the
+        departure's; ``None``: standard atmosphere)
     """
 
     arrival: Position
