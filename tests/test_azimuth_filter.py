@@ -45,7 +45,8 @@ def test_tracks_through_north(model):
         err = wrap_pi(x[:, 0] - eps)
         assert np.all(np.abs(err[10:]) < 5 * np.sqrt(P[10:, 0, 0]))
         assert np.all(np.abs(x[:, 0] - eps) < 0.05)  # continuous state: no 2 pi offset
-    assert np.nanmax(np.abs(run.filt.diagnostics["nu_eps"][8:])) < 0.01  # wrapped (the first two plots set omega)
+    # wrapped (the first two plots set omega)
+    assert np.nanmax(np.abs(run.filt.diagnostics["nu_eps"][8:])) < 0.01
 
 
 def test_aided_keeps_tracking_without_radar():
@@ -123,8 +124,8 @@ def test_singer_kernel_matches_generic_kalman_filter():
     Q = singer_process_noise(0.1, 1.5 / rt.r, np.diff(t, prepend=t[0]))
     z = eps_meas.copy()
     z[0] = np.nan  # the first plot is the prior (x_pred[0], P_pred[0]), used once
-    ref = kalman_filter(run.filt.x_pred[0], run.filt.P_pred[0], run.filt.diagnostics["F"], Q, z[:, None],
-                        np.array([[1.0, 0.0, 0.0]]), var[:, None, None])
+    ref = kalman_filter(run.filt.x_pred[0], run.filt.P_pred[0], run.filt.diagnostics["F"], Q,
+                        z[:, None], np.array([[1.0, 0.0, 0.0]]), var[:, None, None])
     sd = np.sqrt(np.diagonal(run.filt.P, axis1=1, axis2=2))
     np.testing.assert_allclose((ref.x - run.filt.x) / sd, 0.0, atol=1e-9)
     np.testing.assert_allclose(ref.P, run.filt.P, rtol=1e-9, atol=0)
@@ -192,4 +193,5 @@ def test_azimuth_filter_uses_its_first_plot_once(model):
         extra = {"a_ne": np.full((3, 2), np.nan), "a_ne_cov": np.zeros((3, 2, 2))}
     run = azimuth_filter(t, eps, var, rt, model=model, **extra)
     assert run.filt.P[0, 0, 0] == pytest.approx(var[0], rel=1e-12)
-    assert np.isnan(run.filt.diagnostics["nu_eps"][0]) and np.isfinite(run.filt.diagnostics["nu_eps"][2])
+    nu_eps = run.filt.diagnostics["nu_eps"]
+    assert np.isnan(nu_eps[0]) and np.isfinite(nu_eps[2])
