@@ -29,14 +29,13 @@ from flightrecon.errors import FlightReconError
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.memory import release_unused
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.diagnostics import wind_walk_check
+from flightrecon.methods.joint.health import wind_walk_check
 from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
+from flightrecon.methods.joint.output import hermite_positions
 from flightrecon.methods.joint.problem import JointProblem, SettingChoice
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.smoother import smooth_joint, smooth_joint_from
-from flightrecon.methods.joint.state import JointRun
-from flightrecon.methods.joint.track import hermite_positions
+from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint_from
 
 __all__ = ["apply_factor", "calibrate_gaps", "calibration_factor", "gnss_gaps",
            "fix_noise", "heldout_errors", "heldout_smoothing", "inertial_wind_share",

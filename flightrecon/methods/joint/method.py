@@ -22,23 +22,29 @@ from flightrecon.errors import FlightReconWarning
 from flightrecon.estimation.consistency import ChiSquareVerdict, chi_square_verdict
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.calibration import calibrate_gaps, wind_walk_rounds
-from flightrecon.methods.joint.diagnostics import (
+from flightrecon.methods.joint.health import (
     clock_warnings,
     far_warning,
     gust_warnings,
     implausible_corrections,
+    settling,
+    settling_sentence,
     source_report,
+    widened_track_sd,
     wind_walk_check,
     wind_walk_warning,
 )
 from flightrecon.methods.joint.inputs import JointInputs
+from flightrecon.methods.joint.output import (
+    PREFIX,
+    corrections_at_middle,
+    fix_report,
+    joint_track,
+    wind_prior_report,
+)
 from flightrecon.methods.joint.problem import JointProblem, joint_problem
-from flightrecon.methods.joint.report import corrections_at_middle, fix_report, wind_prior_report
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.settling import settling, settling_sentence, widened_track_sd
-from flightrecon.methods.joint.smoother import smooth_joint
-from flightrecon.methods.joint.state import JointRun
-from flightrecon.methods.joint.track import PREFIX, joint_track
+from flightrecon.methods.joint.solve import JointRun, smooth_joint
 from flightrecon.types import CleanFlight, MethodResult
 
 __all__ = ["PREFIX", "joint_result", "run_joint"]

@@ -14,6 +14,7 @@ mean-only pass.  Both backward passes run with the GIL released (the core's loop
 from __future__ import annotations
 
 import threading
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,11 +22,9 @@ import numpy as np
 from flightrecon.estimation.filtering import forward_pass
 from flightrecon.estimation.linalg import packed_size, unpack_sym
 from flightrecon.estimation.smoothing import backward_pass
+from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Scalars
 from flightrecon.methods.joint.model import joint_model
-
-__all__ = ["BackgroundCovariances", "backward", "backward_mean", "filter_buffers", "forward",
-           "smoothed_columns"]
 
 
 def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ...]:
@@ -164,3 +163,28 @@ class BackgroundCovariances:
         assert self.out is not None
         _, Pblk, var, *_, n_fallback = self.out
         return Pblk, var, int(n_fallback)
+
+
+@dataclass
+class PassResult:
+    """Outputs of one forward filter and backward smoother pass."""
+
+    xs: np.ndarray
+    xf: np.ndarray
+    res: np.ndarray
+    rate: np.ndarray
+    hph: np.ndarray | None
+    infl: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    Pblk: np.ndarray | None
+    var: np.ndarray | None
+    n_fallback: int
+    kern_args: tuple[Any, ...]
+    scalars: jl.Scalars
+    pending: BackgroundCovariances | None = None  # its covariance pass, still on its thread
+    #                                               (Pblk and var None until joined)
+    info: dict[str, Any] | None = None   # the pass's entry in the iterations
+    # the clock columns and rates of its forward pass, and the offsets' outputs of it (normal
+    # equations, filter columns after and before each step's updates: passes.forward)
+    clock: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]] | None = None

@@ -1,6 +1,26 @@
-"""Updates of the joint smoother between its passes: the IRLS weights of the robust loss and
-the clock offsets' Gauss-Newton steps (docs/joint.md, "Filter, smoother, iterations"), and the
-report of why the iterations stopped."""
+"""Updates of the joint smoother between its passes (docs/joint.md, "Filter, smoother,
+iterations"): the IRLS weights of the robust loss, the clock offsets' Gauss-Newton steps, the
+noise factors' EM step, the gust sd, and the report of why the iterations stopped.
+
+The gust sd (docs/joint.md, "Wind and turbulence").  The gust ``u`` (layout: ``S_GUST``) is a
+stationary first-order Gauss-Markov process of variance sigma_u^2 per axis.  Under the model,
+the smoothed mean and variance of every sample satisfy E[u_hat^2 + var(u | data)] = sigma_u^2
+(law of total variance), so
+
+    sigma_u^2 <- mean over the airborne steps and both axes of (u_hat_k^2 + P_uu,k)
+
+is a fixed point at the flight's own gust variance: with sigma_u too large the data shrink u_hat
+and its variance below it, too small they push them above.  It is the moment form of the
+expectation-maximisation update of a stationary variance; with ``JointSettings.estimate_gust``
+the smoother applies it after each pass that computed the smoothed covariances and is not the
+last (:func:`gust_round`), over-relaxed (twice the step in log space), while the pass moved the
+track by more than 10 ``converge_m`` or the noise factors are estimated too, until it moves by
+less than ``gust_tol`` (at most ``gust_rounds`` changes): it follows the Gauss-Newton passes and
+adds none of its own where the track is already pinned down (GNSS).  A change is a new cost
+function, and the pass after it says so (``parameters_changed``).  What the gust absorbs besides
+the turbulence (the sideslip, the angle of attack in turns, the airspeed lag) counts into the
+estimate: it is the air data's effective disagreement with a steady wind.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.layout import Measurements
+from flightrecon.methods.joint.measurements import NOISE_GROUPS
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 
@@ -164,3 +186,63 @@ def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> st
     return (f"max passes reached ({len(history)}): the last moved the track by "
             f"{last['max_position_change_m']:.1f} m, the cost by "
             f"{last.get('cost_relative_change', float('nan')):.2g} (relative)")
+
+
+def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray) -> float:
+    """Log-likelihood of the data by the prediction-error decomposition,
+    ``-1/2 sum_j (nu_j^2 / S_j + ln(2 pi S_j))`` over the selected scalar innovations ``nu``
+    with their variances ``S`` (the exact likelihood of the linearised model for the given
+    noise; Harvey 1989, section 3.4)."""
+    ok = sel & np.isfinite(innov) & np.isfinite(innov_var) & (innov_var > 0)
+    if not ok.any():
+        return float("nan")
+    s = innov_var[ok]
+    return float(-0.5 * np.sum(innov[ok] ** 2 / s + np.log(2.0 * np.pi * s)))
+
+
+def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int, float]:
+    """M-step of expectation-maximisation for one variance factor c per group.
+
+    With z_j = h_j(x) + v_j, v_j ~ N(0, c R0_j), the expected complete-data log-likelihood under
+    the smoothed posterior is maximised by c = mean_j[(e_j^2 + H_j P_s H_j^T) / R0_j] over the
+    group's measurements (e: smoothed residual; Shumway & Stoffer 1982, eq. 12 for a scalar
+    factor; linearised at the smoothed trajectory).  Groups with fewer than ``min_count``
+    measurements keep their factor.
+    """
+    out = {}
+    for gi in np.unique(groups[groups >= 0]):
+        sel = (groups == gi) & use & np.isfinite(res) & np.isfinite(hph)
+        if sel.sum() >= min_count:
+            out[int(gi)] = float(np.mean((res[sel] ** 2 + hph[sel]) / r0[sel]))
+    return out
+
+
+def noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.ndarray,
+                  use: np.ndarray, scale: np.ndarray, settings: JointSettings,
+                  info: dict[str, Any]) -> tuple[np.ndarray, bool]:
+    """EM step of the noise factors (:func:`_em_noise_scales`) on the measurements taken at
+    face value (``use``), bounded by ``noise_factor_bounds``; the new factors into ``info``.
+    Returns them and whether any moved by more than ``noise_tol``."""
+    new_scale = scale.copy()
+    lo_b, hi_b = settings.noise_factor_bounds
+    for gi, c in _em_noise_scales(groups, res, hph, r0, use).items():
+        new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
+    moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
+    info["noise_scale"] = {name: float(new_scale[i]) for i, name in enumerate(NOISE_GROUPS.values())
+                           if np.any(groups == i)}
+    return new_scale, moved
+
+
+def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> float | None:
+    """sqrt(mean(u_hat^2 + P_uu)) over the steps ``airborne`` and both gust axes (module
+    docstring); None without such a step or with a non-finite value.
+
+    Parameters
+    ----------
+    xs, var : (N, n) smoothed states and their variances.
+    airborne : (N,) bool, the steps whose air data the smoother uses.
+    """
+    if not airborne.any():
+        return None
+    m = float(np.mean(xs[airborne, jl.S_GUST] ** 2 + var[airborne, jl.S_GUST]))
+    return float(np.sqrt(m)) if np.isfinite(m) and m > 0 else None

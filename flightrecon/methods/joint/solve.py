@@ -1,23 +1,25 @@
-"""Iterations of the joint smoother: forward filter, RTS backward pass and Gauss-Newton
-relinearisation with robust re-weighting and clock-offset steps, damped by a backtracking line
-search on the MAP cost (:func:`smooth_joint`; docs/joint.md, "Filter, smoother, iterations").
+"""The joint smoother's iterations, in one place: forward filter, RTS backward pass and
+Gauss-Newton relinearisation with robust re-weighting and clock-offset steps, damped by a
+backtracking line search on the MAP cost (:func:`smooth_joint`; docs/joint.md, "Filter,
+smoother, iterations").
 
 The iterations are an iterated extended Kalman smoother with a line search (Sarkka & Svensson
 2020, "Levenberg-Marquardt and line-search extended Kalman smoothers", ICASSP, section 4):
 each pass linearises about the current iterate X and smooths, which gives the Gauss-Newton
 point X_GN; the next iterate is X + alpha (X_GN - X) with alpha = 1, 1/2, 1/4, ... the first
-that does not raise the MAP cost J (:mod:`~flightrecon.methods.joint.cost`; the step-size
-control in :mod:`~flightrecon.methods.joint.damping`).  The robust
-weights, the clock offsets, the take-off roll and the noise factors are updated between the
-passes and held fixed within one (the cost is compared under the same ones); the clock offsets
-by their Gauss-Newton step jointly with the track, which each pass's forward filter gives
+that does not raise the MAP cost J (:func:`~flightrecon.methods.joint.model.map_cost`;
+:func:`line_search`), or where none does a Levenberg-Marquardt step (algorithm 2:
+:func:`lm_step`).  The robust weights, the clock offsets, the take-off roll, the gust sd and the
+noise factors are updated between the passes (:mod:`~flightrecon.methods.joint.updates`) and
+held fixed within one (the cost is compared under the same ones); the clock offsets by their
+Gauss-Newton step jointly with the track, which each pass's forward filter gives
 (:func:`~flightrecon.methods.joint.updates.clock_step`), so that they settle in about as many
 passes as the track does.
 """
 
 from __future__ import annotations
 
-from dataclasses import fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -25,37 +27,40 @@ import numpy as np
 from flightrecon.geo.frames import ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import passes as jp
-from flightrecon.methods.joint.damping import full_step, line_search, lm_step
-from flightrecon.methods.joint.gust_rounds import gust_update
 from flightrecon.methods.joint.inputs import (
+    EndPoint,
     JointInputs,
+    TakeoffRoll,
     end_points_at,
     refined_roll,
 )
+from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.linearisation import (
+    PassModels,
+    SmootherFlight,
+    initial_estimate,
+    models_about,
     models_at,
     nominal_states,
+    nominal_trajectory,
     pass_cost,
     pass_scalars,
+    q_vector,
     scaled_variances,
     smoother_flight,
+    with_pseudo,
 )
-from flightrecon.methods.joint.noise import NOISE_GROUPS, innovation_loglik, noise_update
-from flightrecon.methods.joint.nominal import initial_estimate, nominal_trajectory, q_vector
+from flightrecon.methods.joint.measurements import NOISE_GROUPS
+from flightrecon.methods.joint.passes import PassResult
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.state import (
-    JointRun,
-    PassModels,
-    PassResult,
-    PassStep,
-    SmootherFlight,
-    SmootherState,
-)
 from flightrecon.methods.joint.updates import (
     CLOCK_SOURCES,
     clock_columns,
     clock_covariance,
     clock_step,
+    gust_sd_estimate,
+    innovation_loglik,
+    noise_update,
     robust_weights,
     stop_reason_of,
 )
@@ -478,3 +483,194 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: Smoot
     kern_args = (mdl.dyn, scalars1._replace(r=r1 * infl1), mdl.geo)
     xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
     return check, (xs, Pblk, var, res, int(n_fb1), xf1, innov1, innov_var1, r1)
+
+
+def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
+                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: PassResult,
+                 r: np.ndarray, weights: np.ndarray) -> PassStep:
+    """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
+    X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
+    whose MAP cost does not exceed the cost of X (``start``: its cost, residuals and rates;
+    every cost under this pass's
+    clock offsets, roll, noise factors).  The first pass (no iterate yet) takes the full step;
+    so does every pass with ``line_search`` off (the cost is still evaluated and reported)."""
+    s = fl.settings
+    X_gn = out.xs
+    gn_shift = float(np.max(np.abs(X_gn[:, jl.S_POS] - mdl.pnom)))
+    alpha, evals, gn_cost = 1.0, 0, np.nan
+    while True:
+        Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
+        mc, Xc = models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
+        evals += 1
+        if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
+            res, rate = out.res, out.rate
+            gn_cost = cost["cost"]
+        step = PassStep(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
+        if (X is None or start is None or not s.line_search
+                or (np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"])):
+            return step
+        if evals > s.line_search_halvings:
+            # no step size lowered the cost: the iterate stays (the lowest-cost one)
+            return PassStep(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
+                         gn_cost)
+        del step, mc   # the rejected candidate's models go before the next one's are built
+        alpha *= 0.5
+
+
+def lm_step(fl: SmootherFlight, st: SmootherState, mdl: PassModels,
+             start: tuple[dict[str, Any], np.ndarray, np.ndarray], r: np.ndarray
+             ) -> PassStep | None:
+    """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
+    the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate,
+    lambda from ``lm_lambda0`` (or ten times the last one) multiplied by 10 until the cost
+    does not exceed the iterate's, at most up to ``lm_lambda_max``; None if none did."""
+    s = fl.settings
+    assert st.X is not None and st.bufs is not None and st.weights is not None
+    if st.lm_bufs is None:  # its own buffers: the plain pass's filter outputs are kept
+        st.lm_bufs = tuple(np.empty_like(b) for b in st.bufs)
+    xf, Pf, xp, Pp = st.lm_bufs
+    assert fl.x0 is not None and fl.P0 is not None
+    sd = np.sqrt(np.diag(fl.P0))
+    lam, evals = max(10.0 * st.lm_lambda, s.lm_lambda0), 0
+    while lam <= s.lm_lambda_max:
+        sc = with_pseudo(pass_scalars(mdl, fl.T, r, st.weights), st.X, sd, lam)
+        jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, st.X)
+        xs = jp.backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
+        mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = pass_cost(fl, mc, Xc, r, st.weights)
+        evals += 1
+        if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
+            st.lm_lambda = lam / 10.0
+            return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan, lam)
+        lam *= 10.0
+    return None
+
+
+def full_step(step: PassStep) -> bool:  # the accepted iterate is the pass's own smoothed states
+    return step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
+
+
+def set_gust_sd(fl: SmootherFlight, sd_mps: float) -> None:
+    """Give the flight's models the gust sd ``sd_mps`` in place: the settings, the process
+    noise and the prior of x_0 (the rest of the prior, its mean included, unchanged)."""
+    noise = replace(fl.settings.noise, gust_mps=float(sd_mps))
+    fl.settings, fl.q = replace(fl.settings, noise=noise), q_vector(noise)
+    if fl.P0 is not None:
+        fl.P0 = fl.P0.copy()
+        fl.P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * float(sd_mps) ** 2
+        fl.P0inv = np.linalg.inv(fl.P0)
+
+
+def gust_update(fl: SmootherFlight, st: SmootherState, out: PassResult, X: np.ndarray,
+                it: int) -> bool:
+    """The gust sd re-estimated from the pass's smoothed track ``X`` (``estimate_gust``;
+    :func:`gust_sd_estimate`), recorded in
+    ``st.gust_rounds``; where it moved by more than ``gust_tol`` the flight's models take it
+    (``fl`` updated in place) and the next pass starts with new models and a new cost.  At
+    most ``gust_rounds`` changes.  Returns whether it changed."""
+    s = fl.settings
+    changes = sum(r["changed"] for r in st.gust_rounds)
+    if not s.estimate_gust or out.var is None or changes >= s.gust_rounds:
+        return False
+    tas = fl.inp.tas[fl.idx]
+    est = gust_sd_estimate(X, out.var, np.isfinite(tas) & (tas >= s.min_airspeed_mps))
+    if est is None:
+        return False
+    used = s.noise.gust_mps
+    moved = abs(est / used - 1.0) > s.gust_tol
+    # over-relaxed in log space (twice the EM step: sd^2 / used): the plain update converges
+    # linearly at a rate of 0.55-0.75 here (7 rounds from 2 to 0.54 m/s on the 10-hour
+    # benchmark flight); twice the step converges for any rate in (0, 1), at |2 rate - 1|
+    nxt = float(np.clip(est * est / used, *s.gust_bounds_mps))
+    st.gust_rounds.append({"pass": it, "gust_mps": used, "estimate_mps": est,
+                           "next_mps": nxt, "changed": bool(moved)})
+    if moved:
+        set_gust_sd(fl, nxt)
+        st.models, st.cost, st.refit = None, None, True
+    return moved
+
+
+@dataclass
+class PassStep:
+    """The accepted iterate of one pass (after the line search)."""
+
+    X: np.ndarray
+    alpha: float
+    cost: dict[str, float]
+    models: PassModels           # built about X with the pass's clock offsets and roll
+    res: np.ndarray
+    rate: np.ndarray
+    evaluations: int
+    ok: bool                  # False: no step lowered the cost (X is the pass's start)
+    gn_shift_m: float         # largest position change of the full Gauss-Newton step
+    gn_cost: float            # cost at the full Gauss-Newton step
+    lm_lambda: float = 0.0    # > 0: a Levenberg-Marquardt step with this damping
+
+
+@dataclass
+class SmootherState:
+    """What the passes carry from one to the next."""
+
+    lat: np.ndarray                     # nominal of the next pass
+    lon: np.ndarray
+    h: np.ndarray
+    vnom: np.ndarray                    # nominal velocity (runway constraints, take-off roll)
+    clock: dict[str, float]
+    clock_sd: dict[str, float]
+    scale: np.ndarray                   # variance factor per noise group (EM)
+    psi_hat: np.ndarray | None = None   # heading bias of the iterate (rotation's linearisation)
+    ba_hat: np.ndarray | None = None    # accelerometer biases of the iterate (take-off roll)
+    X: np.ndarray | None = None         # the current iterate (None before the first pass)
+    models: PassModels | None = None       # built about X (reused when nothing else changed)
+    # cost, residuals, rates of X under ``models`` and ``cost_scale``: the next pass's start
+    cost: tuple[dict[str, float], np.ndarray, np.ndarray] | None = None
+    cost_scale: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    bufs: tuple[np.ndarray, ...] | None = None
+    lm_bufs: tuple[np.ndarray, ...] | None = None
+    running: PassResult | None = None   # a pass whose covariance thread reads ``bufs``
+    lm_lambda: float = 0.0              # the last accepted Levenberg-Marquardt damping / 10
+    converged: bool = False
+    reason: str = ""
+    refit: bool = False                 # the models' noise changed (gust sd): a new cost
+    gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
+    rolls_seen: list[TakeoffRoll] = field(default_factory=list)  # rolls of the passes so far,
+
+
+@dataclass(frozen=True)
+class JointRun:
+    """Result of :func:`smooth_joint` on the state grid."""
+
+    t: np.ndarray
+    x: np.ndarray            # smoothed states (N, n)
+    P_pv: np.ndarray         # smoothed position-velocity covariance block (ECEF p, NED v)
+    var: np.ndarray          # smoothed state variances (N, n)
+    xf: np.ndarray           # filtered states
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    h_m: np.ndarray          # ellipsoidal height
+    Cen: np.ndarray
+    meas: Measurements
+    weights: np.ndarray
+    resid_norm: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    clock_offsets_s: dict[str, tuple[float, float]]  # (value, sd): seconds added to the stamps
+    noise_scale: dict[str, float]
+    iterations: list[dict[str, Any]]
+    end_points: tuple[EndPoint, ...]   # as used in the last pass (end_points_at)
+    roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
+    noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
+    cholesky_fallbacks: int = 0  # last pass's steps whose Cholesky failed (general solve)
+    # convergence: the test of docs/joint.md ("Filter, smoother, iterations"), and why not
+    converged: bool = False
+    stop_reason: str = ""
+    gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
+    prior: tuple[np.ndarray, np.ndarray] | None = None   # (x0, P0): the prior of step 0 used
+    # the iteration-independent parts it was smoothed with (for a warm start on the same
+    # flight: :func:`smooth_joint_from`); None once the run leaves the method
+    flight: SmootherFlight | None = None
+    # the last pass's position change per state [m] when the passes stopped unconverged
+    # (settling.settling); None when they converged
+    last_shift_m: np.ndarray | None = None
