@@ -498,7 +498,7 @@ def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
     return np.exp(-np.asarray(dt, float) * v / nz.gust_length_m)
 
 
-@dataclass
+@dataclass(frozen=True)
 class SmootherFlight:
     """What the iterations hold fixed: the state grid, the held-input increments, the
     attitude step means, the process noise, the station and the prior of x_0."""
@@ -525,7 +525,7 @@ class SmootherFlight:
     P0inv: np.ndarray | None = None
 
 
-@dataclass
+@dataclass(frozen=True)
 class PassModels:
     """The dynamics, measurements and geometry built about one linearisation point."""
 

@@ -19,8 +19,8 @@ passes as the track does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
-from typing import Any
+from dataclasses import dataclass, fields, replace
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -133,7 +133,65 @@ def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_c
                 and w_change <= settings.converge_weight and params_still)
 
 
-def _pass_models(fl: SmootherFlight, st: SmootherState) -> PassModels:
+class Nominal(NamedTuple):
+    """The linearisation point of the next pass: the positions ``lat``, ``lon``, ``h``, the
+    velocity ``vnom`` (runway rows, take-off roll: the air data's before the first pass), the
+    heading bias ``psi_hat`` (the rotation's linearisation) and accelerometer biases ``ba_hat``
+    (the take-off roll) of the iterate, None before the first pass."""
+
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    vnom: np.ndarray
+    psi_hat: np.ndarray | None = None
+    ba_hat: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Iterate:
+    """What one damped Gauss-Newton pass hands the next, replaced by each pass and never
+    changed: the ``nominal`` of the next pass, the clock offsets [s] (added to the stamps) and
+    their sd, the noise factor per group (EM), the accepted trajectory ``X`` (None before the
+    first pass), the ``models`` built about it and its ``cost`` under them (cost, residuals,
+    rates and the noise factors it was computed with: the next pass's start while nothing
+    changed), the IRLS ``weights``, the last accepted Levenberg-Marquardt damping / 10,
+    ``refit`` (the models' noise changed: a new cost), the gust sd estimates and the take-off
+    rolls of the passes so far (the last pass's last: a roll once left is not taken again)."""
+
+    nominal: Nominal
+    clock: dict[str, float]
+    clock_sd: dict[str, float]
+    scale: np.ndarray
+    X: np.ndarray | None = None
+    models: PassModels | None = None
+    cost: tuple[Any, ...] | None = None
+    weights: np.ndarray | None = None
+    lm_lambda: float = 0.0
+    refit: bool = False
+    gust_rounds: tuple[dict[str, Any], ...] = ()
+    rolls_seen: tuple[TakeoffRoll, ...] = ()
+
+
+@dataclass
+class Buffers:
+    """The passes' filter buffers (allocated and paged in once, written by every pass), the
+    Levenberg-Marquardt pass's own, and the pass whose covariance thread still reads ``bufs``."""
+
+    bufs: tuple[np.ndarray, ...]
+    lm: tuple[np.ndarray, ...] | None = None
+    running: PassResult | None = None
+
+
+class Pass(NamedTuple):
+    """One pass: its models, smoothing outputs, accepted step and entry in the iterations."""
+
+    models: PassModels
+    out: PassResult
+    step: PassStep
+    info: dict[str, Any]
+
+
+def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
     """The models of the next pass: about the iterate, with the current clock offsets and the
     take-off roll refined on the iterate (those of the line search's last candidate when they
     are the same).  A refined roll changes the runway and ground measurements, a clock offset
@@ -142,79 +200,80 @@ def _pass_models(fl: SmootherFlight, st: SmootherState) -> PassModels:
     (``parameters_changed`` in the pass's entry).  A roll back at one an earlier pass had
     (a cycle that never settles: JSBSim spiral 5305 between two, the fleet study's accident
     flight of seed 0 among three) is not taken: the last pass's stays."""
-    roll = refined_roll(fl.inp, fl.T, st.vnom, st.ba_hat)
-    m = st.models
-    if st.rolls_seen and any(roll.same_as(r) for r in st.rolls_seen[:-1]):
-        roll = st.rolls_seen[-1]
-    if m is not None and m.clock == st.clock and m.roll.same_as(roll):
+    nom = it.nominal
+    roll = refined_roll(fl.inp, fl.T, nom.vnom, nom.ba_hat)
+    m = it.models
+    if it.rolls_seen and any(roll.same_as(r) for r in it.rolls_seen[:-1]):
+        roll = it.rolls_seen[-1]
+    if m is not None and m.clock == it.clock and m.roll.same_as(roll):
         return m
-    return models_at(fl, st.lat, st.lon, st.h, st.vnom, st.psi_hat, st.clock, roll)
+    return models_at(fl, nom.lat, nom.lon, nom.h, nom.vnom, nom.psi_hat, it.clock, roll)
 
 
-def _start_cost(fl: SmootherFlight, st: SmootherState, mdl: PassModels, r: np.ndarray, reset: bool
-                ) -> tuple[dict[str, Any], np.ndarray, np.ndarray] | None:
+def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
+                weights: np.ndarray, reset: bool) -> tuple[tuple[Any, ...] | None, np.ndarray]:
     """The iterate's cost, residuals and rates under the pass's models (None before the first
-    pass; the last accepted ones when the models and noise factors are the same).  After a
-    ``reset`` of the weights (a new measurement set: a refined take-off roll) the IRLS weights
-    at the iterate, so that the pass is again a majorise-minimise step (with all weights 1
-    its Gauss-Newton step need not lower the robust cost)."""
-    if st.X is None:
-        return None
-    assert st.weights is not None
-    same = mdl is st.models and np.array_equal(st.scale, st.cost_scale)
-    start = st.cost if same and st.cost is not None else pass_cost(fl, mdl, st.X, r, st.weights)
+    pass; the last accepted ones when the models and noise factors are the same), and the
+    weights: after a ``reset`` (a new measurement set: a refined take-off roll) the IRLS
+    weights at the iterate, so that the pass is again a majorise-minimise step (with all
+    weights 1 its Gauss-Newton step need not lower the robust cost)."""
+    if it.X is None:
+        return None, weights
+    same = mdl is it.models and it.cost is not None and np.array_equal(it.scale, it.cost[3])
+    start = it.cost if same else pass_cost(fl, mdl, it.X, r, weights)
     if reset:
-        st.weights = robust_weights(start[1] / np.sqrt(r), st.weights, fl.settings)
-    return start
+        weights = robust_weights(start[1] / np.sqrt(r), weights, fl.settings)
+    return start, weights
 
 
-def _smoothing_pass(fl: SmootherFlight, st: SmootherState, mdl: PassModels, r: np.ndarray,
-                    it: int) -> PassResult:
-    """Pass ``it``'s forward filter and backward pass (:func:`_gn_pass`) on the run's buffers,
-    once the last pass's covariance thread, which reads them, has finished.  EM needs the
-    smoothed covariances in every pass; otherwise the first pass (far from the solution)
-    smooths the states only, the later ones (likely the last) everything."""
-    assert st.bufs is not None and st.weights is not None
-    _covariances(st.running)
-    st.running = None
-    xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
-    out = _gn_pass(fl, mdl, r, st.weights, xlin, st.bufs,
-                   fl.settings.estimate_noise or it > 0, it == 0)
-    st.running = out if out.pending is not None else None
+def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: PassModels,
+                    r: np.ndarray, weights: np.ndarray, k: int) -> PassResult:
+    """Pass ``k``'s forward filter and backward pass (:func:`_gn_pass`) on the buffers, once
+    the last pass's covariance thread, which reads them, has finished.  EM needs the smoothed
+    covariances in every pass; otherwise the first pass (far from the solution) smooths the
+    states only, the later ones (likely the last) everything."""
+    _covariances(ws.running)
+    ws.running = None
+    xlin = X if X is not None else np.zeros((0, jl.N_STATE))
+    out = _gn_pass(fl, mdl, r, weights, xlin, ws.bufs, fl.settings.estimate_noise or k > 0,
+                   k == 0)
+    ws.running = out if out.pending is not None else None
     return out
 
 
-def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
-              ) -> tuple[PassModels, PassResult, PassStep, dict[str, Any]]:
+def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
+              ) -> tuple[SmootherFlight, Iterate, Pass, bool]:
     """One damped Gauss-Newton pass: models about the iterate, its cost, the smoothing pass,
-    the line search, then the weights, clock and noise updates (``st`` updated in place)."""
+    the line search (a Levenberg-Marquardt step where it fails), then the updates
+    (:func:`_accepted`).  Returns the flight (with the prior of x_0 once known, the gust sd
+    changed), the next iterate, the pass and whether the iterations settled."""
     s = fl.settings
-    mdl = _pass_models(fl, st)
-    r = scaled_variances(mdl, st.scale)
-    reset = st.weights is None or len(st.weights) != len(mdl.meas.z)
-    if reset:
-        st.weights = np.ones(len(mdl.meas.z))
+    mdl = _pass_models(fl, it)
+    r = scaled_variances(mdl, it.scale)
+    weights = it.weights
+    reset = weights is None or len(weights) != len(mdl.meas.z)
+    if weights is None or reset:
+        weights = np.ones(len(mdl.meas.z))
     if fl.x0 is None:
-        fl.x0, fl.P0 = initial_estimate(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
-        fl.P0inv = np.linalg.inv(fl.P0)
-    if st.bufs is None:  # filter outputs, reused by every pass (allocated and paged in once)
-        st.bufs = jp.filter_buffers(len(fl.T))
-    if st.X is None and fl.settings.first_pass == "nominal":
-        st.X = nominal_states(fl, mdl)
-    start = _start_cost(fl, st, mdl, r, reset)
-    out = _smoothing_pass(fl, st, mdl, r, it)
-    step = line_search(fl, mdl, st.X, start, out, r, st.weights)
-    if not step.ok and s.levenberg_marquardt and start is not None:
-        lm = lm_step(fl, st, mdl, start, r)
+        x0, P0 = initial_estimate(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
+        fl = replace(fl, x0=x0, P0=P0, P0inv=np.linalg.inv(P0))
+    if it.X is None and s.first_pass == "nominal":
+        it = replace(it, X=nominal_states(fl, mdl))
+    start, weights = _start_cost(fl, it, mdl, r, weights, reset)
+    out = _smoothing_pass(fl, it.X, ws, mdl, r, weights, k)
+    step = line_search(fl, mdl, it.X, start, out, r, weights)
+    lm_lambda = it.lm_lambda
+    if not step.ok and s.levenberg_marquardt and start is not None and it.X is not None:
+        lm, lm_lambda = lm_step(fl, it.X, ws, mdl, start, r, weights, lm_lambda)
         if lm is not None:
             step = replace(lm, evaluations=step.evaluations + lm.evaluations,
                            gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
-    changed = st.refit or (st.models is not None and (
-        st.models.clock != mdl.clock or not st.models.roll.same_as(mdl.roll)
-        or not np.array_equal(st.scale, st.cost_scale)))
-    st.refit = False
-    info: dict[str, Any] = {"iteration": it, "max_position_change_m": shift,
+    changed = it.refit or (it.models is not None and it.cost is not None and (
+        it.models.clock != mdl.clock or not it.models.roll.same_as(mdl.roll)
+        or not np.array_equal(it.scale, it.cost[3])))
+    it = replace(it, weights=weights, lm_lambda=lm_lambda, refit=False)
+    info: dict[str, Any] = {"iteration": k, "max_position_change_m": shift,
                             "parameters_changed": bool(changed),
                             "roll_start_t_s": mdl.roll.start_t,
                             "cholesky_fallbacks": out.n_fallback, **step.cost,
@@ -223,47 +282,62 @@ def _one_pass(fl: SmootherFlight, st: SmootherState, it: int
                             "line_search_evaluations": step.evaluations,
                             "gauss_newton_position_change_m": step.gn_shift_m}
     out.info = info
-    psi_from = 0.0 if st.psi_hat is None else st.psi_hat
+    psi_from = 0.0 if it.nominal.psi_hat is None else it.nominal.psi_hat
     psi_new = np.ascontiguousarray((step.X if step.ok else out.xs)[:, jl.IPSI])
     psi_moved = float(np.max(np.abs(psi_new - psi_from)))
     info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
     info["heading_bias_deg"] = float(np.degrees(step.X[len(fl.T) // 2, jl.IPSI]))
+    cost0 = None if start is None else start[0]["cost"]
+    p = Pass(mdl, out, step, info)
     if not step.ok:
         info["line_search_failed"] = True
         info["gauss_newton_cost"] = step.gn_cost
-        info["_settled"] = _settled(it, step, start[0]["cost"] if start else None, psi_moved,
-                                    0.0, True, s, info)
-        return mdl, out, step, info
-    w_before = st.weights.copy()
-    clock_before = dict(st.clock)
-    scale_used = st.scale.copy()
-    st.weights = robust_weights(step.res / np.sqrt(r), st.weights, s)
+        return fl, it, p, _settled(k, step, cost0, psi_moved, 0.0, True, s, info)
+    return _accepted(fl, it, p, r, cost0, psi_new, psi_moved, shift)
+
+
+def _accepted(fl: SmootherFlight, it: Iterate, p: Pass, r: np.ndarray, cost0: float | None,
+              psi_new: np.ndarray, psi_moved: float, shift: float
+              ) -> tuple[SmootherFlight, Iterate, Pass, bool]:
+    """After a pass that lowered the cost: the IRLS weights at its residuals, the clock
+    offsets' step, the noise factors' EM step, the next iterate about the accepted trajectory,
+    the convergence test (:func:`_settled`) and, while not settled and the pass still moved
+    the track (or the noise is estimated), the gust sd's round (:func:`gust_round`)."""
+    s = fl.settings
+    mdl, out, step, info = p
+    k = info["iteration"]
+    assert it.weights is not None
+    w_before = it.weights.copy()
+    weights = robust_weights(step.res / np.sqrt(r), it.weights, s)
+    clock, clock_sd = it.clock, it.clock_sd
     if out.clock is not None:
         # the offsets' Gauss-Newton step of this pass (a Levenberg-Marquardt step is not it)
-        clock_step(*out.clock, step.alpha if step.lm_lambda == 0.0 else 0.0, st.clock,
-                   st.clock_sd, info)
-    noise_moved = False
+        clock, clock_sd = clock_step(*out.clock, step.alpha if step.lm_lambda == 0.0 else 0.0,
+                                     clock, clock_sd, info)
+    scale, noise_moved = it.scale, False
     if s.estimate_noise:
         # measurements taken at face value in this pass: full weight, not gated
-        use = (st.weights >= 1.0) & (w_before >= 1.0) & (out.infl <= 1.0)
+        use = (weights >= 1.0) & (w_before >= 1.0) & (out.infl <= 1.0)
         assert out.hph is not None
-        st.scale, noise_moved = noise_update(mdl.groups, out.hph, mdl.meas.r, step.res, use,
-                                              st.scale, s, info)
+        scale, noise_moved = noise_update(mdl.groups, out.hph, mdl.meas.r, step.res, use,
+                                          it.scale, s, info)
     X = step.X
-    st.lat, st.lon, st.h = step.models.lat, step.models.lon, step.models.h
-    st.vnom, st.psi_hat, st.ba_hat = X[:, jl.S_VEL], psi_new, X[:, jl.S_ACC_BIAS]
-    if not any(mdl.roll.same_as(r) for r in st.rolls_seen):
-        st.rolls_seen.append(mdl.roll)
-    st.X, st.models = X, step.models
-    st.cost, st.cost_scale = (step.cost, step.res, step.rate), scale_used
-    info["_settled"] = _settled(it, step, None if start is None else start[0]["cost"],
-                                psi_moved, float(np.max(np.abs(st.weights - w_before),
-                                                        initial=0.0)),
-                                st.clock == clock_before and not noise_moved, s, info)
-    if not info["_settled"] and (s.estimate_noise or shift > 10.0 * s.converge_m):
+    rolls = it.rolls_seen
+    if not any(mdl.roll.same_as(r) for r in rolls):
+        rolls = (*rolls, mdl.roll)
+    m = step.models
+    nxt = replace(it, nominal=Nominal(m.lat, m.lon, m.h, X[:, jl.S_VEL], psi_new,
+                                      X[:, jl.S_ACC_BIAS]),
+                  clock=clock, clock_sd=clock_sd, scale=scale, X=X, models=m,
+                  cost=(step.cost, step.res, step.rate, it.scale), weights=weights,
+                  rolls_seen=rolls)
+    settled = _settled(k, step, cost0, psi_moved,
+                       float(np.max(np.abs(weights - w_before), initial=0.0)),
+                       clock == it.clock and not noise_moved, s, info)
+    if not settled and (s.estimate_noise or shift > 10.0 * s.converge_m):
         _covariances(out)
-        gust_update(fl, st, out, out.xs if full_step(step) else X, it)
-    return mdl, out, step, info
+        fl, nxt = gust_round(fl, nxt, out, out.xs if full_step(step) else X, k)
+    return fl, nxt, p, settled
 
 
 def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) -> JointRun:
@@ -281,12 +355,12 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) ->
     tas0 = np.nan_to_num(inp.tas[fl.idx])
     psi0 = np.nan_to_num(inp.heading_rad[fl.idx])
     vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(fl.idx))]
-    st = SmootherState(lat, lon, h, vnom, {name: 0.0 for name, _ in CLOCK_SOURCES},
-                       {name: np.nan for name, _ in CLOCK_SOURCES}, np.ones(len(NOISE_GROUPS)))
+    it = Iterate(Nominal(lat, lon, h, vnom), {name: 0.0 for name, _ in CLOCK_SOURCES},
+                 {name: np.nan for name, _ in CLOCK_SOURCES}, np.ones(len(NOISE_GROUPS)))
     n_iter = max(1, settings.iterations)
     if settings.estimate_noise:
         n_iter = max(n_iter, settings.noise_iterations)
-    return _passes(fl, st, range(n_iter), settings)
+    return _passes(fl, it, range(n_iter), settings)
 
 
 def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun,
@@ -295,9 +369,8 @@ def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun
     (its iterate, nominal, clock offsets, noise factors and step-0 prior), for at most
     ``passes`` damped Gauss-Newton passes (fewer when they settle, or once a pass moved the
     track by at most ``enough_m`` [m]: the next step is of second order in it; docs/joint.md,
-    "GNSS gaps":
-    the held-out smoothing of the gap calibration, where ``inp`` is the flight with stretches of
-    GNSS withheld).
+    "GNSS gaps": the held-out smoothing of the gap calibration, where ``inp`` is the flight
+    with stretches of GNSS withheld).
 
     Each pass is one of :func:`smooth_joint`'s later passes (no innovation gate; IRLS weights
     at the iterate, since the measurement set differs from ``start``'s; the line search on
@@ -307,18 +380,18 @@ def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun
     hold ``start``'s gust sd with ``estimate_gust`` off (the gust estimate is the flight's)."""
     fl = _flight_like(start.flight, inp, settings)
     if start.prior is not None:
-        fl.x0, fl.P0 = start.prior
-        fl.P0inv = np.linalg.inv(fl.P0)
+        fl = replace(fl, x0=start.prior[0], P0=start.prior[1],
+                     P0inv=np.linalg.inv(start.prior[1]))
     x = start.x
-    st = SmootherState(start.lat_deg.copy(), start.lon_deg.copy(), start.h_m.copy(),
-                       np.ascontiguousarray(x[:, jl.S_VEL]),
-                       {k: v[0] for k, v in start.clock_offsets_s.items()},
-                       {k: v[1] for k, v in start.clock_offsets_s.items()},
-                       np.array([start.noise_scale[name] for name in NOISE_GROUPS.values()]),
-                       psi_hat=np.ascontiguousarray(x[:, jl.IPSI]),
-                       ba_hat=np.ascontiguousarray(x[:, jl.S_ACC_BIAS]), X=x)
-    st.rolls_seen.append(start.roll)
-    return _passes(fl, st, range(1, 1 + max(1, passes)), settings, enough_m, warm=True)
+    it = Iterate(Nominal(start.lat_deg.copy(), start.lon_deg.copy(), start.h_m.copy(),
+                         np.ascontiguousarray(x[:, jl.S_VEL]),
+                         np.ascontiguousarray(x[:, jl.IPSI]),
+                         np.ascontiguousarray(x[:, jl.S_ACC_BIAS])),
+                 {k: v[0] for k, v in start.clock_offsets_s.items()},
+                 {k: v[1] for k, v in start.clock_offsets_s.items()},
+                 np.array([start.noise_scale[name] for name in NOISE_GROUPS.values()]), X=x,
+                 rolls_seen=(start.roll,))
+    return _passes(fl, it, range(1, 1 + max(1, passes)), settings, enough_m, warm=True)
 
 
 def _flight_like(flight: SmootherFlight | None, inp: JointInputs, settings: JointSettings
@@ -342,41 +415,40 @@ def _flight_like(flight: SmootherFlight | None, inp: JointInputs, settings: Join
                    P0=None, P0inv=None)
 
 
-def _passes(fl: SmootherFlight, st: SmootherState, its: range, settings: JointSettings,
+def _passes(fl: SmootherFlight, it: Iterate, its: range, settings: JointSettings,
             enough_m: float = -1.0, warm: bool = False) -> JointRun:
     """The damped Gauss-Newton passes numbered ``its`` until they settle (or a pass failed,
     or one moved the track by at most ``enough_m``), then the result of the last."""
+    ws = Buffers(jp.filter_buffers(len(fl.T)))
     history: list[dict[str, Any]] = []
-    last = None
-    for it in its:
+    last, converged = None, False
+    for k in its:
         last = None   # the last pass's models and outputs go before the next pass builds its own
-        last = _one_pass(fl, st, it)
-        info = last[3]
-        settled = info.pop("_settled")
-        history.append(info)
+        fl, it, last, settled = _one_pass(fl, it, ws, k)
+        history.append(last.info)
         if settled:
-            info["converged"] = True
-            st.converged, st.reason = True, "converged"
+            last.info["converged"] = converged = True
             break
-        if not last[2].ok or info["max_position_change_m"] <= enough_m:
+        if not last.step.ok or last.info["max_position_change_m"] <= enough_m:
             break
-    if not st.converged:
-        st.reason = (f"warm start: {len(history)} pass(es) from the converged run" if warm
-                     else stop_reason_of(history, settings))
+    reason = ("converged" if converged else
+              f"warm start: {len(history)} pass(es) from the converged run" if warm
+              else stop_reason_of(history, settings))
     assert last is not None
-    return replace(_finish(fl, st, *last[:3], history),
-                   gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": st.gust_rounds})
+    return replace(_finish(fl, it, ws, last, history, converged, reason),
+                   gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": list(it.gust_rounds)})
 
 
-def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassResult, step: PassStep,
-            history: list[dict[str, Any]]) -> JointRun:
+def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
+            history: list[dict[str, Any]], converged: bool, reason: str) -> JointRun:
     """The result of the last pass: its iterate (the pass's own smoothed states after a full
     step), the smoothed covariances of its linearisation and the noise check."""
     s = fl.settings
-    assert st.bufs is not None and st.weights is not None
+    mdl, out, step, _ = last
+    assert it.weights is not None
     _covariances(out)
-    st.running = None
-    xf, Pf, xp, Pp = st.bufs
+    ws.running = None
+    xf, Pf, xp, Pp = ws.bufs
     full = full_step(step)
     xs = out.xs if full else step.X
     res = out.res if full else step.res
@@ -389,29 +461,29 @@ def _finish(fl: SmootherFlight, st: SmootherState, mdl: PassModels, out: PassRes
         n_fallback = max(n_fallback, int(n_fallback_cov))
     r = out.scalars.r
     lat, lon, h = (step.models.lat, step.models.lon, step.models.h)
-    innov, innov_var, scale = out.innov, out.innov_var, st.scale
+    innov, innov_var, scale = out.innov, out.innov_var, it.scale
     noise_check = None
     if s.estimate_noise:
-        noise_check, redo = _noise_check(fl, mdl, out, st)
+        noise_check, redo = _noise_check(fl, mdl, out, it, ws)
         if redo is not None:
             scale = np.ones(len(NOISE_GROUPS))
             xs, Pblk, var, res, n_fallback, xf, innov, innov_var, r = redo
             lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
     # (after a redone pass too: the last pass's columns, as the offsets are the same)
-    Pblk, var = _with_clock_uncertainty(out, Pf, Pp, Pblk, var, st.clock)
-    history[-1]["stop_reason"] = st.reason
-    shift = (None if st.converged or not step.ok else
+    Pblk, var = _with_clock_uncertainty(out, Pf, Pp, Pblk, var, it.clock)
+    history[-1]["stop_reason"] = reason
+    shift = (None if converged or not step.ok else
              np.linalg.norm(step.X[:, jl.S_POS] - mdl.pnom, axis=1))
     return JointRun(t=fl.T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
-                    Cen=mdl.Cen, meas=mdl.meas, weights=st.weights,
+                    Cen=mdl.Cen, meas=mdl.meas, weights=it.weights,
                     resid_norm=res / np.sqrt(r),
                     innov=innov, innov_var=innov_var,
-                    clock_offsets_s={k: (st.clock[k], st.clock_sd[k]) for k in st.clock},
+                    clock_offsets_s={k: (it.clock[k], it.clock_sd[k]) for k in it.clock},
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
                     iterations=history, end_points=end_points_at(fl.inp.end_points, mdl.roll),
                     roll=mdl.roll, noise_check=noise_check, cholesky_fallbacks=int(n_fallback),
-                    converged=st.converged, stop_reason=st.reason,
+                    converged=converged, stop_reason=reason,
                     prior=None if fl.x0 is None or fl.P0 is None else (fl.x0, fl.P0),
                     flight=fl, last_shift_m=shift)
 
@@ -448,16 +520,16 @@ def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pbl
     return Pblk, var
 
 
-def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: SmootherState
-                 ) -> tuple[dict[str, Any], tuple[Any, ...] | None]:
+def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Iterate,
+                 ws: Buffers) -> tuple[dict[str, Any], tuple[Any, ...] | None]:
     """The estimated noise must raise the likelihood of the data: the innovations'
     log-likelihood (prediction-error decomposition) of the last pass against a forward pass
     with the default variances at the same linearisation, weights and clock offsets;
     otherwise the defaults are kept and the last pass is redone with them (docs/joint.md,
     "Noise estimation").  Returns the check and, when rejected, the redone pass's outputs."""
     s = fl.settings
-    assert fl.x0 is not None and fl.P0 is not None and st.bufs is not None
-    xf, Pf, xp, Pp = st.bufs
+    assert fl.x0 is not None and fl.P0 is not None
+    xf, Pf, xp, Pp = ws.bufs
     lo_b, hi_b = s.noise_factor_bounds
     xf1, xp1 = np.empty_like(xf), np.empty_like(xp)
     Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
@@ -465,7 +537,7 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: Smoot
     # (out.scalars.w: the weights the last forward pass ran with)
     w_before = out.scalars.w
     scalars1 = out.scalars._replace(r=r1)
-    xlin = st.X if st.X is not None else np.zeros((0, jl.N_STATE))
+    xlin = it.X if it.X is not None else np.zeros((0, jl.N_STATE))
     innov1, innov_var1, infl1, _ = jp.forward(
         xf1, Pf1, xp1, Pp1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
         s.innovation_gate if s.robust else 0.0, xlin)
@@ -473,7 +545,7 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, st: Smoot
     ll_est = innovation_loglik(out.innov, out.innov_var, sel)
     ll_def = innovation_loglik(innov1, innov_var1, sel)
     at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
-                if np.any(mdl.groups == i) and (st.scale[i] <= lo_b or st.scale[i] >= hi_b)]
+                if np.any(mdl.groups == i) and (it.scale[i] <= lo_b or it.scale[i] >= hi_b)]
     accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
     check = {"loglik_estimated": ll_est, "loglik_default": ll_def,
              "measurements": int(sel.sum()), "accepted": accepted,
@@ -518,80 +590,82 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
         alpha *= 0.5
 
 
-def lm_step(fl: SmootherFlight, st: SmootherState, mdl: PassModels,
-             start: tuple[dict[str, Any], np.ndarray, np.ndarray], r: np.ndarray
-             ) -> PassStep | None:
+def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
+            start: tuple[Any, ...], r: np.ndarray, weights: np.ndarray, lm_lambda: float
+            ) -> tuple[PassStep | None, float]:
     """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
-    the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate,
-    lambda from ``lm_lambda0`` (or ten times the last one) multiplied by 10 until the cost
-    does not exceed the iterate's, at most up to ``lm_lambda_max``; None if none did."""
+    the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate
+    ``X``, lambda from ``lm_lambda0`` (or ten times the last one, ``lm_lambda``) multiplied by
+    10 until the cost does not exceed the iterate's, at most up to ``lm_lambda_max``.  Returns
+    the step (None if none did) and the damping to remember (lambda / 10 of the step taken)."""
     s = fl.settings
-    assert st.X is not None and st.bufs is not None and st.weights is not None
-    if st.lm_bufs is None:  # its own buffers: the plain pass's filter outputs are kept
-        st.lm_bufs = tuple(np.empty_like(b) for b in st.bufs)
-    xf, Pf, xp, Pp = st.lm_bufs
+    if ws.lm is None:  # its own buffers: the plain pass's filter outputs are kept
+        ws.lm = tuple(np.empty_like(b) for b in ws.bufs)
+    xf, Pf, xp, Pp = ws.lm
     assert fl.x0 is not None and fl.P0 is not None
     sd = np.sqrt(np.diag(fl.P0))
-    lam, evals = max(10.0 * st.lm_lambda, s.lm_lambda0), 0
+    lam, evals = max(10.0 * lm_lambda, s.lm_lambda0), 0
     while lam <= s.lm_lambda_max:
-        sc = with_pseudo(pass_scalars(mdl, fl.T, r, st.weights), st.X, sd, lam)
-        jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, st.X)
+        sc = with_pseudo(pass_scalars(mdl, fl.T, r, weights), X, sd, lam)
+        jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
         xs = jp.backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
         mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = pass_cost(fl, mc, Xc, r, st.weights)
+        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
         evals += 1
         if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
-            st.lm_lambda = lam / 10.0
-            return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan, lam)
+            return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan,
+                            lam), lam / 10.0
         lam *= 10.0
-    return None
+    return None, lm_lambda
 
 
-def full_step(step: PassStep) -> bool:  # the accepted iterate is the pass's own smoothed states
+def full_step(step: PassStep) -> bool:
+    """Whether the accepted iterate is the pass's own smoothed states."""
     return step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
 
 
-def set_gust_sd(fl: SmootherFlight, sd_mps: float) -> None:
-    """Give the flight's models the gust sd ``sd_mps`` in place: the settings, the process
-    noise and the prior of x_0 (the rest of the prior, its mean included, unchanged)."""
+def with_gust_sd(fl: SmootherFlight, sd_mps: float) -> SmootherFlight:
+    """``fl`` with the gust sd ``sd_mps``: in the settings, the process noise and the prior of
+    x_0 (the rest of the prior, its mean included, unchanged)."""
     noise = replace(fl.settings.noise, gust_mps=float(sd_mps))
-    fl.settings, fl.q = replace(fl.settings, noise=noise), q_vector(noise)
-    if fl.P0 is not None:
-        fl.P0 = fl.P0.copy()
-        fl.P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * float(sd_mps) ** 2
-        fl.P0inv = np.linalg.inv(fl.P0)
+    fl = replace(fl, settings=replace(fl.settings, noise=noise), q=q_vector(noise))
+    if fl.P0 is None:
+        return fl
+    P0 = fl.P0.copy()
+    P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * float(sd_mps) ** 2
+    return replace(fl, P0=P0, P0inv=np.linalg.inv(P0))
 
 
-def gust_update(fl: SmootherFlight, st: SmootherState, out: PassResult, X: np.ndarray,
-                it: int) -> bool:
+def gust_round(fl: SmootherFlight, it: Iterate, out: PassResult, X: np.ndarray, k: int
+               ) -> tuple[SmootherFlight, Iterate]:
     """The gust sd re-estimated from the pass's smoothed track ``X`` (``estimate_gust``;
-    :func:`gust_sd_estimate`), recorded in
-    ``st.gust_rounds``; where it moved by more than ``gust_tol`` the flight's models take it
-    (``fl`` updated in place) and the next pass starts with new models and a new cost.  At
-    most ``gust_rounds`` changes.  Returns whether it changed."""
+    :func:`~flightrecon.methods.joint.updates.gust_sd_estimate`), recorded in the iterate's
+    ``gust_rounds``; where it moved by more than ``gust_tol`` the flight's models take it
+    (:func:`with_gust_sd`) and the next pass starts with new models and a new cost.  At most
+    ``gust_rounds`` changes."""
     s = fl.settings
-    changes = sum(r["changed"] for r in st.gust_rounds)
+    changes = sum(r["changed"] for r in it.gust_rounds)
     if not s.estimate_gust or out.var is None or changes >= s.gust_rounds:
-        return False
+        return fl, it
     tas = fl.inp.tas[fl.idx]
     est = gust_sd_estimate(X, out.var, np.isfinite(tas) & (tas >= s.min_airspeed_mps))
     if est is None:
-        return False
+        return fl, it
     used = s.noise.gust_mps
     moved = abs(est / used - 1.0) > s.gust_tol
     # over-relaxed in log space (twice the EM step: sd^2 / used): the plain update converges
     # linearly at a rate of 0.55-0.75 here (7 rounds from 2 to 0.54 m/s on the 10-hour
     # benchmark flight); twice the step converges for any rate in (0, 1), at |2 rate - 1|
     nxt = float(np.clip(est * est / used, *s.gust_bounds_mps))
-    st.gust_rounds.append({"pass": it, "gust_mps": used, "estimate_mps": est,
-                           "next_mps": nxt, "changed": bool(moved)})
-    if moved:
-        set_gust_sd(fl, nxt)
-        st.models, st.cost, st.refit = None, None, True
-    return moved
+    it = replace(it, gust_rounds=(*it.gust_rounds, {
+        "pass": k, "gust_mps": used, "estimate_mps": est, "next_mps": nxt,
+        "changed": bool(moved)}))
+    if not moved:
+        return fl, it
+    return with_gust_sd(fl, nxt), replace(it, models=None, cost=None, refit=True)
 
 
-@dataclass
+@dataclass(frozen=True)
 class PassStep:
     """The accepted iterate of one pass (after the line search)."""
 
@@ -606,36 +680,6 @@ class PassStep:
     gn_shift_m: float         # largest position change of the full Gauss-Newton step
     gn_cost: float            # cost at the full Gauss-Newton step
     lm_lambda: float = 0.0    # > 0: a Levenberg-Marquardt step with this damping
-
-
-@dataclass
-class SmootherState:
-    """What the passes carry from one to the next."""
-
-    lat: np.ndarray                     # nominal of the next pass
-    lon: np.ndarray
-    h: np.ndarray
-    vnom: np.ndarray                    # nominal velocity (runway constraints, take-off roll)
-    clock: dict[str, float]
-    clock_sd: dict[str, float]
-    scale: np.ndarray                   # variance factor per noise group (EM)
-    psi_hat: np.ndarray | None = None   # heading bias of the iterate (rotation's linearisation)
-    ba_hat: np.ndarray | None = None    # accelerometer biases of the iterate (take-off roll)
-    X: np.ndarray | None = None         # the current iterate (None before the first pass)
-    models: PassModels | None = None       # built about X (reused when nothing else changed)
-    # cost, residuals, rates of X under ``models`` and ``cost_scale``: the next pass's start
-    cost: tuple[dict[str, float], np.ndarray, np.ndarray] | None = None
-    cost_scale: np.ndarray | None = None
-    weights: np.ndarray | None = None
-    bufs: tuple[np.ndarray, ...] | None = None
-    lm_bufs: tuple[np.ndarray, ...] | None = None
-    running: PassResult | None = None   # a pass whose covariance thread reads ``bufs``
-    lm_lambda: float = 0.0              # the last accepted Levenberg-Marquardt damping / 10
-    converged: bool = False
-    reason: str = ""
-    refit: bool = False                 # the models' noise changed (gust sd): a new cost
-    gust_rounds: list[dict[str, Any]] = field(default_factory=list)   # gust sd estimates
-    rolls_seen: list[TakeoffRoll] = field(default_factory=list)  # rolls of the passes so far,
 
 
 @dataclass(frozen=True)

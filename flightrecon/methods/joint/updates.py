@@ -128,8 +128,9 @@ def clock_covariance(cols: np.ndarray, normal: np.ndarray
 
 def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndarray, ...],
                alpha: float, clock: dict[str, float], clock_sd: dict[str, float],
-               info: dict[str, Any]) -> None:
-    """The clock offsets' Gauss-Newton step jointly with the track, in place, in seconds added
+               info: dict[str, Any]) -> tuple[dict[str, float], dict[str, float]]:
+    """The clock offsets' Gauss-Newton step jointly with the track (the new offsets and sd
+    returned, the step written to ``info``), in seconds added
     to each source's time stamps (the convention of `clean --gnss-clock-offset /
     --radar-clock-offset`; docs/joint.md, "Filter, smoother, iterations", item 4).
 
@@ -151,8 +152,9 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndar
     known track, was 4 times too small (a simulated circuit: 1.2 ms, 4.9-6.0 ms now)."""
     est = clock_covariance(clock_cols[0], outputs[0])
     if est is None:
-        return
+        return clock, clock_sd
     act, cov, d = est
+    clock, clock_sd = dict(clock), dict(clock_sd)
     for i, c in enumerate(act):
         name = CLOCK_SOURCES[c][0]
         sd = float(np.sqrt(cov[i, i]))
@@ -165,6 +167,7 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndar
             clock[name] += step
         info[f"clock_{name}_s"] = clock[name]
         info[f"clock_{name}_step_s"] = step
+    return clock, clock_sd
 
 
 def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> str:
