@@ -819,10 +819,10 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     def fake_run(wind):
         x = np.zeros((n, jl.N_STATE))
         x[:, jl.S_WIND] = wind
-        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
+        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0), flight=None)
     turning = fake_run(22.0 * np.c_[np.cos(ang), np.sin(ang)])
     calls = []
-    monkeypatch.setattr(jm, "smooth_joint", lambda inp, s: calls.append(s) or turning)
+    monkeypatch.setattr(jm, "smooth_joint", lambda inp, s, fl: calls.append(s) or turning)
     stand_in = SimpleNamespace(gnss=pd.DataFrame(), radar=pd.DataFrame(), fixes=None,
                                wind_ne=None, doppler_gs=None, wind_aloft=None,
                                liftoff_t=np.nan, touchdown_t=np.nan)
@@ -992,7 +992,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
     ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
     x = np.zeros((n, jl.N_STATE))
     x[:, jl.S_WIND] = 4.0 * np.c_[np.cos(ang), np.sin(ang)]
-    turning = SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
+    turning = SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0), flight=None)
     chord = 2 * 4.0 * np.sin(np.radians(100.0 / 6))
     Q = 0.05 ** 2 * 600.0
     assert wind_walk_check(turning, 0.05, 0.05) is None           # the bound: 3.5 < 12.0
@@ -1022,7 +1022,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
                            p_false=1e-4) is None
 
     calls = []
-    monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s: calls.append(s) or turning)
+    monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s, fl: calls.append(s) or turning)
     _, run, rounds = jm.wind_walk_rounds(JointProblem(inp, one_hz), turning)  # type: ignore[arg-type]
     q1 = (z2 * (Q + r * 600.0) / limit - r * 600.0) / 600.0
     assert rounds[0]["z2"] == pytest.approx(z2, rel=1e-9)

@@ -465,7 +465,7 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
         rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
                        "limit": c["limit"], "loads_psd_m2ps3": r})
         problem = wind_walk_adjusted(problem, c, r)
-        run = smooth_joint(problem.inputs, problem.settings)
+        run = smooth_joint(problem.inputs, problem.settings, run.flight)
     return problem, run, rounds
 
 

@@ -14,25 +14,8 @@ Dynamics`, :class:`~flightrecon.methods.joint.layout.Scalars` and
 linearisation point ``xlin``) and the buffers its outputs go to; the functions registered with
 ``implements`` are the model protocol (:mod:`flightrecon.estimation.model`) for it, compiled into
 the core's :func:`~flightrecon.estimation.filtering.forward_pass` and
-:func:`~flightrecon.estimation.smoothing.backward_pass`.  None of them loops over the time
-steps.
-
-Forward, at step k:
-
-* prediction: x <- F_k x + the recorded increments (the control input), P <- F_k P F_k^T + Q_k,
-  with F_k row-compressed (O(n nnz)) and Q_k added on its nonzero entries;
-* the predicted and filtered covariances kept as packed lower triangles
-  (:func:`~flightrecon.estimation.linalg.pack_sym`); an empty ``Pp`` keeps no predicted
-  covariance (the backward pass recomputes it, bit for bit the same);
-* the step's scalar measurements one after the other, each with the short-form update
-  (:func:`~flightrecon.estimation.updates.scalar_update_short`), linearised about ``xlin[k]``
-  (an iterated extended Kalman smoother) or, with an empty ``xlin``, about the prediction (an
-  extended Kalman filter), with a Huber-type innovation gate.
-
-Backward, at step k: ``C^T = F_{k+1} P_f[k]`` (:func:`~flightrecon.estimation.predict.
-sparse_left_product`), ``C y = P_f[k] (F_{k+1}^T y)`` in the mean-only pass, and at the smoothed
-state the residuals of the step's measurements (with H P_s H^T in the covariance pass), the
-position-velocity block of P_s and its diagonal.
+:func:`~flightrecon.estimation.smoothing.backward_pass` (a step's prediction, scalar updates,
+smoothing covariances: their docstrings).  None of them loops over the time steps.
 
 The MAP cost (:func:`map_cost`) of a state trajectory X = (x_0, ..., x_{N-1}) on the state grid,
 the negative log posterior up to a constant::
@@ -71,23 +54,10 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from flightrecon.estimation import model as em
 from flightrecon.estimation.discretise import gauss_markov_step, white_acceleration_q
 from flightrecon.estimation.linalg import cholesky_factor, pack_sym, unpack_sym
 from flightrecon.estimation.manifold import EUCLIDEAN
-from flightrecon.estimation.model import (
-    cross_times_into,
-    cross_transposed_into,
-    implements,
-    keep_filtered,
-    keep_predicted,
-    keep_smoothed,
-    predict_into,
-    rts_frame,
-    smoothing_covariances,
-    update_into,
-    with_mean_only_pass,
-    workspace,
-)
 from flightrecon.estimation.predict import (
     predict_cov_sparse,
     predict_sparse,
@@ -143,8 +113,27 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
     accelerometer scale errors), ``Jatt[k]`` (3, 2) that of dC/dphi f and dC/dtheta f (roll and
     pitch biases), ``dz[k]`` the nominal's height change over the step (the wind moves along
     its gradient with height), ``ga[k]`` the gust's decay over the step.  Only the position,
-    velocity, wind, accelerometer-bias and gust rows differ from the identity (see the module
-    docstring of :mod:`~flightrecon.methods.joint.layout`).
+    velocity, wind, accelerometer-bias and gust rows differ from the identity.
+
+    Over one state step of length dt (inputs held between input samples)::
+
+        p+ = p + C_en (v dt + dP_meas + J_p [dpsi, b_a])
+        v+ = v + dV_meas + J_v [dpsi, b_a]
+        w+ = w + g dz + noise (random walk in time and in altitude)
+        g+ = g + noise (random walk in time)
+        u+ = a u + noise,  a = exp(-V dt / L), var sigma_u^2 (1 - a^2)   (V: the recorded airspeed)
+        b_a+ = exp(-dt/tau) b_a + noise
+
+    dP_meas, dV_meas the increments of the measured kinematic acceleration over the step (exact
+    for held inputs; plus the Coriolis and transport-rate acceleration at the nominal velocity:
+    :func:`~flightrecon.methods.joint.linearisation.models_at`), dz the nominal's climb, with
+    J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt, -g0 C_nb diag(f) dt, -g0 dC/dphi f dt,
+    -g0 dC/dtheta f dt] and J_p = J_v dt / 2: the heading bias rotates the measured horizontal
+    acceleration, the accelerometer bias and scale errors add through the attitude (f: measured
+    specific force in body axes, in g), and the roll and pitch biases tilt it:
+    dC/dphi f = C_nb (e_x x f) and dC/dtheta f = C_nb (u x f), u = (0, cos phi, -sin phi)
+    (C_nb = R_z R_y R_x; R_x^T e_y = u), both as step means over the held inputs.  C_en
+    (NED -> ECEF) is evaluated on the nominal trajectory (refreshed each iteration).
     """
     n = N_STATE
     for i in range(n):
@@ -392,7 +381,7 @@ N_CLOCK = 3
 velocities: :data:`~flightrecon.methods.joint.updates.CLOCK_SOURCES`)."""
 
 
-@with_mean_only_pass
+@em.with_mean_only_pass
 class JointModel(NamedTuple):
     """One pass of the joint smoother as a model of the estimation core (module docstring).
 
@@ -587,7 +576,7 @@ def _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm, ng):
 
 # ---- the model protocol (estimation.model) ----
 
-@implements(workspace, JointModel, forceinline=True)
+@em.implements(em.workspace, JointModel, forceinline=True)
 def _workspace(model):
     """Scratch of both passes: F_k dense and row-compressed, the products' buffers, a
     measurement's gradient and its nonzero indices, P_p[k+1] and P_f[k] unpacked."""
@@ -598,7 +587,7 @@ def _workspace(model):
             np.empty(n), np.empty(N_CLOCK))
 
 
-@implements(predict_into, JointModel, refcounted=False, forceinline=True)
+@em.implements(em.predict_into, JointModel, refcounted=False, forceinline=True)
 def _predict(model, k, x, P, ws):
     """x <- F_k x + C_en[k-1] dP_k (position) + dV_k (velocity), P <- F_k P F_k^T + Q_k
     (docs/joint.md, "State and dynamics"), with F_k row-compressed: O(n nnz)."""
@@ -619,7 +608,7 @@ def _predict(model, k, x, P, ws):
     add_process_noise(P, k, dyn.dt, Cen, dyn.dz, dyn.qv_extra, dyn.q, dyn.ga)
 
 
-@implements(keep_predicted, JointModel, refcounted=False, forceinline=True)
+@em.implements(em.keep_predicted, JointModel, refcounted=False, forceinline=True)
 def _keep_predicted(model, k, x, P):
     xp = model.xp
     for i in range(N_STATE):  # element loop, not xp[k] = x: no shape-check path to compile
@@ -628,7 +617,7 @@ def _keep_predicted(model, k, x, P):
         pack_sym(P, model.Pp[k])
 
 
-@implements(update_into, JointModel, refcounted=False, forceinline=True)
+@em.implements(em.update_into, JointModel, refcounted=False, forceinline=True)
 def _update(model, k, x, P, ws):
     """The step's scalar measurements in turn (docs/joint.md, "Filter, smoother, iterations").
 
@@ -705,7 +694,7 @@ def _update(model, k, x, P, ws):
         scalar_update_short(x, P, PH, nu, S)
 
 
-@implements(keep_filtered, JointModel, refcounted=False, forceinline=True)
+@em.implements(em.keep_filtered, JointModel, refcounted=False, forceinline=True)
 def _keep_filtered(model, k, x, P):
     xf = model.xf
     for i in range(N_STATE):
@@ -713,7 +702,7 @@ def _keep_filtered(model, k, x, P):
     pack_sym(P, model.Pf[k])
 
 
-@implements(smoothing_covariances, JointModel, forceinline=True)
+@em.implements(em.smoothing_covariances, JointModel, forceinline=True)
 def _smoothing_covariances(model, k, ws):
     """P_f[k] unpacked and P_p[k+1] (unpacked, or recomputed when the forward pass did not keep
     it); F_{k+1} row-compressed in ``ws`` for the cross-covariance that follows."""
@@ -728,12 +717,12 @@ def _smoothing_covariances(model, k, ws):
     return Pfk, Pbuf
 
 
-@implements(cross_transposed_into, JointModel, refcounted=False, forceinline=True)
+@em.implements(em.cross_transposed_into, JointModel, refcounted=False, forceinline=True)
 def _cross_transposed(model, k, CT, ws):
     sparse_left_product(ws[1], ws[2], ws[3], ws[10], CT)  # C^T = F_{k+1} P_f[k]
 
 
-@implements(cross_times_into, JointModel, refcounted=False, forceinline=True)
+@em.implements(em.cross_times_into, JointModel, refcounted=False, forceinline=True)
 def _cross_times(model, k, y, out, ws):
     """C y = P_f[k] (F_{k+1}^T y): the sparse product first, O(nnz + n^2)."""
     z, Pfk = ws[11], ws[10]
@@ -749,12 +738,12 @@ def _cross_times(model, k, y, out, ws):
             out[a] += Pfk[b, a] * zb
 
 
-@implements(rts_frame, JointModel, forceinline=True)
+@em.implements(em.rts_frame, JointModel, forceinline=True)
 def _rts_frame(model, k):
     return EUCLIDEAN, 0.0, 0.0, 0.0
 
 
-@implements(keep_smoothed, JointModel, refcounted=False, forceinline=True)
+@em.implements(em.keep_smoothed, JointModel, refcounted=False, forceinline=True)
 def _keep_smoothed(model, k, x, P, with_cov, ws):
     """The position-velocity block and the diagonal of P_s (covariance pass); the residuals at
     the smoothed state where the model has their buffers (with H P_s H^T in the covariance
@@ -897,16 +886,8 @@ def map_cost(X, x0, P0inv, dyn, meas, geo, huber_c, reject_c, robust):
             if t == AZIMUTH or t == ELEVATION or t == HEADING or t == TRACK:
                 r = wrap_pi(r)
             res[j] = r
-            if t == TAS or t == HEADING or t == DOPPLER or t == TRACK:
-                rate[j] = 0.0
-            else:
-                rd = 0.0
-                for m in range(3):
-                    s = 0.0
-                    for i in range(3):
-                        s += H[IP + i] * Cen[k, i, m]
-                    rd += s * X[k, IV + m]
-                rate[j] = rd
+            rate[j] = (0.0 if t == TAS or t == HEADING or t == DOPPLER or t == TRACK
+                       else _position_rate(H, Cen, k, X[k]))
             if mw[j] <= 0.0:
                 continue
             data += robust_loss(r / np.sqrt(mr[j]), huber_c, reject_c, robust)

@@ -340,16 +340,18 @@ def _accepted(fl: SmootherFlight, it: Iterate, p: Pass, r: np.ndarray, cost0: fl
     return fl, nxt, p, settled
 
 
-def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings()) -> JointRun:
+def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings(),
+                 flight: SmootherFlight | None = None) -> JointRun:
     """Run the joint smoother: forward EKF and RTS passes, iterated as damped Gauss-Newton on
     the MAP cost with IRLS weights (docs/joint.md, "Filter, smoother, iterations").
 
     The result is the last accepted iterate, the lowest-cost one (each pass's cost does not
     exceed the cost of its start under the same clock offsets, roll and noise factors);
     ``JointRun.converged`` is the test of :func:`_settled` and ``stop_reason`` says why the
-    iterations stopped.
+    iterations stopped.  ``flight``: a run's on the same flight, whose iteration-independent
+    parts are taken where they hold (:func:`_flight_like`: an adjusted problem solved again).
     """
-    fl = smoother_flight(inp, settings)
+    fl = _flight_like(flight, inp, settings)
     lat, lon, h = nominal_trajectory(inp, fl.idx)
     # nominal velocity (runway constraints): air data at first, then the smoothed velocity
     tas0 = np.nan_to_num(inp.tas[fl.idx])
@@ -398,18 +400,20 @@ def _flight_like(flight: SmootherFlight | None, inp: JointInputs, settings: Join
                  ) -> SmootherFlight:
     """:func:`smoother_flight` of ``inp`` with ``settings``, taken from ``flight`` (a run's on
     the same flight) where ``inp`` differs from its inputs in the GNSS fixes only and
-    ``settings`` from its settings in the gust sd only: none of its parts depends on either
-    but the process noise (recomputed), so they are the same arrays (the held-out smoothing
-    of the gap calibration: 0.27 s and a second copy less on a 10-hour flight)."""
+    ``settings`` from its settings in the gust sd and the wind walk only: none of its parts
+    depends on these but the process noise (recomputed), so they are the same arrays (the
+    held-out smoothing of the gap calibration: 0.27 s and a second copy less on a 10-hour
+    flight; the wind walk's rounds: the measurement table and the increments built once)."""
     if flight is None:
         return smoother_flight(inp, settings)
     same_inputs = all(getattr(inp, f.name) is getattr(flight.inp, f.name)
                       for f in fields(inp) if f.name != "gnss")
 
-    def gust_free(s: JointSettings) -> JointSettings:
-        return replace(s, estimate_gust=False, noise=replace(s.noise, gust_mps=1.0))
+    def q_free(s: JointSettings) -> JointSettings:
+        return replace(s, estimate_gust=False, noise=replace(s.noise, gust_mps=1.0,
+                                                             wind_rw_mps_sqrt_s=1.0))
 
-    if not same_inputs or gust_free(settings) != gust_free(flight.settings):
+    if not same_inputs or q_free(settings) != q_free(flight.settings):
         return smoother_flight(inp, settings)
     return replace(flight, inp=inp, settings=settings, q=q_vector(settings.noise), x0=None,
                    P0=None, P0inv=None)

@@ -73,13 +73,6 @@ still for the convergence test): it would move the track by at most a tenth of t
 the track's uncertainty the offset's own uncertainty carries."""
 
 
-def derived_long(settings: JointSettings) -> bool:
-    """Whether the forward load factor is derived from the airspeed (ingest's derived
-    ``n_long_g``; set by :func:`~flightrecon.methods.joint.settings.derived_long_priors` when
-    the problem is built)."""
-    return settings.long_load_derived
-
-
 def clock_columns(meas: Measurements, settings: JointSettings
                   ) -> tuple[np.ndarray, np.ndarray] | None:
     """Each measurement's clock column for the forward pass (:data:`CLOCK_SOURCES`' index; -1
@@ -87,15 +80,15 @@ def clock_columns(meas: Measurements, settings: JointSettings
     the kernel's gradient does not give (``Measurements.rate``); None when no source has
     :data:`CLOCK_MIN_MEASUREMENTS`.
 
-    With a :func:`derived_long` the GNSS positions' offset is not estimated (held at the
-    cleaning's): the along-track acceleration then has the airspeed's timing, and the GNSS
-    offset common to positions and velocities absorbs the airspeed's lag (the shipped circuit
-    with its ``n_long_g`` dropped: +0.15 +- 0.02 s for a true 0, the track 9.4 m RMS from the
-    truth against 1.0 m at 0); the velocities' offset, relative to the positions, is still
-    estimated."""
+    With a derived ``n_long_g`` (``settings.long_load_derived``) the GNSS positions' offset is
+    not estimated (held at the cleaning's): the along-track acceleration then has the
+    airspeed's timing, and the GNSS offset common to positions and velocities absorbs the
+    airspeed's lag (the shipped circuit with its ``n_long_g`` dropped: +0.15 +- 0.02 s for a
+    true 0, the track 9.4 m RMS from the truth against 1.0 m at 0); the velocities' offset,
+    relative to the positions, is still estimated."""
     cols = np.full(len(meas.z), -1, dtype=np.int64)
     for c, (name, src) in enumerate(CLOCK_SOURCES):
-        if name == "gnss" and derived_long(settings):
+        if name == "gnss" and settings.long_load_derived:
             continue
         sel = np.isin(meas.source, [SOURCES.index(x) for x in src])
         if sel.sum() >= CLOCK_MIN_MEASUREMENTS:
