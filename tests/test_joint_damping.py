@@ -20,7 +20,7 @@ from flightrecon.methods.joint import JointSettings
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import linearisation as lin
 from flightrecon.methods.joint import solve as sm
-from flightrecon.methods.joint import updates as upd
+from flightrecon.methods.joint import solve as upd
 from flightrecon.methods.joint.method import run_joint
 from flightrecon.methods.joint.model import (
     add_process_noise,

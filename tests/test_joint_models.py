@@ -14,7 +14,7 @@ from flightrecon.methods.joint import enu_to_ecef_matrix
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import model as jd
 from flightrecon.methods.joint import model as jo
-from flightrecon.methods.joint import passes as jp
+from flightrecon.methods.joint import solve as jp
 
 
 def _setup(rng):
@@ -1054,7 +1054,7 @@ def test_background_covariance_pass_raises_its_error_where_it_is_joined(monkeypa
     outputs come back from :meth:`result`, and an error of the pass is raised there, on the
     thread that waits for it, not lost with its thread."""
 
-    from flightrecon.methods.joint import passes as jp
+    from flightrecon.methods.joint import solve as jp
 
     def fake(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
         assert residuals is False

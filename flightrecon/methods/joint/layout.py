@@ -1,8 +1,8 @@
 """State layout and measurement types of the joint post-flight smoother's compiled kernels.
 
 The kernels: :mod:`~flightrecon.methods.joint.model` (transition, process noise, measurement
-functions, MAP cost) and :mod:`~flightrecon.methods.joint.passes` (forward filter, backward
-smoother); the iterations that drive them: :mod:`~flightrecon.methods.joint.solve`.
+functions, MAP cost); the passes and iterations that drive them:
+:mod:`~flightrecon.methods.joint.solve`.
 
 State (n = 26), SI units::
 

@@ -345,7 +345,7 @@ def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarra
     pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
     Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
     dz = np.diff(h, prepend=h[0])   # signed height change: the wind moves along its gradient
-    meas = build_measurements(inp, fl.settings, fl.T, Cen, fl.Cnb, dict(clock), fl.static, pnom,
+    meas = build_measurements(inp, fl.settings, fl.T, Cen, dict(clock), fl.static, pnom,
                               vnom, roll, psi_hat)
     if psi_hat is None:
         acc_k, dV_k, dP_k = fl.acc, fl.dV, fl.dP

@@ -23,7 +23,6 @@ from flightrecon.methods.joint.inputs import (
     TakeoffRoll,
     end_points_at,
     nearest_index,
-    refined_roll,
 )
 from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
@@ -239,24 +238,22 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
-                       Cnb_T: np.ndarray, clock: dict[str, float],
-                       static: _MeasBuilder | None = None, pnom: np.ndarray | None = None,
-                       vnom: np.ndarray | None = None,
-                       roll: TakeoffRoll | None = None,
-                       psi_hat: np.ndarray | None = None) -> Measurements:
+                       clock: dict[str, float], static: _MeasBuilder, pnom: np.ndarray,
+                       vnom: np.ndarray, roll: TakeoffRoll,
+                       psi_hat: np.ndarray | None) -> Measurements:
     """Every source as scalar measurements at its own time (recorder time base).
 
-    ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
-    known-position (``--fix``), end-point and runway measurements depend on the linearisation
-    (``Cen``, the nominal ECEF positions ``pnom`` and NED velocities ``vnom`` on the state
-    grid) and on the clock offsets
+    ``static`` is :func:`static_measurements`; the GNSS, radar, known-position (``--fix``),
+    end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
+    positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
     ``clock`` (seconds *added* to each group's time stamps, the convention of
     ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is
-    :func:`refined_roll` (computed here if not given); ``psi_hat`` the heading bias of the last
-    pass (per state step), about which the ground constraints are linearised.
+    the pass's take-off roll (:func:`~flightrecon.methods.joint.inputs.refined_roll`);
+    ``psi_hat`` the heading bias of the last pass (per state step; None: zero), about which
+    the ground constraints are linearised.
     """
     nz = settings.noise
-    b = (static if static is not None else static_measurements(inp, settings, T)).copy()
+    b = static.copy()
     _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
     # height (then at the substitute height, as a GNSS fix without one)
@@ -266,13 +263,12 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         hf = fx[:, 3].copy()
         no_hf = ~np.isfinite(hf)
         if no_hf.any():
-            hf = np.where(no_hf, _substitute_height(inp, T, tf, pnom), hf)
+            hf = np.where(no_hf, _substitute_height(T, tf, pnom), hf)
         ex, ey, ez = geodetic_to_ecef(fx[:, 1], fx[:, 2], hf)
         sd_f = fx[:, 4]
         _add_ned_components(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
                         "pos", np.c_[ex, ey, ez])
-    if pnom is not None and vnom is not None:
-        runway_measurements(b, inp, settings, lambda t: nearest_index(T, t), pnom, vnom, psi_hat)
+    runway_measurements(b, inp, settings, lambda t: nearest_index(T, t), pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -285,8 +281,6 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
                   np.radians(nz.radar_elevation_deg) ** 2)
     # the take-off roll, with the smoothed lift-off speed once there is one (the recorded
     # airspeed carries the head wind); at rest before it (lined up): zero north and east velocity
-    if roll is None:
-        roll = refined_roll(inp, T, vnom)
     r0, r1 = roll.rest_t
     if np.isfinite(r0):
         t_in = inp.t_in
@@ -320,20 +314,16 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
             b.add(source, jl.STATE, t, comp_vals[i], r, d=a_i * tau, index=jl.IV + i, rate=a_i)
 
 
-def _substitute_height(inp: JointInputs, T: np.ndarray, t: np.ndarray,
-                       pnom: np.ndarray | None) -> np.ndarray:
+def _substitute_height(T: np.ndarray, t: np.ndarray, pnom: np.ndarray) -> np.ndarray:
     """Ellipsoidal height [m] for a position given without one at times ``t``: the nominal
-    track's at the nearest state step, else the field's plus the recorded pressure height."""
-    if pnom is not None:
-        k = nearest_index(T, t)
-        return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
-    ii = nearest_index(inp.t_in, t)
-    return inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
+    track's at the nearest state step."""
+    k = nearest_index(T, t)
+    return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
 
 
 def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
                        T: np.ndarray, Cen: np.ndarray, clock: dict[str, float],
-                       pnom: np.ndarray | None) -> None:
+                       pnom: np.ndarray) -> None:
     """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities,
     at their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the
     receiver's per-fix accuracy.
@@ -357,10 +347,10 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     no_h = ~np.isfinite(hg)
     if no_h.any():
         # a fix without height is used horizontally: its north and east components only,
-        # computed at a substitute height (the nominal's, else the field's plus the pressure
-        # height); the north/east projection of the fix moves by (angle between the
-        # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
-        hg = np.where(no_h, _substitute_height(inp, T, tg, pnom), hg)
+        # computed at the nominal's height; the north/east projection of the fix moves by
+        # (angle between the verticals at the fix and at the step) x (height error): under
+        # 2e-4 m per m at 1 km
+        hg = np.where(no_h, _substitute_height(T, tg, pnom), hg)
     ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
     ant = np.c_[ex, ey, ez]
     L = np.asarray(inp.lever_arm, float)

@@ -378,7 +378,7 @@ def measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst
 
 N_CLOCK = 3
 """Clock offsets the forward pass can carry as filter columns (GNSS positions, radar, GNSS
-velocities: :data:`~flightrecon.methods.joint.updates.CLOCK_SOURCES`)."""
+velocities: :data:`~flightrecon.methods.joint.solve.CLOCK_SOURCES`)."""
 
 
 @em.with_mean_only_pass
@@ -545,7 +545,7 @@ def _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm, ng):
 
     A measurement stamped t_m and used at t_m + c + dc predicts h + g dc, g = dh/dtau its
     rate at the linearisation point (of a position, :func:`_position_rate`, plus ``crate``).
-    With the offsets' step dc (one per column: :data:`~flightrecon.methods.joint.updates.
+    With the offsets' step dc (one per column: :data:`~flightrecon.methods.joint.solve.
     CLOCK_SOURCES`) as constant regression parameters of the
     pass's linearised model, the filtered state is x(dc) = x(0) - X_g dc and the innovations
     nu(dc) = nu - nu_g . dc, where the columns X_g (``xg[:, k]``, (C, n) at step k) are the
@@ -849,7 +849,7 @@ def map_cost(X, x0, P0inv, dyn, meas, geo, huber_c, reject_c, robust):
     const_change : largest step change of the states without process noise (rounding).
     res, rate : (M,) residual z - h(x) (angles wrapped) and the rate dh/dtau of each predicted
         measurement (for the clock-offset fit; 0 for air data), as
-        :func:`~flightrecon.methods.joint.passes.backward_mean` gives them.
+        :func:`~flightrecon.methods.joint.solve.backward_mean` gives them.
     n_fail : steps whose Q_k (active part) failed its Cholesky factorisation (left out).
     """
     mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas

@@ -10,23 +10,55 @@ point X_GN; the next iterate is X + alpha (X_GN - X) with alpha = 1, 1/2, 1/4, .
 that does not raise the MAP cost J (:func:`~flightrecon.methods.joint.model.map_cost`;
 :func:`line_search`), or where none does a Levenberg-Marquardt step (algorithm 2:
 :func:`lm_step`).  The robust weights, the clock offsets, the take-off roll, the gust sd and the
-noise factors are updated between the passes (:mod:`~flightrecon.methods.joint.updates`) and
+noise factors are updated between the passes (:func:`_accepted`, :func:`gust_round`) and
 held fixed within one (the cost is compared under the same ones); the clock offsets by their
 Gauss-Newton step jointly with the track, which each pass's forward filter gives
-(:func:`~flightrecon.methods.joint.updates.clock_step`), so that they settle in about as many
+(:func:`clock_step`), so that they settle in about as many
 passes as the track does.
+
+The passes' front ends (:func:`forward`, :func:`backward`, :func:`backward_mean`) run the
+model (:class:`~flightrecon.methods.joint.model.JointModel`) on the estimation core's loops
+(:func:`~flightrecon.estimation.filtering.forward_pass`,
+:func:`~flightrecon.estimation.smoothing.backward_pass`; docs/estimation.md, "The joint
+model"). They take the filter buffers and the pass's layouts and return the outputs as
+arrays: :func:`forward` the innovations, :func:`backward` the smoothed states and covariance
+blocks with the residuals, :func:`backward_mean` the smoothed states and residuals of the
+mean-only pass.  Both backward passes run with the GIL released (the core's loops are
+``nogil``), so the covariance pass can run on a second thread beside the mean pass.
+
+The gust sd (docs/joint.md, "Wind and turbulence").  The gust ``u`` (layout: ``S_GUST``) is a
+stationary first-order Gauss-Markov process of variance sigma_u^2 per axis.  Under the model,
+the smoothed mean and variance of every sample satisfy E[u_hat^2 + var(u | data)] = sigma_u^2
+(law of total variance), so
+
+    sigma_u^2 <- mean over the airborne steps and both axes of (u_hat_k^2 + P_uu,k)
+
+is a fixed point at the flight's own gust variance: with sigma_u too large the data shrink u_hat
+and its variance below it, too small they push them above.  It is the moment form of the
+expectation-maximisation update of a stationary variance; with ``JointSettings.estimate_gust``
+the smoother applies it after each pass that computed the smoothed covariances and is not the
+last (:func:`gust_round`), over-relaxed (twice the step in log space), while the pass moved the
+track by more than 10 ``converge_m`` or the noise factors are estimated too, until it moves by
+less than ``gust_tol`` (at most ``gust_rounds`` changes): it follows the Gauss-Newton passes and
+adds none of its own where the track is already pinned down (GNSS).  A change is a new cost
+function, and the pass after it says so (``parameters_changed``).  What the gust absorbs besides
+the turbulence (the sideslip, the angle of attack in turns, the airspeed lag) counts into the
+estimate: it is the air data's effective disagreement with a steady wind.
 """
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, fields, replace
 from typing import Any, NamedTuple
 
 import numpy as np
 
+from flightrecon.estimation.filtering import forward_pass
+from flightrecon.estimation.linalg import packed_size, unpack_sym
+from flightrecon.estimation.smoothing import backward_pass
 from flightrecon.geo.frames import ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint import passes as jp
 from flightrecon.methods.joint.inputs import (
     EndPoint,
     JointInputs,
@@ -34,7 +66,7 @@ from flightrecon.methods.joint.inputs import (
     end_points_at,
     refined_roll,
 )
-from flightrecon.methods.joint.layout import Measurements
+from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Measurements, Scalars
 from flightrecon.methods.joint.linearisation import (
     PassModels,
     SmootherFlight,
@@ -51,19 +83,381 @@ from flightrecon.methods.joint.linearisation import (
     with_pseudo,
 )
 from flightrecon.methods.joint.measurements import NOISE_GROUPS
-from flightrecon.methods.joint.passes import PassResult
-from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.updates import (
-    CLOCK_SOURCES,
-    clock_columns,
-    clock_covariance,
-    clock_step,
-    gust_sd_estimate,
-    innovation_loglik,
-    noise_update,
-    robust_weights,
-    stop_reason_of,
-)
+from flightrecon.methods.joint.model import joint_model
+from flightrecon.methods.joint.settings import SOURCES, JointSettings
+
+
+def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ...]:
+    """Outputs of :func:`forward` for N steps: ``xf`` (N, n), ``Pf`` (N, n (n + 1) / 2),
+    ``xp``, ``Pp`` (the covariances as packed lower triangles, :func:`~flightrecon.estimation.
+    linalg.pack_sym`: half the memory, 190 MB less on a 10-hour flight at 1 Hz; an empty ``Pp``
+    without ``store_predicted``: recomputed backward, bit-identical, 0.2-0.3 s more per pass on
+    that flight)."""
+    n = N_STATE
+    L = packed_size(n)
+    return (np.empty((N, n)), np.empty((N, L)), np.empty((N, n)),
+            np.empty((N if store_predicted else 0, L)))
+
+
+def forward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, x0: np.ndarray,
+            P0: np.ndarray, dyn: Dynamics, meas: Scalars, geo: Geometry, gate: float,
+            xlin: np.ndarray, clock: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+    """Forward extended Kalman filter with sequential scalar updates (the model's
+    ``predict_into`` and ``update_into``, :mod:`~flightrecon.methods.joint.model`).
+
+    With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
+    last pass: an iterated extended Kalman smoother, Gauss-Newton on the whole record); with an
+    empty ``xlin`` (0, n) about the filter's own prediction (the first pass).  ``gate`` (0: off)
+    the normalised innovation beyond which a measurement's variance is inflated.
+
+    Fills ``xf``, ``Pf``, ``xp``, ``Pp`` (:func:`filter_buffers`; an empty ``Pp`` is not filled:
+    the backward passes then recompute each predicted covariance, bit for bit the same) and
+    returns, per measurement, the innovation, its variance (before inflation) and the inflation
+    factor (NaN, NaN, 1 for a measurement of weight 0), and the clock offsets' outputs when
+    ``clock`` gives each measurement's clock column (0 GNSS, 1 radar, -1 none) and the rate of
+    its prediction the gradient does not give: the normal equations of their Gauss-Newton
+    step (A00, A01, A11, b0, b1: :func:`~flightrecon.methods.joint.model.
+    _clock_column_update`) and their filter columns after and before each step's updates
+    (2, N, n) (None: empty arrays).
+    """
+    model = joint_model((xf, Pf, xp, Pp), dyn, meas, geo, gate, xlin, forward=True,
+                        clock=clock)
+    forward_pass(model, x0, P0, xf.shape[0])
+    return model.nu, model.S, model.infl, (model.cnorm, model.cxf, model.cxp)
+
+
+def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,
+              with_cov: bool, residuals: bool) -> tuple[np.ndarray, Any, int]:
+    xf, Pf, xp, Pp = bufs
+    N, n = xf.shape
+    model = joint_model(bufs, dyn, meas, geo, residuals=residuals, covariances=with_cov)
+    xs = np.empty((N, n))
+    P_last = np.empty((n, n))
+    unpack_sym(Pf[N - 1], P_last)
+    n_fallback = backward_pass(model, xf, xp, xs, P_last if with_cov else np.empty((0, 0)))
+    return xs, model, int(n_fallback)
+
+
+def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.ndarray,
+                     dyn: Dynamics, meas: Scalars, geo: Geometry) -> np.ndarray:
+    """The clock offsets' smoothed columns X_s,g (2, N, n) from their filtered and predicted
+    ones (:func:`forward`'s, the same pass's ``Pf``, ``Pp``): the mean-only RTS recursion
+    x_s[k] = x_f[k] + C (x_s[k+1] - x_p[k+1]) is linear in (x_f, x_p) with no input of its
+    own, so on the columns it gives d x_s / d c up to sign: the track moved by an offset
+    error dc is x_s - X_s,g dc, and an offset of covariance Sigma adds X_s,g Sigma X_s,g^T to
+    the track's (the marginal covariance of the state augmented by the constant offsets)."""
+    out = np.empty_like(cxf)
+    for c in range(cxf.shape[0]):
+        out[c] = _backward((cxf[c], Pf, cxp[c], Pp), dyn, meas, geo, False, False)[0]
+    return out
+
+
+def backward_mean(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray,
+                  dyn: Dynamics, meas: Scalars, geo: Geometry
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """RTS backward pass for the smoothed states only (no covariances), and the residuals.
+
+    x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
+    mean as :func:`backward` (Rauch, Tung & Striebel 1965) at O(n^3 / 6) per step (one Cholesky
+    solve with a vector) instead of O(n^3) products; used in the Gauss-Newton iterations, which
+    need the trajectory and the residuals but not the smoothed covariances.
+
+    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`)
+    and the number of steps whose predicted covariance failed its Cholesky factorisation (not
+    positive definite to rounding: the gain then comes from the eigen-decomposition solve; the
+    caller reports the count).
+    """
+    xs, m, n_fallback = _backward((xf, Pf, xp, Pp), dyn, meas, geo, False, True)
+    return xs, m.res_n, m.res, m.rate, n_fallback
+
+
+def backward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, dyn: Dynamics,
+             meas: Scalars, geo: Geometry, residuals: bool) -> tuple[Any, ...]:
+    """RTS backward pass with covariances; also the smoothed residuals (see
+    :func:`backward_mean`, which gives the same states without the covariances).
+
+    Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
+    smoothed state variances (N, n), normalised residuals, raw residuals, rates and, per
+    measurement, H P_s H^T (the smoothed variance of the predicted measurement), and the number
+    of Cholesky failures (as :func:`backward_mean`).  With ``residuals`` False the residual
+    outputs stay NaN (the covariances do not need them: this pass can then run beside
+    :func:`backward_mean` on another thread).
+    """
+    xs, m, n_fallback = _backward((xf, Pf, xp, Pp), dyn, meas, geo, True, residuals)
+    M = len(meas.mtype)
+    if residuals:
+        res_n, res, rate, hph = m.res_n, m.res, m.rate, m.hph
+    else:
+        res_n, res, rate, hph = (np.full(M, np.nan) for _ in range(4))
+    return xs, m.Pblk, m.var, res_n, res, rate, hph, n_fallback
+
+
+class BackgroundCovariances:
+    """The RTS covariance pass (:func:`backward`, without the residuals) of the filter
+    buffers ``bufs`` = (xf, Pf, xp, Pp) and the pass's layouts, started on a second thread to
+    run beside the mean pass (:func:`backward_mean`) and whatever follows it until the
+    covariances or the buffers are needed; :meth:`result` waits for it."""
+
+    def __init__(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
+                 geo: Geometry) -> None:
+        self.out: tuple[Any, ...] | None = None
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, args=(bufs, dyn, meas, geo),
+                                       name="joint-covariances")
+        self.thread.start()
+
+    def _run(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
+             geo: Geometry) -> None:
+        try:
+            xf, Pf, xp, Pp = bufs
+            self.out = backward(xf, Pf, xp, Pp, dyn, meas, geo, False)
+        except BaseException as exc:  # re-raised on the thread that waits for it
+            self.error = exc
+
+    def result(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(Pblk, var, Cholesky fallbacks) of the pass, once the thread has finished."""
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+        assert self.out is not None
+        _, Pblk, var, *_, n_fallback = self.out
+        return Pblk, var, int(n_fallback)
+
+
+@dataclass
+class PassResult:
+    """Outputs of one forward filter and backward smoother pass."""
+
+    xs: np.ndarray
+    xf: np.ndarray
+    res: np.ndarray
+    rate: np.ndarray
+    hph: np.ndarray | None
+    infl: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    Pblk: np.ndarray | None
+    var: np.ndarray | None
+    n_fallback: int
+    kern_args: tuple[Any, ...]
+    scalars: jl.Scalars
+    pending: BackgroundCovariances | None = None  # its covariance pass, still on its thread
+    #                                               (Pblk and var None until joined)
+    info: dict[str, Any] | None = None   # the pass's entry in the iterations
+    # the clock columns and rates of its forward pass, and the offsets' outputs of it (normal
+    # equations, filter columns after and before each step's updates: :func:`forward`)
+    clock: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]] | None = None
+
+
+def robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettings
+                    ) -> np.ndarray:
+    """IRLS weights of the robust loss from the normalised residuals of the iterate: 1 up to
+    ``huber_c``, huber_c/|u| beyond (Huber), 1e-8 beyond ``reject_c`` (set aside: a jumped
+    source cannot pull the track at all); unchanged without ``robust``."""
+    if not settings.robust:
+        return weights
+    a = np.abs(res_n)
+    w = np.where(a > settings.huber_c, settings.huber_c / np.maximum(a, 1e-12), 1.0)
+    w = np.where(a > settings.reject_c, 1e-8, w)
+    w[~np.isfinite(w)] = 1.0
+    return w
+
+
+CLOCK_SOURCES = (("gnss", ("gnss_pos",)), ("gnss_velocity", ("gnss_vel",)),
+                 ("radar", ("radar",)))
+"""The clock offsets estimated, in the order of the forward pass's clock columns
+(:data:`~flightrecon.methods.joint.model.N_CLOCK`), and the sources each shifts.  The GNSS
+velocities have their own: on the real G1000 exports the ground speed and track lag the
+positions (docs/joint.md, "Filter, smoother, iterations", item 4).  The radar last: a flight
+without one carries two columns, not three
+(:func:`~flightrecon.methods.joint.model.joint_model`)."""
+
+CLOCK_MIN_MEASUREMENTS = 10
+"""Fewer measurements of a source than this: its offset is not estimated."""
+
+CLOCK_DETECT_SD = 3.0
+"""An offset still at zero is taken once its step exceeds this many of its sd (detected);
+below, the source's stamps are kept: estimating an offset that is not there costs accuracy (the
+simulated radar approaches, whose radar is on time: 15.1 m RMS with the offset held at zero
+unless detected, 17.7 m estimated always), and a taken offset has its uncertainty in the
+track's sd either way."""
+
+CLOCK_STILL_SD = 0.1
+"""A clock step of at most this fraction of the offset's sd is not taken (the offset stands
+still for the convergence test): it would move the track by at most a tenth of the share of
+the track's uncertainty the offset's own uncertainty carries."""
+
+
+def clock_columns(meas: Measurements, settings: JointSettings
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Each measurement's clock column for the forward pass (:data:`CLOCK_SOURCES`' index; -1
+    for the measurements no offset shifts) and the rate of its prediction with its time that
+    the kernel's gradient does not give (``Measurements.rate``); None when no source has
+    :data:`CLOCK_MIN_MEASUREMENTS`.
+
+    With a derived ``n_long_g`` (``settings.long_load_derived``) the GNSS positions' offset is
+    not estimated (held at the cleaning's): the along-track acceleration then has the
+    airspeed's timing, and the GNSS offset common to positions and velocities absorbs the
+    airspeed's lag (the shipped circuit with its ``n_long_g`` dropped: +0.15 +- 0.02 s for a
+    true 0, the track 9.4 m RMS from the truth against 1.0 m at 0); the velocities' offset,
+    relative to the positions, is still estimated."""
+    cols = np.full(len(meas.z), -1, dtype=np.int64)
+    for c, (name, src) in enumerate(CLOCK_SOURCES):
+        if name == "gnss" and settings.long_load_derived:
+            continue
+        sel = np.isin(meas.source, [SOURCES.index(x) for x in src])
+        if sel.sum() >= CLOCK_MIN_MEASUREMENTS:
+            cols[sel] = c
+    if not np.any(cols >= 0):
+        return None
+    return cols, np.zeros(len(cols)) if meas.rate is None else meas.rate
+
+
+def clock_covariance(cols: np.ndarray, normal: np.ndarray
+                     ) -> tuple[list[int], np.ndarray, np.ndarray] | None:
+    """The clock columns estimated (those with :data:`CLOCK_MIN_MEASUREMENTS` and a positive
+    normal equation), the offsets' covariance A^-1 and their Gauss-Newton step A^-1 b from the
+    forward pass's normal equations ``normal`` = [A b] (C, C + 1) (:func:`clock_step`); None
+    when none is estimated or A is singular."""
+    nc = normal.shape[0]
+    act = [c for c in range(nc)
+           if np.sum(cols == c) >= CLOCK_MIN_MEASUREMENTS and normal[c, c] > 0.0]
+    if not act:
+        return None
+    A = normal[:, :nc][np.ix_(act, act)]
+    try:
+        cov = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0.0):
+        return None
+    return act, cov, cov @ normal[act, nc]
+
+
+def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndarray, ...],
+               alpha: float, clock: dict[str, float], clock_sd: dict[str, float],
+               info: dict[str, Any]) -> tuple[dict[str, float], dict[str, float]]:
+    """The clock offsets' Gauss-Newton step jointly with the track (the new offsets and sd
+    returned, the step written to ``info``), in seconds added
+    to each source's time stamps (the convention of `clean --gnss-clock-offset /
+    --radar-clock-offset`; docs/joint.md, "Filter, smoother, iterations", item 4).
+
+    A measurement stamped t_m, taken at t_m + c_true and used at t_m + c has residual
+    hdot (c_true - c).  The pass's forward filter carried the offsets as constant parameters
+    of its linearised model (:func:`~flightrecon.methods.joint.model._clock_column_update`)
+    and accumulated (its ``outputs``' first) the normal equations [A b]: the step
+    dc = A^-1 b minimises the pass's cost profiled over the track (the track given the
+    offsets is what the pass smoothed; moved by dc it is the next pass's business), A^-1 the
+    offsets' covariance.  The step is scaled by the line search's ``alpha`` (0: a
+    Levenberg-Marquardt step, which is not the pass's Gauss-Newton step; the offsets then
+    stay) and taken when it exceeds :data:`CLOCK_STILL_SD` of its sd, and by an offset still
+    at zero only beyond :data:`CLOCK_DETECT_SD` of it (as before: applied beyond 3 sd).
+
+    Before, the offsets were fitted between the passes by weighted least squares of the
+    smoothed residuals against hdot, the track held: the smoother had already absorbed most
+    of the offset into the track, so each fit recovered about 1.4 % of what was left (32-50
+    passes on the four real G1000 exports with their GPS, 6-18 now) and its sd, that of a
+    known track, was 4 times too small (a simulated circuit: 1.2 ms, 4.9-6.0 ms now)."""
+    est = clock_covariance(clock_cols[0], outputs[0])
+    if est is None:
+        return clock, clock_sd
+    act, cov, d = est
+    clock, clock_sd = dict(clock), dict(clock_sd)
+    for i, c in enumerate(act):
+        name = CLOCK_SOURCES[c][0]
+        sd = float(np.sqrt(cov[i, i]))
+        if not np.isfinite(d[i]):
+            continue
+        clock_sd[name] = sd
+        step = float(alpha * d[i])
+        detected = clock[name] != 0.0 or abs(step) > CLOCK_DETECT_SD * sd
+        if detected and abs(step) > CLOCK_STILL_SD * sd:
+            clock[name] += step
+        info[f"clock_{name}_s"] = clock[name]
+        info[f"clock_{name}_step_s"] = step
+    return clock, clock_sd
+
+
+def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> str:
+    """Why the iterations stopped without converging: the line search failed, the cost rose
+    from one pass to the next (through the updates between the passes: weights' residuals,
+    clock offsets, take-off roll, noise factors), or the cap on the passes was reached."""
+    last = history[-1]
+    if last.get("line_search_failed"):
+        lm = (f", nor a Levenberg-Marquardt step with damping up to {settings.lm_lambda_max:g}"
+              if settings.levenberg_marquardt else "")
+        return (f"line search failed: no step size down to 1/{2 ** settings.line_search_halvings}"
+                f" of the Gauss-Newton step{lm} lowered the MAP cost (the full step moved the "
+                f"track by {last['gauss_newton_position_change_m']:.0f} m)")
+    if (len(history) > 1 and last.get("parameters_changed")
+            and last["cost"] > history[-2]["cost"] * (1.0 + settings.cost_tol)):
+        return (f"cost rising: {history[-2]['cost']:.6g} -> {last['cost']:.6g} over the last "
+                "pass (the updates between the passes, of the take-off roll, the clock "
+                "offsets or the noise factors, raised it)")
+    return (f"max passes reached ({len(history)}): the last moved the track by "
+            f"{last['max_position_change_m']:.1f} m, the cost by "
+            f"{last.get('cost_relative_change', float('nan')):.2g} (relative)")
+
+
+def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray) -> float:
+    """Log-likelihood of the data by the prediction-error decomposition,
+    ``-1/2 sum_j (nu_j^2 / S_j + ln(2 pi S_j))`` over the selected scalar innovations ``nu``
+    with their variances ``S`` (the exact likelihood of the linearised model for the given
+    noise; Harvey 1989, section 3.4)."""
+    ok = sel & np.isfinite(innov) & np.isfinite(innov_var) & (innov_var > 0)
+    if not ok.any():
+        return float("nan")
+    s = innov_var[ok]
+    return float(-0.5 * np.sum(innov[ok] ** 2 / s + np.log(2.0 * np.pi * s)))
+
+
+def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int, float]:
+    """M-step of expectation-maximisation for one variance factor c per group.
+
+    With z_j = h_j(x) + v_j, v_j ~ N(0, c R0_j), the expected complete-data log-likelihood under
+    the smoothed posterior is maximised by c = mean_j[(e_j^2 + H_j P_s H_j^T) / R0_j] over the
+    group's measurements (e: smoothed residual; Shumway & Stoffer 1982, eq. 12 for a scalar
+    factor; linearised at the smoothed trajectory).  Groups with fewer than ``min_count``
+    measurements keep their factor.
+    """
+    out = {}
+    for gi in np.unique(groups[groups >= 0]):
+        sel = (groups == gi) & use & np.isfinite(res) & np.isfinite(hph)
+        if sel.sum() >= min_count:
+            out[int(gi)] = float(np.mean((res[sel] ** 2 + hph[sel]) / r0[sel]))
+    return out
+
+
+def noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.ndarray,
+                  use: np.ndarray, scale: np.ndarray, settings: JointSettings,
+                  info: dict[str, Any]) -> tuple[np.ndarray, bool]:
+    """EM step of the noise factors (:func:`_em_noise_scales`) on the measurements taken at
+    face value (``use``), bounded by ``noise_factor_bounds``; the new factors into ``info``.
+    Returns them and whether any moved by more than ``noise_tol``."""
+    new_scale = scale.copy()
+    lo_b, hi_b = settings.noise_factor_bounds
+    for gi, c in _em_noise_scales(groups, res, hph, r0, use).items():
+        new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
+    moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
+    info["noise_scale"] = {name: float(new_scale[i]) for i, name in enumerate(NOISE_GROUPS.values())
+                           if np.any(groups == i)}
+    return new_scale, moved
+
+
+def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> float | None:
+    """sqrt(mean(u_hat^2 + P_uu)) over the steps ``airborne`` and both gust axes (module
+    docstring); None without such a step or with a non-finite value.
+
+    Parameters
+    ----------
+    xs, var : (N, n) smoothed states and their variances.
+    airborne : (N,) bool, the steps whose air data the smoother uses.
+    """
+    if not airborne.any():
+        return None
+    m = float(np.mean(xs[airborne, jl.S_GUST] ** 2 + var[airborne, jl.S_GUST]))
+    return float(np.sqrt(m)) if np.isfinite(m) and m > 0 else None
 
 
 def _covariances(out: PassResult | None) -> None:
@@ -95,23 +489,23 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
     if not first and s.line_search and not s.gate_damped:
         gate = 0.0
     cols = clock_columns(mdl.meas, s) if s.estimate_clock else None
-    innov, innov_var, infl, normal = jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars,
+    innov, innov_var, infl, normal = forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars,
                                                 mdl.geo, gate, xlin, cols)
     clock = None if cols is None else (cols, normal)
     kern_args = (mdl.dyn, scalars._replace(r=r * infl), mdl.geo)
     hph = Pblk = var = None
     if s.estimate_noise:
-        xs, Pblk, var, _, res, rate, hph, n_fallback = jp.backward(xf, Pf, xp, Pp, *kern_args,
+        xs, Pblk, var, _, res, rate, hph, n_fallback = backward(xf, Pf, xp, Pp, *kern_args,
                                                                    True)
     elif with_cov:
         # the covariance recursion on a second thread (the kernels release the GIL), joined
         # when its outputs are needed or the buffers are written again (:func:`_covariances`)
-        pending = jp.BackgroundCovariances((xf, Pf, xp, Pp), *kern_args)
-        xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+        pending = BackgroundCovariances((xf, Pf, xp, Pp), *kern_args)
+        xs, _, res, rate, n_fallback = backward_mean(xf, Pf, xp, Pp, *kern_args)
         return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, None, None,
                           int(n_fallback), kern_args, scalars, pending, clock=clock)
     else:
-        xs, _, res, rate, n_fallback = jp.backward_mean(xf, Pf, xp, Pp, *kern_args)
+        xs, _, res, rate, n_fallback = backward_mean(xf, Pf, xp, Pp, *kern_args)
     return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
                       kern_args, scalars, clock=clock)
 
@@ -423,7 +817,7 @@ def _passes(fl: SmootherFlight, it: Iterate, its: range, settings: JointSettings
             enough_m: float = -1.0, warm: bool = False) -> JointRun:
     """The damped Gauss-Newton passes numbered ``its`` until they settle (or a pass failed,
     or one moved the track by at most ``enough_m``), then the result of the last."""
-    ws = Buffers(jp.filter_buffers(len(fl.T)))
+    ws = Buffers(filter_buffers(len(fl.T)))
     history: list[dict[str, Any]] = []
     last, converged = None, False
     for k in its:
@@ -460,7 +854,7 @@ def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
     if Pblk is None or var is None:
         # smoothed covariances of the last pass (its states equal those of the mean-only pass
         # to round-off: same gains, same linearisation)
-        xs_c, Pblk, var, *_, n_fallback_cov = jp.backward(xf, Pf, xp, Pp, *out.kern_args, False)
+        xs_c, Pblk, var, *_, n_fallback_cov = backward(xf, Pf, xp, Pp, *out.kern_args, False)
         xs = xs_c if full else xs
         n_fallback = max(n_fallback, int(n_fallback_cov))
     r = out.scalars.r
@@ -498,9 +892,9 @@ def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pbl
     """The smoothed covariances of the last pass ``out`` (``Pblk`` (N, 6, 6), ``var`` (N, n))
     with the clock offsets' uncertainty added: the pass smoothed the track given the offsets;
     with the offsets as constant states of covariance Sigma (A^-1 of their normal
-    equations, :func:`~flightrecon.methods.joint.updates.clock_covariance`) the track's
+    equations, :func:`clock_covariance`) the track's
     marginal covariance is P_s + X_s,g Sigma X_s,g^T, X_s,g the offsets' smoothed filter
-    columns (:func:`~flightrecon.methods.joint.passes.smoothed_columns`), over the offsets
+    columns (:func:`smoothed_columns`), over the offsets
     taken (nonzero in ``clock``; an offset held at zero, not detected, is the model's zero:
     with it the simulated GNSS circuits' NEES fell to 0.45 / 0.57, below the 95 % band of 40
     runs).  Unchanged without such offsets.  (An offset's sd of 5 ms moves a track at 55 m/s
@@ -516,7 +910,7 @@ def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pbl
         return Pblk, var
     act, cov = [act[i] for i in keep], cov[np.ix_(keep, keep)]
     _, cxf, cxp = out.clock[1]
-    cols = jp.smoothed_columns(cxf[act], cxp[act], Pf, Pp, *out.kern_args)   # (a, N, n)
+    cols = smoothed_columns(cxf[act], cxp[act], Pf, Pp, *out.kern_args)   # (a, N, n)
     # X Sigma X^T per step: its diagonal, and its position-velocity block
     xsig = np.einsum("aki,ab->bki", cols, cov)
     var = var + np.einsum("aki,aki->ki", xsig, cols)
@@ -542,7 +936,7 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
     w_before = out.scalars.w
     scalars1 = out.scalars._replace(r=r1)
     xlin = it.X if it.X is not None else np.zeros((0, jl.N_STATE))
-    innov1, innov_var1, infl1, _ = jp.forward(
+    innov1, innov_var1, infl1, _ = forward(
         xf1, Pf1, xp1, Pp1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
         s.innovation_gate if s.robust else 0.0, xlin)
     sel = (w_before >= 1.0) & (out.infl <= 1.0) & (infl1 <= 1.0)
@@ -557,7 +951,7 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
     if accepted:
         return check, None
     kern_args = (mdl.dyn, scalars1._replace(r=r1 * infl1), mdl.geo)
-    xs, Pblk, var, _, res, rate, hph, n_fb1 = jp.backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
+    xs, Pblk, var, _, res, rate, hph, n_fb1 = backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
     return check, (xs, Pblk, var, res, int(n_fb1), xf1, innov1, innov_var1, r1)
 
 
@@ -611,8 +1005,8 @@ def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
     lam, evals = max(10.0 * lm_lambda, s.lm_lambda0), 0
     while lam <= s.lm_lambda_max:
         sc = with_pseudo(pass_scalars(mdl, fl.T, r, weights), X, sd, lam)
-        jp.forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
-        xs = jp.backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
+        forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
+        xs = backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
         mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
         cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
         evals += 1
@@ -643,7 +1037,7 @@ def with_gust_sd(fl: SmootherFlight, sd_mps: float) -> SmootherFlight:
 def gust_round(fl: SmootherFlight, it: Iterate, out: PassResult, X: np.ndarray, k: int
                ) -> tuple[SmootherFlight, Iterate]:
     """The gust sd re-estimated from the pass's smoothed track ``X`` (``estimate_gust``;
-    :func:`~flightrecon.methods.joint.updates.gust_sd_estimate`), recorded in the iterate's
+    :func:`gust_sd_estimate`), recorded in the iterate's
     ``gust_rounds``; where it moved by more than ``gust_tol`` the flight's models take it
     (:func:`with_gust_sd`) and the next pass starts with new models and a new cost.  At most
     ``gust_rounds`` changes."""
