@@ -326,7 +326,7 @@ def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
     the whole iteration again from the nominal."""
     s = problem_h.settings
     if s.gap_heldout_passes <= 0:
-        return smooth_joint(problem_h.inputs, s)
+        return smooth_joint(problem_h.inputs, s, problem_h.flight)
     return smooth_joint_from(problem_h.inputs, s, run, s.gap_heldout_passes,
                              enough_m=HELDOUT_ENOUGH * s.converge_m)
 

@@ -153,12 +153,13 @@ def joint_result(problem: JointProblem) -> MethodResult:
     """The joint smoother's result on ``problem``: solved, its wind walk re-estimated and its
     GNSS gaps calibrated (each an adjusted problem solved again:
     :mod:`~flightrecon.methods.joint.calibration`), then the track and the summary."""
-    run = smooth_joint(problem.inputs, problem.settings)
+    run = smooth_joint(problem.inputs, problem.settings, problem.flight)
     if problem.attitude_note:
         _warnings.warn(problem.attitude_note, FlightReconWarning, stacklevel=3)
     problem, run, wind_rounds = wind_walk_rounds(problem, run)
     run, gap_cal = calibrate_gaps(problem, run)
-    run = replace(run, flight=None)   # its iteration-independent parts go before the track
+    # the iteration-independent parts go before the track
+    run, problem = replace(run, flight=None), replace(problem, flight=None)
     if problem.frame is None:
         raise ValueError("the joint result needs the problem's output frame "
                          "(joint_problem builds it)")

@@ -42,6 +42,7 @@ from flightrecon.methods.joint.inputs import (
     with_end_points,
     without_floor_loads,
 )
+from flightrecon.methods.joint.linearisation import SmootherFlight, smoother_flight
 from flightrecon.methods.joint.settings import (
     JointNoise,
     JointSettings,
@@ -92,6 +93,10 @@ class JointProblem:
         (:func:`~flightrecon.methods.joint.attitude_source.gnss_tilt_evidence`), or None
     attitude_note : the attitude source's note for the user, or None
     frame : what the output needs of the flight (None: a problem built from inputs alone)
+    flight : what the passes hold fixed, built once (the state grid, the increments of the held
+        inputs, the attitude step means, the measurement table's static part:
+        :func:`~flightrecon.methods.joint.linearisation.smoother_flight`), or None (built by
+        the solve)
     """
 
     inputs: JointInputs
@@ -100,6 +105,7 @@ class JointProblem:
     tilt_evidence: dict[str, Any] | None = None
     attitude_note: str | None = None
     frame: OutputFrame | None = None
+    flight: SmootherFlight | None = None
 
     @property
     def end_points(self) -> tuple[EndPoint, ...]:
@@ -399,7 +405,8 @@ def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> 
     inp = joint_inputs(clean, s3.noise)
     final, more, tilt_ev, note = resolved_settings(clean, inp, s3)
     return JointProblem(inputs=inp, settings=final, choices=choices + more,
-                        tilt_evidence=tilt_ev, attitude_note=note, frame=output_frame(clean))
+                        tilt_evidence=tilt_ev, attitude_note=note, frame=output_frame(clean),
+                        flight=smoother_flight(inp, final))
 
 
 def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: float,
