@@ -421,9 +421,9 @@ def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSet
         tau = tt[0] - T[k]
         psi = ep.runway_rad
         Ca = ned_to_ecef_matrix(lat, lon)[0]
-        for u, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
-                          [0.0, 0.0, 1.0]), ep.sd_m):
-            u = np.asarray(u)
+        for row, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
+                            [0.0, 0.0, 1.0]), ep.sd_m):
+            u = np.asarray(row)
             H = np.zeros((1, jl.N_STATE))
             H[0, jl.S_POS] = Ca @ u
             H[0, jl.S_VEL] = u * tau

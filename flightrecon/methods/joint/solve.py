@@ -240,7 +240,7 @@ class PassResult:
     Pblk: np.ndarray | None
     var: np.ndarray | None
     n_fallback: int
-    kern_args: tuple[Any, ...]
+    kern_args: tuple[Dynamics, Scalars, Geometry]
     scalars: jl.Scalars
     pending: BackgroundCovariances | None = None  # its covariance pass, still on its thread
     #                                               (Pblk and var None until joined)
@@ -613,8 +613,9 @@ def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
     weights 1 its Gauss-Newton step need not lower the robust cost)."""
     if it.X is None:
         return None, weights
-    same = mdl is it.models and it.cost is not None and np.array_equal(it.scale, it.cost[3])
-    start = it.cost if same else pass_cost(fl, mdl, it.X, r, weights)
+    cached = it.cost if mdl is it.models else None
+    start = (cached if cached is not None and np.array_equal(it.scale, cached[3])
+             else pass_cost(fl, mdl, it.X, r, weights))
     if reset:
         weights = robust_weights(start[1] / np.sqrt(r), weights, fl.settings)
     return start, weights
