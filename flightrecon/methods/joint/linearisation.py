@@ -438,7 +438,7 @@ def pass_scalars(mdl: PassModels, T: np.ndarray, r: np.ndarray, weights: np.ndar
 def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
           weights: np.ndarray) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
     """MAP cost of ``X`` (models built about it) and its residuals and rates
-    (:func:`~flightrecon.methods.joint.cost.map_cost`)."""
+    (:func:`~flightrecon.methods.joint.model.map_cost`)."""
     s = fl.settings
     assert fl.x0 is not None and fl.P0inv is not None
     # the weights only mark left-out measurements (w <= 0); the loss is the robust one

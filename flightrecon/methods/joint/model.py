@@ -188,7 +188,7 @@ def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
 def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
     """P += Q_k in place, touching only the nonzero entries of Q_k. q = [q_acc, q_wind_t,
     q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust, dq_n, dq_e, dq_d] (see
-    JointNoise and :func:`flightrecon.methods.joint.nominal.q_vector`); ``|dz[k]|`` is
+    JointNoise and :func:`flightrecon.methods.joint.linearisation.q_vector`); ``|dz[k]|`` is
     the height change over the step (wind varies with altitude), ``qv_extra[k]`` extra
     acceleration PSD where the load factors are missing, ``ga[k]`` the gust's decay over the
     step (exact discretisation of the first-order Gauss-Markov gust: var_gust (1 - ga^2)).

@@ -13,7 +13,7 @@ The data-driven settings (docs/joint.md): the priors of a heading from the body 
 a derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g`` (those of the channels
 alone: :mod:`~flightrecon.methods.joint.settings`), the loads' sampling noise of a slow record,
 the pressure-altitude scale from the SAT and the attitude reference's tilt noise
-(:mod:`~flightrecon.methods.joint.attitude_source`)."""
+(:mod:`~flightrecon.methods.joint.problem`)."""
 
 from __future__ import annotations
 
@@ -90,7 +90,7 @@ class JointProblem:
     settings : the settings, every data-driven one resolved
     choices : the data-driven choices in the order made, each with its evidence
     tilt_evidence : what the GNSS fixes measured of the attitude's load-driven error
-        (:func:`~flightrecon.methods.joint.attitude_source.gnss_tilt_evidence`), or None
+        (:func:`~flightrecon.methods.joint.problem.gnss_tilt_evidence`), or None
     attitude_note : the attitude source's note for the user, or None
     frame : what the output needs of the flight (None: a problem built from inputs alone)
     flight : what the passes hold fixed, built once (the state grid, the increments of the held
@@ -360,7 +360,7 @@ def resolved_settings(clean: CleanFlight, inp: JointInputs, settings: JointSetti
     evidence and the attitude source's note: the loads' sampling noise
     (:func:`sampled_loads_noise`), the SAT's prior of the pressure-altitude scale
     (:func:`temperature_baro_prior`), the attitude reference's tilt noise
-    (:func:`~flightrecon.methods.joint.attitude_source.attitude_source_noise`), in this order
+    (:func:`~flightrecon.methods.joint.problem.attitude_source_noise`), in this order
     (each reads the settings the one before it chose)."""
     meta = clean.meta
     current = sampled_loads_noise(inp, settings)
