@@ -37,10 +37,6 @@ from flightrecon.methods.joint.problem import JointProblem, SettingChoice
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint_from
 
-__all__ = ["apply_factor", "calibrate_gaps", "calibration_factor", "gnss_gaps",
-           "fix_noise", "heldout_errors", "heldout_smoothing", "inertial_wind_share",
-           "pseudo_gaps", "wind_walk_rounds"]
-
 
 def gnss_gaps(inp: JointInputs, min_gap_s: float) -> list[tuple[float, float]]:
     """The stretches between consecutive horizontal GNSS fixes longer than ``min_gap_s`` [s]

@@ -21,6 +21,7 @@ from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import (
     JointInputs,
     TakeoffRoll,
+    airborne_samples,
     end_points_at,
     nearest_index,
 )
@@ -155,11 +156,7 @@ def wind_prior_measurements(inp: JointInputs, settings: JointSettings
     t_in = inp.t_in
     wa = np.asarray(inp.wind_aloft, float)
     ok = (np.isfinite(wa).all(axis=1) & np.isfinite(inp.baro_rel_m) & np.isfinite(inp.tas)
-          & (inp.tas >= settings.min_airspeed_mps))
-    if np.isfinite(inp.liftoff_t):
-        ok &= t_in >= inp.liftoff_t
-    if np.isfinite(inp.touchdown_t):
-        ok &= t_in <= inp.touchdown_t
+          & (inp.tas >= settings.min_airspeed_mps) & airborne_samples(inp))
     cand = np.flatnonzero(ok)
     if len(cand) == 0:
         return empty
