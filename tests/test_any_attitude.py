@@ -19,7 +19,7 @@ from flightrecon.geo.kinematics import (
     kinematic_acceleration_ned,
     load_factors_from_acceleration,
 )
-from flightrecon.methods.joint.nominal import attitude_jacobian, attitude_step_means
+from flightrecon.methods.joint.linearisation import attitude_jacobian, attitude_step_means
 
 # (roll, pitch, heading) [deg]: steep bank, knife edge, inverted, near the vertical both ways
 ATTITUDES = [(120.0, 10.0, 30.0), (180.0, 0.0, 200.0), (-150.0, -40.0, 300.0),

@@ -10,9 +10,10 @@ import pytest
 
 from flightrecon.cleaning import clean_flight
 from flightrecon.ingest import load_flight
-from flightrecon.methods.joint import JointSettings, innovation_loglik
-from flightrecon.methods.joint import noise as joint_noise
+from flightrecon.methods.joint import JointSettings
+from flightrecon.methods.joint import solve as joint_noise
 from flightrecon.methods.joint.method import run_joint
+from flightrecon.methods.joint.solve import innovation_loglik
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 

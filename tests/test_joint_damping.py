@@ -19,12 +19,16 @@ from flightrecon.cleaning import clean_flight
 from flightrecon.methods.joint import JointSettings
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint import linearisation as lin
-from flightrecon.methods.joint import smoother as sm
-from flightrecon.methods.joint import updates as upd
-from flightrecon.methods.joint.cost import map_cost, robust_loss
-from flightrecon.methods.joint.dynamics import add_process_noise, transition
+from flightrecon.methods.joint import solve as sm
+from flightrecon.methods.joint import solve as upd
 from flightrecon.methods.joint.method import run_joint
-from flightrecon.methods.joint.observation import measure
+from flightrecon.methods.joint.model import (
+    add_process_noise,
+    map_cost,
+    measure,
+    robust_loss,
+    transition,
+)
 from flightrecon.methods.joint.problem import joint_inputs
 from flightrecon.types import Flight
 

@@ -198,7 +198,7 @@ def _circuit_with_a_gap():
     from flightrecon.ingest.gnss_use import GnssUse
     from flightrecon.methods.joint.problem import joint_inputs
     from flightrecon.methods.joint.settings import JointSettings
-    from flightrecon.methods.joint.smoother import smooth_joint
+    from flightrecon.methods.joint.solve import smooth_joint
 
     samples = Path(__file__).resolve().parents[1] / "sample_logs"
     clean = clean_flight(load_flight(samples / "circuit.csv",
@@ -256,7 +256,7 @@ def test_the_held_out_smoothing_reuses_the_runs_fixed_parts_to_the_bit():
     again; any other difference builds them again."""
     from dataclasses import replace as dc_replace
 
-    from flightrecon.methods.joint import smoother as sm
+    from flightrecon.methods.joint import solve as sm
     from flightrecon.methods.joint.calibration import heldout_problem, heldout_smoothing
 
     inp, settings, run = _circuit_with_a_gap()

@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flightrecon.methods.joint.ground import decimate_mask, first_in_bin
+from flightrecon.methods.joint.measurements import decimate_mask, first_in_bin
 
 
 def _first_of_each_bin(t: np.ndarray, rate_hz: float, origin: float | None) -> np.ndarray:

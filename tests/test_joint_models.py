@@ -10,11 +10,11 @@ from flightrecon.estimation import rts as est_rts
 from flightrecon.estimation.manifold import EUCLIDEAN
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
-from flightrecon.methods.joint import dynamics as jd
 from flightrecon.methods.joint import enu_to_ecef_matrix
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint import observation as jo
-from flightrecon.methods.joint import passes as jp
+from flightrecon.methods.joint import model as jd
+from flightrecon.methods.joint import model as jo
+from flightrecon.methods.joint import solve as jp
 
 
 def _setup(rng):
@@ -238,7 +238,7 @@ def _step_mean(x, idx, t_in):
 
 def test_fused_attitude_step_means_equal_the_per_sample_route():
     from flightrecon.geo.kinematics import body_to_ned_matrix
-    from flightrecon.methods.joint.nominal import (
+    from flightrecon.methods.joint.linearisation import (
         attitude_jacobian,
         attitude_step_means,
         state_grid,
@@ -260,7 +260,7 @@ def test_fused_attitude_step_means_equal_the_per_sample_route():
 
 def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
     """Positions of a cubic path with exact velocities are reproduced to round-off."""
-    from flightrecon.methods.joint.track import hermite_positions
+    from flightrecon.methods.joint.output import hermite_positions
 
     T = np.array([0.0, 1.0, 2.5, 4.0])
     t = np.linspace(-0.5, 4.5, 41)   # includes points outside (clamped to the ends)
@@ -418,9 +418,8 @@ def test_gust_process_noise_keeps_the_stationary_variance():
     """Guards the exact discretisation of the first-order Gauss-Markov gust (docs/joint.md,
     "Wind and turbulence"): from its stationary variance sigma^2, one step of any length keeps
     sigma^2 (F P F^T + Q = a^2 s^2 + s^2 (1 - a^2)); the other states' noise is unchanged."""
-    from flightrecon.methods.joint.nominal import q_vector
+    from flightrecon.methods.joint.linearisation import gust_decay, q_vector
     from flightrecon.methods.joint.settings import JointNoise
-    from flightrecon.methods.joint.turbulence import gust_decay
     nz = JointNoise(gust_mps=2.5, gust_length_m=400.0)
     q = q_vector(nz)
     rng = np.random.default_rng(5)
@@ -506,7 +505,7 @@ def test_heading_kept_only_where_the_nose_is_along_the_air():
     """Guards the air-data heading's attitude gate (docs/joint.md, "Measurements"): in a
     spiral dive or a spin the nose is not along the air velocity, and the heading must not be
     used as its direction; level and moderately banked samples keep it."""
-    from flightrecon.methods.joint.airdata import nose_along_air
+    from flightrecon.methods.joint.measurements import nose_along_air
     from flightrecon.methods.joint.settings import JointSettings
 
     # a roll of 190 deg is -170 deg, a pitch of 151 deg (past the vertical) is 29 deg inverted
@@ -531,8 +530,8 @@ def test_nose_offset_is_the_angle_between_nose_and_air_velocity(roll, pitch, alp
     import pandas as pd
 
     from flightrecon.geo.kinematics import body_to_ned_matrix
-    from flightrecon.methods.joint.airdata import nose_offset
     from flightrecon.methods.joint.inputs import JointInputs
+    from flightrecon.methods.joint.measurements import nose_offset
 
     C = body_to_ned_matrix(roll, pitch, heading)[0]
     a = np.radians(alpha)
@@ -561,8 +560,8 @@ def test_nose_offset_left_out_where_the_angle_of_attack_is_not_believable():
     can only explain with an angle of attack of 30 deg (a stall) gives no offset."""
     import pandas as pd
 
-    from flightrecon.methods.joint.airdata import nose_offset
     from flightrecon.methods.joint.inputs import JointInputs
+    from flightrecon.methods.joint.measurements import nose_offset
 
     t = np.arange(0.0, 10.0, 0.0625)
     n = len(t)
@@ -585,9 +584,8 @@ def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
 
     import pandas as pd
 
-    from flightrecon.methods.joint.ground import runway_measurements
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder
+    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
     from flightrecon.methods.joint.settings import JointSettings
 
     assert JointSettings().noise.ground_slip_deg == 0.0
@@ -634,9 +632,8 @@ def test_lined_up_at_rest_the_heading_gives_its_bias():
     there is no row."""
     import pandas as pd
 
-    from flightrecon.methods.joint.ground import lineup_heading
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder
+    from flightrecon.methods.joint.measurements import _MeasBuilder, lineup_heading
     from flightrecon.methods.joint.settings import JointSettings
 
     t = np.arange(0.0, 60.0, 0.25)
@@ -676,9 +673,8 @@ def _runway_rows(t, hdg, tas, settings=None, **where):
     touchdown, runway and roll.  Returns the rows, their H, the settings and the state grid."""
     import pandas as pd
 
-    from flightrecon.methods.joint.ground import runway_measurements
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder
+    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
     from flightrecon.methods.joint.settings import JointSettings
 
     n = len(t)
@@ -703,7 +699,7 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     the rest itself) keep the white noise alone; without a rest the reference is the roll's
     mean heading."""
     from flightrecon.cleaning.ground_roll import TakeoffRoll
-    from flightrecon.methods.joint.ground import steering_variance
+    from flightrecon.methods.joint.measurements import steering_variance
     from flightrecon.methods.joint.settings import JointSettings
 
     t = np.arange(0.0, 80.0, 0.25)
@@ -741,7 +737,7 @@ def test_implausible_sensor_error_is_named():
     """Guards the joint's health rule against implausible sensor errors: an airspeed scale 25
     prior sd from its prior is reported (and makes the track unhealthy in run_joint); one at
     3 sd is not."""
-    from flightrecon.methods.joint.diagnostics import implausible_corrections
+    from flightrecon.methods.joint.health import implausible_corrections
 
     c = {"tas_scale": {"value": 0.75, "sd": 0.01, "prior_mean": 0.0, "prior_sd": 0.03},
          "heading_bias_deg": {"value": -6.0, "sd": 0.5, "prior_mean": 0.0, "prior_sd": 2.0}}
@@ -754,7 +750,7 @@ def test_gust_at_its_upper_bound_is_named():
     dropped); an estimate below it, or no estimate at all, says nothing."""
     from types import SimpleNamespace
 
-    from flightrecon.methods.joint.diagnostics import gust_warnings
+    from flightrecon.methods.joint.health import gust_warnings
 
     rounds = [{"pass": 1, "gust_mps": 2.0, "estimate_mps": 9.0, "changed": True}]
     assert gust_warnings(SimpleNamespace(gust={"sd_mps": 8.0, "rounds": rounds}), 8.0)
@@ -771,7 +767,7 @@ def test_a_wind_that_turns_faster_than_its_random_walk_is_named():
     10-minute window's change (about 13 m/s) against the 1.2 m/s sd the walk allows."""
     from types import SimpleNamespace
 
-    from flightrecon.methods.joint.diagnostics import wind_walk_check, wind_walk_warning
+    from flightrecon.methods.joint.health import wind_walk_check, wind_walk_warning
 
     t = np.arange(0.0, 2400.0, 1.0)
     n = len(t)
@@ -823,10 +819,10 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     def fake_run(wind):
         x = np.zeros((n, jl.N_STATE))
         x[:, jl.S_WIND] = wind
-        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
+        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0), flight=None)
     turning = fake_run(22.0 * np.c_[np.cos(ang), np.sin(ang)])
     calls = []
-    monkeypatch.setattr(jm, "smooth_joint", lambda inp, s: calls.append(s) or turning)
+    monkeypatch.setattr(jm, "smooth_joint", lambda inp, s, fl: calls.append(s) or turning)
     stand_in = SimpleNamespace(gnss=pd.DataFrame(), radar=pd.DataFrame(), fixes=None,
                                wind_ne=None, doppler_gs=None, wind_aloft=None,
                                liftoff_t=np.nan, touchdown_t=np.nan)
@@ -858,7 +854,7 @@ def test_increments_do_not_lag_a_turning_acceleration():
     the turn direction; docs/joint.md "Increments"). The centred hold's error is second order:
     9e-7 of the velocity increment and 1.7e-5 of the position increment here, where the
     forward hold's is 1.6e-3 for both (bounds 1e-5 and 5e-5)."""
-    from flightrecon.methods.joint.nominal import held_increments, state_grid
+    from flightrecon.methods.joint.linearisation import held_increments, state_grid
 
     w = np.radians(3.0)                                 # rate-one turn
     t = np.arange(0.0, 60.0, 1.0 / 16.0)
@@ -889,9 +885,8 @@ def test_runway_centreline_runs_through_the_threshold():
     import pandas as pd
 
     from flightrecon.geo.frames import offset_latlon
-    from flightrecon.methods.joint.ground import runway_measurements
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder
+    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
     from flightrecon.methods.joint.settings import JointSettings
 
     rw = np.radians(237.0)
@@ -936,9 +931,8 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
     the rows keep the half-width alone."""
     import pandas as pd
 
-    from flightrecon.methods.joint.ground import runway_measurements
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder
+    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
     from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
     rw = np.radians(237.0)
@@ -989,7 +983,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
     import pandas as pd
 
     import flightrecon.methods.joint.calibration as jm
-    from flightrecon.methods.joint.diagnostics import wind_walk_check
+    from flightrecon.methods.joint.health import wind_walk_check
     from flightrecon.methods.joint.problem import JointProblem
     from flightrecon.methods.joint.settings import JointSettings
 
@@ -998,7 +992,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
     ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
     x = np.zeros((n, jl.N_STATE))
     x[:, jl.S_WIND] = 4.0 * np.c_[np.cos(ang), np.sin(ang)]
-    turning = SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
+    turning = SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0), flight=None)
     chord = 2 * 4.0 * np.sin(np.radians(100.0 / 6))
     Q = 0.05 ** 2 * 600.0
     assert wind_walk_check(turning, 0.05, 0.05) is None           # the bound: 3.5 < 12.0
@@ -1028,7 +1022,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
                            p_false=1e-4) is None
 
     calls = []
-    monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s: calls.append(s) or turning)
+    monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s, fl: calls.append(s) or turning)
     _, run, rounds = jm.wind_walk_rounds(JointProblem(inp, one_hz), turning)  # type: ignore[arg-type]
     q1 = (z2 * (Q + r * 600.0) / limit - r * 600.0) / 600.0
     assert rounds[0]["z2"] == pytest.approx(z2, rel=1e-9)
@@ -1060,7 +1054,7 @@ def test_background_covariance_pass_raises_its_error_where_it_is_joined(monkeypa
     outputs come back from :meth:`result`, and an error of the pass is raised there, on the
     thread that waits for it, not lost with its thread."""
 
-    from flightrecon.methods.joint import passes as jp
+    from flightrecon.methods.joint import solve as jp
 
     def fake(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
         assert residuals is False

@@ -32,9 +32,9 @@ from flightrecon.geo.atmosphere import (
 )
 from flightrecon.geo.pressure_height import MIN_SAT_SAMPLES
 from flightrecon.methods.joint import JointSettings
-from flightrecon.methods.joint import dynamics as jd
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.nominal import q_vector
+from flightrecon.methods.joint import model as jd
+from flightrecon.methods.joint.linearisation import q_vector
 from flightrecon.methods.joint.problem import (
     baro_field_reference_m,
     sampled_loads_noise,
@@ -149,7 +149,7 @@ def test_runway_rows_leave_the_taxi_out():
     reference along the runway) hold from the line-up to lift-off and from touchdown to the
     first heading 10 deg off the landing roll's, not on the taxiways (before: every ground
     sample, 233 m off at lift-off on the Garmin export with a 24 m sd)."""
-    from flightrecon.methods.joint.ground import on_runway_mask
+    from flightrecon.methods.joint.measurements import on_runway_mask
     t = np.arange(0.0, 200.0)
     psi = np.radians(np.r_[np.full(30, 180.0), np.full(40, 70.0),     # taxi, then runway 07
                            np.full(60, 70.0),                          # airborne
@@ -327,7 +327,7 @@ def test_missing_accelerations_weigh_their_psd_in_the_step_share():
     weighted by the inputs' ``missing_psd`` (1 without it): on a 1 Hz input with samples 3 and
     4 missing (2 s of centred holds) and a 2 s state grid, 2 s in all, and with a PSD of 9 on
     those samples 18, step by step 9 times the unweighted share."""
-    from flightrecon.methods.joint.nominal import held_increments
+    from flightrecon.methods.joint.linearisation import held_increments
 
     t = np.arange(0.0, 9.0)
     acc = np.zeros((9, 3))

@@ -133,7 +133,7 @@ def test_the_declared_attitude_source_switches_the_tilt_noise(tmp_path):
     inertial; a wrong value is refused."""
     from flightrecon.errors import MetadataError
     from flightrecon.ingest.sidecar import load_sidecar
-    from flightrecon.methods.joint.attitude_source import (
+    from flightrecon.methods.joint.problem import (
         AHRS_TILT_HORIZONTAL,
         AHRS_TILT_MPS2_PER_G,
         UNDECLARED_TILT_WARN_G,
@@ -179,7 +179,7 @@ def test_the_gnss_measured_tilt_gain_sets_the_noise():
     0.25 m/s^2 per g on (below it the attitude holds: no noise, no note), at most the PH-LAB
     figure; a declared AHRS takes the measured gain whatever its size; a declared inertial
     source and a gain given in the settings win over the measurement."""
-    from flightrecon.methods.joint.attitude_source import (
+    from flightrecon.methods.joint.problem import (
         TILT_GAIN_MIN_MPS2_PER_G,
         attitude_source_noise,
     )

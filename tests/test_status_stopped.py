@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 
 from flightrecon.errors import ConvergenceError
-from flightrecon.methods.joint.settling import (
+from flightrecon.methods.joint.health import (
     SETTLE_SD_FRACTION,
     settling,
     settling_sentence,

@@ -240,7 +240,7 @@ def test_concurrent_record_flight_one_record_per_log(tmp_path):
 def test_joint_priors_set_the_initial_state():
     from flightrecon.methods.joint import JointSettings, prior_of
     from flightrecon.methods.joint import layout as jk
-    from flightrecon.methods.joint.nominal import initial_estimate
+    from flightrecon.methods.joint.linearisation import initial_estimate
 
     s = JointSettings(priors=(("tas_scale", 0.02, 0.002), ("heading_bias_deg", 0.8, 0.05)))
     assert prior_of("tas_scale", s) == (0.02, 0.002)

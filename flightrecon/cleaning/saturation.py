@@ -33,7 +33,7 @@ ground, a true reading of "slow").  Every sample at a saturation level is flagge
 grid ``<channel>_saturated`` is True wherever the value was interpolated from (or is) a
 saturated sample.  The values are kept (they are the recorder's), and the consumers decide:
 the joint smoother treats a saturated load factor as missing (acceleration noise added over
-the step, :mod:`flightrecon.methods.joint.nominal`), the true value being at least the bound;
+the step, :mod:`flightrecon.methods.joint.linearisation`), the true value being at least the bound;
 Sabziev's fit and the dead reckoning integrate the readings as recorded (the error is the
 excess beyond the bound, over the saturated samples only; docs/signals.md).
 """

@@ -29,18 +29,13 @@ from flightrecon.errors import FlightReconError
 from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.memory import release_unused
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.diagnostics import wind_walk_check
+from flightrecon.methods.joint.health import wind_walk_check
 from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
+from flightrecon.methods.joint.output import hermite_positions
 from flightrecon.methods.joint.problem import JointProblem, SettingChoice
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.smoother import smooth_joint, smooth_joint_from
-from flightrecon.methods.joint.state import JointRun
-from flightrecon.methods.joint.track import hermite_positions
-
-__all__ = ["apply_factor", "calibrate_gaps", "calibration_factor", "gnss_gaps",
-           "fix_noise", "heldout_errors", "heldout_smoothing", "inertial_wind_share",
-           "pseudo_gaps", "wind_walk_rounds"]
+from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint_from
 
 
 def gnss_gaps(inp: JointInputs, min_gap_s: float) -> list[tuple[float, float]]:
@@ -321,13 +316,13 @@ def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> J
 def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
     """The flight smoothed once more without the held-out fixes (``problem_h``,
     :func:`heldout_problem`): by default ``settings.gap_heldout_passes`` Gauss-Newton passes
-    from the converged ``run`` (:func:`~flightrecon.methods.joint.smoother.smooth_joint_from`;
+    from the converged ``run`` (:func:`~flightrecon.methods.joint.solve.smooth_joint_from`;
     one pass costs a third of the whole iteration and gives the held-out errors and sd of the
     whole iteration to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0
     the whole iteration again from the nominal."""
     s = problem_h.settings
     if s.gap_heldout_passes <= 0:
-        return smooth_joint(problem_h.inputs, s)
+        return smooth_joint(problem_h.inputs, s, problem_h.flight)
     return smooth_joint_from(problem_h.inputs, s, run, s.gap_heldout_passes,
                              enough_m=HELDOUT_ENOUGH * s.converge_m)
 
@@ -398,7 +393,7 @@ def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
     ``r = accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` with ``s`` the horizontal
     ``accel_sampling_mps2_sqrt_hz``.  The smoothed wind change is then the share
     ``kappa = Q / (Q + r L)`` of the observed one (``Q`` the wind model's variance over L;
-    :func:`~flightrecon.methods.joint.diagnostics.wind_walk_check`): of a 1 Hz export
+    :func:`~flightrecon.methods.joint.health.wind_walk_check`): of a 1 Hz export
     ``r`` is about 0.08 m^2/s^3 (JSBSim's fleet; 0.011 the shipped G1000 export) and over
     ten minutes of the default walk (``Q`` = 1.5 m^2/s^2) ``kappa`` is 0.03 (0.19), where a
     wind that turns moves the smoothed wind by little.  A recorder-rate log (no sampling
@@ -427,7 +422,7 @@ LOADS_WITNESS_P_FALSE = 1e-4
 def wind_walk_rounds(problem: JointProblem, run: JointRun
                      ) -> tuple[JointProblem, JointRun, list[dict[str, Any]]]:
     """Where the smoothed wind moved faster than its random walk allows
-    (:func:`~flightrecon.methods.joint.diagnostics.wind_walk_check`, with the loads' PSD
+    (:func:`~flightrecon.methods.joint.health.wind_walk_check`, with the loads' PSD
     ``r`` of :func:`inertial_wind_share`), the walk re-estimated from the flight and the
     smoother run again, at most ``settings.wind_rounds`` times.
 
@@ -466,14 +461,14 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
         rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
                        "limit": c["limit"], "loads_psd_m2ps3": r})
         problem = wind_walk_adjusted(problem, c, r)
-        run = smooth_joint(problem.inputs, problem.settings)
+        run = smooth_joint(problem.inputs, problem.settings, run.flight)
     return problem, run, rounds
 
 
 def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
                        loads_psd_m2ps3: float) -> JointProblem:
     """The problem with the wind walk the check ``check``
-    (:func:`~flightrecon.methods.joint.diagnostics.wind_walk_check`) calls for
+    (:func:`~flightrecon.methods.joint.health.wind_walk_check`) calls for
     (:func:`wind_walk_rounds`), never below the present one, kept below
     ``wind_rw_max_mps_sqrt_s``; the choice and its evidence appended."""
     settings = problem.settings

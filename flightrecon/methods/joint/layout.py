@@ -1,9 +1,8 @@
 """State layout and measurement types of the joint post-flight smoother's compiled kernels.
 
-The kernels: :mod:`~flightrecon.methods.joint.dynamics` (transition, process noise),
-:mod:`~flightrecon.methods.joint.observation` (measurements) and
-:mod:`~flightrecon.methods.joint.passes` (forward filter, backward smoother); the smoother that
-drives them: :mod:`flightrecon.methods.joint`.
+The kernels: :mod:`~flightrecon.methods.joint.model` (transition, process noise, measurement
+functions, MAP cost); the passes and iterations that drive them:
+:mod:`~flightrecon.methods.joint.solve`.
 
 State (n = 26), SI units::
 
@@ -25,25 +24,7 @@ State (n = 26), SI units::
                  velocity [m/s] (first-order Gauss-Markov in distance flown: correlation
                  length L, sd sigma_u)
 
-Propagation over one state step of length dt (inputs held between input samples)::
-
-    p+ = p + C_en (v dt + dP_meas + J_p [dpsi, b_a])        dP_meas, dV_meas: increments of the
-    v+ = v + dV_meas + J_v [dpsi, b_a]                       measured kinematic acceleration
-    w+ = w + g dz + noise (random walk in time and in altitude)  over the step (exact for held
-    g+ = g + noise (random walk in time)                     inputs; dz: the nominal's climb)
-                                                             plus the Coriolis and transport-
-                                                             rate acceleration at the nominal
-                                                             velocity: linearisation.py
-    u+ = a u + noise,  a = exp(-V dt / L), var sigma_u^2 (1 - a^2)   (V: the recorded airspeed)
-    b_a+ = exp(-dt/tau) b_a + noise
-
-with J_v = [[a_E, -a_N, 0]^T dt, -g0 C_nb dt, -g0 C_nb diag(f) dt, -g0 dC/dphi f dt,
--g0 dC/dtheta f dt] and J_p = J_v dt / 2: the heading bias rotates the measured horizontal
-acceleration, the accelerometer bias and scale errors add through the attitude (f: measured
-specific force in body axes, in g), and the roll and pitch biases tilt it:
-dC/dphi f = C_nb (e_x x f) and dC/dtheta f = C_nb (u x f), u = (0, cos phi, -sin phi)
-(C_nb = R_z R_y R_x; R_x^T e_y = u), both as step means over the held inputs.  C_en (NED -> ECEF) is
-evaluated on the nominal trajectory (Gauss-Newton linearisation, refreshed each iteration).
+Propagation over one state step: :func:`~flightrecon.methods.joint.model.transition_into`.
 
 Measurements are scalars processed one at a time at their own step, with ``tau`` = their time
 minus the step's time (the state is carried to the measurement time by the velocity):

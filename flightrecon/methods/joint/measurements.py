@@ -1,6 +1,16 @@
-"""Measurements of the joint smoother: every source's scalar measurements, each at its own time."""
+"""The joint smoother's measurement table (:class:`~flightrecon.methods.joint.layout.
+Measurements`): every source's scalar measurements, each at its own time (docs/joint.md,
+"Measurements").  The part that no pass changes (air data, Doppler, recorded wind, the
+winds-aloft prior, pressure altitude, the ground's vertical rows: :func:`static_measurements`)
+is built once; the GNSS, radar, known positions, end points and the runway rows depend on the
+linearisation and the clock offsets (:func:`build_measurements`).  Also here: where the
+air-data heading stands for the air velocity's direction (:func:`nose_along_air`,
+:func:`nose_offset`) and the ground rows (which samples are on the ground, the runway's
+constraints on a roll: :func:`runway_measurements`)."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -8,19 +18,12 @@ import numpy as np
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.airdata import nose_along_air, nose_offset
-from flightrecon.methods.joint.ground import (
-    decimate_mask,
-    lineup_heading,
-    on_ground_mask,
-    runway_measurements,
-)
 from flightrecon.methods.joint.inputs import (
     JointInputs,
     TakeoffRoll,
+    airborne_samples,
     end_points_at,
     nearest_index,
-    refined_roll,
 )
 from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
@@ -153,11 +156,7 @@ def wind_prior_measurements(inp: JointInputs, settings: JointSettings
     t_in = inp.t_in
     wa = np.asarray(inp.wind_aloft, float)
     ok = (np.isfinite(wa).all(axis=1) & np.isfinite(inp.baro_rel_m) & np.isfinite(inp.tas)
-          & (inp.tas >= settings.min_airspeed_mps))
-    if np.isfinite(inp.liftoff_t):
-        ok &= t_in >= inp.liftoff_t
-    if np.isfinite(inp.touchdown_t):
-        ok &= t_in <= inp.touchdown_t
+          & (inp.tas >= settings.min_airspeed_mps) & airborne_samples(inp))
     cand = np.flatnonzero(ok)
     if len(cand) == 0:
         return empty
@@ -236,24 +235,22 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
-                       Cnb_T: np.ndarray, clock: dict[str, float],
-                       static: _MeasBuilder | None = None, pnom: np.ndarray | None = None,
-                       vnom: np.ndarray | None = None,
-                       roll: TakeoffRoll | None = None,
-                       psi_hat: np.ndarray | None = None) -> Measurements:
+                       clock: dict[str, float], static: _MeasBuilder, pnom: np.ndarray,
+                       vnom: np.ndarray, roll: TakeoffRoll,
+                       psi_hat: np.ndarray | None) -> Measurements:
     """Every source as scalar measurements at its own time (recorder time base).
 
-    ``static`` is :func:`static_measurements` (computed here if not given); the GNSS, radar,
-    known-position (``--fix``), end-point and runway measurements depend on the linearisation
-    (``Cen``, the nominal ECEF positions ``pnom`` and NED velocities ``vnom`` on the state
-    grid) and on the clock offsets
+    ``static`` is :func:`static_measurements`; the GNSS, radar, known-position (``--fix``),
+    end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
+    positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
     ``clock`` (seconds *added* to each group's time stamps, the convention of
     ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is
-    :func:`refined_roll` (computed here if not given); ``psi_hat`` the heading bias of the last
-    pass (per state step), about which the ground constraints are linearised.
+    the pass's take-off roll (:func:`~flightrecon.methods.joint.inputs.refined_roll`);
+    ``psi_hat`` the heading bias of the last pass (per state step; None: zero), about which
+    the ground constraints are linearised.
     """
     nz = settings.noise
-    b = (static if static is not None else static_measurements(inp, settings, T)).copy()
+    b = static.copy()
     _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
     # height (then at the substitute height, as a GNSS fix without one)
@@ -263,13 +260,12 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         hf = fx[:, 3].copy()
         no_hf = ~np.isfinite(hf)
         if no_hf.any():
-            hf = np.where(no_hf, _substitute_height(inp, T, tf, pnom), hf)
+            hf = np.where(no_hf, _substitute_height(T, tf, pnom), hf)
         ex, ey, ez = geodetic_to_ecef(fx[:, 1], fx[:, 2], hf)
         sd_f = fx[:, 4]
         _add_ned_components(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
                         "pos", np.c_[ex, ey, ez])
-    if pnom is not None and vnom is not None:
-        runway_measurements(b, inp, settings, lambda t: nearest_index(T, t), pnom, vnom, psi_hat)
+    runway_measurements(b, inp, settings, lambda t: nearest_index(T, t), pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -282,8 +278,6 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
                   np.radians(nz.radar_elevation_deg) ** 2)
     # the take-off roll, with the smoothed lift-off speed once there is one (the recorded
     # airspeed carries the head wind); at rest before it (lined up): zero north and east velocity
-    if roll is None:
-        roll = refined_roll(inp, T, vnom)
     r0, r1 = roll.rest_t
     if np.isfinite(r0):
         t_in = inp.t_in
@@ -317,20 +311,16 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
             b.add(source, jl.STATE, t, comp_vals[i], r, d=a_i * tau, index=jl.IV + i, rate=a_i)
 
 
-def _substitute_height(inp: JointInputs, T: np.ndarray, t: np.ndarray,
-                       pnom: np.ndarray | None) -> np.ndarray:
+def _substitute_height(T: np.ndarray, t: np.ndarray, pnom: np.ndarray) -> np.ndarray:
     """Ellipsoidal height [m] for a position given without one at times ``t``: the nominal
-    track's at the nearest state step, else the field's plus the recorded pressure height."""
-    if pnom is not None:
-        k = nearest_index(T, t)
-        return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
-    ii = nearest_index(inp.t_in, t)
-    return inp.field_h + np.nan_to_num(inp.baro_rel_m[ii])
+    track's at the nearest state step."""
+    k = nearest_index(T, t)
+    return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
 
 
 def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
                        T: np.ndarray, Cen: np.ndarray, clock: dict[str, float],
-                       pnom: np.ndarray | None) -> None:
+                       pnom: np.ndarray) -> None:
     """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities,
     at their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the
     receiver's per-fix accuracy.
@@ -354,10 +344,10 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     no_h = ~np.isfinite(hg)
     if no_h.any():
         # a fix without height is used horizontally: its north and east components only,
-        # computed at a substitute height (the nominal's, else the field's plus the pressure
-        # height); the north/east projection of the fix moves by (angle between the
-        # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
-        hg = np.where(no_h, _substitute_height(inp, T, tg, pnom), hg)
+        # computed at the nominal's height; the north/east projection of the fix moves by
+        # (angle between the verticals at the fix and at the step) x (height error): under
+        # 2e-4 m per m at 1 km
+        hg = np.where(no_h, _substitute_height(T, tg, pnom), hg)
     ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
     ant = np.c_[ex, ey, ez]
     L = np.asarray(inp.lever_arm, float)
@@ -428,10 +418,401 @@ def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSet
         tau = tt[0] - T[k]
         psi = ep.runway_rad
         Ca = ned_to_ecef_matrix(lat, lon)[0]
-        for u, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
-                          [0.0, 0.0, 1.0]), ep.sd_m):
-            u = np.asarray(u)
+        for row, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
+                            [0.0, 0.0, 1.0]), ep.sd_m):
+            u = np.asarray(row)
             H = np.zeros((1, jl.N_STATE))
             H[0, jl.S_POS] = Ca @ u
             H[0, jl.S_VEL] = u * tau
             b.add("endpoint", jl.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe)
+
+
+def nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndarray:
+    """Samples whose attitude lets the heading stand for the air velocity's direction.
+
+    The air velocity in body axes is V (cos a cos b, sin b, sin a cos b) (angle of attack a,
+    sideslip b); its horizontal direction differs from the heading by about a sin(roll) /
+    cos(pitch) plus the sideslip: a few degrees in a 30 deg bank (the part
+    :func:`nose_offset` takes out), tens of degrees in a spiral dive or a spin, where neither
+    the offset's no-sideslip geometry nor the pitot holds.  Kept: |roll| <=
+    ``heading_max_roll_deg`` and |pitch| <= ``heading_max_pitch_deg``, the angles of the
+    body-to-NED rotation C = R_z R_y R_x of the recorded attitude ``attitude_deg`` (Ni, 3),
+    from its last row C[2] = (-sin(pitch), sin(roll) cos(pitch), cos(roll) cos(pitch)): a
+    roll of 190 deg counts as -170 deg and a pitch of 100 deg (inverted) as 80 deg.
+    """
+    phi, theta = np.radians(attitude_deg[:, 0]), np.radians(attitude_deg[:, 1])
+    st, ct = np.sin(theta), np.cos(theta)
+    pitch = -np.arcsin(np.clip(-st, -1.0, 1.0))
+    roll = np.arctan2(np.sin(phi) * ct, np.cos(phi) * ct)
+    return ((np.abs(roll) <= np.radians(settings.heading_max_roll_deg))
+            & (np.abs(pitch) <= np.radians(settings.heading_max_pitch_deg)))
+
+
+def nose_offset(inp: JointInputs, climb_window_s: float = 2.0,
+                alpha_range_deg: tuple[float, float] = (-10.0, 20.0),
+                at: np.ndarray | None = None) -> np.ndarray:
+    """Heading minus the air velocity's horizontal direction on the input grid [rad] (at the
+    input samples ``at``, a boolean mask or indices, when given: the same numbers as the whole
+    grid's there), from the angle of attack that the recorded attitude, pressure-altitude rate
+    and airspeed imply (docs/joint.md, "Measurements").
+
+    With no sideslip the air velocity in body axes is V (cos a, 0, sin a); rotated by
+    C = R_z(psi) R_y(theta) R_x(phi) its horizontal direction is the heading minus
+
+        delta = atan2(sin phi sin a, cos theta cos a + cos phi sin theta sin a),
+
+    about a sin(phi): 1 deg at a = 2.5 deg in a 25 deg bank, to the inside of the turn.  The
+    angle of attack comes from the air-relative flight-path angle g, sin g = h' / V (vertical
+    wind neglected; h' the pressure-altitude rate, a central difference over
+    ``climb_window_s``), through sin g = cos a sin theta - sin a cos phi cos theta
+    (the body's geometry with no sideslip): a = arccos(sin g / R) - d, R = hypot(A, B),
+    d = atan2(B, A), A = sin theta, B = cos phi cos theta.  Where the angles are not finite or
+    ``a`` falls outside ``alpha_range_deg`` (a stall, a spin: the heading is not used there
+    anyway) the offset is 0.
+    """
+    t_all = inp.t_in
+    sel = slice(None) if at is None else at
+    t = t_all[sel]
+    att = inp.attitude_deg[sel]
+    phi, theta = np.radians(att[:, 0]), np.radians(att[:, 1])
+    h = inp.baro_rel_m
+    ok_h = np.isfinite(h)
+    if ok_h.sum() < 2:
+        return np.zeros(len(t))
+    half = 0.5 * climb_window_s
+    hp = np.interp(t + half, t_all[ok_h], h[ok_h])
+    hm = np.interp(t - half, t_all[ok_h], h[ok_h])
+    span = np.minimum(t + half, t_all[-1]) - np.maximum(t - half, t_all[0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sin_g = np.clip((hp - hm) / np.where(span > 0, span, np.nan) / inp.tas[sel], -1.0, 1.0)
+        A, B = np.sin(theta), np.cos(phi) * np.cos(theta)
+        alpha = np.arccos(np.clip(sin_g / np.hypot(A, B), -1.0, 1.0)) - np.arctan2(B, A)
+        delta = np.arctan2(np.sin(phi) * np.sin(alpha),
+                           np.cos(theta) * np.cos(alpha)
+                           + np.cos(phi) * np.sin(theta) * np.sin(alpha))
+    lo, hi = np.radians(alpha_range_deg)
+    good = np.isfinite(delta) & (alpha >= lo) & (alpha <= hi)
+    return np.where(good, delta, 0.0)
+
+
+def decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -> np.ndarray:
+    """True for the first sample of each 1/rate_hz bin, bins counted from ``origin`` (default
+    the first sample) (keeps each measurement used once)."""
+    return first_in_bin(t, rate_hz, np.arange(len(t)), origin)
+
+
+def first_in_bin(t: np.ndarray, rate_hz: float, i: np.ndarray, origin: float | None = None
+                 ) -> np.ndarray:
+    """:func:`decimate_mask` at the sample indices ``i`` only (each judged against its
+    predecessor in ``t``), for a few samples of a long record."""
+    if rate_hz <= 0:
+        return np.zeros(len(i), bool)
+    t0 = t[0] if origin is None else origin
+    b = np.floor((t[i] - t0) * rate_hz + 1e-9).astype(np.int64)
+    b_prev = np.floor((t[np.maximum(i - 1, 0)] - t0) * rate_hz + 1e-9).astype(np.int64)
+    return (i == 0) | (b != b_prev)
+
+
+def on_ground_mask(inp: JointInputs, settings: JointSettings) -> np.ndarray:
+    """Input samples used for the ground constraints: before lift-off and after touchdown (2 s
+    margins), at the ground-constraint rate, with a heading."""
+    t_in = inp.t_in
+    on_ground = np.zeros(len(t_in), bool)
+    if np.isfinite(inp.liftoff_t):
+        on_ground |= t_in < inp.liftoff_t - 2.0
+    if np.isfinite(inp.touchdown_t):
+        on_ground |= t_in > inp.touchdown_t + 2.0
+    # the rate's bins judged on the ground samples only (a long flight's record is mostly
+    # airborne, and this runs on every pass)
+    i = np.flatnonzero(on_ground)
+    i = i[first_in_bin(t_in, settings.ground_rate_hz, i) & np.isfinite(inp.heading_rad[i])]
+    keep = np.zeros(len(t_in), bool)
+    keep[i] = True
+    return keep
+
+
+#: heading change that ends a landing roll [deg] (the phases' line-up rule, 10 deg)
+RUNWAY_EXIT_DEG = 10.0
+
+
+def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_EXIT_DEG
+                   ) -> np.ndarray:
+    """Input samples that can be on the departure (``departure``) or arrival runway.
+
+    Departure: from the line-up (``inp.lineup_t``, the cleaning phases': the start of the last
+    stretch within 10 deg of the take-off run's heading), the whole record before lift-off
+    where it is not known.  Arrival: from touchdown to the runway exit, the first sample after
+    which the heading is more than ``exit_deg`` from the landing roll's (its circular mean
+    from 2 to 6 s after touchdown, when the crab is gone), to the end where it does not turn
+    off.  Before, the record could start at the stand and end there: the runway's centreline
+    rows then held the taxi (issue #36: 233 m off at lift-off on the Garmin export with a
+    24 m sd).
+    """
+    t = inp.t_in
+    if departure:
+        if np.isfinite(inp.lineup_t):
+            return t >= inp.lineup_t
+        return np.ones(len(t), bool)
+    m = np.ones(len(t), bool)
+    td = inp.touchdown_t
+    psi = inp.heading_rad
+    if not np.isfinite(td):
+        return m
+    w = (t >= td + 2.0) & (t <= td + 6.0) & np.isfinite(psi)
+    if not w.any():
+        return m
+    psi_rw = float(np.arctan2(np.mean(np.sin(psi[w])), np.mean(np.cos(psi[w]))))
+    # the heading's distance from the roll's on the samples after it only (a long flight's
+    # record before touchdown is most of it, and this runs on every pass)
+    after = np.flatnonzero((t > td + 2.0) & np.isfinite(psi))
+    off = np.degrees(np.abs(np.angle(np.exp(1j * (psi[after] - psi_rw)))))
+    out = after[off > exit_deg]
+    if len(out):
+        m &= t < t[out[0]]
+    return m
+
+
+def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
+                         step_of, pnom: np.ndarray, vnom: np.ndarray,
+                         psi_hat: np.ndarray | None = None) -> None:
+    """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
+    centreline through the runway's threshold, or through the airfield reference point where
+    no threshold is given.  That point need not lie on the runway (an apron, a stand, an ARP
+    between runways): its distance from the centreline is one error for the whole roll,
+    known no better than the reference itself (``endpoint_h_m``), so each of the roll's m
+    centreline rows carries ``runway_halfwidth_m^2 + m endpoint_h_m^2`` (as the slip below:
+    the roll tells the cross-track position one reference's worth, not m of them).
+
+    ``settings.roll_velocity`` = "runway" (the default): the velocity rows hold the velocity
+    along the runway's direction, the airfield's ``runway_true_deg`` where the metadata give
+    it (then the ground roll ties the heading reference: the recorded heading minus the
+    heading bias must follow the runway).  Otherwise, and with ``roll_velocity`` = "nose",
+    along the true heading, psi_rec - dpsi (the recorded heading carries the heading bias;
+    the wheels roll where the nose points, the tyres' slip angles a fraction of a degree):
+    c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi a(psi_rec) . v_nom, with c and a the cross-
+    and along-heading unit vectors, linearised at dpsi = 0 and the nominal (the neglected term
+    is dpsi^2 / 2 of the along-track value: 3 mm/s at 1 deg and 70 m/s). Taking the recorded
+    heading itself would tell the smoother that the heading bias is zero. ``psi_hat`` (per
+    state step) is the heading bias of the last pass: the linearisation is about it,
+    c(psi_rec - dpsi) . v ~ c(psi') . v + (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec -
+    psi_hat (exact at the solution however large the bias).  With "nose" the runway's
+    direction reaches the bias through the centreline rows and the line-up
+    (:func:`lineup_heading`) only: a roll's track leaves the runway's direction where the
+    aircraft is steered (JSBSim's Cessna 310 swerves 5-14 deg on its take-off roll, 1-3 m/s
+    across the runway), and the runway rows then make the heading bias take up the swerve
+    (docs/jsbsim.md, "Fleet study": 4.9 +- 0.4 deg for a true -0.6); measured on the fleet,
+    the nose rows cost the long flights more than they gave the circuits, so the default
+    stays "runway".
+
+    ``ground_slip_deg`` (default 0): an angle between track and runway common to the whole
+    roll (steering corrections, the tyres' slip angles in a crosswind, a crab kept after
+    touchdown), not a noise that averages out over its samples.  Each of a roll's ``m``
+    cross-track velocity rows carries it as the extra variance ``m (s V)^2`` (V: the roll's
+    fastest speed, :func:`roll_speed`, from the data and not the iterate, so that the cost
+    function stays the same from pass to pass), so that the roll's velocity rows tell the
+    heading bias no more than one such angle's worth (``s^2`` against ``s^2 / m`` for
+    independent errors).  The centreline rows keep their half-width (25 m: 1.4 deg over
+    1000 m of roll).  With it the cross-country flights lost more than the upsets gained, so
+    the default is 0 (docs/jsbsim.md).
+    """
+    t_in = inp.t_in
+    keep = on_ground_mask(inp, settings)
+    if not keep.any():
+        return
+    for dep_end, (pos, side, rw, t_edge) in enumerate((
+            (inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t) else -np.inf),
+             inp.runway_rad[0], inp.liftoff_t),
+            (inp.arrival, t_in > (inp.touchdown_t if np.isfinite(inp.touchdown_t) else np.inf),
+             inp.runway_rad[1], inp.touchdown_t))):
+        known = rw is not None
+        on_line = known and inp.thresholds[dep_end] is not None
+        if on_line:
+            # the centreline runs through the threshold; the airfield's reference point is
+            # where the analyst put it (an apron, between two runways)
+            pos = inp.thresholds[dep_end]
+        # a record from stand to stand: the taxi before the line-up and after the runway exit
+        # is on no runway; its rows along the heading (cross-track velocity zero) stay where
+        # the runway's direction is not known: they hold on any taxiway
+        on_rw = on_runway_mask(inp, dep_end == 0)
+        cl_side = side & on_rw
+        if known:
+            side = cl_side
+        sel = keep & side
+        if not sel.any():
+            continue
+        tt, k, ph, psi = _roll_velocity_rows(b, inp, settings, sel, (dep_end, rw, t_edge),
+                                             step_of, vnom, psi_hat)
+        if pos is None:
+            continue
+        on_cl = cl_side[sel]
+        if on_cl.any():
+            _centreline_rows(b, settings, pos, (tt[on_cl], k[on_cl], ph[on_cl], psi[on_cl]),
+                             rw, on_line, pnom)
+
+
+def _roll_velocity_rows(b: Any, inp: JointInputs, settings: JointSettings, sel: np.ndarray,
+                        ends: tuple[int, float | None, float], step_of, vnom: np.ndarray,
+                        psi_hat: np.ndarray | None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The roll's cross-track velocity rows (:func:`runway_measurements`) on the samples
+    ``sel``; ``ends`` the departure (0) or arrival (1) end, its runway direction (None: not
+    known) and the lift-off or touchdown time.  Returns the rows' times, state steps, heading
+    bias of the linearisation and direction (for the centreline rows)."""
+    nz = settings.noise
+    slip = np.radians(nz.ground_slip_deg)
+    n = jl.N_STATE
+    dep_end, rw, t_edge = ends
+    known = rw is not None
+    # along the runway's direction (only its line matters: a reversed direction is the
+    # same), or the true heading psi_rec - dpsi linearised about the last pass's bias
+    tt = inp.t_in[sel]
+    k = step_of(tt)
+    nose = not known or settings.roll_velocity == "nose"
+    ph = np.zeros(len(tt)) if psi_hat is None or not nose else psi_hat[k]
+    psi = inp.heading_rad[sel] - ph if nose else np.full(len(tt), rw)
+    H = np.zeros((len(tt), n))
+    H[:, jl.IV] = -np.sin(psi)
+    H[:, jl.IV + 1] = np.cos(psi)
+    v_roll = roll_speed(inp, settings, t_edge)
+    r_v = nz.ground_mps ** 2 + len(tt) * (slip * v_roll) ** 2
+    if nose:
+        H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
+    else:
+        # the wheels roll where the nose points: the track leaves the runway's direction
+        # by the nose's angle to the heading lined up at rest before a take-off roll, or,
+        # on a landing roll (no rest before it) and a take-off without one, by its angle
+        # to the runway itself (the heading bias inside it: a fraction of the swerves)
+        ref = rest_heading(inp) if dep_end == 0 else None
+        if ref is None and rw is not None:
+            ref = float(rw)
+        r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll, ref)
+    b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
+    return tt, k, ph, psi
+
+
+def _centreline_rows(b: Any, settings: JointSettings, pos: tuple[float, float, float],
+                     rows: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                     rw: float | None, on_line: bool, pnom: np.ndarray) -> None:
+    """The roll's cross-track offset rows from the centreline through ``pos`` (the threshold,
+    ``on_line``, or the airfield's reference point) on the rows ``(tt, k, ph, psi)`` of the
+    centreline samples (:func:`runway_measurements`)."""
+    nz = settings.noise
+    n = jl.N_STATE
+    known = rw is not None
+    tt, k, ph, psi = rows
+    # the centreline: the runway's direction where known (only its line matters: a
+    # reversed direction is the same), else the true heading
+    if known:
+        psi, ph = np.full(len(tt), rw), np.zeros(len(tt))
+    ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+    arp = np.array([float(ex), float(ey), float(ez)])
+    Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
+    cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
+    along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
+    H = np.zeros((len(tt), n))
+    H[:, jl.S_POS] = cross
+    if not known:
+        H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
+    # without a threshold the line runs through the airfield's reference point, whose
+    # distance from the centreline is not known better than the reference itself
+    # (endpoint_h_m): one error common to the roll's m rows, m endpoint_h_m^2 on each
+    r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line else len(tt) * nz.endpoint_h_m ** 2)
+    b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H,
+          -cross @ arp - H[:, jl.IPSI] * ph)
+
+
+def rest_heading(inp: JointInputs) -> float | None:
+    """The circular mean recorded heading [rad] over the rest before the take-off roll
+    (``inp.roll.rest_t``), None where no rest was found."""
+    r0, r1 = inp.roll.rest_t
+    if not (np.isfinite(r0) and np.isfinite(r1)):
+        return None
+    m = (inp.t_in >= r0) & (inp.t_in <= r1) & np.isfinite(inp.heading_rad)
+    if not m.any():
+        return None
+    h = inp.heading_rad[m]
+    return float(np.arctan2(np.mean(np.sin(h)), np.mean(np.cos(h))))
+
+
+def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
+                      ref_rad: float | None = None) -> np.ndarray:
+    """Variance [m^2/s^2] of the velocity across the runway that steering makes at each of a
+    roll's samples: the wheels roll where the nose points, so where the recorded heading
+    leaves the lined-up heading ``ref_rad`` (at rest before the roll: :func:`rest_heading`;
+    else the roll's own mean) by d, the heading bias dropping out of the difference, the
+    track leaves the runway by about d: ``(V sin d)^2``, V the roll's fastest speed
+    (:func:`roll_speed`, from the data and not the iterate; at least the speed at the sample,
+    so never less than the swerve's cross-track velocity).  JSBSim's Cessna 310 swings 5-14 deg
+    on its take-off roll and its velocity rows then held the heading bias 4.9 +- 0.4 deg off
+    (docs/jsbsim.md, "Fleet study").
+
+    Parameters
+    ----------
+    heading_rad : recorded headings of the roll's samples [rad]
+    v_roll_mps : the roll's fastest speed [m/s]
+    ref_rad : the lined-up heading [rad]; None: the samples' circular mean
+    """
+    h = np.asarray(heading_rad, dtype=float)
+    if h.size == 0:
+        return np.zeros(0)
+    ref = (float(np.arctan2(np.mean(np.sin(h)), np.mean(np.cos(h)))) if ref_rad is None
+           else float(ref_rad))
+    d = np.angle(np.exp(1j * (h - ref)))
+    return (v_roll_mps * np.sin(d)) ** 2
+
+
+def lineup_heading(b: Any, inp: JointInputs, settings: JointSettings, t_rest: np.ndarray
+                   ) -> None:
+    """Lined up at rest before the take-off roll, the nose points along the departure runway:
+    one row on the heading bias, dpsi = mean(psi_rec - psi_rw) (the circular mean over the
+    rest's samples ``t_rest``, wrapped to the runway's line: a reversed direction is the same
+    runway), sd ``lineup_heading_deg`` (how straight an aircraft is lined up).  Only where the
+    metadata give the runway's direction and ``settings.roll_velocity`` is "nose".
+
+    The "nose" velocity rows of :func:`runway_measurements` hold the roll's velocity along
+    the nose, which says nothing about the bias; the runway's direction reaches it through the
+    centreline rows and this row.  At rest the heading is what the line-up left, before any
+    steering on the roll (JSBSim's aircraft: along the runway at rest, 2-8 deg off it for
+    10-20 s of their rolls, docs/jsbsim.md).
+    """
+    rw = inp.runway_rad[0]
+    if rw is None or len(t_rest) == 0:
+        return
+    psi = np.interp(t_rest, inp.t_in, np.unwrap(np.where(np.isfinite(inp.heading_rad),
+                                                         inp.heading_rad, 0.0)))
+    ok = np.interp(t_rest, inp.t_in, np.isfinite(inp.heading_rad).astype(float)) > 0.999
+    if not ok.any():
+        return
+    d = psi[ok] - rw
+    mean = 0.5 * float(np.arctan2(np.mean(np.sin(2.0 * d)), np.mean(np.cos(2.0 * d))))
+    H = np.zeros((1, jl.N_STATE))
+    H[0, jl.IPSI] = 1.0
+    b.add("runway", jl.LINEAR, [float(np.mean(t_rest[ok]))], [mean],
+          np.radians(settings.noise.lineup_heading_deg) ** 2, H)
+
+
+def roll_speed(inp: JointInputs, settings: JointSettings, t_edge: float) -> float:
+    """The fastest speed of a ground roll: the recorded airspeed at its lift-off or touchdown
+    ``t_edge``, at least ``min_airspeed_mps`` (a bound on the along-track speed, wind aside)."""
+    ok = np.isfinite(inp.tas)
+    v = np.nan
+    if np.isfinite(t_edge) and ok.any():
+        v = float(np.interp(t_edge, inp.t_in[ok], inp.tas[ok]))
+    return max(v, settings.min_airspeed_mps) if np.isfinite(v) else settings.min_airspeed_mps
+
+
+NOISE_GROUPS = {("air", jl.TAS): "air_tas", ("air", jl.HEADING): "air_heading",
+                ("baro", jl.BARO): "baro", ("gnss_pos", jl.NED_POS): "gnss_pos",
+                ("gnss_vel", jl.STATE): "gnss_vel", ("radar", jl.RANGE): "radar_range",
+                ("radar", jl.AZIMUTH): "radar_azimuth", ("radar", jl.ELEVATION): "radar_elevation",
+                ("doppler", jl.DOPPLER): "doppler_speed", ("doppler", jl.TRACK): "doppler_track"}
+"""Sensor error variances that ``estimate_noise`` scales, one factor per group (the end points,
+ground and runway constraints and the sparse recorded wind are priors, not estimated)."""
+
+
+def noise_groups(meas: Measurements) -> np.ndarray:
+    """Index into NOISE_GROUPS of each measurement, -1 where its variance is not estimated."""
+    g = np.full(len(meas.z), -1, dtype=np.int64)
+    for i, (src, mt) in enumerate(NOISE_GROUPS):
+        g[(meas.source == SOURCES.index(src)) & (meas.mtype == mt)] = i
+    return g

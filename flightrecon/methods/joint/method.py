@@ -22,23 +22,29 @@ from flightrecon.errors import FlightReconWarning
 from flightrecon.estimation.consistency import ChiSquareVerdict, chi_square_verdict
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.calibration import calibrate_gaps, wind_walk_rounds
-from flightrecon.methods.joint.diagnostics import (
+from flightrecon.methods.joint.health import (
     clock_warnings,
     far_warning,
     gust_warnings,
     implausible_corrections,
+    settling,
+    settling_sentence,
     source_report,
+    widened_track_sd,
     wind_walk_check,
     wind_walk_warning,
 )
 from flightrecon.methods.joint.inputs import JointInputs
+from flightrecon.methods.joint.output import (
+    PREFIX,
+    corrections_at_middle,
+    fix_report,
+    joint_track,
+    wind_prior_report,
+)
 from flightrecon.methods.joint.problem import JointProblem, joint_problem
-from flightrecon.methods.joint.report import corrections_at_middle, fix_report, wind_prior_report
 from flightrecon.methods.joint.settings import JointSettings
-from flightrecon.methods.joint.settling import settling, settling_sentence, widened_track_sd
-from flightrecon.methods.joint.smoother import smooth_joint
-from flightrecon.methods.joint.state import JointRun
-from flightrecon.methods.joint.track import PREFIX, joint_track
+from flightrecon.methods.joint.solve import JointRun, smooth_joint
 from flightrecon.types import CleanFlight, MethodResult
 
 __all__ = ["PREFIX", "joint_result", "run_joint"]
@@ -147,12 +153,13 @@ def joint_result(problem: JointProblem) -> MethodResult:
     """The joint smoother's result on ``problem``: solved, its wind walk re-estimated and its
     GNSS gaps calibrated (each an adjusted problem solved again:
     :mod:`~flightrecon.methods.joint.calibration`), then the track and the summary."""
-    run = smooth_joint(problem.inputs, problem.settings)
+    run = smooth_joint(problem.inputs, problem.settings, problem.flight)
     if problem.attitude_note:
         _warnings.warn(problem.attitude_note, FlightReconWarning, stacklevel=3)
     problem, run, wind_rounds = wind_walk_rounds(problem, run)
     run, gap_cal = calibrate_gaps(problem, run)
-    run = replace(run, flight=None)   # its iteration-independent parts go before the track
+    # the iteration-independent parts go before the track
+    run, problem = replace(run, flight=None), replace(problem, flight=None)
     if problem.frame is None:
         raise ValueError("the joint result needs the problem's output frame "
                          "(joint_problem builds it)")

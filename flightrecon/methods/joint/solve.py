@@ -1,0 +1,1119 @@
+"""The joint smoother's iterations, in one place: forward filter, RTS backward pass and
+Gauss-Newton relinearisation with robust re-weighting and clock-offset steps, damped by a
+backtracking line search on the MAP cost (:func:`smooth_joint`; docs/joint.md, "Filter,
+smoother, iterations").
+
+The iterations are an iterated extended Kalman smoother with a line search (Sarkka & Svensson
+2020, "Levenberg-Marquardt and line-search extended Kalman smoothers", ICASSP, section 4):
+each pass linearises about the current iterate X and smooths, which gives the Gauss-Newton
+point X_GN; the next iterate is X + alpha (X_GN - X) with alpha = 1, 1/2, 1/4, ... the first
+that does not raise the MAP cost J (:func:`~flightrecon.methods.joint.model.map_cost`;
+:func:`line_search`), or where none does a Levenberg-Marquardt step (algorithm 2:
+:func:`lm_step`).  The robust weights, the clock offsets, the take-off roll, the gust sd and the
+noise factors are updated between the passes (:func:`_accepted`, :func:`gust_round`) and
+held fixed within one (the cost is compared under the same ones); the clock offsets by their
+Gauss-Newton step jointly with the track, which each pass's forward filter gives
+(:func:`clock_step`), so that they settle in about as many
+passes as the track does.
+
+The passes' front ends (:func:`forward`, :func:`backward`, :func:`backward_mean`) run the
+model (:class:`~flightrecon.methods.joint.model.JointModel`) on the estimation core's loops
+(:func:`~flightrecon.estimation.filtering.forward_pass`,
+:func:`~flightrecon.estimation.smoothing.backward_pass`; docs/estimation.md, "The joint
+model"). They take the filter buffers and the pass's layouts and return the outputs as
+arrays: :func:`forward` the innovations, :func:`backward` the smoothed states and covariance
+blocks with the residuals, :func:`backward_mean` the smoothed states and residuals of the
+mean-only pass.  Both backward passes run with the GIL released (the core's loops are
+``nogil``), so the covariance pass can run on a second thread beside the mean pass.
+
+The gust sd (docs/joint.md, "Wind and turbulence").  The gust ``u`` (layout: ``S_GUST``) is a
+stationary first-order Gauss-Markov process of variance sigma_u^2 per axis.  Under the model,
+the smoothed mean and variance of every sample satisfy E[u_hat^2 + var(u | data)] = sigma_u^2
+(law of total variance), so
+
+    sigma_u^2 <- mean over the airborne steps and both axes of (u_hat_k^2 + P_uu,k)
+
+is a fixed point at the flight's own gust variance: with sigma_u too large the data shrink u_hat
+and its variance below it, too small they push them above.  It is the moment form of the
+expectation-maximisation update of a stationary variance; with ``JointSettings.estimate_gust``
+the smoother applies it after each pass that computed the smoothed covariances and is not the
+last (:func:`gust_round`), over-relaxed (twice the step in log space), while the pass moved the
+track by more than 10 ``converge_m`` or the noise factors are estimated too, until it moves by
+less than ``gust_tol`` (at most ``gust_rounds`` changes): it follows the Gauss-Newton passes and
+adds none of its own where the track is already pinned down (GNSS).  A change is a new cost
+function, and the pass after it says so (``parameters_changed``).  What the gust absorbs besides
+the turbulence (the sideslip, the angle of attack in turns, the airspeed lag) counts into the
+estimate: it is the air data's effective disagreement with a steady wind.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, fields, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from flightrecon.estimation.filtering import forward_pass
+from flightrecon.estimation.linalg import packed_size, unpack_sym
+from flightrecon.estimation.smoothing import backward_pass
+from flightrecon.geo.frames import ecef_to_geodetic
+from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint.inputs import (
+    EndPoint,
+    JointInputs,
+    TakeoffRoll,
+    end_points_at,
+    refined_roll,
+)
+from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Measurements, Scalars
+from flightrecon.methods.joint.linearisation import (
+    PassModels,
+    SmootherFlight,
+    initial_estimate,
+    models_about,
+    models_at,
+    nominal_states,
+    nominal_trajectory,
+    pass_cost,
+    pass_scalars,
+    q_vector,
+    scaled_variances,
+    smoother_flight,
+    with_pseudo,
+)
+from flightrecon.methods.joint.measurements import NOISE_GROUPS
+from flightrecon.methods.joint.model import joint_model
+from flightrecon.methods.joint.settings import SOURCES, JointSettings
+
+
+def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ...]:
+    """Outputs of :func:`forward` for N steps: ``xf`` (N, n), ``Pf`` (N, n (n + 1) / 2),
+    ``xp``, ``Pp`` (the covariances as packed lower triangles, :func:`~flightrecon.estimation.
+    linalg.pack_sym`: half the memory, 190 MB less on a 10-hour flight at 1 Hz; an empty ``Pp``
+    without ``store_predicted``: recomputed backward, bit-identical, 0.2-0.3 s more per pass on
+    that flight)."""
+    n = N_STATE
+    L = packed_size(n)
+    return (np.empty((N, n)), np.empty((N, L)), np.empty((N, n)),
+            np.empty((N if store_predicted else 0, L)))
+
+
+def forward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, x0: np.ndarray,
+            P0: np.ndarray, dyn: Dynamics, meas: Scalars, geo: Geometry, gate: float,
+            xlin: np.ndarray, clock: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+    """Forward extended Kalman filter with sequential scalar updates (the model's
+    ``predict_into`` and ``update_into``, :mod:`~flightrecon.methods.joint.model`).
+
+    With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
+    last pass: an iterated extended Kalman smoother, Gauss-Newton on the whole record); with an
+    empty ``xlin`` (0, n) about the filter's own prediction (the first pass).  ``gate`` (0: off)
+    the normalised innovation beyond which a measurement's variance is inflated.
+
+    Fills ``xf``, ``Pf``, ``xp``, ``Pp`` (:func:`filter_buffers`; an empty ``Pp`` is not filled:
+    the backward passes then recompute each predicted covariance, bit for bit the same) and
+    returns, per measurement, the innovation, its variance (before inflation) and the inflation
+    factor (NaN, NaN, 1 for a measurement of weight 0), and the clock offsets' outputs when
+    ``clock`` gives each measurement's clock column (0 GNSS, 1 radar, -1 none) and the rate of
+    its prediction the gradient does not give: the normal equations of their Gauss-Newton
+    step (A00, A01, A11, b0, b1: :func:`~flightrecon.methods.joint.model.
+    _clock_column_update`) and their filter columns after and before each step's updates
+    (2, N, n) (None: empty arrays).
+    """
+    model = joint_model((xf, Pf, xp, Pp), dyn, meas, geo, gate, xlin, forward=True,
+                        clock=clock)
+    forward_pass(model, x0, P0, xf.shape[0])
+    return model.nu, model.S, model.infl, (model.cnorm, model.cxf, model.cxp)
+
+
+def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,
+              with_cov: bool, residuals: bool) -> tuple[np.ndarray, Any, int]:
+    xf, Pf, xp, Pp = bufs
+    N, n = xf.shape
+    model = joint_model(bufs, dyn, meas, geo, residuals=residuals, covariances=with_cov)
+    xs = np.empty((N, n))
+    P_last = np.empty((n, n))
+    unpack_sym(Pf[N - 1], P_last)
+    n_fallback = backward_pass(model, xf, xp, xs, P_last if with_cov else np.empty((0, 0)))
+    return xs, model, int(n_fallback)
+
+
+def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.ndarray,
+                     dyn: Dynamics, meas: Scalars, geo: Geometry) -> np.ndarray:
+    """The clock offsets' smoothed columns X_s,g (2, N, n) from their filtered and predicted
+    ones (:func:`forward`'s, the same pass's ``Pf``, ``Pp``): the mean-only RTS recursion
+    x_s[k] = x_f[k] + C (x_s[k+1] - x_p[k+1]) is linear in (x_f, x_p) with no input of its
+    own, so on the columns it gives d x_s / d c up to sign: the track moved by an offset
+    error dc is x_s - X_s,g dc, and an offset of covariance Sigma adds X_s,g Sigma X_s,g^T to
+    the track's (the marginal covariance of the state augmented by the constant offsets)."""
+    out = np.empty_like(cxf)
+    for c in range(cxf.shape[0]):
+        out[c] = _backward((cxf[c], Pf, cxp[c], Pp), dyn, meas, geo, False, False)[0]
+    return out
+
+
+def backward_mean(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray,
+                  dyn: Dynamics, meas: Scalars, geo: Geometry
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """RTS backward pass for the smoothed states only (no covariances), and the residuals.
+
+    x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
+    mean as :func:`backward` (Rauch, Tung & Striebel 1965) at O(n^3 / 6) per step (one Cholesky
+    solve with a vector) instead of O(n^3) products; used in the Gauss-Newton iterations, which
+    need the trajectory and the residuals but not the smoothed covariances.
+
+    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`)
+    and the number of steps whose predicted covariance failed its Cholesky factorisation (not
+    positive definite to rounding: the gain then comes from the eigen-decomposition solve; the
+    caller reports the count).
+    """
+    xs, m, n_fallback = _backward((xf, Pf, xp, Pp), dyn, meas, geo, False, True)
+    return xs, m.res_n, m.res, m.rate, n_fallback
+
+
+def backward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, dyn: Dynamics,
+             meas: Scalars, geo: Geometry, residuals: bool) -> tuple[Any, ...]:
+    """RTS backward pass with covariances; also the smoothed residuals (see
+    :func:`backward_mean`, which gives the same states without the covariances).
+
+    Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
+    smoothed state variances (N, n), normalised residuals, raw residuals, rates and, per
+    measurement, H P_s H^T (the smoothed variance of the predicted measurement), and the number
+    of Cholesky failures (as :func:`backward_mean`).  With ``residuals`` False the residual
+    outputs stay NaN (the covariances do not need them: this pass can then run beside
+    :func:`backward_mean` on another thread).
+    """
+    xs, m, n_fallback = _backward((xf, Pf, xp, Pp), dyn, meas, geo, True, residuals)
+    M = len(meas.mtype)
+    if residuals:
+        res_n, res, rate, hph = m.res_n, m.res, m.rate, m.hph
+    else:
+        res_n, res, rate, hph = (np.full(M, np.nan) for _ in range(4))
+    return xs, m.Pblk, m.var, res_n, res, rate, hph, n_fallback
+
+
+class BackgroundCovariances:
+    """The RTS covariance pass (:func:`backward`, without the residuals) of the filter
+    buffers ``bufs`` = (xf, Pf, xp, Pp) and the pass's layouts, started on a second thread to
+    run beside the mean pass (:func:`backward_mean`) and whatever follows it until the
+    covariances or the buffers are needed; :meth:`result` waits for it."""
+
+    def __init__(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
+                 geo: Geometry) -> None:
+        self.out: tuple[Any, ...] | None = None
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, args=(bufs, dyn, meas, geo),
+                                       name="joint-covariances")
+        self.thread.start()
+
+    def _run(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
+             geo: Geometry) -> None:
+        try:
+            xf, Pf, xp, Pp = bufs
+            self.out = backward(xf, Pf, xp, Pp, dyn, meas, geo, False)
+        except BaseException as exc:  # re-raised on the thread that waits for it
+            self.error = exc
+
+    def result(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(Pblk, var, Cholesky fallbacks) of the pass, once the thread has finished."""
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+        assert self.out is not None
+        _, Pblk, var, *_, n_fallback = self.out
+        return Pblk, var, int(n_fallback)
+
+
+@dataclass
+class PassResult:
+    """Outputs of one forward filter and backward smoother pass."""
+
+    xs: np.ndarray
+    xf: np.ndarray
+    res: np.ndarray
+    rate: np.ndarray
+    hph: np.ndarray | None
+    infl: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    Pblk: np.ndarray | None
+    var: np.ndarray | None
+    n_fallback: int
+    kern_args: tuple[Dynamics, Scalars, Geometry]
+    scalars: jl.Scalars
+    pending: BackgroundCovariances | None = None  # its covariance pass, still on its thread
+    #                                               (Pblk and var None until joined)
+    info: dict[str, Any] | None = None   # the pass's entry in the iterations
+    # the clock columns and rates of its forward pass, and the offsets' outputs of it (normal
+    # equations, filter columns after and before each step's updates: :func:`forward`)
+    clock: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]] | None = None
+
+
+def robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettings
+                    ) -> np.ndarray:
+    """IRLS weights of the robust loss from the normalised residuals of the iterate: 1 up to
+    ``huber_c``, huber_c/|u| beyond (Huber), 1e-8 beyond ``reject_c`` (set aside: a jumped
+    source cannot pull the track at all); unchanged without ``robust``."""
+    if not settings.robust:
+        return weights
+    a = np.abs(res_n)
+    w = np.where(a > settings.huber_c, settings.huber_c / np.maximum(a, 1e-12), 1.0)
+    w = np.where(a > settings.reject_c, 1e-8, w)
+    w[~np.isfinite(w)] = 1.0
+    return w
+
+
+CLOCK_SOURCES = (("gnss", ("gnss_pos",)), ("gnss_velocity", ("gnss_vel",)),
+                 ("radar", ("radar",)))
+"""The clock offsets estimated, in the order of the forward pass's clock columns
+(:data:`~flightrecon.methods.joint.model.N_CLOCK`), and the sources each shifts.  The GNSS
+velocities have their own: on the real G1000 exports the ground speed and track lag the
+positions (docs/joint.md, "Filter, smoother, iterations", item 4).  The radar last: a flight
+without one carries two columns, not three
+(:func:`~flightrecon.methods.joint.model.joint_model`)."""
+
+CLOCK_MIN_MEASUREMENTS = 10
+"""Fewer measurements of a source than this: its offset is not estimated."""
+
+CLOCK_DETECT_SD = 3.0
+"""An offset still at zero is taken once its step exceeds this many of its sd (detected);
+below, the source's stamps are kept: estimating an offset that is not there costs accuracy (the
+simulated radar approaches, whose radar is on time: 15.1 m RMS with the offset held at zero
+unless detected, 17.7 m estimated always), and a taken offset has its uncertainty in the
+track's sd either way."""
+
+CLOCK_STILL_SD = 0.1
+"""A clock step of at most this fraction of the offset's sd is not taken (the offset stands
+still for the convergence test): it would move the track by at most a tenth of the share of
+the track's uncertainty the offset's own uncertainty carries."""
+
+
+def clock_columns(meas: Measurements, settings: JointSettings
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Each measurement's clock column for the forward pass (:data:`CLOCK_SOURCES`' index; -1
+    for the measurements no offset shifts) and the rate of its prediction with its time that
+    the kernel's gradient does not give (``Measurements.rate``); None when no source has
+    :data:`CLOCK_MIN_MEASUREMENTS`.
+
+    With a derived ``n_long_g`` (``settings.long_load_derived``) the GNSS positions' offset is
+    not estimated (held at the cleaning's): the along-track acceleration then has the
+    airspeed's timing, and the GNSS offset common to positions and velocities absorbs the
+    airspeed's lag (the shipped circuit with its ``n_long_g`` dropped: +0.15 +- 0.02 s for a
+    true 0, the track 9.4 m RMS from the truth against 1.0 m at 0); the velocities' offset,
+    relative to the positions, is still estimated."""
+    cols = np.full(len(meas.z), -1, dtype=np.int64)
+    for c, (name, src) in enumerate(CLOCK_SOURCES):
+        if name == "gnss" and settings.long_load_derived:
+            continue
+        sel = np.isin(meas.source, [SOURCES.index(x) for x in src])
+        if sel.sum() >= CLOCK_MIN_MEASUREMENTS:
+            cols[sel] = c
+    if not np.any(cols >= 0):
+        return None
+    return cols, np.zeros(len(cols)) if meas.rate is None else meas.rate
+
+
+def clock_covariance(cols: np.ndarray, normal: np.ndarray
+                     ) -> tuple[list[int], np.ndarray, np.ndarray] | None:
+    """The clock columns estimated (those with :data:`CLOCK_MIN_MEASUREMENTS` and a positive
+    normal equation), the offsets' covariance A^-1 and their Gauss-Newton step A^-1 b from the
+    forward pass's normal equations ``normal`` = [A b] (C, C + 1) (:func:`clock_step`); None
+    when none is estimated or A is singular."""
+    nc = normal.shape[0]
+    act = [c for c in range(nc)
+           if np.sum(cols == c) >= CLOCK_MIN_MEASUREMENTS and normal[c, c] > 0.0]
+    if not act:
+        return None
+    A = normal[:, :nc][np.ix_(act, act)]
+    try:
+        cov = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0.0):
+        return None
+    return act, cov, cov @ normal[act, nc]
+
+
+def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndarray, ...],
+               alpha: float, clock: dict[str, float], clock_sd: dict[str, float],
+               info: dict[str, Any]) -> tuple[dict[str, float], dict[str, float]]:
+    """The clock offsets' Gauss-Newton step jointly with the track (the new offsets and sd
+    returned, the step written to ``info``), in seconds added
+    to each source's time stamps (the convention of `clean --gnss-clock-offset /
+    --radar-clock-offset`; docs/joint.md, "Filter, smoother, iterations", item 4).
+
+    A measurement stamped t_m, taken at t_m + c_true and used at t_m + c has residual
+    hdot (c_true - c).  The pass's forward filter carried the offsets as constant parameters
+    of its linearised model (:func:`~flightrecon.methods.joint.model._clock_column_update`)
+    and accumulated (its ``outputs``' first) the normal equations [A b]: the step
+    dc = A^-1 b minimises the pass's cost profiled over the track (the track given the
+    offsets is what the pass smoothed; moved by dc it is the next pass's business), A^-1 the
+    offsets' covariance.  The step is scaled by the line search's ``alpha`` (0: a
+    Levenberg-Marquardt step, which is not the pass's Gauss-Newton step; the offsets then
+    stay) and taken when it exceeds :data:`CLOCK_STILL_SD` of its sd, and by an offset still
+    at zero only beyond :data:`CLOCK_DETECT_SD` of it (as before: applied beyond 3 sd).
+
+    Before, the offsets were fitted between the passes by weighted least squares of the
+    smoothed residuals against hdot, the track held: the smoother had already absorbed most
+    of the offset into the track, so each fit recovered about 1.4 % of what was left (32-50
+    passes on the four real G1000 exports with their GPS, 6-18 now) and its sd, that of a
+    known track, was 4 times too small (a simulated circuit: 1.2 ms, 4.9-6.0 ms now)."""
+    est = clock_covariance(clock_cols[0], outputs[0])
+    if est is None:
+        return clock, clock_sd
+    act, cov, d = est
+    clock, clock_sd = dict(clock), dict(clock_sd)
+    for i, c in enumerate(act):
+        name = CLOCK_SOURCES[c][0]
+        sd = float(np.sqrt(cov[i, i]))
+        if not np.isfinite(d[i]):
+            continue
+        clock_sd[name] = sd
+        step = float(alpha * d[i])
+        detected = clock[name] != 0.0 or abs(step) > CLOCK_DETECT_SD * sd
+        if detected and abs(step) > CLOCK_STILL_SD * sd:
+            clock[name] += step
+        info[f"clock_{name}_s"] = clock[name]
+        info[f"clock_{name}_step_s"] = step
+    return clock, clock_sd
+
+
+def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> str:
+    """Why the iterations stopped without converging: the line search failed, the cost rose
+    from one pass to the next (through the updates between the passes: weights' residuals,
+    clock offsets, take-off roll, noise factors), or the cap on the passes was reached."""
+    last = history[-1]
+    if last.get("line_search_failed"):
+        lm = (f", nor a Levenberg-Marquardt step with damping up to {settings.lm_lambda_max:g}"
+              if settings.levenberg_marquardt else "")
+        return (f"line search failed: no step size down to 1/{2 ** settings.line_search_halvings}"
+                f" of the Gauss-Newton step{lm} lowered the MAP cost (the full step moved the "
+                f"track by {last['gauss_newton_position_change_m']:.0f} m)")
+    if (len(history) > 1 and last.get("parameters_changed")
+            and last["cost"] > history[-2]["cost"] * (1.0 + settings.cost_tol)):
+        return (f"cost rising: {history[-2]['cost']:.6g} -> {last['cost']:.6g} over the last "
+                "pass (the updates between the passes, of the take-off roll, the clock "
+                "offsets or the noise factors, raised it)")
+    return (f"max passes reached ({len(history)}): the last moved the track by "
+            f"{last['max_position_change_m']:.1f} m, the cost by "
+            f"{last.get('cost_relative_change', float('nan')):.2g} (relative)")
+
+
+def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray) -> float:
+    """Log-likelihood of the data by the prediction-error decomposition,
+    ``-1/2 sum_j (nu_j^2 / S_j + ln(2 pi S_j))`` over the selected scalar innovations ``nu``
+    with their variances ``S`` (the exact likelihood of the linearised model for the given
+    noise; Harvey 1989, section 3.4)."""
+    ok = sel & np.isfinite(innov) & np.isfinite(innov_var) & (innov_var > 0)
+    if not ok.any():
+        return float("nan")
+    s = innov_var[ok]
+    return float(-0.5 * np.sum(innov[ok] ** 2 / s + np.log(2.0 * np.pi * s)))
+
+
+def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int, float]:
+    """M-step of expectation-maximisation for one variance factor c per group.
+
+    With z_j = h_j(x) + v_j, v_j ~ N(0, c R0_j), the expected complete-data log-likelihood under
+    the smoothed posterior is maximised by c = mean_j[(e_j^2 + H_j P_s H_j^T) / R0_j] over the
+    group's measurements (e: smoothed residual; Shumway & Stoffer 1982, eq. 12 for a scalar
+    factor; linearised at the smoothed trajectory).  Groups with fewer than ``min_count``
+    measurements keep their factor.
+    """
+    out = {}
+    for gi in np.unique(groups[groups >= 0]):
+        sel = (groups == gi) & use & np.isfinite(res) & np.isfinite(hph)
+        if sel.sum() >= min_count:
+            out[int(gi)] = float(np.mean((res[sel] ** 2 + hph[sel]) / r0[sel]))
+    return out
+
+
+def noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.ndarray,
+                  use: np.ndarray, scale: np.ndarray, settings: JointSettings,
+                  info: dict[str, Any]) -> tuple[np.ndarray, bool]:
+    """EM step of the noise factors (:func:`_em_noise_scales`) on the measurements taken at
+    face value (``use``), bounded by ``noise_factor_bounds``; the new factors into ``info``.
+    Returns them and whether any moved by more than ``noise_tol``."""
+    new_scale = scale.copy()
+    lo_b, hi_b = settings.noise_factor_bounds
+    for gi, c in _em_noise_scales(groups, res, hph, r0, use).items():
+        new_scale[gi] = min(max(c, lo_b), hi_b)   # bounded: no runaway factor
+    moved = bool(np.any(np.abs(new_scale / scale - 1.0) > settings.noise_tol))
+    info["noise_scale"] = {name: float(new_scale[i]) for i, name in enumerate(NOISE_GROUPS.values())
+                           if np.any(groups == i)}
+    return new_scale, moved
+
+
+def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> float | None:
+    """sqrt(mean(u_hat^2 + P_uu)) over the steps ``airborne`` and both gust axes (module
+    docstring); None without such a step or with a non-finite value.
+
+    Parameters
+    ----------
+    xs, var : (N, n) smoothed states and their variances.
+    airborne : (N,) bool, the steps whose air data the smoother uses.
+    """
+    if not airborne.any():
+        return None
+    m = float(np.mean(xs[airborne, jl.S_GUST] ** 2 + var[airborne, jl.S_GUST]))
+    return float(np.sqrt(m)) if np.isfinite(m) and m > 0 else None
+
+
+def _covariances(out: PassResult | None) -> None:
+    """Wait for the smoothed covariances of ``out`` (a pass whose covariance recursion ran on
+    a second thread) and put them in it; its fallback count becomes the larger of the two
+    passes' (and so does its entry's in the iterations, ``out.info``)."""
+    if out is None or out.pending is None:
+        return
+    Pblk, var, n_fallback = out.pending.result()
+    out.pending = None
+    out.Pblk, out.var = Pblk, var
+    out.n_fallback = max(out.n_fallback, n_fallback)
+    if out.info is not None:
+        out.info["cholesky_fallbacks"] = out.n_fallback
+
+
+def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.ndarray,
+             xlin: np.ndarray, bufs: tuple[np.ndarray, ...], with_cov: bool,
+             first: bool) -> PassResult:
+    """Forward filter (linearised about ``xlin``; empty: about its own prediction) and RTS
+    backward pass; the smoothed covariances with ``with_cov`` (on a second thread beside the
+    mean pass unless the noise estimation needs the smoothed H P H^T)."""
+    s = fl.settings
+    xf, Pf, xp, Pp = bufs
+    assert fl.x0 is not None and fl.P0 is not None
+    scalars = pass_scalars(mdl, fl.T, r, weights)
+    # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
+    gate = s.innovation_gate if s.robust and (s.first_gate or not first) else 0.0
+    if not first and s.line_search and not s.gate_damped:
+        gate = 0.0
+    cols = clock_columns(mdl.meas, s) if s.estimate_clock else None
+    innov, innov_var, infl, normal = forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars,
+                                                mdl.geo, gate, xlin, cols)
+    clock = None if cols is None else (cols, normal)
+    kern_args = (mdl.dyn, scalars._replace(r=r * infl), mdl.geo)
+    hph = Pblk = var = None
+    if s.estimate_noise:
+        xs, Pblk, var, _, res, rate, hph, n_fallback = backward(xf, Pf, xp, Pp, *kern_args,
+                                                                   True)
+    elif with_cov:
+        # the covariance recursion on a second thread (the kernels release the GIL), joined
+        # when its outputs are needed or the buffers are written again (:func:`_covariances`)
+        pending = BackgroundCovariances((xf, Pf, xp, Pp), *kern_args)
+        xs, _, res, rate, n_fallback = backward_mean(xf, Pf, xp, Pp, *kern_args)
+        return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, None, None,
+                          int(n_fallback), kern_args, scalars, pending, clock=clock)
+    else:
+        xs, _, res, rate, n_fallback = backward_mean(xf, Pf, xp, Pp, *kern_args)
+    return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
+                      kern_args, scalars, clock=clock)
+
+
+def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_change: float,
+             params_still: bool, settings: JointSettings, info: dict[str, Any]) -> bool:
+    """Convergence test (docs/joint.md): the MAP cost changed by less than ``cost_tol``
+    (relative), the track by less than ``converge_m`` and the heading bias by less than 1e-4
+    rad (1 m at 10 km) in the last pass, no robust weight by more than ``converge_weight``,
+    and the clock offsets and noise factors stand still.  A pass whose line search found no
+    lower cost counts as settled only if its full Gauss-Newton step was that small too."""
+    if it == 0 or cost0 is None:
+        return False
+    shift = step.gn_shift_m if not step.ok else info["max_position_change_m"]
+    new = step.gn_cost if not step.ok else step.cost["cost"]
+    rel = abs(cost0 - new) / max(abs(new), 1.0)
+    info["cost_relative_change"] = float(rel)
+    return bool(rel < settings.cost_tol and shift < settings.converge_m and psi_moved < 1e-4
+                and w_change <= settings.converge_weight and params_still)
+
+
+class Nominal(NamedTuple):
+    """The linearisation point of the next pass: the positions ``lat``, ``lon``, ``h``, the
+    velocity ``vnom`` (runway rows, take-off roll: the air data's before the first pass), the
+    heading bias ``psi_hat`` (the rotation's linearisation) and accelerometer biases ``ba_hat``
+    (the take-off roll) of the iterate, None before the first pass."""
+
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    vnom: np.ndarray
+    psi_hat: np.ndarray | None = None
+    ba_hat: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Iterate:
+    """What one damped Gauss-Newton pass hands the next, replaced by each pass and never
+    changed: the ``nominal`` of the next pass, the clock offsets [s] (added to the stamps) and
+    their sd, the noise factor per group (EM), the accepted trajectory ``X`` (None before the
+    first pass), the ``models`` built about it and its ``cost`` under them (cost, residuals,
+    rates and the noise factors it was computed with: the next pass's start while nothing
+    changed), the IRLS ``weights``, the last accepted Levenberg-Marquardt damping / 10,
+    ``refit`` (the models' noise changed: a new cost), the gust sd estimates and the take-off
+    rolls of the passes so far (the last pass's last: a roll once left is not taken again)."""
+
+    nominal: Nominal
+    clock: dict[str, float]
+    clock_sd: dict[str, float]
+    scale: np.ndarray
+    X: np.ndarray | None = None
+    models: PassModels | None = None
+    cost: tuple[Any, ...] | None = None
+    weights: np.ndarray | None = None
+    lm_lambda: float = 0.0
+    refit: bool = False
+    gust_rounds: tuple[dict[str, Any], ...] = ()
+    rolls_seen: tuple[TakeoffRoll, ...] = ()
+
+
+@dataclass
+class Buffers:
+    """The passes' filter buffers (allocated and paged in once, written by every pass), the
+    Levenberg-Marquardt pass's own, and the pass whose covariance thread still reads ``bufs``."""
+
+    bufs: tuple[np.ndarray, ...]
+    lm: tuple[np.ndarray, ...] | None = None
+    running: PassResult | None = None
+
+
+class Pass(NamedTuple):
+    """One pass: its models, smoothing outputs, accepted step and entry in the iterations."""
+
+    models: PassModels
+    out: PassResult
+    step: PassStep
+    info: dict[str, Any]
+
+
+def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
+    """The models of the next pass: about the iterate, with the current clock offsets and the
+    take-off roll refined on the iterate (those of the line search's last candidate when they
+    are the same).  A refined roll changes the runway and ground measurements, a clock offset
+    the GNSS and radar ones: the cost function itself (more measurements, more terms), so
+    costs are compared within a pass, and across passes only where neither changed
+    (``parameters_changed`` in the pass's entry).  A roll back at one an earlier pass had
+    (a cycle that never settles: JSBSim spiral 5305 between two, the fleet study's accident
+    flight of seed 0 among three) is not taken: the last pass's stays."""
+    nom = it.nominal
+    roll = refined_roll(fl.inp, fl.T, nom.vnom, nom.ba_hat)
+    m = it.models
+    if it.rolls_seen and any(roll.same_as(r) for r in it.rolls_seen[:-1]):
+        roll = it.rolls_seen[-1]
+    if m is not None and m.clock == it.clock and m.roll.same_as(roll):
+        return m
+    return models_at(fl, nom.lat, nom.lon, nom.h, nom.vnom, nom.psi_hat, it.clock, roll)
+
+
+def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
+                weights: np.ndarray, reset: bool) -> tuple[tuple[Any, ...] | None, np.ndarray]:
+    """The iterate's cost, residuals and rates under the pass's models (None before the first
+    pass; the last accepted ones when the models and noise factors are the same), and the
+    weights: after a ``reset`` (a new measurement set: a refined take-off roll) the IRLS
+    weights at the iterate, so that the pass is again a majorise-minimise step (with all
+    weights 1 its Gauss-Newton step need not lower the robust cost)."""
+    if it.X is None:
+        return None, weights
+    cached = it.cost if mdl is it.models else None
+    start = (cached if cached is not None and np.array_equal(it.scale, cached[3])
+             else pass_cost(fl, mdl, it.X, r, weights))
+    if reset:
+        weights = robust_weights(start[1] / np.sqrt(r), weights, fl.settings)
+    return start, weights
+
+
+def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: PassModels,
+                    r: np.ndarray, weights: np.ndarray, k: int) -> PassResult:
+    """Pass ``k``'s forward filter and backward pass (:func:`_gn_pass`) on the buffers, once
+    the last pass's covariance thread, which reads them, has finished.  EM needs the smoothed
+    covariances in every pass; otherwise the first pass (far from the solution) smooths the
+    states only, the later ones (likely the last) everything."""
+    _covariances(ws.running)
+    ws.running = None
+    xlin = X if X is not None else np.zeros((0, jl.N_STATE))
+    out = _gn_pass(fl, mdl, r, weights, xlin, ws.bufs, fl.settings.estimate_noise or k > 0,
+                   k == 0)
+    ws.running = out if out.pending is not None else None
+    return out
+
+
+def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
+              ) -> tuple[SmootherFlight, Iterate, Pass, bool]:
+    """One damped Gauss-Newton pass: models about the iterate, its cost, the smoothing pass,
+    the line search (a Levenberg-Marquardt step where it fails), then the updates
+    (:func:`_accepted`).  Returns the flight (with the prior of x_0 once known, the gust sd
+    changed), the next iterate, the pass and whether the iterations settled."""
+    s = fl.settings
+    mdl = _pass_models(fl, it)
+    r = scaled_variances(mdl, it.scale)
+    weights = it.weights
+    reset = weights is None or len(weights) != len(mdl.meas.z)
+    if weights is None or reset:
+        weights = np.ones(len(mdl.meas.z))
+    if fl.x0 is None:
+        x0, P0 = initial_estimate(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
+        fl = replace(fl, x0=x0, P0=P0, P0inv=np.linalg.inv(P0))
+    if it.X is None and s.first_pass == "nominal":
+        it = replace(it, X=nominal_states(fl, mdl))
+    start, weights = _start_cost(fl, it, mdl, r, weights, reset)
+    out = _smoothing_pass(fl, it.X, ws, mdl, r, weights, k)
+    step = line_search(fl, mdl, it.X, start, out, r, weights)
+    lm_lambda = it.lm_lambda
+    if not step.ok and s.levenberg_marquardt and start is not None and it.X is not None:
+        lm, lm_lambda = lm_step(fl, it.X, ws, mdl, start, r, weights, lm_lambda)
+        if lm is not None:
+            step = replace(lm, evaluations=step.evaluations + lm.evaluations,
+                           gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
+    shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
+    changed = it.refit or (it.models is not None and it.cost is not None and (
+        it.models.clock != mdl.clock or not it.models.roll.same_as(mdl.roll)
+        or not np.array_equal(it.scale, it.cost[3])))
+    it = replace(it, weights=weights, lm_lambda=lm_lambda, refit=False)
+    info: dict[str, Any] = {"iteration": k, "max_position_change_m": shift,
+                            "parameters_changed": bool(changed),
+                            "roll_start_t_s": mdl.roll.start_t,
+                            "cholesky_fallbacks": out.n_fallback, **step.cost,
+                            "cost_start": None if start is None else start[0]["cost"],
+                            "step_size": step.alpha, "lm_lambda": step.lm_lambda,
+                            "line_search_evaluations": step.evaluations,
+                            "gauss_newton_position_change_m": step.gn_shift_m}
+    out.info = info
+    psi_from = 0.0 if it.nominal.psi_hat is None else it.nominal.psi_hat
+    psi_new = np.ascontiguousarray((step.X if step.ok else out.xs)[:, jl.IPSI])
+    psi_moved = float(np.max(np.abs(psi_new - psi_from)))
+    info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
+    info["heading_bias_deg"] = float(np.degrees(step.X[len(fl.T) // 2, jl.IPSI]))
+    cost0 = None if start is None else start[0]["cost"]
+    p = Pass(mdl, out, step, info)
+    if not step.ok:
+        info["line_search_failed"] = True
+        info["gauss_newton_cost"] = step.gn_cost
+        return fl, it, p, _settled(k, step, cost0, psi_moved, 0.0, True, s, info)
+    return _accepted(fl, it, p, r, cost0, psi_new, psi_moved, shift)
+
+
+def _accepted(fl: SmootherFlight, it: Iterate, p: Pass, r: np.ndarray, cost0: float | None,
+              psi_new: np.ndarray, psi_moved: float, shift: float
+              ) -> tuple[SmootherFlight, Iterate, Pass, bool]:
+    """After a pass that lowered the cost: the IRLS weights at its residuals, the clock
+    offsets' step, the noise factors' EM step, the next iterate about the accepted trajectory,
+    the convergence test (:func:`_settled`) and, while not settled and the pass still moved
+    the track (or the noise is estimated), the gust sd's round (:func:`gust_round`)."""
+    s = fl.settings
+    mdl, out, step, info = p
+    k = info["iteration"]
+    assert it.weights is not None
+    w_before = it.weights.copy()
+    weights = robust_weights(step.res / np.sqrt(r), it.weights, s)
+    clock, clock_sd = it.clock, it.clock_sd
+    if out.clock is not None:
+        # the offsets' Gauss-Newton step of this pass (a Levenberg-Marquardt step is not it)
+        clock, clock_sd = clock_step(*out.clock, step.alpha if step.lm_lambda == 0.0 else 0.0,
+                                     clock, clock_sd, info)
+    scale, noise_moved = it.scale, False
+    if s.estimate_noise:
+        # measurements taken at face value in this pass: full weight, not gated
+        use = (weights >= 1.0) & (w_before >= 1.0) & (out.infl <= 1.0)
+        assert out.hph is not None
+        scale, noise_moved = noise_update(mdl.groups, out.hph, mdl.meas.r, step.res, use,
+                                          it.scale, s, info)
+    X = step.X
+    rolls = it.rolls_seen
+    if not any(mdl.roll.same_as(r) for r in rolls):
+        rolls = (*rolls, mdl.roll)
+    m = step.models
+    nxt = replace(it, nominal=Nominal(m.lat, m.lon, m.h, X[:, jl.S_VEL], psi_new,
+                                      X[:, jl.S_ACC_BIAS]),
+                  clock=clock, clock_sd=clock_sd, scale=scale, X=X, models=m,
+                  cost=(step.cost, step.res, step.rate, it.scale), weights=weights,
+                  rolls_seen=rolls)
+    settled = _settled(k, step, cost0, psi_moved,
+                       float(np.max(np.abs(weights - w_before), initial=0.0)),
+                       clock == it.clock and not noise_moved, s, info)
+    if not settled and (s.estimate_noise or shift > 10.0 * s.converge_m):
+        _covariances(out)
+        fl, nxt = gust_round(fl, nxt, out, out.xs if full_step(step) else X, k)
+    return fl, nxt, p, settled
+
+
+def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings(),
+                 flight: SmootherFlight | None = None) -> JointRun:
+    """Run the joint smoother: forward EKF and RTS passes, iterated as damped Gauss-Newton on
+    the MAP cost with IRLS weights (docs/joint.md, "Filter, smoother, iterations").
+
+    The result is the last accepted iterate, the lowest-cost one (each pass's cost does not
+    exceed the cost of its start under the same clock offsets, roll and noise factors);
+    ``JointRun.converged`` is the test of :func:`_settled` and ``stop_reason`` says why the
+    iterations stopped.  ``flight``: a run's on the same flight, whose iteration-independent
+    parts are taken where they hold (:func:`_flight_like`: an adjusted problem solved again).
+    """
+    fl = _flight_like(flight, inp, settings)
+    lat, lon, h = nominal_trajectory(inp, fl.idx)
+    # nominal velocity (runway constraints): air data at first, then the smoothed velocity
+    tas0 = np.nan_to_num(inp.tas[fl.idx])
+    psi0 = np.nan_to_num(inp.heading_rad[fl.idx])
+    vnom = np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(fl.idx))]
+    it = Iterate(Nominal(lat, lon, h, vnom), {name: 0.0 for name, _ in CLOCK_SOURCES},
+                 {name: np.nan for name, _ in CLOCK_SOURCES}, np.ones(len(NOISE_GROUPS)))
+    n_iter = max(1, settings.iterations)
+    if settings.estimate_noise:
+        n_iter = max(n_iter, settings.noise_iterations)
+    return _passes(fl, it, range(n_iter), settings)
+
+
+def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun,
+                      passes: int = 1, enough_m: float = 0.0) -> JointRun:
+    """The joint smoother on ``inp`` started from a converged run ``start`` of the same flight
+    (its iterate, nominal, clock offsets, noise factors and step-0 prior), for at most
+    ``passes`` damped Gauss-Newton passes (fewer when they settle, or once a pass moved the
+    track by at most ``enough_m`` [m]: the next step is of second order in it; docs/joint.md,
+    "GNSS gaps": the held-out smoothing of the gap calibration, where ``inp`` is the flight
+    with stretches of GNSS withheld).
+
+    Each pass is one of :func:`smooth_joint`'s later passes (no innovation gate; IRLS weights
+    at the iterate, since the measurement set differs from ``start``'s; the line search on
+    the MAP cost), so the result is :func:`smooth_joint`'s on ``inp`` as far as one
+    Gauss-Newton step from ``start`` reaches: withholding fixes moves the solution only near
+    them, where the models are linear to well under the fixes' noise.  ``settings`` should
+    hold ``start``'s gust sd with ``estimate_gust`` off (the gust estimate is the flight's)."""
+    fl = _flight_like(start.flight, inp, settings)
+    if start.prior is not None:
+        fl = replace(fl, x0=start.prior[0], P0=start.prior[1],
+                     P0inv=np.linalg.inv(start.prior[1]))
+    x = start.x
+    it = Iterate(Nominal(start.lat_deg.copy(), start.lon_deg.copy(), start.h_m.copy(),
+                         np.ascontiguousarray(x[:, jl.S_VEL]),
+                         np.ascontiguousarray(x[:, jl.IPSI]),
+                         np.ascontiguousarray(x[:, jl.S_ACC_BIAS])),
+                 {k: v[0] for k, v in start.clock_offsets_s.items()},
+                 {k: v[1] for k, v in start.clock_offsets_s.items()},
+                 np.array([start.noise_scale[name] for name in NOISE_GROUPS.values()]), X=x,
+                 rolls_seen=(start.roll,))
+    return _passes(fl, it, range(1, 1 + max(1, passes)), settings, enough_m, warm=True)
+
+
+def _flight_like(flight: SmootherFlight | None, inp: JointInputs, settings: JointSettings
+                 ) -> SmootherFlight:
+    """:func:`smoother_flight` of ``inp`` with ``settings``, taken from ``flight`` (a run's on
+    the same flight) where ``inp`` differs from its inputs in the GNSS fixes only and
+    ``settings`` from its settings in the gust sd and the wind walk only: none of its parts
+    depends on these but the process noise (recomputed), so they are the same arrays (the
+    held-out smoothing of the gap calibration: 0.27 s and a second copy less on a 10-hour
+    flight; the wind walk's rounds: the measurement table and the increments built once)."""
+    if flight is None:
+        return smoother_flight(inp, settings)
+    same_inputs = all(getattr(inp, f.name) is getattr(flight.inp, f.name)
+                      for f in fields(inp) if f.name != "gnss")
+
+    def q_free(s: JointSettings) -> JointSettings:
+        return replace(s, estimate_gust=False, noise=replace(s.noise, gust_mps=1.0,
+                                                             wind_rw_mps_sqrt_s=1.0))
+
+    if not same_inputs or q_free(settings) != q_free(flight.settings):
+        return smoother_flight(inp, settings)
+    return replace(flight, inp=inp, settings=settings, q=q_vector(settings.noise), x0=None,
+                   P0=None, P0inv=None)
+
+
+def _passes(fl: SmootherFlight, it: Iterate, its: range, settings: JointSettings,
+            enough_m: float = -1.0, warm: bool = False) -> JointRun:
+    """The damped Gauss-Newton passes numbered ``its`` until they settle (or a pass failed,
+    or one moved the track by at most ``enough_m``), then the result of the last."""
+    ws = Buffers(filter_buffers(len(fl.T)))
+    history: list[dict[str, Any]] = []
+    last, converged = None, False
+    for k in its:
+        last = None   # the last pass's models and outputs go before the next pass builds its own
+        fl, it, last, settled = _one_pass(fl, it, ws, k)
+        history.append(last.info)
+        if settled:
+            last.info["converged"] = converged = True
+            break
+        if not last.step.ok or last.info["max_position_change_m"] <= enough_m:
+            break
+    reason = ("converged" if converged else
+              f"warm start: {len(history)} pass(es) from the converged run" if warm
+              else stop_reason_of(history, settings))
+    assert last is not None
+    return replace(_finish(fl, it, ws, last, history, converged, reason),
+                   gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": list(it.gust_rounds)})
+
+
+def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
+            history: list[dict[str, Any]], converged: bool, reason: str) -> JointRun:
+    """The result of the last pass: its iterate (the pass's own smoothed states after a full
+    step), the smoothed covariances of its linearisation and the noise check."""
+    s = fl.settings
+    mdl, out, step, _ = last
+    assert it.weights is not None
+    _covariances(out)
+    ws.running = None
+    xf, Pf, xp, Pp = ws.bufs
+    full = full_step(step)
+    xs = out.xs if full else step.X
+    res = out.res if full else step.res
+    Pblk, var, n_fallback = out.Pblk, out.var, out.n_fallback
+    if Pblk is None or var is None:
+        # smoothed covariances of the last pass (its states equal those of the mean-only pass
+        # to round-off: same gains, same linearisation)
+        xs_c, Pblk, var, *_, n_fallback_cov = backward(xf, Pf, xp, Pp, *out.kern_args, False)
+        xs = xs_c if full else xs
+        n_fallback = max(n_fallback, int(n_fallback_cov))
+    r = out.scalars.r
+    lat, lon, h = (step.models.lat, step.models.lon, step.models.h)
+    innov, innov_var, scale = out.innov, out.innov_var, it.scale
+    noise_check = None
+    if s.estimate_noise:
+        noise_check, redo = _noise_check(fl, mdl, out, it, ws)
+        if redo is not None:
+            scale = np.ones(len(NOISE_GROUPS))
+            xs, Pblk, var, res, n_fallback, xf, innov, innov_var, r = redo
+            lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+    # (after a redone pass too: the last pass's columns, as the offsets are the same)
+    Pblk, var = _with_clock_uncertainty(out, Pf, Pp, Pblk, var, it.clock)
+    history[-1]["stop_reason"] = reason
+    shift = (None if converged or not step.ok else
+             np.linalg.norm(step.X[:, jl.S_POS] - mdl.pnom, axis=1))
+    return JointRun(t=fl.T, x=xs, P_pv=Pblk, var=var, xf=xf, lat_deg=lat, lon_deg=lon, h_m=h,
+                    Cen=mdl.Cen, meas=mdl.meas, weights=it.weights,
+                    resid_norm=res / np.sqrt(r),
+                    innov=innov, innov_var=innov_var,
+                    clock_offsets_s={k: (it.clock[k], it.clock_sd[k]) for k in it.clock},
+                    noise_scale={name: float(scale[i]) for i, name in
+                                 enumerate(NOISE_GROUPS.values())},
+                    iterations=history, end_points=end_points_at(fl.inp.end_points, mdl.roll),
+                    roll=mdl.roll, noise_check=noise_check, cholesky_fallbacks=int(n_fallback),
+                    converged=converged, stop_reason=reason,
+                    prior=None if fl.x0 is None or fl.P0 is None else (fl.x0, fl.P0),
+                    flight=fl, last_shift_m=shift)
+
+
+def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pblk: np.ndarray,
+                            var: np.ndarray, clock: dict[str, float]
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """The smoothed covariances of the last pass ``out`` (``Pblk`` (N, 6, 6), ``var`` (N, n))
+    with the clock offsets' uncertainty added: the pass smoothed the track given the offsets;
+    with the offsets as constant states of covariance Sigma (A^-1 of their normal
+    equations, :func:`clock_covariance`) the track's
+    marginal covariance is P_s + X_s,g Sigma X_s,g^T, X_s,g the offsets' smoothed filter
+    columns (:func:`smoothed_columns`), over the offsets
+    taken (nonzero in ``clock``; an offset held at zero, not detected, is the model's zero:
+    with it the simulated GNSS circuits' NEES fell to 0.45 / 0.57, below the 95 % band of 40
+    runs).  Unchanged without such offsets.  (An offset's sd of 5 ms moves a track at 55 m/s
+    by 0.3 m: on a simulated circuit with 2 m GNSS fixes that is about the track's own sd.)"""
+    if out.clock is None:
+        return Pblk, var
+    est = clock_covariance(out.clock[0][0], out.clock[1][0])
+    if est is None:
+        return Pblk, var
+    act, cov, _ = est
+    keep = [i for i, c in enumerate(act) if clock.get(CLOCK_SOURCES[c][0], 0.0) != 0.0]
+    if not keep:
+        return Pblk, var
+    act, cov = [act[i] for i in keep], cov[np.ix_(keep, keep)]
+    _, cxf, cxp = out.clock[1]
+    cols = smoothed_columns(cxf[act], cxp[act], Pf, Pp, *out.kern_args)   # (a, N, n)
+    # X Sigma X^T per step: its diagonal, and its position-velocity block
+    xsig = np.einsum("aki,ab->bki", cols, cov)
+    var = var + np.einsum("aki,aki->ki", xsig, cols)
+    Pblk = Pblk + np.einsum("aki,akj->kij", xsig[:, :, :6], cols[:, :, :6])
+    return Pblk, var
+
+
+def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Iterate,
+                 ws: Buffers) -> tuple[dict[str, Any], tuple[Any, ...] | None]:
+    """The estimated noise must raise the likelihood of the data: the innovations'
+    log-likelihood (prediction-error decomposition) of the last pass against a forward pass
+    with the default variances at the same linearisation, weights and clock offsets;
+    otherwise the defaults are kept and the last pass is redone with them (docs/joint.md,
+    "Noise estimation").  Returns the check and, when rejected, the redone pass's outputs."""
+    s = fl.settings
+    assert fl.x0 is not None and fl.P0 is not None
+    xf, Pf, xp, Pp = ws.bufs
+    lo_b, hi_b = s.noise_factor_bounds
+    xf1, xp1 = np.empty_like(xf), np.empty_like(xp)
+    Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
+    r1 = mdl.meas.r.copy()
+    # (out.scalars.w: the weights the last forward pass ran with)
+    w_before = out.scalars.w
+    scalars1 = out.scalars._replace(r=r1)
+    xlin = it.X if it.X is not None else np.zeros((0, jl.N_STATE))
+    innov1, innov_var1, infl1, _ = forward(
+        xf1, Pf1, xp1, Pp1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
+        s.innovation_gate if s.robust else 0.0, xlin)
+    sel = (w_before >= 1.0) & (out.infl <= 1.0) & (infl1 <= 1.0)
+    ll_est = innovation_loglik(out.innov, out.innov_var, sel)
+    ll_def = innovation_loglik(innov1, innov_var1, sel)
+    at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
+                if np.any(mdl.groups == i) and (it.scale[i] <= lo_b or it.scale[i] >= hi_b)]
+    accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
+    check = {"loglik_estimated": ll_est, "loglik_default": ll_def,
+             "measurements": int(sel.sum()), "accepted": accepted,
+             "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
+    if accepted:
+        return check, None
+    kern_args = (mdl.dyn, scalars1._replace(r=r1 * infl1), mdl.geo)
+    xs, Pblk, var, _, res, rate, hph, n_fb1 = backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
+    return check, (xs, Pblk, var, res, int(n_fb1), xf1, innov1, innov_var1, r1)
+
+
+def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
+                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: PassResult,
+                 r: np.ndarray, weights: np.ndarray) -> PassStep:
+    """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
+    X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
+    whose MAP cost does not exceed the cost of X (``start``: its cost, residuals and rates;
+    every cost under this pass's
+    clock offsets, roll, noise factors).  The first pass (no iterate yet) takes the full step;
+    so does every pass with ``line_search`` off (the cost is still evaluated and reported)."""
+    s = fl.settings
+    X_gn = out.xs
+    gn_shift = float(np.max(np.abs(X_gn[:, jl.S_POS] - mdl.pnom)))
+    alpha, evals, gn_cost = 1.0, 0, np.nan
+    while True:
+        Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
+        mc, Xc = models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
+        evals += 1
+        if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
+            res, rate = out.res, out.rate
+            gn_cost = cost["cost"]
+        step = PassStep(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
+        if (X is None or start is None or not s.line_search
+                or (np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"])):
+            return step
+        if evals > s.line_search_halvings:
+            # no step size lowered the cost: the iterate stays (the lowest-cost one)
+            return PassStep(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
+                         gn_cost)
+        del step, mc   # the rejected candidate's models go before the next one's are built
+        alpha *= 0.5
+
+
+def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
+            start: tuple[Any, ...], r: np.ndarray, weights: np.ndarray, lm_lambda: float
+            ) -> tuple[PassStep | None, float]:
+    """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
+    the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate
+    ``X``, lambda from ``lm_lambda0`` (or ten times the last one, ``lm_lambda``) multiplied by
+    10 until the cost does not exceed the iterate's, at most up to ``lm_lambda_max``.  Returns
+    the step (None if none did) and the damping to remember (lambda / 10 of the step taken)."""
+    s = fl.settings
+    if ws.lm is None:  # its own buffers: the plain pass's filter outputs are kept
+        ws.lm = tuple(np.empty_like(b) for b in ws.bufs)
+    xf, Pf, xp, Pp = ws.lm
+    assert fl.x0 is not None and fl.P0 is not None
+    sd = np.sqrt(np.diag(fl.P0))
+    lam, evals = max(10.0 * lm_lambda, s.lm_lambda0), 0
+    while lam <= s.lm_lambda_max:
+        sc = with_pseudo(pass_scalars(mdl, fl.T, r, weights), X, sd, lam)
+        forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
+        xs = backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
+        mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
+        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
+        evals += 1
+        if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
+            return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan,
+                            lam), lam / 10.0
+        lam *= 10.0
+    return None, lm_lambda
+
+
+def full_step(step: PassStep) -> bool:
+    """Whether the accepted iterate is the pass's own smoothed states."""
+    return step.ok and step.alpha == 1.0 and step.lm_lambda == 0.0
+
+
+def with_gust_sd(fl: SmootherFlight, sd_mps: float) -> SmootherFlight:
+    """``fl`` with the gust sd ``sd_mps``: in the settings, the process noise and the prior of
+    x_0 (the rest of the prior, its mean included, unchanged)."""
+    noise = replace(fl.settings.noise, gust_mps=float(sd_mps))
+    fl = replace(fl, settings=replace(fl.settings, noise=noise), q=q_vector(noise))
+    if fl.P0 is None:
+        return fl
+    P0 = fl.P0.copy()
+    P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * float(sd_mps) ** 2
+    return replace(fl, P0=P0, P0inv=np.linalg.inv(P0))
+
+
+def gust_round(fl: SmootherFlight, it: Iterate, out: PassResult, X: np.ndarray, k: int
+               ) -> tuple[SmootherFlight, Iterate]:
+    """The gust sd re-estimated from the pass's smoothed track ``X`` (``estimate_gust``;
+    :func:`gust_sd_estimate`), recorded in the iterate's
+    ``gust_rounds``; where it moved by more than ``gust_tol`` the flight's models take it
+    (:func:`with_gust_sd`) and the next pass starts with new models and a new cost.  At most
+    ``gust_rounds`` changes."""
+    s = fl.settings
+    changes = sum(r["changed"] for r in it.gust_rounds)
+    if not s.estimate_gust or out.var is None or changes >= s.gust_rounds:
+        return fl, it
+    tas = fl.inp.tas[fl.idx]
+    est = gust_sd_estimate(X, out.var, np.isfinite(tas) & (tas >= s.min_airspeed_mps))
+    if est is None:
+        return fl, it
+    used = s.noise.gust_mps
+    moved = abs(est / used - 1.0) > s.gust_tol
+    # over-relaxed in log space (twice the EM step: sd^2 / used): the plain update converges
+    # linearly at a rate of 0.55-0.75 here (7 rounds from 2 to 0.54 m/s on the 10-hour
+    # benchmark flight); twice the step converges for any rate in (0, 1), at |2 rate - 1|
+    nxt = float(np.clip(est * est / used, *s.gust_bounds_mps))
+    it = replace(it, gust_rounds=(*it.gust_rounds, {
+        "pass": k, "gust_mps": used, "estimate_mps": est, "next_mps": nxt,
+        "changed": bool(moved)}))
+    if not moved:
+        return fl, it
+    return with_gust_sd(fl, nxt), replace(it, models=None, cost=None, refit=True)
+
+
+@dataclass(frozen=True)
+class PassStep:
+    """The accepted iterate of one pass (after the line search)."""
+
+    X: np.ndarray
+    alpha: float
+    cost: dict[str, float]
+    models: PassModels           # built about X with the pass's clock offsets and roll
+    res: np.ndarray
+    rate: np.ndarray
+    evaluations: int
+    ok: bool                  # False: no step lowered the cost (X is the pass's start)
+    gn_shift_m: float         # largest position change of the full Gauss-Newton step
+    gn_cost: float            # cost at the full Gauss-Newton step
+    lm_lambda: float = 0.0    # > 0: a Levenberg-Marquardt step with this damping
+
+
+@dataclass(frozen=True)
+class JointRun:
+    """Result of :func:`smooth_joint` on the state grid."""
+
+    t: np.ndarray
+    x: np.ndarray            # smoothed states (N, n)
+    P_pv: np.ndarray         # smoothed position-velocity covariance block (ECEF p, NED v)
+    var: np.ndarray          # smoothed state variances (N, n)
+    xf: np.ndarray           # filtered states
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    h_m: np.ndarray          # ellipsoidal height
+    Cen: np.ndarray
+    meas: Measurements
+    weights: np.ndarray
+    resid_norm: np.ndarray
+    innov: np.ndarray
+    innov_var: np.ndarray
+    clock_offsets_s: dict[str, tuple[float, float]]  # (value, sd): seconds added to the stamps
+    noise_scale: dict[str, float]
+    iterations: list[dict[str, Any]]
+    end_points: tuple[EndPoint, ...]   # as used in the last pass (end_points_at)
+    roll: TakeoffRoll                  # the take-off roll of the last pass (refined_roll)
+    noise_check: dict[str, Any] | None = None   # estimate_noise: the likelihood check
+    cholesky_fallbacks: int = 0  # last pass's steps whose Cholesky failed (general solve)
+    # convergence: the test of docs/joint.md ("Filter, smoother, iterations"), and why not
+    converged: bool = False
+    stop_reason: str = ""
+    gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
+    prior: tuple[np.ndarray, np.ndarray] | None = None   # (x0, P0): the prior of step 0 used
+    # the iteration-independent parts it was smoothed with (for a warm start on the same
+    # flight: :func:`smooth_joint_from`); None once the run leaves the method
+    flight: SmootherFlight | None = None
+    # the last pass's position change per state [m] when the passes stopped unconverged
+    # (settling.settling); None when they converged
+    last_shift_m: np.ndarray | None = None
