@@ -187,8 +187,9 @@ def main() -> None:
         sys.stderr.flush()
         os._exit(0)     # as the command leaves (flightrecon.cli.entry.leave): no tear-down
     sys.path.insert(0, str(HERE))
-    from bench_glass_cockpit import export_ends
+    from bench_glass_cockpit import compile_bytecode, export_ends
 
+    compile_bytecode()      # as an installation from a wheel (bench_glass_cockpit.py)
     dep, arr = export_ends(a.export)
     with tempfile.TemporaryDirectory(prefix="profile_stages_") as tmp:
         cases = {
