@@ -8,7 +8,7 @@ iterate (:func:`pass_cost`, the kernel :func:`~flightrecon.methods.joint.model.m
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba as nb
 import numpy as np
@@ -435,8 +435,17 @@ def pass_scalars(mdl: PassModels, T: np.ndarray, r: np.ndarray, weights: np.ndar
     return jl.Scalars(m.start, m.mtype, m.z, r, weights, m.t - T[m.step], m.H, m.hrow, m.d)
 
 
+class Cost(NamedTuple):
+    """The MAP cost of an iterate: its ``terms`` (``cost`` and its parts) and, per
+    measurement, the residuals ``res`` and rates ``rate`` (:func:`pass_cost`)."""
+
+    terms: dict[str, Any]
+    res: np.ndarray
+    rate: np.ndarray
+
+
 def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
-          weights: np.ndarray) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+              weights: np.ndarray) -> Cost:
     """MAP cost of ``X`` (models built about it) and its residuals and rates
     (:func:`~flightrecon.methods.joint.model.map_cost`)."""
     s = fl.settings
@@ -455,7 +464,7 @@ def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
     cost = {"cost": prior + process + data, "cost_prior": prior, "cost_process": process,
             "cost_data": data, "cost_constant_state_change": const,
             "cost_q_failures": int(n_fail)}
-    return cost, res, rate
+    return Cost(cost, res, rate)
 
 
 def with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl.Scalars:

@@ -67,6 +67,7 @@ from flightrecon.methods.joint.inputs import (
 )
 from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Measurements, Scalars
 from flightrecon.methods.joint.linearisation import (
+    Cost,
     PassModels,
     SmootherFlight,
     initial_estimate,
@@ -509,11 +510,11 @@ class Iterate:
     """What one damped Gauss-Newton pass hands the next, replaced by each pass and never
     changed: the ``nominal`` of the next pass, the clock offsets [s] (added to the stamps) and
     their sd, the noise factor per group (EM), the accepted trajectory ``X`` (None before the
-    first pass), the ``models`` built about it and its ``cost`` under them (cost, residuals,
-    rates and the noise factors it was computed with: the next pass's start while nothing
-    changed), the IRLS ``weights``, the last accepted Levenberg-Marquardt damping / 10,
-    ``refit`` (the models' noise changed: a new cost), the gust sd estimates and the take-off
-    rolls of the passes so far (the last pass's last: a roll once left is not taken again)."""
+    first pass), the ``models`` built about it and its ``cost`` under them (with the noise
+    factors it was computed with: the next pass's start while nothing changed), the IRLS
+    ``weights``, the last accepted Levenberg-Marquardt damping / 10, ``refit`` (the models'
+    noise changed: a new cost), the gust sd estimates and the take-off rolls of the passes so
+    far (the last pass's last: a roll once left is not taken again)."""
 
     nominal: Nominal
     clock: dict[str, float]
@@ -521,7 +522,7 @@ class Iterate:
     scale: np.ndarray
     X: np.ndarray | None = None
     models: PassModels | None = None
-    cost: tuple[Any, ...] | None = None
+    cost: tuple[Cost, np.ndarray] | None = None
     weights: np.ndarray | None = None
     lm_lambda: float = 0.0
     refit: bool = False
@@ -568,7 +569,7 @@ def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
 
 
 def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
-                weights: np.ndarray, reset: bool) -> tuple[tuple[Any, ...] | None, np.ndarray]:
+                weights: np.ndarray, reset: bool) -> tuple[Cost | None, np.ndarray]:
     """The iterate's cost, residuals and rates under the pass's models (None before the first
     pass; the last accepted ones when the models and noise factors are the same), and the
     weights: after a ``reset`` (a new measurement set: a refined take-off roll) the IRLS
@@ -577,10 +578,10 @@ def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
     if it.X is None:
         return None, weights
     cached = it.cost if mdl is it.models else None
-    start = (cached if cached is not None and np.array_equal(it.scale, cached[3])
+    start = (cached[0] if cached is not None and np.array_equal(it.scale, cached[1])
              else pass_cost(fl, mdl, it.X, r, weights))
     if reset:
-        weights = robust_weights(start[1] / np.sqrt(r), weights, fl.settings)
+        weights = robust_weights(start.res / np.sqrt(r), weights, fl.settings)
     return start, weights
 
 
@@ -629,13 +630,13 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
     changed = it.refit or (it.models is not None and it.cost is not None and (
         it.models.clock != mdl.clock or not it.models.roll.same_as(mdl.roll)
-        or not np.array_equal(it.scale, it.cost[3])))
+        or not np.array_equal(it.scale, it.cost[1])))
     it = replace(it, weights=weights, lm_lambda=lm_lambda, refit=False)
     info: dict[str, Any] = {"iteration": k, "max_position_change_m": shift,
                             "parameters_changed": bool(changed),
                             "roll_start_t_s": mdl.roll.start_t,
                             "cholesky_fallbacks": out.n_fallback, **step.cost,
-                            "cost_start": None if start is None else start[0]["cost"],
+                            "cost_start": None if start is None else start.terms["cost"],
                             "step_size": step.alpha, "lm_lambda": step.lm_lambda,
                             "line_search_evaluations": step.evaluations,
                             "gauss_newton_position_change_m": step.gn_shift_m}
@@ -645,7 +646,7 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
     psi_moved = float(np.max(np.abs(psi_new - psi_from)))
     info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
     info["heading_bias_deg"] = float(np.degrees(step.X[len(fl.T) // 2, jl.IPSI]))
-    cost0 = None if start is None else start[0]["cost"]
+    cost0 = None if start is None else start.terms["cost"]
     p = Pass(mdl, out, step, info)
     if not step.ok:
         info["line_search_failed"] = True
@@ -687,7 +688,7 @@ def _accepted(fl: SmootherFlight, it: Iterate, p: Pass, r: np.ndarray, cost0: fl
     nxt = replace(it, nominal=Nominal(m.lat, m.lon, m.h, X[:, jl.S_VEL], psi_new,
                                       X[:, jl.S_ACC_BIAS]),
                   clock=clock, clock_sd=clock_sd, scale=scale, X=X, models=m,
-                  cost=(step.cost, step.res, step.rate, it.scale), weights=weights,
+                  cost=(Cost(step.cost, step.res, step.rate), it.scale), weights=weights,
                   rolls_seen=rolls)
     settled = _settled(k, step, cost0, psi_moved,
                        float(np.max(np.abs(weights - w_before), initial=0.0)),
@@ -922,13 +923,11 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
                              m.var, b.cholesky_fallbacks, kern_args, scalars1)
 
 
-def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
-                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: PassResult,
-                 r: np.ndarray, weights: np.ndarray) -> PassStep:
+def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start: Cost | None,
+                out: PassResult, r: np.ndarray, weights: np.ndarray) -> PassStep:
     """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
     X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
-    whose MAP cost does not exceed the cost of X (``start``: its cost, residuals and rates;
-    every cost under this pass's
+    whose MAP cost does not exceed the cost of X (``start``; every cost under this pass's
     clock offsets, roll, noise factors).  The first pass (no iterate yet) takes the full step;
     so does every pass with ``line_search`` off (the cost is still evaluated and reported)."""
     s = fl.settings
@@ -945,18 +944,18 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
             gn_cost = cost["cost"]
         step = PassStep(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
         if (X is None or start is None or not s.line_search
-                or (np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"])):
+                or (np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"])):
             return step
         if evals > s.line_search_halvings:
             # no step size lowered the cost: the iterate stays (the lowest-cost one)
-            return PassStep(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
-                         gn_cost)
+            return PassStep(X, 0.0, start.terms, mdl, start.res, start.rate, evals, False,
+                            gn_shift, gn_cost)
         del step, mc   # the rejected candidate's models go before the next one's are built
         alpha *= 0.5
 
 
 def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
-            start: tuple[Any, ...], r: np.ndarray, weights: np.ndarray, lm_lambda: float
+            start: Cost, r: np.ndarray, weights: np.ndarray, lm_lambda: float
             ) -> tuple[PassStep | None, float]:
     """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
     the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate
@@ -976,7 +975,7 @@ def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
         mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
         cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
         evals += 1
-        if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
+        if np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"]:
             return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan,
                             lam), lam / 10.0
         lam *= 10.0
