@@ -65,9 +65,15 @@ from flightrecon.methods.joint.inputs import (
     end_points_at,
     refined_roll,
 )
-from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Measurements, Scalars
-from flightrecon.methods.joint.linearisation import (
+from flightrecon.methods.joint.layout import (
+    N_STATE,
     Cost,
+    Dynamics,
+    Geometry,
+    Measurements,
+    Scalars,
+)
+from flightrecon.methods.joint.linearisation import (
     PassModels,
     SmootherFlight,
     initial_estimate,
