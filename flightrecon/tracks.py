@@ -36,7 +36,7 @@ class TrackColumns:
         self.prefix = prefix
         self.t_s = np.asarray(t_s, dtype=np.float64)
         self.rows = slice(None) if rows is None else rows
-        self.columns: dict[str, np.ndarray] = {"t_s": self.t_s}
+        self.columns: dict[str, Any] = {"t_s": self.t_s}
 
     def _put(self, name: str, values: np.ndarray) -> None:
         if isinstance(self.rows, slice) and self.rows == slice(None) \
@@ -59,6 +59,11 @@ class TrackColumns:
         one, from another error model than the value's (the Sabziev bridge's dead-reckoning
         sd)."""
         self._put(f"{self.prefix}_{quantity}_sd_{unit}", np.asarray(sd, dtype=np.float64))
+
+    def add_text(self, quantity: str, values: Any) -> None:
+        """``<prefix>_<quantity>``: a text column of every row (pandas ``string``; the joint
+        smoother's ``joint_sources``)."""
+        self.columns[f"{self.prefix}_{quantity}"] = pd.array(values, dtype="string")
 
     def add_horizontal(self, north: str, east: str, unit: str, value: np.ndarray,
                        cov: np.ndarray, to_output: np.ndarray | None = None, *,

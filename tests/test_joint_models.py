@@ -279,7 +279,9 @@ def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
 
 @pytest.fixture(scope="module")
 def captured_passes():
-    """The forward and backward kernels' arguments of one joint pass on the circuit sample."""
+    """The forward and (mean-only) backward kernels' arguments of one joint pass on the circuit
+    sample: ``fw`` (bufs, x0, P0, dyn, meas, geo, gate, xlin, clock), ``bw`` (bufs, dyn, meas,
+    geo)."""
     from pathlib import Path
 
     import flightrecon.methods.joint as J
@@ -297,7 +299,8 @@ def captured_passes():
         return orig_fw(*a)
 
     def bw(*a):
-        cap["bw"] = a
+        if not a[4]:                 # the mean-only pass (the covariance pass runs beside it)
+            cap["bw"] = a[:4]
         return orig_bw(*a)
 
     mp = pytest.MonkeyPatch()
@@ -310,91 +313,68 @@ def captured_passes():
     return cap
 
 
+def _refiltered(cap, store_predicted=True):
+    """The captured forward pass run again into fresh buffers (``Pp`` kept or not); returns
+    the buffers and the backward pass's layouts."""
+    a = list(cap["fw"])
+    a[0] = jp.filter_buffers(len(a[0][0]), store_predicted)
+    jp.forward(*a)
+    return a[0], cap["bw"][1:]
+
+
 def test_backward_passes_count_cholesky_failures(captured_passes):
     """Regression: where a predicted covariance was not positive definite the backward passes
     fell back to a general solve without a word.  They now count those steps (reported in the
     summary as ``cholesky_fallbacks``): zero on the circuit, one after making one P_p[k+1]
     indefinite (one diagonal entry negated), in both the mean and the covariance pass."""
-    a = list(captured_passes["fw"])
-    Pp = jp.filter_buffers(len(a[0]))[3]
-    a[3] = Pp
-    jp.forward(*a)
-    b = list(captured_passes["bw"])
-    b_mean = b[4:-1]
-    assert jp.backward_mean(a[0], a[1], a[2], Pp, *b_mean)[-1] == 0
-    assert jp.backward(a[0], a[1], a[2], Pp, *b[4:])[-1] == 0
-    bad = Pp.copy()
+    bufs, b = _refiltered(captured_passes)
+    assert jp.backward(bufs, *b, False).cholesky_fallbacks == 0
+    assert jp.backward(bufs, *b, True).cholesky_fallbacks == 0
+    bad = bufs[3].copy()
     k = len(bad) // 2
     i = jl.IBH * (jl.IBH + 1) // 2 + jl.IBH    # (IBH, IBH) in the packed lower triangle
     bad[k, i] = -bad[k, i]
-    assert jp.backward_mean(a[0], a[1], a[2], bad, *b_mean)[-1] == 1
-    assert jp.backward(a[0], a[1], a[2], bad, *b[4:-1], False)[-1] == 1
+    bad_bufs = (*bufs[:3], bad)
+    assert jp.backward(bad_bufs, *b, False).cholesky_fallbacks == 1
+    assert jp.backward(bad_bufs, *b, True, False).cholesky_fallbacks == 1
 
 
-def test_recomputed_predicted_covariances_give_bit_identical_smoothing(monkeypatch):
+def test_recomputed_predicted_covariances_give_bit_identical_smoothing(captured_passes):
     """The backward passes recompute P_p[k+1] from P_f[k] (not stored): with the stored ones
     the smoothed states, covariances and residuals must be bit for bit the same."""
-    from pathlib import Path
-
-    import flightrecon.methods.joint as J
-    from flightrecon.cleaning import clean_flight
-    from flightrecon.ingest import load_flight
-    from flightrecon.methods.joint.problem import joint_inputs
-
-    log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
-    inp = joint_inputs(clean_flight(load_flight(log)))
-    cap = {}
-    orig_fw, orig_bw = jp.forward, jp.backward
-
-    def fw(*a):
-        cap["fw"] = a
-        return orig_fw(*a)
-
-    def bw(*a):
-        cap["bw"] = a
-        return orig_bw(*a)
-
-    monkeypatch.setattr(jp, "forward", fw)
-    monkeypatch.setattr(jp, "backward", bw)
-    J.smooth_joint(inp, J.JointSettings(iterations=1))
-    a = list(cap["fw"])
-    a[3] = jp.filter_buffers(len(a[0]))[3]       # store P_p this time
-    no_pp = jp.filter_buffers(len(a[0]), store_predicted=False)[3]
-    orig_fw(*a)
-    b = list(cap["bw"])
-    with_pp = orig_bw(a[0], a[1], a[2], a[3], *b[4:])
-    without = orig_bw(a[0], a[1], a[2], no_pp, *b[4:])
-    for x, y in zip(with_pp, without):
-        np.testing.assert_array_equal(x, y)
-    b_mean = b[4:-1]                               # backward_mean has no residuals flag
-    mean = jp.backward_mean(a[0], a[1], a[2], no_pp, *b_mean)
-    np.testing.assert_array_equal(mean[0], jp.backward_mean(a[0], a[1], a[2], a[3], *b_mean)[0])
+    bufs, b = _refiltered(captured_passes)
+    no_pp = (*bufs[:3], jp.filter_buffers(len(bufs[0]), store_predicted=False)[3])
+    with_pp, without = jp.backward(bufs, *b, True), jp.backward(no_pp, *b, True)
+    np.testing.assert_array_equal(with_pp.x, without.x)
+    for name in ("Pblk", "var", "res_n", "res", "rate", "hph"):
+        np.testing.assert_array_equal(getattr(with_pp.model, name),
+                                      getattr(without.model, name))
+    np.testing.assert_array_equal(jp.backward(no_pp, *b, False).x,
+                                  jp.backward(bufs, *b, False).x)
     # the covariance pass with and without residuals: the same covariances
-    with_res = orig_bw(a[0], a[1], a[2], a[3], *b[4:-1], True)
-    np.testing.assert_array_equal(with_res[1], with_pp[1])
-    np.testing.assert_array_equal(with_res[2], with_pp[2])
+    no_res = jp.backward(bufs, *b, True, False)
+    np.testing.assert_array_equal(no_res.model.Pblk, with_pp.model.Pblk)
+    np.testing.assert_array_equal(no_res.model.var, with_pp.model.var)
 
 
 def test_joint_passes_equal_a_dense_numpy_rts_on_the_real_model(captured_passes):
     """The joint smoother's backward passes (on the core's sparse C^T and RTS step) against the
     textbook RTS in dense numpy on the same forward run of the circuit sample: the 24-state
     transitions built densely by ``dynamics.transition``, ``C = P_f F^T inv(P_p)``.  Smoothed
-    states and position-velocity covariances of ``backward``, states of ``backward_mean``, to
-    1e-9 of the smoothed standard deviation (900 steps, condition numbers of P_p up to 1e12: the
-    two agree to 4e-12 sd in the states and 5e-11 in the variances; 1e-9 is above that rounding
-    and far below any error in the step, e.g. a transposed F or a missed P_p)."""
+    states and position-velocity covariances of the covariance pass, states of the mean-only
+    pass, to 1e-9 of the smoothed standard deviation (900 steps, condition numbers of P_p up to
+    1e12: the two agree to 4e-12 sd in the states and 5e-11 in the variances; 1e-9 is above that
+    rounding and far below any error in the step, e.g. a transposed F or a missed P_p)."""
     from flightrecon.estimation.linalg import unpack_sym
 
-    a = list(captured_passes["fw"])
     n = jl.N_STATE
-    N = len(a[0])
-    a[3] = jp.filter_buffers(N)[3]
-    jp.forward(*a)
-    xf, Pf_packed, xp, Pp_packed = a[0], a[1], a[2], a[3]
-    b = list(captured_passes["bw"])
-    dyn = b[4]
-    xs, Pblk, var = jp.backward(xf, Pf_packed, xp, Pp_packed, *b[4:])[:3]
-    xm = jp.backward_mean(xf, Pf_packed, xp, Pp_packed, *b[4:-1])[0]
+    bufs, b = _refiltered(captured_passes)
+    xf, Pf_packed, xp, Pp_packed = bufs
+    N = len(xf)
+    dyn = b[0]
+    cov = jp.backward(bufs, *b, True)
+    xs, Pblk, var = cov.x, cov.model.Pblk, cov.model.var
+    xm = jp.backward(bufs, *b, False).x
     Pf, Pp = np.empty((N, n, n)), np.empty((N, n, n))
     for k in range(N):
         unpack_sym(Pf_packed[k], Pf[k])
@@ -1056,13 +1036,14 @@ def test_background_covariance_pass_raises_its_error_where_it_is_joined(monkeypa
 
     from flightrecon.methods.joint import solve as jp
 
-    def fake(xf, Pf, xp, Pp, dyn, meas, geo, residuals):
-        assert residuals is False
-        return xf, "Pblk", "var", None, None, None, None, 3
+    def fake(bufs, dyn, meas, geo, with_cov, residuals):
+        assert with_cov and residuals is False
+        return jp.Smoothed(bufs[0], "model", 3)
 
     monkeypatch.setattr(jp, "backward", fake)
     bufs = tuple(np.zeros((2, 2)) for _ in range(4))
-    assert jp.BackgroundCovariances(bufs, None, None, None).result() == ("Pblk", "var", 3)
+    got = jp.BackgroundCovariances(bufs, None, None, None).result()
+    assert (got.model, got.cholesky_fallbacks) == ("model", 3)
 
     def broken(*args):
         raise np.linalg.LinAlgError("not positive definite")

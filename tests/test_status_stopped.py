@@ -20,7 +20,6 @@ from flightrecon.methods.joint.health import (
     SETTLE_SD_FRACTION,
     settling,
     settling_sentence,
-    widened_track_sd,
 )
 from flightrecon.pipeline.health import method_health
 from flightrecon.pipeline.status import FEEDS_DEFAULT, method_status
@@ -88,11 +87,30 @@ def test_a_converged_run_has_no_settling():
 
 
 def test_the_widened_sd_adds_the_remaining_movement_in_quadrature():
-    tr = pd.DataFrame({"t_s": [0.0, 1.0, 2.0], "joint_north_sd_m": [3.0, 3.0, 3.0],
-                       "joint_east_sd_m": [1.0, 1.0, 1.0], "joint_up_sd_m": [2.0, 2.0, 2.0]})
-    widened_track_sd(tr, np.array([0.0, 2.0]), np.array([4.0, 0.0]))
+    """The track's north, east and up sd take the remaining movement (per state, interpolated
+    to the track's times) in quadrature, each axis the whole of it; the rest is unchanged."""
+    from flightrecon.geo.frames import TangentPlane, geodetic_to_ecef
+    from flightrecon.geo.navframe import ned_to_ecef_matrix
+    from flightrecon.methods.joint import layout as jl
+    from flightrecon.methods.joint.output import joint_track
+
+    T = np.array([0.0, 2.0])
+    x = np.zeros((2, jl.N_STATE))
+    x[:, jl.S_POS] = np.array(geodetic_to_ecef(45.0, 10.0, 500.0))
+    C = np.asarray(ned_to_ecef_matrix(45.0, 10.0)).reshape(3, 3)
+    P = np.zeros((2, 6, 6))
+    P[:, 0:3, 0:3] = C @ np.diag([9.0, 1.0, 4.0]) @ C.T    # north, east, down sd 3, 1, 2
+    run = SimpleNamespace(t=T, x=x, P_pv=P, var=np.ones((2, jl.N_STATE)),
+                          Cen=np.repeat(C[None], 2, 0),
+                          meas=SimpleNamespace(t=np.zeros(0), source=np.zeros(0, int)))
+    plane, t = TangentPlane(45.0, 10.0, 0.0), np.array([0.0, 1.0, 2.0])
+    tr, base = joint_track(t, plane, run, np.array([4.0, 0.0])), joint_track(t, plane, run)
     assert tr["joint_north_sd_m"].tolist() == pytest.approx([5.0, np.hypot(3.0, 2.0), 3.0])
     assert tr["joint_east_sd_m"].iloc[0] == pytest.approx(np.hypot(1.0, 4.0))
+    assert tr["joint_up_sd_m"].iloc[0] == pytest.approx(np.hypot(2.0, 4.0))
+    rest = [c for c in tr.columns if c not in ("joint_north_sd_m", "joint_east_sd_m",
+                                               "joint_up_sd_m")]
+    pd.testing.assert_frame_equal(tr[rest], base[rest])
 
 
 def _result(settle: dict | None) -> MethodResult:

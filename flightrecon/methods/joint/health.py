@@ -2,7 +2,8 @@
 offsets, sensor errors and gusts that deserve a word, the wind-walk check, and how far the
 track still was from its fixed point when the passes stopped short of the convergence test
 (:func:`settling`; docs/joint.md, "Filter, smoother, iterations"; docs/output.md, "Method
-health"), with the track's standard deviations widened by it.
+health"), by which the output track's standard deviations are widened
+(:func:`~flightrecon.methods.joint.output.joint_track`).
 
 The settling bound.  The damped Gauss-Newton passes, with the clock offsets, the take-off roll
 and the weights updated between them, converge linearly once the line search takes full steps:
@@ -276,18 +277,6 @@ def settling(run: JointRun) -> dict[str, Any] | None:
                remaining_m=float(np.max(remaining)), remaining_over_sd=over,
                remaining_k_m=remaining)
     return out
-
-
-def widened_track_sd(track: Any, t_state: np.ndarray, remaining_k_m: np.ndarray,
-                     prefix: str = "joint_") -> None:
-    """Add the remaining movement (per state, interpolated to the track's times) in quadrature
-    to the track's north, east and up sd, in place: its direction is unknown, so each axis
-    takes the whole of it."""
-    t = track["t_s"].to_numpy(float)
-    b = np.interp(t, t_state, remaining_k_m)
-    for axis in ("north", "east", "up"):
-        c = f"{prefix}{axis}_sd_m"
-        track[c] = np.hypot(track[c].to_numpy(float), b)
 
 
 def settling_sentence(s: dict[str, Any]) -> str:

@@ -47,7 +47,7 @@ minus the step's time (the state is carried to the measurement time by the veloc
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -79,6 +79,16 @@ ANGLE_TYPES = (AZIMUTH, ELEVATION, HEADING, TRACK)
 
 
 # ---- named layouts across the compiled boundary (numba takes NamedTuples of arrays) ----
+
+class Cost(NamedTuple):
+    """The MAP cost of an iterate (the kernel :func:`~flightrecon.methods.joint.model.map_cost`,
+    :func:`~flightrecon.methods.joint.linearisation.pass_cost`): its ``terms`` (``cost`` and its
+    parts) and, per measurement, the residuals ``res`` and rates ``rate``."""
+
+    terms: dict[str, Any]
+    res: np.ndarray
+    rate: np.ndarray
+
 
 class Dynamics(NamedTuple):
     """The propagation model on the state grid (N steps)."""

@@ -14,10 +14,14 @@ import numba as nb
 import numpy as np
 
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
-from flightrecon.geo.navframe import frame_rate_acceleration, ned_to_ecef_matrix
+from flightrecon.geo.navframe import (
+    frame_rate_acceleration,
+    integrate_local_level,
+    ned_to_ecef_matrix,
+)
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import JointInputs, TakeoffRoll, enu_to_ecef_matrix
-from flightrecon.methods.joint.layout import Measurements
+from flightrecon.methods.joint.layout import Cost, Measurements
 from flightrecon.methods.joint.measurements import (
     build_measurements,
     noise_groups,
@@ -174,11 +178,9 @@ def initial_estimate(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: floa
     n = jl.N_STATE
     x0 = np.zeros(n)
     x0[jl.S_POS] = nom_ecef[0]
-    i0 = 0
-    v0 = np.zeros(3)
-    if np.isfinite(inp.tas[i0]) and inp.tas[i0] >= min_speed:
-        v0[:2] = inp.tas[i0] * np.array([np.cos(inp.heading_rad[i0]), np.sin(inp.heading_rad[i0])])
-    x0[jl.S_VEL] = v0
+    psi0 = inp.heading_rad[0]
+    if np.isfinite(inp.tas[0]) and inp.tas[0] >= min_speed:
+        x0[jl.IV:jl.IV + 2] = inp.tas[0] * np.array([np.cos(psi0), np.sin(psi0)])
     P0 = np.zeros((n, n))
     P0[jl.S_POS, jl.S_POS] = np.eye(3) * nz.init_pos_m ** 2
     P0[jl.S_VEL, jl.S_VEL] = np.eye(3) * nz.init_vel_mps ** 2
@@ -213,8 +215,6 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray):
     Only the starting point of the Gauss-Newton iterations: it decides how many are needed,
     not where they converge.
     """
-    from flightrecon.geo.navframe import integrate_local_level
-
     t = inp.t_in
     tas = np.where(np.isfinite(inp.tas), inp.tas, 0.0)
     psi = np.where(np.isfinite(inp.heading_rad), inp.heading_rad, 0.0)
@@ -323,8 +323,7 @@ def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight
     qv_extra = np.where(dt > 0, miss / np.where(dt > 0, dt, 1.0), 0.0)
     # the attitude reference's tilt after sustained loads (tilt.py, eq. 2)
     qv_extra = qv_extra + tilt_psd(inp.t_in, inp.f_body_g, idx, settings.noise, inp.acc_ned)
-    Cst = np.eye(3)
-    pst = np.zeros(3)
+    Cst, pst = np.eye(3), np.zeros(3)
     if inp.station is not None:
         Cst = enu_to_ecef_matrix(inp.station[0], inp.station[1])
         sx, sy, sz = geodetic_to_ecef(*inp.station)
@@ -436,7 +435,7 @@ def pass_scalars(mdl: PassModels, T: np.ndarray, r: np.ndarray, weights: np.ndar
 
 
 def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
-          weights: np.ndarray) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+              weights: np.ndarray) -> Cost:
     """MAP cost of ``X`` (models built about it) and its residuals and rates
     (:func:`~flightrecon.methods.joint.model.map_cost`)."""
     s = fl.settings
@@ -455,7 +454,7 @@ def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
     cost = {"cost": prior + process + data, "cost_prior": prior, "cost_process": process,
             "cost_data": data, "cost_constant_state_change": const,
             "cost_q_failures": int(n_fail)}
-    return cost, res, rate
+    return Cost(cost, res, rate)
 
 
 def with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl.Scalars:

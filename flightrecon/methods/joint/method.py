@@ -30,7 +30,6 @@ from flightrecon.methods.joint.health import (
     settling,
     settling_sentence,
     source_report,
-    widened_track_sd,
     wind_walk_check,
     wind_walk_warning,
 )
@@ -163,10 +162,10 @@ def joint_result(problem: JointProblem) -> MethodResult:
     if problem.frame is None:
         raise ValueError("the joint result needs the problem's output frame "
                          "(joint_problem builds it)")
-    track = joint_track(problem.frame.t_s, problem.frame.plane, run)
     settle = settling(run)
-    if settle is not None and settle["verdict"] == "widened":
-        widened_track_sd(track, run.t, settle["remaining_k_m"])
+    widen = (None if settle is None or settle["verdict"] != "widened"
+             else settle["remaining_k_m"])
+    track = joint_track(problem.frame.t_s, problem.frame.plane, run, widen)
     summary = _checked_summary(problem, run, track, wind_rounds, gap_cal)
     if settle is not None:
         # stopped short of the convergence test: how far the passes still had to go

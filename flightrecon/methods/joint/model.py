@@ -849,7 +849,7 @@ def map_cost(X, x0, P0inv, dyn, meas, geo, huber_c, reject_c, robust):
     const_change : largest step change of the states without process noise (rounding).
     res, rate : (M,) residual z - h(x) (angles wrapped) and the rate dh/dtau of each predicted
         measurement (for the clock-offset fit; 0 for air data), as
-        :func:`~flightrecon.methods.joint.solve.backward_mean` gives them.
+        :func:`~flightrecon.methods.joint.solve.backward` gives them.
     n_fail : steps whose Q_k (active part) failed its Cholesky factorisation (left out).
     """
     mstart, mtype, mz, mr, mw, mtau, mH, mrow, md = meas

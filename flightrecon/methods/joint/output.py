@@ -92,14 +92,22 @@ def hermite_kernel(t_out, T, p, v):
     return out
 
 
-def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun) -> pd.DataFrame:
+def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
+                remaining_k_m: np.ndarray | None = None) -> pd.DataFrame:
     """The smoothed trajectory at the times ``t_out`` (the input grid's), in the output
-    conventions (prefix joint_) on the output tangent ``plane``."""
+    conventions (prefix joint_) on the output tangent ``plane``.  ``remaining_k_m`` (per
+    state): the movement a run stopped short of convergence still had ahead
+    (:func:`~flightrecon.methods.joint.health.settling`), added in quadrature to the north,
+    east and up sd: its direction is unknown, so each axis takes the whole of it."""
     T = run.t
     x = run.x
 
     def interp(v):
         return np.interp(t_out, T, v)
+
+    def pos_sd(axis):
+        sd = interp(sd_pos[:, axis])
+        return sd if remaining_k_m is None else np.hypot(sd, interp(remaining_k_m))
 
     ecef = hermite_positions(t_out, T, x[:, jl.S_POS],
                               np.einsum("kij,kj->ki", run.Cen, x[:, jl.S_VEL]))
@@ -114,17 +122,16 @@ def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun) -> pd.Dat
     # through the one builder (flightrecon/tracks.py): the plane position, its up, latitude,
     # longitude and ellipsoidal height from the smoother's own earth-fixed position
     out = TrackColumns(PREFIX.rstrip("_"), t_out)
-    out.add("north", "m", n, interp(sd_pos[:, 0]))
-    out.add("east", "m", e, interp(sd_pos[:, 1]))
-    out.add_place(plane, e, n, up=u, up_sd=interp(sd_pos[:, 2]), geodetic=(lat, lon, h))
+    out.add("north", "m", n, pos_sd(0))
+    out.add("east", "m", e, pos_sd(1))
+    out.add_place(plane, e, n, up=u, up_sd=pos_sd(2), geodetic=(lat, lon, h))
     out.add("vn", "mps", interp(x[:, jl.IV]), interp(sd_vel[:, 0]))
     out.add("ve", "mps", interp(x[:, jl.IV + 1]), interp(sd_vel[:, 1]))
     out.add("vu", "mps", -interp(x[:, jl.IV + 2]), interp(sd_vel[:, 2]))
     out.add("wind_n", "mps", interp(x[:, jl.IW]), interp(sd_w[:, 0]))
     out.add("wind_e", "mps", interp(x[:, jl.IW + 1]), interp(sd_w[:, 1]))
-    track = out.frame()
-    track[PREFIX + "sources"] = pd.array(provenance(run, t_out), dtype="string")
-    return track
+    out.add_text("sources", provenance(run, t_out))
+    return out.frame()
 
 
 def corrections_at_middle(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:

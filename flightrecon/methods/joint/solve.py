@@ -16,15 +16,14 @@ Gauss-Newton step jointly with the track, which each pass's forward filter gives
 (:func:`clock_step`), so that they settle in about as many
 passes as the track does.
 
-The passes' front ends (:func:`forward`, :func:`backward`, :func:`backward_mean`) run the
-model (:class:`~flightrecon.methods.joint.model.JointModel`) on the estimation core's loops
+The passes' front ends (:func:`forward`, :func:`backward`) run the model
+(:class:`~flightrecon.methods.joint.model.JointModel`) on the estimation core's loops
 (:func:`~flightrecon.estimation.filtering.forward_pass`,
 :func:`~flightrecon.estimation.smoothing.backward_pass`; docs/estimation.md, "The joint
-model"). They take the filter buffers and the pass's layouts and return the outputs as
-arrays: :func:`forward` the innovations, :func:`backward` the smoothed states and covariance
-blocks with the residuals, :func:`backward_mean` the smoothed states and residuals of the
-mean-only pass.  Both backward passes run with the GIL released (the core's loops are
-``nogil``), so the covariance pass can run on a second thread beside the mean pass.
+model") on the filter buffers and the pass's layouts, and return the model with its outputs
+(:func:`backward` with the smoothed states: :class:`Smoothed`).  The backward passes run with
+the GIL released (the core's loops are ``nogil``), so the covariance pass can run on a second
+thread beside the mean-only pass.
 
 The gust sd (docs/joint.md, "Wind and turbulence").  The gust ``u`` (layout: ``S_GUST``) is a
 stationary first-order Gauss-Markov process of variance sigma_u^2 per axis.  Under the model,
@@ -66,7 +65,14 @@ from flightrecon.methods.joint.inputs import (
     end_points_at,
     refined_roll,
 )
-from flightrecon.methods.joint.layout import N_STATE, Dynamics, Geometry, Measurements, Scalars
+from flightrecon.methods.joint.layout import (
+    N_STATE,
+    Cost,
+    Dynamics,
+    Geometry,
+    Measurements,
+    Scalars,
+)
 from flightrecon.methods.joint.linearisation import (
     PassModels,
     SmootherFlight,
@@ -83,7 +89,7 @@ from flightrecon.methods.joint.linearisation import (
     with_pseudo,
 )
 from flightrecon.methods.joint.measurements import NOISE_GROUPS
-from flightrecon.methods.joint.model import joint_model
+from flightrecon.methods.joint.model import JointModel, joint_model
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 
@@ -99,36 +105,48 @@ def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ..
             np.empty((N if store_predicted else 0, L)))
 
 
-def forward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, x0: np.ndarray,
-            P0: np.ndarray, dyn: Dynamics, meas: Scalars, geo: Geometry, gate: float,
-            xlin: np.ndarray, clock: tuple[np.ndarray, np.ndarray] | None = None
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+def forward(bufs: tuple[np.ndarray, ...], x0: np.ndarray, P0: np.ndarray, dyn: Dynamics,
+            meas: Scalars, geo: Geometry, gate: float, xlin: np.ndarray,
+            clock: tuple[np.ndarray, np.ndarray] | None = None) -> JointModel:
     """Forward extended Kalman filter with sequential scalar updates (the model's
-    ``predict_into`` and ``update_into``, :mod:`~flightrecon.methods.joint.model`).
+    ``predict_into`` and ``update_into``, :mod:`~flightrecon.methods.joint.model`) into the
+    filter buffers ``bufs`` (:func:`filter_buffers`; an empty ``Pp`` is not filled: the
+    backward passes then recompute each predicted covariance, bit for bit the same).
 
     With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
     last pass: an iterated extended Kalman smoother, Gauss-Newton on the whole record); with an
-    empty ``xlin`` (0, n) about the filter's own prediction (the first pass).  ``gate`` (0: off)
-    the normalised innovation beyond which a measurement's variance is inflated.
-
-    Fills ``xf``, ``Pf``, ``xp``, ``Pp`` (:func:`filter_buffers`; an empty ``Pp`` is not filled:
-    the backward passes then recompute each predicted covariance, bit for bit the same) and
-    returns, per measurement, the innovation, its variance (before inflation) and the inflation
-    factor (NaN, NaN, 1 for a measurement of weight 0), and the clock offsets' outputs when
-    ``clock`` gives each measurement's clock column (0 GNSS, 1 radar, -1 none) and the rate of
-    its prediction the gradient does not give: the normal equations of their Gauss-Newton
-    step (A00, A01, A11, b0, b1: :func:`~flightrecon.methods.joint.model.
-    _clock_column_update`) and their filter columns after and before each step's updates
-    (2, N, n) (None: empty arrays).
+    empty ``xlin`` (0, n) about the filter's own prediction (the first pass).  ``gate`` and
+    ``clock`` as in :func:`~flightrecon.methods.joint.model.joint_model`.  Returns the pass's
+    :class:`~flightrecon.methods.joint.model.JointModel`: its innovations, their variances and
+    inflations (``nu``, ``S``, ``infl``) and the clock offsets' outputs (``cnorm``, ``cxf``,
+    ``cxp``).
     """
-    model = joint_model((xf, Pf, xp, Pp), dyn, meas, geo, gate, xlin, forward=True,
-                        clock=clock)
-    forward_pass(model, x0, P0, xf.shape[0])
-    return model.nu, model.S, model.infl, (model.cnorm, model.cxf, model.cxp)
+    model = joint_model(bufs, dyn, meas, geo, gate, xlin, forward=True, clock=clock)
+    forward_pass(model, x0, P0, bufs[0].shape[0])
+    return model
 
 
-def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,
-              with_cov: bool, residuals: bool) -> tuple[np.ndarray, Any, int]:
+class Smoothed(NamedTuple):
+    """A backward pass: the smoothed states ``x`` (N, n), its ``model``
+    (:class:`~flightrecon.methods.joint.model.JointModel`: the residuals ``res_n``, ``res``,
+    ``rate``, ``hph`` and the covariance blocks ``Pblk``, ``var`` it computed) and the number of
+    ``cholesky_fallbacks``."""
+
+    x: np.ndarray
+    model: JointModel
+    cholesky_fallbacks: int
+
+
+def backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Geometry,
+             with_cov: bool, residuals: bool = True) -> Smoothed:
+    """RTS backward pass (Rauch, Tung & Striebel 1965) on the filter buffers ``bufs``, with the
+    smoothed covariances (``with_cov``) or the mean only: x_s[k] = x_f[k] + P_f[k] F_{k+1}^T
+    P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]), the same smoothed mean at O(n^3 / 6) per step (one
+    Cholesky solve with a vector) instead of O(n^3) products; the Gauss-Newton iterations need
+    the trajectory and the residuals but not the covariances.  Without ``residuals`` the
+    covariance pass can run beside the mean pass on another thread.  Counts the steps whose
+    predicted covariance failed its Cholesky factorisation (not positive definite to rounding:
+    the gain then comes from the eigen-decomposition solve; the caller reports the count)."""
     xf, Pf, xp, Pp = bufs
     N, n = xf.shape
     model = joint_model(bufs, dyn, meas, geo, residuals=residuals, covariances=with_cov)
@@ -136,7 +154,7 @@ def _backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: G
     P_last = np.empty((n, n))
     unpack_sym(Pf[N - 1], P_last)
     n_fallback = backward_pass(model, xf, xp, xs, P_last if with_cov else np.empty((0, 0)))
-    return xs, model, int(n_fallback)
+    return Smoothed(xs, model, int(n_fallback))
 
 
 def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.ndarray,
@@ -149,59 +167,19 @@ def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.nd
     the track's (the marginal covariance of the state augmented by the constant offsets)."""
     out = np.empty_like(cxf)
     for c in range(cxf.shape[0]):
-        out[c] = _backward((cxf[c], Pf, cxp[c], Pp), dyn, meas, geo, False, False)[0]
+        out[c] = backward((cxf[c], Pf, cxp[c], Pp), dyn, meas, geo, False, False).x
     return out
-
-
-def backward_mean(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray,
-                  dyn: Dynamics, meas: Scalars, geo: Geometry
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """RTS backward pass for the smoothed states only (no covariances), and the residuals.
-
-    x_s[k] = x_f[k] + P_f[k] F_{k+1}^T P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]): the same smoothed
-    mean as :func:`backward` (Rauch, Tung & Striebel 1965) at O(n^3 / 6) per step (one Cholesky
-    solve with a vector) instead of O(n^3) products; used in the Gauss-Newton iterations, which
-    need the trajectory and the residuals but not the smoothed covariances.
-
-    Returns smoothed states, normalised residuals, raw residuals and rates (as :func:`backward`)
-    and the number of steps whose predicted covariance failed its Cholesky factorisation (not
-    positive definite to rounding: the gain then comes from the eigen-decomposition solve; the
-    caller reports the count).
-    """
-    xs, m, n_fallback = _backward((xf, Pf, xp, Pp), dyn, meas, geo, False, True)
-    return xs, m.res_n, m.res, m.rate, n_fallback
-
-
-def backward(xf: np.ndarray, Pf: np.ndarray, xp: np.ndarray, Pp: np.ndarray, dyn: Dynamics,
-             meas: Scalars, geo: Geometry, residuals: bool) -> tuple[Any, ...]:
-    """RTS backward pass with covariances; also the smoothed residuals (see
-    :func:`backward_mean`, which gives the same states without the covariances).
-
-    Returns smoothed states, the smoothed position-velocity covariance block (N, 6, 6), the
-    smoothed state variances (N, n), normalised residuals, raw residuals, rates and, per
-    measurement, H P_s H^T (the smoothed variance of the predicted measurement), and the number
-    of Cholesky failures (as :func:`backward_mean`).  With ``residuals`` False the residual
-    outputs stay NaN (the covariances do not need them: this pass can then run beside
-    :func:`backward_mean` on another thread).
-    """
-    xs, m, n_fallback = _backward((xf, Pf, xp, Pp), dyn, meas, geo, True, residuals)
-    M = len(meas.mtype)
-    if residuals:
-        res_n, res, rate, hph = m.res_n, m.res, m.rate, m.hph
-    else:
-        res_n, res, rate, hph = (np.full(M, np.nan) for _ in range(4))
-    return xs, m.Pblk, m.var, res_n, res, rate, hph, n_fallback
 
 
 class BackgroundCovariances:
     """The RTS covariance pass (:func:`backward`, without the residuals) of the filter
     buffers ``bufs`` = (xf, Pf, xp, Pp) and the pass's layouts, started on a second thread to
-    run beside the mean pass (:func:`backward_mean`) and whatever follows it until the
-    covariances or the buffers are needed; :meth:`result` waits for it."""
+    run beside the mean pass and whatever follows it until the covariances or the buffers are
+    needed; :meth:`result` waits for it."""
 
     def __init__(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
                  geo: Geometry) -> None:
-        self.out: tuple[Any, ...] | None = None
+        self.out: Smoothed | None = None
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, args=(bufs, dyn, meas, geo),
                                        name="joint-covariances")
@@ -210,19 +188,17 @@ class BackgroundCovariances:
     def _run(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
              geo: Geometry) -> None:
         try:
-            xf, Pf, xp, Pp = bufs
-            self.out = backward(xf, Pf, xp, Pp, dyn, meas, geo, False)
+            self.out = backward(bufs, dyn, meas, geo, True, False)
         except BaseException as exc:  # re-raised on the thread that waits for it
             self.error = exc
 
-    def result(self) -> tuple[np.ndarray, np.ndarray, int]:
-        """(Pblk, var, Cholesky fallbacks) of the pass, once the thread has finished."""
+    def result(self) -> Smoothed:
+        """The covariance pass, once the thread has finished."""
         self.thread.join()
         if self.error is not None:
             raise self.error
         assert self.out is not None
-        _, Pblk, var, *_, n_fallback = self.out
-        return Pblk, var, int(n_fallback)
+        return self.out
 
 
 @dataclass
@@ -466,10 +442,10 @@ def _covariances(out: PassResult | None) -> None:
     passes' (and so does its entry's in the iterations, ``out.info``)."""
     if out is None or out.pending is None:
         return
-    Pblk, var, n_fallback = out.pending.result()
+    cov = out.pending.result()
     out.pending = None
-    out.Pblk, out.var = Pblk, var
-    out.n_fallback = max(out.n_fallback, n_fallback)
+    out.Pblk, out.var = cov.model.Pblk, cov.model.var
+    out.n_fallback = max(out.n_fallback, cov.cholesky_fallbacks)
     if out.info is not None:
         out.info["cholesky_fallbacks"] = out.n_fallback
 
@@ -481,7 +457,6 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
     backward pass; the smoothed covariances with ``with_cov`` (on a second thread beside the
     mean pass unless the noise estimation needs the smoothed H P H^T)."""
     s = fl.settings
-    xf, Pf, xp, Pp = bufs
     assert fl.x0 is not None and fl.P0 is not None
     scalars = pass_scalars(mdl, fl.T, r, weights)
     # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
@@ -489,25 +464,20 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
     if not first and s.line_search and not s.gate_damped:
         gate = 0.0
     cols = clock_columns(mdl.meas, s) if s.estimate_clock else None
-    innov, innov_var, infl, normal = forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, scalars,
-                                                mdl.geo, gate, xlin, cols)
-    clock = None if cols is None else (cols, normal)
-    kern_args = (mdl.dyn, scalars._replace(r=r * infl), mdl.geo)
-    hph = Pblk = var = None
-    if s.estimate_noise:
-        xs, Pblk, var, _, res, rate, hph, n_fallback = backward(xf, Pf, xp, Pp, *kern_args,
-                                                                   True)
-    elif with_cov:
-        # the covariance recursion on a second thread (the kernels release the GIL), joined
-        # when its outputs are needed or the buffers are written again (:func:`_covariances`)
-        pending = BackgroundCovariances((xf, Pf, xp, Pp), *kern_args)
-        xs, _, res, rate, n_fallback = backward_mean(xf, Pf, xp, Pp, *kern_args)
-        return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, None, None,
-                          int(n_fallback), kern_args, scalars, pending, clock=clock)
-    else:
-        xs, _, res, rate, n_fallback = backward_mean(xf, Pf, xp, Pp, *kern_args)
-    return PassResult(xs, xf, res, rate, hph, infl, innov, innov_var, Pblk, var, int(n_fallback),
-                      kern_args, scalars, clock=clock)
+    fw = forward(bufs, fl.x0, fl.P0, mdl.dyn, scalars, mdl.geo, gate, xlin, cols)
+    clock = None if cols is None else (cols, (fw.cnorm, fw.cxf, fw.cxp))
+    kern_args = (mdl.dyn, scalars._replace(r=r * fw.infl), mdl.geo)
+    # the covariance recursion on a second thread (the kernels release the GIL), joined when
+    # its outputs are needed or the buffers are written again (:func:`_covariances`), unless
+    # the noise estimation needs the smoothed H P H^T now
+    pending = (BackgroundCovariances(bufs, *kern_args) if with_cov and not s.estimate_noise
+               else None)
+    b = backward(bufs, *kern_args, s.estimate_noise)
+    m = b.model
+    cov = s.estimate_noise
+    return PassResult(b.x, bufs[0], m.res, m.rate, m.hph if cov else None, fw.infl, fw.nu, fw.S,
+                      m.Pblk if cov else None, m.var if cov else None, b.cholesky_fallbacks,
+                      kern_args, scalars, pending, clock=clock)
 
 
 def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_change: float,
@@ -546,11 +516,11 @@ class Iterate:
     """What one damped Gauss-Newton pass hands the next, replaced by each pass and never
     changed: the ``nominal`` of the next pass, the clock offsets [s] (added to the stamps) and
     their sd, the noise factor per group (EM), the accepted trajectory ``X`` (None before the
-    first pass), the ``models`` built about it and its ``cost`` under them (cost, residuals,
-    rates and the noise factors it was computed with: the next pass's start while nothing
-    changed), the IRLS ``weights``, the last accepted Levenberg-Marquardt damping / 10,
-    ``refit`` (the models' noise changed: a new cost), the gust sd estimates and the take-off
-    rolls of the passes so far (the last pass's last: a roll once left is not taken again)."""
+    first pass), the ``models`` built about it and its ``cost`` under them (with the noise
+    factors it was computed with: the next pass's start while nothing changed), the IRLS
+    ``weights``, the last accepted Levenberg-Marquardt damping / 10, ``refit`` (the models'
+    noise changed: a new cost), the gust sd estimates and the take-off rolls of the passes so
+    far (the last pass's last: a roll once left is not taken again)."""
 
     nominal: Nominal
     clock: dict[str, float]
@@ -558,7 +528,7 @@ class Iterate:
     scale: np.ndarray
     X: np.ndarray | None = None
     models: PassModels | None = None
-    cost: tuple[Any, ...] | None = None
+    cost: tuple[Cost, np.ndarray] | None = None
     weights: np.ndarray | None = None
     lm_lambda: float = 0.0
     refit: bool = False
@@ -605,7 +575,7 @@ def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
 
 
 def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
-                weights: np.ndarray, reset: bool) -> tuple[tuple[Any, ...] | None, np.ndarray]:
+                weights: np.ndarray, reset: bool) -> tuple[Cost | None, np.ndarray]:
     """The iterate's cost, residuals and rates under the pass's models (None before the first
     pass; the last accepted ones when the models and noise factors are the same), and the
     weights: after a ``reset`` (a new measurement set: a refined take-off roll) the IRLS
@@ -614,10 +584,10 @@ def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
     if it.X is None:
         return None, weights
     cached = it.cost if mdl is it.models else None
-    start = (cached if cached is not None and np.array_equal(it.scale, cached[3])
+    start = (cached[0] if cached is not None and np.array_equal(it.scale, cached[1])
              else pass_cost(fl, mdl, it.X, r, weights))
     if reset:
-        weights = robust_weights(start[1] / np.sqrt(r), weights, fl.settings)
+        weights = robust_weights(start.res / np.sqrt(r), weights, fl.settings)
     return start, weights
 
 
@@ -666,13 +636,13 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
     shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
     changed = it.refit or (it.models is not None and it.cost is not None and (
         it.models.clock != mdl.clock or not it.models.roll.same_as(mdl.roll)
-        or not np.array_equal(it.scale, it.cost[3])))
+        or not np.array_equal(it.scale, it.cost[1])))
     it = replace(it, weights=weights, lm_lambda=lm_lambda, refit=False)
     info: dict[str, Any] = {"iteration": k, "max_position_change_m": shift,
                             "parameters_changed": bool(changed),
                             "roll_start_t_s": mdl.roll.start_t,
                             "cholesky_fallbacks": out.n_fallback, **step.cost,
-                            "cost_start": None if start is None else start[0]["cost"],
+                            "cost_start": None if start is None else start.terms["cost"],
                             "step_size": step.alpha, "lm_lambda": step.lm_lambda,
                             "line_search_evaluations": step.evaluations,
                             "gauss_newton_position_change_m": step.gn_shift_m}
@@ -682,7 +652,7 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
     psi_moved = float(np.max(np.abs(psi_new - psi_from)))
     info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
     info["heading_bias_deg"] = float(np.degrees(step.X[len(fl.T) // 2, jl.IPSI]))
-    cost0 = None if start is None else start[0]["cost"]
+    cost0 = None if start is None else start.terms["cost"]
     p = Pass(mdl, out, step, info)
     if not step.ok:
         info["line_search_failed"] = True
@@ -724,7 +694,7 @@ def _accepted(fl: SmootherFlight, it: Iterate, p: Pass, r: np.ndarray, cost0: fl
     nxt = replace(it, nominal=Nominal(m.lat, m.lon, m.h, X[:, jl.S_VEL], psi_new,
                                       X[:, jl.S_ACC_BIAS]),
                   clock=clock, clock_sd=clock_sd, scale=scale, X=X, models=m,
-                  cost=(step.cost, step.res, step.rate, it.scale), weights=weights,
+                  cost=(Cost(step.cost, step.res, step.rate), it.scale), weights=weights,
                   rolls_seen=rolls)
     settled = _settled(k, step, cost0, psi_moved,
                        float(np.max(np.abs(weights - w_before), initial=0.0)),
@@ -855,9 +825,10 @@ def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
     if Pblk is None or var is None:
         # smoothed covariances of the last pass (its states equal those of the mean-only pass
         # to round-off: same gains, same linearisation)
-        xs_c, Pblk, var, *_, n_fallback_cov = backward(xf, Pf, xp, Pp, *out.kern_args, False)
-        xs = xs_c if full else xs
-        n_fallback = max(n_fallback, int(n_fallback_cov))
+        cov = backward(ws.bufs, *out.kern_args, True, False)
+        xs = cov.x if full else xs
+        Pblk, var = cov.model.Pblk, cov.model.var
+        n_fallback = max(n_fallback, cov.cholesky_fallbacks)
     r = out.scalars.r
     lat, lon, h = (step.models.lat, step.models.lon, step.models.h)
     innov, innov_var, scale = out.innov, out.innov_var, it.scale
@@ -866,7 +837,10 @@ def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
         noise_check, redo = _noise_check(fl, mdl, out, it, ws)
         if redo is not None:
             scale = np.ones(len(NOISE_GROUPS))
-            xs, Pblk, var, res, n_fallback, xf, innov, innov_var, r = redo
+            xs, Pblk, var, res, xf = redo.xs, redo.Pblk, redo.var, redo.res, redo.xf
+            n_fallback, innov, innov_var = redo.n_fallback, redo.innov, redo.innov_var
+            r = redo.scalars.r
+            assert Pblk is not None and var is not None    # the redone pass's covariances
             lat, lon, h = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
     # (after a redone pass too: the last pass's columns, as the offsets are the same)
     Pblk, var = _with_clock_uncertainty(out, Pf, Pp, Pblk, var, it.clock)
@@ -920,7 +894,7 @@ def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pbl
 
 
 def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Iterate,
-                 ws: Buffers) -> tuple[dict[str, Any], tuple[Any, ...] | None]:
+                 ws: Buffers) -> tuple[dict[str, Any], PassResult | None]:
     """The estimated noise must raise the likelihood of the data: the innovations'
     log-likelihood (prediction-error decomposition) of the last pass against a forward pass
     with the default variances at the same linearisation, weights and clock offsets;
@@ -928,21 +902,18 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
     "Noise estimation").  Returns the check and, when rejected, the redone pass's outputs."""
     s = fl.settings
     assert fl.x0 is not None and fl.P0 is not None
-    xf, Pf, xp, Pp = ws.bufs
     lo_b, hi_b = s.noise_factor_bounds
-    xf1, xp1 = np.empty_like(xf), np.empty_like(xp)
-    Pf1, Pp1 = np.empty_like(Pf), np.empty_like(Pp)
+    bufs1 = tuple(np.empty_like(b) for b in ws.bufs)
     r1 = mdl.meas.r.copy()
     # (out.scalars.w: the weights the last forward pass ran with)
     w_before = out.scalars.w
     scalars1 = out.scalars._replace(r=r1)
     xlin = it.X if it.X is not None else np.zeros((0, jl.N_STATE))
-    innov1, innov_var1, infl1, _ = forward(
-        xf1, Pf1, xp1, Pp1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
-        s.innovation_gate if s.robust else 0.0, xlin)
-    sel = (w_before >= 1.0) & (out.infl <= 1.0) & (infl1 <= 1.0)
+    fw = forward(bufs1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
+                 s.innovation_gate if s.robust else 0.0, xlin)
+    sel = (w_before >= 1.0) & (out.infl <= 1.0) & (fw.infl <= 1.0)
     ll_est = innovation_loglik(out.innov, out.innov_var, sel)
-    ll_def = innovation_loglik(innov1, innov_var1, sel)
+    ll_def = innovation_loglik(fw.nu, fw.S, sel)
     at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
                 if np.any(mdl.groups == i) and (it.scale[i] <= lo_b or it.scale[i] >= hi_b)]
     accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
@@ -951,18 +922,18 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
              "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
     if accepted:
         return check, None
-    kern_args = (mdl.dyn, scalars1._replace(r=r1 * infl1), mdl.geo)
-    xs, Pblk, var, _, res, rate, hph, n_fb1 = backward(xf1, Pf1, xp1, Pp1, *kern_args, True)
-    return check, (xs, Pblk, var, res, int(n_fb1), xf1, innov1, innov_var1, r1)
+    kern_args = (mdl.dyn, scalars1._replace(r=r1 * fw.infl), mdl.geo)
+    b = backward(bufs1, *kern_args, True)
+    m = b.model
+    return check, PassResult(b.x, bufs1[0], m.res, m.rate, m.hph, fw.infl, fw.nu, fw.S, m.Pblk,
+                             m.var, b.cholesky_fallbacks, kern_args, scalars1)
 
 
-def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
-                 start: tuple[dict[str, float], np.ndarray, np.ndarray] | None, out: PassResult,
-                 r: np.ndarray, weights: np.ndarray) -> PassStep:
+def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start: Cost | None,
+                out: PassResult, r: np.ndarray, weights: np.ndarray) -> PassStep:
     """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
     X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
-    whose MAP cost does not exceed the cost of X (``start``: its cost, residuals and rates;
-    every cost under this pass's
+    whose MAP cost does not exceed the cost of X (``start``; every cost under this pass's
     clock offsets, roll, noise factors).  The first pass (no iterate yet) takes the full step;
     so does every pass with ``line_search`` off (the cost is still evaluated and reported)."""
     s = fl.settings
@@ -979,18 +950,18 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None,
             gn_cost = cost["cost"]
         step = PassStep(Xc, alpha, cost, mc, res, rate, evals, True, gn_shift, gn_cost)
         if (X is None or start is None or not s.line_search
-                or (np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"])):
+                or (np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"])):
             return step
         if evals > s.line_search_halvings:
             # no step size lowered the cost: the iterate stays (the lowest-cost one)
-            return PassStep(X, 0.0, start[0], mdl, start[1], start[2], evals, False, gn_shift,
-                         gn_cost)
+            return PassStep(X, 0.0, start.terms, mdl, start.res, start.rate, evals, False,
+                            gn_shift, gn_cost)
         del step, mc   # the rejected candidate's models go before the next one's are built
         alpha *= 0.5
 
 
 def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
-            start: tuple[Any, ...], r: np.ndarray, weights: np.ndarray, lm_lambda: float
+            start: Cost, r: np.ndarray, weights: np.ndarray, lm_lambda: float
             ) -> tuple[PassStep | None, float]:
     """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
     the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate
@@ -1000,18 +971,17 @@ def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
     s = fl.settings
     if ws.lm is None:  # its own buffers: the plain pass's filter outputs are kept
         ws.lm = tuple(np.empty_like(b) for b in ws.bufs)
-    xf, Pf, xp, Pp = ws.lm
     assert fl.x0 is not None and fl.P0 is not None
     sd = np.sqrt(np.diag(fl.P0))
     lam, evals = max(10.0 * lm_lambda, s.lm_lambda0), 0
     while lam <= s.lm_lambda_max:
         sc = with_pseudo(pass_scalars(mdl, fl.T, r, weights), X, sd, lam)
-        forward(xf, Pf, xp, Pp, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
-        xs = backward_mean(xf, Pf, xp, Pp, mdl.dyn, sc, mdl.geo)[0]
+        forward(ws.lm, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
+        xs = backward(ws.lm, mdl.dyn, sc, mdl.geo, False).x
         mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
         cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
         evals += 1
-        if np.isfinite(cost["cost"]) and cost["cost"] <= start[0]["cost"]:
+        if np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"]:
             return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan,
                             lam), lam / 10.0
         lam *= 10.0
