@@ -1,14 +1,13 @@
 """Joint post-flight smoother: one trajectory from every source, with honest uncertainty
 (docs/joint.md).
 
-The problem is built once from a cleaned flight (:mod:`~flightrecon.methods.joint.problem`:
-the inputs, the end points, the settings the data call for), then solved
-(:mod:`~flightrecon.methods.joint.solve`: damped Gauss-Newton passes of a forward filter and
-an RTS backward pass on the compiled model of :mod:`~flightrecon.methods.joint.model`, with
-robust re-weighting, clock offsets estimated jointly with the track and, optionally, the noise
-factors); its calibrations are adjusted problems solved again
-(:mod:`~flightrecon.methods.joint.calibration`); the adapter is
-:func:`flightrecon.methods.joint.method.run_joint`.
+The problem is built once from a cleaned flight (:mod:`~flightrecon.methods.joint.problem`: the
+inputs, the end points, the settings the data call for), then solved
+(:mod:`~flightrecon.methods.joint.solve`: damped Gauss-Newton passes of a forward filter and an RTS
+backward pass on the compiled model of :mod:`~flightrecon.methods.joint.model`, with robust
+re-weighting, clock offsets estimated jointly with the track and, optionally, the noise factors);
+its calibrations are adjusted problems solved again (:mod:`~flightrecon.methods.joint.calibration`);
+the adapter is :func:`flightrecon.methods.joint.method.run_joint`.
 
 Frame: position in ECEF, velocity in the local north-east-down frame of the (nominal) aircraft
 position: valid on flights of any length; outputs converted to the departure tangent plane.

@@ -1,19 +1,17 @@
 """What the joint smoother calibrates on its own solution, each as an adjusted problem
-(:class:`~flightrecon.methods.joint.problem.JointProblem`, :func:`dataclasses.replace`)
-solved again: the wind walk re-estimated where the smoothed wind outran it
-(:func:`wind_walk_rounds`), and the position sd inside GNSS gaps calibrated on held-out
-stretches (:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out
-stretches").
+(:class:`~flightrecon.methods.joint.problem.JointProblem`, :func:`dataclasses.replace`) solved
+again: the wind walk re-estimated where the smoothed wind outran it (:func:`wind_walk_rounds`), and
+the position sd inside GNSS gaps calibrated on held-out stretches (:func:`calibrate_gaps`;
+docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
 
-Inside a GNSS gap the smoothed position's variance grows with the process noise that carries
-the track across it, mostly the wind's random walk; its default (0.05 m/s/sqrt(s)) is right
-for the Citation II's gaps and five to ten times too wide in sd for a simulated flight in a
-steady wind.  One fixed process noise cannot serve both, so the flight's own GNSS sets the
-scale: after the smoother converged, stretches of the real gaps' lengths are withheld where
-the GNSS is present (:func:`pseudo_gaps`), the smoother is run once more without them, and
-the withheld fixes' normalised errors give the factor ``f`` of the in-gap excess variance
-(:func:`calibration_factor`, eq. G3) that is then applied to the real gaps
-(:func:`apply_factor`, eq. G1/G2).
+Inside a GNSS gap the smoothed position's variance grows with the process noise that carries the
+track across it, mostly the wind's random walk; its default (0.05 m/s/sqrt(s)) is right for the
+Citation II's gaps and five to ten times too wide in sd for a simulated flight in a steady wind.
+One fixed process noise cannot serve both, so the flight's own GNSS sets the scale: after the
+smoother converged, stretches of the real gaps' lengths are withheld where the GNSS is present
+(:func:`pseudo_gaps`), the smoother is run once more without them, and the withheld fixes'
+normalised errors give the factor ``f`` of the in-gap excess variance (:func:`calibration_factor`,
+eq. G3) that is then applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
 """
 
 from __future__ import annotations
@@ -39,10 +37,10 @@ from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint
 
 
 def gnss_gaps(inp: JointInputs, min_gap_s: float) -> list[tuple[float, float]]:
-    """The stretches between consecutive horizontal GNSS fixes longer than ``min_gap_s`` [s]
-    that lie (partly) in the air (between lift-off and touchdown, where known): (t0, t1) the
-    last fix before and the first after each gap [s].  Only gaps with fixes on both sides
-    (the ends of a record without GNSS are not gaps: no fix beyond them to calibrate on)."""
+    """The stretches between consecutive horizontal GNSS fixes longer than ``min_gap_s`` [s] that
+    lie (partly) in the air (between lift-off and touchdown, where known): (t0, t1) the last fix
+    before and the first after each gap [s].  Only gaps with fixes on both sides (the ends of a
+    record without GNSS are not gaps: no fix beyond them to calibrate on)."""
     g = inp.gnss
     if not len(g) or min_gap_s <= 0:
         return []
@@ -59,13 +57,12 @@ def gnss_gaps(inp: JointInputs, min_gap_s: float) -> list[tuple[float, float]]:
 
 def pseudo_gaps(inp: JointInputs, gaps: list[tuple[float, float]], *, n_max: int,
                 guard_s: float, min_gap_s: float) -> list[tuple[float, float]]:
-    """Up to ``n_max`` held-out stretches (t0, t1) [s] of the real ``gaps``' lengths (the
-    longest first, in turn) where the GNSS is present: in the air, at least ``guard_s`` after
-    lift-off and before touchdown (the first and last fix where not known), at least
-    ``guard_s`` from every real gap and from each other, with no interval between fixes
-    longer than ``min_gap_s / 2`` from ``guard_s`` before to ``guard_s`` after (both edges
-    covered, as a real gap's are).  Packed from the start, then ``n_max`` of them spread
-    evenly over the flight."""
+    """Up to ``n_max`` held-out stretches (t0, t1) [s] of the real ``gaps``' lengths (the longest
+    first, in turn) where the GNSS is present: in the air, at least ``guard_s`` after lift-off and
+    before touchdown (the first and last fix where not known), at least ``guard_s`` from every real
+    gap and from each other, with no interval between fixes longer than ``min_gap_s / 2`` from
+    ``guard_s`` before to ``guard_s`` after (both edges covered, as a real gap's are).  Packed from
+    the start, then ``n_max`` of them spread evenly over the flight."""
     g = inp.gnss
     ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
     t = np.sort(g["t_s"].to_numpy(float)[ok])
@@ -102,10 +99,9 @@ def pseudo_gaps(inp: JointInputs, gaps: list[tuple[float, float]], *, n_max: int
 
 def _edge_baseline(T: np.ndarray, cov_at: Callable[[np.ndarray], np.ndarray], a: float,
                    b: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """The states strictly inside (a, b) and the covered level there: the covariances
-    ``cov_at(k)`` (K, 3, 3) of the last state at or before ``a`` and of the first at or after
-    ``b``, interpolated linearly in time (eq. G1's ``P_b``); None without states on both
-    sides."""
+    """The states strictly inside (a, b) and the covered level there: the covariances ``cov_at(k)``
+    (K, 3, 3) of the last state at or before ``a`` and of the first at or after ``b``, interpolated
+    linearly in time (eq. G1's ``P_b``); None without states on both sides."""
     i0 = int(np.searchsorted(T, a, side="right")) - 1
     i1 = int(np.searchsorted(T, b, side="left"))
     if i0 < 0 or i1 >= len(T) or i1 - i0 < 2:
@@ -117,25 +113,25 @@ def _edge_baseline(T: np.ndarray, cov_at: Callable[[np.ndarray], np.ndarray], a:
 
 
 def _ned_cov(run: JointRun, k: np.ndarray) -> np.ndarray:
-    """The smoothed position covariance in the local NED frame at the states ``k`` (K, 3, 3)
-    (each state's on its own: the same numbers whichever states are asked for)."""
+    """The smoothed position covariance in the local NED frame at the states ``k`` (K, 3, 3) (each
+    state's on its own: the same numbers whichever states are asked for)."""
     C = run.Cen[k]
     return np.einsum("kji,kjl,klm->kim", C, run.P_pv[k, 0:3, 0:3], C)
 
 
 def _around(T: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The states on either side of each time ``t`` (what a linear interpolation in ``T``
-    reads), sorted and unique."""
+    """The states on either side of each time ``t`` (what a linear interpolation in ``T`` reads),
+    sorted and unique."""
     i = np.searchsorted(T, t)
     return np.unique(np.clip(np.concatenate([i - 1, i]), 0, len(T) - 1))
 
 
 def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``): their times (the smoother's
-    GNSS clock offset applied), the error of the smoothed antenna position against the fix
-    in north and east (K, 2) [m] (eq. G4: the body lever arm rotated to NED with the recorded
-    attitude) and the smoother's NED position covariance (K, 3, 3) interpolated to them."""
+    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``): their times (the smoother's GNSS clock
+    offset applied), the error of the smoothed antenna position against the fix in north and east
+    (K, 2) [m] (eq. G4: the body lever arm rotated to NED with the recorded attitude) and the
+    smoother's NED position covariance (K, 3, 3) interpolated to them."""
     g = inp.gnss
     # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
     # estimated (seconds added to the stamps, as in its measurements)
@@ -158,17 +154,16 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
     return tf, d, P
 
 
-def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float
-              ) -> np.ndarray:
-    """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight, never
-    above the declared ``declared_m`` squared (the rms of the used fixes' declared sd: the
-    receiver's figures, or the noise setting, with the rounding of positions recorded in
-    steps added, ingest/gnss_quality.py): the smoothed residuals of the fixes the
-    smoother used have ``E[eps^2] = R - P_s`` (eq. G5), so ``R = mean(eps^2) + mean(P_s)``.
-    A residual that is the model's misfit rather than the fix's noise would credit the fixes
-    with more noise and shrink the factor; the declared sd caps it.  Errors of the fixes
-    correlated in time are partly followed by the track and count less: the estimate is then
-    low, the held-out NEES high and the factor larger (the sd wider), the safe side."""
+def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float) -> np.ndarray:
+    """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight, never above
+    the declared ``declared_m`` squared (the rms of the used fixes' declared sd: the receiver's
+    figures, or the noise setting, with the rounding of positions recorded in steps added,
+    ingest/gnss_quality.py): the smoothed residuals of the fixes the smoother used have ``E[eps^2] =
+    R - P_s`` (eq. G5), so ``R = mean(eps^2) + mean(P_s)``. A residual that is the model's misfit
+    rather than the fix's noise would credit the fixes with more noise and shrink the factor; the
+    declared sd caps it.  Errors of the fixes correlated in time are partly followed by the track
+    and count less: the estimate is then low, the held-out NEES high and the factor larger (the sd
+    wider), the safe side."""
     sel = np.flatnonzero(used)
     _, d, P = _fix_errors(inp, run, sel)
     r = np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1), axis=0)
@@ -177,10 +172,10 @@ def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: flo
 
 def heldout_errors(inp: JointInputs, run: JointRun, stretches: list[tuple[float, float]],
                    r: np.ndarray) -> list[dict[str, np.ndarray]]:
-    """Per held-out stretch, at its withheld fixes: the error of the smoothed antenna
-    position against the fix in north and east ``e`` (K, 2) [m], the smoother's variance
-    ``v`` (K, 2), the covered level ``b`` (K, 2) (eq. G1) and the fixes' variance ``r`` (2,)
-    [m^2] (:func:`fix_noise`).  ``run`` is the run without them."""
+    """Per held-out stretch, at its withheld fixes: the error of the smoothed antenna position
+    against the fix in north and east ``e`` (K, 2) [m], the smoother's variance ``v`` (K, 2), the
+    covered level ``b`` (K, 2) (eq. G1) and the fixes' variance ``r`` (2,) [m^2]
+    (:func:`fix_noise`).  ``run`` is the run without them."""
     g = inp.gnss
     tg = g["t_s"].to_numpy(float)
     ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
@@ -201,8 +196,8 @@ def heldout_errors(inp: JointInputs, run: JointRun, stretches: list[tuple[float,
 
 
 def stretch_nees(held: list[dict[str, np.ndarray]], f: float) -> np.ndarray:
-    """Mean NEES per stretch and axis (S, 2) with the excess scaled by ``f`` (eq. G2):
-    ``e^2 / (b + f (v - b) + r)`` averaged over the stretch's fixes."""
+    """Mean NEES per stretch and axis (S, 2) with the excess scaled by ``f`` (eq. G2): ``e^2 / (b +
+    f (v - b) + r)`` averaged over the stretch's fixes."""
     return np.array([np.mean(h["e"] ** 2 / (h["b"] + f * (h["v"] - h["b"]) + h["r"]), axis=0)
                      for h in held])
 
@@ -211,11 +206,11 @@ def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, f
                        p_stretch: float, p_pool: float) -> dict[str, Any]:
     """The factor ``f`` of the in-gap excess variance (eq. G3).
 
-    ``f_hat`` (the point estimate) makes the mean over the stretches and the two horizontal
-    axes of their mean NEES 1.  The fixes of one stretch share one drifting error, so the
-    stretches give about one degree of freedom per axis, ``nu = 2 S``, and with a few of them
-    ``f_hat`` is noisy (chi-square(nu)/nu has sd sqrt(2/nu): 0.5 with two stretches).  The
-    factor used is never below either of
+    ``f_hat`` (the point estimate) makes the mean over the stretches and the two horizontal axes of
+    their mean NEES 1.  The fixes of one stretch share one drifting error, so the stretches give
+    about one degree of freedom per axis, ``nu = 2 S``, and with a few of them ``f_hat`` is noisy
+    (chi-square(nu)/nu has sd sqrt(2/nu): 0.5 with two stretches).  The factor used is never below
+    either of
 
     * ``f_pool``: the largest factor the held-out errors support at one-sided level
       ``p_pool``, the one whose mean NEES is the ``p_pool`` quantile of chi-square(nu)/nu:
@@ -262,11 +257,11 @@ def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, f
 
 
 def apply_factor(run: JointRun, gaps: list[tuple[float, float]], f: float) -> JointRun:
-    """The run with the position covariance inside each gap rescaled (eq. G1/G2).  With
-    ``P_b`` the covered level at the gap's edges: ``P' = P_b + f (P - P_b)`` for f <= 1
-    (convex in P and P_b, positive semidefinite; the position-velocity cross blocks scaled
-    by ``sqrt(f)`` so that the 6x6 block stays so) and ``P' = P + (f - 1) [P - P_b]_+``
-    for f > 1 (the excess's positive part added)."""
+    """The run with the position covariance inside each gap rescaled (eq. G1/G2).  With ``P_b`` the
+    covered level at the gap's edges: ``P' = P_b + f (P - P_b)`` for f <= 1 (convex in P and P_b,
+    positive semidefinite; the position-velocity cross blocks scaled by ``sqrt(f)`` so that the 6x6
+    block stays so) and ``P' = P + (f - 1) [P - P_b]_+`` for f > 1 (the excess's positive part
+    added)."""
     T = run.t
     P = run.P_pv.copy()
     var = run.var.copy()
@@ -297,9 +292,9 @@ HELDOUT_ENOUGH = 10.0
 
 
 def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> JointProblem:
-    """The problem without the held-out fixes (``keep`` False: withheld) and, for the warm
-    start (``settings.gap_heldout_passes`` > 0), with the gust sd of ``run`` held (the gust
-    estimate is the flight's)."""
+    """The problem without the held-out fixes (``keep`` False: withheld) and, for the warm start
+    (``settings.gap_heldout_passes`` > 0), with the gust sd of ``run`` held (the gust estimate is
+    the flight's)."""
     inp, settings = problem.inputs, problem.settings
     held = replace(inp, gnss=inp.gnss[keep].reset_index(drop=True))
     s = settings
@@ -315,11 +310,11 @@ def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> J
 
 def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
     """The flight smoothed once more without the held-out fixes (``problem_h``,
-    :func:`heldout_problem`): by default ``settings.gap_heldout_passes`` Gauss-Newton passes
-    from the converged ``run`` (:func:`~flightrecon.methods.joint.solve.smooth_joint_from`;
-    one pass costs a third of the whole iteration and gives the held-out errors and sd of the
-    whole iteration to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0
-    the whole iteration again from the nominal."""
+    :func:`heldout_problem`): by default ``settings.gap_heldout_passes`` Gauss-Newton passes from
+    the converged ``run`` (:func:`~flightrecon.methods.joint.solve.smooth_joint_from`; one pass
+    costs a third of the whole iteration and gives the held-out errors and sd of the whole iteration
+    to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0 the whole iteration again
+    from the nominal."""
     s = problem_h.settings
     if s.gap_heldout_passes <= 0:
         return smooth_joint(problem_h.inputs, s, problem_h.flight)
@@ -327,14 +322,13 @@ def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
                              enough_m=HELDOUT_ENOUGH * s.converge_m)
 
 
-def calibrate_gaps(problem: JointProblem, run: JointRun
-                   ) -> tuple[JointRun, dict[str, Any] | None]:
-    """Held-out gap calibration: where the GNSS has gaps longer than
-    ``settings.gap_min_s``, withhold up to ``settings.gap_stretches`` stretches of their
-    lengths, smooth the adjusted problem (:func:`heldout_problem`) from ``run``, measure the
-    held-out NEES and rescale the real gaps' position variance by the factor
-    (:func:`calibration_factor`).  Returns the run (unchanged without gaps, with
-    ``gap_stretches`` 0 or without room for a stretch) and the report (None without gaps)."""
+def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict[str, Any] | None]:
+    """Held-out gap calibration: where the GNSS has gaps longer than ``settings.gap_min_s``,
+    withhold up to ``settings.gap_stretches`` stretches of their lengths, smooth the adjusted
+    problem (:func:`heldout_problem`) from ``run``, measure the held-out NEES and rescale the real
+    gaps' position variance by the factor (:func:`calibration_factor`).  Returns the run (unchanged
+    without gaps, with ``gap_stretches`` 0 or without room for a stretch) and the report (None
+    without gaps)."""
     inp, settings = problem.inputs, problem.settings
     if settings.gap_stretches <= 0:
         return run, None
@@ -375,30 +369,28 @@ def calibrate_gaps(problem: JointProblem, run: JointRun
     report.update(cal)
     report["fix_sd_m"] = np.sqrt(r).tolist()
     report["stretches_s"] = [[h["t0_s"], h["t1_s"]] for h in held]
-    report["heldout_rms_m"] = [float(np.sqrt(np.mean(np.sum(h["e"] ** 2, axis=1))))
-                               for h in held]
-    report["heldout_pass_shifts_m"] = [float(i["max_position_change_m"])
-                                       for i in run_h.iterations]
+    report["heldout_rms_m"] = [float(np.sqrt(np.mean(np.sum(h["e"] ** 2, axis=1)))) for h in held]
+    report["heldout_pass_shifts_m"] = [float(i["max_position_change_m"]) for i in run_h.iterations]
     return apply_factor(run, gaps, cal["factor"]), report
 
 
 def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
-    """The PSD ``r`` of the loads' velocity random walk where a record sampled slower than
-    its accelerations (:func:`~flightrecon.methods.joint.problem.sampled_loads_noise` set)
-    has the loads as the wind's only witness, else 0 [m^2/s^3].
+    """The PSD ``r`` of the loads' velocity random walk where a record sampled slower than its
+    accelerations (:func:`~flightrecon.methods.joint.problem.sampled_loads_noise` set) has the loads
+    as the wind's only witness, else 0 [m^2/s^3].
 
-    Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the
-    smoother learns the wind's change only as the ground velocity's change from the loads
-    less the air velocity's; the loads' error integrates to a velocity random walk of PSD
-    ``r = accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` with ``s`` the horizontal
-    ``accel_sampling_mps2_sqrt_hz``.  The smoothed wind change is then the share
-    ``kappa = Q / (Q + r L)`` of the observed one (``Q`` the wind model's variance over L;
-    :func:`~flightrecon.methods.joint.health.wind_walk_check`): of a 1 Hz export
-    ``r`` is about 0.08 m^2/s^3 (JSBSim's fleet; 0.011 the shipped G1000 export) and over
-    ten minutes of the default walk (``Q`` = 1.5 m^2/s^2) ``kappa`` is 0.03 (0.19), where a
-    wind that turns moves the smoothed wind by little.  A recorder-rate log (no sampling
-    term; ``r`` the budget 0.0025, ``kappa`` 1/2) or any other source of the wind: 0 (the
-    check's bound, ``kappa = 1``, within a factor 2 there)."""
+    Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the smoother
+    learns the wind's change only as the ground velocity's change from the loads less the air
+    velocity's; the loads' error integrates to a velocity random walk of PSD ``r =
+    accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` with ``s`` the horizontal
+    ``accel_sampling_mps2_sqrt_hz``.  The smoothed wind change is then the share ``kappa = Q / (Q +
+    r L)`` of the observed one (``Q`` the wind model's variance over L;
+    :func:`~flightrecon.methods.joint.health.wind_walk_check`): of a 1 Hz export ``r`` is about 0.08
+    m^2/s^3 (JSBSim's fleet; 0.011 the shipped G1000 export) and over ten minutes of the default
+    walk (``Q`` = 1.5 m^2/s^2) ``kappa`` is 0.03 (0.19), where a wind that turns moves the smoothed
+    wind by little.  A recorder-rate log (no sampling term; ``r`` the budget 0.0025, ``kappa`` 1/2)
+    or any other source of the wind: 0 (the check's bound, ``kappa = 1``, within a factor 2
+    there)."""
     nz = settings.noise
     s = nz.accel_sampling_mps2_sqrt_hz
     if (not (s[0] > 0 or s[1] > 0) or len(inp.gnss) or len(inp.radar)
@@ -422,26 +414,25 @@ LOADS_WITNESS_P_FALSE = 1e-4
 def wind_walk_rounds(problem: JointProblem, run: JointRun
                      ) -> tuple[JointProblem, JointRun, list[dict[str, Any]]]:
     """Where the smoothed wind moved faster than its random walk allows
-    (:func:`~flightrecon.methods.joint.health.wind_walk_check`, with the loads' PSD
-    ``r`` of :func:`inertial_wind_share`), the walk re-estimated from the flight and the
-    smoother run again, at most ``settings.wind_rounds`` times.
+    (:func:`~flightrecon.methods.joint.health.wind_walk_check`, with the loads' PSD ``r`` of
+    :func:`inertial_wind_share`), the walk re-estimated from the flight and the smoother run again,
+    at most ``settings.wind_rounds`` times.
 
-    The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from
-    the height flown through, the loads' ``r L``) has ``z^2 = |dw|^2 / (kappa Q)`` with
-    ``kappa = Q / (Q + r L)``: the observed change ``|do|^2 = |dw|^2 / kappa^2`` is
-    ``z^2 (Q + r L)``.  With ``r = 0`` (another witness of the wind) the walk is scaled so
-    that this window would be a typical one, its chi-square at the mean 2 of chi-square(2):
-    ``q' = q z^2 / 2`` (the smoothed change of a walk shrinks towards zero by the data's
-    weight, so an estimate can be low and the rounds climb).  Where the loads are the only
-    witness (``r > 0``) the worst window's change is mostly the loads' error, and the walk is
-    the smallest that the check accepts, ``|do|^2 = limit (Q' + r L)``:
+    The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from the height
+    flown through, the loads' ``r L``) has ``z^2 = |dw|^2 / (kappa Q)`` with ``kappa = Q / (Q + r
+    L)``: the observed change ``|do|^2 = |dw|^2 / kappa^2`` is ``z^2 (Q + r L)``.  With ``r = 0``
+    (another witness of the wind) the walk is scaled so that this window would be a typical one, its
+    chi-square at the mean 2 of chi-square(2): ``q' = q z^2 / 2`` (the smoothed change of a walk
+    shrinks towards zero by the data's weight, so an estimate can be low and the rounds climb).
+    Where the loads are the only witness (``r > 0``) the worst window's change is mostly the loads'
+    error, and the walk is the smallest that the check accepts, ``|do|^2 = limit (Q' + r L)``:
 
         q' L = z^2 (Q + r L) / limit - r L - Q_h
 
-    Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``, until the smoothed wind is
-    within the walk (docs/joint.md, "Wind and turbulence": JSBSim's holding, 22 m/s turning
-    100 deg in 30 minutes).  Returns the last run, its settings and the rounds (the walk each
-    started from, the check's chi-square and limit, the loads' PSD)."""
+    Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``, until the smoothed wind is within the
+    walk (docs/joint.md, "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30
+    minutes).  Returns the last run, its settings and the rounds (the walk each started from, the
+    check's chi-square and limit, the loads' PSD)."""
     rounds: list[dict[str, Any]] = []
     inp, settings = problem.inputs, problem.settings
     r = inertial_wind_share(inp, settings)
@@ -469,8 +460,8 @@ def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
                        loads_psd_m2ps3: float) -> JointProblem:
     """The problem with the wind walk the check ``check``
     (:func:`~flightrecon.methods.joint.health.wind_walk_check`) calls for
-    (:func:`wind_walk_rounds`), never below the present one, kept below
-    ``wind_rw_max_mps_sqrt_s``; the choice and its evidence appended."""
+    (:func:`wind_walk_rounds`), never below the present one, kept below ``wind_rw_max_mps_sqrt_s``;
+    the choice and its evidence appended."""
     settings = problem.settings
     nz, c, r = settings.noise, check, loads_psd_m2ps3
     L = c["t1_s"] - c["t0_s"]

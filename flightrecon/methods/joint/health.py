@@ -1,23 +1,21 @@
-"""The health of a joint smoother run: per-source residual statistics, the estimated clock
-offsets, sensor errors and gusts that deserve a word, the wind-walk check, and how far the
-track still was from its fixed point when the passes stopped short of the convergence test
-(:func:`settling`; docs/joint.md, "Filter, smoother, iterations"; docs/output.md, "Method
-health"), by which the output track's standard deviations are widened
-(:func:`~flightrecon.methods.joint.output.joint_track`).
+"""The health of a joint smoother run: per-source residual statistics, the estimated clock offsets,
+sensor errors and gusts that deserve a word, the wind-walk check, and how far the track still was
+from its fixed point when the passes stopped short of the convergence test (:func:`settling`;
+docs/joint.md, "Filter, smoother, iterations"; docs/output.md, "Method health"), by which the output
+track's standard deviations are widened (:func:`~flightrecon.methods.joint.output.joint_track`).
 
-The settling bound.  The damped Gauss-Newton passes, with the clock offsets, the take-off roll
-and the weights updated between them, converge linearly once the line search takes full steps:
-each pass moves the track by about ``rho`` times what the one before moved it.  Where they reach
-the cap on the passes still contracting (``0 < rho < 1``), the passes still to come would move
-each state by at most the geometric tail of its last change ``d_k``, ``d_k rho / (1 - rho)``,
-with ``rho`` the slowest contraction of the last :data:`CONTRACTION_PASSES` passes.  That bound
-is compared with the state's own smallest position sd: within :data:`SETTLE_SD_FRACTION` of it
-the track is as good as converged and is left as it is; beyond it the bound is added in
-quadrature to the track's position sd, so that the track still covers the fixed point it was
-converging to.  Without contraction (the passes' changes not shrinking, or a failed line
-search), or while the last pass still moved a state by more than its own sd
-(:data:`LINEAR_REGION_SD`), nothing bounds what the passes would still do: the track stays
-unconverged.
+The settling bound.  The damped Gauss-Newton passes, with the clock offsets, the take-off roll and
+the weights updated between them, converge linearly once the line search takes full steps: each pass
+moves the track by about ``rho`` times what the one before moved it.  Where they reach the cap on
+the passes still contracting (``0 < rho < 1``), the passes still to come would move each state by at
+most the geometric tail of its last change ``d_k``, ``d_k rho / (1 - rho)``, with ``rho`` the
+slowest contraction of the last :data:`CONTRACTION_PASSES` passes.  That bound is compared with the
+state's own smallest position sd: within :data:`SETTLE_SD_FRACTION` of it the track is as good as
+converged and is left as it is; beyond it the bound is added in quadrature to the track's position
+sd, so that the track still covers the fixed point it was converging to.  Without contraction (the
+passes' changes not shrinking, or a failed line search), or while the last pass still moved a state
+by more than its own sd (:data:`LINEAR_REGION_SD`), nothing bounds what the passes would still do:
+the track stays unconverged.
 """
 
 from __future__ import annotations
@@ -32,9 +30,9 @@ from flightrecon.methods.joint.solve import JointRun
 
 
 def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
-    """Per source: measurements used, mean squared normalised residual, down-weighted ones
-    and their time spans; a source with more than ``flag_fraction`` of its residuals beyond
-    5 sigma is flagged inconsistent."""
+    """Per source: measurements used, mean squared normalised residual, down-weighted ones and their
+    time spans; a source with more than ``flag_fraction`` of its residuals beyond 5 sigma is flagged
+    inconsistent."""
     out: dict[str, Any] = {}
     m = run.meas
     for s_i, name in enumerate(SOURCES):
@@ -69,10 +67,9 @@ def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
 
 
 def clock_warnings(run: JointRun) -> list[str]:
-    """A warning per clock offset estimated beyond 3 sd and 0.05 s (it was corrected).  The
-    GNSS velocities' offset has no option of its own: `clean --gnss-clock-offset` shifts the
-    positions and the velocities together, and the smoother estimates the velocities' from
-    there."""
+    """A warning per clock offset estimated beyond 3 sd and 0.05 s (it was corrected).  The GNSS
+    velocities' offset has no option of its own: `clean --gnss-clock-offset` shifts the positions
+    and the velocities together, and the smoother estimates the velocities' from there."""
     out = []
     for name, (o, sd) in run.clock_offsets_s.items():
         if not (np.isfinite(sd) and abs(o) > 3 * sd and abs(o) > 0.05):
@@ -97,8 +94,8 @@ saturate: -82 %)."""
 
 def implausible_corrections(corrections: dict[str, Any],
                             limit: float = IMPLAUSIBLE_PRIOR_SD) -> dict[str, float]:
-    """The sensor errors (the summary's ``corrections``: value, prior_mean, prior_sd) estimated
-    more than ``limit`` prior sd from their prior mean, with that distance."""
+    """The sensor errors (the summary's ``corrections``: value, prior_mean, prior_sd) estimated more
+    than ``limit`` prior sd from their prior mean, with that distance."""
     out = {}
     for name, c in corrections.items():
         sd = c.get("prior_sd")
@@ -117,10 +114,10 @@ def far_warning(name: str, c: dict[str, Any], z: float) -> str:
 
 
 def gust_warnings(run: JointRun, upper_mps: float) -> list[str]:
-    """A warning when the estimated gust sd ended at its upper bound ``upper_mps``: the air
-    data then disagree with the rest by more than turbulence explains, and the smoother
-    has all but stopped using them (JSBSim circuit 7009, departure only: 8 m/s, the pressure
-    altitude and the air data both flagged inconsistent, the track unhealthy)."""
+    """A warning when the estimated gust sd ended at its upper bound ``upper_mps``: the air data
+    then disagree with the rest by more than turbulence explains, and the smoother has all but
+    stopped using them (JSBSim circuit 7009, departure only: 8 m/s, the pressure altitude and the
+    air data both flagged inconsistent, the track unhealthy)."""
     g = run.gust or {}
     if g.get("rounds") and g.get("sd_mps", 0.0) >= upper_mps * (1.0 - 1e-9):
         return [f"joint: the turbulence's gust sd reached its upper bound {upper_mps:g} m/s: "
@@ -137,30 +134,28 @@ def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt
     """Whether the smoothed wind moved faster than the wind's process model allows.
 
     The model (docs/joint.md, "Wind and turbulence"): over a stretch the wind changes by its
-    gradient times the climb, g dz, plus a random walk of variance
-    ``q_t L + q_h sum|dz|`` per component (``q_t`` = ``wind_rw_mps_sqrt_s``^2 over the time L,
-    ``q_h`` = ``shear_mps_per_sqrt_m``^2 over the height flown through).  The smoothed change
-    of a Gaussian random walk, E[dw | data], has at most that variance (the variance of the
-    true change less the posterior's), so ``z^2 = |dw - g dz|^2 / (q_t L + q_h sum|dz|)`` over
-    the two components is at most chi-square with 2 degrees of freedom.  Windows of
-    ``window_s`` (the record if shorter) every tenth of it; the limit is the chi-square(2)
-    tail ``-2 ln(p_false / n)`` with ``n`` the number of disjoint windows in the record
-    (Bonferroni).  A wind that turns 100 deg in 30 minutes at 22 m/s (JSBSim's holding) gives
-    z^2 near 50 against a limit of 12; the fleet's other flights at most 1.3: the sds then
-    rest on a steadier wind than the one flown through.
+    gradient times the climb, g dz, plus a random walk of variance ``q_t L + q_h sum|dz|`` per
+    component (``q_t`` = ``wind_rw_mps_sqrt_s``^2 over the time L, ``q_h`` =
+    ``shear_mps_per_sqrt_m``^2 over the height flown through).  The smoothed change of a Gaussian
+    random walk, E[dw | data], has at most that variance (the variance of the true change less the
+    posterior's), so ``z^2 = |dw - g dz|^2 / (q_t L + q_h sum|dz|)`` over the two components is at
+    most chi-square with 2 degrees of freedom.  Windows of ``window_s`` (the record if shorter)
+    every tenth of it; the limit is the chi-square(2) tail ``-2 ln(p_false / n)`` with ``n`` the
+    number of disjoint windows in the record (Bonferroni).  A wind that turns 100 deg in 30 minutes
+    at 22 m/s (JSBSim's holding) gives z^2 near 50 against a limit of 12; the fleet's other flights
+    at most 1.3: the sds then rest on a steadier wind than the one flown through.
 
-    Where the loads are the wind's only witness (recorder only: the wind's change is the
-    ground velocity's change integrated from the loads less the air velocity's),
-    ``loads_psd_m2ps3`` is the PSD ``r`` of the loads' velocity random walk
-    (``joint_method.inertial_wind_share``): the observed change over L then has variance
-    ``Q + r L`` per component (``Q`` the walk's variance above) and the smoothed change is its
-    share ``kappa = Q / (Q + r L)``, of variance ``kappa Q``, which replaces ``Q`` in ``z^2``
-    (0: ``kappa = 1``, the bound above).  ``within_s`` (t0, t1) keeps the windows inside that
-    span, each of the full ``window_s`` (none where the span is shorter): with
-    ``loads_psd_m2ps3`` the stretch clear of the take-off and landing rolls, whose ground
-    velocity (at rest, along the runway) is a second witness of the wind.  The 1 Hz export of
-    that holding (``r`` = 0.080 and 0.063 m^2/s^3, seeds 1 and 2) gives z^2 = 58.8 and 34.9,
-    the shipped G1000 export (``r`` = 0.011) 16.1 (``scripts/onehz_fleet_study.py``,
+    Where the loads are the wind's only witness (recorder only: the wind's change is the ground
+    velocity's change integrated from the loads less the air velocity's), ``loads_psd_m2ps3`` is the
+    PSD ``r`` of the loads' velocity random walk (``joint_method.inertial_wind_share``): the
+    observed change over L then has variance ``Q + r L`` per component (``Q`` the walk's variance
+    above) and the smoothed change is its share ``kappa = Q / (Q + r L)``, of variance ``kappa Q``,
+    which replaces ``Q`` in ``z^2`` (0: ``kappa = 1``, the bound above).  ``within_s`` (t0, t1)
+    keeps the windows inside that span, each of the full ``window_s`` (none where the span is
+    shorter): with ``loads_psd_m2ps3`` the stretch clear of the take-off and landing rolls, whose
+    ground velocity (at rest, along the runway) is a second witness of the wind.  The 1 Hz export of
+    that holding (``r`` = 0.080 and 0.063 m^2/s^3, seeds 1 and 2) gives z^2 = 58.8 and 34.9, the
+    shipped G1000 export (``r`` = 0.011) 16.1 (``scripts/onehz_fleet_study.py``,
     ``scripts/onehz_study.py``).
 
     Returns
@@ -236,8 +231,8 @@ over the last this many passes (the slowest of them: a bound, not an average).""
 
 
 def settling(run: JointRun) -> dict[str, Any] | None:
-    """The remaining movement of a run that stopped unconverged, or ``None`` when it converged
-    (or did not keep its last change).
+    """The remaining movement of a run that stopped unconverged, or ``None`` when it converged (or
+    did not keep its last change).
 
     Returns
     -------

@@ -1,9 +1,9 @@
 """What the joint smoother reads (:class:`JointInputs`, read from a cleaned flight by
-:func:`flightrecon.methods.joint.problem.joint_inputs`): its end points (:class:`EndPoint`,
-built once with the inputs), the take-off roll (the detection itself:
-:func:`flightrecon.cleaning.ground_roll.takeoff_roll`; from the flight phases:
-:func:`phases_roll`; refined with the smoothed lift-off speed: :func:`refined_roll`) and the
-airspeed-floor windows of a derived ``n_long_g``."""
+:func:`flightrecon.methods.joint.problem.joint_inputs`): its end points (:class:`EndPoint`, built
+once with the inputs), the take-off roll (the detection itself:
+:func:`flightrecon.cleaning.ground_roll.takeoff_roll`; from the flight phases: :func:`phases_roll`;
+refined with the smoothed lift-off speed: :func:`refined_roll`) and the airspeed-floor windows of a
+derived ``n_long_g``."""
 
 from __future__ import annotations
 
@@ -108,8 +108,8 @@ class JointInputs:
     end_points: tuple[EndPoint, ...] = ()
 
     def body_to_ned(self, i: int | np.ndarray | slice = slice(None)) -> np.ndarray:
-        """Body-to-NED rotations C = R_z(heading) R_y(pitch) R_x(roll) of the input samples
-        ``i`` (all by default), shape (len(i), 3, 3), or (3, 3) for one sample
+        """Body-to-NED rotations C = R_z(heading) R_y(pitch) R_x(roll) of the input samples ``i``
+        (all by default), shape (len(i), 3, 3), or (3, 3) for one sample
         (:func:`flightrecon.geo.body_to_ned_matrix`)."""
         a = self.attitude_deg[i]
         C = body_to_ned_matrix(a[..., 0], a[..., 1], a[..., 2])
@@ -120,10 +120,10 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
                  accel_bias_g: np.ndarray | None = None) -> TakeoffRoll:
     """The take-off roll refined by the smoother:
     :func:`flightrecon.cleaning.ground_roll.takeoff_roll` with the along-track component of the
-    nominal (smoothed) ground velocity ``vnom`` (N, 3) at lift-off on the state grid ``T`` as
-    the lift-off speed, and the smoothed forward accelerometer bias ``accel_bias_g`` (N, 3) [g]
-    at lift-off as its ``accel_bias_mps2``;
-    ``inp.roll`` without a nominal, without a roll, or where the refined search finds none."""
+    nominal (smoothed) ground velocity ``vnom`` (N, 3) at lift-off on the state grid ``T`` as the
+    lift-off speed, and the smoothed forward accelerometer bias ``accel_bias_g`` (N, 3) [g] at
+    lift-off as its ``accel_bias_mps2``; ``inp.roll`` without a nominal, without a roll, or where
+    the refined search finds none."""
     roll = inp.roll
     if vnom is None or not np.isfinite(roll.start_t) or not np.isfinite(inp.liftoff_t):
         return roll
@@ -164,8 +164,8 @@ class Flare:
 
 @dataclass(frozen=True)
 class EndPoint:
-    """One end-point constraint of the record (:func:`end_points`): where and when it is tied
-    to an airfield or a last known position.
+    """One end-point constraint of the record (:func:`end_points`): where and when it is tied to an
+    airfield or a last known position.
 
     Attributes
     ----------
@@ -194,20 +194,20 @@ def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
                     smooth_s: float = 1.0) -> Flare | None:
     """The touchdown's distance past the arrival threshold from the recorded flare.
 
-    An approach crosses the threshold at the screen height :math:`h_s` (``screen_height_m``,
-    50 ft: the threshold crossing height of a 3 deg glide path to the aiming point); what
-    follows, the flare and any float in ground effect, is flown at the recorded airspeed, so
+    An approach crosses the threshold at the screen height :math:`h_s` (``screen_height_m``, 50 ft:
+    the threshold crossing height of a 3 deg glide path to the aiming point); what follows, the
+    flare and any float in ground effect, is flown at the recorded airspeed, so
 
     .. math:: d_{td} = \\int_{t_s}^{t_{td}} V_{TAS}\\,dt, \\qquad
               \\sigma_{td}^2 = \\sigma_s^2 + (w\\,(t_{td} - t_s))^2
 
-    with :math:`t_s` the last time before touchdown the barometric height above the touchdown
-    (the recorded pressure altitude, ``smooth_s`` running mean, minus its median over the
-    first 2 s on the ground: the baro offset cancels) was at least :math:`h_s`,
-    :math:`\\sigma_s` the crossing's scatter along the runway (``screen_along_sd_m``) and
-    :math:`w` the unknown runway component of the wind over that time (``float_wind_mps``).
-    A long float (a tail wind, an approach too fast) is then measured instead of assumed
-    (the fixed ``touchdown_m`` put a 737 landing 870 m long 5.8 sd off: issue #38).
+    with :math:`t_s` the last time before touchdown the barometric height above the touchdown (the
+    recorded pressure altitude, ``smooth_s`` running mean, minus its median over the first 2 s on
+    the ground: the baro offset cancels) was at least :math:`h_s`, :math:`\\sigma_s` the crossing's
+    scatter along the runway (``screen_along_sd_m``) and :math:`w` the unknown runway component of
+    the wind over that time (``float_wind_mps``). A long float (a tail wind, an approach too fast)
+    is then measured instead of assumed (the fixed ``touchdown_m`` put a 737 landing 870 m long 5.8
+    sd off: issue #38).
 
     Returns
     -------
@@ -248,8 +248,8 @@ def runway_end(inp: JointInputs, nz: JointNoise, which: str, t_run: float,
     """The runway model of end ``which``: the take-off roll starts at the departure threshold
     (along-runway sd ``roll_start_sd_m``), the touchdown is ``touchdown_m`` past the arrival
     threshold (sd ``touchdown_sd_m``) or the distance measured from the recorded flare
-    (:func:`float_touchdown`); across the runway the centreline (``runway_halfwidth_m``),
-    vertically the airfield elevation (``endpoint_v_m``)."""
+    (:func:`float_touchdown`); across the runway the centreline (``runway_halfwidth_m``), vertically
+    the airfield elevation (``endpoint_v_m``)."""
     dist, sd = ((0.0, nz.roll_start_sd_m) if which == "departure"
                 else (nz.touchdown_m, nz.touchdown_sd_m))
     flare = float_touchdown(inp, nz) if which == "arrival" else None
@@ -261,20 +261,18 @@ def runway_end(inp: JointInputs, nz: JointNoise, which: str, t_run: float,
 
 
 def end_points(inp: JointInputs, nz: JointNoise) -> tuple[EndPoint, ...]:
-    """The end-point constraints: where and when the record is tied to its airfields (built
-    once with the inputs, :func:`~flightrecon.methods.joint.problem.joint_inputs`; the
-    smoother moves the runway departure's time with its refined take-off roll,
-    :func:`end_points_at`).
+    """The end-point constraints: where and when the record is tied to its airfields (built once
+    with the inputs, :func:`~flightrecon.methods.joint.problem.joint_inputs`; the smoother moves the
+    runway departure's time with its refined take-off roll, :func:`end_points_at`).
 
-    With a runway's threshold and direction known: :func:`runway_end` (the departure at the
-    start of the take-off roll ``inp.roll``, the arrival at touchdown).  Otherwise the
-    airfield reference point at lift-off / touchdown (or the first / last sample),
-    ``endpoint_h_m`` in every horizontal direction, vertically the airfield elevation,
-    ``endpoint_v_m``.  A record that ends in the air or at an impact (``inp.ends_airborne``)
-    has no arrival airfield: its arrival is the last known position (a radar hand-off, the
-    wreckage) and is applied at the last sample as that position, ``last_position_h_m`` per
-    horizontal axis and ``endpoint_v_m`` vertically (model "last_position"; docs/wind.md,
-    "End points").
+    With a runway's threshold and direction known: :func:`runway_end` (the departure at the start of
+    the take-off roll ``inp.roll``, the arrival at touchdown).  Otherwise the airfield reference
+    point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every horizontal
+    direction, vertically the airfield elevation, ``endpoint_v_m``.  A record that ends in the air
+    or at an impact (``inp.ends_airborne``) has no arrival airfield: its arrival is the last known
+    position (a radar hand-off, the wreckage) and is applied at the last sample as that position,
+    ``last_position_h_m`` per horizontal axis and ``endpoint_v_m`` vertically (model
+    "last_position"; docs/wind.md, "End points").
     """
     out = []
     t_in = inp.t_in
@@ -301,9 +299,9 @@ def end_points(inp: JointInputs, nz: JointNoise) -> tuple[EndPoint, ...]:
 
 
 def end_points_at(ends: tuple[EndPoint, ...], roll: TakeoffRoll) -> tuple[EndPoint, ...]:
-    """The end points ``ends`` with the runway departure at the start of ``roll`` (the
-    smoother's refined take-off roll, :func:`refined_roll`: it has a start wherever the
-    inputs' roll has one, so the model chosen at the build holds)."""
+    """The end points ``ends`` with the runway departure at the start of ``roll`` (the smoother's
+    refined take-off roll, :func:`refined_roll`: it has a start wherever the inputs' roll has one,
+    so the model chosen at the build holds)."""
     return tuple(replace(e, t_s=float(roll.start_t))
                  if e.which == "departure" and e.model == "runway" else e for e in ends)
 
@@ -336,8 +334,7 @@ def without_floor_loads(inp: JointInputs) -> JointInputs:
     """A derived ``n_long_g``'s loads taken as missing through the airspeed-floor windows
     (:func:`airspeed_floor_windows`), with the PSD of the unknown velocity change there
     (:func:`airspeed_floor_psd`); before the take-off roll's search: its rest is found by
-    integrating the acceleration back from lift-off, which through these samples is not
-    known."""
+    integrating the acceleration back from lift-off, which through these samples is not known."""
     dead = airspeed_floor_windows(inp.t_in, inp.tas)
     if not dead.any():
         return inp
@@ -352,14 +349,13 @@ def without_floor_loads(inp: JointInputs) -> JointInputs:
 
 
 def phases_roll(ph: Any, settle_s: float = 10.0) -> TakeoffRoll:
-    """The take-off roll of the cleaning's phases (``roll_start_t_s`` after ``lineup_t_s``:
-    the ground speed integrated back from the fast run on the cleaning's grid), where the
-    joint's own search finds none: it integrates the acceleration back from lift-off, which a
-    1 Hz record whose ``n_long_g`` is derived from an airspeed that reads 0 below its floor
-    does not have through the roll's first seconds (:func:`airspeed_floor_windows`).  The rest
-    is the line-up to ``settle_s`` before the roll start, as in
-    :func:`flightrecon.cleaning.ground_roll.takeoff_roll`; none where the phases found a rolling
-    take-off (the roll starting at the line-up)."""
+    """The take-off roll of the cleaning's phases (``roll_start_t_s`` after ``lineup_t_s``: the
+    ground speed integrated back from the fast run on the cleaning's grid), where the joint's own
+    search finds none: it integrates the acceleration back from lift-off, which a 1 Hz record whose
+    ``n_long_g`` is derived from an airspeed that reads 0 below its floor does not have through the
+    roll's first seconds (:func:`airspeed_floor_windows`).  The rest is the line-up to ``settle_s``
+    before the roll start, as in :func:`flightrecon.cleaning.ground_roll.takeoff_roll`; none where
+    the phases found a rolling take-off (the roll starting at the line-up)."""
     start = float(getattr(ph, "roll_start_t_s", np.nan))
     lineup = float(getattr(ph, "lineup_t_s", np.nan))
     if not (np.isfinite(start) and np.isfinite(lineup) and start > lineup):
@@ -377,16 +373,15 @@ def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
                            half_window_s: float = N_LONG_HALF_WINDOW_S) -> np.ndarray:
     """Samples whose derived ``n_long_g`` spans an airspeed coming alive or dying.
 
-    An air-data computer reads 0 below its floor (about 30 kt on the Garmin export) and jumps
-    to the floor one sample into the take-off roll (0 to 14.9 m/s in 1 s there).  The derived
-    channel, ``(dV/dt)/g0 + sin(pitch)`` with ``dV/dt`` the centred difference over
-    ``+-half_window_s`` (flightrecon/ingest/derive.py), turns the jump into an acceleration
-    (0.25-0.38 g for 6 s where the GPS ground speed shows 0.15 g): the integrated roll then
-    has the lift-off ground speed wrong by the airspeed at the floor less the ground speed
-    there (the headwind, about 5 m/s), which the smoother takes out of the airspeed scale and
-    the wind.  True where the window ``[t - h, t + h]`` holds both an airspeed at most
-    :data:`AIRSPEED_DEAD_MPS` and one above it: there the acceleration is not known, and
-    the smoother's missing-loads process noise applies.
+    An air-data computer reads 0 below its floor (about 30 kt on the Garmin export) and jumps to the
+    floor one sample into the take-off roll (0 to 14.9 m/s in 1 s there).  The derived channel,
+    ``(dV/dt)/g0 + sin(pitch)`` with ``dV/dt`` the centred difference over ``+-half_window_s``
+    (flightrecon/ingest/derive.py), turns the jump into an acceleration (0.25-0.38 g for 6 s where
+    the GPS ground speed shows 0.15 g): the integrated roll then has the lift-off ground speed wrong
+    by the airspeed at the floor less the ground speed there (the headwind, about 5 m/s), which the
+    smoother takes out of the airspeed scale and the wind.  True where the window ``[t - h, t + h]``
+    holds both an airspeed at most :data:`AIRSPEED_DEAD_MPS` and one above it: there the
+    acceleration is not known, and the smoother's missing-loads process noise applies.
     """
     ok = np.isfinite(tas)
     out = np.zeros(len(t), bool)

@@ -26,8 +26,8 @@ State (n = 26), SI units::
 
 Propagation over one state step: :func:`~flightrecon.methods.joint.model.transition_into`.
 
-Measurements are scalars processed one at a time at their own step, with ``tau`` = their time
-minus the step's time (the state is carried to the measurement time by the velocity):
+Measurements are scalars processed one at a time at their own step, with ``tau`` = their time minus
+the step's time (the state is carried to the measurement time by the velocity):
 
 * ``LINEAR``: z = H x + d (GNSS position / velocity components, end points, ground constraints)
 * ``RANGE``, ``AZIMUTH``, ``ELEVATION``: radar slant range and angles from the station
@@ -135,10 +135,10 @@ class Geometry(NamedTuple):
 class Measurements:
     """Scalar measurements sorted by state step (types: :mod:`~flightrecon.methods.joint.layout`).
 
-    Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]``; for ``NED_POS`` and
-    ``STATE`` ``hrow`` is the axis or the state index (their rows are built in the kernel), -1
-    for the others: the table stays small (a stored row is 26 numbers; GNSS positions and
-    velocities at 1 Hz over 10 hours are 175 000 of them).
+    Only the ``LINEAR`` measurements have a row of H: ``H[hrow[j]]``; for ``NED_POS`` and ``STATE``
+    ``hrow`` is the axis or the state index (their rows are built in the kernel), -1 for the others:
+    the table stays small (a stored row is 26 numbers; GNSS positions and velocities at 1 Hz over 10
+    hours are 175 000 of them).
     """
 
     step: np.ndarray

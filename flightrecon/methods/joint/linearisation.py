@@ -1,9 +1,9 @@
-"""Linearisation of the joint smoother: the nominal path (the state grid, the increments of the
-held inputs, the attitude step means, the initial state, the iteration-0 trajectory), what the
-passes hold fixed (:class:`SmootherFlight`, built once per problem by :func:`smoother_flight`)
-and the models built about a nominal or about an iterate (:class:`PassModels`, with the
-local-level components re-expressed in the iterate's own frames), and the MAP cost of an
-iterate (:func:`pass_cost`, the kernel :func:`~flightrecon.methods.joint.model.map_cost`)."""
+"""Linearisation of the joint smoother: the nominal path (the state grid, the increments of the held
+inputs, the attitude step means, the initial state, the iteration-0 trajectory), what the passes
+hold fixed (:class:`SmootherFlight`, built once per problem by :func:`smoother_flight`) and the
+models built about a nominal or about an iterate (:class:`PassModels`, with the local-level
+components re-expressed in the iterate's own frames), and the MAP cost of an iterate
+(:func:`pass_cost`, the kernel :func:`~flightrecon.methods.joint.model.map_cost`)."""
 
 from __future__ import annotations
 
@@ -43,14 +43,14 @@ def state_grid(t_in: np.ndarray, rate_hz: float) -> np.ndarray:
 
 
 def _half_holds(t_in: np.ndarray, idx: np.ndarray):
-    """Each input sample i held on [t_i - d_{i-1}/2, t_i + d_i/2) (centred on its own time,
-    d_i = t_{i+1} - t_i): its right half lies in step ``k_r[i]`` (idx[k-1] <= i < idx[k]), its
-    left half in step ``k_l[i] = k_r[i-1]``.  Returns (k_r, k_l, d_r, d_l), the half lengths
-    ``d_r = d_i / 2`` and ``d_l = d_{i-1} / 2`` (0 before the first and after the last sample).
+    """Each input sample i held on [t_i - d_{i-1}/2, t_i + d_i/2) (centred on its own time, d_i =
+    t_{i+1} - t_i): its right half lies in step ``k_r[i]`` (idx[k-1] <= i < idx[k]), its left half
+    in step ``k_l[i] = k_r[i-1]``.  Returns (k_r, k_l, d_r, d_l), the half lengths ``d_r = d_i / 2``
+    and ``d_l = d_{i-1} / 2`` (0 before the first and after the last sample).
 
-    Not held on [t_i, t_{i+1}): a recorder's sample is its channel at t_i, and a forward
-    hold applies it half an interval late; in a turn the rotated acceleration then lags by
-    omega h / 2 and the heading bias takes that up (0.09 deg at 3 deg/s and 16 Hz, docs/joint.md
+    Not held on [t_i, t_{i+1}): a recorder's sample is its channel at t_i, and a forward hold
+    applies it half an interval late; in a turn the rotated acceleration then lags by omega h / 2
+    and the heading bias takes that up (0.09 deg at 3 deg/s and 16 Hz, docs/joint.md
     "Increments")."""
     Ni = len(t_in)
     d = np.diff(t_in, append=t_in[-1])
@@ -62,15 +62,14 @@ def _half_holds(t_in: np.ndarray, idx: np.ndarray):
 
 
 def held_increments(t_in, acc, idx, missing_psd=None):
-    """Exact velocity and position increments over each state step for accelerations held on
-    their samples' centred intervals (:func:`_half_holds`), and per step the missing
-    accelerations' share: the seconds of it without an acceleration, each weighted by
-    ``missing_psd`` (per input sample [(m/s^2)^2/Hz], ``None``: 1), the dynamics' extra
-    velocity PSD times the step.
+    """Exact velocity and position increments over each state step for accelerations held on their
+    samples' centred intervals (:func:`_half_holds`), and per step the missing accelerations' share:
+    the seconds of it without an acceleration, each weighted by ``missing_psd`` (per input sample
+    [(m/s^2)^2/Hz], ``None``: 1), the dynamics' extra velocity PSD times the step.
 
-    Over step k (from t_in[idx[k-1]] to T_k = t_in[idx[k]]) a constant a on [s0, s1) adds
-    a (s1 - s0) to dV and a (s1 - s0)(T_k - (s0 + s1)/2) to dP: the right half of sample i
-    weighs d_r (T_k - t_i - d_r/2), its left half d_l (T_k - t_i + d_l/2).
+    Over step k (from t_in[idx[k-1]] to T_k = t_in[idx[k]]) a constant a on [s0, s1) adds a (s1 -
+    s0) to dV and a (s1 - s0)(T_k - (s0 + s1)/2) to dP: the right half of sample i weighs d_r (T_k -
+    t_i - d_r/2), its left half d_l (T_k - t_i + d_l/2).
     """
     a = np.where(np.isfinite(acc), acc, 0.0)
     missing = (~np.isfinite(acc)).any(axis=1).astype(float)
@@ -113,10 +112,10 @@ def attitude_jacobian(Cnb: np.ndarray, f_body: np.ndarray) -> np.ndarray:
 
 @nb.njit(cache=True, nogil=True)
 def attitude_step_means(Cnb, fb, idx, t_in):
-    """Step means of C_nb, C_nb diag(f) and :func:`attitude_jacobian` in one pass over the
-    input samples, without the per-sample intermediate arrays, weighted as the increments
-    hold them (:func:`_half_holds`): over step k the samples idx[k-1] .. idx[k], the two ends
-    for half their intervals; the sample idx[0] itself for the first step."""
+    """Step means of C_nb, C_nb diag(f) and :func:`attitude_jacobian` in one pass over the input
+    samples, without the per-sample intermediate arrays, weighted as the increments hold them
+    (:func:`_half_holds`): over step k the samples idx[k-1] .. idx[k], the two ends for half their
+    intervals; the sample idx[0] itself for the first step."""
     N = idx.shape[0]
     Ni = Cnb.shape[0]
     C_m = np.zeros((N, 3, 3))
@@ -207,13 +206,12 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray):
 
     Air-data dead reckoning (airspeed and heading, plus the recorded wind) integrated on the
     ellipsoid (:func:`flightrecon.geo.navframe.integrate_local_level`, valid on flights of any
-    length), heights from pressure altitude; then tied to the data that fix position: to the
-    GNSS fixes where there are any (the differences at the fixes, interpolated linearly in time;
-    the track between fixes keeps the shape of the dead reckoning), otherwise to the end points
-    ``inp.end_points`` (started at the departure one; a correction growing linearly from it
-    to the arrival one, as the DR+linear baseline).
-    Only the starting point of the Gauss-Newton iterations: it decides how many are needed,
-    not where they converge.
+    length), heights from pressure altitude; then tied to the data that fix position: to the GNSS
+    fixes where there are any (the differences at the fixes, interpolated linearly in time; the
+    track between fixes keeps the shape of the dead reckoning), otherwise to the end points
+    ``inp.end_points`` (started at the departure one; a correction growing linearly from it to the
+    arrival one, as the DR+linear baseline). Only the starting point of the Gauss-Newton iterations:
+    it decides how many are needed, not where they converge.
     """
     t = inp.t_in
     tas = np.where(np.isfinite(inp.tas), inp.tas, 0.0)
@@ -275,8 +273,8 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray):
 
 def relinearised_increments(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
                             psi_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The step accelerations and increments for a transition linearised about the heading
-    bias ``psi_hat`` (per step) instead of zero.
+    """The step accelerations and increments for a transition linearised about the heading bias
+    ``psi_hat`` (per step) instead of zero.
 
     The true increment is R(-dpsi) dV (the bias rotates the measured horizontal acceleration
     about the vertical); about psi_hat it is R(-psi_hat) dV + (dpsi - psi_hat) J R(-psi_hat) dV
@@ -337,8 +335,8 @@ def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight
 def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
                vnom: np.ndarray, psi_hat: np.ndarray | None, clock: dict[str, float],
                roll: TakeoffRoll) -> PassModels:
-    """Dynamics, measurements and geometry linearised about the nominal (lat, lon, h, vnom,
-    heading bias ``psi_hat``; None: zero, the first pass)."""
+    """Dynamics, measurements and geometry linearised about the nominal (lat, lon, h, vnom, heading
+    bias ``psi_hat``; None: zero, the first pass)."""
     inp = fl.inp
     ex, ey, ez = geodetic_to_ecef(lat, lon, h)
     pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
@@ -354,19 +352,18 @@ def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarra
     dyn = jl.Dynamics(fl.dt, Cen, fl.Cnb, fl.Csf, fl.Jatt, acc_k, dP_k, dV_k, dz, fl.qv_extra,
                       fl.q, fl.ga)
     geo = jl.Geometry(pnom, h - inp.field_h, fl.pst, fl.Cst)
-    return PassModels(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock),
-                   noise_groups(meas))
+    return PassModels(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock), noise_groups(meas))
 
 
 def _with_frame_rate(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
                      lat: np.ndarray, h: np.ndarray, vnom: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The step accelerations and increments with the Coriolis and transport-rate acceleration
-    c = -(2 omega_ie + omega_en) x v that the accelerometers do not sense
-    (:func:`~flightrecon.geo.navframe.frame_rate_acceleration`, docs/joint.md, "State and
-    frame"), at the nominal velocity: the mean of its values at the step's two ends, added as
-    c dt and c dt^2 / 2.  The nominal is the iterate, so at convergence c is the solution's own;
-    its dependence on the velocity (1.5e-4 1/s) is left out of the transition matrix."""
+    """The step accelerations and increments with the Coriolis and transport-rate acceleration c =
+    -(2 omega_ie + omega_en) x v that the accelerometers do not sense
+    (:func:`~flightrecon.geo.navframe.frame_rate_acceleration`, docs/joint.md, "State and frame"),
+    at the nominal velocity: the mean of its values at the step's two ends, added as c dt and c dt^2
+    / 2.  The nominal is the iterate, so at convergence c is the solution's own; its dependence on
+    the velocity (1.5e-4 1/s) is left out of the transition matrix."""
     c = frame_rate_acceleration(lat, h, vnom)
     c = 0.5 * (c + np.vstack([c[:1], c[:-1]]))
     return (np.ascontiguousarray(acc + c), np.ascontiguousarray(dV + c * dt[:, None]),
@@ -374,12 +371,12 @@ def _with_frame_rate(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.nda
 
 
 def _in_frame(X: np.ndarray, Cen_from: np.ndarray, Cen_to: np.ndarray) -> np.ndarray:
-    """``X`` with its local-level components (velocity, wind, wind gradient: north-east-down
-    at the nominal position ``Cen_from``) re-expressed in the frames ``Cen_to``:
-    v' = C_to^T C_from v per step (the wind and its gradient as horizontal vectors, their
-    vertical part, second order in the frames' angle, dropped).  A smoothed trajectory is in
-    the frames of the nominal it was linearised about; about itself, its own positions' frames
-    hold (the angle is the track's shift over the Earth's radius: 0.03 rad for 190 km)."""
+    """``X`` with its local-level components (velocity, wind, wind gradient: north-east-down at the
+    nominal position ``Cen_from``) re-expressed in the frames ``Cen_to``: v' = C_to^T C_from v per
+    step (the wind and its gradient as horizontal vectors, their vertical part, second order in the
+    frames' angle, dropped).  A smoothed trajectory is in the frames of the nominal it was
+    linearised about; about itself, its own positions' frames hold (the angle is the track's shift
+    over the Earth's radius: 0.03 rad for 190 km)."""
     R = np.einsum("kji,kjl->kil", Cen_to, Cen_from)
     Y = X.copy()
     Y[:, jl.S_VEL] = np.einsum("kij,kj->ki", R, X[:, jl.S_VEL])
@@ -390,10 +387,9 @@ def _in_frame(X: np.ndarray, Cen_from: np.ndarray, Cen_to: np.ndarray) -> np.nda
 
 def models_about(fl: SmootherFlight, X: np.ndarray, Cen_from: np.ndarray, clock: dict[str, float],
                   roll: TakeoffRoll) -> tuple[PassModels, np.ndarray]:
-    """:func:`models_at` about the trajectory ``X`` itself (its positions, velocities and
-    heading bias; its local-level components in the frames ``Cen_from``), and ``X`` in its
-    own frames (:func:`_in_frame`): the models in which the cost of ``X`` is its nonlinear
-    cost."""
+    """:func:`models_at` about the trajectory ``X`` itself (its positions, velocities and heading
+    bias; its local-level components in the frames ``Cen_from``), and ``X`` in its own frames
+    (:func:`_in_frame`): the models in which the cost of ``X`` is its nonlinear cost."""
     lat, lon, h = ecef_to_geodetic(X[:, 0], X[:, 1], X[:, 2])
     Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
     Y = _in_frame(X, Cen_from, Cen)
@@ -402,9 +398,9 @@ def models_about(fl: SmootherFlight, X: np.ndarray, Cen_from: np.ndarray, clock:
 
 
 def nominal_states(fl: SmootherFlight, mdl: PassModels) -> np.ndarray:
-    """The starting trajectory of the damped iterations with ``first_pass = "nominal"``: the
-    nominal positions, the air-data velocity of the nominal (plus the recorded wind, the
-    wind state holding it) and the prior means of the sensor errors."""
+    """The starting trajectory of the damped iterations with ``first_pass = "nominal"``: the nominal
+    positions, the air-data velocity of the nominal (plus the recorded wind, the wind state holding
+    it) and the prior means of the sensor errors."""
     assert fl.x0 is not None
     X = np.repeat(fl.x0[None, :], len(fl.T), axis=0)
     inp, idx = fl.inp, fl.idx
@@ -458,10 +454,10 @@ def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
 
 
 def with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl.Scalars:
-    """``sc`` with the Levenberg-Marquardt pseudo-measurements x_k,i = X_k,i of variance
-    sd_i^2 / lam appended to every step's measurements (Sarkka & Svensson 2020, section 3: the
-    smoother then minimises the linearised cost plus lam/2 sum_k |x_k - X_k|^2_D, D =
-    diag(1/sd^2), the states scaled by their prior sd)."""
+    """``sc`` with the Levenberg-Marquardt pseudo-measurements x_k,i = X_k,i of variance sd_i^2 /
+    lam appended to every step's measurements (Sarkka & Svensson 2020, section 3: the smoother then
+    minimises the linearised cost plus lam/2 sum_k |x_k - X_k|^2_D, D = diag(1/sd^2), the states
+    scaled by their prior sd)."""
     N, n = X.shape
     M = len(sc.z)
     step = np.repeat(np.arange(N), np.diff(sc.start))
@@ -483,14 +479,14 @@ def with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl
 
 def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
                min_airspeed_mps: float) -> np.ndarray:
-    """Decay of the gust state over each step, a_k = exp(-V_k dt_k / L) (docs/joint.md, "Wind
-    and turbulence").
+    """Decay of the gust state over each step, a_k = exp(-V_k dt_k / L) (docs/joint.md, "Wind and
+    turbulence").
 
-    The gust is a first-order Gauss-Markov process in the distance flown (the frozen-turbulence
-    view of the Dryden model: correlation length L = ``nz.gust_length_m``), so its correlation
-    time is L / V with V the recorded airspeed at the step, held at ``min_airspeed_mps`` where
-    it is lower or missing (on the ground the gust then decorrelates within seconds and no air
-    data are used there).
+    The gust is a first-order Gauss-Markov process in the distance flown (the frozen-turbulence view
+    of the Dryden model: correlation length L = ``nz.gust_length_m``), so its correlation time is L
+    / V with V the recorded airspeed at the step, held at ``min_airspeed_mps`` where it is lower or
+    missing (on the ground the gust then decorrelates within seconds and no air data are used
+    there).
     """
     v = np.where(np.isfinite(tas_mps), tas_mps, 0.0)
     v = np.maximum(v, min_airspeed_mps)
@@ -499,8 +495,8 @@ def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
 
 @dataclass(frozen=True)
 class SmootherFlight:
-    """What the iterations hold fixed: the state grid, the held-input increments, the
-    attitude step means, the process noise, the station and the prior of x_0."""
+    """What the iterations hold fixed: the state grid, the held-input increments, the attitude step
+    means, the process noise, the station and the prior of x_0."""
 
     inp: JointInputs
     settings: JointSettings

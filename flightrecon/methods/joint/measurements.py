@@ -30,8 +30,8 @@ from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 
 def per_fix_sd(g, column: str, default: float) -> np.ndarray:
-    """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own
-    accuracy figures), ``default`` where absent or not finite."""
+    """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own accuracy
+    figures), ``default`` where absent or not finite."""
     if column not in g.columns:
         return np.full(len(g), float(default))
     v = g[column].to_numpy(float)
@@ -104,9 +104,9 @@ class _MeasBuilder:
 
 @nb.njit(cache=True, nogil=True)
 def _wind_prior_picks(t, h, corr_s, corr_m, spacing):
-    """Indices of the winds-aloft pseudo-measurements and their correlation with the previous
-    one: a new one whenever dt / corr_s + |dh| / corr_m since the last reaches ``spacing``
-    (one pass over the candidate samples)."""
+    """Indices of the winds-aloft pseudo-measurements and their correlation with the previous one: a
+    new one whenever dt / corr_s + |dh| / corr_m since the last reaches ``spacing`` (one pass over
+    the candidate samples)."""
     n = t.shape[0]
     idx = np.empty(n, dtype=np.int64)
     rho = np.empty(n)
@@ -130,18 +130,12 @@ def wind_prior_measurements(inp: JointInputs, settings: JointSettings
                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The winds-aloft prior (``--wind``) as sparse pseudo-measurements of the wind states.
 
-    The forecast's error e(t, z) is taken as correlated in time and height,
-    corr = exp(-|dt| / tau - |dz| / L) (``settings.wind_prior`` = (tau, L, spacing)).  Using the
-    table at every sample as an independent measurement would count the same error hundreds
-    of times.  Instead one pseudo-measurement is placed at the first airborne air-data sample
-    and a new one whenever |dt| / tau + |dz| / L since the last reaches ``spacing``; each
-    after the first has its variance inflated by (1 + rho) / (1 - rho), rho its correlation
-    with the previous one.  For an AR(1) chain of n measurements of a constant with
-    correlation rho between neighbours, the information is
-    [1 + (n - 1)(1 - rho) / (1 + rho)] / sigma^2 (the tridiagonal inverse of the AR(1)
-    covariance), which these inflated, independently treated measurements reproduce exactly:
-    the forecast is counted once per correlation length, however densely it is sampled
-    (docs/wind.md, "The prior in the joint smoother").
+    One at the first airborne air-data sample, then a new one whenever |dt| / tau + |dz| / L since
+    the last reaches ``spacing`` (``settings.wind_prior`` = (tau, L, spacing); the forecast's error
+    correlated as exp(-|dt| / tau - |dz| / L)), each later one's variance inflated by
+    (1 + rho) / (1 - rho): treated as independent they carry the AR(1) chain's information exactly,
+    so the forecast counts once per correlation length however densely it is sampled (docs/wind.md,
+    "The prior in the joint smoother").
 
     Returns
     -------
@@ -169,8 +163,8 @@ def wind_prior_measurements(inp: JointInputs, settings: JointSettings
 
 def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
     """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
-    recorded wind, the winds-aloft prior, pressure altitude, ground and runway constraints
-    (built once)."""
+    recorded wind, the winds-aloft prior, pressure altitude, ground and runway constraints (built
+    once)."""
     nz = settings.noise
     b = _MeasBuilder(T)
     n = jl.N_STATE
@@ -243,11 +237,10 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     ``static`` is :func:`static_measurements`; the GNSS, radar, known-position (``--fix``),
     end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
     positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
-    ``clock`` (seconds *added* to each group's time stamps, the convention of
-    ``flightrecon clean --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is
-    the pass's take-off roll (:func:`~flightrecon.methods.joint.inputs.refined_roll`);
-    ``psi_hat`` the heading bias of the last pass (per state step; None: zero), about which
-    the ground constraints are linearised.
+    ``clock`` (seconds *added* to each group's time stamps, the convention of ``flightrecon clean
+    --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is the pass's take-off roll
+    (:func:`~flightrecon.methods.joint.inputs.refined_roll`); ``psi_hat`` the heading bias of the
+    last pass (per state step; None: zero), about which the ground constraints are linearised.
     """
     nz = settings.noise
     b = static.copy()
@@ -295,10 +288,9 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
                     sd, kind: str = "pos", ecef=None, acc: np.ndarray | None = None) -> None:
     """Add the NED components of a position (given in ECEF, ``kind="pos"``: three ``NED_POS``
     measurements, whose rows the kernel builds from the step's frame with the tau term) or a
-    velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to
-    ``b``.  A velocity is carried to its own time as the position is: h = v_i + a_i tau with
-    ``acc`` (M, 2) the north and east acceleration at each (None: h = v_i, the velocity at the
-    step)."""
+    velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to ``b``.
+    A velocity is carried to its own time as the position is: h = v_i + a_i tau with ``acc`` (M, 2)
+    the north and east acceleration at each (None: h = v_i, the velocity at the step)."""
     k = nearest_index(T, t)
     tau = np.asarray(t, float) - T[k]
     for i in range(3 if kind == "pos" else 2):
@@ -312,8 +304,8 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
 
 
 def _substitute_height(T: np.ndarray, t: np.ndarray, pnom: np.ndarray) -> np.ndarray:
-    """Ellipsoidal height [m] for a position given without one at times ``t``: the nominal
-    track's at the nearest state step."""
+    """Ellipsoidal height [m] for a position given without one at times ``t``: the nominal track's
+    at the nearest state step."""
     k = nearest_index(T, t)
     return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
 
@@ -321,9 +313,9 @@ def _substitute_height(T: np.ndarray, t: np.ndarray, pnom: np.ndarray) -> np.nda
 def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
                        T: np.ndarray, Cen: np.ndarray, clock: dict[str, float],
                        pnom: np.ndarray) -> None:
-    """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities,
-    at their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the
-    receiver's per-fix accuracy.
+    """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities, at
+    their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the receiver's
+    per-fix accuracy.
 
     Each is carried from its state step to its own time, the fixes by the state's velocity,
     the velocities by their own acceleration (:func:`gnss_acceleration`; not the iterate's,
@@ -343,10 +335,9 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     hg = g["h_m"].to_numpy(float)
     no_h = ~np.isfinite(hg)
     if no_h.any():
-        # a fix without height is used horizontally: its north and east components only,
-        # computed at the nominal's height; the north/east projection of the fix moves by
-        # (angle between the verticals at the fix and at the step) x (height error): under
-        # 2e-4 m per m at 1 km
+        # a fix without height is used horizontally: its north and east components only, computed at
+        # the nominal's height; the north/east projection of the fix moves by (angle between the
+        # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
         hg = np.where(no_h, _substitute_height(T, tg, pnom), hg)
     ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
     ant = np.c_[ex, ey, ez]
@@ -378,12 +369,12 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
 
 
 def gnss_acceleration(t: np.ndarray, v: np.ndarray, max_gap_s: float = 2.5) -> np.ndarray:
-    """The north and east acceleration at each GNSS velocity (times ``t`` (M,), velocities
-    ``v`` (M, 2)): the central difference of the neighbouring velocities, one-sided at an end
-    or beside a gap longer than ``max_gap_s``, zero without a neighbour within it or where a
-    velocity is missing.  Fixed by the data (not by the iterate), so the velocity's
-    prediction v_k + a tau is linear in the state at its step.  Its noise is small: 0.1 m/s
-    per velocity over 2 s is 0.07 m/s^2, 0.035 m/s at a quarter second from the step."""
+    """The north and east acceleration at each GNSS velocity (times ``t`` (M,), velocities ``v`` (M,
+    2)): the central difference of the neighbouring velocities, one-sided at an end or beside a gap
+    longer than ``max_gap_s``, zero without a neighbour within it or where a velocity is missing.
+    Fixed by the data (not by the iterate), so the velocity's prediction v_k + a tau is linear in
+    the state at its step.  Its noise is small: 0.1 m/s per velocity over 2 s is 0.07 m/s^2, 0.035
+    m/s at a quarter second from the step."""
     t = np.asarray(t, float)
     v = np.asarray(v, float)
     M = len(t)
@@ -405,8 +396,8 @@ def gnss_acceleration(t: np.ndarray, v: np.ndarray, max_gap_s: float = 2.5) -> n
 def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
                            T: np.ndarray, Cen: np.ndarray, roll: TakeoffRoll) -> None:
     """The end points (``inp.end_points``, the runway departure at the start of ``roll``:
-    :func:`end_points_at`): the runway model along / across the runway and vertically, the
-    reference model in north, east, down."""
+    :func:`end_points_at`): the runway model along / across the runway and vertically, the reference
+    model in north, east, down."""
     for ep in end_points_at(inp.end_points, roll):
         lat, lon, h = ep.point
         pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
@@ -431,13 +422,12 @@ def nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndar
     """Samples whose attitude lets the heading stand for the air velocity's direction.
 
     The air velocity in body axes is V (cos a cos b, sin b, sin a cos b) (angle of attack a,
-    sideslip b); its horizontal direction differs from the heading by about a sin(roll) /
-    cos(pitch) plus the sideslip: a few degrees in a 30 deg bank (the part
-    :func:`nose_offset` takes out), tens of degrees in a spiral dive or a spin, where neither
-    the offset's no-sideslip geometry nor the pitot holds.  Kept: |roll| <=
-    ``heading_max_roll_deg`` and |pitch| <= ``heading_max_pitch_deg``, the angles of the
-    body-to-NED rotation C = R_z R_y R_x of the recorded attitude ``attitude_deg`` (Ni, 3),
-    from its last row C[2] = (-sin(pitch), sin(roll) cos(pitch), cos(roll) cos(pitch)): a
+    sideslip b); its horizontal direction differs from the heading by about a sin(roll) / cos(pitch)
+    plus the sideslip: a few degrees in a 30 deg bank (the part :func:`nose_offset` takes out), tens
+    of degrees in a spiral dive or a spin, where neither the offset's no-sideslip geometry nor the
+    pitot holds.  Kept: |roll| <= ``heading_max_roll_deg`` and |pitch| <= ``heading_max_pitch_deg``,
+    the angles of the body-to-NED rotation C = R_z R_y R_x of the recorded attitude ``attitude_deg``
+    (Ni, 3), from its last row C[2] = (-sin(pitch), sin(roll) cos(pitch), cos(roll) cos(pitch)): a
     roll of 190 deg counts as -170 deg and a pitch of 100 deg (inverted) as 80 deg.
     """
     phi, theta = np.radians(attitude_deg[:, 0]), np.radians(attitude_deg[:, 1])
@@ -451,24 +441,23 @@ def nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndar
 def nose_offset(inp: JointInputs, climb_window_s: float = 2.0,
                 alpha_range_deg: tuple[float, float] = (-10.0, 20.0),
                 at: np.ndarray | None = None) -> np.ndarray:
-    """Heading minus the air velocity's horizontal direction on the input grid [rad] (at the
-    input samples ``at``, a boolean mask or indices, when given: the same numbers as the whole
-    grid's there), from the angle of attack that the recorded attitude, pressure-altitude rate
-    and airspeed imply (docs/joint.md, "Measurements").
+    """Heading minus the air velocity's horizontal direction on the input grid [rad] (at the input
+    samples ``at``, a boolean mask or indices, when given: the same numbers as the whole grid's
+    there), from the angle of attack that the recorded attitude, pressure-altitude rate and airspeed
+    imply (docs/joint.md, "Measurements").
 
-    With no sideslip the air velocity in body axes is V (cos a, 0, sin a); rotated by
-    C = R_z(psi) R_y(theta) R_x(phi) its horizontal direction is the heading minus
+    With no sideslip the air velocity in body axes is V (cos a, 0, sin a); rotated by C = R_z(psi)
+    R_y(theta) R_x(phi) its horizontal direction is the heading minus
 
         delta = atan2(sin phi sin a, cos theta cos a + cos phi sin theta sin a),
 
-    about a sin(phi): 1 deg at a = 2.5 deg in a 25 deg bank, to the inside of the turn.  The
-    angle of attack comes from the air-relative flight-path angle g, sin g = h' / V (vertical
-    wind neglected; h' the pressure-altitude rate, a central difference over
-    ``climb_window_s``), through sin g = cos a sin theta - sin a cos phi cos theta
-    (the body's geometry with no sideslip): a = arccos(sin g / R) - d, R = hypot(A, B),
-    d = atan2(B, A), A = sin theta, B = cos phi cos theta.  Where the angles are not finite or
-    ``a`` falls outside ``alpha_range_deg`` (a stall, a spin: the heading is not used there
-    anyway) the offset is 0.
+    about a sin(phi): 1 deg at a = 2.5 deg in a 25 deg bank, to the inside of the turn.  The angle
+    of attack comes from the air-relative flight-path angle g, sin g = h' / V (vertical wind
+    neglected; h' the pressure-altitude rate, a central difference over ``climb_window_s``), through
+    sin g = cos a sin theta - sin a cos phi cos theta (the body's geometry with no sideslip): a =
+    arccos(sin g / R) - d, R = hypot(A, B), d = atan2(B, A), A = sin theta, B = cos phi cos theta.
+    Where the angles are not finite or ``a`` falls outside ``alpha_range_deg`` (a stall, a spin: the
+    heading is not used there anyway) the offset is 0.
     """
     t_all = inp.t_in
     sel = slice(None) if at is None else at
@@ -496,15 +485,15 @@ def nose_offset(inp: JointInputs, climb_window_s: float = 2.0,
 
 
 def decimate_mask(t: np.ndarray, rate_hz: float, origin: float | None = None) -> np.ndarray:
-    """True for the first sample of each 1/rate_hz bin, bins counted from ``origin`` (default
-    the first sample) (keeps each measurement used once)."""
+    """True for the first sample of each 1/rate_hz bin, bins counted from ``origin`` (default the
+    first sample) (keeps each measurement used once)."""
     return first_in_bin(t, rate_hz, np.arange(len(t)), origin)
 
 
 def first_in_bin(t: np.ndarray, rate_hz: float, i: np.ndarray, origin: float | None = None
                  ) -> np.ndarray:
-    """:func:`decimate_mask` at the sample indices ``i`` only (each judged against its
-    predecessor in ``t``), for a few samples of a long record."""
+    """:func:`decimate_mask` at the sample indices ``i`` only (each judged against its predecessor
+    in ``t``), for a few samples of a long record."""
     if rate_hz <= 0:
         return np.zeros(len(i), bool)
     t0 = t[0] if origin is None else origin
@@ -540,13 +529,12 @@ def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_E
     """Input samples that can be on the departure (``departure``) or arrival runway.
 
     Departure: from the line-up (``inp.lineup_t``, the cleaning phases': the start of the last
-    stretch within 10 deg of the take-off run's heading), the whole record before lift-off
-    where it is not known.  Arrival: from touchdown to the runway exit, the first sample after
-    which the heading is more than ``exit_deg`` from the landing roll's (its circular mean
-    from 2 to 6 s after touchdown, when the crab is gone), to the end where it does not turn
-    off.  Before, the record could start at the stand and end there: the runway's centreline
-    rows then held the taxi (issue #36: 233 m off at lift-off on the Garmin export with a
-    24 m sd).
+    stretch within 10 deg of the take-off run's heading), the whole record before lift-off where it
+    is not known.  Arrival: from touchdown to the runway exit, the first sample after which the
+    heading is more than ``exit_deg`` from the landing roll's (its circular mean from 2 to 6 s after
+    touchdown, when the crab is gone), to the end where it does not turn off.  Before, the record
+    could start at the stand and end there: the runway's centreline rows then held the taxi (issue
+    #36: 233 m off at lift-off on the Garmin export with a 24 m sd).
     """
     t = inp.t_in
     if departure:
@@ -576,12 +564,12 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
                          step_of, pnom: np.ndarray, vnom: np.ndarray,
                          psi_hat: np.ndarray | None = None) -> None:
     """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
-    centreline through the runway's threshold, or through the airfield reference point where
-    no threshold is given.  That point need not lie on the runway (an apron, a stand, an ARP
-    between runways): its distance from the centreline is one error for the whole roll,
-    known no better than the reference itself (``endpoint_h_m``), so each of the roll's m
-    centreline rows carries ``runway_halfwidth_m^2 + m endpoint_h_m^2`` (as the slip below:
-    the roll tells the cross-track position one reference's worth, not m of them).
+    centreline through the runway's threshold, or through the airfield reference point where no
+    threshold is given.  That point need not lie on the runway (an apron, a stand, an ARP between
+    runways): its distance from the centreline is one error for the whole roll, known no better than
+    the reference itself (``endpoint_h_m``), so each of the roll's m centreline rows carries
+    ``runway_halfwidth_m^2 + m endpoint_h_m^2`` (as the slip below: the roll tells the cross-track
+    position one reference's worth, not m of them).
 
     ``settings.roll_velocity`` = "runway" (the default): the velocity rows hold the velocity
     along the runway's direction, the airfield's ``runway_true_deg`` where the metadata give
@@ -604,16 +592,15 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
     the nose rows cost the long flights more than they gave the circuits, so the default
     stays "runway".
 
-    ``ground_slip_deg`` (default 0): an angle between track and runway common to the whole
-    roll (steering corrections, the tyres' slip angles in a crosswind, a crab kept after
-    touchdown), not a noise that averages out over its samples.  Each of a roll's ``m``
-    cross-track velocity rows carries it as the extra variance ``m (s V)^2`` (V: the roll's
-    fastest speed, :func:`roll_speed`, from the data and not the iterate, so that the cost
-    function stays the same from pass to pass), so that the roll's velocity rows tell the
-    heading bias no more than one such angle's worth (``s^2`` against ``s^2 / m`` for
-    independent errors).  The centreline rows keep their half-width (25 m: 1.4 deg over
-    1000 m of roll).  With it the cross-country flights lost more than the upsets gained, so
-    the default is 0 (docs/jsbsim.md).
+    ``ground_slip_deg`` (default 0): an angle between track and runway common to the whole roll
+    (steering corrections, the tyres' slip angles in a crosswind, a crab kept after touchdown), not
+    a noise that averages out over its samples.  Each of a roll's ``m`` cross-track velocity rows
+    carries it as the extra variance ``m (s V)^2`` (V: the roll's fastest speed, :func:`roll_speed`,
+    from the data and not the iterate, so that the cost function stays the same from pass to pass),
+    so that the roll's velocity rows tell the heading bias no more than one such angle's worth
+    (``s^2`` against ``s^2 / m`` for independent errors).  The centreline rows keep their half-width
+    (25 m: 1.4 deg over 1000 m of roll).  With it the cross-country flights lost more than the
+    upsets gained, so the default is 0 (docs/jsbsim.md).
     """
     t_in = inp.t_in
     keep = on_ground_mask(inp, settings)
@@ -654,10 +641,10 @@ def _roll_velocity_rows(b: Any, inp: JointInputs, settings: JointSettings, sel: 
                         ends: tuple[int, float | None, float], step_of, vnom: np.ndarray,
                         psi_hat: np.ndarray | None
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The roll's cross-track velocity rows (:func:`runway_measurements`) on the samples
-    ``sel``; ``ends`` the departure (0) or arrival (1) end, its runway direction (None: not
-    known) and the lift-off or touchdown time.  Returns the rows' times, state steps, heading
-    bias of the linearisation and direction (for the centreline rows)."""
+    """The roll's cross-track velocity rows (:func:`runway_measurements`) on the samples ``sel``;
+    ``ends`` the departure (0) or arrival (1) end, its runway direction (None: not known) and the
+    lift-off or touchdown time.  Returns the rows' times, state steps, heading bias of the
+    linearisation and direction (for the centreline rows)."""
     nz = settings.noise
     slip = np.radians(nz.ground_slip_deg)
     n = jl.N_STATE
@@ -717,8 +704,7 @@ def _centreline_rows(b: Any, settings: JointSettings, pos: tuple[float, float, f
     # distance from the centreline is not known better than the reference itself
     # (endpoint_h_m): one error common to the roll's m rows, m endpoint_h_m^2 on each
     r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line else len(tt) * nz.endpoint_h_m ** 2)
-    b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H,
-          -cross @ arp - H[:, jl.IPSI] * ph)
+    b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H, -cross @ arp - H[:, jl.IPSI] * ph)
 
 
 def rest_heading(inp: JointInputs) -> float | None:
@@ -736,15 +722,14 @@ def rest_heading(inp: JointInputs) -> float | None:
 
 def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
                       ref_rad: float | None = None) -> np.ndarray:
-    """Variance [m^2/s^2] of the velocity across the runway that steering makes at each of a
-    roll's samples: the wheels roll where the nose points, so where the recorded heading
-    leaves the lined-up heading ``ref_rad`` (at rest before the roll: :func:`rest_heading`;
-    else the roll's own mean) by d, the heading bias dropping out of the difference, the
-    track leaves the runway by about d: ``(V sin d)^2``, V the roll's fastest speed
-    (:func:`roll_speed`, from the data and not the iterate; at least the speed at the sample,
-    so never less than the swerve's cross-track velocity).  JSBSim's Cessna 310 swings 5-14 deg
-    on its take-off roll and its velocity rows then held the heading bias 4.9 +- 0.4 deg off
-    (docs/jsbsim.md, "Fleet study").
+    """Variance [m^2/s^2] of the velocity across the runway that steering makes at each of a roll's
+    samples: the wheels roll where the nose points, so where the recorded heading leaves the
+    lined-up heading ``ref_rad`` (at rest before the roll: :func:`rest_heading`; else the roll's own
+    mean) by d, the heading bias dropping out of the difference, the track leaves the runway by
+    about d: ``(V sin d)^2``, V the roll's fastest speed (:func:`roll_speed`, from the data and not
+    the iterate; at least the speed at the sample, so never less than the swerve's cross-track
+    velocity).  JSBSim's Cessna 310 swings 5-14 deg on its take-off roll and its velocity rows then
+    held the heading bias 4.9 +- 0.4 deg off (docs/jsbsim.md, "Fleet study").
 
     Parameters
     ----------
@@ -761,19 +746,18 @@ def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
     return (v_roll_mps * np.sin(d)) ** 2
 
 
-def lineup_heading(b: Any, inp: JointInputs, settings: JointSettings, t_rest: np.ndarray
-                   ) -> None:
-    """Lined up at rest before the take-off roll, the nose points along the departure runway:
-    one row on the heading bias, dpsi = mean(psi_rec - psi_rw) (the circular mean over the
-    rest's samples ``t_rest``, wrapped to the runway's line: a reversed direction is the same
-    runway), sd ``lineup_heading_deg`` (how straight an aircraft is lined up).  Only where the
-    metadata give the runway's direction and ``settings.roll_velocity`` is "nose".
+def lineup_heading(b: Any, inp: JointInputs, settings: JointSettings, t_rest: np.ndarray) -> None:
+    """Lined up at rest before the take-off roll, the nose points along the departure runway: one
+    row on the heading bias, dpsi = mean(psi_rec - psi_rw) (the circular mean over the rest's
+    samples ``t_rest``, wrapped to the runway's line: a reversed direction is the same runway), sd
+    ``lineup_heading_deg`` (how straight an aircraft is lined up).  Only where the metadata give the
+    runway's direction and ``settings.roll_velocity`` is "nose".
 
-    The "nose" velocity rows of :func:`runway_measurements` hold the roll's velocity along
-    the nose, which says nothing about the bias; the runway's direction reaches it through the
-    centreline rows and this row.  At rest the heading is what the line-up left, before any
-    steering on the roll (JSBSim's aircraft: along the runway at rest, 2-8 deg off it for
-    10-20 s of their rolls, docs/jsbsim.md).
+    The "nose" velocity rows of :func:`runway_measurements` hold the roll's velocity along the nose,
+    which says nothing about the bias; the runway's direction reaches it through the centreline rows
+    and this row.  At rest the heading is what the line-up left, before any steering on the roll
+    (JSBSim's aircraft: along the runway at rest, 2-8 deg off it for 10-20 s of their rolls,
+    docs/jsbsim.md).
     """
     rw = inp.runway_rad[0]
     if rw is None or len(t_rest) == 0:

@@ -1,12 +1,12 @@
 """Adapter: the joint post-flight smoother on a cleaned flight (the default result).
 
-Builds the problem once (:func:`flightrecon.methods.joint.problem.joint_problem`: the inputs,
-the end points, the settings the data call for), solves it
-(:func:`flightrecon.methods.joint.smooth_joint`), solves the adjusted problems of the
-calibrations (:mod:`~flightrecon.methods.joint.calibration`) and returns the track on the
-input grid with the prefix ``joint_`` (the pipeline writes it as the unprefixed default
-result) and a summary with the estimated sensor errors, clock offsets and per-source
-innovation statistics.  Nothing here reads the cleaned flight after the problem is built.
+Builds the problem once (:func:`flightrecon.methods.joint.problem.joint_problem`: the inputs, the
+end points, the settings the data call for), solves it
+(:func:`flightrecon.methods.joint.smooth_joint`), solves the adjusted problems of the calibrations
+(:mod:`~flightrecon.methods.joint.calibration`) and returns the track on the input grid with the
+prefix ``joint_`` (the pipeline writes it as the unprefixed default result) and a summary with the
+estimated sensor errors, clock offsets and per-source innovation statistics.  Nothing here reads the
+cleaned flight after the problem is built.
 """
 
 from __future__ import annotations
@@ -87,9 +87,9 @@ def _run_warnings(run: JointRun, inp: JointInputs, settings: JointSettings,
 
 
 def _innovation_verdict(run: JointRun) -> ChiSquareVerdict:
-    """The chi-square verdict of the forward innovations of the measurements the smoother kept
-    at full weight (the robustly down-weighted ones are reported per source, not held against
-    the noise model)."""
+    """The chi-square verdict of the forward innovations of the measurements the smoother kept at
+    full weight (the robustly down-weighted ones are reported per source, not held against the noise
+    model)."""
     full = (run.weights >= 1.0) & (run.innov_var > 0)
     return chi_square_verdict(np.where(full, run.innov ** 2 / np.where(full, run.innov_var,
                                                                        1.0), np.nan))
@@ -99,10 +99,9 @@ def _summary(problem: JointProblem, run: JointRun, track: pd.DataFrame, *,
              verdict: ChiSquareVerdict, healthy: bool, converged: bool,
              extra: dict[str, Any]) -> dict[str, Any]:
     """The joint method's summary (docs/output.md, "The joint smoother's summary"): health,
-    consistency, iterations, the data-chosen settings, the corrections, clock offsets, noise,
-    end points, take-off roll, fixes, wind prior, sources, settings and warnings; ``extra``
-    the run's ``wind_rounds``, ``gap_calibration``, ``corrections``, ``sources`` and
-    ``warnings``."""
+    consistency, iterations, the data-chosen settings, the corrections, clock offsets, noise, end
+    points, take-off roll, fixes, wind prior, sources, settings and warnings; ``extra`` the run's
+    ``wind_rounds``, ``gap_calibration``, ``corrections``, ``sources`` and ``warnings``."""
     settings, frame = problem.settings, problem.frame
     return {
         "healthy": healthy,
@@ -142,15 +141,15 @@ def _summary(problem: JointProblem, run: JointRun, track: pd.DataFrame, *,
 
 
 def run_joint(clean: CleanFlight, *, settings: JointSettings | None = None) -> MethodResult:
-    """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.methods.joint`):
-    the problem built once (:func:`~flightrecon.methods.joint.problem.joint_problem`), then
-    solved (:func:`joint_result`)."""
+    """Joint smoother of every source on ``clean`` (see :mod:`flightrecon.methods.joint`): the
+    problem built once (:func:`~flightrecon.methods.joint.problem.joint_problem`), then solved
+    (:func:`joint_result`)."""
     return joint_result(joint_problem(clean, settings))
 
 
 def joint_result(problem: JointProblem) -> MethodResult:
-    """The joint smoother's result on ``problem``: solved, its wind walk re-estimated and its
-    GNSS gaps calibrated (each an adjusted problem solved again:
+    """The joint smoother's result on ``problem``: solved, its wind walk re-estimated and its GNSS
+    gaps calibrated (each an adjusted problem solved again:
     :mod:`~flightrecon.methods.joint.calibration`), then the track and the summary."""
     run = smooth_joint(problem.inputs, problem.settings, problem.flight)
     if problem.attitude_note:
@@ -163,8 +162,7 @@ def joint_result(problem: JointProblem) -> MethodResult:
         raise ValueError("the joint result needs the problem's output frame "
                          "(joint_problem builds it)")
     settle = settling(run)
-    widen = (None if settle is None or settle["verdict"] != "widened"
-             else settle["remaining_k_m"])
+    widen = (None if settle is None or settle["verdict"] != "widened" else settle["remaining_k_m"])
     track = joint_track(problem.frame.t_s, problem.frame.plane, run, widen)
     summary = _checked_summary(problem, run, track, wind_rounds, gap_cal)
     if settle is not None:

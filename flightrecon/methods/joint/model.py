@@ -1,11 +1,11 @@
 """The joint smoother's compiled model (state layout and types in
 :mod:`~flightrecon.methods.joint.layout`; docs/joint.md, "Filter, smoother, iterations";
-docs/estimation.md, "The joint model"): the transition and process noise, the scalar
-measurement functions, the model protocol of the estimation core and the MAP cost.
+docs/estimation.md, "The joint model"): the transition and process noise, the scalar measurement
+functions, the model protocol of the estimation core and the MAP cost.
 
-The transition is the identity plus a few blocks (:func:`transition_into`); the passes predict
-with it row-compressed through the core (:func:`flightrecon.estimation.predict.predict_sparse`)
-and add the process noise touching only its nonzero entries (:func:`add_process_noise`: the
+The transition is the identity plus a few blocks (:func:`transition_into`); the passes predict with
+it row-compressed through the core (:func:`flightrecon.estimation.predict.predict_sparse`) and add
+the process noise touching only its nonzero entries (:func:`add_process_noise`: the
 constant-velocity and Gauss-Markov blocks from :mod:`flightrecon.estimation.discretise`).
 
 :class:`JointModel` holds one pass's inputs (the :class:`~flightrecon.methods.joint.layout.
@@ -17,34 +17,32 @@ the core's :func:`~flightrecon.estimation.filtering.forward_pass` and
 :func:`~flightrecon.estimation.smoothing.backward_pass` (a step's prediction, scalar updates,
 smoothing covariances: their docstrings).  None of them loops over the time steps.
 
-The MAP cost (:func:`map_cost`) of a state trajectory X = (x_0, ..., x_{N-1}) on the state grid,
-the negative log posterior up to a constant::
+The MAP cost (:func:`map_cost`) of a state trajectory X = (x_0, ..., x_{N-1}) on the state grid, the
+negative log posterior up to a constant::
 
     J(X) = 1/2 (x_0 - m_0)^T P_0^{-1} (x_0 - m_0)                         (prior)
          + 1/2 sum_k e_k^T Q_k^{-1} e_k,   e_k = x_k - f_k(x_{k-1})       (process)
          + sum_j rho(u_j),                 u_j = (z_j - h_j(x_{k(j)})) / sqrt(R_j)   (data)
 
-with f_k the transition (F_k x + the measured increments) and h_j the measurement functions,
-both evaluated with the models built about X itself (nominal = X), so that the linearisation
-terms vanish and J is the nonlinear model's cost.  ``rho`` is the robust loss whose iteratively
-reweighted least squares weights the smoother uses (Huber with threshold ``c``, constant beyond
-``c_rej``)::
+with f_k the transition (F_k x + the measured increments) and h_j the measurement functions, both
+evaluated with the models built about X itself (nominal = X), so that the linearisation terms vanish
+and J is the nonlinear model's cost.  ``rho`` is the robust loss whose iteratively reweighted least
+squares weights the smoother uses (Huber with threshold ``c``, constant beyond ``c_rej``)::
 
     rho(u) = u^2 / 2                      |u| <= c
            = c |u| - c^2 / 2              c < |u| <= c_rej
            = c c_rej - c^2 / 2            |u| > c_rej
 
-As a function of s = u^2 it is concave with derivative w/2, w = min(1, c/|u|) (0 beyond
-c_rej): the weighted quadratic w u^2/2 + const is a tangent majoriser, so an IRLS step with
-those weights is a majorise-minimise step on J (Lange, Hunter & Yang 2000); with
-``robust`` False rho(u) = u^2/2.
+As a function of s = u^2 it is concave with derivative w/2, w = min(1, c/|u|) (0 beyond c_rej): the
+weighted quadratic w u^2/2 + const is a tangent majoriser, so an IRLS step with those weights is a
+majorise-minimise step on J (Lange, Hunter & Yang 2000); with ``robust`` False rho(u) = u^2/2.
 
-States without process noise (the scale errors, the roll and pitch biases, the Doppler and
-drift errors: Q_k,ii = 0) are constants of the model: the RTS smoother keeps them constant
-exactly (its gain row of such a state is the unit row), they carry no process term, and the
-largest step change of them is returned as a check (it is rounding, not a penalty).  The same
-holds for a state whose Q_k,ii is below rounding of the state itself
-((64 eps |x|)^2: the term could not be told from rounding).
+States without process noise (the scale errors, the roll and pitch biases, the Doppler and drift
+errors: Q_k,ii = 0) are constants of the model: the RTS smoother keeps them constant exactly (its
+gain row of such a state is the unit row), they carry no process term, and the largest step change
+of them is returned as a check (it is rounding, not a penalty).  The same holds for a state whose
+Q_k,ii is below rounding of the state itself ((64 eps |x|)^2: the term could not be told from
+rounding).
 """
 
 from __future__ import annotations
@@ -111,9 +109,9 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
 
     ``Csf[k]`` is the step mean of C_nb diag(f_body) (the Jacobian of the acceleration in the
     accelerometer scale errors), ``Jatt[k]`` (3, 2) that of dC/dphi f and dC/dtheta f (roll and
-    pitch biases), ``dz[k]`` the nominal's height change over the step (the wind moves along
-    its gradient with height), ``ga[k]`` the gust's decay over the step.  Only the position,
-    velocity, wind, accelerometer-bias and gust rows differ from the identity.
+    pitch biases), ``dz[k]`` the nominal's height change over the step (the wind moves along its
+    gradient with height), ``ga[k]`` the gust's decay over the step.  Only the position, velocity,
+    wind, accelerometer-bias and gust rows differ from the identity.
 
     Over one state step of length dt (inputs held between input samples)::
 
@@ -186,18 +184,17 @@ def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
 
 @nb.njit(cache=True, nogil=True)
 def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
-    """P += Q_k in place, touching only the nonzero entries of Q_k. q = [q_acc, q_wind_t,
-    q_wind_h, var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust, dq_n, dq_e, dq_d] (see
-    JointNoise and :func:`flightrecon.methods.joint.linearisation.q_vector`); ``|dz[k]|`` is
-    the height change over the step (wind varies with altitude), ``qv_extra[k]`` extra
-    acceleration PSD where the load factors are missing, ``ga[k]`` the gust's decay over the
-    step (exact discretisation of the first-order Gauss-Markov gust: var_gust (1 - ga^2)).
+    """P += Q_k in place, touching only the nonzero entries of Q_k. q = [q_acc, q_wind_t, q_wind_h,
+    var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust, dq_n, dq_e, dq_d] (see JointNoise and
+    :func:`flightrecon.methods.joint.linearisation.q_vector`); ``|dz[k]|`` is the height change over
+    the step (wind varies with altitude), ``qv_extra[k]`` extra acceleration PSD where the load
+    factors are missing, ``ga[k]`` the gust's decay over the step (exact discretisation of the
+    first-order Gauss-Markov gust: var_gust (1 - ga^2)).
 
-    Position-velocity block: white acceleration along each NED axis a of PSD
-    q_a = q_acc + qv_extra[k] + dq_a (dq_a the sampling part of a low-rate load record,
-    docs/joint.md, "1 Hz records"), position in ECEF through C = C_en (NED -> ECEF) at step
-    k - 1, exact for a constant C over the step (Bar-Shalom et al. 2001, eq. 6.2.2-12, axis by
-    axis):
+    Position-velocity block: white acceleration along each NED axis a of PSD q_a = q_acc +
+    qv_extra[k] + dq_a (dq_a the sampling part of a low-rate load record, docs/joint.md, "1 Hz
+    records"), position in ECEF through C = C_en (NED -> ECEF) at step k - 1, exact for a constant C
+    over the step (Bar-Shalom et al. 2001, eq. 6.2.2-12, axis by axis):
 
         Q_pp = h^3/3 C diag(q) C^T,   Q_pv = h^2/2 C diag(q),   Q_vv = h diag(q);
 
@@ -245,10 +242,10 @@ def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _moved(x, C, tau, i):
-    """ECEF coordinate ``i`` of the position moved by the velocity over ``tau``:
-    p_i + sum_m C[i, m] v_m tau (summed in that order).  Inlined at numba's IR level into
-    :func:`measure_into` (called there with the constants 0, 1, 2: three compilations of
-    their own otherwise, 1.5 s on a cold cache)."""
+    """ECEF coordinate ``i`` of the position moved by the velocity over ``tau``: p_i + sum_m C[i, m]
+    v_m tau (summed in that order).  Inlined at numba's IR level into :func:`measure_into` (called
+    there with the constants 0, 1, 2: three compilations of their own otherwise, 1.5 s on a cold
+    cache)."""
     s = x[IP + i]
     for m in range(3):
         s += C[i, m] * x[IV + m] * tau
@@ -385,26 +382,26 @@ velocities: :data:`~flightrecon.methods.joint.solve.CLOCK_SOURCES`)."""
 class JointModel(NamedTuple):
     """One pass of the joint smoother as a model of the estimation core (module docstring).
 
-    Inputs: ``dyn``, ``meas``, ``geo`` (the layouts), ``gate`` (the normalised innovation
-    beyond which a measurement's variance is inflated; 0: off), ``xlin`` (N, n) the
-    linearisation point of the measurements ((0, n): the filter's own prediction).
+    Inputs: ``dyn``, ``meas``, ``geo`` (the layouts), ``gate`` (the normalised innovation beyond
+    which a measurement's variance is inflated; 0: off), ``xlin`` (N, n) the linearisation point of
+    the measurements ((0, n): the filter's own prediction).
 
-    Filter buffers: ``xf``, ``xp`` (N, n), ``Pf``, ``Pp`` (N, n (n + 1) / 2) packed lower
-    triangles (``Pp`` (0, ...): not kept); per measurement the innovation ``nu``, its variance
-    ``S`` (before inflation) and the inflation factor ``infl`` ((0,) in a backward pass).
+    Filter buffers: ``xf``, ``xp`` (N, n), ``Pf``, ``Pp`` (N, n (n + 1) / 2) packed lower triangles
+    (``Pp`` (0, ...): not kept); per measurement the innovation ``nu``, its variance ``S`` (before
+    inflation) and the inflation factor ``infl`` ((0,) in a backward pass).
 
-    Smoother buffers: per measurement the residuals ``res`` (z - h(x_s)), ``res_n`` (in units
-    of sqrt(R)), the ``rate`` dh/dtau and ``hph`` (H P_s H^T, in the covariance pass only)
-    ((0,): not computed); per step ``Pblk`` (N, 6, 6) the position-velocity block of P_s and
-    ``var`` (N, n) its diagonal ((0, ...): the mean-only pass).
+    Smoother buffers: per measurement the residuals ``res`` (z - h(x_s)), ``res_n`` (in units of
+    sqrt(R)), the ``rate`` dh/dtau and ``hph`` (H P_s H^T, in the covariance pass only) ((0,): not
+    computed); per step ``Pblk`` (N, 6, 6) the position-velocity block of P_s and ``var`` (N, n) its
+    diagonal ((0, ...): the mean-only pass).
 
     Clock offsets (forward pass; (0,): not estimated): ``ccol`` (M,) the clock column of each
     measurement (0 GNSS, 1 radar, -1 none), ``crate`` (M,) the rate of the prediction with the
     measurement's time where its gradient does not give it (GNSS velocities: the nominal's
-    acceleration; 0 elsewhere), ``cnorm`` (C, C + 1) the normal equations [A b] of the
-    offsets' Gauss-Newton step accumulated over the pass (:func:`_clock_column_update`; (0, 0):
-    not estimated), ``cxf``, ``cxp`` (C, N, n) the offsets' filter columns after and before
-    each step's updates (C = 3: GNSS positions, radar, GNSS velocities).
+    acceleration; 0 elsewhere), ``cnorm`` (C, C + 1) the normal equations [A b] of the offsets'
+    Gauss-Newton step accumulated over the pass (:func:`_clock_column_update`; (0, 0): not
+    estimated), ``cxf``, ``cxp`` (C, N, n) the offsets' filter columns after and before each step's
+    updates (C = 3: GNSS positions, radar, GNSS velocities).
     """
 
 
@@ -439,10 +436,10 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
                 clock: tuple[np.ndarray, np.ndarray] | None = None) -> JointModel:
     """A :class:`JointModel` on the filter buffers ``bufs`` = (xf, Pf, xp, Pp), with the output
     buffers of a ``forward`` pass (innovations NaN, inflations 1) or of a backward pass: the
-    ``residuals`` (and H P_s H^T; NaN until computed) and the smoothed ``covariances``
-    blocks.  ``clock`` (a forward pass; None: no clock offsets) the clock column of each
-    measurement (-1 none) and its ``crate``: the pass then accumulates the offsets' normal
-    equations in ``cnorm``."""
+    ``residuals`` (and H P_s H^T; NaN until computed) and the smoothed ``covariances`` blocks.
+    ``clock`` (a forward pass; None: no clock offsets) the clock column of each measurement (-1
+    none) and its ``crate``: the pass then accumulates the offsets' normal equations in
+    ``cnorm``."""
     xf, Pf, xp, Pp = bufs
     N, n = xf.shape
     M = len(meas.mtype)
@@ -481,9 +478,9 @@ def _transition_rows(F, cols, vals, cnt, k, dyn):
 
 @nb.njit(cache=True, nogil=True)
 def _predicted_cov(k, Pf, cols, vals, cnt, B, dyn, out):
-    """P_p[k] = F_k P_f[k-1] F_k^T + Q_k into ``out``, recomputed with the same operations as
-    the forward prediction (``cols``/``vals``/``cnt``: F_k row-compressed), for a forward pass
-    that did not keep it (its lower triangle mirrored, as the kept one)."""
+    """P_p[k] = F_k P_f[k-1] F_k^T + Q_k into ``out``, recomputed with the same operations as the
+    forward prediction (``cols``/``vals``/``cnt``: F_k row-compressed), for a forward pass that did
+    not keep it (its lower triangle mirrored, as the kept one)."""
     dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     n = out.shape[0]
     unpack_sym(Pf[k - 1], out)
@@ -526,9 +523,8 @@ def _residuals_at(k, x, meas, geo, Cen, H, res, res_n, rate, P, hph):
 
 @nb.njit(cache=True, nogil=True)
 def _position_rate(H, Cen, k, x):
-    """dh/dtau of a measurement of the position with gradient ``H`` (for ``LINEAR``, its row
-    of mH) at state ``x``: (dh/dp) C_en[k] v, the change of the predicted measurement with
-    its time."""
+    """dh/dtau of a measurement of the position with gradient ``H`` (for ``LINEAR``, its row of mH)
+    at state ``x``: (dh/dp) C_en[k] v, the change of the predicted measurement with its time."""
     rd = 0.0
     for m in range(3):
         s = 0.0
@@ -540,8 +536,8 @@ def _position_rate(H, Cen, k, x):
 
 @nb.njit(cache=True, nogil=True)
 def _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm, ng):
-    """The clock offsets' columns of the augmented filter at scalar measurement j
-    (docs/joint.md, "Filter, smoother, iterations", item 4).
+    """The clock offsets' columns of the augmented filter at scalar measurement j (docs/joint.md,
+    "Filter, smoother, iterations", item 4).
 
     A measurement stamped t_m and used at t_m + c + dc predicts h + g dc, g = dh/dtau its
     rate at the linearisation point (of a position, :func:`_position_rate`, plus ``crate``).
@@ -578,8 +574,8 @@ def _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm, ng):
 
 @em.implements(em.workspace, JointModel, forceinline=True)
 def _workspace(model):
-    """Scratch of both passes: F_k dense and row-compressed, the products' buffers, a
-    measurement's gradient and its nonzero indices, P_p[k+1] and P_f[k] unpacked."""
+    """Scratch of both passes: F_k dense and row-compressed, the products' buffers, a measurement's
+    gradient and its nonzero indices, P_p[k+1] and P_f[k] unpacked."""
     n = N_STATE
     return (np.empty((n, n)), np.empty((n, n), dtype=np.int64), np.empty((n, n)),
             np.empty(n, dtype=np.int64), np.empty((n, n)), np.empty(n), np.empty(n),
@@ -622,10 +618,10 @@ def _update(model, k, x, P, ws):
     """The step's scalar measurements in turn (docs/joint.md, "Filter, smoother, iterations").
 
     With a linearisation point ``xlin`` the innovation is z - h(xlin_k) - H (x - xlin_k)
-    (Gauss-Newton on the whole record), else z - h(x).  A measurement whose normalised
-    innovation exceeds ``gate`` (0: off) has its variance inflated so that it equals ``gate``
-    (a Huber-type robust update).  Each update is the short form K = P H^T / S,
-    P <- P - P H^T H P / S over the gradient's nonzero entries, O(n^2)
+    (Gauss-Newton on the whole record), else z - h(x).  A measurement whose normalised innovation
+    exceeds ``gate`` (0: off) has its variance inflated so that it equals ``gate`` (a Huber-type
+    robust update).  Each update is the short form K = P H^T / S, P <- P - P H^T H P / S over the
+    gradient's nonzero entries, O(n^2)
     (:func:`~flightrecon.estimation.updates.scalar_update_short`).
     """
     H, PH, hnz = ws[6], ws[7], ws[8]
@@ -657,8 +653,7 @@ def _update(model, k, x, P, ws):
                 if H[i] != 0.0:
                     nu -= H[i] * (x[i] - xlin[k, i])
         else:
-            hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom,
-                              pst, Cst)
+            hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst)
             g = (_position_rate(H, Cen, k, x) + model.crate[j]
                  if clocks and model.ccol[j] >= 0 else 0.0)
             nu = mz[j] - hx
@@ -704,8 +699,8 @@ def _keep_filtered(model, k, x, P):
 
 @em.implements(em.smoothing_covariances, JointModel, forceinline=True)
 def _smoothing_covariances(model, k, ws):
-    """P_f[k] unpacked and P_p[k+1] (unpacked, or recomputed when the forward pass did not keep
-    it); F_{k+1} row-compressed in ``ws`` for the cross-covariance that follows."""
+    """P_f[k] unpacked and P_p[k+1] (unpacked, or recomputed when the forward pass did not keep it);
+    F_{k+1} row-compressed in ``ws`` for the cross-covariance that follows."""
     F, cols, vals, cnt, B = ws[0], ws[1], ws[2], ws[3], ws[4]
     Pbuf, Pfk = ws[9], ws[10]
     _transition_rows(F, cols, vals, cnt, k + 1, model.dyn)
@@ -745,9 +740,9 @@ def _rts_frame(model, k):
 
 @em.implements(em.keep_smoothed, JointModel, refcounted=False, forceinline=True)
 def _keep_smoothed(model, k, x, P, with_cov, ws):
-    """The position-velocity block and the diagonal of P_s (covariance pass); the residuals at
-    the smoothed state where the model has their buffers (with H P_s H^T in the covariance
-    pass: an empty ``P`` in the mean-only one)."""
+    """The position-velocity block and the diagonal of P_s (covariance pass); the residuals at the
+    smoothed state where the model has their buffers (with H P_s H^T in the covariance pass: an
+    empty ``P`` in the mean-only one)."""
     if with_cov and model.Pblk.shape[0] > 0:
         for i in range(6):
             for j in range(6):
@@ -775,8 +770,8 @@ def robust_loss(u, huber_c, reject_c, robust):
 
 @nb.njit(cache=True, nogil=True)
 def _process_term(X, dyn, F, cols, vals, cnt, Q, xn, e):
-    """1/2 sum_k e_k^T Q_k^-1 e_k over the steps, and the largest |e_k,i| of the states that
-    carry no process noise (module docstring); returns (term, max_constant_change, failures)."""
+    """1/2 sum_k e_k^T Q_k^-1 e_k over the steps, and the largest |e_k,i| of the states that carry
+    no process noise (module docstring); returns (term, max_constant_change, failures)."""
     dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     N, n = X.shape
     total = 0.0

@@ -24,8 +24,8 @@ PREFIX = "joint_"
 
 @nb.njit(cache=True, nogil=True)
 def near_any(t_out, tm, window):
-    """For sorted ``t_out`` and sorted ``tm``: is some tm within +-window of each t_out?
-    One merge-like pass, O(len(t_out) + len(tm))."""
+    """For sorted ``t_out`` and sorted ``tm``: is some tm within +-window of each t_out? One
+    merge-like pass, O(len(t_out) + len(tm))."""
     out = np.zeros(t_out.shape[0], dtype=np.bool_)
     j = 0
     m = tm.shape[0]
@@ -54,10 +54,9 @@ def provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.nd
     return names[lookup[code]]
 
 
-def hermite_positions(t_out: np.ndarray, T: np.ndarray, p: np.ndarray, v: np.ndarray
-                       ) -> np.ndarray:
-    """Cubic Hermite interpolation of positions ``p`` (N, 3) with their velocities ``v`` (N, 3)
-    from the state times ``T`` to ``t_out`` (error O(dt^4) instead of the a dt^2 / 8 of linear
+def hermite_positions(t_out: np.ndarray, T: np.ndarray, p: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolation of positions ``p`` (N, 3) with their velocities ``v`` (N, 3) from
+    the state times ``T`` to ``t_out`` (error O(dt^4) instead of the a dt^2 / 8 of linear
     interpolation: 0.6 m in a 25-degree turn at a 1 s state step)."""
     if len(T) < 2:
         return np.repeat(p[:1], len(t_out), axis=0)
@@ -94,11 +93,11 @@ def hermite_kernel(t_out, T, p, v):
 
 def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
                 remaining_k_m: np.ndarray | None = None) -> pd.DataFrame:
-    """The smoothed trajectory at the times ``t_out`` (the input grid's), in the output
-    conventions (prefix joint_) on the output tangent ``plane``.  ``remaining_k_m`` (per
-    state): the movement a run stopped short of convergence still had ahead
-    (:func:`~flightrecon.methods.joint.health.settling`), added in quadrature to the north,
-    east and up sd: its direction is unknown, so each axis takes the whole of it."""
+    """The smoothed trajectory at the times ``t_out`` (the input grid's), in the output conventions
+    (prefix joint_) on the output tangent ``plane``.  ``remaining_k_m`` (per state): the movement a
+    run stopped short of convergence still had ahead
+    (:func:`~flightrecon.methods.joint.health.settling`), added in quadrature to the north, east and
+    up sd: its direction is unknown, so each axis takes the whole of it."""
     T = run.t
     x = run.x
 
@@ -135,8 +134,8 @@ def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
 
 
 def corrections_at_middle(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
-    """Estimated sensor errors (value and sd at the middle of the record) with the prior each
-    was given (``prior_mean``, ``prior_sd``, same unit)."""
+    """Estimated sensor errors (value and sd at the middle of the record) with the prior each was
+    given (``prior_mean``, ``prior_sd``, same unit)."""
     k = len(run.t) // 2
     x, v = run.x[k], run.var[k]
 
@@ -173,9 +172,9 @@ def correction_items(item) -> dict[str, Any]:
 
 
 def fix_report(frame: OutputFrame, track: pd.DataFrame) -> list[dict[str, Any]]:
-    """Per known position (``--fix``): the smoothed track's offset from it at its time, north
-    and east [m], with the fix's sd and the track's sd there; ``used`` False (and no offsets)
-    for a fix outside the reconstructed span (a record trimmed with ``--start`` / ``--end``)."""
+    """Per known position (``--fix``): the smoothed track's offset from it at its time, north and
+    east [m], with the fix's sd and the track's sd there; ``used`` False (and no offsets) for a fix
+    outside the reconstructed span (a record trimmed with ``--start`` / ``--end``)."""
     if not frame.fixes:
         return []
     plane = frame.plane
@@ -207,8 +206,8 @@ def fix_report(frame: OutputFrame, track: pd.DataFrame) -> list[dict[str, Any]]:
 
 
 def wind_prior_report(problem: JointProblem) -> dict[str, Any] | None:
-    """Which winds-aloft prior the smoother used (docs/wind.md): its levels, the
-    pseudo-measurements and their sd."""
+    """Which winds-aloft prior the smoother used (docs/wind.md): its levels, the pseudo-measurements
+    and their sd."""
     inp, settings = problem.inputs, problem.settings
     if inp.wind_aloft is None or problem.frame is None:
         return None

@@ -1,18 +1,17 @@
-"""The joint smoother's problem, built once from a cleaned flight (:func:`joint_problem`):
-the inputs read from its channels (:func:`joint_inputs`: the held attitude, the loads in the
-local level frame, the GNSS and radar tables, the baro channel's field reference, the take-off
-roll, the end points), the settings as
-this flight's data call for them, each data-driven choice with the evidence that made it
-(:class:`SettingChoice`), the priors and what the output needs of the flight
+"""The joint smoother's problem, built once from a cleaned flight (:func:`joint_problem`): the
+inputs read from its channels (:func:`joint_inputs`: the held attitude, the loads in the local level
+frame, the GNSS and radar tables, the baro channel's field reference, the take-off roll, the end
+points), the settings as this flight's data call for them, each data-driven choice with the evidence
+that made it (:class:`SettingChoice`), the priors and what the output needs of the flight
 (:class:`OutputFrame`).  After the build nothing reads the cleaned flight and no setting is
-rewritten: a later adjustment (the wind walk re-estimated, the held-out smoothing of the GNSS
-gaps: :mod:`~flightrecon.methods.joint.calibration`) is a new problem
-(:func:`dataclasses.replace`) with its choice appended.
+rewritten: a later adjustment (the wind walk re-estimated, the held-out smoothing of the GNSS gaps:
+:mod:`~flightrecon.methods.joint.calibration`) is a new problem (:func:`dataclasses.replace`) with
+its choice appended.
 
-The data-driven settings (docs/joint.md): the priors of a heading from the body rates and of
-a derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g`` (those of the channels
-alone: :mod:`~flightrecon.methods.joint.settings`), the loads' sampling noise of a slow record,
-the pressure-altitude scale from the SAT and the attitude reference's tilt noise
+The data-driven settings (docs/joint.md): the priors of a heading from the body rates and of a
+derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g`` (those of the channels alone:
+:mod:`~flightrecon.methods.joint.settings`), the loads' sampling noise of a slow record, the
+pressure-altitude scale from the SAT and the attitude reference's tilt noise
 (:mod:`~flightrecon.methods.joint.problem`)."""
 
 from __future__ import annotations
@@ -67,10 +66,10 @@ class SettingChoice:
 
 @dataclass(frozen=True)
 class OutputFrame:
-    """What the output needs of the cleaned flight: the grid times ``t_s`` the track is given
-    on, the output tangent ``plane``, the known positions ``fixes`` (``--fix``) and the
-    geoid undulation [m] that takes them to ellipsoidal heights, the declared
-    ``attitude_source`` and the winds-aloft levels ``wind_levels`` (``--wind``)."""
+    """What the output needs of the cleaned flight: the grid times ``t_s`` the track is given on,
+    the output tangent ``plane``, the known positions ``fixes`` (``--fix``) and the geoid undulation
+    [m] that takes them to ellipsoidal heights, the declared ``attitude_source`` and the winds-aloft
+    levels ``wind_levels`` (``--wind``)."""
 
     t_s: np.ndarray
     plane: TangentPlane
@@ -121,10 +120,10 @@ class JointProblem:
 def held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
     """Roll, pitch, heading with each missing sample replaced by the nearest recorded one.
 
-    The acceleration stays NaN there (the smoother then adds process noise instead of the
-    measured acceleration); the rotation of the accelerometer biases and of the ground
-    constraints needs an attitude and takes the nearest recorded one.  Returns the angles and
-    a note for the summary when any was missing.  An angle never recorded is an error.
+    The acceleration stays NaN there (the smoother then adds process noise instead of the measured
+    acceleration); the rotation of the accelerometer biases and of the ground constraints needs an
+    attitude and takes the nearest recorded one.  Returns the angles and a note for the summary when
+    any was missing.  An angle never recorded is an error.
     """
     names = ("roll_deg", "pitch_deg", "heading_deg")
     out, notes = [], []
@@ -147,9 +146,9 @@ def held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarr
 
 def loads_in_ned(g: pd.DataFrame, t_in: np.ndarray,
                   lat_deg: float) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """The (held) recorded attitude (Ni, 3) [deg] and the kinematic acceleration
-    (NED) [m/s^2] of the loads on the grid ``g``, NaN where a load factor is saturated, with
-    the notes for the summary."""
+    """The (held) recorded attitude (Ni, 3) [deg] and the kinematic acceleration (NED) [m/s^2] of
+    the loads on the grid ``g``, NaN where a load factor is saturated, with the notes for the
+    summary."""
     def col(name):
         return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
 
@@ -215,9 +214,9 @@ def baro_field_reference_m(meta: FlightMeta) -> float:
       would put the offset 8.3 m per hPa of QNH - 1013.25 off);
     * ``"qfe"``: an altimeter set to the field's pressure reads 0 on the ground.
 
-    Above the field all three differ from the height above it by the same temperature scale
-    (the hypsometric equation; to 0.3 % for a QNH 10 hPa from standard), the smoother's
-    ``baro_scale`` state.  ``meta.departure`` must be set.
+    Above the field all three differ from the height above it by the same temperature scale (the
+    hypsometric equation; to 0.3 % for a QNH 10 hPa from standard), the smoother's ``baro_scale``
+    state.  ``meta.departure`` must be set.
     """
     dep = meta.departure
     if dep is None:
@@ -231,9 +230,9 @@ def baro_field_reference_m(meta: FlightMeta) -> float:
 
 def airfield_geometry(meta: FlightMeta) -> dict[str, Any]:
     """The airfields and the station as the smoother reads them: ``station``, ``departure``,
-    ``arrival`` as (lat, lon, h_ellipsoidal), the runways' true directions ``runway_rad``
-    [rad] and their ``thresholds`` (lat, lon, h_ellipsoidal), ``None`` each where unknown;
-    the known positions ``fixes`` (F, 5) (:attr:`JointInputs.fixes`) or None."""
+    ``arrival`` as (lat, lon, h_ellipsoidal), the runways' true directions ``runway_rad`` [rad] and
+    their ``thresholds`` (lat, lon, h_ellipsoidal), ``None`` each where unknown; the known positions
+    ``fixes`` (F, 5) (:attr:`JointInputs.fixes`) or None."""
     N_und = meta.geoid_undulation_m
 
     def pos(p):
@@ -266,8 +265,8 @@ def airfield_geometry(meta: FlightMeta) -> dict[str, Any]:
 def recorded_channels(g: pd.DataFrame, meta: FlightMeta, lat_deg: float) -> dict[str, Any]:
     """The grid's channels as the smoother reads them (:class:`JointInputs` fields ``t_in``,
     ``acc_ned``, ``attitude_deg``, ``tas``, ``heading_rad``, ``baro_rel_m``, ``field_h``,
-    ``wind_ne``, ``doppler_gs``, ``drift_rad``, ``f_body_g``, ``wind_aloft``, ``notes``),
-    gravity at ``lat_deg``."""
+    ``wind_ne``, ``doppler_gs``, ``drift_rad``, ``f_body_g``, ``wind_aloft``, ``notes``), gravity at
+    ``lat_deg``."""
     def col(name):
         return g[name].to_numpy(dtype=float) if name in g.columns else np.full(len(g), np.nan)
 
@@ -293,9 +292,8 @@ def recorded_channels(g: pd.DataFrame, meta: FlightMeta, lat_deg: float) -> dict
 
 def joint_inputs(clean: CleanFlight, noise: JointNoise | None = None) -> JointInputs:
     """Assemble the smoother's inputs from a cleaned flight (SI, recorder time base), with the
-    take-off roll and the end points
-    (:func:`~flightrecon.methods.joint.inputs.end_points`, under ``noise``: the settings'
-    ``JointNoise``, the defaults where not given)."""
+    take-off roll and the end points (:func:`~flightrecon.methods.joint.inputs.end_points`, under
+    ``noise``: the settings' ``JointNoise``, the defaults where not given)."""
     meta = clean.meta
     # the departure, or without one the frame origin from the first fix (cleaning/origin.py)
     p0 = meta.departure if meta.departure is not None else getattr(meta, "origin", None)
@@ -326,8 +324,8 @@ def joint_inputs(clean: CleanFlight, noise: JointNoise | None = None) -> JointIn
 
 def choices_between(before: JointSettings, after: JointSettings,
                     why: str) -> tuple[SettingChoice, ...]:
-    """The settings ``after`` changed from ``before``, each as a :class:`SettingChoice` for
-    the reason ``why``: the noise fields, the priors added and any other field."""
+    """The settings ``after`` changed from ``before``, each as a :class:`SettingChoice` for the
+    reason ``why``: the noise fields, the priors added and any other field."""
     out = []
     for f in fields(before):
         a, b = getattr(before, f.name), getattr(after, f.name)
@@ -356,11 +354,10 @@ WHY = {
 def resolved_settings(clean: CleanFlight, inp: JointInputs, settings: JointSettings
                       ) -> tuple[JointSettings, tuple[SettingChoice, ...], dict | None,
                                  str | None]:
-    """The settings as the inputs call for them, with the choices made, the GNSS tilt
-    evidence and the attitude source's note: the loads' sampling noise
-    (:func:`sampled_loads_noise`), the SAT's prior of the pressure-altitude scale
-    (:func:`temperature_baro_prior`), the attitude reference's tilt noise
-    (:func:`~flightrecon.methods.joint.problem.attitude_source_noise`), in this order
+    """The settings as the inputs call for them, with the choices made, the GNSS tilt evidence and
+    the attitude source's note: the loads' sampling noise (:func:`sampled_loads_noise`), the SAT's
+    prior of the pressure-altitude scale (:func:`temperature_baro_prior`), the attitude reference's
+    tilt noise (:func:`~flightrecon.methods.joint.problem.attitude_source_noise`), in this order
     (each reads the settings the one before it chose)."""
     meta = clean.meta
     current = sampled_loads_noise(inp, settings)
@@ -389,12 +386,11 @@ def output_frame(clean: CleanFlight) -> OutputFrame:
 
 
 def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> JointProblem:
-    """The joint smoother's problem on ``clean`` (:class:`JointProblem`): the settings the
-    flight's channels call for (:mod:`~flightrecon.methods.joint.settings`:
-    ``derived_heading_noise``, ``derived_long_priors``, ``derived_lat_noise``), the inputs
-    with their end points
-    (:func:`~flightrecon.methods.joint.inputs.joint_inputs`), then the settings the inputs
-    call for (:func:`resolved_settings`); every choice with its evidence."""
+    """The joint smoother's problem on ``clean`` (:class:`JointProblem`): the settings the flight's
+    channels call for (:mod:`~flightrecon.methods.joint.settings`: ``derived_heading_noise``,
+    ``derived_long_priors``, ``derived_lat_noise``), the inputs with their end points
+    (:func:`~flightrecon.methods.joint.inputs.joint_inputs`), then the settings the inputs call for
+    (:func:`resolved_settings`); every choice with its evidence."""
     given = settings or JointSettings()
     s = derived_heading_noise(clean, given)
     choices = choices_between(given, s, WHY["heading"])
@@ -413,21 +409,20 @@ def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: 
                            settings: JointSettings) -> JointSettings:
     """The prior of the pressure-altitude scale ``c`` from the recorded static air temperature.
 
-    The smoother's baro row is ``h_p - h_p,f = (1 + c)(h - h_field) + b_h``.  In air warmer
-    than the ISA by ``dT`` the height above the field exceeds the pressure-altitude difference
-    by ``dT / T`` (:func:`flightrecon.geo.atmosphere.height_above_field_m`, eq. 1-2): ``c``
-    is the temperature's, not an unknown of 5 % (a 15 K deviation) to be found from the
-    accelerations.  With the deviation ``dT_k = SAT_k - T_ISA(h_p,k)`` of the airborne samples
-    (lift-off to touchdown; ``h_p,k = baro_rel_k + h_p,f``), their mean ``dT`` gives each
-    sample's height above the field ``H_k`` (eq. 2) and ``c`` is the least-squares fit of
-    ``h_p,k - h_p,f = (1 + c) H_k``::
+    The smoother's baro row is ``h_p - h_p,f = (1 + c)(h - h_field) + b_h``.  In air warmer than the
+    ISA by ``dT`` the height above the field exceeds the pressure-altitude difference by ``dT / T``
+    (:func:`flightrecon.geo.atmosphere.height_above_field_m`, eq. 1-2): ``c`` is the temperature's,
+    not an unknown of 5 % (a 15 K deviation) to be found from the accelerations.  With the deviation
+    ``dT_k = SAT_k - T_ISA(h_p,k)`` of the airborne samples (lift-off to touchdown; ``h_p,k =
+    baro_rel_k + h_p,f``), their mean ``dT`` gives each sample's height above the field ``H_k`` (eq.
+    2) and ``c`` is the least-squares fit of ``h_p,k - h_p,f = (1 + c) H_k``::
 
         1 + c = sum(dh_p,k H_k) / sum(H_k^2)
 
-    Its sd is that fit's change per kelvin times ``sqrt(s^2 + sat_column_k^2)``: ``s`` the
-    spread of the samples' ``dT`` (the column is not one deviation everywhere),
-    ``JointNoise.sat_column_k`` what the recorded SAT does not tell of the column (probe,
-    humidity).  Fewer than :data:`flightrecon.geo.pressure_height.MIN_SAT_SAMPLES` samples
+    Its sd is that fit's change per kelvin times ``sqrt(s^2 + sat_column_k^2)``: ``s`` the spread of
+    the samples' ``dT`` (the column is not one deviation everywhere), ``JointNoise.sat_column_k``
+    what the recorded SAT does not tell of the column (probe, humidity).  Fewer than
+    :data:`flightrecon.geo.pressure_height.MIN_SAT_SAMPLES` samples
     (:func:`~flightrecon.geo.pressure_height.isa_deviation_k`), or a ``baro_scale`` prior given in
     ``settings.priors`` (the user's, a fleet's): unchanged.
     """
@@ -464,24 +459,23 @@ MIN_LOAD_DIFFERENCES = 60
 def sampled_loads_noise(inp: JointInputs, settings: JointSettings) -> JointSettings:
     """The white-acceleration PSD per NED axis that the loads' own sampling implies.
 
-    The smoother integrates the recorded acceleration a_k over each input interval dt as
-    a_k dt.  Of a record sampled slower than the aircraft's accelerations vary (a 1 Hz
-    glass-cockpit export: turbulence, control inputs, an attitude and a load factor not taken
-    at the same instant) the part that changes from one sample to the next is not resolved:
-    if it is w_k, uncorrelated from sample to sample with variance s^2, the velocity
-    increment over each interval is wrong by w_k dt, a velocity random walk of PSD
+    The smoother integrates the recorded acceleration a_k over each input interval dt as a_k dt.  Of
+    a record sampled slower than the aircraft's accelerations vary (a 1 Hz glass-cockpit export:
+    turbulence, control inputs, an attitude and a load factor not taken at the same instant) the
+    part that changes from one sample to the next is not resolved: if it is w_k, uncorrelated from
+    sample to sample with variance s^2, the velocity increment over each interval is wrong by w_k
+    dt, a velocity random walk of PSD
 
         q_s = s^2 dt,    s^2 = E[(a_{k+1} - a_k)^2] / 2
 
     (the difference of two independent samples has twice their variance; the slow part of the
-    acceleration adds little to it at the record's rate and makes q_s an upper bound).  It
-    also holds the sensor's own white noise, so q_s replaces the budget
-    ``accel_noise_mps2_sqrt_hz`` where it is larger: the extra PSD per axis is
-    max(0, q_s - q_acc) (``JointNoise.accel_sampling_mps2_sqrt_hz``, its square root).
-    Measured over the airborne steps (lift-off to touchdown, or the whole record), on the
-    NED acceleration the smoother is given; a record of recorder rate (8 Hz and more) gives
-    q_s below the budget and is left as it is.  Fewer than ``MIN_LOAD_DIFFERENCES``
-    differences, or an extra set by the user: unchanged.
+    acceleration adds little to it at the record's rate and makes q_s an upper bound).  It also
+    holds the sensor's own white noise, so q_s replaces the budget ``accel_noise_mps2_sqrt_hz``
+    where it is larger: the extra PSD per axis is max(0, q_s - q_acc)
+    (``JointNoise.accel_sampling_mps2_sqrt_hz``, its square root). Measured over the airborne steps
+    (lift-off to touchdown, or the whole record), on the NED acceleration the smoother is given; a
+    record of recorder rate (8 Hz and more) gives q_s below the budget and is left as it is.  Fewer
+    than ``MIN_LOAD_DIFFERENCES`` differences, or an extra set by the user: unchanged.
     """
     nz = settings.noise
     if any(v > 0 for v in nz.accel_sampling_mps2_sqrt_hz):
@@ -526,10 +520,9 @@ TILT_GAIN_MIN_MPS2_PER_G = 0.25
 
 def gnss_tilt_evidence(clean: CleanFlight, inp: JointInputs,
                        settings: JointSettings) -> dict | None:
-    """:func:`flightrecon.methods.joint.tilt.tilt_evidence` on the flight's GNSS fixes (those
-    the smoother uses: withheld ones are not in ``inp.gnss``) between 30 s after the lift-off
-    and 30 s before the touchdown (or the record's end); ``None`` without loads, fixes or a
-    lift-off."""
+    """:func:`flightrecon.methods.joint.tilt.tilt_evidence` on the flight's GNSS fixes (those the
+    smoother uses: withheld ones are not in ``inp.gnss``) between 30 s after the lift-off and 30 s
+    before the touchdown (or the record's end); ``None`` without loads, fixes or a lift-off."""
     g = inp.gnss
     ph = clean.phases
     if (inp.f_body_g is None or g is None or len(g) < 10 or ph is None
@@ -562,10 +555,9 @@ def gnss_tilt_evidence(clean: CleanFlight, inp: JointInputs,
 
 
 def tilt_noise_open(clean: CleanFlight, inp: JointInputs, settings: JointSettings) -> bool:
-    """Whether the flight's tilt noise is still to be chosen (:func:`attitude_source_noise`):
-    not where the sidecar declares an inertial reference, the settings give the gain, or the
-    log has no loads; only then is the GNSS's measurement (:func:`gnss_tilt_evidence`) of
-    use."""
+    """Whether the flight's tilt noise is still to be chosen (:func:`attitude_source_noise`): not
+    where the sidecar declares an inertial reference, the settings give the gain, or the log has no
+    loads; only then is the GNSS's measurement (:func:`gnss_tilt_evidence`) of use."""
     return not (clean.meta.attitude_source == "inertial"
                 or settings.noise.ahrs_tilt_mps2_per_g > 0.0 or inp.f_body_g is None)
 
@@ -577,18 +569,17 @@ _MEASURE: dict = {}
 def attitude_source_noise(clean: CleanFlight, inp: JointInputs, settings: JointSettings,
                           evidence: dict | None = _MEASURE
                           ) -> tuple[JointSettings, str | None]:
-    """The tilt noise from the flight's declared attitude source and its GNSS (docs/joint.md,
-    "The attitude reference after sustained loads").
+    """The tilt noise from the flight's declared attitude source and its GNSS (docs/joint.md, "The
+    attitude reference after sustained loads").
 
-    Settings that give the tilt gain win.  ``"inertial"`` leaves the settings (no tilt).
-    Otherwise, where the GNSS fixes measure the gain (:func:`gnss_tilt_evidence`: the loads
-    integrated through the attitude against the fixes' velocity, the constant biases removed),
-    that gain is used, at most :data:`AHRS_TILT_MPS2_PER_G`, with the horizontal share
-    :data:`AHRS_TILT_HORIZONTAL`, and the returned note says so (undeclared: only from
-    :data:`TILT_GAIN_MIN_MPS2_PER_G`; below it the attitude is taken as inertial without a
-    note, the fixes having shown it holds); ``"ahrs"`` without that
-    evidence takes :data:`AHRS_TILT_MPS2_PER_G`.  Undeclared and unmeasured, the attitude is
-    taken as inertial (off) and the note says so where the loads' remembered departure
+    Settings that give the tilt gain win.  ``"inertial"`` leaves the settings (no tilt). Otherwise,
+    where the GNSS fixes measure the gain (:func:`gnss_tilt_evidence`: the loads integrated through
+    the attitude against the fixes' velocity, the constant biases removed), that gain is used, at
+    most :data:`AHRS_TILT_MPS2_PER_G`, with the horizontal share :data:`AHRS_TILT_HORIZONTAL`, and
+    the returned note says so (undeclared: only from :data:`TILT_GAIN_MIN_MPS2_PER_G`; below it the
+    attitude is taken as inertial without a note, the fixes having shown it holds); ``"ahrs"``
+    without that evidence takes :data:`AHRS_TILT_MPS2_PER_G`.  Undeclared and unmeasured, the
+    attitude is taken as inertial (off) and the note says so where the loads' remembered departure
     (tilt.py eq. 1) exceeds :data:`UNDECLARED_TILT_WARN_G` (a guess warns).  ``evidence``:
     :func:`gnss_tilt_evidence` already measured (``None``: none), measured here by default."""
     nz = settings.noise

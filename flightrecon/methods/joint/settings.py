@@ -1,7 +1,7 @@
-"""Settings of the joint smoother: the sources, their noise (:class:`JointNoise`), the
-iteration options (:class:`JointSettings`), the sensor-error priors (:data:`PRIOR_STATES`) and
-the settings a cleaned flight's channels call for (a heading from the body rates, a derived
-``n_long_g``, an assumed ``n_lat_g``; those the smoother's inputs call for:
+"""Settings of the joint smoother: the sources, their noise (:class:`JointNoise`), the iteration
+options (:class:`JointSettings`), the sensor-error priors (:data:`PRIOR_STATES`) and the settings a
+cleaned flight's channels call for (a heading from the body rates, a derived ``n_long_g``, an
+assumed ``n_lat_g``; those the smoother's inputs call for:
 :mod:`~flightrecon.methods.joint.problem`)."""
 
 from __future__ import annotations
@@ -218,8 +218,7 @@ class JointSettings:
     #                                          default prior N(0, budget^2): PRIOR_STATES names
 
     def __post_init__(self) -> None:
-        if len(self.wind_prior) != 3 or not all(np.isfinite(v) and v > 0
-                                                for v in self.wind_prior):
+        if len(self.wind_prior) != 3 or not all(np.isfinite(v) and v > 0 for v in self.wind_prior):
             raise ValueError(f"wind_prior must be three positive numbers (correlation time "
                              f"[s], height [m], spacing), got {self.wind_prior!r}")
         if self.roll_velocity not in ("runway", "nose"):
@@ -260,8 +259,8 @@ PRIOR_STATES: dict[str, tuple[int, float, str]] = {
 
 
 def prior_of(name: str, settings: JointSettings) -> tuple[float, float]:
-    """(mean, sd) of the prior of the sensor-error state ``name``, in its reported unit: the
-    one given in ``settings.priors``, else N(0, the noise budget's sd)."""
+    """(mean, sd) of the prior of the sensor-error state ``name``, in its reported unit: the one
+    given in ``settings.priors``, else N(0, the noise budget's sd)."""
     for n, mean, sd in settings.priors:
         if n == name:
             return float(mean), float(sd)
@@ -271,8 +270,8 @@ def prior_of(name: str, settings: JointSettings) -> tuple[float, float]:
 def derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
     """A heading propagated from the body rates (``heading_sd_deg`` on the grid, cleaning's
     ``heading_from_rates``) has a slowly varying error (anchor offset, gyro-bias drift): the
-    heading-bias state's prior is widened to its largest sd and its random walk to what lets
-    the bias follow that sd's growth over the record (both never below the settings)."""
+    heading-bias state's prior is widened to its largest sd and its random walk to what lets the
+    bias follow that sd's growth over the record (both never below the settings)."""
     g = clean.grid
     if "heading_sd_deg" not in g.columns:
         return settings
@@ -297,8 +296,8 @@ DERIVED_LONG_BIAS_G = 0.01
 
 def derived_long_priors(clean: CleanFlight, settings: JointSettings) -> JointSettings:
     """Wider priors of the forward accelerometer's scale and bias for a derived ``n_long_g``
-    (ingest's ``derived_channels``), and ``long_load_derived`` set; a prior the user gave for
-    them is kept."""
+    (ingest's ``derived_channels``), and ``long_load_derived`` set; a prior the user gave for them
+    is kept."""
     if "n_long_g" not in clean.meta.ingest.derived_channels:
         return settings
     given = {p[0] for p in settings.priors}

@@ -1,48 +1,37 @@
-"""The joint smoother's iterations, in one place: forward filter, RTS backward pass and
-Gauss-Newton relinearisation with robust re-weighting and clock-offset steps, damped by a
-backtracking line search on the MAP cost (:func:`smooth_joint`; docs/joint.md, "Filter,
-smoother, iterations").
+"""The joint smoother's iterations, in one place: forward filter, RTS backward pass and Gauss-Newton
+relinearisation with robust re-weighting and clock-offset steps, damped by a backtracking line
+search on the MAP cost (:func:`smooth_joint`; docs/joint.md, "Filter, smoother, iterations").
 
-The iterations are an iterated extended Kalman smoother with a line search (Sarkka & Svensson
-2020, "Levenberg-Marquardt and line-search extended Kalman smoothers", ICASSP, section 4):
-each pass linearises about the current iterate X and smooths, which gives the Gauss-Newton
-point X_GN; the next iterate is X + alpha (X_GN - X) with alpha = 1, 1/2, 1/4, ... the first
-that does not raise the MAP cost J (:func:`~flightrecon.methods.joint.model.map_cost`;
-:func:`line_search`), or where none does a Levenberg-Marquardt step (algorithm 2:
-:func:`lm_step`).  The robust weights, the clock offsets, the take-off roll, the gust sd and the
-noise factors are updated between the passes (:func:`_accepted`, :func:`gust_round`) and
-held fixed within one (the cost is compared under the same ones); the clock offsets by their
-Gauss-Newton step jointly with the track, which each pass's forward filter gives
-(:func:`clock_step`), so that they settle in about as many
-passes as the track does.
+The iterations are an iterated extended Kalman smoother with a line search (Sarkka & Svensson 2020,
+"Levenberg-Marquardt and line-search extended Kalman smoothers", ICASSP, section 4): each pass
+linearises about the current iterate X and smooths, which gives the Gauss-Newton point X_GN; the
+next iterate is X + alpha (X_GN - X) with alpha = 1, 1/2, 1/4, ... the first that does not raise the
+MAP cost J (:func:`~flightrecon.methods.joint.model.map_cost`; :func:`line_search`), or where none
+does a Levenberg-Marquardt step (algorithm 2: :func:`lm_step`).  The robust weights, the clock
+offsets, the take-off roll, the gust sd and the noise factors are updated between the passes
+(:func:`_accepted`, :func:`gust_round`) and held fixed within one (the cost is compared under the
+same ones); the clock offsets by their Gauss-Newton step jointly with the track, which each pass's
+forward filter gives (:func:`clock_step`), so that they settle in about as many passes as the track
+does.
 
 The passes' front ends (:func:`forward`, :func:`backward`) run the model
 (:class:`~flightrecon.methods.joint.model.JointModel`) on the estimation core's loops
 (:func:`~flightrecon.estimation.filtering.forward_pass`,
-:func:`~flightrecon.estimation.smoothing.backward_pass`; docs/estimation.md, "The joint
-model") on the filter buffers and the pass's layouts, and return the model with its outputs
-(:func:`backward` with the smoothed states: :class:`Smoothed`).  The backward passes run with
-the GIL released (the core's loops are ``nogil``), so the covariance pass can run on a second
-thread beside the mean-only pass.
+:func:`~flightrecon.estimation.smoothing.backward_pass`; docs/estimation.md, "The joint model") on
+the filter buffers and the pass's layouts, and return the model with its outputs (:func:`backward`
+with the smoothed states: :class:`Smoothed`).  The backward passes run with the GIL released (the
+core's loops are ``nogil``), so the covariance pass can run on a second thread beside the mean-only
+pass.
 
-The gust sd (docs/joint.md, "Wind and turbulence").  The gust ``u`` (layout: ``S_GUST``) is a
-stationary first-order Gauss-Markov process of variance sigma_u^2 per axis.  Under the model,
-the smoothed mean and variance of every sample satisfy E[u_hat^2 + var(u | data)] = sigma_u^2
-(law of total variance), so
+The gust sd (docs/joint.md, "Wind and turbulence", with its rules and measurements).  The gust
+``u`` (``S_GUST``) is stationary first-order Gauss-Markov of variance sigma_u^2 per axis, so the
+smoothed moments satisfy E[u_hat^2 + var(u | data)] = sigma_u^2 (law of total variance) and
 
     sigma_u^2 <- mean over the airborne steps and both axes of (u_hat_k^2 + P_uu,k)
 
-is a fixed point at the flight's own gust variance: with sigma_u too large the data shrink u_hat
-and its variance below it, too small they push them above.  It is the moment form of the
-expectation-maximisation update of a stationary variance; with ``JointSettings.estimate_gust``
-the smoother applies it after each pass that computed the smoothed covariances and is not the
-last (:func:`gust_round`), over-relaxed (twice the step in log space), while the pass moved the
-track by more than 10 ``converge_m`` or the noise factors are estimated too, until it moves by
-less than ``gust_tol`` (at most ``gust_rounds`` changes): it follows the Gauss-Newton passes and
-adds none of its own where the track is already pinned down (GNSS).  A change is a new cost
-function, and the pass after it says so (``parameters_changed``).  What the gust absorbs besides
-the turbulence (the sideslip, the angle of attack in turns, the airspeed lag) counts into the
-estimate: it is the air data's effective disagreement with a steady wind.
+has its fixed point at the flight's own gust variance (the moment form of the EM update of a
+stationary variance; :func:`gust_round`).  What the gust absorbs besides the turbulence (sideslip,
+angle of attack in turns, airspeed lag) counts in: the air data's disagreement with a steady wind.
 """
 
 from __future__ import annotations
@@ -108,15 +97,15 @@ def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ..
 def forward(bufs: tuple[np.ndarray, ...], x0: np.ndarray, P0: np.ndarray, dyn: Dynamics,
             meas: Scalars, geo: Geometry, gate: float, xlin: np.ndarray,
             clock: tuple[np.ndarray, np.ndarray] | None = None) -> JointModel:
-    """Forward extended Kalman filter with sequential scalar updates (the model's
-    ``predict_into`` and ``update_into``, :mod:`~flightrecon.methods.joint.model`) into the
-    filter buffers ``bufs`` (:func:`filter_buffers`; an empty ``Pp`` is not filled: the
-    backward passes then recompute each predicted covariance, bit for bit the same).
+    """Forward extended Kalman filter with sequential scalar updates (the model's ``predict_into``
+    and ``update_into``, :mod:`~flightrecon.methods.joint.model`) into the filter buffers ``bufs``
+    (:func:`filter_buffers`; an empty ``Pp`` is not filled: the backward passes then recompute each
+    predicted covariance, bit for bit the same).
 
-    With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the
-    last pass: an iterated extended Kalman smoother, Gauss-Newton on the whole record); with an
-    empty ``xlin`` (0, n) about the filter's own prediction (the first pass).  ``gate`` and
-    ``clock`` as in :func:`~flightrecon.methods.joint.model.joint_model`.  Returns the pass's
+    With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the last
+    pass: an iterated extended Kalman smoother, Gauss-Newton on the whole record); with an empty
+    ``xlin`` (0, n) about the filter's own prediction (the first pass).  ``gate`` and ``clock`` as
+    in :func:`~flightrecon.methods.joint.model.joint_model`.  Returns the pass's
     :class:`~flightrecon.methods.joint.model.JointModel`: its innovations, their variances and
     inflations (``nu``, ``S``, ``infl``) and the clock offsets' outputs (``cnorm``, ``cxf``,
     ``cxp``).
@@ -141,12 +130,12 @@ def backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Ge
              with_cov: bool, residuals: bool = True) -> Smoothed:
     """RTS backward pass (Rauch, Tung & Striebel 1965) on the filter buffers ``bufs``, with the
     smoothed covariances (``with_cov``) or the mean only: x_s[k] = x_f[k] + P_f[k] F_{k+1}^T
-    P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]), the same smoothed mean at O(n^3 / 6) per step (one
-    Cholesky solve with a vector) instead of O(n^3) products; the Gauss-Newton iterations need
-    the trajectory and the residuals but not the covariances.  Without ``residuals`` the
-    covariance pass can run beside the mean pass on another thread.  Counts the steps whose
-    predicted covariance failed its Cholesky factorisation (not positive definite to rounding:
-    the gain then comes from the eigen-decomposition solve; the caller reports the count)."""
+    P_p[k+1]^{-1} (x_s[k+1] - x_p[k+1]), the same smoothed mean at O(n^3 / 6) per step (one Cholesky
+    solve with a vector) instead of O(n^3) products; the Gauss-Newton iterations need the trajectory
+    and the residuals but not the covariances.  Without ``residuals`` the covariance pass can run
+    beside the mean pass on another thread.  Counts the steps whose predicted covariance failed its
+    Cholesky factorisation (not positive definite to rounding: the gain then comes from the
+    eigen-decomposition solve; the caller reports the count)."""
     xf, Pf, xp, Pp = bufs
     N, n = xf.shape
     model = joint_model(bufs, dyn, meas, geo, residuals=residuals, covariances=with_cov)
@@ -159,12 +148,12 @@ def backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Ge
 
 def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.ndarray,
                      dyn: Dynamics, meas: Scalars, geo: Geometry) -> np.ndarray:
-    """The clock offsets' smoothed columns X_s,g (2, N, n) from their filtered and predicted
-    ones (:func:`forward`'s, the same pass's ``Pf``, ``Pp``): the mean-only RTS recursion
-    x_s[k] = x_f[k] + C (x_s[k+1] - x_p[k+1]) is linear in (x_f, x_p) with no input of its
-    own, so on the columns it gives d x_s / d c up to sign: the track moved by an offset
-    error dc is x_s - X_s,g dc, and an offset of covariance Sigma adds X_s,g Sigma X_s,g^T to
-    the track's (the marginal covariance of the state augmented by the constant offsets)."""
+    """The clock offsets' smoothed columns X_s,g (2, N, n) from their filtered and predicted ones
+    (:func:`forward`'s, the same pass's ``Pf``, ``Pp``): the mean-only RTS recursion x_s[k] = x_f[k]
+    + C (x_s[k+1] - x_p[k+1]) is linear in (x_f, x_p) with no input of its own, so on the columns it
+    gives d x_s / d c up to sign: the track moved by an offset error dc is x_s - X_s,g dc, and an
+    offset of covariance Sigma adds X_s,g Sigma X_s,g^T to the track's (the marginal covariance of
+    the state augmented by the constant offsets)."""
     out = np.empty_like(cxf)
     for c in range(cxf.shape[0]):
         out[c] = backward((cxf[c], Pf, cxp[c], Pp), dyn, meas, geo, False, False).x
@@ -226,11 +215,10 @@ class PassResult:
     clock: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]] | None = None
 
 
-def robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettings
-                    ) -> np.ndarray:
+def robust_weights(res_n: np.ndarray, weights: np.ndarray, settings: JointSettings) -> np.ndarray:
     """IRLS weights of the robust loss from the normalised residuals of the iterate: 1 up to
-    ``huber_c``, huber_c/|u| beyond (Huber), 1e-8 beyond ``reject_c`` (set aside: a jumped
-    source cannot pull the track at all); unchanged without ``robust``."""
+    ``huber_c``, huber_c/|u| beyond (Huber), 1e-8 beyond ``reject_c`` (set aside: a jumped source
+    cannot pull the track at all); unchanged without ``robust``."""
     if not settings.robust:
         return weights
     a = np.abs(res_n)
@@ -267,17 +255,17 @@ the track's uncertainty the offset's own uncertainty carries."""
 
 def clock_columns(meas: Measurements, settings: JointSettings
                   ) -> tuple[np.ndarray, np.ndarray] | None:
-    """Each measurement's clock column for the forward pass (:data:`CLOCK_SOURCES`' index; -1
-    for the measurements no offset shifts) and the rate of its prediction with its time that
-    the kernel's gradient does not give (``Measurements.rate``); None when no source has
+    """Each measurement's clock column for the forward pass (:data:`CLOCK_SOURCES`' index; -1 for
+    the measurements no offset shifts) and the rate of its prediction with its time that the
+    kernel's gradient does not give (``Measurements.rate``); None when no source has
     :data:`CLOCK_MIN_MEASUREMENTS`.
 
-    With a derived ``n_long_g`` (``settings.long_load_derived``) the GNSS positions' offset is
-    not estimated (held at the cleaning's): the along-track acceleration then has the
-    airspeed's timing, and the GNSS offset common to positions and velocities absorbs the
-    airspeed's lag (the shipped circuit with its ``n_long_g`` dropped: +0.15 +- 0.02 s for a
-    true 0, the track 9.4 m RMS from the truth against 1.0 m at 0); the velocities' offset,
-    relative to the positions, is still estimated."""
+    With a derived ``n_long_g`` (``settings.long_load_derived``) the GNSS positions' offset is not
+    estimated (held at the cleaning's): the along-track acceleration then has the airspeed's timing,
+    and the GNSS offset common to positions and velocities absorbs the airspeed's lag (the shipped
+    circuit with its ``n_long_g`` dropped: +0.15 +- 0.02 s for a true 0, the track 9.4 m RMS from
+    the truth against 1.0 m at 0); the velocities' offset, relative to the positions, is still
+    estimated."""
     cols = np.full(len(meas.z), -1, dtype=np.int64)
     for c, (name, src) in enumerate(CLOCK_SOURCES):
         if name == "gnss" and settings.long_load_derived:
@@ -292,10 +280,10 @@ def clock_columns(meas: Measurements, settings: JointSettings
 
 def clock_covariance(cols: np.ndarray, normal: np.ndarray
                      ) -> tuple[list[int], np.ndarray, np.ndarray] | None:
-    """The clock columns estimated (those with :data:`CLOCK_MIN_MEASUREMENTS` and a positive
-    normal equation), the offsets' covariance A^-1 and their Gauss-Newton step A^-1 b from the
-    forward pass's normal equations ``normal`` = [A b] (C, C + 1) (:func:`clock_step`); None
-    when none is estimated or A is singular."""
+    """The clock columns estimated (those with :data:`CLOCK_MIN_MEASUREMENTS` and a positive normal
+    equation), the offsets' covariance A^-1 and their Gauss-Newton step A^-1 b from the forward
+    pass's normal equations ``normal`` = [A b] (C, C + 1) (:func:`clock_step`); None when none is
+    estimated or A is singular."""
     nc = normal.shape[0]
     act = [c for c in range(nc)
            if np.sum(cols == c) >= CLOCK_MIN_MEASUREMENTS and normal[c, c] > 0.0]
@@ -319,22 +307,16 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndar
     to each source's time stamps (the convention of `clean --gnss-clock-offset /
     --radar-clock-offset`; docs/joint.md, "Filter, smoother, iterations", item 4).
 
-    A measurement stamped t_m, taken at t_m + c_true and used at t_m + c has residual
-    hdot (c_true - c).  The pass's forward filter carried the offsets as constant parameters
-    of its linearised model (:func:`~flightrecon.methods.joint.model._clock_column_update`)
-    and accumulated (its ``outputs``' first) the normal equations [A b]: the step
-    dc = A^-1 b minimises the pass's cost profiled over the track (the track given the
-    offsets is what the pass smoothed; moved by dc it is the next pass's business), A^-1 the
-    offsets' covariance.  The step is scaled by the line search's ``alpha`` (0: a
-    Levenberg-Marquardt step, which is not the pass's Gauss-Newton step; the offsets then
-    stay) and taken when it exceeds :data:`CLOCK_STILL_SD` of its sd, and by an offset still
-    at zero only beyond :data:`CLOCK_DETECT_SD` of it (as before: applied beyond 3 sd).
-
-    Before, the offsets were fitted between the passes by weighted least squares of the
-    smoothed residuals against hdot, the track held: the smoother had already absorbed most
-    of the offset into the track, so each fit recovered about 1.4 % of what was left (32-50
-    passes on the four real G1000 exports with their GPS, 6-18 now) and its sd, that of a
-    known track, was 4 times too small (a simulated circuit: 1.2 ms, 4.9-6.0 ms now)."""
+    A measurement stamped t_m, taken at t_m + c_true and used at t_m + c has residual hdot (c_true -
+    c).  The pass's forward filter carried the offsets as constant parameters of its linearised
+    model (:func:`~flightrecon.methods.joint.model._clock_column_update`) and accumulated (its
+    ``outputs``' first) the normal equations [A b]: the step dc = A^-1 b minimises the pass's cost
+    profiled over the track (the track given the offsets is what the pass smoothed; moved by dc it
+    is the next pass's business), A^-1 the offsets' covariance.  The step is scaled by the line
+    search's ``alpha`` (0: a Levenberg-Marquardt step, which is not the pass's Gauss-Newton step;
+    the offsets then stay) and taken when it exceeds :data:`CLOCK_STILL_SD` of its sd, and by an
+    offset still at zero only beyond :data:`CLOCK_DETECT_SD` of it (the least-squares fit between
+    the passes it replaced, and the measurements: docs/joint.md, item 4)."""
     est = clock_covariance(clock_cols[0], outputs[0])
     if est is None:
         return clock, clock_sd
@@ -356,9 +338,9 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndar
 
 
 def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> str:
-    """Why the iterations stopped without converging: the line search failed, the cost rose
-    from one pass to the next (through the updates between the passes: weights' residuals,
-    clock offsets, take-off roll, noise factors), or the cap on the passes was reached."""
+    """Why the iterations stopped without converging: the line search failed, the cost rose from one
+    pass to the next (through the updates between the passes: weights' residuals, clock offsets,
+    take-off roll, noise factors), or the cap on the passes was reached."""
     last = history[-1]
     if last.get("line_search_failed"):
         lm = (f", nor a Levenberg-Marquardt step with damping up to {settings.lm_lambda_max:g}"
@@ -377,10 +359,9 @@ def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> st
 
 
 def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray) -> float:
-    """Log-likelihood of the data by the prediction-error decomposition,
-    ``-1/2 sum_j (nu_j^2 / S_j + ln(2 pi S_j))`` over the selected scalar innovations ``nu``
-    with their variances ``S`` (the exact likelihood of the linearised model for the given
-    noise; Harvey 1989, section 3.4)."""
+    """Log-likelihood of the data by the prediction-error decomposition, ``-1/2 sum_j (nu_j^2 / S_j
+    + ln(2 pi S_j))`` over the selected scalar innovations ``nu`` with their variances ``S`` (the
+    exact likelihood of the linearised model for the given noise; Harvey 1989, section 3.4)."""
     ok = sel & np.isfinite(innov) & np.isfinite(innov_var) & (innov_var > 0)
     if not ok.any():
         return float("nan")
@@ -391,11 +372,11 @@ def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray)
 def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int, float]:
     """M-step of expectation-maximisation for one variance factor c per group.
 
-    With z_j = h_j(x) + v_j, v_j ~ N(0, c R0_j), the expected complete-data log-likelihood under
-    the smoothed posterior is maximised by c = mean_j[(e_j^2 + H_j P_s H_j^T) / R0_j] over the
-    group's measurements (e: smoothed residual; Shumway & Stoffer 1982, eq. 12 for a scalar
-    factor; linearised at the smoothed trajectory).  Groups with fewer than ``min_count``
-    measurements keep their factor.
+    With z_j = h_j(x) + v_j, v_j ~ N(0, c R0_j), the expected complete-data log-likelihood under the
+    smoothed posterior is maximised by c = mean_j[(e_j^2 + H_j P_s H_j^T) / R0_j] over the group's
+    measurements (e: smoothed residual; Shumway & Stoffer 1982, eq. 12 for a scalar factor;
+    linearised at the smoothed trajectory).  Groups with fewer than ``min_count`` measurements keep
+    their factor.
     """
     out = {}
     for gi in np.unique(groups[groups >= 0]):
@@ -408,9 +389,9 @@ def _em_noise_scales(groups, res, hph, r0, use, min_count: int = 30) -> dict[int
 def noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.ndarray,
                   use: np.ndarray, scale: np.ndarray, settings: JointSettings,
                   info: dict[str, Any]) -> tuple[np.ndarray, bool]:
-    """EM step of the noise factors (:func:`_em_noise_scales`) on the measurements taken at
-    face value (``use``), bounded by ``noise_factor_bounds``; the new factors into ``info``.
-    Returns them and whether any moved by more than ``noise_tol``."""
+    """EM step of the noise factors (:func:`_em_noise_scales`) on the measurements taken at face
+    value (``use``), bounded by ``noise_factor_bounds``; the new factors into ``info``. Returns them
+    and whether any moved by more than ``noise_tol``."""
     new_scale = scale.copy()
     lo_b, hi_b = settings.noise_factor_bounds
     for gi, c in _em_noise_scales(groups, res, hph, r0, use).items():
@@ -422,8 +403,8 @@ def noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.nd
 
 
 def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> float | None:
-    """sqrt(mean(u_hat^2 + P_uu)) over the steps ``airborne`` and both gust axes (module
-    docstring); None without such a step or with a non-finite value.
+    """sqrt(mean(u_hat^2 + P_uu)) over the steps ``airborne`` and both gust axes (module docstring);
+    None without such a step or with a non-finite value.
 
     Parameters
     ----------
@@ -437,9 +418,9 @@ def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> f
 
 
 def _covariances(out: PassResult | None) -> None:
-    """Wait for the smoothed covariances of ``out`` (a pass whose covariance recursion ran on
-    a second thread) and put them in it; its fallback count becomes the larger of the two
-    passes' (and so does its entry's in the iterations, ``out.info``)."""
+    """Wait for the smoothed covariances of ``out`` (a pass whose covariance recursion ran on a
+    second thread) and put them in it; its fallback count becomes the larger of the two passes' (and
+    so does its entry's in the iterations, ``out.info``)."""
     if out is None or out.pending is None:
         return
     cov = out.pending.result()
@@ -453,9 +434,9 @@ def _covariances(out: PassResult | None) -> None:
 def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.ndarray,
              xlin: np.ndarray, bufs: tuple[np.ndarray, ...], with_cov: bool,
              first: bool) -> PassResult:
-    """Forward filter (linearised about ``xlin``; empty: about its own prediction) and RTS
-    backward pass; the smoothed covariances with ``with_cov`` (on a second thread beside the
-    mean pass unless the noise estimation needs the smoothed H P H^T)."""
+    """Forward filter (linearised about ``xlin``; empty: about its own prediction) and RTS backward
+    pass; the smoothed covariances with ``with_cov`` (on a second thread beside the mean pass unless
+    the noise estimation needs the smoothed H P H^T)."""
     s = fl.settings
     assert fl.x0 is not None and fl.P0 is not None
     scalars = pass_scalars(mdl, fl.T, r, weights)
@@ -482,11 +463,11 @@ def _gn_pass(fl: SmootherFlight, mdl: PassModels, r: np.ndarray, weights: np.nda
 
 def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_change: float,
              params_still: bool, settings: JointSettings, info: dict[str, Any]) -> bool:
-    """Convergence test (docs/joint.md): the MAP cost changed by less than ``cost_tol``
-    (relative), the track by less than ``converge_m`` and the heading bias by less than 1e-4
-    rad (1 m at 10 km) in the last pass, no robust weight by more than ``converge_weight``,
-    and the clock offsets and noise factors stand still.  A pass whose line search found no
-    lower cost counts as settled only if its full Gauss-Newton step was that small too."""
+    """Convergence test (docs/joint.md): the MAP cost changed by less than ``cost_tol`` (relative),
+    the track by less than ``converge_m`` and the heading bias by less than 1e-4 rad (1 m at 10 km)
+    in the last pass, no robust weight by more than ``converge_weight``, and the clock offsets and
+    noise factors stand still.  A pass whose line search found no lower cost counts as settled only
+    if its full Gauss-Newton step was that small too."""
     if it == 0 or cost0 is None:
         return False
     shift = step.gn_shift_m if not step.ok else info["max_position_change_m"]
@@ -498,10 +479,10 @@ def _settled(it: int, step: PassStep, cost0: float | None, psi_moved: float, w_c
 
 
 class Nominal(NamedTuple):
-    """The linearisation point of the next pass: the positions ``lat``, ``lon``, ``h``, the
-    velocity ``vnom`` (runway rows, take-off roll: the air data's before the first pass), the
-    heading bias ``psi_hat`` (the rotation's linearisation) and accelerometer biases ``ba_hat``
-    (the take-off roll) of the iterate, None before the first pass."""
+    """The linearisation point of the next pass: the positions ``lat``, ``lon``, ``h``, the velocity
+    ``vnom`` (runway rows, take-off roll: the air data's before the first pass), the heading bias
+    ``psi_hat`` (the rotation's linearisation) and accelerometer biases ``ba_hat`` (the take-off
+    roll) of the iterate, None before the first pass."""
 
     lat: np.ndarray
     lon: np.ndarray
@@ -513,14 +494,14 @@ class Nominal(NamedTuple):
 
 @dataclass(frozen=True)
 class Iterate:
-    """What one damped Gauss-Newton pass hands the next, replaced by each pass and never
-    changed: the ``nominal`` of the next pass, the clock offsets [s] (added to the stamps) and
-    their sd, the noise factor per group (EM), the accepted trajectory ``X`` (None before the
-    first pass), the ``models`` built about it and its ``cost`` under them (with the noise
-    factors it was computed with: the next pass's start while nothing changed), the IRLS
-    ``weights``, the last accepted Levenberg-Marquardt damping / 10, ``refit`` (the models'
-    noise changed: a new cost), the gust sd estimates and the take-off rolls of the passes so
-    far (the last pass's last: a roll once left is not taken again)."""
+    """What one damped Gauss-Newton pass hands the next, replaced by each pass and never changed:
+    the ``nominal`` of the next pass, the clock offsets [s] (added to the stamps) and their sd, the
+    noise factor per group (EM), the accepted trajectory ``X`` (None before the first pass), the
+    ``models`` built about it and its ``cost`` under them (with the noise factors it was computed
+    with: the next pass's start while nothing changed), the IRLS ``weights``, the last accepted
+    Levenberg-Marquardt damping / 10, ``refit`` (the models' noise changed: a new cost), the gust sd
+    estimates and the take-off rolls of the passes so far (the last pass's last: a roll once left is
+    not taken again)."""
 
     nominal: Nominal
     clock: dict[str, float]
@@ -557,13 +538,13 @@ class Pass(NamedTuple):
 
 def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
     """The models of the next pass: about the iterate, with the current clock offsets and the
-    take-off roll refined on the iterate (those of the line search's last candidate when they
-    are the same).  A refined roll changes the runway and ground measurements, a clock offset
-    the GNSS and radar ones: the cost function itself (more measurements, more terms), so
-    costs are compared within a pass, and across passes only where neither changed
-    (``parameters_changed`` in the pass's entry).  A roll back at one an earlier pass had
-    (a cycle that never settles: JSBSim spiral 5305 between two, the fleet study's accident
-    flight of seed 0 among three) is not taken: the last pass's stays."""
+    take-off roll refined on the iterate (those of the line search's last candidate when they are
+    the same).  A refined roll changes the runway and ground measurements, a clock offset the GNSS
+    and radar ones: the cost function itself (more measurements, more terms), so costs are compared
+    within a pass, and across passes only where neither changed (``parameters_changed`` in the
+    pass's entry).  A roll back at one an earlier pass had (a cycle that never settles: JSBSim
+    spiral 5305 between two, the fleet study's accident flight of seed 0 among three) is not taken:
+    the last pass's stays."""
     nom = it.nominal
     roll = refined_roll(fl.inp, fl.T, nom.vnom, nom.ba_hat)
     m = it.models
@@ -576,11 +557,11 @@ def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
 
 def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
                 weights: np.ndarray, reset: bool) -> tuple[Cost | None, np.ndarray]:
-    """The iterate's cost, residuals and rates under the pass's models (None before the first
-    pass; the last accepted ones when the models and noise factors are the same), and the
-    weights: after a ``reset`` (a new measurement set: a refined take-off roll) the IRLS
-    weights at the iterate, so that the pass is again a majorise-minimise step (with all
-    weights 1 its Gauss-Newton step need not lower the robust cost)."""
+    """The iterate's cost, residuals and rates under the pass's models (None before the first pass;
+    the last accepted ones when the models and noise factors are the same), and the weights: after a
+    ``reset`` (a new measurement set: a refined take-off roll) the IRLS weights at the iterate, so
+    that the pass is again a majorise-minimise step (with all weights 1 its Gauss-Newton step need
+    not lower the robust cost)."""
     if it.X is None:
         return None, weights
     cached = it.cost if mdl is it.models else None
@@ -593,25 +574,24 @@ def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
 
 def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: PassModels,
                     r: np.ndarray, weights: np.ndarray, k: int) -> PassResult:
-    """Pass ``k``'s forward filter and backward pass (:func:`_gn_pass`) on the buffers, once
-    the last pass's covariance thread, which reads them, has finished.  EM needs the smoothed
-    covariances in every pass; otherwise the first pass (far from the solution) smooths the
-    states only, the later ones (likely the last) everything."""
+    """Pass ``k``'s forward filter and backward pass (:func:`_gn_pass`) on the buffers, once the
+    last pass's covariance thread, which reads them, has finished.  EM needs the smoothed
+    covariances in every pass; otherwise the first pass (far from the solution) smooths the states
+    only, the later ones (likely the last) everything."""
     _covariances(ws.running)
     ws.running = None
     xlin = X if X is not None else np.zeros((0, jl.N_STATE))
-    out = _gn_pass(fl, mdl, r, weights, xlin, ws.bufs, fl.settings.estimate_noise or k > 0,
-                   k == 0)
+    out = _gn_pass(fl, mdl, r, weights, xlin, ws.bufs, fl.settings.estimate_noise or k > 0, k == 0)
     ws.running = out if out.pending is not None else None
     return out
 
 
 def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
               ) -> tuple[SmootherFlight, Iterate, Pass, bool]:
-    """One damped Gauss-Newton pass: models about the iterate, its cost, the smoothing pass,
-    the line search (a Levenberg-Marquardt step where it fails), then the updates
-    (:func:`_accepted`).  Returns the flight (with the prior of x_0 once known, the gust sd
-    changed), the next iterate, the pass and whether the iterations settled."""
+    """One damped Gauss-Newton pass: models about the iterate, its cost, the smoothing pass, the
+    line search (a Levenberg-Marquardt step where it fails), then the updates (:func:`_accepted`).
+    Returns the flight (with the prior of x_0 once known, the gust sd changed), the next iterate,
+    the pass and whether the iterations settled."""
     s = fl.settings
     mdl = _pass_models(fl, it)
     r = scaled_variances(mdl, it.scale)
@@ -664,10 +644,10 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
 def _accepted(fl: SmootherFlight, it: Iterate, p: Pass, r: np.ndarray, cost0: float | None,
               psi_new: np.ndarray, psi_moved: float, shift: float
               ) -> tuple[SmootherFlight, Iterate, Pass, bool]:
-    """After a pass that lowered the cost: the IRLS weights at its residuals, the clock
-    offsets' step, the noise factors' EM step, the next iterate about the accepted trajectory,
-    the convergence test (:func:`_settled`) and, while not settled and the pass still moved
-    the track (or the noise is estimated), the gust sd's round (:func:`gust_round`)."""
+    """After a pass that lowered the cost: the IRLS weights at its residuals, the clock offsets'
+    step, the noise factors' EM step, the next iterate about the accepted trajectory, the
+    convergence test (:func:`_settled`) and, while not settled and the pass still moved the track
+    (or the noise is estimated), the gust sd's round (:func:`gust_round`)."""
     s = fl.settings
     mdl, out, step, info = p
     k = info["iteration"]
@@ -707,14 +687,14 @@ def _accepted(fl: SmootherFlight, it: Iterate, p: Pass, r: np.ndarray, cost0: fl
 
 def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings(),
                  flight: SmootherFlight | None = None) -> JointRun:
-    """Run the joint smoother: forward EKF and RTS passes, iterated as damped Gauss-Newton on
-    the MAP cost with IRLS weights (docs/joint.md, "Filter, smoother, iterations").
+    """Run the joint smoother: forward EKF and RTS passes, iterated as damped Gauss-Newton on the
+    MAP cost with IRLS weights (docs/joint.md, "Filter, smoother, iterations").
 
-    The result is the last accepted iterate, the lowest-cost one (each pass's cost does not
-    exceed the cost of its start under the same clock offsets, roll and noise factors);
+    The result is the last accepted iterate, the lowest-cost one (each pass's cost does not exceed
+    the cost of its start under the same clock offsets, roll and noise factors);
     ``JointRun.converged`` is the test of :func:`_settled` and ``stop_reason`` says why the
-    iterations stopped.  ``flight``: a run's on the same flight, whose iteration-independent
-    parts are taken where they hold (:func:`_flight_like`: an adjusted problem solved again).
+    iterations stopped.  ``flight``: a run's on the same flight, whose iteration-independent parts
+    are taken where they hold (:func:`_flight_like`: an adjusted problem solved again).
     """
     fl = _flight_like(flight, inp, settings)
     lat, lon, h = nominal_trajectory(inp, fl.idx)
@@ -732,23 +712,22 @@ def smooth_joint(inp: JointInputs, settings: JointSettings = JointSettings(),
 
 def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun,
                       passes: int = 1, enough_m: float = 0.0) -> JointRun:
-    """The joint smoother on ``inp`` started from a converged run ``start`` of the same flight
-    (its iterate, nominal, clock offsets, noise factors and step-0 prior), for at most
-    ``passes`` damped Gauss-Newton passes (fewer when they settle, or once a pass moved the
-    track by at most ``enough_m`` [m]: the next step is of second order in it; docs/joint.md,
-    "GNSS gaps": the held-out smoothing of the gap calibration, where ``inp`` is the flight
-    with stretches of GNSS withheld).
+    """The joint smoother on ``inp`` started from a converged run ``start`` of the same flight (its
+    iterate, nominal, clock offsets, noise factors and step-0 prior), for at most ``passes`` damped
+    Gauss-Newton passes (fewer when they settle, or once a pass moved the track by at most
+    ``enough_m`` [m]: the next step is of second order in it; docs/joint.md, "GNSS gaps": the
+    held-out smoothing of the gap calibration, where ``inp`` is the flight with stretches of GNSS
+    withheld).
 
-    Each pass is one of :func:`smooth_joint`'s later passes (no innovation gate; IRLS weights
-    at the iterate, since the measurement set differs from ``start``'s; the line search on
-    the MAP cost), so the result is :func:`smooth_joint`'s on ``inp`` as far as one
-    Gauss-Newton step from ``start`` reaches: withholding fixes moves the solution only near
-    them, where the models are linear to well under the fixes' noise.  ``settings`` should
-    hold ``start``'s gust sd with ``estimate_gust`` off (the gust estimate is the flight's)."""
+    Each pass is one of :func:`smooth_joint`'s later passes (no innovation gate; IRLS weights at the
+    iterate, since the measurement set differs from ``start``'s; the line search on the MAP cost),
+    so the result is :func:`smooth_joint`'s on ``inp`` as far as one Gauss-Newton step from
+    ``start`` reaches: withholding fixes moves the solution only near them, where the models are
+    linear to well under the fixes' noise.  ``settings`` should hold ``start``'s gust sd with
+    ``estimate_gust`` off (the gust estimate is the flight's)."""
     fl = _flight_like(start.flight, inp, settings)
     if start.prior is not None:
-        fl = replace(fl, x0=start.prior[0], P0=start.prior[1],
-                     P0inv=np.linalg.inv(start.prior[1]))
+        fl = replace(fl, x0=start.prior[0], P0=start.prior[1], P0inv=np.linalg.inv(start.prior[1]))
     x = start.x
     it = Iterate(Nominal(start.lat_deg.copy(), start.lon_deg.copy(), start.h_m.copy(),
                          np.ascontiguousarray(x[:, jl.S_VEL]),
@@ -763,12 +742,12 @@ def smooth_joint_from(inp: JointInputs, settings: JointSettings, start: JointRun
 
 def _flight_like(flight: SmootherFlight | None, inp: JointInputs, settings: JointSettings
                  ) -> SmootherFlight:
-    """:func:`smoother_flight` of ``inp`` with ``settings``, taken from ``flight`` (a run's on
-    the same flight) where ``inp`` differs from its inputs in the GNSS fixes only and
-    ``settings`` from its settings in the gust sd and the wind walk only: none of its parts
-    depends on these but the process noise (recomputed), so they are the same arrays (the
-    held-out smoothing of the gap calibration: 0.27 s and a second copy less on a 10-hour
-    flight; the wind walk's rounds: the measurement table and the increments built once)."""
+    """:func:`smoother_flight` of ``inp`` with ``settings``, taken from ``flight`` (a run's on the
+    same flight) where ``inp`` differs from its inputs in the GNSS fixes only and ``settings`` from
+    its settings in the gust sd and the wind walk only: none of its parts depends on these but the
+    process noise (recomputed), so they are the same arrays (the held-out smoothing of the gap
+    calibration: 0.27 s and a second copy less on a 10-hour flight; the wind walk's rounds: the
+    measurement table and the increments built once)."""
     if flight is None:
         return smoother_flight(inp, settings)
     same_inputs = all(getattr(inp, f.name) is getattr(flight.inp, f.name)
@@ -786,8 +765,8 @@ def _flight_like(flight: SmootherFlight | None, inp: JointInputs, settings: Join
 
 def _passes(fl: SmootherFlight, it: Iterate, its: range, settings: JointSettings,
             enough_m: float = -1.0, warm: bool = False) -> JointRun:
-    """The damped Gauss-Newton passes numbered ``its`` until they settle (or a pass failed,
-    or one moved the track by at most ``enough_m``), then the result of the last."""
+    """The damped Gauss-Newton passes numbered ``its`` until they settle (or a pass failed, or one
+    moved the track by at most ``enough_m``), then the result of the last."""
     ws = Buffers(filter_buffers(len(fl.T)))
     history: list[dict[str, Any]] = []
     last, converged = None, False
@@ -810,8 +789,8 @@ def _passes(fl: SmootherFlight, it: Iterate, its: range, settings: JointSettings
 
 def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
             history: list[dict[str, Any]], converged: bool, reason: str) -> JointRun:
-    """The result of the last pass: its iterate (the pass's own smoothed states after a full
-    step), the smoothed covariances of its linearisation and the noise check."""
+    """The result of the last pass: its iterate (the pass's own smoothed states after a full step),
+    the smoothed covariances of its linearisation and the noise check."""
     s = fl.settings
     mdl, out, step, _ = last
     assert it.weights is not None
@@ -864,16 +843,15 @@ def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
 def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pblk: np.ndarray,
                             var: np.ndarray, clock: dict[str, float]
                             ) -> tuple[np.ndarray, np.ndarray]:
-    """The smoothed covariances of the last pass ``out`` (``Pblk`` (N, 6, 6), ``var`` (N, n))
-    with the clock offsets' uncertainty added: the pass smoothed the track given the offsets;
-    with the offsets as constant states of covariance Sigma (A^-1 of their normal
-    equations, :func:`clock_covariance`) the track's
-    marginal covariance is P_s + X_s,g Sigma X_s,g^T, X_s,g the offsets' smoothed filter
-    columns (:func:`smoothed_columns`), over the offsets
-    taken (nonzero in ``clock``; an offset held at zero, not detected, is the model's zero:
-    with it the simulated GNSS circuits' NEES fell to 0.45 / 0.57, below the 95 % band of 40
-    runs).  Unchanged without such offsets.  (An offset's sd of 5 ms moves a track at 55 m/s
-    by 0.3 m: on a simulated circuit with 2 m GNSS fixes that is about the track's own sd.)"""
+    """The smoothed covariances of the last pass ``out`` (``Pblk`` (N, 6, 6), ``var`` (N, n)) with
+    the clock offsets' uncertainty added: the pass smoothed the track given the offsets; with the
+    offsets as constant states of covariance Sigma (A^-1 of their normal equations,
+    :func:`clock_covariance`) the track's marginal covariance is P_s + X_s,g Sigma X_s,g^T, X_s,g
+    the offsets' smoothed filter columns (:func:`smoothed_columns`), over the offsets taken (nonzero
+    in ``clock``; an offset held at zero, not detected, is the model's zero: with it the simulated
+    GNSS circuits' NEES fell to 0.45 / 0.57, below the 95 % band of 40 runs).  Unchanged without
+    such offsets.  (An offset's sd of 5 ms moves a track at 55 m/s by 0.3 m: on a simulated circuit
+    with 2 m GNSS fixes that is about the track's own sd.)"""
     if out.clock is None:
         return Pblk, var
     est = clock_covariance(out.clock[0][0], out.clock[1][0])
@@ -895,11 +873,11 @@ def _with_clock_uncertainty(out: PassResult, Pf: np.ndarray, Pp: np.ndarray, Pbl
 
 def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Iterate,
                  ws: Buffers) -> tuple[dict[str, Any], PassResult | None]:
-    """The estimated noise must raise the likelihood of the data: the innovations'
-    log-likelihood (prediction-error decomposition) of the last pass against a forward pass
-    with the default variances at the same linearisation, weights and clock offsets;
-    otherwise the defaults are kept and the last pass is redone with them (docs/joint.md,
-    "Noise estimation").  Returns the check and, when rejected, the redone pass's outputs."""
+    """The estimated noise must raise the likelihood of the data: the innovations' log-likelihood
+    (prediction-error decomposition) of the last pass against a forward pass with the default
+    variances at the same linearisation, weights and clock offsets; otherwise the defaults are kept
+    and the last pass is redone with them (docs/joint.md, "Noise estimation").  Returns the check
+    and, when rejected, the redone pass's outputs."""
     s = fl.settings
     assert fl.x0 is not None and fl.P0 is not None
     lo_b, hi_b = s.noise_factor_bounds
@@ -931,11 +909,11 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
 
 def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start: Cost | None,
                 out: PassResult, r: np.ndarray, weights: np.ndarray) -> PassStep:
-    """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3):
-    X + alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first
-    whose MAP cost does not exceed the cost of X (``start``; every cost under this pass's
-    clock offsets, roll, noise factors).  The first pass (no iterate yet) takes the full step;
-    so does every pass with ``line_search`` off (the cost is still evaluated and reported)."""
+    """Backtracking line search along the Gauss-Newton step (Sarkka & Svensson 2020, alg. 3): X +
+    alpha (X_GN - X), alpha = 1, 1/2, ... (``line_search_halvings`` times), the first whose MAP cost
+    does not exceed the cost of X (``start``; every cost under this pass's clock offsets, roll,
+    noise factors).  The first pass (no iterate yet) takes the full step; so does every pass with
+    ``line_search`` off (the cost is still evaluated and reported)."""
     s = fl.settings
     X_gn = out.xs
     gn_shift = float(np.max(np.abs(X_gn[:, jl.S_POS] - mdl.pnom)))
@@ -963,11 +941,11 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
 def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
             start: Cost, r: np.ndarray, weights: np.ndarray, lm_lambda: float
             ) -> tuple[PassStep | None, float]:
-    """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2):
-    the smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate
-    ``X``, lambda from ``lm_lambda0`` (or ten times the last one, ``lm_lambda``) multiplied by
-    10 until the cost does not exceed the iterate's, at most up to ``lm_lambda_max``.  Returns
-    the step (None if none did) and the damping to remember (lambda / 10 of the step taken)."""
+    """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2): the
+    smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate ``X``,
+    lambda from ``lm_lambda0`` (or ten times the last one, ``lm_lambda``) multiplied by 10 until the
+    cost does not exceed the iterate's, at most up to ``lm_lambda_max``.  Returns the step (None if
+    none did) and the damping to remember (lambda / 10 of the step taken)."""
     s = fl.settings
     if ws.lm is None:  # its own buffers: the plain pass's filter outputs are kept
         ws.lm = tuple(np.empty_like(b) for b in ws.bufs)
@@ -994,8 +972,8 @@ def full_step(step: PassStep) -> bool:
 
 
 def with_gust_sd(fl: SmootherFlight, sd_mps: float) -> SmootherFlight:
-    """``fl`` with the gust sd ``sd_mps``: in the settings, the process noise and the prior of
-    x_0 (the rest of the prior, its mean included, unchanged)."""
+    """``fl`` with the gust sd ``sd_mps``: in the settings, the process noise and the prior of x_0
+    (the rest of the prior, its mean included, unchanged)."""
     noise = replace(fl.settings.noise, gust_mps=float(sd_mps))
     fl = replace(fl, settings=replace(fl.settings, noise=noise), q=q_vector(noise))
     if fl.P0 is None:
@@ -1007,11 +985,12 @@ def with_gust_sd(fl: SmootherFlight, sd_mps: float) -> SmootherFlight:
 
 def gust_round(fl: SmootherFlight, it: Iterate, out: PassResult, X: np.ndarray, k: int
                ) -> tuple[SmootherFlight, Iterate]:
-    """The gust sd re-estimated from the pass's smoothed track ``X`` (``estimate_gust``;
-    :func:`gust_sd_estimate`), recorded in the iterate's
-    ``gust_rounds``; where it moved by more than ``gust_tol`` the flight's models take it
-    (:func:`with_gust_sd`) and the next pass starts with new models and a new cost.  At most
-    ``gust_rounds`` changes."""
+    """The gust sd re-estimated (module docstring) from the pass's smoothed track ``X``
+    (``estimate_gust``; :func:`gust_sd_estimate`) after a pass that is not the last and moved the
+    track by more than 10 ``converge_m`` or estimates the noise factors too (none of its own where
+    the GNSS pins the track), recorded in the iterate's ``gust_rounds``; where it moved by more
+    than ``gust_tol`` the flight's models take it (:func:`with_gust_sd`) and the next pass starts
+    with new models and a new cost (``parameters_changed``).  At most ``gust_rounds`` changes."""
     s = fl.settings
     changes = sum(r["changed"] for r in it.gust_rounds)
     if not s.estimate_gust or out.var is None or changes >= s.gust_rounds:

@@ -1,48 +1,29 @@
-"""The attitude reference's errors after sustained loads, as extra acceleration noise of the
-joint smoother (docs/joint.md, "Process noise"; docs/realflights.md, "The attitude after the
-manoeuvres").
+"""The attitude reference's errors after sustained loads, as extra acceleration noise of the joint
+smoother (docs/joint.md, "The attitude reference after sustained loads", with the PH-LAB and JSBSim
+measurements; docs/realflights.md, "The attitude after the manoeuvres").
 
-An attitude and heading reference (AHRS) erects its vertical on the accelerometers: where the
-specific force is not gravity alone (a pull-up at 2 g, a zero-g parabola, a long turn) it erects
-towards a wrong vertical, and after the manoeuvre it re-erects with its time constant.  A tilt
-``delta`` of the recorded roll and pitch turns part of the specific force into the horizontal:
-an acceleration error ``g delta`` that the smoother's constant roll and pitch biases cannot
-follow.  On the PH-LAB flights (docs/realflights.md) the recorded loads integrated through the
-recorded attitude leave the GPS velocity by 1-2 m/s per minute in quiet cruise, 3-12 m/s per
-minute in turns and climbs (``| |f| - 1 |`` below 0.3 g), 15-39 m/s per minute in zero-g
-parabolas (0.7 g) and 28, 15, 4.5 m/s in the three minutes after them: a tilt of about 3 deg
-decaying with a time constant of about a minute.
-
-The model: the load's departure from 1 g, ``u(t) = | |f(t)| - 1 |`` [g] (``f`` the measured
-specific force), remembered over the erection time constant ``tau``::
+An AHRS erects its vertical on the accelerometers: after a sustained load it is tilted by ``delta``
+and re-erects with its time constant ``tau``, which puts ``g delta`` of the specific force into the
+horizontal, an acceleration error the smoother's constant roll and pitch biases cannot follow.  The
+load's departure from 1 g, ``u(t) = | |f(t)| - 1 |`` [g] (``f`` the measured specific force), is
+remembered over ``tau``::
 
     D(t) = (1 / tau) int_{-inf}^{t} u(s) exp(-(t - s) / tau) ds                    (1)
 
-An AHRS erects towards the specific force's direction, and in a coordinated turn the specific
-force is tilted from the vertical by the bank angle while its magnitude departs from 1 g only
-by ``1/cos(roll) - 1`` (0.15 g at 30 deg): the horizontal acceleration ``g tan(roll)`` is the
-larger driver there.  With the share ``s`` (``ahrs_tilt_horizontal``) of the horizontal
-kinematic acceleration ``a_h`` [g]::
+In a coordinated turn the specific force leans by the bank angle while its magnitude departs from
+1 g only by ``1/cos(roll) - 1``; with the share ``s`` (``ahrs_tilt_horizontal``; 0, the default:
+the load's departure alone) of the horizontal kinematic acceleration ``a_h`` [g]::
 
     u(t) = sqrt( ( |f(t)| - 1 )^2 + s a_h(t)^2 )                                  (1b)
 
-(``s`` = 1: the aircraft's whole acceleration, the specific force's departure from gravity
-alone; ``s`` = 0, the default: the load's departure above).  Either
-
-gives an acceleration error of sd ``a_e(t) = c D(t)`` (``c`` = ``ahrs_tilt_mps2_per_g``, the
-horizontal acceleration error per g of sustained departure), correlated over ``tau``.  As a
-white acceleration on the velocity, with the same velocity error over a window of ``tau``
-(``a_e tau``), its power spectral density is::
+The acceleration error, of sd ``a_e(t) = c D(t)`` (``c`` = ``ahrs_tilt_mps2_per_g``) correlated
+over ``tau``, as a white acceleration with the same velocity error over ``tau``, has the power
+spectral density::
 
     q_tilt(t) = a_e(t)^2 tau = (c D(t))^2 tau                                       (2)
 
-added to the accelerometer noise of every step (``JointNoise.accel_noise_mps2_sqrt_hz``; the
-velocity random walk of ``layout.py``).  ``c`` = 1 m/s^2 per g is the PH-LAB figure above
-(39 m/s over a minute at D of about 0.6 g), given in the ``[joint]`` table of a noise file
-(``flightrecon reconstruct --noise FILE``: ``ahrs_tilt_mps2_per_g = 1.0``).  The default is
-0: an attitude from an inertial reference has no erection on the accelerometers, nor has the
-simulator's (JSBSim: with c = 1 the joint smoother's RMS error on two circuits went from 158
-and 100 m to 291 and 228 m, docs/realflights.md).
+added to the accelerometer noise of every step (``JointNoise.accel_noise_mps2_sqrt_hz``).  ``c`` = 1
+m/s^2 per g is the PH-LAB figure; the default 0 is an inertial attitude's (and the simulator's).
 """
 
 from __future__ import annotations
@@ -67,9 +48,9 @@ def load_departure_g(f_body_g: np.ndarray) -> np.ndarray:
 @nb.njit(cache=True, nogil=True)
 def _first_order_lag(u: np.ndarray, a: float) -> np.ndarray:
     """``D_i = a D_{i-1} + (1 - a) u_i`` from ``D_{-1} = 0``: the recursion of
-    ``scipy.signal.lfilter([1 - a], [1, -a], u)`` (its transposed direct form for one pole
-    adds the same two products, so the same numbers to the bit) without importing
-    scipy.signal, about 0.6 s of every run's start with the scipy.stats it pulls in."""
+    ``scipy.signal.lfilter([1 - a], [1, -a], u)`` (its transposed direct form for one pole adds the
+    same two products, so the same numbers to the bit) without importing scipy.signal, about 0.6 s
+    of every run's start with the scipy.stats it pulls in."""
     D = np.empty(len(u))
     b = 1.0 - a
     z = 0.0
@@ -80,9 +61,9 @@ def _first_order_lag(u: np.ndarray, a: float) -> np.ndarray:
 
 
 def remembered(t: np.ndarray, u: np.ndarray, tau_s: float) -> np.ndarray:
-    """Eq. (1) on the samples ``t`` (causal; exact for ``u`` held over each interval on a
-    uniform grid, the cleaned recorder grid): ``D_i = a D_{i-1} + (1 - a) u_i``,
-    ``a = exp(-dt / tau)`` with the median interval ``dt``."""
+    """Eq. (1) on the samples ``t`` (causal; exact for ``u`` held over each interval on a uniform
+    grid, the cleaned recorder grid): ``D_i = a D_{i-1} + (1 - a) u_i``, ``a = exp(-dt / tau)`` with
+    the median interval ``dt``."""
     if len(t) < 2:
         return np.zeros(len(t))
     dt = float(np.median(np.diff(t)))
@@ -92,9 +73,9 @@ def remembered(t: np.ndarray, u: np.ndarray, tau_s: float) -> np.ndarray:
 
 def erection_driver_g(f_body_g: np.ndarray, acc_ned: np.ndarray | None,
                       horizontal: float) -> np.ndarray:
-    """Eq. (1b) per sample [g]: the load's departure from 1 g combined with the share
-    ``horizontal`` of the horizontal kinematic acceleration ``acc_ned[:, :2]`` [m/s^2] (missing
-    samples count 0)."""
+    """Eq. (1b) per sample [g]: the load's departure from 1 g combined with the share ``horizontal``
+    of the horizontal kinematic acceleration ``acc_ned[:, :2]`` [m/s^2] (missing samples count
+    0)."""
     u = load_departure_g(f_body_g)
     if acc_ned is None or horizontal <= 0.0:
         return u
@@ -105,9 +86,9 @@ def erection_driver_g(f_body_g: np.ndarray, acc_ned: np.ndarray | None,
 
 def tilt_psd(t_in: np.ndarray, f_body_g: np.ndarray | None, idx: np.ndarray,
              nz: JointNoise, acc_ned: np.ndarray | None = None) -> np.ndarray:
-    """Eq. (2) at the state steps ``idx`` of the input grid ``t_in`` [(m/s^2)^2/Hz], with the
-    driver of eq. (1b) (``acc_ned``: the kinematic acceleration on ``t_in``, north, east,
-    down [m/s^2]); zeros without loads or with ``ahrs_tilt_mps2_per_g`` = 0."""
+    """Eq. (2) at the state steps ``idx`` of the input grid ``t_in`` [(m/s^2)^2/Hz], with the driver
+    of eq. (1b) (``acc_ned``: the kinematic acceleration on ``t_in``, north, east, down [m/s^2]);
+    zeros without loads or with ``ahrs_tilt_mps2_per_g`` = 0."""
     c = nz.ahrs_tilt_mps2_per_g
     if f_body_g is None or c <= 0.0:
         return np.zeros(len(idx))
@@ -121,12 +102,11 @@ def _gnss_fit_ne(gnss_t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Position (latitude, longitude [rad]) and local-level velocity (north, east [m/s]) at the
     times ``tq``: a cubic fitted by least squares to the fixes within ``half_s`` of each, its
-    derivative scaled by the WGS-84 radii of curvature there (the velocity in the local north
-    and east, not in a map plane whose north turns by the meridian convergence: 6 deg over
-    700 km, 50 m/s on a 180 deg turn at 250 m/s).  A straight line's slope is biased over a
-    turn (over +-15 s of a 3 deg/s turn by 6 %, 4 m/s at 60 m/s); the cubic leaves the
-    fifth-order term, 0.1 %.  NaN where fewer than ``min_fixes`` fixes or they do not reach
-    ``half_s / 2`` on both sides."""
+    derivative scaled by the WGS-84 radii of curvature there (the velocity in the local north and
+    east, not in a map plane whose north turns by the meridian convergence: 6 deg over 700 km, 50
+    m/s on a 180 deg turn at 250 m/s).  A straight line's slope is biased over a turn (over +-15 s
+    of a 3 deg/s turn by 6 %, 4 m/s at 60 m/s); the cubic leaves the fifth-order term, 0.1 %.  NaN
+    where fewer than ``min_fixes`` fixes or they do not reach ``half_s / 2`` on both sides."""
     from flightrecon.geo.navframe import radii_of_curvature
 
     t = np.asarray(gnss_t, float)
@@ -153,12 +133,12 @@ def _gnss_fit_ne(gnss_t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
 
 def _constant_error_integrands(acc_h: np.ndarray, heading_rad: np.ndarray,
                                f_ned_h: np.ndarray | None) -> list[np.ndarray]:
-    """Per constant error of the loads' integration, its effect on the north-east acceleration
-    per unit error (N, 2): a heading bias [rad] (the horizontal acceleration ``acc_h`` turned by
-    90 deg), north and east acceleration biases [m/s^2], pitch and roll biases [rad] (``g``
-    along the body's forward and lateral axes, turned by the heading) and, with ``f_ned_h``
-    (N, 2, 3: the north-east part of each body axis's specific force [m/s^2]), the three
-    accelerometers' scale errors."""
+    """Per constant error of the loads' integration, its effect on the north-east acceleration per
+    unit error (N, 2): a heading bias [rad] (the horizontal acceleration ``acc_h`` turned by 90
+    deg), north and east acceleration biases [m/s^2], pitch and roll biases [rad] (``g`` along the
+    body's forward and lateral axes, turned by the heading) and, with ``f_ned_h`` (N, 2, 3: the
+    north-east part of each body axis's specific force [m/s^2]), the three accelerometers' scale
+    errors."""
     n = len(acc_h)
     psi = np.nan_to_num(np.asarray(heading_rad, float))
     cols = [np.column_stack([-acc_h[:, 1], acc_h[:, 0]]),
@@ -172,11 +152,11 @@ def _constant_error_integrands(acc_h: np.ndarray, heading_rad: np.ndarray,
 
 
 def _rotation_terms(pos_start: np.ndarray, pos_end: np.ndarray, window_s: float) -> np.ndarray:
-    """The Coriolis and transport-rate terms the loads do not hold, horizontal part, integrated
-    over each window (m, 2) [m/s]: ``dv_n += -k v_e``, ``dv_e += k v_n`` with
-    ``k = 2 Omega sin(lat) + v_e tan(lat) / R_N`` (Groves eq. 5.54 without the vertical
-    velocity's terms), integrated: ``k`` times the window's displacement (east, north);
-    ``pos_*`` latitude and longitude [rad] at the windows' ends."""
+    """The Coriolis and transport-rate terms the loads do not hold, horizontal part, integrated over
+    each window (m, 2) [m/s]: ``dv_n += -k v_e``, ``dv_e += k v_n`` with ``k = 2 Omega sin(lat) +
+    v_e tan(lat) / R_N`` (Groves eq. 5.54 without the vertical velocity's terms), integrated: ``k``
+    times the window's displacement (east, north); ``pos_*`` latitude and longitude [rad] at the
+    windows' ends."""
     from flightrecon.constants import WGS84_OMEGA
     from flightrecon.geo.navframe import radii_of_curvature
 
@@ -196,22 +176,20 @@ def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
     """What the GNSS says of the attitude reference: the tilt gain ``c`` of eq. (2) that the
     recorded loads, integrated through the recorded attitude, need to meet the GNSS velocity.
 
-    Over consecutive windows of ``window_s`` between ``t0_s`` and ``t1_s``: the change of
-    velocity the loads give (``acc_ned`` integrated, trapezoidal, with the Coriolis and
-    transport-rate terms: :func:`_rotation_terms`) minus the change of the GNSS velocity (a
-    cubic fitted to the fixes over ``2 half_s``, in the local north and east:
-    :func:`_gnss_fit_ne`), a 2-vector per window.  The errors that stay constant over the
-    flight (:func:`_constant_error_integrands`: heading, acceleration, roll and pitch biases,
-    with ``f_ned_h`` the accelerometers' scale errors, a 1 % error of the normal load in a
-    2 g, 60 deg turn being 10 m/s per minute) are fitted to it by least squares and removed.
-    What is left, ``r`` [m/s] per window, against the rms over the window of the remembered
-    driver ``D`` (eq. 1, 1b) [g]: ``r0`` the lower quartile of ``r`` (the GNSS slope's noise
-    and what the constants do not take), and each window with ``D >= busy_g`` gives
+    Over consecutive windows of ``window_s`` between ``t0_s`` and ``t1_s``: the change of velocity
+    the loads give (``acc_ned`` integrated, trapezoidal, with the Coriolis and transport-rate terms:
+    :func:`_rotation_terms`) minus the change of the GNSS velocity (a cubic fitted to the fixes over
+    ``2 half_s``, in the local north and east: :func:`_gnss_fit_ne`), a 2-vector per window.  The
+    errors that stay constant over the flight (:func:`_constant_error_integrands`: heading,
+    acceleration, roll and pitch biases, with ``f_ned_h`` the accelerometers' scale errors, a 1 %
+    error of the normal load in a 2 g, 60 deg turn being 10 m/s per minute) are fitted to it by
+    least squares and removed. What is left, ``r`` [m/s] per window, against the rms over the window
+    of the remembered driver ``D`` (eq. 1, 1b) [g]: ``r0`` the lower quartile of ``r`` (the GNSS
+    slope's noise and what the constants do not take), and each window with ``D >= busy_g`` gives
     ``c_i = sqrt(max(r^2 - r0^2, 0)) / (D window_s)`` [m/s^2 per g], the gain that explains its
-    excess; ``c`` is their median.  An attitude whose errors are constant (an inertial
-    reference, the simulator's sensors) gives ``c`` near 0 (JSBSim: 0.04-0.18); the PH-LAB
-    AHRS 0.27-0.40 (docs/joint.md).  ``None`` with fewer than three busy windows or ten windows
-    in all.
+    excess; ``c`` is their median.  An attitude whose errors are constant (an inertial reference,
+    the simulator's sensors) gives ``c`` near 0 (JSBSim: 0.04-0.18); the PH-LAB AHRS 0.27-0.40
+    (docs/joint.md).  ``None`` with fewer than three busy windows or ten windows in all.
     """
     t = np.asarray(t_in, float)
     starts = np.arange(t0_s, t1_s - window_s, window_s)
@@ -230,8 +208,7 @@ def tilt_evidence(t_in: np.ndarray, acc_ned: np.ndarray, f_body_g: np.ndarray,
     pg, vg = _gnss_fit_ne(np.asarray(gnss_t, float), np.asarray(gnss_lat_deg, float),
                           np.asarray(gnss_lon_deg, float), np.r_[starts, ends], half_s)
     m = len(starts)
-    y = (window_integral(a) + _rotation_terms(pg[:m], pg[m:], window_s)
-         - (vg[m:] - vg[:m]))
+    y = (window_integral(a) + _rotation_terms(pg[:m], pg[m:], window_s) - (vg[m:] - vg[:m]))
     X = np.stack([window_integral(c) for c in _constant_error_integrands(a, heading_rad,
                                                                          f_ned_h)], axis=-1)
     D = remembered(t, erection_driver_g(f_body_g, acc_ned, horizontal), tau_s)
