@@ -34,9 +34,7 @@ from flightrecon.methods.joint.settings import (
 )
 from flightrecon.methods.joint.solve import JointRun, smooth_joint
 
-__all__ = [
-    "SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
-    "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "joint_inputs", "takeoff_roll",
-    "refined_roll", "JointProblem", "joint_problem", "attitude_jacobian", "JointRun",
-    "smooth_joint",
-]
+__all__ = ["SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
+           "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "joint_inputs", "takeoff_roll",
+           "refined_roll", "JointProblem", "joint_problem", "attitude_jacobian", "JointRun",
+           "smooth_joint"]

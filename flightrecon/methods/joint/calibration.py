@@ -6,9 +6,9 @@ docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
 
 Inside a GNSS gap the smoothed position's variance grows with the process noise that carries the
 track across it, mostly the wind's random walk; its default (0.05 m/s/sqrt(s)) is right for the
-Citation II's gaps and five to ten times too wide in sd for a simulated flight in a steady wind.
-One fixed process noise cannot serve both, so the flight's own GNSS sets the scale: after the
-smoother converged, stretches of the real gaps' lengths are withheld where the GNSS is present
+Citation II's gaps and five to ten times too wide in sd for a simulated flight in a steady wind. One
+fixed process noise cannot serve both, so the flight's own GNSS sets the scale: after the smoother
+converged, stretches of the real gaps' lengths are withheld where the GNSS is present
 (:func:`pseudo_gaps`), the smoother is run once more without them, and the withheld fixes'
 normalised errors give the factor ``f`` of the in-gap excess variance (:func:`calibration_factor`,
 eq. G3) that is then applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
@@ -382,15 +382,11 @@ def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
     Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the smoother
     learns the wind's change only as the ground velocity's change from the loads less the air
     velocity's; the loads' error integrates to a velocity random walk of PSD ``r =
-    accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` with ``s`` the horizontal
-    ``accel_sampling_mps2_sqrt_hz``.  The smoothed wind change is then the share ``kappa = Q / (Q +
-    r L)`` of the observed one (``Q`` the wind model's variance over L;
-    :func:`~flightrecon.methods.joint.health.wind_walk_check`): of a 1 Hz export ``r`` is about 0.08
-    m^2/s^3 (JSBSim's fleet; 0.011 the shipped G1000 export) and over ten minutes of the default
-    walk (``Q`` = 1.5 m^2/s^2) ``kappa`` is 0.03 (0.19), where a wind that turns moves the smoothed
-    wind by little.  A recorder-rate log (no sampling term; ``r`` the budget 0.0025, ``kappa`` 1/2)
-    or any other source of the wind: 0 (the check's bound, ``kappa = 1``, within a factor 2
-    there)."""
+    accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` (``s`` the horizontal
+    ``accel_sampling_mps2_sqrt_hz``), and the smoothed wind change is the share ``kappa = Q / (Q +
+    r L)`` of the observed one (:func:`~flightrecon.methods.joint.health.wind_walk_check`; the
+    figures of a 1 Hz export and of a recorder-rate log: docs/joint.md, "Wind and turbulence").
+    Any other witness of the wind, or no sampling term: 0 (``kappa = 1``)."""
     nz = settings.noise
     s = nz.accel_sampling_mps2_sqrt_hz
     if (not (s[0] > 0 or s[1] > 0) or len(inp.gnss) or len(inp.radar)
@@ -477,6 +473,5 @@ def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
     why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
            f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
            f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
-    return replace(problem, settings=replace(settings, noise=replace(
-        nz, wind_rw_mps_sqrt_s=walk)), choices=(
-        *problem.choices, SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why)))
+    return replace(problem, settings=replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
+                   choices=(*problem.choices, SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why)))

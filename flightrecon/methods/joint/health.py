@@ -4,18 +4,13 @@ from its fixed point when the passes stopped short of the convergence test (:fun
 docs/joint.md, "Filter, smoother, iterations"; docs/output.md, "Method health"), by which the output
 track's standard deviations are widened (:func:`~flightrecon.methods.joint.output.joint_track`).
 
-The settling bound.  The damped Gauss-Newton passes, with the clock offsets, the take-off roll and
-the weights updated between them, converge linearly once the line search takes full steps: each pass
-moves the track by about ``rho`` times what the one before moved it.  Where they reach the cap on
-the passes still contracting (``0 < rho < 1``), the passes still to come would move each state by at
-most the geometric tail of its last change ``d_k``, ``d_k rho / (1 - rho)``, with ``rho`` the
-slowest contraction of the last :data:`CONTRACTION_PASSES` passes.  That bound is compared with the
-state's own smallest position sd: within :data:`SETTLE_SD_FRACTION` of it the track is as good as
-converged and is left as it is; beyond it the bound is added in quadrature to the track's position
-sd, so that the track still covers the fixed point it was converging to.  Without contraction (the
-passes' changes not shrinking, or a failed line search), or while the last pass still moved a state
-by more than its own sd (:data:`LINEAR_REGION_SD`), nothing bounds what the passes would still do:
-the track stays unconverged.
+The settling bound (docs/output.md, "Stopped short").  Passes that reach the cap still contracting
+(each moving the track by ``0 < rho < 1`` times the last) would still move each state by at most the
+geometric tail of its last change, ``d_k rho / (1 - rho)`` (``rho`` the slowest contraction of the
+last :data:`CONTRACTION_PASSES`): within :data:`SETTLE_SD_FRACTION` of the state's smallest position
+sd the track is left as it is, beyond it the bound is added in quadrature to its position sd.
+Without contraction (or a failed line search), or while the last pass moved a state by more than
+:data:`LINEAR_REGION_SD` of its sd, nothing bounds the passes to come: the track stays unconverged.
 """
 
 from __future__ import annotations
@@ -128,35 +123,24 @@ def gust_warnings(run: JointRun, upper_mps: float) -> list[str]:
 
 
 def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt_m: float,
-                    window_s: float = 600.0, p_false: float = 0.01,
-                    loads_psd_m2ps3: float = 0.0,
+                    window_s: float = 600.0, p_false: float = 0.01, loads_psd_m2ps3: float = 0.0,
                     within_s: tuple[float, float] | None = None) -> dict[str, float] | None:
     """Whether the smoothed wind moved faster than the wind's process model allows.
 
-    The model (docs/joint.md, "Wind and turbulence"): over a stretch the wind changes by its
-    gradient times the climb, g dz, plus a random walk of variance ``q_t L + q_h sum|dz|`` per
-    component (``q_t`` = ``wind_rw_mps_sqrt_s``^2 over the time L, ``q_h`` =
-    ``shear_mps_per_sqrt_m``^2 over the height flown through).  The smoothed change of a Gaussian
-    random walk, E[dw | data], has at most that variance (the variance of the true change less the
-    posterior's), so ``z^2 = |dw - g dz|^2 / (q_t L + q_h sum|dz|)`` over the two components is at
-    most chi-square with 2 degrees of freedom.  Windows of ``window_s`` (the record if shorter)
-    every tenth of it; the limit is the chi-square(2) tail ``-2 ln(p_false / n)`` with ``n`` the
-    number of disjoint windows in the record (Bonferroni).  A wind that turns 100 deg in 30 minutes
-    at 22 m/s (JSBSim's holding) gives z^2 near 50 against a limit of 12; the fleet's other flights
-    at most 1.3: the sds then rest on a steadier wind than the one flown through.
+    The model (docs/joint.md, "Wind and turbulence", with the measurements): over a stretch of L the
+    wind changes by its gradient times the climb, g dz, plus a random walk of variance ``Q = q_t L +
+    q_h sum|dz|`` per component (``q_t`` = ``wind_rw_mps_sqrt_s``^2, ``q_h`` =
+    ``shear_mps_per_sqrt_m``^2).  The smoothed change of a Gaussian random walk has at most that
+    variance, so ``z^2 = |dw - g dz|^2 / Q`` is at most chi-square(2).  Windows of ``window_s`` (the
+    record if shorter) every tenth of it; the limit is the chi-square(2) tail ``-2 ln(p_false /
+    n)``, ``n`` the disjoint windows in the record (Bonferroni).
 
-    Where the loads are the wind's only witness (recorder only: the wind's change is the ground
-    velocity's change integrated from the loads less the air velocity's), ``loads_psd_m2ps3`` is the
-    PSD ``r`` of the loads' velocity random walk (``joint_method.inertial_wind_share``): the
-    observed change over L then has variance ``Q + r L`` per component (``Q`` the walk's variance
-    above) and the smoothed change is its share ``kappa = Q / (Q + r L)``, of variance ``kappa Q``,
-    which replaces ``Q`` in ``z^2`` (0: ``kappa = 1``, the bound above).  ``within_s`` (t0, t1)
-    keeps the windows inside that span, each of the full ``window_s`` (none where the span is
-    shorter): with ``loads_psd_m2ps3`` the stretch clear of the take-off and landing rolls, whose
-    ground velocity (at rest, along the runway) is a second witness of the wind.  The 1 Hz export of
-    that holding (``r`` = 0.080 and 0.063 m^2/s^3, seeds 1 and 2) gives z^2 = 58.8 and 34.9, the
-    shipped G1000 export (``r`` = 0.011) 16.1 (``scripts/onehz_fleet_study.py``,
-    ``scripts/onehz_study.py``).
+    Where the loads are the wind's only witness (recorder only), ``loads_psd_m2ps3`` is the PSD
+    ``r`` of the loads' velocity random walk (:func:`~flightrecon.methods.joint.calibration.
+    inertial_wind_share`): the smoothed change is then the share ``kappa = Q / (Q + r L)`` of the
+    observed one, of variance ``kappa Q``, which replaces ``Q`` in ``z^2`` (0: ``kappa = 1``).
+    ``within_s`` (t0, t1) keeps the windows of the full ``window_s`` inside that span (with
+    ``loads_psd_m2ps3``: clear of the rolls, whose ground velocity is a second witness).
 
     Returns
     -------

@@ -205,9 +205,8 @@ def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
     recorded pressure altitude, ``smooth_s`` running mean, minus its median over the first 2 s on
     the ground: the baro offset cancels) was at least :math:`h_s`, :math:`\\sigma_s` the crossing's
     scatter along the runway (``screen_along_sd_m``) and :math:`w` the unknown runway component of
-    the wind over that time (``float_wind_mps``). A long float (a tail wind, an approach too fast)
-    is then measured instead of assumed (the fixed ``touchdown_m`` put a 737 landing 870 m long 5.8
-    sd off: issue #38).
+    the wind over that time (``float_wind_mps``): a long float is measured, not assumed (issue #38,
+    docs/joint.md).
 
     Returns
     -------
@@ -255,8 +254,7 @@ def runway_end(inp: JointInputs, nz: JointNoise, which: str, t_run: float,
     flare = float_touchdown(inp, nz) if which == "arrival" else None
     if flare is not None:
         dist, sd = flare.touchdown_m, flare.sd_m
-    return EndPoint(which, "runway", float(t_run),
-                    _along_runway_point(threshold, runway_rad, dist),
+    return EndPoint(which, "runway", float(t_run), _along_runway_point(threshold, runway_rad, dist),
                     (sd, nz.runway_halfwidth_m, nz.endpoint_v_m), float(runway_rad), flare)
 
 
@@ -397,16 +395,12 @@ def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
 
 
 def airspeed_floor_psd(t: np.ndarray, tas: np.ndarray, dead: np.ndarray) -> np.ndarray:
-    """The missing accelerations' PSD [(m/s^2)^2/Hz] per input sample (``JointInputs.
-    missing_psd``): 1 outside the windows of :func:`airspeed_floor_windows`; in each of
-    them (a contiguous run of ``dead`` samples, ``W`` seconds) ``V^2 / W``, ``V`` the largest
-    airspeed there, so that the velocity change across the window is unknown by about the
-    airspeed the indicator comes alive at.  Through such a window the aircraft accelerates
-    (a take-off roll: 0.1-0.3 g for the 6 s the derivative's window spans, 6-18 m/s) where the
-    default's zero-mean 1 m/s^2/sqrt(Hz) allowed 2.4 m/s: the ground speed after it was held
-    short of the truth by most of that, and the smoother took the shortfall as a headwind it
-    then kept (the G1000 export with its departure alone: 5.4 m/s of east wind, 3 sd, a track
-    15.7 km off at the end, docs/ingest.md)."""
+    """The missing accelerations' PSD [(m/s^2)^2/Hz] per input sample (``JointInputs.missing_psd``):
+    1 outside the windows of :func:`airspeed_floor_windows`; in each (a contiguous run of ``dead``
+    samples, ``W`` seconds) ``V^2 / W``, ``V`` the largest airspeed there: the velocity change
+    across it is unknown by about the airspeed the indicator comes alive at (a take-off roll gains
+    6-18 m/s in those 6 s, where the default 1 m/s^2/sqrt(Hz) allowed 2.4 m/s and the smoother kept
+    the shortfall as a headwind: the G1000 export 15.7 km off at the end, docs/ingest.md)."""
     psd = np.ones(len(t))
     idx = np.flatnonzero(dead)
     if idx.size == 0:

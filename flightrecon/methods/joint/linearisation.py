@@ -332,9 +332,8 @@ def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight
                    Cst)
 
 
-def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
-               vnom: np.ndarray, psi_hat: np.ndarray | None, clock: dict[str, float],
-               roll: TakeoffRoll) -> PassModels:
+def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray, vnom: np.ndarray,
+              psi_hat: np.ndarray | None, clock: dict[str, float], roll: TakeoffRoll) -> PassModels:
     """Dynamics, measurements and geometry linearised about the nominal (lat, lon, h, vnom, heading
     bias ``psi_hat``; None: zero, the first pass)."""
     inp = fl.inp
@@ -448,8 +447,7 @@ def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
         prior = process = data = const = np.inf
         res, rate, n_fail = np.full(M, np.nan), np.full(M, np.nan), 0
     cost = {"cost": prior + process + data, "cost_prior": prior, "cost_process": process,
-            "cost_data": data, "cost_constant_state_change": const,
-            "cost_q_failures": int(n_fail)}
+            "cost_data": data, "cost_constant_state_change": const, "cost_q_failures": int(n_fail)}
     return Cost(cost, res, rate)
 
 

@@ -1,12 +1,11 @@
-"""The joint smoother's measurement table (:class:`~flightrecon.methods.joint.layout.
-Measurements`): every source's scalar measurements, each at its own time (docs/joint.md,
-"Measurements").  The part that no pass changes (air data, Doppler, recorded wind, the
-winds-aloft prior, pressure altitude, the ground's vertical rows: :func:`static_measurements`)
-is built once; the GNSS, radar, known positions, end points and the runway rows depend on the
-linearisation and the clock offsets (:func:`build_measurements`).  Also here: where the
-air-data heading stands for the air velocity's direction (:func:`nose_along_air`,
-:func:`nose_offset`) and the ground rows (which samples are on the ground, the runway's
-constraints on a roll: :func:`runway_measurements`)."""
+"""The joint smoother's measurement table (:class:`~flightrecon.methods.joint.layout.Measurements`):
+every source's scalar measurements, each at its own time (docs/joint.md, "Measurements").  The part
+that no pass changes (air data, Doppler, recorded wind, the winds-aloft prior, pressure altitude,
+the ground's vertical rows: :func:`static_measurements`) is built once; the GNSS, radar, known
+positions, end points and the runway rows depend on the linearisation and the clock offsets
+(:func:`build_measurements`).  Also here: where the air-data heading stands for the air velocity's
+direction (:func:`nose_along_air`, :func:`nose_offset`) and the ground rows (which samples are on
+the ground, the runway's constraints on a roll: :func:`runway_measurements`)."""
 
 from __future__ import annotations
 
@@ -73,6 +72,12 @@ class _MeasBuilder:
         self.parts.append({"source": np.full(m, SOURCES.index(source)), "mtype": np.full(m, mtype),
                            "t": t, "z": z, "r": r, "hrow": hrow, "d": dm, "ok": ok,
                            "rate": rt})
+
+    def add_state(self, source: str, t: np.ndarray, z, r, col: int) -> None:
+        """``LINEAR`` rows on the state component ``col`` alone: h = x[col]."""
+        H = np.zeros((len(t), self.n))
+        H[:, col] = 1.0
+        self.add(source, jl.LINEAR, t, z, r, H)
 
     def build(self) -> Measurements:
         T = self.T
@@ -167,7 +172,6 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     once)."""
     nz = settings.noise
     b = _MeasBuilder(T)
-    n = jl.N_STATE
     t_in = inp.t_in
 
     # air data: airspeed and heading, decimated, airborne speeds only
@@ -205,26 +209,18 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     if inp.wind_ne is not None:
         okw = np.isfinite(inp.wind_ne).all(axis=1) & decimate_mask(t_in, settings.wind_rate_hz)
         for i in range(2):
-            H = np.zeros((int(okw.sum()), n))
-            H[:, jl.IW + i] = 1.0
-            b.add("wind", jl.LINEAR, t_in[okw], inp.wind_ne[okw, i], nz.wind_sensor_mps ** 2, H)
+            b.add_state("wind", t_in[okw], inp.wind_ne[okw, i], nz.wind_sensor_mps ** 2, jl.IW + i)
     # the winds-aloft prior (--wind): one pseudo-measurement per correlation length
     tw, ww, sdw, _rho = wind_prior_measurements(inp, settings)
     for i in range(2):
-        H = np.zeros((len(tw), n))
-        H[:, jl.IW + i] = 1.0
-        b.add("wind_aloft", jl.LINEAR, tw, ww[:, i], sdw ** 2, H)
+        b.add_state("wind_aloft", tw, ww[:, i], sdw ** 2, jl.IW + i)
     # pressure altitude
     okb = np.isfinite(inp.baro_rel_m) & decimate_mask(t_in, settings.baro_rate_hz)
     b.add("baro", jl.BARO, t_in[okb], inp.baro_rel_m[okb], nz.baro_m ** 2)
     # on the ground: zero vertical velocity (the cross-track constraints depend on the heading
     # bias and the nominal, see build_measurements)
-    keep = on_ground_mask(inp, settings)
-    if keep.any():
-        tt = t_in[keep]
-        H = np.zeros((len(tt), n))
-        H[:, jl.IV + 2] = 1.0
-        b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+    tt = t_in[on_ground_mask(inp, settings)]
+    b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + 2)
     return b
 
 
@@ -276,9 +272,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         t_in = inp.t_in
         tt = t_in[on_ground_mask(inp, settings) & (t_in >= r0) & (t_in <= r1)]
         for i in range(2):
-            H = np.zeros((len(tt), jl.N_STATE))
-            H[:, jl.IV + i] = 1.0
-            b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), nz.ground_mps ** 2, H)
+            b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + i)
         lineup_heading(b, inp, settings, tt)
     _endpoint_measurements(b, inp, settings, T, Cen, roll)
     return b.build()
@@ -288,8 +282,8 @@ def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source:
                     sd, kind: str = "pos", ecef=None, acc: np.ndarray | None = None) -> None:
     """Add the NED components of a position (given in ECEF, ``kind="pos"``: three ``NED_POS``
     measurements, whose rows the kernel builds from the step's frame with the tau term) or a
-    velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to ``b``.
-    A velocity is carried to its own time as the position is: h = v_i + a_i tau with ``acc`` (M, 2)
+    velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to ``b``. A
+    velocity is carried to its own time as the position is: h = v_i + a_i tau with ``acc`` (M, 2)
     the north and east acceleration at each (None: h = v_i, the velocity at the step)."""
     k = nearest_index(T, t)
     tau = np.asarray(t, float) - T[k]
@@ -310,21 +304,17 @@ def _substitute_height(T: np.ndarray, t: np.ndarray, pnom: np.ndarray) -> np.nda
     return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
 
 
-def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
-                       T: np.ndarray, Cen: np.ndarray, clock: dict[str, float],
-                       pnom: np.ndarray) -> None:
+def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings, T: np.ndarray,
+                       Cen: np.ndarray, clock: dict[str, float], pnom: np.ndarray) -> None:
     """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities, at
     their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the receiver's
     per-fix accuracy.
 
-    Each is carried from its state step to its own time, the fixes by the state's velocity,
-    the velocities by their own acceleration (:func:`gnss_acceleration`; not the iterate's,
-    which would make the measurement function depend on the trajectory beyond the state at
-    its step: the Gauss-Newton step was then no descent direction of the cost, and the line
-    search failed on two real G1000 exports).  A velocity taken 0.4 s from its step in a
-    3 m/s^2 turn differs from the step's by 1.2 m/s; compared at the step, the velocities held
-    the clock offset's estimate near zero (a circuit with its GNSS stamped 0.375 s late:
-    -0.05 s, the track 23 m RMS from the truth; test ``test_gnss_clock_offset_recovered``)."""
+    Each is carried from its state step to its own time, the fixes by the state's velocity, the
+    velocities by their own acceleration (:func:`gnss_acceleration`; the iterate's would make the
+    measurement function depend on the trajectory beyond its step, and the Gauss-Newton step no
+    descent direction); compared at the step, the velocities held the clock offset's estimate near
+    zero (docs/joint.md, "Filter, smoother, iterations", item 4)."""
     nz = settings.noise
     g = inp.gnss
     if not len(g):
@@ -532,9 +522,8 @@ def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_E
     stretch within 10 deg of the take-off run's heading), the whole record before lift-off where it
     is not known.  Arrival: from touchdown to the runway exit, the first sample after which the
     heading is more than ``exit_deg`` from the landing roll's (its circular mean from 2 to 6 s after
-    touchdown, when the crab is gone), to the end where it does not turn off.  Before, the record
-    could start at the stand and end there: the runway's centreline rows then held the taxi (issue
-    #36: 233 m off at lift-off on the Garmin export with a 24 m sd).
+    touchdown, when the crab is gone), to the end where it does not turn off (a record from stand to
+    stand: the centreline rows no longer hold the taxi, issue #36).
     """
     t = inp.t_in
     if departure:
@@ -563,44 +552,27 @@ def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_E
 def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
                          step_of, pnom: np.ndarray, vnom: np.ndarray,
                          psi_hat: np.ndarray | None = None) -> None:
-    """Rolling on the runway: zero cross-track velocity, and zero cross-track offset from the
-    centreline through the runway's threshold, or through the airfield reference point where no
-    threshold is given.  That point need not lie on the runway (an apron, a stand, an ARP between
-    runways): its distance from the centreline is one error for the whole roll, known no better than
-    the reference itself (``endpoint_h_m``), so each of the roll's m centreline rows carries
-    ``runway_halfwidth_m^2 + m endpoint_h_m^2`` (as the slip below: the roll tells the cross-track
-    position one reference's worth, not m of them).
+    """Rolling on the runway (docs/joint.md, "Measurements", with the JSBSim fleet's measurements
+    that chose the defaults): zero cross-track velocity, and zero cross-track offset from the
+    centreline through the runway's threshold, else through the airfield reference point, whose
+    distance from the centreline (an apron, a stand) is one error for the whole roll known no better
+    than ``endpoint_h_m``: each of the roll's m centreline rows carries ``runway_halfwidth_m^2 + m
+    endpoint_h_m^2`` (the roll tells the cross-track position one reference's worth, not m).
 
-    ``settings.roll_velocity`` = "runway" (the default): the velocity rows hold the velocity
-    along the runway's direction, the airfield's ``runway_true_deg`` where the metadata give
-    it (then the ground roll ties the heading reference: the recorded heading minus the
-    heading bias must follow the runway).  Otherwise, and with ``roll_velocity`` = "nose",
-    along the true heading, psi_rec - dpsi (the recorded heading carries the heading bias;
-    the wheels roll where the nose points, the tyres' slip angles a fraction of a degree):
-    c(psi_rec - dpsi) . v ~ c(psi_rec) . v + dpsi a(psi_rec) . v_nom, with c and a the cross-
-    and along-heading unit vectors, linearised at dpsi = 0 and the nominal (the neglected term
-    is dpsi^2 / 2 of the along-track value: 3 mm/s at 1 deg and 70 m/s). Taking the recorded
-    heading itself would tell the smoother that the heading bias is zero. ``psi_hat`` (per
-    state step) is the heading bias of the last pass: the linearisation is about it,
+    The velocity rows hold the velocity along the runway's direction (``roll_velocity`` = "runway",
+    the default, where the metadata give ``runway_true_deg``: the roll then ties the heading
+    reference), else (and with "nose") along the true heading psi_rec - dpsi (the wheels roll where
+    the nose points), linearised about the last pass's heading bias ``psi_hat`` (per state step):
     c(psi_rec - dpsi) . v ~ c(psi') . v + (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec -
-    psi_hat (exact at the solution however large the bias).  With "nose" the runway's
-    direction reaches the bias through the centreline rows and the line-up
-    (:func:`lineup_heading`) only: a roll's track leaves the runway's direction where the
-    aircraft is steered (JSBSim's Cessna 310 swerves 5-14 deg on its take-off roll, 1-3 m/s
-    across the runway), and the runway rows then make the heading bias take up the swerve
-    (docs/jsbsim.md, "Fleet study": 4.9 +- 0.4 deg for a true -0.6); measured on the fleet,
-    the nose rows cost the long flights more than they gave the circuits, so the default
-    stays "runway".
+    psi_hat and c, a the cross- and along-heading unit vectors (exact at the solution; the recorded
+    heading itself would tell the smoother the bias is zero).  With "nose" the runway's direction
+    reaches the bias through the centreline rows and the line-up (:func:`lineup_heading`) only.
 
-    ``ground_slip_deg`` (default 0): an angle between track and runway common to the whole roll
-    (steering corrections, the tyres' slip angles in a crosswind, a crab kept after touchdown), not
-    a noise that averages out over its samples.  Each of a roll's ``m`` cross-track velocity rows
-    carries it as the extra variance ``m (s V)^2`` (V: the roll's fastest speed, :func:`roll_speed`,
-    from the data and not the iterate, so that the cost function stays the same from pass to pass),
-    so that the roll's velocity rows tell the heading bias no more than one such angle's worth
-    (``s^2`` against ``s^2 / m`` for independent errors).  The centreline rows keep their half-width
-    (25 m: 1.4 deg over 1000 m of roll).  With it the cross-country flights lost more than the
-    upsets gained, so the default is 0 (docs/jsbsim.md).
+    ``ground_slip_deg`` s (default 0): an angle between track and runway common to the whole roll
+    (steering, tyre slip in a crosswind, a crab kept after touchdown), carried by each of the m
+    cross-track velocity rows as the extra variance ``m (s V)^2`` (V: :func:`roll_speed`, from the
+    data, so the cost stays the same from pass to pass): the rows tell the heading bias one such
+    angle's worth.
     """
     t_in = inp.t_in
     keep = on_ground_mask(inp, settings)
@@ -647,7 +619,6 @@ def _roll_velocity_rows(b: Any, inp: JointInputs, settings: JointSettings, sel: 
     linearisation and direction (for the centreline rows)."""
     nz = settings.noise
     slip = np.radians(nz.ground_slip_deg)
-    n = jl.N_STATE
     dep_end, rw, t_edge = ends
     known = rw is not None
     # along the runway's direction (only its line matters: a reversed direction is the
@@ -657,7 +628,7 @@ def _roll_velocity_rows(b: Any, inp: JointInputs, settings: JointSettings, sel: 
     nose = not known or settings.roll_velocity == "nose"
     ph = np.zeros(len(tt)) if psi_hat is None or not nose else psi_hat[k]
     psi = inp.heading_rad[sel] - ph if nose else np.full(len(tt), rw)
-    H = np.zeros((len(tt), n))
+    H = np.zeros((len(tt), jl.N_STATE))
     H[:, jl.IV] = -np.sin(psi)
     H[:, jl.IV + 1] = np.cos(psi)
     v_roll = roll_speed(inp, settings, t_edge)
@@ -684,7 +655,6 @@ def _centreline_rows(b: Any, settings: JointSettings, pos: tuple[float, float, f
     ``on_line``, or the airfield's reference point) on the rows ``(tt, k, ph, psi)`` of the
     centreline samples (:func:`runway_measurements`)."""
     nz = settings.noise
-    n = jl.N_STATE
     known = rw is not None
     tt, k, ph, psi = rows
     # the centreline: the runway's direction where known (only its line matters: a
@@ -696,13 +666,11 @@ def _centreline_rows(b: Any, settings: JointSettings, pos: tuple[float, float, f
     Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
     cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
     along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
-    H = np.zeros((len(tt), n))
+    H = np.zeros((len(tt), jl.N_STATE))
     H[:, jl.S_POS] = cross
     if not known:
         H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
-    # without a threshold the line runs through the airfield's reference point, whose
-    # distance from the centreline is not known better than the reference itself
-    # (endpoint_h_m): one error common to the roll's m rows, m endpoint_h_m^2 on each
+    # off the line (no threshold): one error of endpoint_h_m common to the roll's m rows
     r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line else len(tt) * nz.endpoint_h_m ** 2)
     b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H, -cross @ arp - H[:, jl.IPSI] * ph)
 

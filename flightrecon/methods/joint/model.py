@@ -448,21 +448,17 @@ def joint_model(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo:
     # the clock columns up to the last one a measurement uses (a 10-hour flight's three
     # (N, n) columns before and after the update are 45 MB: the radar's, last, only with radar)
     nc = 0 if clock is None else int(max(np.max(clock[0], initial=-1) + 1, 1))
-    return JointModel(
-        dyn, meas, geo, float(gate),
-        np.zeros((0, n)) if xlin is None else xlin,
-        xf, Pf, xp, Pp,
-        np.full(M, np.nan) if forward else none,
-        np.full(M, np.nan) if forward else none,
-        np.ones(M) if forward else none,
-        np.full(m_res, np.nan), np.full(m_res, np.nan), np.full(m_res, np.nan),
-        np.full(m_res, np.nan),
-        np.empty((N if covariances else 0, 6, 6)), np.empty((N if covariances else 0, n)),
-        np.empty(0, dtype=np.int64) if clock is None else clock[0].astype(np.int64),
-        np.empty(0) if clock is None else np.asarray(clock[1], float),
-        np.zeros((0, 0)) if clock is None else np.zeros((nc, nc + 1)),
-        np.zeros((nc, 0 if clock is None else N, n)),
-        np.zeros((nc, 0 if clock is None else N, n)))
+    return JointModel(dyn, meas, geo, float(gate), np.zeros((0, n)) if xlin is None else xlin, xf,
+                      Pf, xp, Pp, np.full(M, np.nan) if forward else none,
+                      np.full(M, np.nan) if forward else none, np.ones(M) if forward else none,
+                      np.full(m_res, np.nan), np.full(m_res, np.nan), np.full(m_res, np.nan),
+                      np.full(m_res, np.nan), np.empty((N if covariances else 0, 6, 6)),
+                      np.empty((N if covariances else 0, n)),
+                      np.empty(0, dtype=np.int64) if clock is None else clock[0].astype(np.int64),
+                      np.empty(0) if clock is None else np.asarray(clock[1], float),
+                      np.zeros((0, 0)) if clock is None else np.zeros((nc, nc + 1)),
+                      np.zeros((nc, 0 if clock is None else N, n)),
+                      np.zeros((nc, 0 if clock is None else N, n)))
 
 
 # ---- helpers at one step ----
@@ -539,21 +535,19 @@ def _clock_column_update(j, k, g, nu, S, H, hnz, nh, PH, xg, ccol, cnorm, ng):
     """The clock offsets' columns of the augmented filter at scalar measurement j (docs/joint.md,
     "Filter, smoother, iterations", item 4).
 
-    A measurement stamped t_m and used at t_m + c + dc predicts h + g dc, g = dh/dtau its
-    rate at the linearisation point (of a position, :func:`_position_rate`, plus ``crate``).
-    With the offsets' step dc (one per column: :data:`~flightrecon.methods.joint.solve.
-    CLOCK_SOURCES`) as constant regression parameters of the
-    pass's linearised model, the filtered state is x(dc) = x(0) - X_g dc and the innovations
-    nu(dc) = nu - nu_g . dc, where the columns X_g (``xg[:, k]``, (C, n) at step k) are the
-    same filter run on the data g_c = g [column of j is c] from zero, with no control input:
-    nu_g,c = g_c - H X_g,c, X_g,c <- X_g,c + K nu_g,c (K = P H^T / S,
-    the gain of this update) and X_g,c <- F_k X_g,c between the steps (the augmented Kalman
-    filter: de Jong 1991, "The diffuse Kalman filter", Ann. Stat. 19, 1073-1083; Durbin &
-    Koopman 2012, "Time series analysis by state space methods", 6.2.2).  The pass's MAP cost
-    profiled over the track is then sum_j (nu_j - nu_g,j . dc)^2 / S_j + const, so the
-    Gauss-Newton step of the offsets jointly with the track solves A dc = b with
-    A = sum nu_g nu_g^T / S and b = sum nu_g nu / S; ``cnorm`` (C, C + 1) accumulates [A b],
-    and A^-1 is the offsets' covariance.  ``ng`` (C,) scratch."""
+    A measurement stamped t_m and used at t_m + c + dc predicts h + g dc, g = dh/dtau its rate at
+    the linearisation point (of a position, :func:`_position_rate`, plus ``crate``). With the
+    offsets' step dc (one per column: :data:`~flightrecon.methods.joint.solve.CLOCK_SOURCES`) as
+    constant regression parameters of the pass's linearised model, the filtered state is x(dc) =
+    x(0) - X_g dc and the innovations nu(dc) = nu - nu_g . dc, where the columns X_g (``xg[:, k]``,
+    (C, n) at step k) are the same filter run on the data g_c = g [column of j is c] from zero, with
+    no control input: nu_g,c = g_c - H X_g,c, X_g,c <- X_g,c + K nu_g,c (K = P H^T / S, the gain of
+    this update) and X_g,c <- F_k X_g,c between the steps (the augmented Kalman filter: de Jong
+    1991, "The diffuse Kalman filter", Ann. Stat. 19, 1073-1083; Durbin & Koopman 2012, "Time series
+    analysis by state space methods", 6.2.2).  The pass's MAP cost profiled over the track is then
+    sum_j (nu_j - nu_g,j . dc)^2 / S_j + const, so the Gauss-Newton step of the offsets jointly with
+    the track solves A dc = b with A = sum nu_g nu_g^T / S and b = sum nu_g nu / S; ``cnorm``
+    (C, C + 1) accumulates [A b], and A^-1 is the offsets' covariance.  ``ng`` (C,) scratch."""
     nc = xg.shape[0]
     for c in range(nc):
         ng[c] = g if ccol[j] == c else 0.0

@@ -181,27 +181,24 @@ def fix_report(frame: OutputFrame, track: pd.DataFrame) -> list[dict[str, Any]]:
     t = track["t_s"].to_numpy(float)
     p = PREFIX
     out: list[dict[str, Any]] = []
-    h_tr = track[p + "alt_m"].to_numpy(float)
+
+    def at(column: str, t_s: float) -> float:
+        return float(np.interp(t_s, t, track[p + column].to_numpy(float)))
+
     for f in frame.fixes:
+        fix = {"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg, "alt_msl_m": f.alt_msl_m,
+               "sd_m": f.sd_m}
         if not t[0] <= f.t_s <= t[-1]:
-            out.append({"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg,
-                        "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m, "used": False})
+            out.append({**fix, "used": False})
             continue
         # the fix at the track's height where it has none (the tangent plane's north and east
         # of a point move with its height: 1.6 m per km of height at 10 km from the origin)
-        h = (float(np.interp(f.t_s, t, h_tr)) if f.alt_msl_m is None
-             else f.alt_msl_m + frame.geoid_undulation_m)
+        h = at("alt_m", f.t_s) if f.alt_msl_m is None else f.alt_msl_m + frame.geoid_undulation_m
         e, n, _u = plane.forward(f.lat_deg, f.lon_deg, h)
-        dn = float(np.interp(f.t_s, t, track[p + "north_m"].to_numpy(float)) - float(n))
-        de = float(np.interp(f.t_s, t, track[p + "east_m"].to_numpy(float)) - float(e))
-        item = {"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg,
-                "alt_msl_m": f.alt_msl_m, "sd_m": f.sd_m, "used": True,
-                "track_minus_fix_north_m": dn, "track_minus_fix_east_m": de,
-                "track_north_sd_m": float(np.interp(f.t_s, t,
-                                                    track[p + "north_sd_m"].to_numpy(float))),
-                "track_east_sd_m": float(np.interp(f.t_s, t,
-                                                   track[p + "east_sd_m"].to_numpy(float)))}
-        out.append(item)
+        out.append({**fix, "used": True, "track_minus_fix_north_m": at("north_m", f.t_s) - float(n),
+                    "track_minus_fix_east_m": at("east_m", f.t_s) - float(e),
+                    "track_north_sd_m": at("north_sd_m", f.t_s),
+                    "track_east_sd_m": at("east_sd_m", f.t_s)})
     return out
 
 

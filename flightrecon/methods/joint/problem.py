@@ -258,8 +258,7 @@ def airfield_geometry(meta: FlightMeta) -> dict[str, Any]:
     return {"station": pos(meta.station), "departure": pos(meta.departure),
             "arrival": pos(meta.arrival),
             "runway_rad": (runway(meta.departure), runway(meta.arrival)),
-            "thresholds": (threshold(meta.departure), threshold(meta.arrival)),
-            "fixes": fixes}
+            "thresholds": (threshold(meta.departure), threshold(meta.arrival)), "fixes": fixes}
 
 
 def recorded_channels(g: pd.DataFrame, meta: FlightMeta, lat_deg: float) -> dict[str, Any]:
@@ -381,8 +380,7 @@ def output_frame(clean: CleanFlight) -> OutputFrame:
     meta = clean.meta
     return OutputFrame(t_s=clean.grid["t_s"].to_numpy(float), plane=output_plane(meta),
                        fixes=tuple(meta.fixes), geoid_undulation_m=meta.geoid_undulation_m,
-                       attitude_source=meta.attitude_source,
-                       wind_levels=tuple(meta.wind_aloft))
+                       attitude_source=meta.attitude_source, wind_levels=tuple(meta.wind_aloft))
 
 
 def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> JointProblem:
@@ -547,8 +545,7 @@ def gnss_tilt_evidence(clean: CleanFlight, inp: JointInputs,
     psi = blocks(inp.heading_rad)
     C = body_to_ned_matrix(att[:, 0], att[:, 1], np.degrees(psi))
     f_ned_h = C[:, :2, :] * (fb * G0_MPS2)[:, None, :]
-    return tilt_evidence(tb, acc, fb, psi, f_ned_h,
-                         g["t_s"].to_numpy(float)[ok], lat[ok], lon[ok],
+    return tilt_evidence(tb, acc, fb, psi, f_ned_h, g["t_s"].to_numpy(float)[ok], lat[ok], lon[ok],
                          ph.liftoff_t_s + 30.0, t_end - 30.0, tau_s=nz.ahrs_tilt_tau_s,
                          window_s=nz.ahrs_tilt_tau_s,
                          horizontal=nz.ahrs_tilt_horizontal or AHRS_TILT_HORIZONTAL)
@@ -567,8 +564,7 @@ _MEASURE: dict = {}
 
 
 def attitude_source_noise(clean: CleanFlight, inp: JointInputs, settings: JointSettings,
-                          evidence: dict | None = _MEASURE
-                          ) -> tuple[JointSettings, str | None]:
+                          evidence: dict | None = _MEASURE) -> tuple[JointSettings, str | None]:
     """The tilt noise from the flight's declared attitude source and its GNSS (docs/joint.md, "The
     attitude reference after sustained loads").
 

@@ -129,9 +129,8 @@ class JointNoise:
 POSITIVE_NOISE = ("accel_bias_tau_s", "tas_mps", "heading_deg", "baro_m", "gnss_h_m", "gnss_v_m",
                   "gnss_vel_mps", "radar_range_m", "radar_azimuth_deg", "radar_elevation_deg",
                   "endpoint_h_m", "endpoint_v_m", "touchdown_sd_m", "roll_start_sd_m",
-                  "lineup_heading_deg",
-                  "ground_mps", "runway_halfwidth_m", "doppler_gs_mps", "drift_deg",
-                  "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m",
+                  "lineup_heading_deg", "ground_mps", "runway_halfwidth_m", "doppler_gs_mps",
+                  "drift_deg", "wind_sensor_mps", "last_position_h_m", "gust_mps", "gust_length_m",
                   "ahrs_tilt_tau_s", "sat_column_k", "screen_along_sd_m", "float_wind_mps")
 """JointNoise fields that must be positive (a zero would be a measurement without noise)."""
 

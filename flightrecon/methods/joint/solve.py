@@ -23,9 +23,9 @@ with the smoothed states: :class:`Smoothed`).  The backward passes run with the 
 core's loops are ``nogil``), so the covariance pass can run on a second thread beside the mean-only
 pass.
 
-The gust sd (docs/joint.md, "Wind and turbulence", with its rules and measurements).  The gust
-``u`` (``S_GUST``) is stationary first-order Gauss-Markov of variance sigma_u^2 per axis, so the
-smoothed moments satisfy E[u_hat^2 + var(u | data)] = sigma_u^2 (law of total variance) and
+The gust sd (docs/joint.md, "Wind and turbulence", with its rules and measurements).  The gust ``u``
+(``S_GUST``) is stationary first-order Gauss-Markov of variance sigma_u^2 per axis, so the smoothed
+moments satisfy E[u_hat^2 + var(u | data)] = sigma_u^2 (law of total variance) and
 
     sigma_u^2 <- mean over the airborne steps and both axes of (u_hat_k^2 + P_uu,k)
 
@@ -83,11 +83,11 @@ from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 
 def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ...]:
-    """Outputs of :func:`forward` for N steps: ``xf`` (N, n), ``Pf`` (N, n (n + 1) / 2),
-    ``xp``, ``Pp`` (the covariances as packed lower triangles, :func:`~flightrecon.estimation.
-    linalg.pack_sym`: half the memory, 190 MB less on a 10-hour flight at 1 Hz; an empty ``Pp``
-    without ``store_predicted``: recomputed backward, bit-identical, 0.2-0.3 s more per pass on
-    that flight)."""
+    """Outputs of :func:`forward` for N steps: ``xf`` (N, n), ``Pf`` (N, n (n + 1) / 2), ``xp``,
+    ``Pp`` (the covariances as packed lower triangles,
+    :func:`~flightrecon.estimation.linalg.pack_sym`: half the memory, 190 MB less on a 10-hour
+    flight at 1 Hz; an empty ``Pp`` without ``store_predicted``: recomputed backward, bit-identical,
+    0.2-0.3 s more per pass on that flight)."""
     n = N_STATE
     L = packed_size(n)
     return (np.empty((N, n)), np.empty((N, L)), np.empty((N, n)),
@@ -895,9 +895,8 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
     at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
                 if np.any(mdl.groups == i) and (it.scale[i] <= lo_b or it.scale[i] >= hi_b)]
     accepted = bool(np.isfinite(ll_est) and ll_est > ll_def)
-    check = {"loglik_estimated": ll_est, "loglik_default": ll_def,
-             "measurements": int(sel.sum()), "accepted": accepted,
-             "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
+    check = {"loglik_estimated": ll_est, "loglik_default": ll_def, "measurements": int(sel.sum()),
+             "accepted": accepted, "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
     if accepted:
         return check, None
     kern_args = (mdl.dyn, scalars1._replace(r=r1 * fw.infl), mdl.geo)
@@ -938,9 +937,8 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
         alpha *= 0.5
 
 
-def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels,
-            start: Cost, r: np.ndarray, weights: np.ndarray, lm_lambda: float
-            ) -> tuple[PassStep | None, float]:
+def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels, start: Cost,
+            r: np.ndarray, weights: np.ndarray, lm_lambda: float) -> tuple[PassStep | None, float]:
     """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2): the
     smoothing pass with the pseudo-measurements of :func:`with_pseudo` about the iterate ``X``,
     lambda from ``lm_lambda0`` (or ten times the last one, ``lm_lambda``) multiplied by 10 until the
@@ -988,9 +986,9 @@ def gust_round(fl: SmootherFlight, it: Iterate, out: PassResult, X: np.ndarray, 
     """The gust sd re-estimated (module docstring) from the pass's smoothed track ``X``
     (``estimate_gust``; :func:`gust_sd_estimate`) after a pass that is not the last and moved the
     track by more than 10 ``converge_m`` or estimates the noise factors too (none of its own where
-    the GNSS pins the track), recorded in the iterate's ``gust_rounds``; where it moved by more
-    than ``gust_tol`` the flight's models take it (:func:`with_gust_sd`) and the next pass starts
-    with new models and a new cost (``parameters_changed``).  At most ``gust_rounds`` changes."""
+    the GNSS pins the track), recorded in the iterate's ``gust_rounds``; where it moved by more than
+    ``gust_tol`` the flight's models take it (:func:`with_gust_sd`) and the next pass starts with
+    new models and a new cost (``parameters_changed``).  At most ``gust_rounds`` changes."""
     s = fl.settings
     changes = sum(r["changed"] for r in it.gust_rounds)
     if not s.estimate_gust or out.var is None or changes >= s.gust_rounds:

@@ -10,15 +10,15 @@ remembered over ``tau``::
 
     D(t) = (1 / tau) int_{-inf}^{t} u(s) exp(-(t - s) / tau) ds                    (1)
 
-In a coordinated turn the specific force leans by the bank angle while its magnitude departs from
-1 g only by ``1/cos(roll) - 1``; with the share ``s`` (``ahrs_tilt_horizontal``; 0, the default:
-the load's departure alone) of the horizontal kinematic acceleration ``a_h`` [g]::
+In a coordinated turn the specific force leans by the bank angle while its magnitude departs from 1
+g only by ``1/cos(roll) - 1``; with the share ``s`` (``ahrs_tilt_horizontal``; 0, the default: the
+load's departure alone) of the horizontal kinematic acceleration ``a_h`` [g]::
 
     u(t) = sqrt( ( |f(t)| - 1 )^2 + s a_h(t)^2 )                                  (1b)
 
-The acceleration error, of sd ``a_e(t) = c D(t)`` (``c`` = ``ahrs_tilt_mps2_per_g``) correlated
-over ``tau``, as a white acceleration with the same velocity error over ``tau``, has the power
-spectral density::
+The acceleration error, of sd ``a_e(t) = c D(t)`` (``c`` = ``ahrs_tilt_mps2_per_g``) correlated over
+``tau``, as a white acceleration with the same velocity error over ``tau``, has the power spectral
+density::
 
     q_tilt(t) = a_e(t)^2 tau = (c D(t))^2 tau                                       (2)
 
@@ -97,9 +97,8 @@ def tilt_psd(t_in: np.ndarray, f_body_g: np.ndarray | None, idx: np.ndarray,
     return (c * D[idx]) ** 2 * nz.ahrs_tilt_tau_s
 
 
-def _gnss_fit_ne(gnss_t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
-                 tq: np.ndarray, half_s: float, min_fixes: int = 8
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def _gnss_fit_ne(gnss_t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, tq: np.ndarray,
+                 half_s: float, min_fixes: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Position (latitude, longitude [rad]) and local-level velocity (north, east [m/s]) at the
     times ``tq``: a cubic fitted by least squares to the fixes within ``half_s`` of each, its
     derivative scaled by the WGS-84 radii of curvature there (the velocity in the local north and
@@ -142,8 +141,7 @@ def _constant_error_integrands(acc_h: np.ndarray, heading_rad: np.ndarray,
     n = len(acc_h)
     psi = np.nan_to_num(np.asarray(heading_rad, float))
     cols = [np.column_stack([-acc_h[:, 1], acc_h[:, 0]]),
-            np.column_stack([np.ones(n), np.zeros(n)]),
-            np.column_stack([np.zeros(n), np.ones(n)]),
+            np.column_stack([np.ones(n), np.zeros(n)]), np.column_stack([np.zeros(n), np.ones(n)]),
             G0_MPS2 * np.column_stack([np.cos(psi), np.sin(psi)]),
             G0_MPS2 * np.column_stack([-np.sin(psi), np.cos(psi)])]
     if f_ned_h is not None:
