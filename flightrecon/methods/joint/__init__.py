@@ -16,25 +16,21 @@ position: valid on flights of any length; outputs converted to the departure tan
 from __future__ import annotations
 
 from flightrecon.methods.joint.inputs import (
-    JointInputs,
     TakeoffRoll,
     enu_to_ecef_matrix,
     refined_roll,
     takeoff_roll,
 )
 from flightrecon.methods.joint.linearisation import attitude_jacobian
-from flightrecon.methods.joint.problem import JointProblem, joint_inputs, joint_problem
 from flightrecon.methods.joint.settings import (
     POSITIVE_NOISE,
     PRIOR_STATES,
-    SOURCES,
     JointNoise,
     JointSettings,
     prior_of,
 )
-from flightrecon.methods.joint.solve import JointRun, smooth_joint
+from flightrecon.methods.joint.solve import smooth_joint
 
-__all__ = ["SOURCES", "JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
-           "enu_to_ecef_matrix", "TakeoffRoll", "JointInputs", "joint_inputs", "takeoff_roll",
-           "refined_roll", "JointProblem", "joint_problem", "attitude_jacobian", "JointRun",
-           "smooth_joint"]
+__all__ = ["JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
+           "enu_to_ecef_matrix", "TakeoffRoll", "takeoff_roll", "refined_roll",
+           "attitude_jacobian", "smooth_joint"]

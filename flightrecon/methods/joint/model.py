@@ -17,32 +17,26 @@ the core's :func:`~flightrecon.estimation.filtering.forward_pass` and
 :func:`~flightrecon.estimation.smoothing.backward_pass` (a step's prediction, scalar updates,
 smoothing covariances: their docstrings).  None of them loops over the time steps.
 
-The MAP cost (:func:`map_cost`) of a state trajectory X = (x_0, ..., x_{N-1}) on the state grid, the
-negative log posterior up to a constant::
+The MAP cost (:func:`map_cost`; docs/joint.md, "MAP cost") of a state trajectory X on the state
+grid, the negative log posterior up to a constant::
 
     J(X) = 1/2 (x_0 - m_0)^T P_0^{-1} (x_0 - m_0)                         (prior)
          + 1/2 sum_k e_k^T Q_k^{-1} e_k,   e_k = x_k - f_k(x_{k-1})       (process)
          + sum_j rho(u_j),                 u_j = (z_j - h_j(x_{k(j)})) / sqrt(R_j)   (data)
 
-with f_k the transition (F_k x + the measured increments) and h_j the measurement functions, both
-evaluated with the models built about X itself (nominal = X), so that the linearisation terms vanish
-and J is the nonlinear model's cost.  ``rho`` is the robust loss whose iteratively reweighted least
-squares weights the smoother uses (Huber with threshold ``c``, constant beyond ``c_rej``)::
+with the transition f_k and the measurement functions h_j of the models built about X itself (the
+linearisation terms vanish: the nonlinear model's cost) and the robust loss (Huber with threshold
+``c``, constant beyond ``c_rej``; u^2/2 without ``robust``)::
 
     rho(u) = u^2 / 2                      |u| <= c
            = c |u| - c^2 / 2              c < |u| <= c_rej
            = c c_rej - c^2 / 2            |u| > c_rej
 
-As a function of s = u^2 it is concave with derivative w/2, w = min(1, c/|u|) (0 beyond c_rej): the
-weighted quadratic w u^2/2 + const is a tangent majoriser, so an IRLS step with those weights is a
-majorise-minimise step on J (Lange, Hunter & Yang 2000); with ``robust`` False rho(u) = u^2/2.
-
-States without process noise (the scale errors, the roll and pitch biases, the Doppler and drift
-errors: Q_k,ii = 0) are constants of the model: the RTS smoother keeps them constant exactly (its
-gain row of such a state is the unit row), they carry no process term, and the largest step change
-of them is returned as a check (it is rounding, not a penalty).  The same holds for a state whose
-Q_k,ii is below rounding of the state itself ((64 eps |x|)^2: the term could not be told from
-rounding).
+concave in s = u^2 with derivative w/2, w = min(1, c/|u|) (0 beyond c_rej): the IRLS step with those
+weights is a majorise-minimise step on J (Lange, Hunter & Yang 2000).  States without process noise
+(Q_k,ii = 0, or below rounding of the state, (64 eps |x|)^2) are constants of the model, kept
+constant exactly by the RTS smoother: no process term, their largest step change returned as a
+check.
 """
 
 from __future__ import annotations

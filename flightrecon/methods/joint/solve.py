@@ -258,14 +258,9 @@ def clock_columns(meas: Measurements, settings: JointSettings
     """Each measurement's clock column for the forward pass (:data:`CLOCK_SOURCES`' index; -1 for
     the measurements no offset shifts) and the rate of its prediction with its time that the
     kernel's gradient does not give (``Measurements.rate``); None when no source has
-    :data:`CLOCK_MIN_MEASUREMENTS`.
-
-    With a derived ``n_long_g`` (``settings.long_load_derived``) the GNSS positions' offset is not
-    estimated (held at the cleaning's): the along-track acceleration then has the airspeed's timing,
-    and the GNSS offset common to positions and velocities absorbs the airspeed's lag (the shipped
-    circuit with its ``n_long_g`` dropped: +0.15 +- 0.02 s for a true 0, the track 9.4 m RMS from
-    the truth against 1.0 m at 0); the velocities' offset, relative to the positions, is still
-    estimated."""
+    :data:`CLOCK_MIN_MEASUREMENTS`.  With a derived ``n_long_g`` (``settings.long_load_derived``)
+    the GNSS positions' offset is held at the cleaning's (it would absorb the airspeed's lag, which
+    the along-track acceleration then has: docs/joint.md, item 4); the velocities' is estimated."""
     cols = np.full(len(meas.z), -1, dtype=np.int64)
     for c, (name, src) in enumerate(CLOCK_SOURCES):
         if name == "gnss" and settings.long_load_derived:
