@@ -381,12 +381,12 @@ def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
 
     Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the smoother
     learns the wind's change only as the ground velocity's change from the loads less the air
-    velocity's; the loads' error integrates to a velocity random walk of PSD ``r =
-    accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` (``s`` the horizontal
-    ``accel_sampling_mps2_sqrt_hz``), and the smoothed wind change is the share ``kappa = Q / (Q +
-    r L)`` of the observed one (:func:`~flightrecon.methods.joint.health.wind_walk_check`; the
-    figures of a 1 Hz export and of a recorder-rate log: docs/joint.md, "Wind and turbulence").
-    Any other witness of the wind, or no sampling term: 0 (``kappa = 1``)."""
+    velocity's; the loads' error integrates to a velocity random walk of PSD
+    ``r = accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` (``s`` the horizontal
+    ``accel_sampling_mps2_sqrt_hz``), and the smoothed wind change is the share
+    ``kappa = Q / (Q + r L)`` of the observed one (:func:`~flightrecon.methods.joint.health.
+    wind_walk_check`; the figures of a 1 Hz export and of a recorder-rate log: docs/joint.md, "Wind
+    and turbulence").  Any other witness of the wind, or no sampling term: 0 (``kappa = 1``)."""
     nz = settings.noise
     s = nz.accel_sampling_mps2_sqrt_hz
     if (not (s[0] > 0 or s[1] > 0) or len(inp.gnss) or len(inp.radar)

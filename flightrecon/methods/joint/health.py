@@ -128,12 +128,12 @@ def wind_walk_check(run: JointRun, wind_rw_mps_sqrt_s: float, shear_mps_per_sqrt
     """Whether the smoothed wind moved faster than the wind's process model allows.
 
     The model (docs/joint.md, "Wind and turbulence", with the measurements): over a stretch of L the
-    wind changes by its gradient times the climb, g dz, plus a random walk of variance ``Q = q_t L +
-    q_h sum|dz|`` per component (``q_t`` = ``wind_rw_mps_sqrt_s``^2, ``q_h`` =
+    wind changes by its gradient times the climb, g dz, plus a random walk of variance
+    ``Q = q_t L + q_h sum|dz|`` per component (``q_t`` = ``wind_rw_mps_sqrt_s``^2, ``q_h`` =
     ``shear_mps_per_sqrt_m``^2).  The smoothed change of a Gaussian random walk has at most that
     variance, so ``z^2 = |dw - g dz|^2 / Q`` is at most chi-square(2).  Windows of ``window_s`` (the
-    record if shorter) every tenth of it; the limit is the chi-square(2) tail ``-2 ln(p_false /
-    n)``, ``n`` the disjoint windows in the record (Bonferroni).
+    record if shorter) every tenth of it; the limit is the chi-square(2) tail
+    ``-2 ln(p_false / n)``, ``n`` the disjoint windows in the record (Bonferroni).
 
     Where the loads are the wind's only witness (recorder only), ``loads_psd_m2ps3`` is the PSD
     ``r`` of the loads' velocity random walk (:func:`~flightrecon.methods.joint.calibration.

@@ -149,11 +149,11 @@ def backward(bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars, geo: Ge
 def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.ndarray,
                      dyn: Dynamics, meas: Scalars, geo: Geometry) -> np.ndarray:
     """The clock offsets' smoothed columns X_s,g (2, N, n) from their filtered and predicted ones
-    (:func:`forward`'s, the same pass's ``Pf``, ``Pp``): the mean-only RTS recursion x_s[k] = x_f[k]
-    + C (x_s[k+1] - x_p[k+1]) is linear in (x_f, x_p) with no input of its own, so on the columns it
-    gives d x_s / d c up to sign: the track moved by an offset error dc is x_s - X_s,g dc, and an
-    offset of covariance Sigma adds X_s,g Sigma X_s,g^T to the track's (the marginal covariance of
-    the state augmented by the constant offsets)."""
+    (:func:`forward`'s, the same pass's ``Pf``, ``Pp``): the mean-only RTS recursion
+    x_s[k] = x_f[k] + C (x_s[k+1] - x_p[k+1]) is linear in (x_f, x_p) with no input of its own, so
+    on the columns it gives d x_s / d c up to sign: the track moved by an offset error dc is
+    x_s - X_s,g dc, and an offset of covariance Sigma adds X_s,g Sigma X_s,g^T to the track's (the
+    marginal covariance of the state augmented by the constant offsets)."""
     out = np.empty_like(cxf)
     for c in range(cxf.shape[0]):
         out[c] = backward((cxf[c], Pf, cxp[c], Pp), dyn, meas, geo, False, False).x
@@ -354,9 +354,10 @@ def stop_reason_of(history: list[dict[str, Any]], settings: JointSettings) -> st
 
 
 def innovation_loglik(innov: np.ndarray, innov_var: np.ndarray, sel: np.ndarray) -> float:
-    """Log-likelihood of the data by the prediction-error decomposition, ``-1/2 sum_j (nu_j^2 / S_j
-    + ln(2 pi S_j))`` over the selected scalar innovations ``nu`` with their variances ``S`` (the
-    exact likelihood of the linearised model for the given noise; Harvey 1989, section 3.4)."""
+    """Log-likelihood of the data by the prediction-error decomposition,
+    ``-1/2 sum_j (nu_j^2 / S_j + ln(2 pi S_j))`` over the selected scalar innovations ``nu`` with
+    their variances ``S`` (the exact likelihood of the linearised model for the given noise; Harvey
+    1989, section 3.4)."""
     ok = sel & np.isfinite(innov) & np.isfinite(innov_var) & (innov_var > 0)
     if not ok.any():
         return float("nan")
