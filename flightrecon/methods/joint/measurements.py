@@ -691,20 +691,14 @@ def rest_heading(inp: JointInputs) -> float | None:
 def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
                       ref_rad: float | None = None) -> np.ndarray:
     """Variance [m^2/s^2] of the velocity across the runway that steering makes at each of a roll's
-    samples: the wheels roll where the nose points, so where the recorded heading leaves the
-    lined-up heading ``ref_rad`` (at rest before the roll: :func:`rest_heading`; else the roll's own
-    mean) by d, the heading bias dropping out of the difference, the track leaves the runway by
-    about d: ``(V sin d)^2``, V the roll's fastest speed (:func:`roll_speed`, from the data and not
-    the iterate; at least the speed at the sample, so never less than the swerve's cross-track
-    velocity).  JSBSim's Cessna 310 swings 5-14 deg on its take-off roll and its velocity rows then
-    held the heading bias 4.9 +- 0.4 deg off (docs/jsbsim.md, "Fleet study").
-
-    Parameters
-    ----------
-    heading_rad : recorded headings of the roll's samples [rad]
-    v_roll_mps : the roll's fastest speed [m/s]
-    ref_rad : the lined-up heading [rad]; None: the samples' circular mean
-    """
+    samples (recorded headings ``heading_rad`` [rad]): the wheels roll where the nose points, so
+    where the heading leaves the lined-up heading ``ref_rad`` [rad] (at rest before the roll:
+    :func:`rest_heading`; None: the samples' circular mean) by d, the heading bias dropping out of
+    the difference, the track leaves the runway by about d: ``(V sin d)^2``, V = ``v_roll_mps`` the
+    roll's fastest speed (:func:`roll_speed`, from the data and not the iterate; at least the speed
+    at the sample, so never less than the swerve's cross-track velocity).  JSBSim's Cessna 310
+    swings 5-14 deg on its take-off roll and its velocity rows then held the heading bias
+    4.9 +- 0.4 deg off (docs/jsbsim.md, "Fleet study")."""
     h = np.asarray(heading_rad, dtype=float)
     if h.size == 0:
         return np.zeros(0)

@@ -399,14 +399,9 @@ def noise_update(groups: np.ndarray, hph: np.ndarray, r0: np.ndarray, res: np.nd
 
 
 def gust_sd_estimate(xs: np.ndarray, var: np.ndarray, airborne: np.ndarray) -> float | None:
-    """sqrt(mean(u_hat^2 + P_uu)) over the steps ``airborne`` and both gust axes (module docstring);
-    None without such a step or with a non-finite value.
-
-    Parameters
-    ----------
-    xs, var : (N, n) smoothed states and their variances.
-    airborne : (N,) bool, the steps whose air data the smoother uses.
-    """
+    """sqrt(mean(u_hat^2 + P_uu)) of the smoothed states ``xs`` and variances ``var`` (N, n) over
+    the steps ``airborne`` (N,) (whose air data the smoother uses) and both gust axes (module
+    docstring); None without such a step or with a non-finite value."""
     if not airborne.any():
         return None
     m = float(np.mean(xs[airborne, jl.S_GUST] ** 2 + var[airborne, jl.S_GUST]))
