@@ -22,6 +22,7 @@ from flightrecon.methods.joint.inputs import (
     takeoff_roll,
 )
 from flightrecon.methods.joint.linearisation import attitude_jacobian
+from flightrecon.methods.joint.problem import JointProblem, joint_problem
 from flightrecon.methods.joint.settings import (
     POSITIVE_NOISE,
     PRIOR_STATES,
@@ -29,8 +30,8 @@ from flightrecon.methods.joint.settings import (
     JointSettings,
     prior_of,
 )
-from flightrecon.methods.joint.solve import smooth_joint
+from flightrecon.methods.joint.solve import JointRun, smooth_joint
 
 __all__ = ["JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
            "enu_to_ecef_matrix", "TakeoffRoll", "takeoff_roll", "refined_roll",
-           "attitude_jacobian", "smooth_joint"]
+           "attitude_jacobian", "JointProblem", "joint_problem", "JointRun", "smooth_joint"]
