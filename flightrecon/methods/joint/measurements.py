@@ -86,16 +86,18 @@ class _MeasBuilder:
         cat = {k: np.concatenate([p[k] for p in self.parts]) if self.parts else np.zeros(0)
                for k in keys}
         H = np.concatenate(self.H) if self.H else np.zeros((0, self.n))
-        ok = cat["ok"].astype(bool) & (cat["t"] >= T[0] - 0.5 * (T[1] - T[0] if N > 1 else 1)) & (
-            cat["t"] <= T[-1] + 0.5 * (T[-1] - T[-2] if N > 1 else 1))
+        half_first = 0.5 * (T[1] - T[0] if N > 1 else 1)
+        half_last = 0.5 * (T[-1] - T[-2] if N > 1 else 1)
+        t_all = cat["t"]
+        ok = cat["ok"].astype(bool) & (t_all >= T[0] - half_first) & (t_all <= T[-1] + half_last)
         # each part's state steps found once: the static parts (air data, baro, ...) are
         # shared by every pass's builder on the same grid and keep theirs
         for p in self.parts:
             if p.get("grid") is not T:
                 p["step"], p["grid"] = nearest_index(T, p["t"]), T
         t = cat["t"][ok]
-        step = np.concatenate([p["step"] for p in self.parts])[ok] if self.parts else \
-            np.zeros(0, np.int64)
+        step = (np.concatenate([p["step"] for p in self.parts])[ok] if self.parts
+                else np.zeros(0, np.int64))
         order = np.flatnonzero(ok)[np.lexsort((t, step))]
         step = np.sort(step, kind="stable")
         start = np.searchsorted(step, np.arange(N + 1), side="left")
