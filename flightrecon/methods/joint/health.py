@@ -1,8 +1,9 @@
-"""The health of a joint smoother run: per-source residual statistics, the estimated clock offsets,
-sensor errors and gusts that deserve a word, the wind-walk check, and how far the track still was
-from its fixed point when the passes stopped short of the convergence test (:func:`settling`;
-docs/joint.md, "Filter, smoother, iterations"; docs/output.md, "Method health"), by which the output
-track's standard deviations are widened (:func:`~flightrecon.methods.joint.output.joint_track`).
+"""The checks of a joint smoother run and their warnings, run once by :func:`run_health`
+(docs/output.md, "Method health"; docs/joint.md, "Outputs"): per-source residual statistics, the
+innovations' chi-square, the sensor errors and how far from their priors, clock offsets and gusts
+that deserve a word, the wind-walk check, and how far the track still was from its fixed point
+when the passes stopped short of the convergence test (:func:`settling`; docs/joint.md, "Filter,
+smoother, iterations"), by which the output track's sd is widened.
 
 The settling bound (docs/output.md, "Stopped short").  Passes that reach the cap still contracting
 (each moving the track by ``0 < rho < 1`` times the last) would still move each state by at most the
@@ -15,12 +16,17 @@ Without contraction (or a failed line search), or while the last pass moved a st
 
 from __future__ import annotations
 
+import warnings as _warnings
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from flightrecon.errors import FlightReconWarning
+from flightrecon.estimation.consistency import ChiSquareVerdict, chi_square_verdict
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.settings import SOURCES
+from flightrecon.methods.joint.problem import JointProblem
+from flightrecon.methods.joint.settings import PRIOR_STATES, SOURCES, JointSettings, prior_of
 from flightrecon.methods.joint.solve import JointRun
 
 
@@ -35,26 +41,20 @@ def source_report(run: JointRun, flag_fraction: float = 0.01) -> dict[str, Any]:
         if not sel.any():
             continue
         rn = run.resid_norm[sel]
-        w = run.weights[sel]
         t = m.t[sel]
-        down = w < 0.999
         big = np.abs(rn) > 5.0
-        spans = []
-        if big.any():
+        spans: list[list[float]] = []
+        if big.any():   # the times beyond 5 sigma, split where more than 10 s apart
             tb = np.unique(t[big])
-            start = prev = tb[0]
-            for ti in tb[1:]:
-                if ti - prev > 10.0:
-                    spans.append([float(start), float(prev)])
-                    start = ti
-                prev = ti
-            spans.append([float(start), float(prev)])
+            cut = np.flatnonzero(np.diff(tb) > 10.0)
+            spans = [[float(a), float(b)]
+                     for a, b in zip(tb[np.r_[0, cut + 1]], tb[np.r_[cut, -1]])]
         innov_ok = np.isfinite(run.innov[sel]) & (run.innov_var[sel] > 0)
         nis = run.innov[sel][innov_ok] ** 2 / run.innov_var[sel][innov_ok]
         out[name] = {"count": int(sel.sum()),
                      "mean_norm_residual_sq": float(np.nanmean(rn ** 2)),
                      "mean_nis": float(np.mean(nis)) if len(nis) else None,
-                     "downweighted": int(down.sum()),
+                     "downweighted": int((run.weights[sel] < 0.999).sum()),
                      "beyond_5_sigma": int(big.sum()),
                      "flagged_inconsistent": bool(big.mean() > flag_fraction),
                      "flagged_spans_s": spans[:50]}
@@ -264,12 +264,141 @@ def settling_sentence(s: dict[str, Any]) -> str:
             f"{s['last_change_m']:.2g} m")
     if s["verdict"] == "unbounded":
         if (s.get("last_change_over_sd") or 0.0) > LINEAR_REGION_SD:
-            return head + f", {s['last_change_over_sd']:.2g} of its sd: still far from where " \
-                          "its passes converge, nothing bounds what more passes would do"
-        return head + ", its passes' changes not shrinking: nothing bounds what more passes " \
-                      "would do"
+            return head + (f", {s['last_change_over_sd']:.2g} of its sd: still far from where "
+                           "its passes converge, nothing bounds what more passes would do")
+        return head + (", its passes' changes not shrinking: nothing bounds what more passes "
+                       "would do")
     tail = (f"; contracting by {s['contraction']:.3f} a pass, more passes would move it by at "
             f"most {s['remaining_m']:.2g} m, {s['remaining_over_sd']:.2g} of its sd")
     if s["verdict"] == "settled":
         return head + tail + f" (at most {s['tolerance_over_sd']:g}: as good as converged)"
     return head + tail + ": its position sd is widened by that movement"
+
+
+CORRECTION_UNITS = {
+    "heading_bias_deg": "deg (measured - true)",
+    "tas_scale": "TAS_measured = (1 + s) TAS_true",
+    "baro_offset_m": "m",
+    "baro_scale": "h_p - h_p,field = (1 + c)(h - h_field) + b_h",
+    "accel_bias_x_g": "g (body forward, measured - true)",
+    "accel_bias_y_g": "g (body right)",
+    "accel_bias_z_g": "g (body down, of -n_norm)",
+    "doppler_scale": "W_measured = (1 + k) W_true",
+    "accel_scale_x": "f_measured = (1 + s) f_true + b, body forward",
+    "accel_scale_y": "body right",
+    "accel_scale_z": "body down",
+    "drift_bias_deg": "deg (measured - true)",
+    "roll_bias_deg": "deg (measured - true)",
+    "pitch_bias_deg": "deg (measured - true)",
+    "wind_gradient_n_per_km": "(m/s)/km: change of the north wind with height (at the middle of "
+                              "the record)",
+    "wind_gradient_e_per_km": "(m/s)/km, east",
+}
+"""What each sensor error of the summary's ``corrections`` means (docs/joint.md, "Outputs")."""
+
+
+def corrections_at_middle(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
+    """The sensor errors of :data:`~flightrecon.methods.joint.settings.PRIOR_STATES`, value and sd
+    at the middle of the record in the reported unit, with the prior each was given
+    (``prior_mean``, ``prior_sd``, same unit)."""
+    k = len(run.t) // 2
+    settings = settings or JointSettings()
+    out = {}
+    for name, (i, state_per_unit, _budget) in PRIOR_STATES.items():
+        scale = 1.0 / state_per_unit
+        mean, sd = prior_of(name, settings)
+        out[name] = {"value": float(run.x[k, i] * scale),
+                     "sd": float(np.sqrt(max(run.var[k, i], 0.0)) * scale),
+                     "unit": CORRECTION_UNITS[name], "prior_mean": mean, "prior_sd": sd}
+    return out
+
+
+def innovation_verdict(run: JointRun) -> ChiSquareVerdict:
+    """The chi-square verdict of the forward innovations of the measurements the smoother kept at
+    full weight (the robustly down-weighted ones are reported per source, not held against the
+    noise model)."""
+    full = (run.weights >= 1.0) & (run.innov_var > 0)
+    nis = run.innov ** 2 / np.where(full, run.innov_var, 1.0)
+    return chi_square_verdict(np.where(full, nis, np.nan))
+
+
+@dataclass(frozen=True)
+class RunHealth:
+    """What :func:`run_health` found: the summary's entries of the same names (docs/output.md,
+    "The summary JSON"; docs/joint.md, "Outputs"; ``settling`` only for a run stopped short) and
+    the remaining movement per state that widens the track's sd (a ``widened`` settling only)."""
+
+    healthy: bool
+    converged: bool
+    consistency: ChiSquareVerdict
+    corrections: dict[str, Any]
+    sources: dict[str, Any]
+    warnings: list[str]
+    settling: dict[str, Any] | None
+    remaining_k_m: np.ndarray | None
+
+
+def run_health(problem: JointProblem, run: JointRun, wind_rounds: list[dict[str, Any]],
+               gap_calibration: dict[str, Any] | None) -> RunHealth:
+    """Every check of the solved and calibrated ``run``, once, with the warnings in the order the
+    user reads them (``wind_rounds``, ``gap_calibration``: the calibrations' reports).  Healthy:
+    finite states with positive position and velocity variances, no gross mean NIS, no sensor error
+    beyond :data:`IMPLAUSIBLE_PRIOR_SD`, the wind within its walk (:func:`wind_walk_check`);
+    converged: finite and the passes' own test (docs/joint.md, "Filter, smoother, iterations")."""
+    settings, nz, nc = problem.settings, problem.settings.noise, run.noise_check
+    settle = settling(run)
+    sources = source_report(run)
+    warnings = [*problem.inputs.notes, *([problem.attitude_note] if problem.attitude_note else [])]
+    warnings += [f"joint: source '{name}' inconsistent with the others in {st['beyond_5_sigma']} "
+                 f"measurements (spans {st['flagged_spans_s'][:5]} s); down-weighted"
+                 for name, st in sources.items() if st["flagged_inconsistent"]]
+    if nc is not None and not nc["accepted"]:
+        warnings.append("joint: the estimated noise did not raise the likelihood of the data "
+                        f"(log-likelihood {nc['loglik_estimated']:.1f} vs "
+                        f"{nc['loglik_default']:.1f} with the defaults): the default noise is "
+                        "kept")
+    elif nc is not None and nc["factors_at_bound"]:
+        warnings.append(f"joint: noise factors at their bound {nc['bounds']}: "
+                        f"{', '.join(nc['factors_at_bound'])} (the noise settings or the data "
+                        "of these sources are far off)")
+    if settings.estimate_noise and not run.iterations[-1].get("converged"):
+        warnings.append(f"joint: noise estimation did not converge in {len(run.iterations)} "
+                        "iterations; the last factors are used")
+    if not run.converged:
+        warnings.append(f"joint: not converged after {len(run.iterations)} passes: "
+                        f"{run.stop_reason}")
+    warnings += clock_warnings(run) + gust_warnings(run, settings.gust_bounds_mps[1])
+    if run.cholesky_fallbacks:
+        warnings.append(f"joint: on {run.cholesky_fallbacks} steps the predicted covariance was "
+                        "not positive definite to rounding (Cholesky failed); the smoother gain "
+                        "there came from a general solve")
+    if gap_calibration is not None and gap_calibration["factor"] is None:
+        # on the console and at the summary's top level: the gaps' sd is not this flight's
+        warnings.append(f"joint: GNSS gaps {gap_calibration['gaps_s'][:3]} s, but "
+                        f"{gap_calibration['note']}: their position sd is the model's, not "
+                        "calibrated on this flight")
+        _warnings.warn(warnings[-1], FlightReconWarning, stacklevel=4)
+    corrections = corrections_at_middle(run, settings)
+    far = implausible_corrections(corrections)
+    walk = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m)
+    later = [far_warning(name, corrections[name], z) for name, z in far.items()]
+    if wind_rounds and walk is None:
+        later.append(f"joint: the wind changed faster than its default random walk "
+                     f"({wind_rounds[0]['wind_rw_mps_sqrt_s']:g} m/s/sqrt(s)); the walk "
+                     f"re-estimated from the smoothed wind in {len(wind_rounds)} round(s): "
+                     f"{nz.wind_rw_mps_sqrt_s:.3g} m/s/sqrt(s)")
+    if walk is not None:
+        later.append(wind_walk_warning(walk))
+    report = widen = None
+    if settle is not None:
+        report = {**{k: v for k, v in settle.items() if k != "remaining_k_m"},
+                  "sentence": settling_sentence(settle)}
+        widen = settle["remaining_k_m"] if settle["verdict"] == "widened" else None
+    finite = bool(np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0))
+    verdict = innovation_verdict(run)
+    gross = [f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the noise "
+             "settings do not fit this flight"] if verdict.gross else []
+    return RunHealth(healthy=finite and not verdict.gross and not far and walk is None,
+                     converged=finite and run.converged, consistency=verdict,
+                     corrections=corrections, sources=sources, warnings=warnings + gross + later,
+                     settling=report, remaining_k_m=widen)

@@ -1,40 +1,27 @@
 """The joint smoother's output: the track on the input grid (positions by cubic Hermite
 interpolation of the states, their sd in the local level frame, each sample's sources:
-:func:`joint_track`) and what the summary reports of a run (the sensor corrections with their
-priors, the known positions' offsets from the track, the winds-aloft prior used)."""
+:func:`joint_track`) and the summary (:func:`joint_summary`: the run, the checks of
+:func:`~flightrecon.methods.joint.health.run_health`, the known positions' offsets from the track,
+the winds-aloft prior used; docs/output.md, "The summary JSON"; docs/joint.md, "Outputs")."""
 
 from __future__ import annotations
 
+from dataclasses import asdict
 from typing import Any
 
-import numba as nb
 import numpy as np
 import pandas as pd
 
 from flightrecon.geo.frames import TangentPlane, ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
+from flightrecon.methods.joint.health import RunHealth
 from flightrecon.methods.joint.measurements import wind_prior_measurements
 from flightrecon.methods.joint.problem import JointProblem, OutputFrame
-from flightrecon.methods.joint.settings import SOURCES, JointSettings, prior_of
+from flightrecon.methods.joint.settings import SOURCES
 from flightrecon.methods.joint.solve import JointRun
 from flightrecon.tracks import TrackColumns
 
 PREFIX = "joint_"
-
-
-@nb.njit(cache=True, nogil=True)
-def near_any(t_out, tm, window):
-    """For sorted ``t_out`` and sorted ``tm``: is some tm within +-window of each t_out? One
-    merge-like pass, O(len(t_out) + len(tm))."""
-    out = np.zeros(t_out.shape[0], dtype=np.bool_)
-    j = 0
-    m = tm.shape[0]
-    for i in range(t_out.shape[0]):
-        t = t_out[i]
-        while j < m and tm[j] < t - window:
-            j += 1
-        out[i] = j < m and tm[j] <= t + window
-    return out
 
 
 def provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.ndarray:
@@ -44,7 +31,9 @@ def provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.nd
         tm = np.sort(run.meas.t[run.meas.source == s_i])
         if len(tm) == 0:
             continue
-        near = near_any(t_out, tm, window_s if name != "endpoint" else 60.0)
+        window = window_s if name != "endpoint" else 60.0
+        j = np.searchsorted(tm, t_out - window)     # the first measurement not before the window
+        near = (j < len(tm)) & (tm[np.minimum(j, len(tm) - 1)] <= t_out + window)
         code |= near.astype(np.int64) << s_i
     present = np.flatnonzero(np.bincount(code, minlength=1 << len(SOURCES)))
     lookup = np.zeros(1 << len(SOURCES), dtype=np.int64)
@@ -56,39 +45,22 @@ def provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.nd
 
 def hermite_positions(t_out: np.ndarray, T: np.ndarray, p: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Cubic Hermite interpolation of positions ``p`` (N, 3) with their velocities ``v`` (N, 3) from
-    the state times ``T`` to ``t_out`` (error O(dt^4) instead of the a dt^2 / 8 of linear
-    interpolation: 0.6 m in a 25-degree turn at a 1 s state step)."""
+    the state times ``T`` (sorted) to ``t_out`` (any order; clamped to the span): error O(dt^4)
+    instead of the a dt^2 / 8 of linear interpolation, 0.6 m in a 25-degree turn at a 1 s state
+    step."""
+    t_out, T = np.asarray(t_out, float), np.asarray(T, float)
+    p, v = np.asarray(p, float), np.asarray(v, float)
     if len(T) < 2:
         return np.repeat(p[:1], len(t_out), axis=0)
-    return hermite_kernel(np.asarray(t_out, float), np.asarray(T, float),
-                           np.ascontiguousarray(p, dtype=float),
-                           np.ascontiguousarray(v, dtype=float))
-
-
-@nb.njit(cache=True, nogil=True)
-def hermite_kernel(t_out, T, p, v):
-    n = t_out.shape[0]
-    out = np.empty((n, 3))
-    N = T.shape[0]
-    k = 0
-    for i in range(n):
-        t = t_out[i]
-        if k > 0 and t < T[k]:      # t_out not sorted: search again from the start
-            k = 0
-        while k < N - 2 and T[k + 1] <= t:
-            k += 1
-        h = T[k + 1] - T[k]
-        s = (t - T[k]) / h if h > 0 else 0.0
-        s = min(max(s, 0.0), 1.0)
-        s2 = s * s
-        s3 = s2 * s
-        h00 = 2 * s3 - 3 * s2 + 1
-        h10 = (s3 - 2 * s2 + s) * h
-        h01 = -2 * s3 + 3 * s2
-        h11 = (s3 - s2) * h
-        for j in range(3):
-            out[i, j] = h00 * p[k, j] + h10 * v[k, j] + h01 * p[k + 1, j] + h11 * v[k + 1, j]
-    return out
+    k = np.clip(np.searchsorted(T, t_out, side="right") - 1, 0, len(T) - 2)
+    h = T[k + 1] - T[k]
+    s = np.clip(np.divide(t_out - T[k], h, out=np.zeros_like(h), where=h > 0), 0.0, 1.0)
+    s2 = s * s
+    s3 = s2 * s
+    h00, h10 = 2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h
+    h01, h11 = -2 * s3 + 3 * s2, (s3 - s2) * h
+    return (h00[:, None] * p[k] + h10[:, None] * v[k] + h01[:, None] * p[k + 1]
+            + h11[:, None] * v[k + 1])
 
 
 def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
@@ -100,6 +72,7 @@ def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
     up sd: its direction is unknown, so each axis takes the whole of it."""
     T = run.t
     x = run.x
+    sources = provenance(run, t_out)
 
     def interp(v):
         return np.interp(t_out, T, v)
@@ -129,61 +102,19 @@ def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
     out.add("vu", "mps", -interp(x[:, jl.IV + 2]), interp(sd_vel[:, 2]))
     out.add("wind_n", "mps", interp(x[:, jl.IW]), interp(sd_w[:, 0]))
     out.add("wind_e", "mps", interp(x[:, jl.IW + 1]), interp(sd_w[:, 1]))
-    out.add_text("sources", provenance(run, t_out))
+    out.add_text("sources", sources)
     return out.frame()
-
-
-def corrections_at_middle(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
-    """Estimated sensor errors (value and sd at the middle of the record) with the prior each was
-    given (``prior_mean``, ``prior_sd``, same unit)."""
-    k = len(run.t) // 2
-    x, v = run.x[k], run.var[k]
-
-    def item(i, scale=1.0, unit=""):
-        return {"value": float(x[i] * scale), "sd": float(np.sqrt(max(v[i], 0.0)) * scale),
-                "unit": unit}
-
-    out = correction_items(item)
-    for name, it in out.items():
-        it["prior_mean"], it["prior_sd"] = prior_of(name, settings or JointSettings())
-    return out
-
-
-def correction_items(item) -> dict[str, Any]:
-    return {
-        "heading_bias_deg": item(jl.IPSI, np.degrees(1.0), "deg (measured - true)"),
-        "tas_scale": item(jl.IS, 1.0, "TAS_measured = (1 + s) TAS_true"),
-        "baro_offset_m": item(jl.IBH, 1.0, "m"),
-        "baro_scale": item(jl.IC, 1.0, "h_p - h_p,field = (1 + c)(h - h_field) + b_h"),
-        "accel_bias_x_g": item(jl.IBA, 1.0, "g (body forward, measured - true)"),
-        "accel_bias_y_g": item(jl.IBA + 1, 1.0, "g (body right)"),
-        "accel_bias_z_g": item(jl.IBA + 2, 1.0, "g (body down, of -n_norm)"),
-        "doppler_scale": item(jl.IDW, 1.0, "W_measured = (1 + k) W_true"),
-        "accel_scale_x": item(jl.IKS, 1.0, "f_measured = (1 + s) f_true + b, body forward"),
-        "accel_scale_y": item(jl.IKS + 1, 1.0, "body right"),
-        "accel_scale_z": item(jl.IKS + 2, 1.0, "body down"),
-        "drift_bias_deg": item(jl.IDC, np.degrees(1.0), "deg (measured - true)"),
-        "roll_bias_deg": item(jl.IATT, np.degrees(1.0), "deg (measured - true)"),
-        "pitch_bias_deg": item(jl.IATT + 1, np.degrees(1.0), "deg (measured - true)"),
-        "wind_gradient_n_per_km": item(jl.IG, 1000.0, "(m/s)/km: change of the north wind "
-                                       "with height (at the middle of the record)"),
-        "wind_gradient_e_per_km": item(jl.IG + 1, 1000.0, "(m/s)/km, east"),
-    }
 
 
 def fix_report(frame: OutputFrame, track: pd.DataFrame) -> list[dict[str, Any]]:
     """Per known position (``--fix``): the smoothed track's offset from it at its time, north and
     east [m], with the fix's sd and the track's sd there; ``used`` False (and no offsets) for a fix
     outside the reconstructed span (a record trimmed with ``--start`` / ``--end``)."""
-    if not frame.fixes:
-        return []
-    plane = frame.plane
     t = track["t_s"].to_numpy(float)
-    p = PREFIX
     out: list[dict[str, Any]] = []
 
     def at(column: str, t_s: float) -> float:
-        return float(np.interp(t_s, t, track[p + column].to_numpy(float)))
+        return float(np.interp(t_s, t, track[PREFIX + column].to_numpy(float)))
 
     for f in frame.fixes:
         fix = {"t_s": f.t_s, "lat_deg": f.lat_deg, "lon_deg": f.lon_deg, "alt_msl_m": f.alt_msl_m,
@@ -194,7 +125,7 @@ def fix_report(frame: OutputFrame, track: pd.DataFrame) -> list[dict[str, Any]]:
         # the fix at the track's height where it has none (the tangent plane's north and east
         # of a point move with its height: 1.6 m per km of height at 10 km from the origin)
         h = at("alt_m", f.t_s) if f.alt_msl_m is None else f.alt_msl_m + frame.geoid_undulation_m
-        e, n, _u = plane.forward(f.lat_deg, f.lon_deg, h)
+        e, n, _u = frame.plane.forward(f.lat_deg, f.lon_deg, h)
         out.append({**fix, "used": True, "track_minus_fix_north_m": at("north_m", f.t_s) - float(n),
                     "track_minus_fix_east_m": at("east_m", f.t_s) - float(e),
                     "track_north_sd_m": at("north_sd_m", f.t_s),
@@ -214,3 +145,51 @@ def wind_prior_report(problem: JointProblem) -> dict[str, Any] | None:
             "correlation_s_m_spacing": list(settings.wind_prior),
             "pseudo_measurements": len(tw), "t_s": [float(x) for x in tw],
             "sd_mps": [float(x) for x in sd], "rho": [float(x) for x in rho]}
+
+
+def joint_summary(problem: JointProblem, run: JointRun, track: pd.DataFrame, health: RunHealth, *,
+                  wind_rounds: list[dict[str, Any]],
+                  gap_calibration: dict[str, Any] | None) -> dict[str, Any]:
+    """The joint smoother's summary, the pipeline's ``methods.joint`` (docs/output.md, "The summary
+    JSON"; docs/joint.md, "Outputs"): the run's and the problem's figures, the checks of ``health``
+    (:func:`~flightrecon.methods.joint.health.run_health`), the calibrations' reports
+    (``wind_rounds``, ``gap_calibration``), the known positions against ``track``
+    (:func:`fix_report`) and the winds-aloft prior (:func:`wind_prior_report`); ``settling`` last,
+    for a run stopped short of the convergence test (the pipeline's status ``stopped`` reads it)."""
+    settings, frame = problem.settings, problem.frame
+    return {
+        "healthy": health.healthy,
+        "consistency": health.consistency.as_dict(),
+        "converged": health.converged,
+        "stop_reason": run.stop_reason,
+        "cholesky_fallbacks": run.cholesky_fallbacks,
+        "iterations": run.iterations,
+        "gust": run.gust,
+        "wind_walk": {"wind_rw_mps_sqrt_s": settings.noise.wind_rw_mps_sqrt_s,
+                      "rounds": wind_rounds},
+        "gap_calibration": gap_calibration,
+        "state_rate_hz": settings.state_rate_hz,
+        "attitude_tilt": {"source": None if frame is None else frame.attitude_source,
+                          "gain_mps2_per_g": settings.noise.ahrs_tilt_mps2_per_g,
+                          "gnss_evidence": problem.tilt_evidence},
+        "corrections": health.corrections,
+        "clock_offsets_s": {k: {"value": o, "sd": sd}
+                            for k, (o, sd) in run.clock_offsets_s.items()},
+        "noise_scale": run.noise_scale,
+        "noise_check": run.noise_check,
+        "end_points": [{"which": e.which, "model": e.model, "t_s": e.t_s,
+                        "lat_deg": e.point[0], "lon_deg": e.point[1],
+                        "runway_true_deg": (None if e.runway_rad is None
+                                            else float(np.degrees(e.runway_rad) % 360.0)),
+                        "sd_m": list(e.sd_m),
+                        **({"flare": asdict(e.flare)} if e.flare is not None else {})}
+                       for e in run.end_points],
+        "takeoff_roll": {"start_t_s": run.roll.start_t, "rest_t_s": list(run.roll.rest_t)},
+        "fixes": [] if frame is None else fix_report(frame, track),
+        "wind_prior": wind_prior_report(problem),
+        "sources": health.sources,
+        "settings": asdict(settings),
+        "chosen_settings": [asdict(c) for c in problem.choices],
+        "warnings": health.warnings,
+        **({} if health.settling is None else {"settling": health.settling}),
+    }
