@@ -1,8 +1,8 @@
 """A method whose iterations stop short of their convergence test (issue 52, item 4): how far
-the joint smoother's passes still had to go (flightrecon/methods/joint/settling.py), the status
-``stopped`` with the figures, the sd widened by that movement, and, on a real SR22T flight with
-its GPS and three stretches withheld (exit 8 before: "did not converge (50 passes): the last
-moved the track by 0.3 m"), an answer whose sd covers the withheld GPS."""
+the joint smoother's passes still had to go (``settling`` in flightrecon/methods/joint/health.py),
+the status ``stopped`` with the figures, the sd widened by that movement, and, on a real SR22T
+flight with its GPS and three stretches withheld (exit 8 before: "did not converge (50 passes):
+the last moved the track by 0.3 m"), an answer whose sd covers the withheld GPS."""
 
 from __future__ import annotations
 

@@ -227,7 +227,7 @@ def end_point_problems(res: MethodResult, clean: CleanFlight) -> list[dict[str, 
 def _convergence(s: dict[str, Any], out: dict[str, Any]) -> None:
     """The convergence check, in place on ``out``: a method that says it did not converge is
     unhealthy, unless it stopped short with a bounded remaining movement (the joint smoother's
-    ``settling``, flightrecon/methods/joint/settling.py: within 0.1 sd, or its sd widened by
+    flightrecon/methods/joint/health.py, ``settling``: within 0.1 sd, or its sd widened by
     it), which ``out["stopped_short"]`` then says."""
     if s.get("converged") is not False:
         return

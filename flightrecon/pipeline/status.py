@@ -36,7 +36,7 @@ FEEDS_DEFAULT: tuple[str, ...] = ("ok", "fallback", "stopped", DOUBTFUL)
 
 STOPPED_VERDICTS: tuple[str, ...] = ("settled", "widened")
 """The joint smoother's ``settling`` verdicts of a run that stopped short with a bounded
-remaining movement (flightrecon/methods/joint/settling.py)."""
+remaining movement (flightrecon/methods/joint/health.py, ``settling``)."""
 
 #: the Sabziev fusion's axes (its order north, up, east)
 _SABZIEV_AXES = {"x": "north", "y": "up", "z": "east"}
