@@ -266,7 +266,7 @@ def test_joint_prior_from_270_is_an_east_wind():
         res = run_joint(clean, settings=st)
         out[frm] = (res.track.set_index("t_s"), res.summary["wind_prior"]["t_s"])
         inp = joint_inputs(clean)
-        m = static_measurements(inp, st, inp.t_in[::8]).build()
+        m = static_measurements(inp, st, inp.t_in[::8]).rows.build()
         sel = m.source == SOURCES.index("wind_aloft")
         east = m.H[m.hrow[sel]][:, jl.IW + 1] == 1.0
         assert east.sum() == (~east).sum() > 0
