@@ -37,7 +37,8 @@ def per_fix_sd(g, column: str, default: float) -> np.ndarray:
 
 
 class _Part(NamedTuple):
-    """One call's rows of the table (:meth:`_MeasBuilder.add`), with their state steps."""
+    """One call's rows of the table (:meth:`_MeasBuilder.add`), with their state steps (None: not
+    found yet, :meth:`_MeasBuilder.stepped`)."""
 
     source: np.ndarray
     mtype: np.ndarray
@@ -48,13 +49,13 @@ class _Part(NamedTuple):
     d: np.ndarray
     ok: np.ndarray
     rate: np.ndarray
-    step: np.ndarray
+    step: np.ndarray | None
 
 
 class _MeasBuilder:
-    """The table's rows as they are added (:meth:`add`, each part with its steps on the state grid
-    ``T``); :meth:`build` sorts them by step.  A pass's builder is a copy of the static one: the
-    parts (immutable) are shared, the lists not."""
+    """The table's rows as they are added (:meth:`add`), each part with its steps on the state grid
+    ``T``; :meth:`build` sorts them by step.  A pass's builder is a copy of the static one: the
+    parts (immutable, their steps found once: :meth:`stepped`) are shared, the lists not."""
 
     def __init__(self, T: np.ndarray, n: int = jl.N_STATE, parts: tuple[_Part, ...] = (),
                  H: tuple[np.ndarray, ...] = ()):
@@ -69,7 +70,7 @@ class _MeasBuilder:
 
     def add(self, source: str, mtype: int, t, z, r, H=None, d=None, index=None, rate=None,
             step: np.ndarray | None = None) -> None:
-        """Rows at times ``t`` (their state steps ``step``, found here where not given)."""
+        """Rows at times ``t`` (their state steps ``step``, where known)."""
         t = np.asarray(t, float)
         z = np.asarray(z, float)
         m = len(t)
@@ -87,8 +88,7 @@ class _MeasBuilder:
             self.n_rows += m
         rt = np.zeros(m) if rate is None else np.broadcast_to(np.asarray(rate, float), (m,))
         self.parts.append(_Part(np.full(m, SOURCES.index(source)), np.full(m, mtype), t, z, r,
-                                hrow, dm, ok, rt,
-                                nearest_index(self.T, t) if step is None else step))
+                                hrow, dm, ok, rt, step))
 
     def add_state(self, source: str, t: np.ndarray, z, r, col: int) -> None:
         """``LINEAR`` rows on the state component ``col`` alone: h = x[col]."""
@@ -96,15 +96,22 @@ class _MeasBuilder:
         H[:, col] = 1.0
         self.add(source, jl.LINEAR, t, z, r, H)
 
+    def stepped(self) -> _MeasBuilder:
+        """A copy with every part's state steps (found here where not given)."""
+        return _MeasBuilder(self.T, self.n, tuple(
+            p if p.step is not None else p._replace(step=nearest_index(self.T, p.t))
+            for p in self.parts), tuple(self.H))
+
     def build(self) -> Measurements:
         T = self.T
         N = len(T)
-        cat = (_Part(*map(np.concatenate, zip(*self.parts))) if self.parts
+        parts = self.stepped().parts
+        cat = (_Part(*map(np.concatenate, zip(*parts))) if parts
                else _Part(*[np.zeros(0)] * len(_Part._fields)))
         half_first = 0.5 * (T[1] - T[0] if N > 1 else 1)
         half_last = 0.5 * (T[-1] - T[-2] if N > 1 else 1)
         ok = cat.ok.astype(bool) & (cat.t >= T[0] - half_first) & (cat.t <= T[-1] + half_last)
-        step = cat.step[ok]
+        step = np.asarray(cat.step)[ok]
         order = np.flatnonzero(ok)[np.lexsort((cat.t[ok], step))]
         step = np.sort(step, kind="stable")
         start = np.searchsorted(step, np.arange(N + 1), side="left")
@@ -246,6 +253,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # bias and the nominal, see build_measurements)
     tt = t_in[on_ground_mask(inp, settings)]
     b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + 2)
+    rows, rolls = b.stepped(), ground_rolls(inp, settings, T)
     fixes = None
     if inp.fixes is not None and len(inp.fixes):
         fx = np.asarray(inp.fixes, float)
@@ -253,7 +261,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
                  _ecef(fx[:, 1], fx[:, 2], fx[:, 3]) if np.isfinite(fx[:, 3]).all() else None)
     ends = tuple((_ecef(*e.point)[0], ned_to_ecef_matrix(e.point[0], e.point[1])[0])
                  for e in inp.end_points)
-    return StaticTable(b, tt, ground_rolls(inp, settings, T), fixes, ends)
+    return StaticTable(rows, tt, rolls, fixes, ends)
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
@@ -276,7 +284,8 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         fx, k, ecef = static.fixes
         no_h = ~np.isfinite(fx[:, 3])
         if ecef is None:
-            ecef = _ecef(fx[:, 1], fx[:, 2], np.where(no_h, _nominal_height(pnom, k), fx[:, 3]))
+            h = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+            ecef = _ecef(fx[:, 1], fx[:, 2], np.where(no_h, h, fx[:, 3]))
         sd = fx[:, 4]
         _ned_positions(b, Cen, "fix", fx[:, 0], k, (sd, sd, np.where(no_h, np.nan, sd)), ecef)
     runway_measurements(b, static.rolls, pnom, vnom, psi_hat)
@@ -313,11 +322,6 @@ def _ned_positions(b: _MeasBuilder, Cen: np.ndarray, source: str, t: np.ndarray,
         b.add(source, jl.NED_POS, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), index=i, step=k)
 
 
-def _nominal_height(pnom: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """Ellipsoidal height [m] of the nominal track at the state steps ``k``."""
-    return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
-
-
 def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings, T: np.ndarray,
                        Cen: np.ndarray, clock: dict[str, float], pnom: np.ndarray) -> None:
     """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities, at
@@ -333,25 +337,26 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     # the velocities' own clock offset (the positions' where none is given)
     tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
     k, kv = nearest_index(T, np.stack([tg, tv]))
-    hg = g["h_m"].to_numpy(float)
-    no_h = ~np.isfinite(hg)
-    if no_h.any():
-        # a fix without height is used horizontally: its north and east components only, computed at
-        # the nominal's height; the north/east projection of the fix moves by (angle between the
-        # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
-        hg = np.where(no_h, _nominal_height(pnom, k), hg)
-    ant = _ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
     L = np.asarray(inp.lever_arm, float)
-    v_arm = np.zeros((len(tg), 3))
+    arm, v_arm = np.zeros((len(tg), 3)), np.zeros((len(tg), 3))
     if np.any(L != 0):
         # attitude at the fix (nearest input sample) and +-0.5 s about it: the antenna's velocity
         # adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of yaw), a central difference of
         # the recorded attitude (its noise, 0.05 deg at 8 Hz, then adds under 0.01 m/s)
         ii, ip, im = nearest_index(t_in, tg + np.array([[0.0], [0.5], [-0.5]]))
         C = inp.body_to_ned(np.r_[ii, ip, im]).reshape(3, len(tg), 3, 3)
-        ant = ant - np.einsum("mij,mj->mi", Cen[k], np.einsum("mij,j->mi", C[0], L))
+        arm = np.einsum("mij,mj->mi", Cen[k], np.einsum("mij,j->mi", C[0], L))
         span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
         v_arm = np.einsum("mij,j->mi", C[1] - C[2], L) / span
+    hg = g["h_m"].to_numpy(float)
+    no_h = ~np.isfinite(hg)
+    if no_h.any():
+        # a fix without height is used horizontally: its north and east components only, computed at
+        # the nominal's height; the north/east projection of the fix moves by (angle between the
+        # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
+        hg = np.where(no_h, ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2], hg)
+    ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
+    ant = np.c_[ex, ey, ez] - arm   # the antenna moved to the reference point
     # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
     # else the noise settings; no height: no vertical component
     sd_h = per_fix_sd(g, "h_sd_m", nz.gnss_h_m)
