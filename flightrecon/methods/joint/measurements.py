@@ -37,8 +37,8 @@ def per_fix_sd(g, column: str, default: float) -> np.ndarray:
 
 
 class _Part(NamedTuple):
-    """One call's rows of the table (:meth:`_MeasBuilder.add`), with their state steps (None: not
-    found yet, :meth:`_MeasBuilder.stepped`)."""
+    """One call's rows of the table (:meth:`_MeasBuilder.add`), with their state steps (None: found
+    by :meth:`_MeasBuilder.build`)."""
 
     source: np.ndarray
     mtype: np.ndarray
@@ -54,8 +54,8 @@ class _Part(NamedTuple):
 
 class _MeasBuilder:
     """The table's rows as they are added (:meth:`add`), each part with its steps on the state grid
-    ``T``; :meth:`build` sorts them by step.  A pass's builder is a copy of the static one: the
-    parts (immutable, their steps found once: :meth:`stepped`) are shared, the lists not."""
+    ``T``; :meth:`build` sorts them by step.  A pass's builder starts from the static parts and
+    rows of H (:class:`StaticTable`: immutable, their steps found once)."""
 
     def __init__(self, T: np.ndarray, n: int = jl.N_STATE, parts: tuple[_Part, ...] = (),
                  H: tuple[np.ndarray, ...] = ()):
@@ -64,9 +64,6 @@ class _MeasBuilder:
         self.parts = list(parts)
         self.H = list(H)
         self.n_rows = sum(len(h) for h in H)
-
-    def copy(self) -> _MeasBuilder:
-        return _MeasBuilder(self.T, self.n, tuple(self.parts), tuple(self.H))
 
     def add(self, source: str, mtype: int, t, z, r, H=None, d=None, index=None, rate=None,
             step: np.ndarray | None = None) -> None:
@@ -96,16 +93,12 @@ class _MeasBuilder:
         H[:, col] = 1.0
         self.add(source, jl.LINEAR, t, z, r, H)
 
-    def stepped(self) -> _MeasBuilder:
-        """A copy with every part's state steps (found here where not given)."""
-        return _MeasBuilder(self.T, self.n, tuple(
-            p if p.step is not None else p._replace(step=nearest_index(self.T, p.t))
-            for p in self.parts), tuple(self.H))
-
     def build(self) -> Measurements:
         T = self.T
         N = len(T)
-        parts = self.stepped().parts
+        # the steps of the parts added without them (the static parts have theirs)
+        parts = [p if p.step is not None else p._replace(step=nearest_index(T, p.t))
+                 for p in self.parts]
         cat = (_Part(*map(np.concatenate, zip(*parts))) if parts
                else _Part(*[np.zeros(0)] * len(_Part._fields)))
         half_first = 0.5 * (T[1] - T[0] if N > 1 else 1)
@@ -180,12 +173,14 @@ def wind_prior_measurements(inp: JointInputs, settings: JointSettings
 
 @dataclass(frozen=True)
 class StaticTable:
-    """What no pass changes (:func:`static_measurements`): the ``rows`` of every pass, the ground
-    samples' times ``ground_t`` (:func:`on_ground_mask`), the ground ``rolls``, the known positions
-    (``--fix``: their (F, 5) table, state steps and ECEF positions, None where one has no height)
-    or None, each end point's ECEF position and NED-to-ECEF rotation (``inp.end_points``' order)."""
+    """What no pass changes (:func:`static_measurements`): the rows of every pass (``parts``, with
+    their state steps, and their rows of ``H``), the ground samples' times ``ground_t``
+    (:func:`on_ground_mask`), the ground ``rolls``, the known positions (``--fix``: their (F, 5)
+    table, state steps and ECEF positions, None where one has no height) or None, each end point's
+    ECEF position and NED-to-ECEF rotation (``inp.end_points``' order)."""
 
-    rows: _MeasBuilder
+    parts: tuple[_Part, ...]
+    H: tuple[np.ndarray, ...]
     ground_t: np.ndarray
     rolls: tuple[GroundRoll, ...]
     fixes: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None
@@ -253,7 +248,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # bias and the nominal, see build_measurements)
     tt = t_in[on_ground_mask(inp, settings)]
     b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + 2)
-    rows, rolls = b.stepped(), ground_rolls(inp, settings, T)
+    rolls = ground_rolls(inp, settings, T)
     fixes = None
     if inp.fixes is not None and len(inp.fixes):
         fx = np.asarray(inp.fixes, float)
@@ -261,7 +256,9 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
                  _ecef(fx[:, 1], fx[:, 2], fx[:, 3]) if np.isfinite(fx[:, 3]).all() else None)
     ends = tuple((_ecef(*e.point)[0], ned_to_ecef_matrix(e.point[0], e.point[1])[0])
                  for e in inp.end_points)
-    return StaticTable(rows, tt, rolls, fixes, ends)
+    # the rows' state steps, found once
+    parts = tuple(p._replace(step=nearest_index(T, p.t)) for p in b.parts)
+    return StaticTable(parts, tuple(b.H), tt, rolls, fixes, ends)
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
@@ -276,7 +273,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     the pass's take-off roll ``roll`` (:func:`~flightrecon.methods.joint.inputs.refined_roll`) and
     the last pass's heading bias ``psi_hat`` (per state step; None: zero)."""
     nz = settings.noise
-    b = static.rows.copy()
+    b = _MeasBuilder(T, parts=static.parts, H=static.H)
     _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
     # height (then at the nominal's height, as a GNSS fix without one)
