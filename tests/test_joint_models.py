@@ -565,7 +565,11 @@ def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
     import pandas as pd
 
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
+    from flightrecon.methods.joint.measurements import (
+        _MeasBuilder,
+        ground_rolls,
+        runway_measurements,
+    )
     from flightrecon.methods.joint.settings import JointSettings
 
     assert JointSettings().noise.ground_slip_deg == 0.0
@@ -585,23 +589,21 @@ def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
         b = _MeasBuilder(T)
         vnom = np.c_[np.zeros(len(T)), np.full(len(T), speed), np.zeros(len(T))]
         pnom = np.zeros((len(T), 3))
-        runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                             pnom, vnom)
+        runway_measurements(b, ground_rolls(inp, s, T), pnom, vnom)
         rows.append(b.parts[0])
     ground = rows[0]
-    m = len(ground["t"])
+    m = len(ground.t)
     assert m == 28   # 1 Hz, more than 2 s before lift-off
     v_liftoff = 45.0
     want = s.noise.ground_mps ** 2 + m * (np.radians(s.noise.ground_slip_deg) * v_liftoff) ** 2
-    np.testing.assert_allclose(ground["r"], want, rtol=1e-12)
-    np.testing.assert_array_equal(rows[1]["r"], ground["r"])
+    np.testing.assert_allclose(ground.r, want, rtol=1e-12)
+    np.testing.assert_array_equal(rows[1].r, ground.r)
     # the roll's information on a track angle: one angle's worth, not m of them
-    info = float(np.sum(v_liftoff ** 2 / ground["r"]))
+    info = float(np.sum(v_liftoff ** 2 / ground.r))
     assert info < 1.0 / np.radians(s.noise.ground_slip_deg) ** 2
     b = _MeasBuilder(T)
-    runway_measurements(b, inp, base, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                         np.zeros((len(T), 3)), vnom)
-    np.testing.assert_array_equal(b.parts[0]["r"], base.noise.ground_mps ** 2)
+    runway_measurements(b, ground_rolls(inp, base, T), np.zeros((len(T), 3)), vnom)
+    np.testing.assert_array_equal(b.parts[0].r, base.noise.ground_mps ** 2)
 
 
 def test_lined_up_at_rest_the_heading_gives_its_bias():
@@ -636,14 +638,14 @@ def test_lined_up_at_rest_the_heading_gives_its_bias():
         b = row(rw)
         (p,) = b.parts
         H = b.H[0]
-        assert len(p["t"]) == 1 and H[0, jl.IPSI] == 1.0 and np.count_nonzero(H) == 1
+        assert len(p.t) == 1 and H[0, jl.IPSI] == 1.0 and np.count_nonzero(H) == 1
         # the mean of 121 samples of 0.2 deg noise: 0.02 deg sd, bound 4 sd
-        assert np.degrees(p["z"][0]) == pytest.approx(1.5, abs=0.08)
-        assert p["r"][0] == pytest.approx(np.radians(s.noise.lineup_heading_deg) ** 2)
+        assert np.degrees(p.z[0]) == pytest.approx(1.5, abs=0.08)
+        assert p.r[0] == pytest.approx(np.radians(s.noise.lineup_heading_deg) ** 2)
     assert row(None).parts == []
     # the same row with the velocity rows along the nose
     s = JointSettings(roll_velocity="nose")
-    assert row(np.radians(160.0)).parts[0]["z"] == pytest.approx(b.parts[0]["z"], abs=1e-15)
+    assert row(np.radians(160.0)).parts[0].z == pytest.approx(b.parts[0].z, abs=1e-15)
 
 
 def _runway_rows(t, hdg, tas, settings=None, **where):
@@ -654,7 +656,11 @@ def _runway_rows(t, hdg, tas, settings=None, **where):
     import pandas as pd
 
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
+    from flightrecon.methods.joint.measurements import (
+        _MeasBuilder,
+        ground_rolls,
+        runway_measurements,
+    )
     from flightrecon.methods.joint.settings import JointSettings
 
     n = len(t)
@@ -666,8 +672,7 @@ def _runway_rows(t, hdg, tas, settings=None, **where):
     T = t[::4]
     b = _MeasBuilder(T)
     vnom = np.c_[np.zeros(len(T)), np.full(len(T), 20.0), np.zeros(len(T))]
-    runway_measurements(b, inp, s, lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                        np.zeros((len(T), 3)), vnom)
+    runway_measurements(b, ground_rolls(inp, s, T), np.zeros((len(T), 3)), vnom)
     return b.parts[0], b.H[0], s, T
 
 
@@ -693,11 +698,11 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     tas = np.clip(1.5 * (t - 12.0), 0.0, 60.0)
     g, _, s, T = _runway_rows(t, hdg, tas, **where)
     v_lo = 1.5 * (42.0 - 12.0)          # the airspeed at lift-off: 45 m/s
-    in_swing = (g["t"] >= 22.0) & (g["t"] < 26.0)
-    assert in_swing.sum() == 4 and len(g["t"]) == 40
-    np.testing.assert_allclose(g["r"][in_swing], s.noise.ground_mps ** 2
+    in_swing = (g.t >= 22.0) & (g.t < 26.0)
+    assert in_swing.sum() == 4 and len(g.t) == 40
+    np.testing.assert_allclose(g.r[in_swing], s.noise.ground_mps ** 2
                                + (v_lo * np.sin(np.radians(8.0))) ** 2, rtol=1e-9)
-    np.testing.assert_allclose(g["r"][~in_swing], s.noise.ground_mps ** 2, rtol=1e-12)
+    np.testing.assert_allclose(g.r[~in_swing], s.noise.ground_mps ** 2, rtol=1e-12)
     # no rest: the reference is the roll's circular mean (4 of 40 samples 8 deg off: 0.8 deg)
     d = np.radians(np.array([8.0, 0.0]))
     r = steering_variance(d, 45.0)
@@ -706,11 +711,11 @@ def test_a_swerve_on_the_roll_loosens_its_cross_track_rows():
     assert steering_variance(np.zeros(0), 45.0).size == 0
     # roll_velocity="nose": the rows across the recorded heading (less the bias), white noise
     g, H, _, _ = _runway_rows(t, hdg, tas, JointSettings(roll_velocity="nose"), **where)
-    psi = np.radians(np.interp(g["t"], t, hdg))
+    psi = np.radians(np.interp(g.t, t, hdg))
     np.testing.assert_allclose(H[:, jl.IV:jl.IV + 2], np.c_[-np.sin(psi), np.cos(psi)],
                                atol=1e-12)
     np.testing.assert_allclose(H[:, jl.IPSI], 20.0 * np.sin(psi), atol=1e-12)
-    np.testing.assert_allclose(g["r"], s.noise.ground_mps ** 2, rtol=1e-12)
+    np.testing.assert_allclose(g.r, s.noise.ground_mps ** 2, rtol=1e-12)
 
 
 def test_implausible_sensor_error_is_named():
@@ -866,7 +871,11 @@ def test_runway_centreline_runs_through_the_threshold():
 
     from flightrecon.geo.frames import offset_latlon
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
+    from flightrecon.methods.joint.measurements import (
+        _MeasBuilder,
+        ground_rolls,
+        runway_measurements,
+    )
     from flightrecon.methods.joint.settings import JointSettings
 
     rw = np.radians(237.0)
@@ -885,14 +894,12 @@ def test_runway_centreline_runs_through_the_threshold():
                       runway_rad=(rw, None), thresholds=(thr, None))
     T = t[::4]
     b = _MeasBuilder(T)
-    runway_measurements(b, inp, JointSettings(),
-                        lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                        np.zeros((len(T), 3)), np.zeros((len(T), 3)))
-    src = [int(p["source"][0]) for p in b.parts]
+    runway_measurements(b, ground_rolls(inp, JointSettings(), T), np.zeros((len(T), 3)), np.zeros((len(T), 3)))
+    src = [int(p.source[0]) for p in b.parts]
     from flightrecon.methods.joint.settings import SOURCES
 
     k = src.index(SOURCES.index("runway"))
-    H, d = b.H[k], b.parts[k]["d"]
+    H, d = b.H[k], b.parts[k].d
     assert len(d) == 28   # the centreline rows: 1 Hz, more than 2 s before lift-off
     p_thr = np.array(geodetic_to_ecef(*thr), float).reshape(3)
     p_arp = np.array(geodetic_to_ecef(arp_lat, arp_lon, thr[2]), float).reshape(3)
@@ -912,7 +919,11 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
     import pandas as pd
 
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder, runway_measurements
+    from flightrecon.methods.joint.measurements import (
+        _MeasBuilder,
+        ground_rolls,
+        runway_measurements,
+    )
     from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
     rw = np.radians(237.0)
@@ -930,11 +941,9 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
                           arrival=None, liftoff_t=30.0, touchdown_t=np.nan, field_h=thr[2],
                           runway_rad=(rw, None), thresholds=thresholds)
         b = _MeasBuilder(T)
-        runway_measurements(b, inp, JointSettings(),
-                            lambda tq: np.searchsorted(T, tq).clip(0, len(T) - 1),
-                            np.zeros((len(T), 3)), np.zeros((len(T), 3)))
-        k = [int(p["source"][0]) for p in b.parts].index(SOURCES.index("runway"))
-        r = b.parts[k]["r"]
+        runway_measurements(b, ground_rolls(inp, JointSettings(), T), np.zeros((len(T), 3)), np.zeros((len(T), 3)))
+        k = [int(p.source[0]) for p in b.parts].index(SOURCES.index("runway"))
+        r = b.parts[k].r
         m = len(r)
         assert m == 28   # 1 Hz, more than 2 s before lift-off
         if thresholds[0] is not None:
@@ -1024,8 +1033,8 @@ def test_a_landing_roll_angled_off_the_runway_loosens_its_cross_track_rows():
     g, _, s, _ = _runway_rows(t, hdg, np.clip(40.0 - 1.5 * (t - 10.0), 0.0, 40.0),
                               departure=None, arrival=(40.0, 20.0, 100.0), liftoff_t=np.nan,
                               touchdown_t=10.0, runway_rad=(None, np.pi / 2))
-    assert len(g["t"]) > 20
-    np.testing.assert_allclose(g["r"], s.noise.ground_mps ** 2
+    assert len(g.t) > 20
+    np.testing.assert_allclose(g.r, s.noise.ground_mps ** 2
                                + (40.0 * np.sin(np.radians(6.0))) ** 2, rtol=1e-9)
 
 

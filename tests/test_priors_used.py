@@ -253,7 +253,7 @@ def test_joint_prior_from_270_is_an_east_wind():
     and the track's last airborne east position are larger with "from 270" than with
     "from 90"."""
     from flightrecon.methods.joint import layout as jl
-    from flightrecon.methods.joint.measurements import static_measurements
+    from flightrecon.methods.joint.measurements import _MeasBuilder, static_measurements
     from flightrecon.methods.joint.settings import SOURCES
 
     r = _jsbsim(1)
@@ -266,7 +266,9 @@ def test_joint_prior_from_270_is_an_east_wind():
         res = run_joint(clean, settings=st)
         out[frm] = (res.track.set_index("t_s"), res.summary["wind_prior"]["t_s"])
         inp = joint_inputs(clean)
-        m = static_measurements(inp, st, inp.t_in[::8]).build()
+        T = inp.t_in[::8]
+        s = static_measurements(inp, st, T)
+        m = _MeasBuilder(T, parts=s.parts, H=s.H).build()
         sel = m.source == SOURCES.index("wind_aloft")
         east = m.H[m.hrow[sel]][:, jl.IW + 1] == 1.0
         assert east.sum() == (~east).sum() > 0

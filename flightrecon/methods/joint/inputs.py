@@ -142,14 +142,6 @@ def refined_roll(inp: JointInputs, T: np.ndarray, vnom: np.ndarray | None,
     return refined if np.isfinite(refined.start_t) else roll
 
 
-def _along_runway_point(thr: tuple[float, float, float], runway_rad: float,
-                        dist_m: float) -> tuple[float, float, float]:
-    """(lat, lon, h) ``dist_m`` down the runway from its threshold ``thr``."""
-    lat, lon = offset_latlon(thr[0], thr[1], dist_m * np.cos(runway_rad),
-                             dist_m * np.sin(runway_rad))
-    return lat, lon, float(thr[2])
-
-
 @dataclass(frozen=True)
 class Flare:
     """The touchdown's distance past the arrival threshold measured from the recorded flare
@@ -192,21 +184,15 @@ class EndPoint:
 
 def float_touchdown(inp: JointInputs, nz: JointNoise, look_back_s: float = 90.0,
                     smooth_s: float = 1.0) -> Flare | None:
-    """The touchdown's distance past the arrival threshold from the recorded flare.
-
-    An approach crosses the threshold at the screen height :math:`h_s` (``screen_height_m``, 50 ft:
-    the threshold crossing height of a 3 deg glide path to the aiming point); what follows, the
-    flare and any float in ground effect, is flown at the recorded airspeed, so
+    """The touchdown's distance past the arrival threshold from the recorded flare (docs/joint.md,
+    "End points", issue #38): the air distance flown from the screen height ``screen_height_m``,
 
     .. math:: d_{td} = \\int_{t_s}^{t_{td}} V_{TAS}\\,dt, \\qquad
               \\sigma_{td}^2 = \\sigma_s^2 + (w\\,(t_{td} - t_s))^2
 
-    with :math:`t_s` the last time before touchdown the barometric height above the touchdown (the
-    recorded pressure altitude, ``smooth_s`` running mean, minus its median over the first 2 s on
-    the ground: the baro offset cancels) was at least :math:`h_s`, :math:`\\sigma_s` the crossing's
-    scatter along the runway (``screen_along_sd_m``) and :math:`w` the unknown runway component of
-    the wind over that time (``float_wind_mps``): a long float is measured, not assumed (issue #38,
-    docs/joint.md).
+    :math:`t_s` the last time before touchdown that the height above it (the pressure altitude's
+    ``smooth_s`` running mean less its median over the first 2 s on the ground) was at least the
+    screen height, :math:`\\sigma_s` = ``screen_along_sd_m``, :math:`w` = ``float_wind_mps``.
 
     Returns
     -------
@@ -254,23 +240,20 @@ def runway_end(inp: JointInputs, nz: JointNoise, which: str, t_run: float,
     flare = float_touchdown(inp, nz) if which == "arrival" else None
     if flare is not None:
         dist, sd = flare.touchdown_m, flare.sd_m
-    return EndPoint(which, "runway", float(t_run), _along_runway_point(threshold, runway_rad, dist),
+    # dist down the runway from its threshold
+    lat, lon = offset_latlon(threshold[0], threshold[1], dist * np.cos(runway_rad),
+                             dist * np.sin(runway_rad))
+    return EndPoint(which, "runway", float(t_run), (lat, lon, float(threshold[2])),
                     (sd, nz.runway_halfwidth_m, nz.endpoint_v_m), float(runway_rad), flare)
 
 
 def end_points(inp: JointInputs, nz: JointNoise) -> tuple[EndPoint, ...]:
-    """The end-point constraints: where and when the record is tied to its airfields (built once
-    with the inputs, :func:`~flightrecon.methods.joint.problem.joint_inputs`; the smoother moves the
-    runway departure's time with its refined take-off roll, :func:`end_points_at`).
-
-    With a runway's threshold and direction known: :func:`runway_end` (the departure at the start of
-    the take-off roll ``inp.roll``, the arrival at touchdown).  Otherwise the airfield reference
-    point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m`` in every horizontal
-    direction, vertically the airfield elevation, ``endpoint_v_m``.  A record that ends in the air
-    or at an impact (``inp.ends_airborne``) has no arrival airfield: its arrival is the last known
-    position (a radar hand-off, the wreckage) and is applied at the last sample as that position,
-    ``last_position_h_m`` per horizontal axis and ``endpoint_v_m`` vertically (model
-    "last_position"; docs/wind.md, "End points").
+    """The end-point constraints (docs/joint.md, "End points"; docs/wind.md, "End points"), built
+    once with the inputs: with a runway's threshold and direction :func:`runway_end` (the departure
+    at the start of the take-off roll ``inp.roll``, the arrival at touchdown), else the airfield
+    reference point at lift-off / touchdown (or the first / last sample), ``endpoint_h_m``
+    horizontally and ``endpoint_v_m`` vertically; a record ending in the air or at an impact
+    (``inp.ends_airborne``): the last known position at the last sample (``last_position_h_m``).
     """
     out = []
     t_in = inp.t_in
@@ -347,13 +330,10 @@ def without_floor_loads(inp: JointInputs) -> JointInputs:
 
 
 def phases_roll(ph: Any, settle_s: float = 10.0) -> TakeoffRoll:
-    """The take-off roll of the cleaning's phases (``roll_start_t_s`` after ``lineup_t_s``: the
-    ground speed integrated back from the fast run on the cleaning's grid), where the joint's own
-    search finds none: it integrates the acceleration back from lift-off, which a 1 Hz record whose
-    ``n_long_g`` is derived from an airspeed that reads 0 below its floor does not have through the
-    roll's first seconds (:func:`airspeed_floor_windows`).  The rest is the line-up to ``settle_s``
-    before the roll start, as in :func:`flightrecon.cleaning.ground_roll.takeoff_roll`; none where
-    the phases found a rolling take-off (the roll starting at the line-up)."""
+    """The take-off roll of the cleaning's phases (``roll_start_t_s`` after ``lineup_t_s``), where
+    the joint's own search finds none (through a derived ``n_long_g``'s airspeed-floor windows the
+    acceleration it integrates back from lift-off is not known: :func:`airspeed_floor_windows`); the
+    rest from the line-up to ``settle_s`` before the start; none for a rolling take-off."""
     start = float(getattr(ph, "roll_start_t_s", np.nan))
     lineup = float(getattr(ph, "lineup_t_s", np.nan))
     if not (np.isfinite(start) and np.isfinite(lineup) and start > lineup):
@@ -369,18 +349,10 @@ AIRSPEED_DEAD_MPS = 0.52
 
 def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
                            half_window_s: float = N_LONG_HALF_WINDOW_S) -> np.ndarray:
-    """Samples whose derived ``n_long_g`` spans an airspeed coming alive or dying.
-
-    An air-data computer reads 0 below its floor (about 30 kt on the Garmin export) and jumps to the
-    floor one sample into the take-off roll (0 to 14.9 m/s in 1 s there).  The derived channel,
-    ``(dV/dt)/g0 + sin(pitch)`` with ``dV/dt`` the centred difference over ``+-half_window_s``
-    (flightrecon/ingest/derive.py), turns the jump into an acceleration (0.25-0.38 g for 6 s where
-    the GPS ground speed shows 0.15 g): the integrated roll then has the lift-off ground speed wrong
-    by the airspeed at the floor less the ground speed there (the headwind, about 5 m/s), which the
-    smoother takes out of the airspeed scale and the wind.  True where the window ``[t - h, t + h]``
-    holds both an airspeed at most :data:`AIRSPEED_DEAD_MPS` and one above it: there the
-    acceleration is not known, and the smoother's missing-loads process noise applies.
-    """
+    """Samples whose derived ``n_long_g`` (a centred difference of the airspeed over
+    ``+-half_window_s``, flightrecon/ingest/derive.py) spans an airspeed coming alive or dying
+    (docs/joint.md, "A derived `n_long_g` where the airspeed comes alive"): True where the window
+    ``[t - h, t + h]`` holds both an airspeed at most :data:`AIRSPEED_DEAD_MPS` and one above it."""
     ok = np.isfinite(tas)
     out = np.zeros(len(t), bool)
     if ok.sum() < 2:
@@ -397,10 +369,8 @@ def airspeed_floor_windows(t: np.ndarray, tas: np.ndarray,
 def airspeed_floor_psd(t: np.ndarray, tas: np.ndarray, dead: np.ndarray) -> np.ndarray:
     """The missing accelerations' PSD [(m/s^2)^2/Hz] per input sample (``JointInputs.missing_psd``):
     1 outside the windows of :func:`airspeed_floor_windows`; in each (a contiguous run of ``dead``
-    samples, ``W`` seconds) ``V^2 / W``, ``V`` the largest airspeed there: the velocity change
-    across it is unknown by about the airspeed the indicator comes alive at (a take-off roll gains
-    6-18 m/s in those 6 s, where the default 1 m/s^2/sqrt(Hz) allowed 2.4 m/s and the smoother kept
-    the shortfall as a headwind: the G1000 export 15.7 km off at the end, docs/ingest.md)."""
+    samples, ``W`` seconds) ``V^2 / W``, ``V`` the largest airspeed there (docs/joint.md, "A derived
+    `n_long_g` where the airspeed comes alive")."""
     psd = np.ones(len(t))
     idx = np.flatnonzero(dead)
     if idx.size == 0:

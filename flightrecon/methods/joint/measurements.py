@@ -1,15 +1,14 @@
 """The joint smoother's measurement table (:class:`~flightrecon.methods.joint.layout.Measurements`):
-every source's scalar measurements, each at its own time (docs/joint.md, "Measurements").  The part
-that no pass changes (air data, Doppler, recorded wind, the winds-aloft prior, pressure altitude,
-the ground's vertical rows: :func:`static_measurements`) is built once; the GNSS, radar, known
-positions, end points and the runway rows depend on the linearisation and the clock offsets
-(:func:`build_measurements`).  Also here: where the air-data heading stands for the air velocity's
-direction (:func:`nose_along_air`, :func:`nose_offset`) and the ground rows (which samples are on
-the ground, the runway's constraints on a roll: :func:`runway_measurements`)."""
+every source's scalar measurements, each at its own time (docs/joint.md, "Measurements").  What no
+pass changes is built once (:func:`static_measurements`); each pass adds the rows that depend on
+the linearisation and the clock offsets (:func:`build_measurements`).  Also here: where the air-data
+heading stands for the air velocity's direction (:func:`nose_along_air`, :func:`nose_offset`) and
+the ground rows (:func:`ground_rolls`, :func:`runway_measurements`)."""
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -37,22 +36,38 @@ def per_fix_sd(g, column: str, default: float) -> np.ndarray:
     return np.where(np.isfinite(v) & (v > 0), v, float(default))
 
 
+class _Part(NamedTuple):
+    """One call's rows of the table (:meth:`_MeasBuilder.add`), with their state steps (None: found
+    by :meth:`_MeasBuilder.build`)."""
+
+    source: np.ndarray
+    mtype: np.ndarray
+    t: np.ndarray
+    z: np.ndarray
+    r: np.ndarray
+    hrow: np.ndarray
+    d: np.ndarray
+    ok: np.ndarray
+    rate: np.ndarray
+    step: np.ndarray | None
+
+
 class _MeasBuilder:
-    def __init__(self, T: np.ndarray, n: int = jl.N_STATE):
+    """The table's rows as they are added (:meth:`add`), each part with its steps on the state grid
+    ``T``; :meth:`build` sorts them by step.  A pass's builder starts from the static parts and
+    rows of H (:class:`StaticTable`: immutable, their steps found once)."""
+
+    def __init__(self, T: np.ndarray, n: int = jl.N_STATE, parts: tuple[_Part, ...] = (),
+                 H: tuple[np.ndarray, ...] = ()):
         self.T = T
         self.n = n
-        self.parts: list[dict[str, np.ndarray]] = []
-        self.H: list[np.ndarray] = []
-        self.n_rows = 0
+        self.parts = list(parts)
+        self.H = list(H)
+        self.n_rows = sum(len(h) for h in H)
 
-    def copy(self) -> _MeasBuilder:
-        b = _MeasBuilder(self.T, self.n)
-        b.parts = list(self.parts)
-        b.H = list(self.H)
-        b.n_rows = self.n_rows
-        return b
-
-    def add(self, source: str, mtype: int, t, z, r, H=None, d=None, index=None, rate=None):
+    def add(self, source: str, mtype: int, t, z, r, H=None, d=None, index=None, rate=None,
+            step: np.ndarray | None = None) -> None:
+        """Rows at times ``t`` (their state steps ``step``, where known)."""
         t = np.asarray(t, float)
         z = np.asarray(z, float)
         m = len(t)
@@ -69,9 +84,8 @@ class _MeasBuilder:
             self.H.append(Hm)
             self.n_rows += m
         rt = np.zeros(m) if rate is None else np.broadcast_to(np.asarray(rate, float), (m,))
-        self.parts.append({"source": np.full(m, SOURCES.index(source)), "mtype": np.full(m, mtype),
-                           "t": t, "z": z, "r": r, "hrow": hrow, "d": dm, "ok": ok,
-                           "rate": rt})
+        self.parts.append(_Part(np.full(m, SOURCES.index(source)), np.full(m, mtype), t, z, r,
+                                hrow, dm, ok, rt, step))
 
     def add_state(self, source: str, t: np.ndarray, z, r, col: int) -> None:
         """``LINEAR`` rows on the state component ``col`` alone: h = x[col]."""
@@ -82,31 +96,24 @@ class _MeasBuilder:
     def build(self) -> Measurements:
         T = self.T
         N = len(T)
-        keys = ("source", "mtype", "t", "z", "r", "hrow", "d", "ok", "rate")
-        cat = {k: np.concatenate([p[k] for p in self.parts]) if self.parts else np.zeros(0)
-               for k in keys}
-        H = np.concatenate(self.H) if self.H else np.zeros((0, self.n))
+        # the steps of the parts added without them (the static parts have theirs)
+        parts = [p if p.step is not None else p._replace(step=nearest_index(T, p.t))
+                 for p in self.parts]
+        cat = (_Part(*map(np.concatenate, zip(*parts))) if parts
+               else _Part(*[np.zeros(0)] * len(_Part._fields)))
         half_first = 0.5 * (T[1] - T[0] if N > 1 else 1)
         half_last = 0.5 * (T[-1] - T[-2] if N > 1 else 1)
-        t_all = cat["t"]
-        ok = cat["ok"].astype(bool) & (t_all >= T[0] - half_first) & (t_all <= T[-1] + half_last)
-        # each part's state steps found once: the static parts (air data, baro, ...) are
-        # shared by every pass's builder on the same grid and keep theirs
-        for p in self.parts:
-            if p.get("grid") is not T:
-                p["step"], p["grid"] = nearest_index(T, p["t"]), T
-        t = cat["t"][ok]
-        step = (np.concatenate([p["step"] for p in self.parts])[ok] if self.parts
-                else np.zeros(0, np.int64))
-        order = np.flatnonzero(ok)[np.lexsort((t, step))]
+        ok = cat.ok.astype(bool) & (cat.t >= T[0] - half_first) & (cat.t <= T[-1] + half_last)
+        step = np.asarray(cat.step)[ok]
+        order = np.flatnonzero(ok)[np.lexsort((cat.t[ok], step))]
         step = np.sort(step, kind="stable")
         start = np.searchsorted(step, np.arange(N + 1), side="left")
-        return Measurements(step=step.astype(np.int64),
-                            source=cat["source"][order].astype(np.int64),
-                            mtype=cat["mtype"][order].astype(np.int64), z=cat["z"][order],
-                            r=cat["r"][order], t=cat["t"][order], H=np.ascontiguousarray(H),
-                            hrow=cat["hrow"][order].astype(np.int64), d=cat["d"][order],
-                            start=start.astype(np.int64), rate=cat["rate"][order])
+        H = np.concatenate(self.H) if self.H else np.zeros((0, self.n))
+        return Measurements(step=step.astype(np.int64), source=cat.source[order].astype(np.int64),
+                            mtype=cat.mtype[order].astype(np.int64), z=cat.z[order],
+                            r=cat.r[order], t=cat.t[order], H=np.ascontiguousarray(H),
+                            hrow=cat.hrow[order].astype(np.int64), d=cat.d[order],
+                            start=start.astype(np.int64), rate=cat.rate[order])
 
 
 @nb.njit(cache=True, nogil=True)
@@ -135,14 +142,10 @@ def _wind_prior_picks(t, h, corr_s, corr_m, spacing):
 
 def wind_prior_measurements(inp: JointInputs, settings: JointSettings
                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The winds-aloft prior (``--wind``) as sparse pseudo-measurements of the wind states.
-
-    One at the first airborne air-data sample, then a new one whenever |dt| / tau + |dz| / L since
-    the last reaches ``spacing`` (``settings.wind_prior`` = (tau, L, spacing); the forecast's error
-    correlated as exp(-|dt| / tau - |dz| / L)), each later one's variance inflated by
-    (1 + rho) / (1 - rho): treated as independent they carry the AR(1) chain's information exactly,
-    so the forecast counts once per correlation length however densely it is sampled (docs/wind.md,
-    "The prior in the joint smoother").
+    """The winds-aloft prior (``--wind``) as sparse pseudo-measurements of the wind states: one at
+    the first airborne air-data sample, then one whenever |dt| / tau + |dz| / L since the last
+    reaches ``spacing`` (``settings.wind_prior`` = (tau, L, spacing)), each later one's variance
+    inflated by (1 + rho) / (1 - rho) (docs/wind.md, "The prior in the joint smoother").
 
     Returns
     -------
@@ -168,10 +171,32 @@ def wind_prior_measurements(inp: JointInputs, settings: JointSettings
     return t_in[i], wa[i, :2], sd, rho
 
 
-def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> _MeasBuilder:
-    """The measurements that do not change between Gauss-Newton iterations: air data, Doppler,
-    recorded wind, the winds-aloft prior, pressure altitude, ground and runway constraints (built
-    once)."""
+@dataclass(frozen=True)
+class StaticTable:
+    """What no pass changes (:func:`static_measurements`): the rows of every pass (``parts``, with
+    their state steps, and their rows of ``H``), the ground samples' times ``ground_t``
+    (:func:`on_ground_mask`), the ground ``rolls``, the known positions (``--fix``: their (F, 5)
+    table, state steps and ECEF positions, None where one has no height) or None, each end point's
+    ECEF position and NED-to-ECEF rotation (``inp.end_points``' order)."""
+
+    parts: tuple[_Part, ...]
+    H: tuple[np.ndarray, ...]
+    ground_t: np.ndarray
+    rolls: tuple[GroundRoll, ...]
+    fixes: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None
+    ends: tuple[tuple[np.ndarray, np.ndarray], ...]
+
+
+def _ecef(lat_deg, lon_deg, h_m) -> np.ndarray:
+    """(M, 3) ECEF positions [m] of geodetic ones (``geodetic_to_ecef``)."""
+    ex, ey, ez = geodetic_to_ecef(lat_deg, lon_deg, h_m)
+    return np.c_[ex, ey, ez]
+
+
+def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray) -> StaticTable:
+    """What does not change between Gauss-Newton passes (:class:`StaticTable`): the rows of the air
+    data, Doppler, recorded wind, the winds-aloft prior, pressure altitude and the ground's vertical
+    velocity, and the parts of the other rows that the data fix (built once)."""
     nz = settings.noise
     b = _MeasBuilder(T)
     t_in = inp.t_in
@@ -223,40 +248,44 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
     # bias and the nominal, see build_measurements)
     tt = t_in[on_ground_mask(inp, settings)]
     b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + 2)
-    return b
+    rolls = ground_rolls(inp, settings, T)
+    fixes = None
+    if inp.fixes is not None and len(inp.fixes):
+        fx = np.asarray(inp.fixes, float)
+        fixes = (fx, nearest_index(T, fx[:, 0]),
+                 _ecef(fx[:, 1], fx[:, 2], fx[:, 3]) if np.isfinite(fx[:, 3]).all() else None)
+    ends = tuple((_ecef(*e.point)[0], ned_to_ecef_matrix(e.point[0], e.point[1])[0])
+                 for e in inp.end_points)
+    # the rows' state steps, found once
+    parts = tuple(p._replace(step=nearest_index(T, p.t)) for p in b.parts)
+    return StaticTable(parts, tuple(b.H), tt, rolls, fixes, ends)
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
-                       clock: dict[str, float], static: _MeasBuilder, pnom: np.ndarray,
+                       clock: dict[str, float], static: StaticTable, pnom: np.ndarray,
                        vnom: np.ndarray, roll: TakeoffRoll,
                        psi_hat: np.ndarray | None) -> Measurements:
-    """Every source as scalar measurements at its own time (recorder time base).
-
-    ``static`` is :func:`static_measurements`; the GNSS, radar, known-position (``--fix``),
-    end-point and runway measurements depend on the linearisation (``Cen``, the nominal ECEF
-    positions ``pnom`` and NED velocities ``vnom`` on the state grid) and on the clock offsets
-    ``clock`` (seconds *added* to each group's time stamps, the convention of ``flightrecon clean
-    --radar-clock-offset``) and are rebuilt on each call.  ``roll`` is the pass's take-off roll
-    (:func:`~flightrecon.methods.joint.inputs.refined_roll`); ``psi_hat`` the heading bias of the
-    last pass (per state step; None: zero), about which the ground constraints are linearised.
-    """
+    """Every source as scalar measurements at its own time (recorder time base): the ``static``
+    table's rows (:func:`static_measurements`) and the GNSS, radar, known-position (``--fix``),
+    end-point and runway rows, which depend on the linearisation (``Cen``, the nominal ECEF
+    positions ``pnom`` and NED velocities ``vnom`` on the state grid), the clock offsets ``clock``
+    (seconds *added* to each group's time stamps, as ``flightrecon clean --radar-clock-offset``),
+    the pass's take-off roll ``roll`` (:func:`~flightrecon.methods.joint.inputs.refined_roll`) and
+    the last pass's heading bias ``psi_hat`` (per state step; None: zero)."""
     nz = settings.noise
-    b = static.copy()
+    b = _MeasBuilder(T, parts=static.parts, H=static.H)
     _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
-    # height (then at the substitute height, as a GNSS fix without one)
-    if inp.fixes is not None and len(inp.fixes):
-        fx = np.asarray(inp.fixes, float)
-        tf = fx[:, 0]
-        hf = fx[:, 3].copy()
-        no_hf = ~np.isfinite(hf)
-        if no_hf.any():
-            hf = np.where(no_hf, _substitute_height(T, tf, pnom), hf)
-        ex, ey, ez = geodetic_to_ecef(fx[:, 1], fx[:, 2], hf)
-        sd_f = fx[:, 4]
-        _add_ned_components(b, T, Cen, "fix", tf, None, (sd_f, sd_f, np.where(no_hf, np.nan, sd_f)),
-                        "pos", np.c_[ex, ey, ez])
-    runway_measurements(b, inp, settings, lambda t: nearest_index(T, t), pnom, vnom, psi_hat)
+    # height (then at the nominal's height, as a GNSS fix without one)
+    if static.fixes is not None:
+        fx, k, ecef = static.fixes
+        no_h = ~np.isfinite(fx[:, 3])
+        if ecef is None:
+            h = ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+            ecef = _ecef(fx[:, 1], fx[:, 2], np.where(no_h, h, fx[:, 3]))
+        sd = fx[:, 4]
+        _ned_positions(b, Cen, "fix", fx[:, 0], k, (sd, sd, np.where(no_h, np.nan, sd)), ecef)
+    runway_measurements(b, static.rolls, pnom, vnom, psi_hat)
     # radar
     rd = inp.radar
     if len(rd) and inp.station is not None:
@@ -271,93 +300,74 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     # airspeed carries the head wind); at rest before it (lined up): zero north and east velocity
     r0, r1 = roll.rest_t
     if np.isfinite(r0):
-        t_in = inp.t_in
-        tt = t_in[on_ground_mask(inp, settings) & (t_in >= r0) & (t_in <= r1)]
+        tg = static.ground_t
+        tt = tg[(tg >= r0) & (tg <= r1)]
         for i in range(2):
             b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + i)
         lineup_heading(b, inp, settings, tt)
-    _endpoint_measurements(b, inp, settings, T, Cen, roll)
+    _endpoint_measurements(b, inp, T, Cen, roll, static.ends)
     return b.build()
 
 
-def _add_ned_components(b: _MeasBuilder, T: np.ndarray, Cen: np.ndarray, source: str, t, comp_vals,
-                    sd, kind: str = "pos", ecef=None, acc: np.ndarray | None = None) -> None:
-    """Add the NED components of a position (given in ECEF, ``kind="pos"``: three ``NED_POS``
-    measurements, whose rows the kernel builds from the step's frame with the tau term) or a
-    velocity (``kind="vel"``: north and east, two ``STATE`` measurements) at times ``t`` to ``b``. A
-    velocity is carried to its own time as the position is: h = v_i + a_i tau with ``acc`` (M, 2)
-    the north and east acceleration at each (None: h = v_i, the velocity at the step)."""
-    k = nearest_index(T, t)
-    tau = np.asarray(t, float) - T[k]
-    for i in range(3 if kind == "pos" else 2):
-        r = np.broadcast_to(sd[i] ** 2, (len(t),))
-        if kind == "pos":   # c_i . p + v_i tau, c_i the NED axis i in ECEF at the step
-            z = np.einsum("mj,mj->m", Cen[k][:, :, i], ecef)
-            b.add(source, jl.NED_POS, t, z, r, index=i)
-        else:
-            a_i = np.zeros(len(t)) if acc is None else acc[:, i]
-            b.add(source, jl.STATE, t, comp_vals[i], r, d=a_i * tau, index=jl.IV + i, rate=a_i)
-
-
-def _substitute_height(T: np.ndarray, t: np.ndarray, pnom: np.ndarray) -> np.ndarray:
-    """Ellipsoidal height [m] for a position given without one at times ``t``: the nominal track's
-    at the nearest state step."""
-    k = nearest_index(T, t)
-    return ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2]
+def _ned_positions(b: _MeasBuilder, Cen: np.ndarray, source: str, t: np.ndarray, k: np.ndarray,
+                   sd, ecef: np.ndarray) -> None:
+    """Three ``NED_POS`` rows per position ``ecef`` (M, 3) at times ``t`` (state steps ``k``), sd
+    ``sd`` per NED axis: c_i . p + v_i tau, c_i the NED axis i in ECEF at the step (the kernel
+    builds the rows from the step's frame with the tau term)."""
+    for i in range(3):
+        z = np.einsum("mj,mj->m", Cen[k][:, :, i], ecef)
+        b.add(source, jl.NED_POS, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), index=i, step=k)
 
 
 def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings, T: np.ndarray,
                        Cen: np.ndarray, clock: dict[str, float], pnom: np.ndarray) -> None:
     """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities, at
     their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the receiver's
-    per-fix accuracy.
-
-    Each is carried from its state step to its own time, the fixes by the state's velocity, the
-    velocities by their own acceleration (:func:`gnss_acceleration`; the iterate's would make the
-    measurement function depend on the trajectory beyond its step, and the Gauss-Newton step no
-    descent direction); compared at the step, the velocities held the clock offset's estimate near
-    zero (docs/joint.md, "Filter, smoother, iterations", item 4)."""
+    per-fix accuracy; the velocities carried to their time by their own acceleration
+    (:func:`gnss_acceleration`; docs/joint.md, "Filter, smoother, iterations", item 4)."""
     nz = settings.noise
     g = inp.gnss
     if not len(g):
         return
     t_in = inp.t_in
     tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
-    k = nearest_index(T, tg)
+    # the velocities' own clock offset (the positions' where none is given)
+    tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
+    k, kv = nearest_index(T, np.stack([tg, tv]))
+    L = np.asarray(inp.lever_arm, float)
+    arm, v_arm = np.zeros((len(tg), 3)), np.zeros((len(tg), 3))
+    if np.any(L != 0):
+        # attitude at the fix (nearest input sample) and +-0.5 s about it: the antenna's velocity
+        # adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of yaw), a central difference of
+        # the recorded attitude (its noise, 0.05 deg at 8 Hz, then adds under 0.01 m/s)
+        ii, ip, im = nearest_index(t_in, tg + np.array([[0.0], [0.5], [-0.5]]))
+        C = inp.body_to_ned(np.r_[ii, ip, im]).reshape(3, len(tg), 3, 3)
+        arm = np.einsum("mij,mj->mi", Cen[k], np.einsum("mij,j->mi", C[0], L))
+        span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
+        v_arm = np.einsum("mij,j->mi", C[1] - C[2], L) / span
     hg = g["h_m"].to_numpy(float)
     no_h = ~np.isfinite(hg)
     if no_h.any():
         # a fix without height is used horizontally: its north and east components only, computed at
         # the nominal's height; the north/east projection of the fix moves by (angle between the
         # verticals at the fix and at the step) x (height error): under 2e-4 m per m at 1 km
-        hg = np.where(no_h, _substitute_height(T, tg, pnom), hg)
+        hg = np.where(no_h, ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2], hg)
     ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
-    ant = np.c_[ex, ey, ez]
-    L = np.asarray(inp.lever_arm, float)
-    v_arm = np.zeros((len(tg), 3))
-    if np.any(L != 0):
-        # attitude at the fix: nearest input sample
-        ii = nearest_index(t_in, tg)
-        arm_ned = np.einsum("mij,j->mi", inp.body_to_ned(ii), L)
-        ant = ant - np.einsum("mij,mj->mi", Cen[k], arm_ned)
-        # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of
-        # yaw): a central difference over +-0.5 s of the recorded attitude (its noise,
-        # 0.05 deg at 8 Hz, then adds under 0.01 m/s)
-        ip, im = nearest_index(t_in, tg + 0.5), nearest_index(t_in, tg - 0.5)
-        span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
-        v_arm = np.einsum("mij,j->mi", inp.body_to_ned(ip) - inp.body_to_ned(im), L) / span
+    ant = np.c_[ex, ey, ez] - arm   # the antenna moved to the reference point
     # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
     # else the noise settings; no height: no vertical component
     sd_h = per_fix_sd(g, "h_sd_m", nz.gnss_h_m)
     sd_v = np.where(no_h, np.nan, per_fix_sd(g, "v_sd_m", nz.gnss_v_m))
-    _add_ned_components(b, T, Cen, "gnss_pos", tg, None, (sd_h, sd_h, sd_v), "pos", ant)
+    _ned_positions(b, Cen, "gnss_pos", tg, k, (sd_h, sd_h, sd_v), ant)
     if {"vn_mps", "ve_mps"} <= set(g.columns):
         sd_vel = per_fix_sd(g, "vel_sd_mps", nz.gnss_vel_mps)
         vel = (g["vn_mps"].to_numpy() - v_arm[:, 0], g["ve_mps"].to_numpy() - v_arm[:, 1])
-        # the velocities' own clock offset (the positions' where none is given)
-        tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
+        # each carried to its own time by its acceleration a: h = v_i + a_i tau
         acc = gnss_acceleration(tv, np.column_stack(vel))
-        _add_ned_components(b, T, Cen, "gnss_vel", tv, vel, (sd_vel, sd_vel), "vel", acc=acc)
+        tau = tv - T[kv]
+        for i in range(2):
+            b.add("gnss_vel", jl.STATE, tv, vel[i], np.broadcast_to(sd_vel ** 2, (len(tv),)),
+                  d=acc[:, i] * tau, index=jl.IV + i, rate=acc[:, i], step=kv)
 
 
 def gnss_acceleration(t: np.ndarray, v: np.ndarray, max_gap_s: float = 2.5) -> np.ndarray:
@@ -385,43 +395,37 @@ def gnss_acceleration(t: np.ndarray, v: np.ndarray, max_gap_s: float = 2.5) -> n
     return a
 
 
-def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
-                           T: np.ndarray, Cen: np.ndarray, roll: TakeoffRoll) -> None:
+def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, T: np.ndarray, Cen: np.ndarray,
+                           roll: TakeoffRoll, ecef: tuple[tuple[np.ndarray, np.ndarray], ...]
+                           ) -> None:
     """The end points (``inp.end_points``, the runway departure at the start of ``roll``:
-    :func:`end_points_at`): the runway model along / across the runway and vertically, the reference
-    model in north, east, down."""
-    for ep in end_points_at(inp.end_points, roll):
-        lat, lon, h = ep.point
-        pe = np.array(geodetic_to_ecef(lat, lon, h), float).reshape(3)
-        tt = np.array([ep.t_s])
+    :func:`end_points_at`; ``ecef``: each one's ECEF position and NED-to-ECEF rotation): the runway
+    model along / across the runway and vertically, the reference model in north, east, down."""
+    ends = end_points_at(inp.end_points, roll)
+    ks = nearest_index(T, np.array([ep.t_s for ep in ends]))
+    for j, (ep, (pe, Ca)) in enumerate(zip(ends, ecef)):
+        tt, k = np.array([ep.t_s]), ks[j:j + 1]
         if ep.model in ("reference", "last_position") or ep.runway_rad is None:
-            _add_ned_components(b, T, Cen, "endpoint", tt, None, ep.sd_m, "pos", pe[None, :])
+            _ned_positions(b, Cen, "endpoint", tt, k, ep.sd_m, pe[None, :])
             continue
-        k = nearest_index(T, tt)[0]
-        tau = tt[0] - T[k]
+        tau = tt[0] - T[k[0]]
         psi = ep.runway_rad
-        Ca = ned_to_ecef_matrix(lat, lon)[0]
         for row, sd in zip(([np.cos(psi), np.sin(psi), 0.0], [-np.sin(psi), np.cos(psi), 0.0],
                             [0.0, 0.0, 1.0]), ep.sd_m):
             u = np.asarray(row)
             H = np.zeros((1, jl.N_STATE))
             H[0, jl.S_POS] = Ca @ u
             H[0, jl.S_VEL] = u * tau
-            b.add("endpoint", jl.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe)
+            b.add("endpoint", jl.LINEAR, tt, np.zeros(1), sd ** 2, H, -(Ca @ u) @ pe, step=k)
 
 
 def nose_along_air(attitude_deg: np.ndarray, settings: JointSettings) -> np.ndarray:
-    """Samples whose attitude lets the heading stand for the air velocity's direction.
-
-    The air velocity in body axes is V (cos a cos b, sin b, sin a cos b) (angle of attack a,
-    sideslip b); its horizontal direction differs from the heading by about a sin(roll) / cos(pitch)
-    plus the sideslip: a few degrees in a 30 deg bank (the part :func:`nose_offset` takes out), tens
-    of degrees in a spiral dive or a spin, where neither the offset's no-sideslip geometry nor the
-    pitot holds.  Kept: |roll| <= ``heading_max_roll_deg`` and |pitch| <= ``heading_max_pitch_deg``,
-    the angles of the body-to-NED rotation C = R_z R_y R_x of the recorded attitude ``attitude_deg``
-    (Ni, 3), from its last row C[2] = (-sin(pitch), sin(roll) cos(pitch), cos(roll) cos(pitch)): a
-    roll of 190 deg counts as -170 deg and a pitch of 100 deg (inverted) as 80 deg.
-    """
+    """Samples whose attitude lets the heading stand for the air velocity's direction (beyond, the
+    angle of attack times sin(roll), a spin's sideslip: docs/joint.md, "Measurements"): |roll| <=
+    ``heading_max_roll_deg`` and |pitch| <= ``heading_max_pitch_deg``, the angles of the body-to-NED
+    rotation C = R_z R_y R_x of the recorded attitude ``attitude_deg`` (Ni, 3), from its last row
+    C[2] = (-sin(pitch), sin(roll) cos(pitch), cos(roll) cos(pitch)): a roll of 190 deg counts as
+    -170 deg and a pitch of 100 deg (inverted) as 80 deg."""
     phi, theta = np.radians(attitude_deg[:, 0]), np.radians(attitude_deg[:, 1])
     st, ct = np.sin(theta), np.cos(theta)
     pitch = -np.arcsin(np.clip(-st, -1.0, 1.0))
@@ -435,22 +439,11 @@ def nose_offset(inp: JointInputs, climb_window_s: float = 2.0,
                 at: np.ndarray | None = None) -> np.ndarray:
     """Heading minus the air velocity's horizontal direction on the input grid [rad] (at the input
     samples ``at``, a boolean mask or indices, when given: the same numbers as the whole grid's
-    there), from the angle of attack that the recorded attitude, pressure-altitude rate and airspeed
-    imply (docs/joint.md, "Measurements").
-
-    With no sideslip the air velocity in body axes is V (cos a, 0, sin a); rotated by C = R_z(psi)
-    R_y(theta) R_x(phi) its horizontal direction is the heading minus
-
-        delta = atan2(sin phi sin a, cos theta cos a + cos phi sin theta sin a),
-
-    about a sin(phi): 1 deg at a = 2.5 deg in a 25 deg bank, to the inside of the turn.  The angle
-    of attack comes from the air-relative flight-path angle g, sin g = h' / V (vertical wind
-    neglected; h' the pressure-altitude rate, a central difference over ``climb_window_s``), through
-    sin g = cos a sin theta - sin a cos phi cos theta (the body's geometry with no sideslip): a =
-    arccos(sin g / R) - d, R = hypot(A, B), d = atan2(B, A), A = sin theta, B = cos phi cos theta.
-    Where the angles are not finite or ``a`` falls outside ``alpha_range_deg`` (a stall, a spin: the
-    heading is not used there anyway) the offset is 0.
-    """
+    there): delta = atan2(sin phi sin a, cos theta cos a + cos phi sin theta sin a) with the angle
+    of attack a from sin g = cos a sin theta - sin a cos phi cos theta, sin g = h' / V (h' the
+    pressure-altitude rate over ``climb_window_s``): a = arccos(sin g / R) - d, R = hypot(A, B),
+    d = atan2(B, A), A = sin theta, B = cos phi cos theta (docs/joint.md, "Measurements": the
+    heading measures the nose).  0 where not finite or a is outside ``alpha_range_deg``."""
     t_all = inp.t_in
     sel = slice(None) if at is None else at
     t = t_all[sel]
@@ -518,15 +511,10 @@ RUNWAY_EXIT_DEG = 10.0
 
 def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_EXIT_DEG
                    ) -> np.ndarray:
-    """Input samples that can be on the departure (``departure``) or arrival runway.
-
-    Departure: from the line-up (``inp.lineup_t``, the cleaning phases': the start of the last
-    stretch within 10 deg of the take-off run's heading), the whole record before lift-off where it
-    is not known.  Arrival: from touchdown to the runway exit, the first sample after which the
-    heading is more than ``exit_deg`` from the landing roll's (its circular mean from 2 to 6 s after
-    touchdown, when the crab is gone), to the end where it does not turn off (a record from stand to
-    stand: the centreline rows no longer hold the taxi, issue #36).
-    """
+    """Input samples that can be on the departure (``departure``) or arrival runway: from the
+    line-up (``inp.lineup_t``; the whole record where not known); from touchdown to the first
+    sample after which the heading is more than ``exit_deg`` from the landing roll's (its circular
+    mean 2-6 s after touchdown), to the end where it does not turn off (issue #36)."""
     t = inp.t_in
     if departure:
         if np.isfinite(inp.lineup_t):
@@ -551,35 +539,40 @@ def on_runway_mask(inp: JointInputs, departure: bool, exit_deg: float = RUNWAY_E
     return m
 
 
-def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
-                         step_of, pnom: np.ndarray, vnom: np.ndarray,
-                         psi_hat: np.ndarray | None = None) -> None:
-    """Rolling on the runway (docs/joint.md, "Measurements", with the JSBSim fleet's measurements
-    that chose the defaults): zero cross-track velocity, and zero cross-track offset from the
-    centreline through the runway's threshold, else through the airfield reference point, whose
-    distance from the centreline (an apron, a stand) is one error for the whole roll known no better
-    than ``endpoint_h_m``: each of the roll's m centreline rows carries ``runway_halfwidth_m^2 + m
-    endpoint_h_m^2`` (the roll tells the cross-track position one reference's worth, not m).
+@dataclass(frozen=True)
+class GroundRoll:
+    """One end's ground roll as the data fix it (:func:`ground_rolls`): its samples' times, state
+    steps and recorded headings, the runway's direction (None: not known), whether the velocity
+    rows run along the true heading (``nose``), their variance, the centreline samples (a mask),
+    the centreline's point (ECEF; None: no centreline rows), its NED-to-ECEF rotation and the
+    centreline rows' variance."""
 
-    The velocity rows hold the velocity along the runway's direction (``roll_velocity`` = "runway",
-    the default, where the metadata give ``runway_true_deg``: the roll then ties the heading
-    reference), else (and with "nose") along the true heading psi_rec - dpsi (the wheels roll where
-    the nose points), linearised about the last pass's heading bias ``psi_hat`` (per state step):
-    c(psi_rec - dpsi) . v ~ c(psi') . v + (dpsi - psi_hat) a(psi') . v_nom with psi' = psi_rec -
-    psi_hat and c, a the cross- and along-heading unit vectors (exact at the solution; the recorded
-    heading itself would tell the smoother the bias is zero).  With "nose" the runway's direction
-    reaches the bias through the centreline rows and the line-up (:func:`lineup_heading`) only.
+    t: np.ndarray
+    k: np.ndarray
+    heading_rad: np.ndarray
+    runway_rad: float | None
+    nose: bool
+    r_v: np.ndarray | float
+    centre: np.ndarray
+    point: np.ndarray | None
+    Ca: np.ndarray
+    r_cl: float
 
-    ``ground_slip_deg`` s (default 0): an angle between track and runway common to the whole roll
-    (steering, tyre slip in a crosswind, a crab kept after touchdown), carried by each of the m
-    cross-track velocity rows as the extra variance ``m (s V)^2`` (V: :func:`roll_speed`, from the
-    data, so the cost stays the same from pass to pass): the rows tell the heading bias one such
-    angle's worth.
-    """
+
+def ground_rolls(inp: JointInputs, settings: JointSettings, T: np.ndarray
+                 ) -> tuple[GroundRoll, ...]:
+    """The departure's and the arrival's ground rolls (:class:`GroundRoll`) on the state grid ``T``:
+    what the data fix of the runway rows (:func:`runway_measurements`; docs/joint.md,
+    "Measurements", on the ground).  The velocity rows' variance: ``ground_mps^2 + m (s V)^2`` for
+    the m rows (s: ``ground_slip_deg``; V: :func:`roll_speed`), plus along the runway the steering's
+    (:func:`steering_variance`); the centreline's, through the airfield reference point where no
+    threshold is given, ``runway_halfwidth_m^2 + m endpoint_h_m^2``."""
+    nz = settings.noise
     t_in = inp.t_in
     keep = on_ground_mask(inp, settings)
     if not keep.any():
-        return
+        return ()
+    out = []
     for dep_end, (pos, side, rw, t_edge) in enumerate((
             (inp.departure, t_in < (inp.liftoff_t if np.isfinite(inp.liftoff_t) else -np.inf),
              inp.runway_rad[0], inp.liftoff_t),
@@ -594,87 +587,70 @@ def runway_measurements(b: Any, inp: JointInputs, settings: JointSettings,
         # a record from stand to stand: the taxi before the line-up and after the runway exit
         # is on no runway; its rows along the heading (cross-track velocity zero) stay where
         # the runway's direction is not known: they hold on any taxiway
-        on_rw = on_runway_mask(inp, dep_end == 0)
-        cl_side = side & on_rw
-        if known:
-            side = cl_side
-        sel = keep & side
+        cl_side = side & on_runway_mask(inp, dep_end == 0)
+        sel = keep & (cl_side if known else side)
         if not sel.any():
             continue
-        tt, k, ph, psi = _roll_velocity_rows(b, inp, settings, sel, (dep_end, rw, t_edge),
-                                             step_of, vnom, psi_hat)
-        if pos is None:
+        tt = t_in[sel]
+        nose = not known or settings.roll_velocity == "nose"
+        v_roll = roll_speed(inp, settings, t_edge)
+        r_v = nz.ground_mps ** 2 + len(tt) * (np.radians(nz.ground_slip_deg) * v_roll) ** 2
+        if not nose:
+            # the wheels roll where the nose points: the track leaves the runway's direction
+            # by the nose's angle to the heading lined up at rest before a take-off roll, or,
+            # on a landing roll (no rest before it) and a take-off without one, by its angle
+            # to the runway itself (the heading bias inside it: a fraction of the swerves)
+            ref = rest_heading(inp) if dep_end == 0 else None
+            r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll, rw if ref is None else ref)
+        centre = cl_side[sel]
+        point, Ca = None, np.eye(3)
+        if pos is not None and centre.any():
+            ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
+            point = np.array([float(ex), float(ey), float(ez)])
+            Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
+        # off the line (no threshold): one error of endpoint_h_m common to the roll's m rows
+        r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line
+                                             else int(centre.sum()) * nz.endpoint_h_m ** 2)
+        out.append(GroundRoll(tt, nearest_index(T, tt), inp.heading_rad[sel], rw, nose, r_v,
+                              centre, point, Ca, r_cl))
+    return tuple(out)
+
+
+def runway_measurements(b: _MeasBuilder, rolls: tuple[GroundRoll, ...], pnom: np.ndarray,
+                        vnom: np.ndarray, psi_hat: np.ndarray | None = None) -> None:
+    """Rolling on the runway (the ground ``rolls``; docs/joint.md, "The heading reference:
+    runways"): zero cross-track velocity and offset from the centreline, across the runway's
+    direction where known (with ``roll_velocity`` "runway", the default), else across the true
+    heading psi_rec - dpsi linearised about the last pass's heading bias ``psi_hat`` (per step):
+    c(psi_rec - dpsi) . v ~ c(psi') . v + (dpsi - psi_hat) a(psi') . v_nom, psi' = psi_rec -
+    psi_hat, c and a the cross- and along-heading unit vectors (exact at the solution), ``vnom``
+    and ``pnom`` the nominal velocities and ECEF positions."""
+    for g in rolls:
+        tt, k = g.t, g.k
+        ph = np.zeros(len(tt)) if psi_hat is None or not g.nose else psi_hat[k]
+        psi = g.heading_rad - ph if g.nose else np.full(len(tt), g.runway_rad)
+        H = np.zeros((len(tt), jl.N_STATE))
+        H[:, jl.IV] = -np.sin(psi)
+        H[:, jl.IV + 1] = np.cos(psi)
+        if g.nose:
+            H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
+        b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), g.r_v, H, -H[:, jl.IPSI] * ph, step=k)
+        if g.point is None:
             continue
-        on_cl = cl_side[sel]
-        if on_cl.any():
-            _centreline_rows(b, settings, pos, (tt[on_cl], k[on_cl], ph[on_cl], psi[on_cl]),
-                             rw, on_line, pnom)
-
-
-def _roll_velocity_rows(b: Any, inp: JointInputs, settings: JointSettings, sel: np.ndarray,
-                        ends: tuple[int, float | None, float], step_of, vnom: np.ndarray,
-                        psi_hat: np.ndarray | None
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The roll's cross-track velocity rows (:func:`runway_measurements`) on the samples ``sel``;
-    ``ends`` the departure (0) or arrival (1) end, its runway direction (None: not known) and the
-    lift-off or touchdown time.  Returns the rows' times, state steps, heading bias of the
-    linearisation and direction (for the centreline rows)."""
-    nz = settings.noise
-    slip = np.radians(nz.ground_slip_deg)
-    dep_end, rw, t_edge = ends
-    known = rw is not None
-    # along the runway's direction (only its line matters: a reversed direction is the
-    # same), or the true heading psi_rec - dpsi linearised about the last pass's bias
-    tt = inp.t_in[sel]
-    k = step_of(tt)
-    nose = not known or settings.roll_velocity == "nose"
-    ph = np.zeros(len(tt)) if psi_hat is None or not nose else psi_hat[k]
-    psi = inp.heading_rad[sel] - ph if nose else np.full(len(tt), rw)
-    H = np.zeros((len(tt), jl.N_STATE))
-    H[:, jl.IV] = -np.sin(psi)
-    H[:, jl.IV + 1] = np.cos(psi)
-    v_roll = roll_speed(inp, settings, t_edge)
-    r_v = nz.ground_mps ** 2 + len(tt) * (slip * v_roll) ** 2
-    if nose:
-        H[:, jl.IPSI] = np.cos(psi) * vnom[k, 0] + np.sin(psi) * vnom[k, 1]
-    else:
-        # the wheels roll where the nose points: the track leaves the runway's direction
-        # by the nose's angle to the heading lined up at rest before a take-off roll, or,
-        # on a landing roll (no rest before it) and a take-off without one, by its angle
-        # to the runway itself (the heading bias inside it: a fraction of the swerves)
-        ref = rest_heading(inp) if dep_end == 0 else None
-        if ref is None and rw is not None:
-            ref = float(rw)
-        r_v = r_v + steering_variance(inp.heading_rad[sel], v_roll, ref)
-    b.add("ground", jl.LINEAR, tt, np.zeros(len(tt)), r_v, H, -H[:, jl.IPSI] * ph)
-    return tt, k, ph, psi
-
-
-def _centreline_rows(b: Any, settings: JointSettings, pos: tuple[float, float, float],
-                     rows: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-                     rw: float | None, on_line: bool, pnom: np.ndarray) -> None:
-    """The roll's cross-track offset rows from the centreline through ``pos`` (the threshold,
-    ``on_line``, or the airfield's reference point) on the rows ``(tt, k, ph, psi)`` of the
-    centreline samples (:func:`runway_measurements`)."""
-    nz = settings.noise
-    known = rw is not None
-    tt, k, ph, psi = rows
-    # the centreline: the runway's direction where known (only its line matters: a
-    # reversed direction is the same), else the true heading
-    if known:
-        psi, ph = np.full(len(tt), rw), np.zeros(len(tt))
-    ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-    arp = np.array([float(ex), float(ey), float(ez)])
-    Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
-    cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ Ca.T  # (m, 3) in ECEF
-    along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ Ca.T
-    H = np.zeros((len(tt), jl.N_STATE))
-    H[:, jl.S_POS] = cross
-    if not known:
-        H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - arp)
-    # off the line (no threshold): one error of endpoint_h_m common to the roll's m rows
-    r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line else len(tt) * nz.endpoint_h_m ** 2)
-    b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), r_cl, H, -cross @ arp - H[:, jl.IPSI] * ph)
+        # the centreline: the runway's direction where known (only its line matters: a
+        # reversed direction is the same), else the true heading
+        c = g.centre
+        tt, k, ph, psi = tt[c], k[c], ph[c], psi[c]
+        if g.runway_rad is not None:
+            psi, ph = np.full(len(tt), g.runway_rad), np.zeros(len(tt))
+        cross = np.c_[-np.sin(psi), np.cos(psi), np.zeros(len(psi))] @ g.Ca.T  # (m, 3) in ECEF
+        H = np.zeros((len(tt), jl.N_STATE))
+        H[:, jl.S_POS] = cross
+        if g.runway_rad is None:
+            along = np.c_[np.cos(psi), np.sin(psi), np.zeros(len(psi))] @ g.Ca.T
+            H[:, jl.IPSI] = np.einsum("mj,mj->m", along, pnom[k] - g.point)
+        b.add("runway", jl.LINEAR, tt, np.zeros(len(tt)), g.r_cl, H,
+              -cross @ g.point - H[:, jl.IPSI] * ph, step=k)
 
 
 def rest_heading(inp: JointInputs) -> float | None:
@@ -693,14 +669,9 @@ def rest_heading(inp: JointInputs) -> float | None:
 def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
                       ref_rad: float | None = None) -> np.ndarray:
     """Variance [m^2/s^2] of the velocity across the runway that steering makes at each of a roll's
-    samples (recorded headings ``heading_rad`` [rad]): the wheels roll where the nose points, so
-    where the heading leaves the lined-up heading ``ref_rad`` [rad] (at rest before the roll:
-    :func:`rest_heading`; None: the samples' circular mean) by d, the heading bias dropping out of
-    the difference, the track leaves the runway by about d: ``(V sin d)^2``, V = ``v_roll_mps`` the
-    roll's fastest speed (:func:`roll_speed`, from the data and not the iterate; at least the speed
-    at the sample, so never less than the swerve's cross-track velocity).  JSBSim's Cessna 310
-    swings 5-14 deg on its take-off roll and its velocity rows then held the heading bias
-    4.9 +- 0.4 deg off (docs/jsbsim.md, "Fleet study")."""
+    samples (recorded headings ``heading_rad`` [rad]): ``(V sin d)^2``, d the heading's angle to the
+    lined-up heading ``ref_rad`` [rad] (None: the samples' circular mean), V = ``v_roll_mps`` the
+    roll's fastest speed (:func:`roll_speed`) (docs/joint.md, "The heading reference: runways")."""
     h = np.asarray(heading_rad, dtype=float)
     if h.size == 0:
         return np.zeros(0)
@@ -710,19 +681,13 @@ def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
     return (v_roll_mps * np.sin(d)) ** 2
 
 
-def lineup_heading(b: Any, inp: JointInputs, settings: JointSettings, t_rest: np.ndarray) -> None:
+def lineup_heading(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
+                   t_rest: np.ndarray) -> None:
     """Lined up at rest before the take-off roll, the nose points along the departure runway: one
     row on the heading bias, dpsi = mean(psi_rec - psi_rw) (the circular mean over the rest's
     samples ``t_rest``, wrapped to the runway's line: a reversed direction is the same runway), sd
-    ``lineup_heading_deg`` (how straight an aircraft is lined up).  Only where the metadata give the
-    runway's direction and ``settings.roll_velocity`` is "nose".
-
-    The "nose" velocity rows of :func:`runway_measurements` hold the roll's velocity along the nose,
-    which says nothing about the bias; the runway's direction reaches it through the centreline rows
-    and this row.  At rest the heading is what the line-up left, before any steering on the roll
-    (JSBSim's aircraft: along the runway at rest, 2-8 deg off it for 10-20 s of their rolls,
-    docs/jsbsim.md).
-    """
+    ``lineup_heading_deg``, where the metadata give the runway's direction (docs/joint.md, "The
+    heading reference: runways")."""
     rw = inp.runway_rad[0]
     if rw is None or len(t_rest) == 0:
         return
