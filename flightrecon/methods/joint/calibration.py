@@ -1,17 +1,15 @@
 """What the joint smoother calibrates on its own solution, each as an adjusted problem
-(:class:`~flightrecon.methods.joint.problem.JointProblem`, :func:`dataclasses.replace`) solved
-again: the wind walk re-estimated where the smoothed wind outran it (:func:`wind_walk_rounds`), and
-the position sd inside GNSS gaps calibrated on held-out stretches (:func:`calibrate_gaps`;
-docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
+(:func:`~flightrecon.methods.joint.problem.adjusted`) solved again: the wind walk re-estimated
+where the smoothed wind outran it (:func:`wind_walk_rounds`; docs/joint.md, "Wind and
+turbulence"), and the position sd inside GNSS gaps calibrated on held-out stretches
+(:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
 
 Inside a GNSS gap the smoothed position's variance grows with the process noise that carries the
-track across it, mostly the wind's random walk; its default (0.05 m/s/sqrt(s)) is right for the
-Citation II's gaps and five to ten times too wide in sd for a simulated flight in a steady wind. One
-fixed process noise cannot serve both, so the flight's own GNSS sets the scale: after the smoother
-converged, stretches of the real gaps' lengths are withheld where the GNSS is present
-(:func:`pseudo_gaps`), the smoother is run once more without them, and the withheld fixes'
-normalised errors give the factor ``f`` of the in-gap excess variance (:func:`calibration_factor`,
-eq. G3) that is then applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
+track across it, mostly the wind's random walk, whose one default cannot serve every flight: the
+flight's own GNSS sets the scale.  Stretches of the real gaps' lengths are withheld where the GNSS
+is present (:func:`pseudo_gaps`), the flight is smoothed once more without them, and the withheld
+fixes' normalised errors give the factor ``f`` of the in-gap excess variance
+(:func:`calibration_factor`, eq. G3) applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
 """
 
 from __future__ import annotations
@@ -31,7 +29,7 @@ from flightrecon.methods.joint.health import wind_walk_check
 from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
 from flightrecon.methods.joint.output import hermite_positions
-from flightrecon.methods.joint.problem import JointProblem, SettingChoice
+from flightrecon.methods.joint.problem import JointProblem, SettingChoice, adjusted
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint_from
 
@@ -297,15 +295,14 @@ def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> J
     the flight's)."""
     inp, settings = problem.inputs, problem.settings
     held = replace(inp, gnss=inp.gnss[keep].reset_index(drop=True))
-    s = settings
-    if (settings.gap_heldout_passes > 0 and run.gust is not None
+    if not (settings.gap_heldout_passes > 0 and run.gust is not None
             and np.isfinite(run.gust.get("sd_mps", np.nan))):
-        s = replace(settings, estimate_gust=False,
-                    noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
-    return replace(problem, inputs=held, settings=s, choices=(
-        *problem.choices, *([SettingChoice("noise.gust_mps", s.noise.gust_mps,
-                                           "held at the converged run's estimate for the "
-                                           "held-out smoothing")] if s is not settings else [])))
+        return adjusted(problem, inputs=held)
+    s = replace(settings, estimate_gust=False,
+                noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
+    return adjusted(problem, inputs=held, settings=s, choice=SettingChoice(
+        "noise.gust_mps", s.noise.gust_mps,
+        "held at the converged run's estimate for the held-out smoothing"))
 
 
 def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
@@ -317,8 +314,8 @@ def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
     from the nominal."""
     s = problem_h.settings
     if s.gap_heldout_passes <= 0:
-        return smooth_joint(problem_h.inputs, s, problem_h.flight)
-    return smooth_joint_from(problem_h.inputs, s, run, s.gap_heldout_passes,
+        return smooth_joint(problem_h)
+    return smooth_joint_from(problem_h, run, s.gap_heldout_passes,
                              enough_m=HELDOUT_ENOUGH * s.converge_m)
 
 
@@ -448,7 +445,7 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
         rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
                        "limit": c["limit"], "loads_psd_m2ps3": r})
         problem = wind_walk_adjusted(problem, c, r)
-        run = smooth_joint(problem.inputs, problem.settings, run.flight)
+        run = smooth_joint(problem)
     return problem, run, rounds
 
 
@@ -473,5 +470,5 @@ def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
     why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
            f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
            f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
-    return replace(problem, settings=replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
-                   choices=(*problem.choices, SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why)))
+    return adjusted(problem, settings=replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
+                    choice=SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why))

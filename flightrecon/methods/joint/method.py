@@ -151,7 +151,7 @@ def joint_result(problem: JointProblem) -> MethodResult:
     """The joint smoother's result on ``problem``: solved, its wind walk re-estimated and its GNSS
     gaps calibrated (each an adjusted problem solved again:
     :mod:`~flightrecon.methods.joint.calibration`), then the track and the summary."""
-    run = smooth_joint(problem.inputs, problem.settings, problem.flight)
+    run = smooth_joint(problem)
     if problem.attitude_note:
         _warnings.warn(problem.attitude_note, FlightReconWarning, stacklevel=3)
     problem, run, wind_rounds = wind_walk_rounds(problem, run)

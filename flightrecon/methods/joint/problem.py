@@ -5,8 +5,8 @@ points), the settings as this flight's data call for them, each data-driven choi
 that made it (:class:`SettingChoice`), the priors and what the output needs of the flight
 (:class:`OutputFrame`).  After the build nothing reads the cleaned flight and no setting is
 rewritten: a later adjustment (the wind walk re-estimated, the held-out smoothing of the GNSS gaps:
-:mod:`~flightrecon.methods.joint.calibration`) is a new problem (:func:`dataclasses.replace`) with
-its choice appended.
+:mod:`~flightrecon.methods.joint.calibration`) is a new problem (:func:`adjusted`) with its choice
+appended, and a problem of hand-made inputs is :func:`problem_of`.
 
 The data-driven settings (docs/joint.md): the priors of a heading from the body rates and of a
 derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g`` (those of the channels alone:
@@ -41,7 +41,12 @@ from flightrecon.methods.joint.inputs import (
     with_end_points,
     without_floor_loads,
 )
-from flightrecon.methods.joint.linearisation import SmootherFlight, smoother_flight
+from flightrecon.methods.joint.linearisation import (
+    SmootherFlight,
+    nominal_trajectory,
+    q_vector,
+    smoother_flight,
+)
 from flightrecon.methods.joint.settings import (
     JointNoise,
     JointSettings,
@@ -92,10 +97,11 @@ class JointProblem:
         (:func:`~flightrecon.methods.joint.problem.gnss_tilt_evidence`), or None
     attitude_note : the attitude source's note for the user, or None
     frame : what the output needs of the flight (None: a problem built from inputs alone)
-    flight : what the passes hold fixed, built once (the state grid, the increments of the held
-        inputs, the attitude step means, the measurement table's static part:
-        :func:`~flightrecon.methods.joint.linearisation.smoother_flight`), or None (built by
-        the solve)
+    flight : what the passes hold fixed, built once of ``inputs`` and ``settings`` (the state grid,
+        the increments of the held inputs, the attitude step means, the measurement table's static
+        part, the first pass's nominal:
+        :func:`~flightrecon.methods.joint.linearisation.smoother_flight`; reused in part by
+        :func:`adjusted`); None only once released (the method, after the calibrations)
     """
 
     inputs: JointInputs
@@ -401,6 +407,46 @@ def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> 
     return JointProblem(inputs=inp, settings=final, choices=choices + more,
                         tilt_evidence=tilt_ev, attitude_note=note, frame=output_frame(clean),
                         flight=smoother_flight(inp, final))
+
+
+def problem_of(inp: JointInputs, settings: JointSettings | None = None) -> JointProblem:
+    """The problem of inputs made without a cleaned flight (tests, studies): ``settings`` (the
+    defaults where not given) as they are, no choices, no output frame."""
+    s = JointSettings() if settings is None else settings
+    return JointProblem(inputs=inp, settings=s, flight=smoother_flight(inp, s))
+
+
+def adjusted(problem: JointProblem, *, inputs: JointInputs | None = None,
+             settings: JointSettings | None = None,
+             choice: SettingChoice | None = None) -> JointProblem:
+    """``problem`` with other ``inputs`` or ``settings`` (those not given unchanged) and ``choice``
+    appended to its choices: a calibration's problem (docs/joint.md, "How the joint is built and
+    solved", item 3), on the flight's parts already built.
+
+    The inputs may differ in the GNSS fixes only and the settings in the gust sd and the wind walk
+    only: none of the flight's parts depends on these but the process noise (recomputed) and, on the
+    fixes, the nominal (built again), so the rest are the same arrays (the held-out smoothing of the
+    gap calibration: 0.27 s and a second copy less on a 10-hour flight; the wind walk's rounds: the
+    measurement table and the increments built once).  Any other difference is another problem
+    (:func:`joint_problem`, :func:`problem_of`) and raises ``ValueError``."""
+    inp = problem.inputs if inputs is None else inputs
+    s = problem.settings if settings is None else settings
+    fl = problem.flight
+
+    def q_free(x: JointSettings) -> JointSettings:
+        return replace(x, estimate_gust=False, noise=replace(x.noise, gust_mps=1.0,
+                                                             wind_rw_mps_sqrt_s=1.0))
+
+    if (fl is None or q_free(s) != q_free(fl.settings)
+            or any(getattr(inp, f.name) is not getattr(fl.inp, f.name)
+                   for f in fields(inp) if f.name != "gnss")):
+        raise ValueError("an adjusted joint problem differs in the GNSS fixes, the gust sd and the "
+                         "wind walk only (and needs its problem's flight); another is built by "
+                         "joint_problem or problem_of")
+    flight = replace(fl, inp=inp, settings=s, q=q_vector(s.noise), nominal=(
+        fl.nominal if inp.gnss is fl.inp.gnss else nominal_trajectory(inp, fl.idx)))
+    return replace(problem, inputs=inp, settings=s, flight=flight,
+                   choices=(*problem.choices, *(() if choice is None else (choice,))))
 
 
 def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: float,
