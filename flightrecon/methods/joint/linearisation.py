@@ -293,19 +293,15 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray) -> Nominal:
 def relinearised_increments(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
                             psi_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The step accelerations and increments for a transition linearised about the heading bias
-    ``psi_hat`` (per step) instead of zero.
+    ``psi_hat`` (per step) instead of zero (docs/joint.md, "Filter, smoother, iterations", item 2).
 
     The true increment is R(-dpsi) dV (the bias rotates the measured horizontal acceleration
     about the vertical); about psi_hat it is R(-psi_hat) dV + (dpsi - psi_hat) J R(-psi_hat) dV
     with J u = (u_E, -u_N, 0). The kernels build F[v, dpsi] = J a h (and J a h^2/2 for the
     position) from the acceleration they are given and add the increments, so they are given
     a' = R(-psi_hat) a, dV' = R(-psi_hat) dV - J a' h psi_hat and dP' = dP + (a' - a) h^2/2 -
-    J a' h^2/2 psi_hat (the held-mean part of the position increment rotated, the remainder
-    from the acceleration's variation within the step, second order, not): the
-    state keeps the whole bias, and the transition is exact at the solution, not only for a
-    small bias (on recorder data without the runway's direction the bias is nearly
-    unobservable and a first-order rotation let it wander by several degrees).
-    """
+    J a' h^2/2 psi_hat (the held-mean part of the position increment rotated, the remainder, second
+    order, not): the state keeps the whole bias, and the transition is exact at the solution."""
     c, s = np.cos(psi_hat), np.sin(psi_hat)
 
     def rot(u: np.ndarray) -> np.ndarray:

@@ -225,11 +225,9 @@ CLOCK_MIN_MEASUREMENTS = 10
 """Fewer measurements of a source than this: its offset is not estimated."""
 
 CLOCK_DETECT_SD = 3.0
-"""An offset still at zero is taken once its step exceeds this many of its sd (detected);
-below, the source's stamps are kept: estimating an offset that is not there costs accuracy (the
-simulated radar approaches, whose radar is on time: 15.1 m RMS with the offset held at zero
-unless detected, 17.7 m estimated always), and a taken offset has its uncertainty in the
-track's sd either way."""
+"""An offset still at zero is taken once its step exceeds this many of its sd (detected); below,
+the source's stamps are kept: estimating an offset that is not there costs accuracy (docs/joint.md,
+item 4: the simulated radar approaches)."""
 
 CLOCK_STILL_SD = 0.1
 """A clock step of at most this fraction of the offset's sd is not taken (the offset stands
@@ -282,20 +280,14 @@ def clock_step(clock_cols: tuple[np.ndarray, np.ndarray], outputs: tuple[np.ndar
                alpha: float, clock: dict[str, float], clock_sd: dict[str, float],
                info: dict[str, Any]) -> tuple[dict[str, float], dict[str, float]]:
     """The clock offsets' Gauss-Newton step jointly with the track (the new offsets and sd
-    returned, the step written to ``info``), in seconds added
-    to each source's time stamps (the convention of `clean --gnss-clock-offset /
-    --radar-clock-offset`; docs/joint.md, "Filter, smoother, iterations", item 4).
-
-    A measurement stamped t_m, taken at t_m + c_true and used at t_m + c has residual hdot (c_true -
-    c).  The pass's forward filter carried the offsets as constant parameters of its linearised
-    model (:func:`~flightrecon.methods.joint.model._clock_column_update`) and accumulated (its
-    ``outputs``' first) the normal equations [A b]: the step dc = A^-1 b minimises the pass's cost
-    profiled over the track (the track given the offsets is what the pass smoothed; moved by dc it
-    is the next pass's business), A^-1 the offsets' covariance.  The step is scaled by the line
-    search's ``alpha`` (0: a Levenberg-Marquardt step, which is not the pass's Gauss-Newton step;
-    the offsets then stay) and taken when it exceeds :data:`CLOCK_STILL_SD` of its sd, and by an
-    offset still at zero only beyond :data:`CLOCK_DETECT_SD` of it (the least-squares fit between
-    the passes it replaced, and the measurements: docs/joint.md, item 4)."""
+    returned, the step written to ``info``), in seconds added to each source's time stamps (the
+    convention of `clean --gnss-clock-offset / --radar-clock-offset`; docs/joint.md, "Filter,
+    smoother, iterations", item 4): dc = A^-1 b of the normal equations [A b] the pass's forward
+    filter accumulated with the offsets as regression parameters (``outputs``' first;
+    :func:`clock_covariance`), A^-1 their covariance.  The step is scaled by the line search's
+    ``alpha`` (0 after a Levenberg-Marquardt step: the offsets stay) and taken when it exceeds
+    :data:`CLOCK_STILL_SD` of its sd, by an offset still at zero only beyond
+    :data:`CLOCK_DETECT_SD` of it."""
     est = clock_covariance(clock_cols[0], outputs[0])
     if est is None:
         return clock, clock_sd
@@ -473,12 +465,10 @@ class Pass(NamedTuple):
 def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
     """The models of the next pass: about the iterate, with the current clock offsets and the
     take-off roll refined on the iterate (those of the line search's last candidate when they are
-    the same).  A refined roll changes the runway and ground measurements, a clock offset the GNSS
-    and radar ones: the cost function itself (more measurements, more terms), so costs are compared
-    within a pass, and across passes only where neither changed (``parameters_changed`` in the
-    pass's entry).  A roll back at one an earlier pass had (a cycle that never settles: JSBSim
-    spiral 5305 between two, the fleet study's accident flight of seed 0 among three) is not taken:
-    the last pass's stays."""
+    the same).  A refined roll or a clock offset changes the cost function itself, so costs are
+    compared across passes only where neither changed (``parameters_changed``).  A roll back at one
+    an earlier pass had (a cycle that never settles) is not taken: the last pass's stays
+    (docs/joint.md, "Filter, smoother, iterations", "Damping")."""
     nom = it.nominal
     roll = refined_roll(fl.inp, fl.T, nom.vnom, nom.ba_hat)
     m = it.models
@@ -678,14 +668,11 @@ def smooth_joint_from(problem: JointProblem, start: JointRun, passes: int = 1,
     fl = _flight_of(problem)
     if start.prior is not None:
         fl = replace(fl, x0=start.prior[0], P0=start.prior[1], P0inv=np.linalg.inv(start.prior[1]))
-    x = start.x
-    it = Iterate(Nominal(start.lat_deg.copy(), start.lon_deg.copy(), start.h_m.copy(),
-                         np.ascontiguousarray(x[:, jl.S_VEL]),
-                         np.ascontiguousarray(x[:, jl.IPSI]),
-                         np.ascontiguousarray(x[:, jl.S_ACC_BIAS])),
-                 {k: v[0] for k, v in start.clock_offsets_s.items()},
-                 {k: v[1] for k, v in start.clock_offsets_s.items()},
-                 np.array([start.noise_scale[name] for name in NOISE_GROUPS.values()]), X=x,
+    v, psi, ba = (np.ascontiguousarray(start.x[:, c]) for c in (jl.S_VEL, jl.IPSI, jl.S_ACC_BIAS))
+    it = Iterate(Nominal(start.lat_deg.copy(), start.lon_deg.copy(), start.h_m.copy(), v, psi, ba),
+                 {k: o[0] for k, o in start.clock_offsets_s.items()},
+                 {k: o[1] for k, o in start.clock_offsets_s.items()},
+                 np.array([start.noise_scale[name] for name in NOISE_GROUPS.values()]), X=start.x,
                  rolls_seen=(start.roll,))
     return _passes(fl, it, range(1, 1 + max(1, passes)), enough_m, warm=True)
 
@@ -976,8 +963,7 @@ class JointRun:
     stop_reason: str = ""
     gust: dict[str, Any] | None = None   # gust sd of the last pass, its estimates (turbulence)
     prior: tuple[np.ndarray, np.ndarray] | None = None   # (x0, P0): the prior of step 0 used
-    # the iteration-independent parts it was smoothed with (for a warm start on the same
-    # flight: :func:`smooth_joint_from`); None once the run leaves the method
+    # the flight the passes ended with (the gust sd, the prior); None once the run leaves the method
     flight: SmootherFlight | None = None
     # the last pass's position change per state [m] when the passes stopped unconverged
     # (settling.settling); None when they converged
