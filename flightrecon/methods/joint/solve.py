@@ -507,6 +507,7 @@ def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: 
     s, em = fl.settings, fl.settings.estimate_noise
     assert fl.x0 is not None and fl.P0 is not None
     _covariances(ws.running)
+    ws.running = None   # (the last pass's outputs go before this pass's are built)
     scalars = pass_scalars(mdl, fl.T, r, weights)
     # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
     gate = s.innovation_gate if s.robust and (s.first_gate or k > 0) else 0.0
