@@ -29,7 +29,7 @@ from flightrecon.methods.joint.model import (
     robust_loss,
     transition,
 )
-from flightrecon.methods.joint.problem import joint_inputs
+from flightrecon.methods.joint.problem import joint_inputs, problem_of
 from flightrecon.types import Flight
 
 mc = load_script("mc_joint")
@@ -81,8 +81,10 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     r, clean = recorder_flight
     s = JointSettings(noise=mc.noise_from_sensors(r.sensor_truth), iterations=2)
     inp = joint_inputs(clean)
-    run = sm.smooth_joint(inp, s)
-    fl = lin.smoother_flight(inp, s)
+    problem = problem_of(inp, s)
+    run = sm.smooth_joint(problem)
+    fl = problem.flight
+    assert fl is not None
     mdl, X = lin.models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll)
     rng = np.random.default_rng(3)
     Xp = X.copy()

@@ -17,7 +17,7 @@ from flightrecon.methods.joint.calibration import (
     pseudo_gaps,
     stretch_nees,
 )
-from flightrecon.methods.joint.problem import JointProblem
+from flightrecon.methods.joint.problem import adjusted, problem_of
 
 BOUNDS = (1e-3, 1e3)
 
@@ -189,23 +189,21 @@ def test_withheld_gap_on_the_sample_circuit():
 
 
 def _circuit_with_a_gap():
-    """The circuit sample with 120 s of GNSS withheld (300-420 s): its joint inputs, the
-    default settings and the converged joint run."""
+    """The circuit sample with 120 s of GNSS withheld (300-420 s): its problem (the joint inputs,
+    the default settings) and the converged joint run."""
     from pathlib import Path
 
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
     from flightrecon.ingest.gnss_use import GnssUse
     from flightrecon.methods.joint.problem import joint_inputs
-    from flightrecon.methods.joint.settings import JointSettings
     from flightrecon.methods.joint.solve import smooth_joint
 
     samples = Path(__file__).resolve().parents[1] / "sample_logs"
     clean = clean_flight(load_flight(samples / "circuit.csv",
                                      gnss_use=GnssUse(withhold_s=((300.0, 420.0),))))
-    settings = JointSettings()
-    inp = joint_inputs(clean)
-    return inp, settings, smooth_joint(inp, settings)
+    problem = problem_of(joint_inputs(clean))
+    return problem, smooth_joint(problem)
 
 
 def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
@@ -214,13 +212,13 @@ def test_a_failed_held_out_smoothing_leaves_the_run_and_says_why(monkeypatch):
     with the reason (run_joint then warns that the gaps' sd is the model's)."""
     from flightrecon.methods.joint import calibration as gcal
 
-    inp, settings, run = _circuit_with_a_gap()
+    problem, run = _circuit_with_a_gap()
 
     def broken(*a, **k):
         raise np.linalg.LinAlgError("singular held-out covariance")
 
     monkeypatch.setattr(gcal, "heldout_smoothing", broken)
-    out, report = gcal.calibrate_gaps(JointProblem(inp, settings), run)
+    out, report = gcal.calibrate_gaps(problem, run)
     assert out is run
     assert report["factor"] is None and "singular held-out covariance" in report["note"]
 
@@ -236,10 +234,10 @@ def test_the_warm_started_held_out_smoothing_gives_the_whole_iterations_factor()
 
     from flightrecon.methods.joint import calibration as gcal
 
-    inp, settings, run = _circuit_with_a_gap()
-    _, warm = gcal.calibrate_gaps(JointProblem(inp, settings), run)
-    _, cold = gcal.calibrate_gaps(JointProblem(inp, dc_replace(settings, gap_heldout_passes=0)),
-                                  run)
+    problem, run = _circuit_with_a_gap()
+    _, warm = gcal.calibrate_gaps(problem, run)
+    _, cold = gcal.calibrate_gaps(
+        problem_of(problem.inputs, dc_replace(problem.settings, gap_heldout_passes=0)), run)
     assert warm is not None and cold is not None
     assert warm["factor"] is not None and cold["factor"] is not None
     assert warm["stretches_s"] == cold["stretches_s"]
@@ -248,37 +246,43 @@ def test_the_warm_started_held_out_smoothing_gives_the_whole_iterations_factor()
     assert 1 <= len(warm["heldout_pass_shifts_m"]) <= len(cold["heldout_pass_shifts_m"])
 
 
-def test_the_held_out_smoothing_reuses_the_runs_fixed_parts_to_the_bit():
-    """The warm start takes the converged run's iteration-independent parts (state grid,
-    increments, attitude means, air-data and baro measurements) when the held-out inputs
-    differ in the GNSS fixes only and the settings in the gust sd only
-    (``smoother._flight_like``): the same held-out run, to the bit, as with the parts built
-    again; any other difference builds them again."""
+def test_the_held_out_smoothing_reuses_the_problems_fixed_parts_to_the_bit():
+    """An adjusted problem (``problem.adjusted``) takes the problem's iteration-independent parts
+    (state grid, increments, attitude means, air-data and baro measurements) when its inputs
+    differ in the GNSS fixes only and its settings in the gust sd only (the nominal, tied to the
+    fixes, built again): the same held-out run, to the bit, as with the parts built again
+    (``problem_of``); any other difference is another problem and refused, and so is, by the
+    solver, a problem whose flight is not of its inputs and settings (a field replaced by hand)."""
     from dataclasses import replace as dc_replace
 
-    from flightrecon.methods.joint import solve as sm
     from flightrecon.methods.joint.calibration import heldout_problem, heldout_smoothing
+    from flightrecon.methods.joint.solve import smooth_joint
 
-    inp, settings, run = _circuit_with_a_gap()
-    assert run.flight is not None
+    problem, run = _circuit_with_a_gap()
+    inp, settings, fl = problem.inputs, problem.settings, problem.flight
+    assert fl is not None
     inp_h = dc_replace(inp, gnss=inp.gnss.iloc[::2].reset_index(drop=True))
     s_h = dc_replace(settings, estimate_gust=False,
                      noise=dc_replace(settings.noise, gust_mps=0.7))
-    reused = sm._flight_like(run.flight, inp_h, s_h)
-    assert reused.Cnb is run.flight.Cnb and reused.static is run.flight.static
+    reused = adjusted(problem, inputs=inp_h, settings=s_h).flight
+    assert reused is not None and reused.Cnb is fl.Cnb and reused.static is fl.static
     assert reused.inp is inp_h and reused.settings is s_h and reused.x0 is None
-    # another grid rate, or other inputs than the fixes: built again
-    assert sm._flight_like(run.flight, inp_h, dc_replace(s_h, state_rate_hz=2.0)).Cnb \
-        is not run.flight.Cnb
-    assert sm._flight_like(run.flight, dc_replace(inp_h, tas=inp.tas.copy()), s_h).Cnb \
-        is not run.flight.Cnb
+    assert reused.nominal is not fl.nominal
+    assert adjusted(problem, settings=s_h).flight.nominal is fl.nominal
+    # another grid rate, or other inputs than the fixes: another problem
+    with pytest.raises(ValueError, match="problem_of"):
+        adjusted(problem, inputs=inp_h, settings=dc_replace(s_h, state_rate_hz=2.0))
+    with pytest.raises(ValueError, match="problem_of"):
+        adjusted(problem, inputs=dc_replace(inp_h, tas=inp.tas.copy()), settings=s_h)
     keep = np.zeros(len(inp.gnss), bool)
     keep[::2] = True
-    problem_h = heldout_problem(JointProblem(inp, settings), keep, run)
+    problem_h = heldout_problem(problem, keep, run)
     assert problem_h.inputs.gnss.equals(inp_h.gnss)
     warm = heldout_smoothing(problem_h, run)
-    fresh = heldout_smoothing(problem_h, dc_replace(run, flight=None))
+    fresh = heldout_smoothing(problem_of(problem_h.inputs, problem_h.settings), run)
     assert np.array_equal(warm.x, fresh.x) and np.array_equal(warm.var, fresh.var)
+    with pytest.raises(ValueError, match="problem.adjusted"):
+        smooth_joint(dc_replace(problem, settings=s_h))
 
 
 def test_no_covariance_thread_outlives_the_smoothing():
@@ -287,7 +291,7 @@ def test_no_covariance_thread_outlives_the_smoothing():
     none is left when the run is returned, and the run has the smoothed covariances."""
     import threading
 
-    inp, settings, run = _circuit_with_a_gap()
+    _, run = _circuit_with_a_gap()
     assert not [t for t in threading.enumerate() if t.name == "joint-covariances"]
     assert run.var is not None and np.all(np.isfinite(run.var))
     assert np.all(run.var[:, :3] > 0)

@@ -162,11 +162,12 @@ def test_mean_only_backward_pass_gives_the_covariance_pass_states():
 
     from flightrecon.cleaning import clean_flight
     from flightrecon.ingest import load_flight
-    from flightrecon.methods.joint import JointSettings, smooth_joint
+    from flightrecon.methods.joint import JointSettings, problem_of, smooth_joint
     from flightrecon.methods.joint.problem import joint_inputs
 
     log = Path(__file__).resolve().parents[1] / "sample_logs" / "circuit.parquet"
-    run = smooth_joint(joint_inputs(clean_flight(load_flight(log))), JointSettings(iterations=1))
+    run = smooth_joint(problem_of(joint_inputs(clean_flight(load_flight(log))),
+                                  JointSettings(iterations=1)))
     # run.lat/lon/h: geodetic of the mean-only pass; run.x: states of the covariance pass
     ex, ey, ez = geodetic_to_ecef(run.lat_deg, run.lon_deg, run.h_m)
     # pyproj's geodetic round trip is good to ~1e-9 m; Cholesky vs LU solves differ by
@@ -260,7 +261,7 @@ def test_fused_attitude_step_means_equal_the_per_sample_route():
 
 def test_hermite_interpolation_is_exact_for_cubics_and_matches_the_formula():
     """Positions of a cubic path with exact velocities are reproduced to round-off."""
-    from flightrecon.methods.joint.output import hermite_positions
+    from flightrecon.methods.joint.solve import hermite_positions
 
     T = np.array([0.0, 1.0, 2.5, 4.0])
     t = np.linspace(-0.5, 4.5, 41)   # includes points outside (clamped to the ends)
@@ -307,7 +308,7 @@ def captured_passes():
     mp.setattr(jp, "forward", fw)
     mp.setattr(jp, "backward", bw)
     try:
-        J.smooth_joint(inp, J.JointSettings(iterations=1))
+        J.smooth_joint(J.problem_of(inp, J.JointSettings(iterations=1)))
     finally:
         mp.undo()
     return cap
@@ -804,10 +805,12 @@ def test_the_wind_walk_is_re_estimated_where_the_wind_outran_it(monkeypatch):
     def fake_run(wind):
         x = np.zeros((n, jl.N_STATE))
         x[:, jl.S_WIND] = wind
-        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0), flight=None)
+        return SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
     turning = fake_run(22.0 * np.c_[np.cos(ang), np.sin(ang)])
     calls = []
-    monkeypatch.setattr(jm, "smooth_joint", lambda inp, s, fl: calls.append(s) or turning)
+    monkeypatch.setattr(jm, "smooth_joint", lambda p: calls.append(p.settings) or turning)
+    monkeypatch.setattr(jm, "adjusted", lambda p, settings, choice: replace(
+        p, settings=settings, choices=(*p.choices, choice)))   # (the stand-in has no flight)
     stand_in = SimpleNamespace(gnss=pd.DataFrame(), radar=pd.DataFrame(), fixes=None,
                                wind_ne=None, doppler_gs=None, wind_aloft=None,
                                liftoff_t=np.nan, touchdown_t=np.nan)
@@ -894,7 +897,8 @@ def test_runway_centreline_runs_through_the_threshold():
                       runway_rad=(rw, None), thresholds=(thr, None))
     T = t[::4]
     b = _MeasBuilder(T)
-    runway_measurements(b, ground_rolls(inp, JointSettings(), T), np.zeros((len(T), 3)), np.zeros((len(T), 3)))
+    runway_measurements(b, ground_rolls(inp, JointSettings(), T), np.zeros((len(T), 3)),
+                        np.zeros((len(T), 3)))
     src = [int(p.source[0]) for p in b.parts]
     from flightrecon.methods.joint.settings import SOURCES
 
@@ -941,7 +945,8 @@ def test_centreline_through_a_reference_point_is_one_unknown_offset():
                           arrival=None, liftoff_t=30.0, touchdown_t=np.nan, field_h=thr[2],
                           runway_rad=(rw, None), thresholds=thresholds)
         b = _MeasBuilder(T)
-        runway_measurements(b, ground_rolls(inp, JointSettings(), T), np.zeros((len(T), 3)), np.zeros((len(T), 3)))
+        runway_measurements(b, ground_rolls(inp, JointSettings(), T), np.zeros((len(T), 3)),
+                        np.zeros((len(T), 3)))
         k = [int(p.source[0]) for p in b.parts].index(SOURCES.index("runway"))
         r = b.parts[k].r
         m = len(r)
@@ -981,7 +986,7 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
     ang = np.radians(np.clip((t - 300.0) / 1800.0, 0.0, 1.0) * 100.0)
     x = np.zeros((n, jl.N_STATE))
     x[:, jl.S_WIND] = 4.0 * np.c_[np.cos(ang), np.sin(ang)]
-    turning = SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0), flight=None)
+    turning = SimpleNamespace(t=t, x=x, h_m=np.full(n, 1600.0))
     chord = 2 * 4.0 * np.sin(np.radians(100.0 / 6))
     Q = 0.05 ** 2 * 600.0
     assert wind_walk_check(turning, 0.05, 0.05) is None           # the bound: 3.5 < 12.0
@@ -1011,7 +1016,9 @@ def test_a_wind_change_the_loads_alone_witness_is_weighed_at_their_share(monkeyp
                            p_false=1e-4) is None
 
     calls = []
-    monkeypatch.setattr(jm, "smooth_joint", lambda inp_, s, fl: calls.append(s) or turning)
+    monkeypatch.setattr(jm, "smooth_joint", lambda p: calls.append(p.settings) or turning)
+    monkeypatch.setattr(jm, "adjusted", lambda p, settings, choice: replace(
+        p, settings=settings, choices=(*p.choices, choice)))   # (the stand-in has no flight)
     _, run, rounds = jm.wind_walk_rounds(JointProblem(inp, one_hz), turning)  # type: ignore[arg-type]
     q1 = (z2 * (Q + r * 600.0) / limit - r * 600.0) / 600.0
     assert rounds[0]["z2"] == pytest.approx(z2, rel=1e-9)

@@ -154,8 +154,8 @@ def test_the_declared_attitude_source_switches_the_tilt_noise(tmp_path):
     assert s.noise.ahrs_tilt_mps2_per_g == AHRS_TILT_MPS2_PER_G == 1.0 and note is None
     assert s.noise.ahrs_tilt_horizontal == AHRS_TILT_HORIZONTAL == 1.0
     given = JointSettings(noise=JointNoise(ahrs_tilt_mps2_per_g=0.5))
-    assert attitude_source_noise(ahrs, zero_g, given)[0] == given
-    assert attitude_source_noise(ins, zero_g, JointSettings()) == (JointSettings(), None)
+    assert attitude_source_noise(ahrs, zero_g, given, None)[0] == given
+    assert attitude_source_noise(ins, zero_g, JointSettings(), None) == (JointSettings(), None)
     s, note = attitude_source_noise(clean, zero_g, JointSettings(), None)
     assert s == JointSettings() and note is not None and "not declared" in note
     assert float(note.split("by ")[1].split(" g")[0]) == pytest.approx(1.0 - np.exp(-1.0),

@@ -2,8 +2,9 @@
 (docs/joint.md).
 
 The problem is built once from a cleaned flight (:mod:`~flightrecon.methods.joint.problem`: the
-inputs, the end points, the settings the data call for), then solved
-(:mod:`~flightrecon.methods.joint.solve`: damped Gauss-Newton passes of a forward filter and an RTS
+inputs, the end points, the settings the data call for, what the passes hold fixed; of hand-made
+inputs: ``problem_of``), then solved (``smooth_joint(problem)``,
+:mod:`~flightrecon.methods.joint.solve`: damped Gauss-Newton passes of a forward filter and an RTS
 backward pass on the compiled model of :mod:`~flightrecon.methods.joint.model`, with robust
 re-weighting, clock offsets estimated jointly with the track and, optionally, the noise factors);
 its calibrations are adjusted problems solved again (:mod:`~flightrecon.methods.joint.calibration`);
@@ -22,7 +23,7 @@ from flightrecon.methods.joint.inputs import (
     takeoff_roll,
 )
 from flightrecon.methods.joint.linearisation import attitude_jacobian
-from flightrecon.methods.joint.problem import JointProblem, joint_problem
+from flightrecon.methods.joint.problem import JointProblem, joint_problem, problem_of
 from flightrecon.methods.joint.settings import (
     POSITIVE_NOISE,
     PRIOR_STATES,
@@ -34,4 +35,5 @@ from flightrecon.methods.joint.solve import JointRun, smooth_joint
 
 __all__ = ["JointNoise", "POSITIVE_NOISE", "JointSettings", "PRIOR_STATES", "prior_of",
            "enu_to_ecef_matrix", "TakeoffRoll", "takeoff_roll", "refined_roll",
-           "attitude_jacobian", "JointProblem", "joint_problem", "JointRun", "smooth_joint"]
+           "attitude_jacobian", "JointProblem", "joint_problem", "problem_of", "JointRun",
+           "smooth_joint"]

@@ -1,17 +1,15 @@
 """What the joint smoother calibrates on its own solution, each as an adjusted problem
-(:class:`~flightrecon.methods.joint.problem.JointProblem`, :func:`dataclasses.replace`) solved
-again: the wind walk re-estimated where the smoothed wind outran it (:func:`wind_walk_rounds`), and
-the position sd inside GNSS gaps calibrated on held-out stretches (:func:`calibrate_gaps`;
-docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
+(:func:`~flightrecon.methods.joint.problem.adjusted`) solved again: the wind walk re-estimated
+where the smoothed wind outran it (:func:`wind_walk_rounds`; docs/joint.md, "Wind and
+turbulence"), and the position sd inside GNSS gaps calibrated on held-out stretches
+(:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
 
 Inside a GNSS gap the smoothed position's variance grows with the process noise that carries the
-track across it, mostly the wind's random walk; its default (0.05 m/s/sqrt(s)) is right for the
-Citation II's gaps and five to ten times too wide in sd for a simulated flight in a steady wind. One
-fixed process noise cannot serve both, so the flight's own GNSS sets the scale: after the smoother
-converged, stretches of the real gaps' lengths are withheld where the GNSS is present
-(:func:`pseudo_gaps`), the smoother is run once more without them, and the withheld fixes'
-normalised errors give the factor ``f`` of the in-gap excess variance (:func:`calibration_factor`,
-eq. G3) that is then applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
+track across it, mostly the wind's random walk, whose one default cannot serve every flight: the
+flight's own GNSS sets the scale.  Stretches of the real gaps' lengths are withheld where the GNSS
+is present (:func:`pseudo_gaps`), the flight is smoothed once more without them, and the withheld
+fixes' normalised errors give the factor ``f`` of the in-gap excess variance
+(:func:`calibration_factor`, eq. G3) applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
 """
 
 from __future__ import annotations
@@ -30,8 +28,7 @@ from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.health import wind_walk_check
 from flightrecon.methods.joint.inputs import JointInputs
 from flightrecon.methods.joint.measurements import per_fix_sd
-from flightrecon.methods.joint.output import hermite_positions
-from flightrecon.methods.joint.problem import JointProblem, SettingChoice
+from flightrecon.methods.joint.problem import JointProblem, SettingChoice, adjusted
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint_from
 
@@ -138,8 +135,7 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
     off = run.clock_offsets_s.get("gnss", (0.0, 0.0))[0]
     tf = g["t_s"].to_numpy(float)[sel] + (off if np.isfinite(off) else 0.0)
     T = run.t
-    v_ecef = np.einsum("kij,kj->ki", run.Cen, run.x[:, jl.S_VEL])
-    p = hermite_positions(tf, T, run.x[:, jl.S_POS], v_ecef)
+    p = run.positions_ecef(tf)
     k = np.clip(np.searchsorted(T, tf), 0, len(T) - 1)
     j = np.clip(np.searchsorted(inp.t_in, tf), 0, len(inp.t_in) - 1)
     lever = np.einsum("kij,j->ki", inp.body_to_ned(j), np.asarray(inp.lever_arm, float))
@@ -155,15 +151,11 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
 
 
 def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float) -> np.ndarray:
-    """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight, never above
-    the declared ``declared_m`` squared (the rms of the used fixes' declared sd: the receiver's
-    figures, or the noise setting, with the rounding of positions recorded in steps added,
-    ingest/gnss_quality.py): the smoothed residuals of the fixes the smoother used have ``E[eps^2] =
-    R - P_s`` (eq. G5), so ``R = mean(eps^2) + mean(P_s)``. A residual that is the model's misfit
-    rather than the fix's noise would credit the fixes with more noise and shrink the factor; the
-    declared sd caps it.  Errors of the fixes correlated in time are partly followed by the track
-    and count less: the estimate is then low, the held-out NEES high and the factor larger (the sd
-    wider), the safe side."""
+    """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight from the
+    smoothed residuals of the ``used`` fixes, ``R = mean(eps^2) + mean(P_s)`` (eq. G5: E[eps^2] = R
+    - P_s), never above the declared ``declared_m`` squared (the rms of the used fixes' declared
+    sd), which keeps the model's misfit from being credited as the fixes' noise (docs/joint.md,
+    "GNSS gaps: the sd calibrated on held-out stretches")."""
     sel = np.flatnonzero(used)
     _, d, P = _fix_errors(inp, run, sel)
     r = np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1), axis=0)
@@ -204,26 +196,14 @@ def stretch_nees(held: list[dict[str, np.ndarray]], f: float) -> np.ndarray:
 
 def calibration_factor(held: list[dict[str, np.ndarray]], bounds: tuple[float, float],
                        p_stretch: float, p_pool: float) -> dict[str, Any]:
-    """The factor ``f`` of the in-gap excess variance (eq. G3).
-
-    ``f_hat`` (the point estimate) makes the mean over the stretches and the two horizontal axes of
-    their mean NEES 1.  The fixes of one stretch share one drifting error, so the stretches give
-    about one degree of freedom per axis, ``nu = 2 S``, and with a few of them ``f_hat`` is noisy
-    (chi-square(nu)/nu has sd sqrt(2/nu): 0.5 with two stretches).  The factor used is never below
-    either of
-
-    * ``f_pool``: the largest factor the held-out errors support at one-sided level
-      ``p_pool``, the one whose mean NEES is the ``p_pool`` quantile of chi-square(nu)/nu:
-      where the fixes' own noise hides the excess, the data cannot tell a small factor from
-      a moderate one and the moderate one is kept, and where the stretches are few the sd is
-      widened by what they cannot exclude (inflating is always allowed; JSBSim's 1 Hz
-      airwork: two stretches at a mean NEES of 0.97, ``f_hat`` 0.97, ``f_pool`` 2.8, the
-      gap's east NEES 6.2 with the model's sd);
-    * ``f_floor``: the smallest that keeps every stretch-axis's mean NEES within the
-      ``p_stretch`` quantile of chi-square(1), so that one stretch with errors beyond the
-      others' is covered;
-
-    all within ``bounds``."""
+    """The factor ``f`` of the in-gap excess variance (eq. G3; docs/joint.md, "GNSS gaps: the sd
+    calibrated on held-out stretches"): the largest of ``f_hat`` (the mean over the stretches and
+    the two horizontal axes of their mean NEES, eq. G2, is 1), ``f_pool`` (that mean is the
+    ``p_pool`` quantile of chi-square(nu)/nu, ``nu = 2 S`` for S stretches whose fixes share one
+    drifting error: the largest factor the held-out errors support at that one-sided level; where
+    the stretches are few the sd is widened by what they cannot exclude) and ``f_floor`` (every
+    stretch-axis's mean NEES within the ``p_stretch`` quantile of chi-square(1)), all within
+    ``bounds``."""
     # imported here: scipy.optimize is a fifth of a second of every run's start, and only a
     # flight with GNSS gaps gets this far
     from scipy.optimize import brentq
@@ -297,15 +277,14 @@ def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> J
     the flight's)."""
     inp, settings = problem.inputs, problem.settings
     held = replace(inp, gnss=inp.gnss[keep].reset_index(drop=True))
-    s = settings
-    if (settings.gap_heldout_passes > 0 and run.gust is not None
+    if not (settings.gap_heldout_passes > 0 and run.gust is not None
             and np.isfinite(run.gust.get("sd_mps", np.nan))):
-        s = replace(settings, estimate_gust=False,
-                    noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
-    return replace(problem, inputs=held, settings=s, choices=(
-        *problem.choices, *([SettingChoice("noise.gust_mps", s.noise.gust_mps,
-                                           "held at the converged run's estimate for the "
-                                           "held-out smoothing")] if s is not settings else [])))
+        return adjusted(problem, inputs=held)
+    s = replace(settings, estimate_gust=False,
+                noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
+    return adjusted(problem, inputs=held, settings=s, choice=SettingChoice(
+        "noise.gust_mps", s.noise.gust_mps,
+        "held at the converged run's estimate for the held-out smoothing"))
 
 
 def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
@@ -317,8 +296,8 @@ def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
     from the nominal."""
     s = problem_h.settings
     if s.gap_heldout_passes <= 0:
-        return smooth_joint(problem_h.inputs, s, problem_h.flight)
-    return smooth_joint_from(problem_h.inputs, s, run, s.gap_heldout_passes,
+        return smooth_joint(problem_h)
+    return smooth_joint_from(problem_h, run, s.gap_heldout_passes,
                              enough_m=HELDOUT_ENOUGH * s.converge_m)
 
 
@@ -377,16 +356,10 @@ def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict
 def inertial_wind_share(inp: JointInputs, settings: JointSettings) -> float:
     """The PSD ``r`` of the loads' velocity random walk where a record sampled slower than its
     accelerations (:func:`~flightrecon.methods.joint.problem.sampled_loads_noise` set) has the loads
-    as the wind's only witness, else 0 [m^2/s^3].
-
-    Without GNSS, radar, known fixes, a recorded wind, Doppler or a winds-aloft prior, the smoother
-    learns the wind's change only as the ground velocity's change from the loads less the air
-    velocity's; the loads' error integrates to a velocity random walk of PSD
-    ``r = accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` (``s`` the horizontal
-    ``accel_sampling_mps2_sqrt_hz``), and the smoothed wind change is the share
-    ``kappa = Q / (Q + r L)`` of the observed one (:func:`~flightrecon.methods.joint.health.
-    wind_walk_check`; the figures of a 1 Hz export and of a recorder-rate log: docs/joint.md, "Wind
-    and turbulence").  Any other witness of the wind, or no sampling term: 0 (``kappa = 1``)."""
+    as the wind's only witness (no GNSS, radar, known fixes, recorded wind, Doppler or winds-aloft
+    prior), else 0 [m^2/s^3]: ``r = accel_noise_mps2_sqrt_hz^2 + (s_n^2 + s_e^2) / 2`` (``s`` the
+    horizontal ``accel_sampling_mps2_sqrt_hz``), of which the smoothed wind change is the share
+    ``kappa = Q / (Q + r L)`` (docs/joint.md, "Wind and turbulence")."""
     nz = settings.noise
     s = nz.accel_sampling_mps2_sqrt_hz
     if (not (s[0] > 0 or s[1] > 0) or len(inp.gnss) or len(inp.radar)
@@ -411,24 +384,12 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
                      ) -> tuple[JointProblem, JointRun, list[dict[str, Any]]]:
     """Where the smoothed wind moved faster than its random walk allows
     (:func:`~flightrecon.methods.joint.health.wind_walk_check`, with the loads' PSD ``r`` of
-    :func:`inertial_wind_share`), the walk re-estimated from the flight and the smoother run again,
-    at most ``settings.wind_rounds`` times.
-
-    The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from the height
-    flown through, the loads' ``r L``) has ``z^2 = |dw|^2 / (kappa Q)`` with ``kappa = Q / (Q + r
-    L)``: the observed change ``|do|^2 = |dw|^2 / kappa^2`` is ``z^2 (Q + r L)``.  With ``r = 0``
-    (another witness of the wind) the walk is scaled so that this window would be a typical one, its
-    chi-square at the mean 2 of chi-square(2): ``q' = q z^2 / 2`` (the smoothed change of a walk
-    shrinks towards zero by the data's weight, so an estimate can be low and the rounds climb).
-    Where the loads are the only witness (``r > 0``) the worst window's change is mostly the loads'
-    error, and the walk is the smallest that the check accepts, ``|do|^2 = limit (Q' + r L)``:
-
-        q' L = z^2 (Q + r L) / limit - r L - Q_h
-
-    Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``, until the smoothed wind is within the
-    walk (docs/joint.md, "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30
-    minutes).  Returns the last run, its settings and the rounds (the walk each started from, the
-    check's chi-square and limit, the loads' PSD)."""
+    :func:`inertial_wind_share`), the walk re-estimated from the flight (:func:`wind_walk_adjusted`)
+    and the adjusted problem solved again, at most ``settings.wind_rounds`` times, until the
+    smoothed wind is within the walk or the walk reaches ``wind_rw_max_mps_sqrt_s`` (docs/joint.md,
+    "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30 minutes).  Returns the
+    last problem, its run and the rounds (the walk each started from, the check's chi-square and
+    limit, the loads' PSD)."""
     rounds: list[dict[str, Any]] = []
     inp, settings = problem.inputs, problem.settings
     r = inertial_wind_share(inp, settings)
@@ -448,16 +409,21 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
         rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
                        "limit": c["limit"], "loads_psd_m2ps3": r})
         problem = wind_walk_adjusted(problem, c, r)
-        run = smooth_joint(problem.inputs, problem.settings, run.flight)
+        run = smooth_joint(problem)
     return problem, run, rounds
 
 
 def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
                        loads_psd_m2ps3: float) -> JointProblem:
     """The problem with the wind walk the check ``check``
-    (:func:`~flightrecon.methods.joint.health.wind_walk_check`) calls for
-    (:func:`wind_walk_rounds`), never below the present one, kept below ``wind_rw_max_mps_sqrt_s``;
-    the choice and its evidence appended."""
+    (:func:`~flightrecon.methods.joint.health.wind_walk_check`) calls for, its choice and evidence
+    appended.  The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from
+    the height flown through, the loads' ``r L``, ``r`` = ``loads_psd_m2ps3``) has ``z^2 = |dw|^2 /
+    (kappa Q)``, ``kappa = Q / (Q + r L)``.  With ``r = 0`` (another witness of the wind) the walk
+    is scaled so that this window would be a typical one, its chi-square the mean 2 of
+    chi-square(2): ``q' = q z^2 / 2``; where the loads are the only witness, the smallest walk the
+    check accepts: ``q' L = z^2 (Q + r L) / limit - r L - Q_h`` (docs/joint.md, "Wind and
+    turbulence").  Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``."""
     settings = problem.settings
     nz, c, r = settings.noise, check, loads_psd_m2ps3
     L = c["t1_s"] - c["t0_s"]
@@ -473,5 +439,5 @@ def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
     why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
            f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
            f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
-    return replace(problem, settings=replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
-                   choices=(*problem.choices, SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why)))
+    return adjusted(problem, settings=replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
+                    choice=SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why))

@@ -8,7 +8,7 @@ components re-expressed in the iterate's own frames), and the MAP cost of an ite
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba as nb
 import numpy as np
@@ -164,6 +164,8 @@ def attitude_step_means(Cnb, fb, idx, t_in):
 
 
 def q_vector(nz: JointNoise) -> np.ndarray:
+    """The process noise's parameters in the kernels' order (:class:`~flightrecon.methods.joint.
+    layout.Dynamics` ``q``; docs/joint.md, "State and frame")."""
     return np.array([nz.accel_noise_mps2_sqrt_hz ** 2, nz.wind_rw_mps_sqrt_s ** 2,
                      nz.wind_shear_mps_per_sqrt_m ** 2, nz.accel_bias_g ** 2, nz.accel_bias_tau_s,
                      np.radians(nz.heading_bias_rw_deg_sqrt_s) ** 2,
@@ -172,8 +174,13 @@ def q_vector(nz: JointNoise) -> np.ndarray:
                      *(np.square(np.asarray(nz.accel_sampling_mps2_sqrt_hz, dtype=float)))])
 
 
-def initial_estimate(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: float,
-             priors: tuple[tuple[str, float, float], ...] = ()):
+def initial_estimate(inp: JointInputs, nom_ecef: np.ndarray, nz: JointNoise, min_speed: float,
+                     priors: tuple[tuple[str, float, float], ...] = ()
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The prior of x_0 (mean, covariance): the nominal's first position ``nom_ecef[0]``, the air
+    velocity along the heading from ``min_speed`` on, zero sensor errors, each state's budget of
+    ``nz`` as its variance, then the ``priors`` (state, mean, sd) in their place (e.g. an
+    aircraft's fleet calibration)."""
     n = jl.N_STATE
     x0 = np.zeros(n)
     x0[jl.S_POS] = nom_ecef[0]
@@ -181,28 +188,39 @@ def initial_estimate(inp: JointInputs, nom_ecef, nz: JointNoise, min_speed: floa
     if np.isfinite(inp.tas[0]) and inp.tas[0] >= min_speed:
         x0[jl.IV:jl.IV + 2] = inp.tas[0] * np.array([np.cos(psi0), np.sin(psi0)])
     P0 = np.zeros((n, n))
-    P0[jl.S_POS, jl.S_POS] = np.eye(3) * nz.init_pos_m ** 2
-    P0[jl.S_VEL, jl.S_VEL] = np.eye(3) * nz.init_vel_mps ** 2
-    P0[jl.S_WIND, jl.S_WIND] = np.eye(2) * nz.wind_prior_mps ** 2
-    P0[jl.S_ACC_BIAS, jl.S_ACC_BIAS] = np.eye(3) * nz.accel_bias_g ** 2
-    P0[jl.IPSI, jl.IPSI] = np.radians(nz.heading_bias_deg) ** 2
-    P0[jl.IS, jl.IS] = nz.tas_scale ** 2
-    P0[jl.IBH, jl.IBH] = nz.baro_offset_m ** 2
-    P0[jl.IC, jl.IC] = nz.baro_scale ** 2
-    P0[jl.IDW, jl.IDW] = nz.doppler_scale ** 2
-    P0[jl.IDC, jl.IDC] = np.radians(nz.drift_bias_deg) ** 2
-    P0[jl.S_ACC_SCALE, jl.S_ACC_SCALE] = np.eye(3) * nz.accel_scale ** 2
-    P0[jl.S_ATT_BIAS, jl.S_ATT_BIAS] = np.eye(2) * np.radians(nz.attitude_bias_deg) ** 2
-    P0[jl.S_WIND_GRAD, jl.S_WIND_GRAD] = np.eye(2) * (nz.wind_gradient_per_km / 1000.0) ** 2
-    P0[jl.S_GUST, jl.S_GUST] = np.eye(2) * nz.gust_mps ** 2
-    for name, mean, sd in priors:  # e.g. an aircraft's fleet calibration
+    for states, v in ((jl.S_POS, nz.init_pos_m ** 2), (jl.S_VEL, nz.init_vel_mps ** 2),
+                      (jl.S_WIND, nz.wind_prior_mps ** 2), (jl.S_ACC_BIAS, nz.accel_bias_g ** 2),
+                      (jl.IPSI, np.radians(nz.heading_bias_deg) ** 2), (jl.IS, nz.tas_scale ** 2),
+                      (jl.IBH, nz.baro_offset_m ** 2), (jl.IC, nz.baro_scale ** 2),
+                      (jl.IDW, nz.doppler_scale ** 2), (jl.IDC, np.radians(nz.drift_bias_deg) ** 2),
+                      (jl.S_ACC_SCALE, nz.accel_scale ** 2),
+                      (jl.S_ATT_BIAS, np.radians(nz.attitude_bias_deg) ** 2),
+                      (jl.S_WIND_GRAD, (nz.wind_gradient_per_km / 1000.0) ** 2),
+                      (jl.S_GUST, nz.gust_mps ** 2)):
+        d = np.arange(n)[states]
+        P0[d, d] = v
+    for name, mean, sd in priors:
         i, f, _ = PRIOR_STATES[name]
         x0[i], P0[i, i] = mean * f, (sd * f) ** 2
     return x0, P0
 
 
-def nominal_trajectory(inp: JointInputs, idx: np.ndarray):
-    """Iteration-0 linearisation trajectory on the state grid.
+class Nominal(NamedTuple):
+    """A linearisation point: the positions ``lat``, ``lon``, ``h``, the velocity ``vnom`` (runway
+    rows, take-off roll), the heading bias ``psi_hat`` (the rotation's linearisation) and the
+    accelerometer biases ``ba_hat`` (the take-off roll) of the iterate; the first pass's
+    (:func:`nominal_trajectory`) has the air data's velocity and no biases (None)."""
+
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    vnom: np.ndarray
+    psi_hat: np.ndarray | None = None
+    ba_hat: np.ndarray | None = None
+
+
+def nominal_trajectory(inp: JointInputs, idx: np.ndarray) -> Nominal:
+    """Iteration-0 linearisation point on the state grid (:class:`Nominal`).
 
     Air-data dead reckoning (airspeed and heading, plus the recorded wind) integrated on the
     ellipsoid (:func:`flightrecon.geo.navframe.integrate_local_level`, valid on flights of any
@@ -210,8 +228,8 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray):
     fixes where there are any (the differences at the fixes, interpolated linearly in time; the
     track between fixes keeps the shape of the dead reckoning), otherwise to the end points
     ``inp.end_points`` (started at the departure one; a correction growing linearly from it to the
-    arrival one, as the DR+linear baseline). Only the starting point of the Gauss-Newton iterations:
-    it decides how many are needed, not where they converge.
+    arrival one, as the DR+linear baseline); the velocity the air data's.  Only the starting point
+    of the Gauss-Newton iterations: it decides how many are needed, not where they converge.
     """
     t = inp.t_in
     tas = np.where(np.isfinite(inp.tas), inp.tas, 0.0)
@@ -268,25 +286,22 @@ def nominal_trajectory(inp: JointInputs, idx: np.ndarray):
         lat = lat + frac * dlat
         lon = lon + frac * dlon
     lon = (lon + 180.0) % 360.0 - 180.0
-    return lat, lon, h
+    tas0, psi0 = np.nan_to_num(inp.tas[idx]), np.nan_to_num(inp.heading_rad[idx])
+    return Nominal(lat, lon, h, np.c_[tas0 * np.cos(psi0), tas0 * np.sin(psi0), np.zeros(len(idx))])
 
 
 def relinearised_increments(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
                             psi_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The step accelerations and increments for a transition linearised about the heading bias
-    ``psi_hat`` (per step) instead of zero.
+    ``psi_hat`` (per step) instead of zero (docs/joint.md, "Filter, smoother, iterations", item 2).
 
     The true increment is R(-dpsi) dV (the bias rotates the measured horizontal acceleration
     about the vertical); about psi_hat it is R(-psi_hat) dV + (dpsi - psi_hat) J R(-psi_hat) dV
     with J u = (u_E, -u_N, 0). The kernels build F[v, dpsi] = J a h (and J a h^2/2 for the
     position) from the acceleration they are given and add the increments, so they are given
     a' = R(-psi_hat) a, dV' = R(-psi_hat) dV - J a' h psi_hat and dP' = dP + (a' - a) h^2/2 -
-    J a' h^2/2 psi_hat (the held-mean part of the position increment rotated, the remainder
-    from the acceleration's variation within the step, second order, not): the
-    state keeps the whole bias, and the transition is exact at the solution, not only for a
-    small bias (on recorder data without the runway's direction the bias is nearly
-    unobservable and a first-order rotation let it wander by several degrees).
-    """
+    J a' h^2/2 psi_hat (the held-mean part of the position increment rotated, the remainder, second
+    order, not): the state keeps the whole bias, and the transition is exact at the solution."""
     c, s = np.cos(psi_hat), np.sin(psi_hat)
 
     def rot(u: np.ndarray) -> np.ndarray:
@@ -306,7 +321,8 @@ def relinearised_increments(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt:
 
 
 def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight:
-    """The iteration-independent parts (:class:`SmootherFlight`)."""
+    """The iteration-independent parts (:class:`SmootherFlight`), built once per problem
+    (:mod:`~flightrecon.methods.joint.problem`)."""
     idx = state_grid(inp.t_in, settings.state_rate_hz)
     T = inp.t_in[idx]
     dt = np.diff(T, prepend=T[0])
@@ -328,8 +344,8 @@ def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight
         pst = np.array([float(sx), float(sy), float(sz)])
     ga = gust_decay(dt, inp.tas[idx], settings.noise, settings.min_airspeed_mps)
     return SmootherFlight(inp, settings, idx, T, dt, acc, dV, dP, Cnb, Csf, Jatt, qv_extra,
-                   q_vector(settings.noise), ga, static_measurements(inp, settings, T), pst,
-                   Cst)
+                          q_vector(settings.noise), ga, static_measurements(inp, settings, T), pst,
+                          Cst, nominal_trajectory(inp, idx))
 
 
 def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray, vnom: np.ndarray,
@@ -494,7 +510,9 @@ def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
 @dataclass(frozen=True)
 class SmootherFlight:
     """What the iterations hold fixed: the state grid, the held-input increments, the attitude step
-    means, the process noise, the station and the prior of x_0."""
+    means, the process noise, the measurement table's static part, the station, the first pass's
+    linearisation point (``nominal``) and the prior of x_0 (None until the first pass's models
+    give the nominal's position at step 0)."""
 
     inp: JointInputs
     settings: JointSettings
@@ -513,6 +531,7 @@ class SmootherFlight:
     static: Any
     pst: np.ndarray
     Cst: np.ndarray
+    nominal: Nominal
     x0: np.ndarray | None = None
     P0: np.ndarray | None = None
     P0inv: np.ndarray | None = None

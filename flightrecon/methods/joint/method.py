@@ -34,13 +34,13 @@ def joint_result(problem: JointProblem) -> MethodResult:
     gaps calibrated (each an adjusted problem solved again:
     :mod:`~flightrecon.methods.joint.calibration`), checked, then the track (its position sd
     widened by a stopped run's remaining movement) and the summary."""
-    run = smooth_joint(problem.inputs, problem.settings, problem.flight)
+    run = smooth_joint(problem)
     if problem.attitude_note:
         _warnings.warn(problem.attitude_note, FlightReconWarning, stacklevel=3)
     problem, run, wind_rounds = wind_walk_rounds(problem, run)
     run, gap_cal = calibrate_gaps(problem, run)
     # the iteration-independent parts go before the checks and the track
-    run, problem = replace(run, flight=None), replace(problem, flight=None)
+    problem = replace(problem, flight=None)
     if problem.frame is None:
         raise ValueError("the joint result needs the problem's output frame "
                          "(joint_problem builds it)")

@@ -5,8 +5,8 @@ points), the settings as this flight's data call for them, each data-driven choi
 that made it (:class:`SettingChoice`), the priors and what the output needs of the flight
 (:class:`OutputFrame`).  After the build nothing reads the cleaned flight and no setting is
 rewritten: a later adjustment (the wind walk re-estimated, the held-out smoothing of the GNSS gaps:
-:mod:`~flightrecon.methods.joint.calibration`) is a new problem (:func:`dataclasses.replace`) with
-its choice appended.
+:mod:`~flightrecon.methods.joint.calibration`) is a new problem (:func:`adjusted`) with its choice
+appended, and a problem of hand-made inputs is :func:`problem_of`.
 
 The data-driven settings (docs/joint.md): the priors of a heading from the body rates and of a
 derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g`` (those of the channels alone:
@@ -41,7 +41,12 @@ from flightrecon.methods.joint.inputs import (
     with_end_points,
     without_floor_loads,
 )
-from flightrecon.methods.joint.linearisation import SmootherFlight, smoother_flight
+from flightrecon.methods.joint.linearisation import (
+    SmootherFlight,
+    nominal_trajectory,
+    q_vector,
+    smoother_flight,
+)
 from flightrecon.methods.joint.settings import (
     JointNoise,
     JointSettings,
@@ -92,10 +97,11 @@ class JointProblem:
         (:func:`~flightrecon.methods.joint.problem.gnss_tilt_evidence`), or None
     attitude_note : the attitude source's note for the user, or None
     frame : what the output needs of the flight (None: a problem built from inputs alone)
-    flight : what the passes hold fixed, built once (the state grid, the increments of the held
-        inputs, the attitude step means, the measurement table's static part:
-        :func:`~flightrecon.methods.joint.linearisation.smoother_flight`), or None (built by
-        the solve)
+    flight : what the passes hold fixed, built once of ``inputs`` and ``settings`` (the state grid,
+        the increments of the held inputs, the attitude step means, the measurement table's static
+        part, the first pass's nominal:
+        :func:`~flightrecon.methods.joint.linearisation.smoother_flight`; reused in part by
+        :func:`adjusted`); None only once released (the method, after the calibrations)
     """
 
     inputs: JointInputs
@@ -389,41 +395,69 @@ def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> 
     ``derived_long_priors``, ``derived_lat_noise``), the inputs with their end points
     (:func:`~flightrecon.methods.joint.inputs.joint_inputs`), then the settings the inputs call for
     (:func:`resolved_settings`); every choice with its evidence."""
-    given = settings or JointSettings()
-    s = derived_heading_noise(clean, given)
-    choices = choices_between(given, s, WHY["heading"])
-    s2 = derived_long_priors(clean, s)
-    choices += choices_between(s, s2, WHY["long"])
-    s3 = derived_lat_noise(clean, s2)
-    choices += choices_between(s2, s3, WHY["lat"])
-    inp = joint_inputs(clean, s3.noise)
-    final, more, tilt_ev, note = resolved_settings(clean, inp, s3)
+    s = settings or JointSettings()
+    choices: tuple[SettingChoice, ...] = ()
+    for derive, why in ((derived_heading_noise, "heading"), (derived_long_priors, "long"),
+                        (derived_lat_noise, "lat")):
+        before, s = s, derive(clean, s)
+        choices += choices_between(before, s, WHY[why])
+    inp = joint_inputs(clean, s.noise)
+    final, more, tilt_ev, note = resolved_settings(clean, inp, s)
     return JointProblem(inputs=inp, settings=final, choices=choices + more,
                         tilt_evidence=tilt_ev, attitude_note=note, frame=output_frame(clean),
                         flight=smoother_flight(inp, final))
 
 
+def problem_of(inp: JointInputs, settings: JointSettings | None = None) -> JointProblem:
+    """The problem of inputs made without a cleaned flight (tests, studies): ``settings`` (the
+    defaults where not given) as they are, no choices, no output frame."""
+    s = JointSettings() if settings is None else settings
+    return JointProblem(inputs=inp, settings=s, flight=smoother_flight(inp, s))
+
+
+def adjusted(problem: JointProblem, *, inputs: JointInputs | None = None,
+             settings: JointSettings | None = None,
+             choice: SettingChoice | None = None) -> JointProblem:
+    """``problem`` with other ``inputs`` or ``settings`` (those not given unchanged) and ``choice``
+    appended to its choices: a calibration's problem (docs/joint.md, "How the joint is built and
+    solved", item 3), on the flight's parts already built.
+
+    The inputs may differ in the GNSS fixes only and the settings in the gust sd and the wind walk
+    only: none of the flight's parts depends on these but the process noise (recomputed) and, on the
+    fixes, the nominal (built again), so the rest are the same arrays (the held-out smoothing of the
+    gap calibration: 0.27 s and a second copy less on a 10-hour flight; the wind walk's rounds: the
+    measurement table and the increments built once).  Any other difference is another problem
+    (:func:`joint_problem`, :func:`problem_of`) and raises ``ValueError``."""
+    inp = problem.inputs if inputs is None else inputs
+    s = problem.settings if settings is None else settings
+    fl = problem.flight
+
+    def q_free(x: JointSettings) -> JointSettings:
+        return replace(x, estimate_gust=False, noise=replace(x.noise, gust_mps=1.0,
+                                                             wind_rw_mps_sqrt_s=1.0))
+
+    if (fl is None or q_free(s) != q_free(fl.settings)
+            or any(getattr(inp, f.name) is not getattr(fl.inp, f.name)
+                   for f in fields(inp) if f.name != "gnss")):
+        raise ValueError("an adjusted joint problem differs in the GNSS fixes, the gust sd and the "
+                         "wind walk only (and needs its problem's flight); another is built by "
+                         "joint_problem or problem_of")
+    flight = replace(fl, inp=inp, settings=s, q=q_vector(s.noise), nominal=(
+        fl.nominal if inp.gnss is fl.inp.gnss else nominal_trajectory(inp, fl.idx)))
+    return replace(problem, inputs=inp, settings=s, flight=flight,
+                   choices=(*problem.choices, *(() if choice is None else (choice,))))
+
+
 def temperature_baro_prior(inp: JointInputs, sat_degc: np.ndarray, h_p_field_m: float,
                            settings: JointSettings) -> JointSettings:
-    """The prior of the pressure-altitude scale ``c`` from the recorded static air temperature.
-
-    The smoother's baro row is ``h_p - h_p,f = (1 + c)(h - h_field) + b_h``.  In air warmer than the
-    ISA by ``dT`` the height above the field exceeds the pressure-altitude difference by ``dT / T``
-    (:func:`flightrecon.geo.atmosphere.height_above_field_m`, eq. 1-2): ``c`` is the temperature's,
-    not an unknown of 5 % (a 15 K deviation) to be found from the accelerations.  With the deviation
-    ``dT_k = SAT_k - T_ISA(h_p,k)`` of the airborne samples (lift-off to touchdown; ``h_p,k =
-    baro_rel_k + h_p,f``), their mean ``dT`` gives each sample's height above the field ``H_k`` (eq.
-    2) and ``c`` is the least-squares fit of ``h_p,k - h_p,f = (1 + c) H_k``::
-
-        1 + c = sum(dh_p,k H_k) / sum(H_k^2)
-
-    Its sd is that fit's change per kelvin times ``sqrt(s^2 + sat_column_k^2)``: ``s`` the spread of
-    the samples' ``dT`` (the column is not one deviation everywhere), ``JointNoise.sat_column_k``
-    what the recorded SAT does not tell of the column (probe, humidity).  Fewer than
-    :data:`flightrecon.geo.pressure_height.MIN_SAT_SAMPLES` samples
-    (:func:`~flightrecon.geo.pressure_height.isa_deviation_k`), or a ``baro_scale`` prior given in
-    ``settings.priors`` (the user's, a fleet's): unchanged.
-    """
+    """The prior of the pressure-altitude scale ``c`` of the baro row ``h_p - h_p,f = (1 + c)(h -
+    h_field) + b_h`` from the recorded static air temperature (docs/joint.md, "The pressure-altitude
+    scale from the temperature", eq. 1-2): the mean ISA deviation ``dT`` of the airborne samples
+    (:func:`~flightrecon.geo.pressure_height.isa_deviation_k`) gives each sample's height above the
+    field ``H_k`` (:func:`flightrecon.geo.atmosphere.height_above_field_m`) and the least-squares
+    ``1 + c = sum(dh_p,k H_k) / sum(H_k^2)``; its sd is that fit's change over ``sqrt(s^2 +
+    sat_column_k^2)`` kelvin (``s`` the samples' spread of ``dT``).  Too few samples, or a
+    ``baro_scale`` prior given in ``settings.priors`` (the user's, a fleet's): unchanged."""
     if any(p[0] == "baro_scale" for p in settings.priors):
         return settings
     h_p_all = inp.baro_rel_m + h_p_field_m
@@ -455,26 +489,15 @@ MIN_LOAD_DIFFERENCES = 60
 
 
 def sampled_loads_noise(inp: JointInputs, settings: JointSettings) -> JointSettings:
-    """The white-acceleration PSD per NED axis that the loads' own sampling implies.
-
-    The smoother integrates the recorded acceleration a_k over each input interval dt as a_k dt.  Of
-    a record sampled slower than the aircraft's accelerations vary (a 1 Hz glass-cockpit export:
-    turbulence, control inputs, an attitude and a load factor not taken at the same instant) the
-    part that changes from one sample to the next is not resolved: if it is w_k, uncorrelated from
-    sample to sample with variance s^2, the velocity increment over each interval is wrong by w_k
-    dt, a velocity random walk of PSD
-
-        q_s = s^2 dt,    s^2 = E[(a_{k+1} - a_k)^2] / 2
-
-    (the difference of two independent samples has twice their variance; the slow part of the
-    acceleration adds little to it at the record's rate and makes q_s an upper bound).  It also
-    holds the sensor's own white noise, so q_s replaces the budget ``accel_noise_mps2_sqrt_hz``
-    where it is larger: the extra PSD per axis is max(0, q_s - q_acc)
-    (``JointNoise.accel_sampling_mps2_sqrt_hz``, its square root). Measured over the airborne steps
-    (lift-off to touchdown, or the whole record), on the NED acceleration the smoother is given; a
-    record of recorder rate (8 Hz and more) gives q_s below the budget and is left as it is.  Fewer
-    than ``MIN_LOAD_DIFFERENCES`` differences, or an extra set by the user: unchanged.
-    """
+    """The white-acceleration PSD per NED axis that the loads' own sampling implies (docs/joint.md,
+    "1 Hz records: the loads' sampling, and the baro channel's datum"): the part of the acceleration
+    that changes from one sample to the next, unresolved, makes each interval's velocity increment
+    wrong by ``w_k dt``, a random walk of PSD ``q_s = s^2 dt``, ``s^2 = E[(a_{k+1} - a_k)^2] / 2``
+    (over the airborne steps, on the NED acceleration the smoother is given).  It holds the sensor's
+    own white noise, so it replaces the budget ``accel_noise_mps2_sqrt_hz`` where larger: the extra
+    ``JointNoise.accel_sampling_mps2_sqrt_hz`` is sqrt(max(0, q_s - q_acc)) per axis (a record at
+    recorder rate gets none).  Fewer than ``MIN_LOAD_DIFFERENCES`` differences, or an extra set by
+    the user: unchanged."""
     nz = settings.noise
     if any(v > 0 for v in nz.accel_sampling_mps2_sqrt_hz):
         return settings
@@ -559,12 +582,8 @@ def tilt_noise_open(clean: CleanFlight, inp: JointInputs, settings: JointSetting
                 or settings.noise.ahrs_tilt_mps2_per_g > 0.0 or inp.f_body_g is None)
 
 
-_MEASURE: dict = {}
-"""Sentinel of :func:`attitude_source_noise`: measure the GNSS evidence there."""
-
-
 def attitude_source_noise(clean: CleanFlight, inp: JointInputs, settings: JointSettings,
-                          evidence: dict | None = _MEASURE) -> tuple[JointSettings, str | None]:
+                          evidence: dict | None) -> tuple[JointSettings, str | None]:
     """The tilt noise from the flight's declared attitude source and its GNSS (docs/joint.md, "The
     attitude reference after sustained loads").
 
@@ -577,16 +596,16 @@ def attitude_source_noise(clean: CleanFlight, inp: JointInputs, settings: JointS
     without that evidence takes :data:`AHRS_TILT_MPS2_PER_G`.  Undeclared and unmeasured, the
     attitude is taken as inertial (off) and the note says so where the loads' remembered departure
     (tilt.py eq. 1) exceeds :data:`UNDECLARED_TILT_WARN_G` (a guess warns).  ``evidence``:
-    :func:`gnss_tilt_evidence` already measured (``None``: none), measured here by default."""
+    :func:`gnss_tilt_evidence` measured (``None``: none)."""
     nz = settings.noise
     src = clean.meta.attitude_source
     if not tilt_noise_open(clean, inp, settings) or inp.f_body_g is None:  # (typed: no loads)
         return settings, None
-    ev = gnss_tilt_evidence(clean, inp, settings) if evidence is _MEASURE else evidence
-    if ev is not None:
-        c = min(ev["gain_mps2_per_g"], AHRS_TILT_MPS2_PER_G)
+    if evidence is not None:
+        c = min(evidence["gain_mps2_per_g"], AHRS_TILT_MPS2_PER_G)
         if c < TILT_GAIN_MIN_MPS2_PER_G and src is None:
             return settings, None  # the fixes show no load-driven error worth the noise
+        ev = evidence
         note = (f"joint: the GNSS measures the attitude's load-driven error: the loads "
                 f"integrated through the recorded attitude leave the fixes by "
                 f"{ev['gain_mps2_per_g']:.2f} m/s^2 per g of sustained load ({ev['busy_windows']} "
