@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import warnings
 from pathlib import Path
+from functools import partial
 from types import SimpleNamespace
 
 import numpy as np
@@ -93,6 +94,7 @@ def test_the_widened_sd_adds_the_remaining_movement_in_quadrature():
     from flightrecon.geo.navframe import ned_to_ecef_matrix
     from flightrecon.methods.joint import layout as jl
     from flightrecon.methods.joint.output import joint_track
+    from flightrecon.methods.joint.solve import JointRun
 
     T = np.array([0.0, 2.0])
     x = np.zeros((2, jl.N_STATE))
@@ -103,6 +105,7 @@ def test_the_widened_sd_adds_the_remaining_movement_in_quadrature():
     run = SimpleNamespace(t=T, x=x, P_pv=P, var=np.ones((2, jl.N_STATE)),
                           Cen=np.repeat(C[None], 2, 0),
                           meas=SimpleNamespace(t=np.zeros(0), source=np.zeros(0, int)))
+    run.positions_ecef = partial(JointRun.positions_ecef, run)    # the run's Hermite positions
     plane, t = TangentPlane(45.0, 10.0, 0.0), np.array([0.0, 1.0, 2.0])
     tr, base = joint_track(t, plane, run, np.array([4.0, 0.0])), joint_track(t, plane, run)
     assert tr["joint_north_sd_m"].tolist() == pytest.approx([5.0, np.hypot(3.0, 2.0), 3.0])
