@@ -185,3 +185,26 @@ def test_logs_sharing_a_flight_id_get_one_record_each(fleet, client, tmp_path):
     r2 = batch([d], tmp_path / "out2", client=client)   # no store: same identity rule
     assert {a["aircraft_id"]: a["k1_n"] for a in r2.averages}["A1"] <= 2
     assert r2.averages[0]["n_flights"] == 2
+
+
+def test_a_batch_reads_frame_count_tables_at_its_frame_rate(client, tmp_path):
+    """``--frame-rate`` reaches every flight of a batch (a table with no time column is refused
+    without it, with the option named), and a re-run at a rate redoes the refused flight."""
+    from flightrecon.errors import SchemaError
+    from tests.test_folder_rate import RATE_HZ, SAMPLES, reference
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    reference().drop(columns=["t_s"]).to_csv(logs / "frames.csv", index=False)
+    (logs / "frames.meta.toml").write_text((SAMPLES / "handmade.meta.toml").read_text())
+    out = tmp_path / "out"
+    r1 = batch([logs], out, client=client)
+    (o1,) = r1.outcomes
+    assert o1.status == "failed" and o1.row["exit_code"] == SchemaError.exit_code
+    assert "--frame-rate" in o1.row["error"]
+    r2 = batch([logs], out, client=client, frame_rate_hz=RATE_HZ)
+    (o2,) = r2.outcomes
+    assert o2.status == "ok", o2.row["error"]
+    track, _ = read_track(out / "frames.recon.parquet")
+    t = track["t_s"].to_numpy()
+    assert t[-1] == pytest.approx(reference()["t_s"].iloc[-1], abs=1.0)

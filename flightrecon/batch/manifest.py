@@ -41,14 +41,16 @@ def input_hashes(log: Path, sidecar: Path | None, mapping: Path | None = None
 
 
 def settings_key(settings: ReconstructSettings, fmt: str, store: Path | None,
-                 gnss_use: GnssUse | None = None) -> str:
+                 gnss_use: GnssUse | None = None, frame_rate_hz: float | None = None) -> str:
     """SHA-256 of everything besides the inputs that changes a flight's outputs or store row
     (``gnss_use``: the batch's :class:`flightrecon.ingest.gnss_use.GnssUse`, ``None``: the
-    logs' GNSS as recorded)."""
-    doc = {"settings": asdict(settings), "format": fmt, "version": __version__,
-           "store": None if store is None else str(Path(store).resolve())}
+    logs' GNSS as recorded; ``frame_rate_hz``: the batch's ``--frame-rate``, ``None``: none)."""
+    doc: dict[str, Any] = {"settings": asdict(settings), "format": fmt, "version": __version__,
+                           "store": None if store is None else str(Path(store).resolve())}
     if gnss_use is not None and gnss_use != GnssUse():
         doc["gnss_use"] = gnss_use.as_dict()
+    if frame_rate_hz is not None:
+        doc["frame_rate_hz"] = float(frame_rate_hz)
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 

@@ -56,6 +56,20 @@ AVERAGE_COLUMNS: tuple[str, ...] = ("aircraft_id", "n_flights") + tuple(
 
 
 @dataclass(frozen=True)
+class FlightTask:
+    """What every flight's task is given besides its files: the reconstruction ``settings``, the
+    result format ``fmt``, the batch's ``mapping`` (absolute path or ``None``), its GNSS options
+    ``gnss_use`` and its ``--frame-rate`` ``frame_rate_hz``
+    (:func:`flightrecon.batch.task.run_flight`)."""
+
+    settings: ReconstructSettings
+    fmt: str
+    mapping: str | None = None
+    gnss_use: GnssUse | None = None
+    frame_rate_hz: float | None = None
+
+
+@dataclass(frozen=True)
 class FlightOutcome:
     """One flight of a batch: ``status`` is ``ok``, ``failed`` or ``skipped``; ``row`` its line of
     the batch summary table (:data:`SUMMARY_COLUMNS`)."""
@@ -236,7 +250,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
           force: bool = False, progress: Callable[[FlightOutcome, int], None] | None = None,
           fmt: str = "parquet", mapping: str | Path | None = None,
           gnss_use: GnssUse | None = None,
-          started: Callable[[int], None] | None = None) -> BatchResult:
+          started: Callable[[int], None] | None = None,
+          frame_rate_hz: float | None = None) -> BatchResult:
     """Reconstruct many flights on a Dask cluster; record their coefficients; summarise.
 
     Parameters
@@ -260,6 +275,9 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
         options redoes the flights
     started : called once with the number of flights, as soon as the logs are found (before
         any flight is checked or run: a progress bar's total)
+    frame_rate_hz : frames a second of the logs whose time is their frame count (``--frame-rate``
+        of every flight, as for :func:`flightrecon.pipeline.reconstruct`); part of the settings'
+        key
 
     Returns
     -------
@@ -276,7 +294,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
     if started is not None:
         started(len(entries))
     store_path = None if store is None else Path(store)
-    key = settings_key(settings, fmt, store_path, gnss_use)
+    key = settings_key(settings, fmt, store_path, gnss_use, frame_rate_hz)
     db = CoefficientStore(store_path) if store_path is not None else None
     run = _BatchRun(entries, out_dir, fmt, key, db, progress)
     try:
@@ -287,8 +305,10 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
             if force or not run.skip_if_done(i, e, paths, hashes):
                 todo.append((i, e, paths, hashes))
         if todo:
-            _run(todo, client, settings, fmt, run.finish,
-                 None if mapping is None else str(Path(mapping).resolve()), gnss_use)
+            task = FlightTask(settings, fmt,
+                              None if mapping is None else str(Path(mapping).resolve()),
+                              gnss_use, frame_rate_hz)
+            _run(todo, client, task, run.finish)
         for j in sorted(run.pending):  # not expected: every submitted flight reports back
             run.record_finished(j, *run.pending.pop(j))
         ordered = tuple(run.outcomes[i] for i in range(len(entries)))
@@ -420,18 +440,18 @@ class _BatchRun:
         return stats_list
 
 
-def _run(todo, client, settings, fmt, finish, mapping=None, gnss_use=None) -> None:
+def _run(todo, client, task: FlightTask, finish) -> None:
     """Submit one task per flight and hand each result to ``finish`` as it completes."""
     from flightrecon.batch.cluster import open_client
 
     if client is None:
         with open_client() as c:
-            _submit_all(c, todo, settings, fmt, finish, mapping, gnss_use)
+            _submit_all(c, todo, task, finish)
     else:
-        _submit_all(client, todo, settings, fmt, finish, mapping, gnss_use)
+        _submit_all(client, todo, task, finish)
 
 
-def _submit_all(client, todo, settings, fmt, finish, mapping=None, gnss_use=None) -> None:
+def _submit_all(client, todo, task: FlightTask, finish) -> None:
     from distributed import as_completed
 
     from flightrecon.batch.task import run_flight
@@ -441,8 +461,8 @@ def _submit_all(client, todo, settings, fmt, finish, mapping=None, gnss_use=None
         fut = client.submit(run_flight, str(e.log.resolve()),
                             None if e.sidecar is None else str(e.sidecar.resolve()),
                             str(paths["result"].resolve()), str(paths["summary"].resolve()),
-                            settings, fmt, mapping, gnss_use,
-                            key=f"flightrecon-{e.name}-{uuid.uuid4().hex[:12]}",
+                            task.settings, task.fmt, task.mapping, task.gnss_use,
+                            task.frame_rate_hz, key=f"flightrecon-{e.name}-{uuid.uuid4().hex[:12]}",
                             pure=False)
         futures[fut] = (i, hashes)
     try:

@@ -88,7 +88,8 @@ def _joint_for_store(summary: dict[str, Any]) -> dict[str, Any] | None:
 
 def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: str,
                settings: ReconstructSettings, fmt: str,
-               mapping: str | None = None, gnss_use: GnssUse | None = None) -> dict[str, Any]:
+               mapping: str | None = None, gnss_use: GnssUse | None = None,
+               frame_rate_hz: float | None = None) -> dict[str, Any]:
     """Reconstruct ``log`` and write its result and summary atomically.
 
     Calls :func:`flightrecon.pipeline.reconstruct` with ``store=None, record=False`` (the client
@@ -104,6 +105,8 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
         mapping, found as ``reconstruct`` finds it, wins)
     gnss_use : the batch's GNSS options (:class:`flightrecon.ingest.gnss_use.GnssUse`, ``None``:
         as recorded)
+    frame_rate_hz : the batch's ``--frame-rate`` (a log whose time is its frame count), ``None``:
+        none
 
     Returns
     -------
@@ -127,7 +130,7 @@ def run_flight(log: str, sidecar: str | None, result_path: str, summary_path: st
         # one thread per flight: the batch's parallelism is across flights (Dask workers)
         rec = reconstruct(log, sidecar=sidecar, mapping=_mapping_for(sidecar, mapping),
                           settings=settings, store=None, record=False, workers=1,
-                          gnss_use=gnss_use)
+                          gnss_use=gnss_use, frame_rate_hz=frame_rate_hz)
         write_track(result_path, rec.track, rec.summary, fmt)
         write_summary(summary_path, rec.summary)
     except FlightReconError as exc:

@@ -44,6 +44,10 @@ from flightrecon.cli.trim import trim_options
 @click.option("--mapping", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Column-mapping TOML for the logs whose sidecar names no mapping (a "
                    "sidecar's [files] mapping wins, as for reconstruct).")
+@click.option("--frame-rate", "frame_rate_hz", type=float, metavar="HZ",
+              help="Frames a second of recorders whose time is their frame count (a table "
+                   "with no time column): row k at (k-1)/HZ s, for every log of the batch; "
+                   "wins over a mapping's [time] rate_hz, as for reconstruct.")
 @click.option("--format", "fmt", type=click.Choice(["parquet", "csv", "geojson", "kml"]),
               default="parquet", show_default=True, help="Result format.")
 @gnss_use_options
@@ -52,7 +56,8 @@ from flightrecon.cli.trim import trim_options
 def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
             scheduler: str | None, workers: int | None, store_path: Path | None, force: bool,
             methods: str | None, rate_hz: float | None, k_text: str | None, estimate_noise: bool,
-            gap_stretches: int | None, mapping: Path | None, fmt: str, no_gnss: bool = False,
+            gap_stretches: int | None, mapping: Path | None, fmt: str,
+            frame_rate_hz: float | None = None, no_gnss: bool = False,
             withhold_gnss: tuple[str, ...] = (), gnss_interval: float | None = None,
             gnss_sd: str | None = None, start: str | None = None,
             end: str | None = None) -> None:
@@ -99,7 +104,8 @@ def command(ctx: click.Context, *, inputs: tuple[str, ...], out_dir: Path,
         with open_client(scheduler, workers) as client:
             res = batch(list(inputs), out_dir, client=client, settings=settings,
                         store=store_path, force=force, progress=progress, fmt=fmt,
-                        mapping=mapping, gnss_use=gnss_use, started=started)
+                        mapping=mapping, gnss_use=gnss_use, started=started,
+                        frame_rate_hz=frame_rate_hz)
     finally:
         if bar is not None:
             bar.close()
