@@ -85,7 +85,10 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     run = sm.smooth_joint(problem)
     fl = problem.flight
     assert fl is not None
-    mdl, X = lin.models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll)
+    assert len(run.meas.z) == len(run.weights)
+    mdl, X, _ = lin.models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll,
+                                 run.meas.r, run.weights)
+    assert len(mdl.meas.z) == len(run.meas.z)
     rng = np.random.default_rng(3)
     Xp = X.copy()
     Xp[:, jl.S_POS] += np.cumsum(rng.normal(0.0, 3.0, (len(X), 3)), axis=0)
@@ -93,7 +96,7 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     Xp[:, jl.IPSI] += 0.01
     x0 = X[0] + rng.normal(0.0, 1.0, jl.N_STATE) * 1e-3
     P0inv = np.diag(1.0 / (np.arange(1, jl.N_STATE + 1) * 1e-3) ** 2)
-    sc = lin.pass_scalars(mdl, fl.T, mdl.meas.r, np.ones(len(mdl.meas.z)))
+    sc = mdl.scalars
     prior, process, data, const, res, rate, n_fail = map_cost(
         Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, s.huber_c, s.reject_c, True)
     ref = _reference_cost(Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, mdl.meas.step, s.huber_c,

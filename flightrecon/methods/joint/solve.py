@@ -55,10 +55,8 @@ from flightrecon.methods.joint.linearisation import (
     models_at,
     nominal_states,
     pass_cost,
-    pass_scalars,
     q_vector,
     scaled_variances,
-    with_pseudo,
 )
 from flightrecon.methods.joint.measurements import NOISE_GROUPS
 from flightrecon.methods.joint.model import JointModel, joint_model
@@ -476,24 +474,7 @@ def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
         roll = it.rolls_seen[-1]
     if m is not None and m.clock == it.clock and m.roll.same_as(roll):
         return m
-    return models_at(fl, nom.lat, nom.lon, nom.h, nom.vnom, nom.psi_hat, it.clock, roll)
-
-
-def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
-                weights: np.ndarray, reset: bool) -> tuple[Cost | None, np.ndarray]:
-    """The iterate's cost, residuals and rates under the pass's models (None before the first pass;
-    the last accepted ones when the models and noise factors are the same), and the weights: after a
-    ``reset`` (a new measurement set: a refined take-off roll) the IRLS weights at the iterate, so
-    that the pass is again a majorise-minimise step (with all weights 1 its Gauss-Newton step need
-    not lower the robust cost)."""
-    if it.X is None:
-        return None, weights
-    cached = it.cost if mdl is it.models else None
-    start = (cached[0] if cached is not None and np.array_equal(it.scale, cached[1])
-             else pass_cost(fl, mdl, it.X, r, weights))
-    if reset:
-        weights = robust_weights(start.res / np.sqrt(r), weights, fl.settings)
-    return start, weights
+    return models_at(fl, nom, it.clock, roll)
 
 
 def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: PassModels,
@@ -508,7 +489,7 @@ def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: 
     assert fl.x0 is not None and fl.P0 is not None
     _covariances(ws.running)
     ws.running = None   # (the last pass's outputs go before this pass's are built)
-    scalars = pass_scalars(mdl, fl.T, r, weights)
+    scalars = mdl.scalars._replace(r=r, w=weights)
     # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
     gate = s.innovation_gate if s.robust and (s.first_gate or k > 0) else 0.0
     if k > 0 and s.line_search and not s.gate_damped:
@@ -536,17 +517,26 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
     the pass and whether the iterations settled."""
     s = fl.settings
     mdl = _pass_models(fl, it)
-    r = scaled_variances(mdl, it.scale)
-    weights = it.weights
-    reset = weights is None or len(weights) != len(mdl.meas.z)
-    if weights is None or reset:
-        weights = np.ones(len(mdl.meas.z))
     if fl.x0 is None:
         x0, P0 = initial_estimate(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
         fl = replace(fl, x0=x0, P0=P0, P0inv=np.linalg.inv(P0))
     if it.X is None and s.first_pass == "nominal":
         it = replace(it, X=nominal_states(fl, mdl))
-    start, weights = _start_cost(fl, it, mdl, r, weights, reset)
+    r = scaled_variances(mdl, it.scale)
+    weights = it.weights
+    reset = weights is None or len(weights) != len(mdl.meas.z)
+    if weights is None or reset:
+        weights = np.ones(len(mdl.meas.z))
+    # the iterate's cost under the pass's models (None before the first pass; the last accepted
+    # one where the models and noise factors are the same); after a reset (a new measurement set:
+    # a refined take-off roll) the IRLS weights at the iterate, so that the pass is again a
+    # majorise-minimise step (with all weights 1 its Gauss-Newton step need not lower the cost)
+    start = None
+    if it.X is not None:
+        start = (it.cost[0] if mdl is it.models and it.cost is not None
+                 and np.array_equal(it.scale, it.cost[1]) else pass_cost(fl, mdl, it.X, r, weights))
+        if reset:
+            weights = robust_weights(start.res / np.sqrt(r), weights, s)
     out = _smoothing_pass(fl, it.X, ws, mdl, r, weights, k)
     step = line_search(fl, mdl, it.X, start, out, r, weights)
     lm_lambda = it.lm_lambda
@@ -825,8 +815,7 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
     alpha, evals, gn_cost = 1.0, 0, np.nan
     while True:
         Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
-        mc, Xc = models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
+        mc, Xc, (cost, res, rate) = models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll, r, weights)
         evals += 1
         if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
             res, rate = out.res, out.rate
@@ -843,6 +832,30 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
         alpha *= 0.5
 
 
+def with_pseudo(sc: Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> Scalars:
+    """``sc`` with the Levenberg-Marquardt pseudo-measurements x_k,i = X_k,i of variance sd_i^2 /
+    lam appended to every step's measurements (Sarkka & Svensson 2020, section 3: the smoother then
+    minimises the linearised cost plus lam/2 sum_k |x_k - X_k|^2_D, D = diag(1/sd^2), the states
+    scaled by their prior sd)."""
+    N, n = X.shape
+    M = len(sc.z)
+    step = np.repeat(np.arange(N), np.diff(sc.start))
+    start = sc.start + n * np.arange(N + 1)
+    pos = np.arange(M) + n * step
+    pseudo = ((start[1:] - n)[:, None] + np.arange(n)[None, :]).ravel()
+
+    def put(orig: np.ndarray, extra: np.ndarray | float) -> np.ndarray:
+        out = np.empty(M + N * n, dtype=orig.dtype)
+        out[pos] = orig
+        out[pseudo] = np.broadcast_to(extra, (N, n)).ravel()
+        return out
+
+    K = sc.H.shape[0]
+    return Scalars(start, put(sc.mtype, jl.LINEAR), put(sc.z, X), put(sc.r, sd ** 2 / lam),
+                      put(sc.w, 1.0), put(sc.tau, 0.0), np.vstack([sc.H, np.eye(n)]),
+                      put(sc.row, K + np.arange(n)), put(sc.d, 0.0))
+
+
 def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels, start: Cost,
             r: np.ndarray, weights: np.ndarray, lm_lambda: float) -> tuple[PassStep | None, float]:
     """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2): the
@@ -857,11 +870,10 @@ def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels, sta
     sd = np.sqrt(np.diag(fl.P0))
     lam, evals = max(10.0 * lm_lambda, s.lm_lambda0), 0
     while lam <= s.lm_lambda_max:
-        sc = with_pseudo(pass_scalars(mdl, fl.T, r, weights), X, sd, lam)
+        sc = with_pseudo(mdl.scalars._replace(r=r, w=weights), X, sd, lam)
         forward(ws.lm, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
         xs = backward(ws.lm, mdl.dyn, sc, mdl.geo, False).x
-        mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
+        mc, Xc, (cost, res, rate) = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll, r, weights)
         evals += 1
         if np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"]:
             return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan,
