@@ -371,8 +371,7 @@ def models_at(fl: SmootherFlight, nom: Nominal, clock: dict[str, float],
                               vnom, roll, psi_hat)
     sc = jl.Scalars(meas.start, meas.mtype, meas.z, meas.r, np.ones(len(meas.z)),
                     meas.t - fl.T[meas.step], meas.H, meas.hrow, meas.d)
-    return PassModels(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock), noise_groups(meas),
-                      sc)
+    return PassModels(lat, lon, h, meas, dyn, geo, roll, dict(clock), noise_groups(meas), sc)
 
 
 def _with_frame_rate(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
@@ -435,18 +434,12 @@ def nominal_states(fl: SmootherFlight, mdl: PassModels) -> np.ndarray:
         w = np.where(np.isfinite(inp.wind_ne[idx]), inp.wind_ne[idx], 0.0)
     # (at least 1 m/s through the air: the airspeed and heading functions are singular at 0)
     tas = np.maximum(tas, 1.0)
-    X[:, jl.S_POS] = mdl.pnom
+    X[:, jl.S_POS] = mdl.geo.pnom
     X[:, jl.IV] = tas * np.cos(psi) + w[:, 0]
     X[:, jl.IV + 1] = tas * np.sin(psi) + w[:, 1]
     X[:, jl.IV + 2] = -np.gradient(mdl.h, fl.T) if len(fl.T) > 1 else 0.0
     X[:, jl.S_WIND] = w
     return X
-
-
-def scaled_variances(mdl: PassModels, scale: np.ndarray) -> np.ndarray:
-    """Nominal measurement variances with the noise factors of their groups."""
-    g = mdl.groups
-    return mdl.meas.r * np.where(g >= 0, scale[np.maximum(g, 0)], 1.0)
 
 
 def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
@@ -519,13 +512,12 @@ class SmootherFlight:
 
 @dataclass(frozen=True)
 class PassModels:
-    """The dynamics, measurements and geometry built about one linearisation point."""
+    """The dynamics, measurements and geometry built about one linearisation point (its ECEF
+    positions ``geo.pnom``, its frames ``dyn.Cen``)."""
 
     lat: np.ndarray
     lon: np.ndarray
     h: np.ndarray
-    pnom: np.ndarray
-    Cen: np.ndarray
     meas: Measurements
     dyn: jl.Dynamics
     geo: jl.Geometry
