@@ -25,9 +25,9 @@ from flightrecon.methods.joint.method import run_joint
 from flightrecon.methods.joint.model import (
     add_process_noise,
     map_cost,
-    measure,
+    measure_into,
     robust_loss,
-    transition,
+    transition_into,
 )
 from flightrecon.methods.joint.problem import joint_inputs, problem_of
 from flightrecon.types import Flight
@@ -49,8 +49,9 @@ def _reference_cost(X, x0, P0inv, dyn, sc, geo, step, c, c_rej):
     process = 0.0
     eps64 = 64 * np.finfo(float).eps
     for k in range(1, len(X)):
-        F = transition(k, dyn.dt, dyn.Cen, dyn.Cnb, dyn.Csf, dyn.Jatt, dyn.acc, dyn.q[4], dyn.dz,
-                       dyn.ga)
+        F = np.empty((jl.N_STATE, jl.N_STATE))
+        transition_into(F, k, dyn.dt, dyn.Cen, dyn.Cnb, dyn.Csf, dyn.Jatt, dyn.acc, dyn.q[4],
+                        dyn.dz, dyn.ga)
         xp = F @ X[k - 1]
         xp[:3] += dyn.Cen[k - 1] @ dyn.dP[k]
         xp[3:6] += dyn.dV[k]
@@ -63,8 +64,8 @@ def _reference_cost(X, x0, P0inv, dyn, sc, geo, step, c, c_rej):
     data = 0.0
     for j in range(len(sc.z)):
         k = int(step[j])
-        hx, _ = measure(j, k, X[k], sc.mtype, sc.z, sc.tau, sc.H, sc.row, sc.d, dyn.Cen,
-                        geo.pnom, geo.hnom, geo.pst, geo.Cst)
+        hx = measure_into(np.empty(jl.N_STATE), j, k, X[k], sc.mtype, sc.z, sc.tau, sc.H, sc.row,
+                          sc.d, dyn.Cen, geo.pnom, geo.hnom, geo.pst, geo.Cst)
         r = sc.z[j] - hx
         if sc.mtype[j] in jl.ANGLE_TYPES:
             r = (r + np.pi) % (2 * np.pi) - np.pi
@@ -83,9 +84,13 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     inp = joint_inputs(clean)
     problem = problem_of(inp, s)
     run = sm.smooth_joint(problem)
-    fl = problem.flight
-    assert fl is not None
-    mdl, X = lin.models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll)
+    assert problem.flight is not None and run.prior is not None
+    # (the flight with the run's prior of x_0: models_about gives the candidate's cost too)
+    fl = replace(problem.flight, x0=run.prior[0], P0inv=np.linalg.inv(run.prior[1]))
+    assert len(run.meas.z) == len(run.weights)
+    mdl, X, _ = lin.models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll,
+                                 run.meas.r, run.weights)
+    assert len(mdl.meas.z) == len(run.meas.z)
     rng = np.random.default_rng(3)
     Xp = X.copy()
     Xp[:, jl.S_POS] += np.cumsum(rng.normal(0.0, 3.0, (len(X), 3)), axis=0)
@@ -93,7 +98,7 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     Xp[:, jl.IPSI] += 0.01
     x0 = X[0] + rng.normal(0.0, 1.0, jl.N_STATE) * 1e-3
     P0inv = np.diag(1.0 / (np.arange(1, jl.N_STATE + 1) * 1e-3) ** 2)
-    sc = lin.pass_scalars(mdl, fl.T, mdl.meas.r, np.ones(len(mdl.meas.z)))
+    sc = mdl.scalars
     prior, process, data, const, res, rate, n_fail = map_cost(
         Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, s.huber_c, s.reject_c, True)
     ref = _reference_cost(Xp, x0, P0inv, mdl.dyn, sc, mdl.geo, mdl.meas.step, s.huber_c,

@@ -17,6 +17,19 @@ from flightrecon.methods.joint import model as jo
 from flightrecon.methods.joint import solve as jp
 
 
+def _measure(j, k, x, *args):
+    """h(x) and its gradient of measurement j at step k (the kernel's ``measure_into``)."""
+    H = np.empty(jl.N_STATE)
+    return jo.measure_into(H, j, k, x, *args), H
+
+
+def _transition(*args):
+    """The transition matrix F_k (the kernel's ``transition_into``)."""
+    F = np.empty((jl.N_STATE, jl.N_STATE))
+    jd.transition_into(F, *args)
+    return F
+
+
 def _setup(rng):
     lat, lon, h = 40.4, 49.9, 3000.0
     ex, ey, ez = geodetic_to_ecef(lat, lon, h)
@@ -52,14 +65,14 @@ def test_measurement_jacobian_vs_central_differences(mtype):
     args = (np.array([mtype]), np.zeros(1), np.array([0.37]), mH, np.array([row]),
             np.array([1.5]), Cen,
             p[None, :], np.array([h - 10.0]), pst, Cst)
-    hx, H = jo.measure(0, 0, x, *args)
+    hx, H = _measure(0, 0, x, *args)
     num = np.empty(jl.N_STATE)
     for i in range(jl.N_STATE):
         step = 1e-3 * max(1.0, abs(x[i])) if i >= 3 else 1e-2
         xp, xm = x.copy(), x.copy()
         xp[i] += step
         xm[i] -= step
-        num[i] = (jo.measure(0, 0, xp, *args)[0] - jo.measure(0, 0, xm, *args)[0]) / (2 * step)
+        num[i] = (_measure(0, 0, xp, *args)[0] - _measure(0, 0, xm, *args)[0]) / (2 * step)
     scale = np.max(np.abs(H)) + 1e-30
     # central differences: truncation O(step^2) on smooth functions; 1e-6 of the largest
     # gradient component is far above rounding (ECEF coordinates ~6e6 m, eps 1e-16)
@@ -81,7 +94,7 @@ def test_transition_propagates_held_acceleration():
     dz = np.array([0.0, 30.0])        # the nominal climbs 30 m over the step
     x[jl.S_GUST] = [1.5, -0.5]
     ga = np.array([1.0, 0.9])          # the gust decays by 0.9 over the step
-    F = jd.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0, dz, ga)
+    F = _transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0, dz, ga)
     xn = F @ x
     np.testing.assert_allclose(xn[jl.S_GUST], 0.9 * x[jl.S_GUST], atol=1e-15)
     np.testing.assert_allclose(xn[jl.IP:jl.IP + 3], x[jl.IP:jl.IP + 3] + Cen[0] @ x[3:6] * 0.25,
@@ -113,7 +126,7 @@ def test_sparse_prediction_equals_dense_products():
     Cnb = np.repeat(ned_to_ecef_matrix(np.array([10.0]), np.array([20.0])), N, axis=0)
     Csf = rng.normal(size=(N, 3, 3))
     acc = rng.normal(size=(N, 3))
-    F = jd.transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0,
+    F = _transition(1, dt, Cen2, Cnb, Csf, np.zeros((N, 3, 2)), acc, 3600.0,
                       rng.normal(size=N) * 20.0, np.array([1.0, 0.8]))
     n = jl.N_STATE
     cols = np.empty((n, n), np.int64)
@@ -203,7 +216,7 @@ def test_transition_applies_attitude_biases_with_the_right_sign():
     Cnb = np.repeat(np.eye(3)[None], N, axis=0)
     Jatt = np.zeros((N, 3, 2))
     Jatt[1, :, 1] = [-1.0, 0.0, 0.0]  # level, f = (0, 0, -1) g: dC/dtheta f = (-1, 0, 0)
-    F = jd.transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0,
+    F = _transition(1, dt, Cen2, Cnb, np.zeros((N, 3, 3)), Jatt, np.zeros((N, 3)), 3600.0,
                       np.zeros(N), np.ones(N))
     y = np.zeros(jl.N_STATE)
     y[jl.IATT + 1] = 1e-3
@@ -383,7 +396,7 @@ def test_joint_passes_equal_a_dense_numpy_rts_on_the_real_model(captured_passes)
     dt, Cen, Cnb, Csf, Jatt, acc, dP, dV, dz, qv_extra, q, ga = dyn
     ref_x, ref_P = xf.copy(), Pf.copy()
     for k in range(N - 2, -1, -1):
-        F = jd.transition(k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz, ga)
+        F = _transition(k + 1, dt, Cen, Cnb, Csf, Jatt, acc, q[4], dz, ga)
         C = Pf[k] @ F.T @ np.linalg.inv(Pp[k + 1])
         ref_x[k] = xf[k] + C @ (ref_x[k + 1] - xp[k + 1])
         ref_P[k] = Pf[k] + C @ (ref_P[k + 1] - Pp[k + 1]) @ C.T
@@ -411,7 +424,7 @@ def test_gust_process_noise_keeps_the_stationary_variance():
         a = np.exp(-h * max(v, 30.0) / 400.0)
         assert ga[0] == 1.0 and abs(ga[1] - a) < 1e-15
         N = 2
-        F = jd.transition(1, dt, np.repeat(Cen, N, axis=0), np.repeat(np.eye(3)[None], N, 0),
+        F = _transition(1, dt, np.repeat(Cen, N, axis=0), np.repeat(np.eye(3)[None], N, 0),
                           np.zeros((N, 3, 3)), np.zeros((N, 3, 2)), np.zeros((N, 3)), 3600.0,
                           np.zeros(N), ga)
         P = np.zeros((jl.N_STATE, jl.N_STATE))
@@ -436,18 +449,18 @@ def test_compact_linear_rows_equal_the_stored_rows():
         row[0, jl.IV + axis] = 0.37
         common = (np.zeros(1), np.array([0.37]))
         geo = (np.array([4.5]), Cen, p[None, :], np.array([h]), pst, Cst)
-        lin = jo.measure(0, 0, x, np.array([jl.LINEAR]), *common, row, np.zeros(1, np.int64),
+        lin = _measure(0, 0, x, np.array([jl.LINEAR]), *common, row, np.zeros(1, np.int64),
                          *geo)
-        ned = jo.measure(0, 0, x, np.array([jl.NED_POS]), *common, np.zeros((0, jl.N_STATE)),
+        ned = _measure(0, 0, x, np.array([jl.NED_POS]), *common, np.zeros((0, jl.N_STATE)),
                          np.array([axis]), *geo)
         assert ned[0] == pytest.approx(lin[0], abs=1e-8)
         np.testing.assert_allclose(ned[1], lin[1], rtol=0, atol=1e-15)
     unit = np.zeros((1, jl.N_STATE))
     unit[0, jl.IV + 1] = 1.0
     geo = (np.array([0.2]), Cen, p[None, :], np.array([h]), pst, Cst)
-    lin = jo.measure(0, 0, x, np.array([jl.LINEAR]), np.zeros(1), np.zeros(1), unit,
+    lin = _measure(0, 0, x, np.array([jl.LINEAR]), np.zeros(1), np.zeros(1), unit,
                      np.zeros(1, np.int64), *geo)
-    st = jo.measure(0, 0, x, np.array([jl.STATE]), np.zeros(1), np.zeros(1),
+    st = _measure(0, 0, x, np.array([jl.STATE]), np.zeros(1), np.zeros(1),
                     np.zeros((0, jl.N_STATE)), np.array([jl.IV + 1]), *geo)
     assert st[0] == lin[0]
     np.testing.assert_array_equal(st[1], lin[1])
@@ -465,13 +478,13 @@ def test_gust_is_seen_by_the_air_data_only():
     for mtype in (jl.TAS, jl.HEADING, jl.DOPPLER, jl.TRACK):
         args = (np.array([mtype]), np.zeros(1), np.array([0.0]), np.zeros((1, jl.N_STATE)),
                 np.zeros(1, np.int64), np.array([V]), Cen, p[None, :], np.array([h]), pst, Cst)
-        hx, H = jo.measure(0, 0, x, *args)
+        hx, H = _measure(0, 0, x, *args)
         y = x.copy()
         y[jl.S_GUST] += [0.7, -0.3]
         y[jl.IS] += 0.5          # a larger scale error does not change the gust's effect
         z = x.copy()
         z[jl.IS] += 0.5
-        d_gust = jo.measure(0, 0, y, *args)[0] - jo.measure(0, 0, z, *args)[0]
+        d_gust = _measure(0, 0, y, *args)[0] - _measure(0, 0, z, *args)[0]
         if mtype == jl.TAS:
             np.testing.assert_array_equal(H[jl.S_GUST], [1.0, 0.0])
             assert d_gust == pytest.approx(0.7, rel=1e-12)

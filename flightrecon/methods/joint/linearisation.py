@@ -348,17 +348,17 @@ def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight
                           Cst, nominal_trajectory(inp, idx))
 
 
-def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarray, vnom: np.ndarray,
-              psi_hat: np.ndarray | None, clock: dict[str, float], roll: TakeoffRoll) -> PassModels:
-    """Dynamics, measurements and geometry linearised about the nominal (lat, lon, h, vnom, heading
-    bias ``psi_hat``; None: zero, the first pass)."""
-    inp = fl.inp
+def models_at(fl: SmootherFlight, nom: Nominal, clock: dict[str, float],
+              roll: TakeoffRoll) -> PassModels:
+    """Dynamics, measurements (with their noise groups) and geometry linearised about the nominal
+    ``nom`` (its positions, velocity and heading bias; ``psi_hat`` None: zero, the first pass),
+    with the clock offsets ``clock`` and the take-off roll ``roll`` (docs/joint.md, "Filter,
+    smoother, iterations", item 2)."""
+    lat, lon, h, vnom, psi_hat = nom.lat, nom.lon, nom.h, nom.vnom, nom.psi_hat
     ex, ey, ez = geodetic_to_ecef(lat, lon, h)
     pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
     Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
     dz = np.diff(h, prepend=h[0])   # signed height change: the wind moves along its gradient
-    meas = build_measurements(inp, fl.settings, fl.T, Cen, dict(clock), fl.static, pnom,
-                              vnom, roll, psi_hat)
     if psi_hat is None:
         acc_k, dV_k, dP_k = fl.acc, fl.dV, fl.dP
     else:
@@ -366,8 +366,12 @@ def models_at(fl: SmootherFlight, lat: np.ndarray, lon: np.ndarray, h: np.ndarra
     acc_k, dV_k, dP_k = _with_frame_rate(acc_k, dV_k, dP_k, fl.dt, lat, h, vnom)
     dyn = jl.Dynamics(fl.dt, Cen, fl.Cnb, fl.Csf, fl.Jatt, acc_k, dP_k, dV_k, dz, fl.qv_extra,
                       fl.q, fl.ga)
-    geo = jl.Geometry(pnom, h - inp.field_h, fl.pst, fl.Cst)
-    return PassModels(lat, lon, h, pnom, Cen, meas, dyn, geo, roll, dict(clock), noise_groups(meas))
+    geo = jl.Geometry(pnom, h - fl.inp.field_h, fl.pst, fl.Cst)
+    meas = build_measurements(fl.inp, fl.settings, fl.T, Cen, dict(clock), fl.static, pnom,
+                              vnom, roll, psi_hat)
+    sc = jl.Scalars(meas.start, meas.mtype, meas.z, meas.r, np.ones(len(meas.z)),
+                    meas.t - fl.T[meas.step], meas.H, meas.hrow, meas.d)
+    return PassModels(lat, lon, h, meas, dyn, geo, roll, dict(clock), noise_groups(meas), sc)
 
 
 def _with_frame_rate(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
@@ -401,15 +405,19 @@ def _in_frame(X: np.ndarray, Cen_from: np.ndarray, Cen_to: np.ndarray) -> np.nda
 
 
 def models_about(fl: SmootherFlight, X: np.ndarray, Cen_from: np.ndarray, clock: dict[str, float],
-                  roll: TakeoffRoll) -> tuple[PassModels, np.ndarray]:
+                 roll: TakeoffRoll, r: np.ndarray, weights: np.ndarray
+                 ) -> tuple[PassModels, np.ndarray, Cost]:
     """:func:`models_at` about the trajectory ``X`` itself (its positions, velocities and heading
-    bias; its local-level components in the frames ``Cen_from``), and ``X`` in its own frames
-    (:func:`_in_frame`): the models in which the cost of ``X`` is its nonlinear cost."""
+    bias; its local-level components in the frames ``Cen_from``), ``X`` in its own frames
+    (:func:`_in_frame`) and its MAP cost in those models with the variances ``r`` and weights
+    ``weights`` (:func:`pass_cost`: its nonlinear cost; a line-search or Levenberg-Marquardt
+    candidate, docs/joint.md, "Damping")."""
     lat, lon, h = ecef_to_geodetic(X[:, 0], X[:, 1], X[:, 2])
     Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
     Y = _in_frame(X, Cen_from, Cen)
-    return models_at(fl, lat, lon, h, Y[:, jl.S_VEL], np.ascontiguousarray(Y[:, jl.IPSI]),
-                      clock, roll), Y
+    mdl = models_at(fl, Nominal(lat, lon, h, Y[:, jl.S_VEL], np.ascontiguousarray(Y[:, jl.IPSI])),
+                    clock, roll)
+    return mdl, Y, pass_cost(fl, mdl, Y, r, weights)
 
 
 def nominal_states(fl: SmootherFlight, mdl: PassModels) -> np.ndarray:
@@ -426,23 +434,12 @@ def nominal_states(fl: SmootherFlight, mdl: PassModels) -> np.ndarray:
         w = np.where(np.isfinite(inp.wind_ne[idx]), inp.wind_ne[idx], 0.0)
     # (at least 1 m/s through the air: the airspeed and heading functions are singular at 0)
     tas = np.maximum(tas, 1.0)
-    X[:, jl.S_POS] = mdl.pnom
+    X[:, jl.S_POS] = mdl.geo.pnom
     X[:, jl.IV] = tas * np.cos(psi) + w[:, 0]
     X[:, jl.IV + 1] = tas * np.sin(psi) + w[:, 1]
     X[:, jl.IV + 2] = -np.gradient(mdl.h, fl.T) if len(fl.T) > 1 else 0.0
     X[:, jl.S_WIND] = w
     return X
-
-
-def scaled_variances(mdl: PassModels, scale: np.ndarray) -> np.ndarray:
-    """Nominal measurement variances with the noise factors of their groups."""
-    g = mdl.groups
-    return mdl.meas.r * np.where(g >= 0, scale[np.maximum(g, 0)], 1.0)
-
-
-def pass_scalars(mdl: PassModels, T: np.ndarray, r: np.ndarray, weights: np.ndarray) -> jl.Scalars:
-    m = mdl.meas
-    return jl.Scalars(m.start, m.mtype, m.z, r, weights, m.t - T[m.step], m.H, m.hrow, m.d)
 
 
 def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
@@ -452,10 +449,10 @@ def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
     s = fl.settings
     assert fl.x0 is not None and fl.P0inv is not None
     # the weights only mark left-out measurements (w <= 0); the loss is the robust one
+    sc = mdl.scalars._replace(r=r, w=weights)
     try:
         prior, process, data, const, res, rate, n_fail = map_cost(
-            X, fl.x0, fl.P0inv, mdl.dyn, pass_scalars(mdl, fl.T, r, weights), mdl.geo,
-            s.huber_c, s.reject_c, s.robust)
+            X, fl.x0, fl.P0inv, mdl.dyn, sc, mdl.geo, s.huber_c, s.reject_c, s.robust)
     except ZeroDivisionError:
         # a measurement function at a singular point (an air velocity of exactly zero under
         # an airspeed or heading measurement): no finite cost, the candidate is not taken
@@ -465,30 +462,6 @@ def pass_cost(fl: SmootherFlight, mdl: PassModels, X: np.ndarray, r: np.ndarray,
     cost = {"cost": prior + process + data, "cost_prior": prior, "cost_process": process,
             "cost_data": data, "cost_constant_state_change": const, "cost_q_failures": int(n_fail)}
     return Cost(cost, res, rate)
-
-
-def with_pseudo(sc: jl.Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> jl.Scalars:
-    """``sc`` with the Levenberg-Marquardt pseudo-measurements x_k,i = X_k,i of variance sd_i^2 /
-    lam appended to every step's measurements (Sarkka & Svensson 2020, section 3: the smoother then
-    minimises the linearised cost plus lam/2 sum_k |x_k - X_k|^2_D, D = diag(1/sd^2), the states
-    scaled by their prior sd)."""
-    N, n = X.shape
-    M = len(sc.z)
-    step = np.repeat(np.arange(N), np.diff(sc.start))
-    start = sc.start + n * np.arange(N + 1)
-    pos = np.arange(M) + n * step
-    pseudo = ((start[1:] - n)[:, None] + np.arange(n)[None, :]).ravel()
-
-    def put(orig: np.ndarray, extra: np.ndarray | float) -> np.ndarray:
-        out = np.empty(M + N * n, dtype=orig.dtype)
-        out[pos] = orig
-        out[pseudo] = np.broadcast_to(extra, (N, n)).ravel()
-        return out
-
-    K = sc.H.shape[0]
-    return jl.Scalars(start, put(sc.mtype, jl.LINEAR), put(sc.z, X), put(sc.r, sd ** 2 / lam),
-                      put(sc.w, 1.0), put(sc.tau, 0.0), np.vstack([sc.H, np.eye(n)]),
-                      put(sc.row, K + np.arange(n)), put(sc.d, 0.0))
 
 
 def gust_decay(dt: np.ndarray, tas_mps: np.ndarray, nz: JointNoise,
@@ -539,16 +512,17 @@ class SmootherFlight:
 
 @dataclass(frozen=True)
 class PassModels:
-    """The dynamics, measurements and geometry built about one linearisation point."""
+    """The dynamics, measurements and geometry built about one linearisation point (its ECEF
+    positions ``geo.pnom``, its frames ``dyn.Cen``)."""
 
     lat: np.ndarray
     lon: np.ndarray
     h: np.ndarray
-    pnom: np.ndarray
-    Cen: np.ndarray
     meas: Measurements
     dyn: jl.Dynamics
     geo: jl.Geometry
     roll: TakeoffRoll
     clock: dict[str, float]
-    groups: np.ndarray
+    groups: np.ndarray        # index into NOISE_GROUPS of each measurement (-1: none)
+    scalars: jl.Scalars       # the kernels' measurements, nominal variances, unit weights: a
+    #                           pass's own by ``scalars._replace(r=..., w=...)``

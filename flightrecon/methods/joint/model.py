@@ -169,14 +169,6 @@ def transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
 
 
 @nb.njit(cache=True, nogil=True)
-def transition(k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga):
-    """Transition matrix F_k from step k-1 to step k (k >= 1); see :func:`transition_into`."""
-    F = np.empty((N_STATE, N_STATE))
-    transition_into(F, k, dt, Cen, Cnb, Csf, Jatt, acc, tau_ba, dz, ga)
-    return F
-
-
-@nb.njit(cache=True, nogil=True)
 def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
     """P += Q_k in place, touching only the nonzero entries of Q_k. q = [q_acc, q_wind_t, q_wind_h,
     var_ba, tau_ba, q_psi, q_bh, q_grad, var_gust, dq_n, dq_e, dq_d] (see JointNoise and
@@ -222,16 +214,6 @@ def add_process_noise(P, k, dt, Cen, dz, qv_extra, q, ga):
     qg = q[8] * (1.0 - ga[k] * ga[k])
     P[IGU, IGU] += qg
     P[IGU + 1, IGU + 1] += qg
-
-
-@nb.njit(cache=True, nogil=True)
-def measure(j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst):
-    """h(x) and its gradient for scalar measurement j at step k (state x at the step).
-
-    See :func:`measure_into` (this form allocates the gradient; for tests and analysis)."""
-    H = np.empty(N_STATE)
-    hx = measure_into(H, j, k, x, mtype, mz, mtau, mH, mrow, md, Cen, pnom, hnom, pst, Cst)
-    return hx, H
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

@@ -55,10 +55,7 @@ from flightrecon.methods.joint.linearisation import (
     models_at,
     nominal_states,
     pass_cost,
-    pass_scalars,
     q_vector,
-    scaled_variances,
-    with_pseudo,
 )
 from flightrecon.methods.joint.measurements import NOISE_GROUPS
 from flightrecon.methods.joint.model import JointModel, joint_model
@@ -79,7 +76,7 @@ def filter_buffers(N: int, store_predicted: bool = True) -> tuple[np.ndarray, ..
 
 
 def forward(bufs: tuple[np.ndarray, ...], x0: np.ndarray, P0: np.ndarray, dyn: Dynamics,
-            meas: Scalars, geo: Geometry, gate: float, xlin: np.ndarray,
+            meas: Scalars, geo: Geometry, gate: float, xlin: np.ndarray | None,
             clock: tuple[np.ndarray, np.ndarray] | None = None) -> JointModel:
     """Forward extended Kalman filter with sequential scalar updates (the model's ``predict_into``
     and ``update_into``, :mod:`~flightrecon.methods.joint.model`) into the filter buffers ``bufs``
@@ -87,8 +84,8 @@ def forward(bufs: tuple[np.ndarray, ...], x0: np.ndarray, P0: np.ndarray, dyn: D
     predicted covariance, bit for bit the same).
 
     With ``xlin`` (N, n) the measurements are linearised about it (the smoothed states of the last
-    pass: an iterated extended Kalman smoother, Gauss-Newton on the whole record); with an empty
-    ``xlin`` (0, n) about the filter's own prediction (the first pass).  ``gate`` and ``clock`` as
+    pass: an iterated extended Kalman smoother, Gauss-Newton on the whole record); with None (or an
+    empty (0, n)) about the filter's own prediction (the first pass).  ``gate`` and ``clock`` as
     in :func:`~flightrecon.methods.joint.model.joint_model`.  Returns the pass's
     :class:`~flightrecon.methods.joint.model.JointModel`: its innovations, their variances and
     inflations (``nu``, ``S``, ``infl``) and the clock offsets' outputs (``cnorm``, ``cxf``,
@@ -144,7 +141,7 @@ def smoothed_columns(cxf: np.ndarray, cxp: np.ndarray, Pf: np.ndarray, Pp: np.nd
     return out
 
 
-class BackgroundCovariances:
+class BackgroundCovariances(threading.Thread):
     """The RTS covariance pass (:func:`backward`, without the residuals) of the filter
     buffers ``bufs`` = (xf, Pf, xp, Pp) and the pass's layouts, started on a second thread to
     run beside the mean pass and whatever follows it until the covariances or the buffers are
@@ -152,22 +149,21 @@ class BackgroundCovariances:
 
     def __init__(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
                  geo: Geometry) -> None:
+        super().__init__(name="joint-covariances")
+        self.job = (bufs, dyn, meas, geo)
         self.out: Smoothed | None = None
         self.error: BaseException | None = None
-        self.thread = threading.Thread(target=self._run, args=(bufs, dyn, meas, geo),
-                                       name="joint-covariances")
-        self.thread.start()
+        self.start()
 
-    def _run(self, bufs: tuple[np.ndarray, ...], dyn: Dynamics, meas: Scalars,
-             geo: Geometry) -> None:
+    def run(self) -> None:
         try:
-            self.out = backward(bufs, dyn, meas, geo, True, False)
+            self.out = backward(*self.job, True, False)
         except BaseException as exc:  # re-raised on the thread that waits for it
             self.error = exc
 
     def result(self) -> Smoothed:
         """The covariance pass, once the thread has finished."""
-        self.thread.join()
+        self.join()
         if self.error is not None:
             raise self.error
         assert self.out is not None
@@ -179,7 +175,6 @@ class PassResult:
     """Outputs of one forward filter and backward smoother pass."""
 
     xs: np.ndarray
-    xf: np.ndarray
     res: np.ndarray
     rate: np.ndarray
     hph: np.ndarray | None
@@ -471,29 +466,11 @@ def _pass_models(fl: SmootherFlight, it: Iterate) -> PassModels:
     (docs/joint.md, "Filter, smoother, iterations", "Damping")."""
     nom = it.nominal
     roll = refined_roll(fl.inp, fl.T, nom.vnom, nom.ba_hat)
-    m = it.models
     if it.rolls_seen and any(roll.same_as(r) for r in it.rolls_seen[:-1]):
         roll = it.rolls_seen[-1]
-    if m is not None and m.clock == it.clock and m.roll.same_as(roll):
-        return m
-    return models_at(fl, nom.lat, nom.lon, nom.h, nom.vnom, nom.psi_hat, it.clock, roll)
-
-
-def _start_cost(fl: SmootherFlight, it: Iterate, mdl: PassModels, r: np.ndarray,
-                weights: np.ndarray, reset: bool) -> tuple[Cost | None, np.ndarray]:
-    """The iterate's cost, residuals and rates under the pass's models (None before the first pass;
-    the last accepted ones when the models and noise factors are the same), and the weights: after a
-    ``reset`` (a new measurement set: a refined take-off roll) the IRLS weights at the iterate, so
-    that the pass is again a majorise-minimise step (with all weights 1 its Gauss-Newton step need
-    not lower the robust cost)."""
-    if it.X is None:
-        return None, weights
-    cached = it.cost if mdl is it.models else None
-    start = (cached[0] if cached is not None and np.array_equal(it.scale, cached[1])
-             else pass_cost(fl, mdl, it.X, r, weights))
-    if reset:
-        weights = robust_weights(start.res / np.sqrt(r), weights, fl.settings)
-    return start, weights
+    if it.models is not None and it.models.clock == it.clock and it.models.roll.same_as(roll):
+        return it.models
+    return models_at(fl, nom, it.clock, roll)
 
 
 def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: PassModels,
@@ -508,19 +485,18 @@ def _smoothing_pass(fl: SmootherFlight, X: np.ndarray | None, ws: Buffers, mdl: 
     assert fl.x0 is not None and fl.P0 is not None
     _covariances(ws.running)
     ws.running = None   # (the last pass's outputs go before this pass's are built)
-    scalars = pass_scalars(mdl, fl.T, r, weights)
+    scalars = mdl.scalars._replace(r=r, w=weights)
     # the gate in the first pass only (gate_damped off): later IRLS weights, the MAP majoriser
     gate = s.innovation_gate if s.robust and (s.first_gate or k > 0) else 0.0
     if k > 0 and s.line_search and not s.gate_damped:
         gate = 0.0
     cols = clock_columns(mdl.meas, s) if s.estimate_clock else None
-    xlin = X if X is not None else np.zeros((0, jl.N_STATE))
-    fw = forward(ws.bufs, fl.x0, fl.P0, mdl.dyn, scalars, mdl.geo, gate, xlin, cols)
+    fw = forward(ws.bufs, fl.x0, fl.P0, mdl.dyn, scalars, mdl.geo, gate, X, cols)
     kern_args = (mdl.dyn, scalars._replace(r=r * fw.infl), mdl.geo)
     pending = BackgroundCovariances(ws.bufs, *kern_args) if k > 0 and not em else None
     b = backward(ws.bufs, *kern_args, em)
     m = b.model
-    out = PassResult(b.x, ws.bufs[0], m.res, m.rate, m.hph if em else None, fw.infl, fw.nu, fw.S,
+    out = PassResult(b.x, m.res, m.rate, m.hph if em else None, fw.infl, fw.nu, fw.S,
                      m.Pblk if em else None, m.var if em else None, b.cholesky_fallbacks,
                      kern_args, scalars, pending,
                      clock=None if cols is None else (cols, (fw.cnorm, fw.cxf, fw.cxp)))
@@ -536,17 +512,27 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
     the pass and whether the iterations settled."""
     s = fl.settings
     mdl = _pass_models(fl, it)
-    r = scaled_variances(mdl, it.scale)
-    weights = it.weights
-    reset = weights is None or len(weights) != len(mdl.meas.z)
-    if weights is None or reset:
-        weights = np.ones(len(mdl.meas.z))
     if fl.x0 is None:
-        x0, P0 = initial_estimate(fl.inp, mdl.pnom, s.noise, s.min_airspeed_mps, s.priors)
+        x0, P0 = initial_estimate(fl.inp, mdl.geo.pnom, s.noise, s.min_airspeed_mps, s.priors)
         fl = replace(fl, x0=x0, P0=P0, P0inv=np.linalg.inv(P0))
     if it.X is None and s.first_pass == "nominal":
         it = replace(it, X=nominal_states(fl, mdl))
-    start, weights = _start_cost(fl, it, mdl, r, weights, reset)
+    # the nominal variances with the noise factors of their groups
+    r = mdl.meas.r * np.where(mdl.groups >= 0, it.scale[np.maximum(mdl.groups, 0)], 1.0)
+    weights = it.weights
+    reset = weights is None or len(weights) != len(mdl.meas.z)
+    weights = np.ones(len(mdl.meas.z)) if weights is None or reset else weights
+    # the iterate's cost under the pass's models (None before the first pass; the last accepted
+    # one where the models and noise factors are the same); after a reset (a new measurement set:
+    # a refined take-off roll) the IRLS weights at the iterate, so that the pass is again a
+    # majorise-minimise step (with all weights 1 its Gauss-Newton step need not lower the cost)
+    start = None
+    if it.X is not None:
+        start = (it.cost[0] if mdl is it.models and it.cost is not None
+                 and np.array_equal(it.scale, it.cost[1]) else pass_cost(fl, mdl, it.X, r, weights))
+        if reset:
+            weights = robust_weights(start.res / np.sqrt(r), weights, s)
+    cost0 = None if start is None else start.terms["cost"]
     out = _smoothing_pass(fl, it.X, ws, mdl, r, weights, k)
     step = line_search(fl, mdl, it.X, start, out, r, weights)
     lm_lambda = it.lm_lambda
@@ -555,7 +541,7 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
         if lm is not None:
             step = replace(lm, evaluations=step.evaluations + lm.evaluations,
                            gn_shift_m=step.gn_shift_m, gn_cost=step.gn_cost)
-    shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.pnom))) if step.ok else 0.0
+    shift = float(np.max(np.abs(step.X[:, jl.S_POS] - mdl.geo.pnom))) if step.ok else 0.0
     changed = it.refit or (it.models is not None and it.cost is not None and (
         it.models.clock != mdl.clock or not it.models.roll.same_as(mdl.roll)
         or not np.array_equal(it.scale, it.cost[1])))
@@ -564,7 +550,7 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
                             "parameters_changed": bool(changed),
                             "roll_start_t_s": mdl.roll.start_t,
                             "cholesky_fallbacks": out.n_fallback, **step.cost,
-                            "cost_start": None if start is None else start.terms["cost"],
+                            "cost_start": cost0,
                             "step_size": step.alpha, "lm_lambda": step.lm_lambda,
                             "line_search_evaluations": step.evaluations,
                             "gauss_newton_position_change_m": step.gn_shift_m}
@@ -574,7 +560,6 @@ def _one_pass(fl: SmootherFlight, it: Iterate, ws: Buffers, k: int
     psi_moved = float(np.max(np.abs(psi_new - psi_from)))
     info["max_heading_bias_change_deg"] = float(np.degrees(psi_moved))
     info["heading_bias_deg"] = float(np.degrees(step.X[len(fl.T) // 2, jl.IPSI]))
-    cost0 = None if start is None else start.terms["cost"]
     p = Pass(mdl, out, step, info)
     if not step.ok:
         info["line_search_failed"] = True
@@ -650,9 +635,7 @@ def smooth_joint(problem: JointProblem) -> JointRun:
     s = fl.settings
     it = Iterate(fl.nominal, {name: 0.0 for name, _ in CLOCK_SOURCES},
                  {name: np.nan for name, _ in CLOCK_SOURCES}, np.ones(len(NOISE_GROUPS)))
-    n_iter = max(1, s.iterations)
-    if s.estimate_noise:
-        n_iter = max(n_iter, s.noise_iterations)
+    n_iter = max(1, s.iterations, s.noise_iterations if s.estimate_noise else 1)
     return _passes(fl, it, range(n_iter))
 
 
@@ -730,9 +713,9 @@ def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
     Pblk, var = _with_clock_uncertainty(out, ws.bufs[1], ws.bufs[3], fin.Pblk, fin.var, it.clock)
     history[-1]["stop_reason"] = reason
     shift = (None if converged or not step.ok else
-             np.linalg.norm(step.X[:, jl.S_POS] - mdl.pnom, axis=1))
-    return JointRun(t=fl.T, x=fin.xs, P_pv=Pblk, var=var, xf=fin.xf, lat_deg=lat, lon_deg=lon,
-                    h_m=h, Cen=mdl.Cen, meas=mdl.meas, weights=it.weights,
+             np.linalg.norm(step.X[:, jl.S_POS] - mdl.geo.pnom, axis=1))
+    return JointRun(t=fl.T, x=fin.xs, P_pv=Pblk, var=var, lat_deg=lat, lon_deg=lon, h_m=h,
+                    Cen=mdl.dyn.Cen, meas=mdl.meas, weights=it.weights,
                     resid_norm=fin.res / np.sqrt(fin.scalars.r), innov=fin.innov,
                     innov_var=fin.innov_var,
                     clock_offsets_s={k: (it.clock[k], it.clock_sd[k]) for k in it.clock},
@@ -788,14 +771,11 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
     assert fl.x0 is not None and fl.P0 is not None
     lo_b, hi_b = s.noise_factor_bounds
     bufs1 = tuple(np.empty_like(b) for b in ws.bufs)
-    r1 = mdl.meas.r.copy()
-    # (out.scalars.w: the weights the last forward pass ran with)
-    w_before = out.scalars.w
-    scalars1 = out.scalars._replace(r=r1)
-    xlin = it.X if it.X is not None else np.zeros((0, jl.N_STATE))
+    # the default variances with the weights the last forward pass ran with
+    scalars1 = out.scalars._replace(r=mdl.meas.r.copy())
     fw = forward(bufs1, fl.x0, fl.P0, mdl.dyn, scalars1, mdl.geo,
-                 s.innovation_gate if s.robust else 0.0, xlin)
-    sel = (w_before >= 1.0) & (out.infl <= 1.0) & (fw.infl <= 1.0)
+                 s.innovation_gate if s.robust else 0.0, it.X)
+    sel = (scalars1.w >= 1.0) & (out.infl <= 1.0) & (fw.infl <= 1.0)
     ll_est = innovation_loglik(out.innov, out.innov_var, sel)
     ll_def = innovation_loglik(fw.nu, fw.S, sel)
     at_bound = [name for i, name in enumerate(NOISE_GROUPS.values())
@@ -805,11 +785,11 @@ def _noise_check(fl: SmootherFlight, mdl: PassModels, out: PassResult, it: Itera
              "accepted": accepted, "factors_at_bound": at_bound, "bounds": [lo_b, hi_b]}
     if accepted:
         return check, None
-    kern_args = (mdl.dyn, scalars1._replace(r=r1 * fw.infl), mdl.geo)
+    kern_args = (mdl.dyn, scalars1._replace(r=scalars1.r * fw.infl), mdl.geo)
     b = backward(bufs1, *kern_args, True)
     m = b.model
-    return check, PassResult(b.x, bufs1[0], m.res, m.rate, m.hph, fw.infl, fw.nu, fw.S, m.Pblk,
-                             m.var, b.cholesky_fallbacks, kern_args, scalars1)
+    return check, PassResult(b.x, m.res, m.rate, m.hph, fw.infl, fw.nu, fw.S, m.Pblk, m.var,
+                             b.cholesky_fallbacks, kern_args, scalars1)
 
 
 def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start: Cost | None,
@@ -821,12 +801,12 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
     ``line_search`` off (the cost is still evaluated and reported)."""
     s = fl.settings
     X_gn = out.xs
-    gn_shift = float(np.max(np.abs(X_gn[:, jl.S_POS] - mdl.pnom)))
+    gn_shift = float(np.max(np.abs(X_gn[:, jl.S_POS] - mdl.geo.pnom)))
     alpha, evals, gn_cost = 1.0, 0, np.nan
     while True:
         Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
-        mc, Xc = models_about(fl, Xc, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
+        mc, Xc, (cost, res, rate) = models_about(fl, Xc, mdl.dyn.Cen, mdl.clock, mdl.roll, r,
+                                                 weights)
         evals += 1
         if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
             res, rate = out.res, out.rate
@@ -843,6 +823,30 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
         alpha *= 0.5
 
 
+def with_pseudo(sc: Scalars, X: np.ndarray, sd: np.ndarray, lam: float) -> Scalars:
+    """``sc`` with the Levenberg-Marquardt pseudo-measurements x_k,i = X_k,i of variance sd_i^2 /
+    lam appended to every step's measurements (Sarkka & Svensson 2020, section 3: the smoother then
+    minimises the linearised cost plus lam/2 sum_k |x_k - X_k|^2_D, D = diag(1/sd^2), the states
+    scaled by their prior sd)."""
+    N, n = X.shape
+    M = len(sc.z)
+    step = np.repeat(np.arange(N), np.diff(sc.start))
+    start = sc.start + n * np.arange(N + 1)
+    pos = np.arange(M) + n * step
+    pseudo = ((start[1:] - n)[:, None] + np.arange(n)[None, :]).ravel()
+
+    def put(orig: np.ndarray, extra: np.ndarray | float) -> np.ndarray:
+        out = np.empty(M + N * n, dtype=orig.dtype)
+        out[pos] = orig
+        out[pseudo] = np.broadcast_to(extra, (N, n)).ravel()
+        return out
+
+    K = sc.H.shape[0]
+    return Scalars(start, put(sc.mtype, jl.LINEAR), put(sc.z, X), put(sc.r, sd ** 2 / lam),
+                      put(sc.w, 1.0), put(sc.tau, 0.0), np.vstack([sc.H, np.eye(n)]),
+                      put(sc.row, K + np.arange(n)), put(sc.d, 0.0))
+
+
 def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels, start: Cost,
             r: np.ndarray, weights: np.ndarray, lm_lambda: float) -> tuple[PassStep | None, float]:
     """Levenberg-Marquardt step when the line search failed (Sarkka & Svensson 2020, alg. 2): the
@@ -857,11 +861,11 @@ def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels, sta
     sd = np.sqrt(np.diag(fl.P0))
     lam, evals = max(10.0 * lm_lambda, s.lm_lambda0), 0
     while lam <= s.lm_lambda_max:
-        sc = with_pseudo(pass_scalars(mdl, fl.T, r, weights), X, sd, lam)
+        sc = with_pseudo(mdl.scalars._replace(r=r, w=weights), X, sd, lam)
         forward(ws.lm, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
         xs = backward(ws.lm, mdl.dyn, sc, mdl.geo, False).x
-        mc, Xc = models_about(fl, xs, mdl.Cen, mdl.clock, mdl.roll)
-        cost, res, rate = pass_cost(fl, mc, Xc, r, weights)
+        mc, Xc, (cost, res, rate) = models_about(fl, xs, mdl.dyn.Cen, mdl.clock, mdl.roll, r,
+                                                 weights)
         evals += 1
         if np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"]:
             return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan,
@@ -962,7 +966,6 @@ class JointRun:
     x: np.ndarray            # smoothed states (N, n)
     P_pv: np.ndarray         # smoothed position-velocity covariance block (ECEF p, NED v)
     var: np.ndarray          # smoothed state variances (N, n)
-    xf: np.ndarray           # filtered states
     lat_deg: np.ndarray
     lon_deg: np.ndarray
     h_m: np.ndarray          # ellipsoidal height
