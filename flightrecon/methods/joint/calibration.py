@@ -26,8 +26,7 @@ from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.memory import release_unused
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.health import wind_walk_check
-from flightrecon.methods.joint.inputs import JointInputs
-from flightrecon.methods.joint.measurements import per_fix_sd
+from flightrecon.methods.joint.inputs import JointInputs, per_fix_sd
 from flightrecon.methods.joint.problem import JointProblem, SettingChoice, adjusted
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint_from
@@ -116,19 +115,14 @@ def _ned_cov(run: JointRun, k: np.ndarray) -> np.ndarray:
     return np.einsum("kji,kjl,klm->kim", C, run.P_pv[k, 0:3, 0:3], C)
 
 
-def _around(T: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The states on either side of each time ``t`` (what a linear interpolation in ``T`` reads),
-    sorted and unique."""
-    i = np.searchsorted(T, t)
-    return np.unique(np.clip(np.concatenate([i - 1, i]), 0, len(T) - 1))
-
-
-def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``): their times (the smoother's GNSS clock
-    offset applied), the error of the smoothed antenna position against the fix in north and east
-    (K, 2) [m] (eq. G4: the body lever arm rotated to NED with the recorded attitude) and the
-    smoother's NED position covariance (K, 3, 3) interpolated to them."""
+def fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray, sd_m: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``), once for the gap calibration: their
+    times (the smoother's GNSS clock offset applied), the error of the smoothed antenna position
+    against the fix in north and east (K, 2) [m] (eq. G4: the body lever arm rotated to NED with
+    the recorded attitude), the smoother's NED position covariance (K, 3, 3) interpolated to them
+    and their declared horizontal sd (K,) [m] (:func:`~flightrecon.methods.joint.inputs.per_fix_sd`,
+    ``sd_m`` where the receiver gives none)."""
     g = inp.gnss
     # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
     # estimated (seconds added to the stamps, as in its measurements)
@@ -136,6 +130,7 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
     tf = g["t_s"].to_numpy(float)[sel] + (off if np.isfinite(off) else 0.0)
     T = run.t
     p = run.positions_ecef(tf)
+    declared = per_fix_sd(g, "h_sd_m", sd_m)[sel]
     k = np.clip(np.searchsorted(T, tf), 0, len(T) - 1)
     j = np.clip(np.searchsorted(inp.t_in, tf), 0, len(inp.t_in) - 1)
     lever = np.einsum("kij,j->ki", inp.body_to_ned(j), np.asarray(inp.lever_arm, float))
@@ -143,43 +138,42 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
     fx = np.stack(geodetic_to_ecef(g["lat_deg"].to_numpy(float)[sel],
                                    g["lon_deg"].to_numpy(float)[sel], h_s), axis=1)
     d = np.einsum("kji,kj->ki", run.Cen[k], fx - p)[:, :2] - lever[:, :2]
-    ks = _around(T, tf)   # the covariance is interpolated to the fixes from these states
+    # the covariance interpolated to the fixes from the states on either side of each
+    i = np.searchsorted(T, tf)
+    ks = np.unique(np.clip(np.concatenate([i - 1, i]), 0, len(T) - 1))
     Pn = _ned_cov(run, ks)
     P = np.stack([np.stack([np.interp(tf, T[ks], Pn[:, a, b]) for b in range(3)], axis=1)
                   for a in range(3)], axis=1)
-    return tf, d, P
+    return tf, d, P, declared
 
 
-def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float) -> np.ndarray:
+def fix_noise(d: np.ndarray, P: np.ndarray, declared_m: np.ndarray) -> np.ndarray:
     """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight from the
-    smoothed residuals of the ``used`` fixes, ``R = mean(eps^2) + mean(P_s)`` (eq. G5: E[eps^2] = R
-    - P_s), never above the declared ``declared_m`` squared (the rms of the used fixes' declared
-    sd), which keeps the model's misfit from being credited as the fixes' noise (docs/joint.md,
-    "GNSS gaps: the sd calibrated on held-out stretches")."""
-    sel = np.flatnonzero(used)
-    _, d, P = _fix_errors(inp, run, sel)
+    smoothed residuals ``d`` (K, 2) and covariances ``P`` (K, 3, 3) of the used fixes
+    (:func:`fix_errors`), ``R = mean(eps^2) + mean(P_s)`` (eq. G5: E[eps^2] = R - P_s), never above
+    the rms of their declared sd ``declared_m``, which keeps the model's misfit from being credited
+    as the fixes' noise (docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches")."""
     r = np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1), axis=0)
-    return np.minimum(r, declared_m ** 2)
+    return np.minimum(r, float(np.sqrt(np.mean(declared_m ** 2))) ** 2)
 
 
-def heldout_errors(inp: JointInputs, run: JointRun, stretches: list[tuple[float, float]],
-                   r: np.ndarray) -> list[dict[str, np.ndarray]]:
-    """Per held-out stretch, at its withheld fixes: the error of the smoothed antenna position
-    against the fix in north and east ``e`` (K, 2) [m], the smoother's variance ``v`` (K, 2), the
-    covered level ``b`` (K, 2) (eq. G1) and the fixes' variance ``r`` (2,) [m^2]
-    (:func:`fix_noise`).  ``run`` is the run without them."""
-    g = inp.gnss
-    tg = g["t_s"].to_numpy(float)
-    ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
+def heldout_errors(run: JointRun, stretches: list[tuple[float, float]], t_s: np.ndarray,
+                   errors: tuple[np.ndarray, np.ndarray, np.ndarray], r: np.ndarray
+                   ) -> list[dict[str, np.ndarray]]:
+    """Per held-out stretch, at its withheld fixes (stamps ``t_s``; ``errors``: their times, errors
+    and covariances, :func:`fix_errors`): the error of the smoothed antenna position against the fix
+    in north and east ``e`` (K, 2) [m], the smoother's variance ``v`` (K, 2), the covered level
+    ``b`` (K, 2) (eq. G1) and the fixes' variance ``r`` (2,) [m^2] (:func:`fix_noise`).  ``run``
+    is the run without them."""
     T = run.t
     out = []
     for a, b in stretches:
         base = _edge_baseline(T, lambda k: _ned_cov(run, k), a, b)
-        sel = np.flatnonzero((tg > a) & (tg < b) & ok)
-        if base is None or not len(sel):
+        sel = (t_s > a) & (t_s < b)
+        if base is None or not sel.any():
             continue
         inside, Pb = base
-        tf, d, P = _fix_errors(inp, run, sel)
+        tf, d, P = (x[sel] for x in errors)
         v = np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1)
         Ti = T[inside]
         bb = np.stack([np.interp(tf, Ti, Pb[:, i, i]) for i in (0, 1)], axis=1)
@@ -335,11 +329,12 @@ def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict
         # gaps keep the model's sd, said in the report (and by run_joint's warning)
         report["note"] = f"the held-out smoothing failed ({type(exc).__name__}: {exc})"
         return run, report
-    ok = (np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
-          & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
-    declared = per_fix_sd(inp.gnss, "h_sd_m", settings.noise.gnss_h_m)[keep & ok]
-    r = fix_noise(inp, run_h, keep & ok, float(np.sqrt(np.mean(declared ** 2))))
-    held = heldout_errors(inp, run_h, stretches, r)
+    sel = np.flatnonzero(np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
+                         & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
+    tf, d, P, declared = fix_errors(inp, run_h, sel, settings.noise.gnss_h_m)
+    used = keep[sel]
+    r = fix_noise(d[used], P[used], declared[used])
+    held = heldout_errors(run_h, stretches, tg[sel], (tf, d, P), r)
     if not held:
         report["note"] = "no held-out fix inside the stretches"
         return run, report

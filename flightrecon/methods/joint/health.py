@@ -26,7 +26,7 @@ from flightrecon.errors import FlightReconWarning
 from flightrecon.estimation.consistency import ChiSquareVerdict, chi_square_verdict
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.problem import JointProblem
-from flightrecon.methods.joint.settings import PRIOR_STATES, SOURCES, JointSettings, prior_of
+from flightrecon.methods.joint.settings import PRIOR_STATES, SOURCES
 from flightrecon.methods.joint.solve import JointRun
 
 
@@ -297,16 +297,17 @@ CORRECTION_UNITS = {
 """What each sensor error of the summary's ``corrections`` means (docs/joint.md, "Outputs")."""
 
 
-def corrections_at_middle(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
+def corrections_at_middle(run: JointRun, priors: dict[str, tuple[float, float]]
+                          ) -> dict[str, Any]:
     """The sensor errors of :data:`~flightrecon.methods.joint.settings.PRIOR_STATES`, value and sd
-    at the middle of the record in the reported unit, with the prior each was given
-    (``prior_mean``, ``prior_sd``, same unit)."""
+    at the middle of the record in the reported unit, with the prior each was given (``priors``:
+    :func:`~flightrecon.methods.joint.settings.prior_table`; ``prior_mean``, ``prior_sd``, same
+    unit)."""
     k = len(run.t) // 2
-    settings = settings or JointSettings()
     out = {}
     for name, (i, state_per_unit, _budget) in PRIOR_STATES.items():
         scale = 1.0 / state_per_unit
-        mean, sd = prior_of(name, settings)
+        mean, sd = priors[name]
         out[name] = {"value": float(run.x[k, i] * scale),
                      "sd": float(np.sqrt(max(run.var[k, i], 0.0)) * scale),
                      "unit": CORRECTION_UNITS[name], "prior_mean": mean, "prior_sd": sd}
@@ -339,9 +340,11 @@ class RunHealth:
 
 
 def run_health(problem: JointProblem, run: JointRun, wind_rounds: list[dict[str, Any]],
-               gap_calibration: dict[str, Any] | None) -> RunHealth:
+               gap_calibration: dict[str, Any] | None,
+               priors: dict[str, tuple[float, float]]) -> RunHealth:
     """Every check of the solved and calibrated ``run``, once, with the warnings in the order the
-    user reads them (``wind_rounds``, ``gap_calibration``: the calibrations' reports).  Healthy:
+    user reads them (``wind_rounds``, ``gap_calibration``: the calibrations' reports; ``priors``:
+    the sensor errors' priors, :func:`~flightrecon.methods.joint.settings.prior_table`).  Healthy:
     finite states with positive position and velocity variances, no gross mean NIS, no sensor error
     beyond :data:`IMPLAUSIBLE_PRIOR_SD`, the wind within its walk (:func:`wind_walk_check`);
     converged: finite and the passes' own test (docs/joint.md, "Filter, smoother, iterations")."""
@@ -378,7 +381,7 @@ def run_health(problem: JointProblem, run: JointRun, wind_rounds: list[dict[str,
                         f"{gap_calibration['note']}: their position sd is the model's, not "
                         "calibrated on this flight")
         _warnings.warn(warnings[-1], FlightReconWarning, stacklevel=4)
-    corrections = corrections_at_middle(run, settings)
+    corrections = corrections_at_middle(run, priors)
     far = implausible_corrections(corrections)
     walk = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m)
     later = [far_warning(name, corrections[name], z) for name, z in far.items()]

@@ -303,6 +303,15 @@ def airborne_samples(inp: JointInputs) -> np.ndarray:
     return air
 
 
+def per_fix_sd(g: pd.DataFrame, column: str, default: float) -> np.ndarray:
+    """Per-fix standard deviations from ``column`` of the GNSS table ``g`` (the receiver's own
+    accuracy figures: ``JointInputs.gnss``), ``default`` where absent or not finite."""
+    if column not in g.columns:
+        return np.full(len(g), float(default))
+    v = g[column].to_numpy(float)
+    return np.where(np.isfinite(v) & (v > 0), v, float(default))
+
+
 def nearest_index(t: np.ndarray, tq: np.ndarray) -> np.ndarray:
     """Index of the sample of sorted ``t`` nearest to each of ``tq`` (a tie goes to the later
     sample); the state step of a measurement, the input sample of a fix."""

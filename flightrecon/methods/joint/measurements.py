@@ -22,18 +22,10 @@ from flightrecon.methods.joint.inputs import (
     airborne_samples,
     end_points_at,
     nearest_index,
+    per_fix_sd,
 )
 from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
-
-
-def per_fix_sd(g, column: str, default: float) -> np.ndarray:
-    """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own accuracy
-    figures), ``default`` where absent or not finite."""
-    if column not in g.columns:
-        return np.full(len(g), float(default))
-    v = g[column].to_numpy(float)
-    return np.where(np.isfinite(v) & (v > 0), v, float(default))
 
 
 class _Part(NamedTuple):
@@ -177,7 +169,9 @@ class StaticTable:
     their state steps, and their rows of ``H``), the ground samples' times ``ground_t``
     (:func:`on_ground_mask`), the ground ``rolls``, the known positions (``--fix``: their (F, 5)
     table, state steps and ECEF positions, None where one has no height) or None, each end point's
-    ECEF position and NED-to-ECEF rotation (``inp.end_points``' order)."""
+    ECEF position and NED-to-ECEF rotation (``inp.end_points``' order) and the winds-aloft prior's
+    pseudo-measurements ``wind_prior`` (:func:`wind_prior_measurements`: t, w, sd, rho; the
+    summary's ``wind_prior`` reads them)."""
 
     parts: tuple[_Part, ...]
     H: tuple[np.ndarray, ...]
@@ -185,6 +179,7 @@ class StaticTable:
     rolls: tuple[GroundRoll, ...]
     fixes: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None
     ends: tuple[tuple[np.ndarray, np.ndarray], ...]
+    wind_prior: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def _ecef(lat_deg, lon_deg, h_m) -> np.ndarray:
@@ -238,7 +233,8 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
         for i in range(2):
             b.add_state("wind", t_in[okw], inp.wind_ne[okw, i], nz.wind_sensor_mps ** 2, jl.IW + i)
     # the winds-aloft prior (--wind): one pseudo-measurement per correlation length
-    tw, ww, sdw, _rho = wind_prior_measurements(inp, settings)
+    wind_prior = wind_prior_measurements(inp, settings)
+    tw, ww, sdw, _rho = wind_prior
     for i in range(2):
         b.add_state("wind_aloft", tw, ww[:, i], sdw ** 2, jl.IW + i)
     # pressure altitude
@@ -258,7 +254,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
                  for e in inp.end_points)
     # the rows' state steps, found once
     parts = tuple(p._replace(step=nearest_index(T, p.t)) for p in b.parts)
-    return StaticTable(parts, tuple(b.H), tt, rolls, fixes, ends)
+    return StaticTable(parts, tuple(b.H), tt, rolls, fixes, ends, wind_prior)
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
@@ -334,6 +330,10 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     # the velocities' own clock offset (the positions' where none is given)
     tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
     k, kv = nearest_index(T, np.stack([tg, tv]))
+    # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd,
+    # velocity sd), else the noise settings
+    sd_h, sd_v, sd_vel = (per_fix_sd(g, c, d) for c, d in (
+        ("h_sd_m", nz.gnss_h_m), ("v_sd_m", nz.gnss_v_m), ("vel_sd_mps", nz.gnss_vel_mps)))
     L = np.asarray(inp.lever_arm, float)
     arm, v_arm = np.zeros((len(tg), 3)), np.zeros((len(tg), 3))
     if np.any(L != 0):
@@ -354,13 +354,9 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
         hg = np.where(no_h, ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2], hg)
     ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
     ant = np.c_[ex, ey, ez] - arm   # the antenna moved to the reference point
-    # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
-    # else the noise settings; no height: no vertical component
-    sd_h = per_fix_sd(g, "h_sd_m", nz.gnss_h_m)
-    sd_v = np.where(no_h, np.nan, per_fix_sd(g, "v_sd_m", nz.gnss_v_m))
-    _ned_positions(b, Cen, "gnss_pos", tg, k, (sd_h, sd_h, sd_v), ant)
+    # no height: no vertical component
+    _ned_positions(b, Cen, "gnss_pos", tg, k, (sd_h, sd_h, np.where(no_h, np.nan, sd_v)), ant)
     if {"vn_mps", "ve_mps"} <= set(g.columns):
-        sd_vel = per_fix_sd(g, "vel_sd_mps", nz.gnss_vel_mps)
         vel = (g["vn_mps"].to_numpy() - v_arm[:, 0], g["ve_mps"].to_numpy() - v_arm[:, 1])
         # each carried to its own time by its acceleration a: h = v_i + a_i tau
         acc = gnss_acceleration(tv, np.column_stack(vel))

@@ -73,8 +73,10 @@ class SettingChoice:
 class OutputFrame:
     """What the output needs of the cleaned flight: the grid times ``t_s`` the track is given on,
     the output tangent ``plane``, the known positions ``fixes`` (``--fix``) and the geoid undulation
-    [m] that takes them to ellipsoidal heights, the declared ``attitude_source`` and the winds-aloft
-    levels ``wind_levels`` (``--wind``)."""
+    [m] that takes them to ellipsoidal heights, the declared ``attitude_source``, the winds-aloft
+    levels ``wind_levels`` (``--wind``) and the pseudo-measurements the measurement table's static
+    part made of them, ``wind_prior`` (t, w, sd, rho:
+    :func:`~flightrecon.methods.joint.measurements.wind_prior_measurements`)."""
 
     t_s: np.ndarray
     plane: TangentPlane
@@ -82,6 +84,7 @@ class OutputFrame:
     geoid_undulation_m: float = 0.0
     attitude_source: str | None = None
     wind_levels: tuple[WindLevel, ...] = ()
+    wind_prior: tuple[np.ndarray, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -381,12 +384,13 @@ def resolved_settings(clean: CleanFlight, inp: JointInputs, settings: JointSetti
     return current, choices, tilt_ev, attitude_note
 
 
-def output_frame(clean: CleanFlight) -> OutputFrame:
-    """What the output needs of ``clean`` (:class:`OutputFrame`)."""
+def output_frame(clean: CleanFlight, flight: SmootherFlight) -> OutputFrame:
+    """What the output needs of ``clean`` and of its ``flight`` (:class:`OutputFrame`)."""
     meta = clean.meta
     return OutputFrame(t_s=clean.grid["t_s"].to_numpy(float), plane=output_plane(meta),
                        fixes=tuple(meta.fixes), geoid_undulation_m=meta.geoid_undulation_m,
-                       attitude_source=meta.attitude_source, wind_levels=tuple(meta.wind_aloft))
+                       attitude_source=meta.attitude_source, wind_levels=tuple(meta.wind_aloft),
+                       wind_prior=flight.static.wind_prior)
 
 
 def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> JointProblem:
@@ -403,9 +407,10 @@ def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> 
         choices += choices_between(before, s, WHY[why])
     inp = joint_inputs(clean, s.noise)
     final, more, tilt_ev, note = resolved_settings(clean, inp, s)
+    flight = smoother_flight(inp, final)
     return JointProblem(inputs=inp, settings=final, choices=choices + more,
-                        tilt_evidence=tilt_ev, attitude_note=note, frame=output_frame(clean),
-                        flight=smoother_flight(inp, final))
+                        tilt_evidence=tilt_ev, attitude_note=note,
+                        frame=output_frame(clean, flight), flight=flight)
 
 
 def problem_of(inp: JointInputs, settings: JointSettings | None = None) -> JointProblem:

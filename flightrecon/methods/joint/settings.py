@@ -257,13 +257,18 @@ PRIOR_STATES: dict[str, tuple[int, float, str]] = {
 }
 
 
+def prior_table(settings: JointSettings) -> dict[str, tuple[float, float]]:
+    """(mean, sd) of the prior of every sensor-error state of :data:`PRIOR_STATES`, in its reported
+    unit: the one given in ``settings.priors``, else N(0, the noise budget's sd); the table the
+    run's checks receive (docs/joint.md, "Outputs": the summary's ``corrections``)."""
+    given = {n: (float(mean), float(sd)) for n, mean, sd in settings.priors}
+    return {name: given.get(name, (0.0, float(getattr(settings.noise, budget))))
+            for name, (_i, _unit, budget) in PRIOR_STATES.items()}
+
+
 def prior_of(name: str, settings: JointSettings) -> tuple[float, float]:
-    """(mean, sd) of the prior of the sensor-error state ``name``, in its reported unit: the one
-    given in ``settings.priors``, else N(0, the noise budget's sd)."""
-    for n, mean, sd in settings.priors:
-        if n == name:
-            return float(mean), float(sd)
-    return 0.0, float(getattr(settings.noise, PRIOR_STATES[name][2]))
+    """(mean, sd) of the prior of the sensor-error state ``name`` (:func:`prior_table`)."""
+    return prior_table(settings)[name]
 
 
 def derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
