@@ -379,12 +379,19 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
                      ) -> tuple[JointProblem, JointRun, list[dict[str, Any]]]:
     """Where the smoothed wind moved faster than its random walk allows
     (:func:`~flightrecon.methods.joint.health.wind_walk_check`, with the loads' PSD ``r`` of
-    :func:`inertial_wind_share`), the walk re-estimated from the flight (:func:`wind_walk_adjusted`)
-    and the adjusted problem solved again, at most ``settings.wind_rounds`` times, until the
-    smoothed wind is within the walk or the walk reaches ``wind_rw_max_mps_sqrt_s`` (docs/joint.md,
-    "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30 minutes).  Returns the
-    last problem, its run and the rounds (the walk each started from, the check's chi-square and
-    limit, the loads' PSD)."""
+    :func:`inertial_wind_share`), the walk re-estimated from the flight and the adjusted problem,
+    its choice and evidence appended, solved again, at most ``settings.wind_rounds`` times, until
+    the smoothed wind is within the walk or the walk reaches ``wind_rw_max_mps_sqrt_s``
+    (docs/joint.md, "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30 minutes).
+
+    The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from the height
+    flown through, the loads' ``r L``) has ``z^2 = |dw|^2 / (kappa Q)``, ``kappa = Q / (Q + r L)``.
+    With ``r = 0`` (another witness of the wind) the walk ``q`` is scaled so that this window would
+    be a typical one, its chi-square the mean 2 of chi-square(2): ``q' = q z^2 / 2``; where the
+    loads are the only witness, the smallest walk the check accepts: ``q' L = z^2 (Q + r L) / limit
+    - r L - Q_h``; never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``.  Returns the last
+    problem, its run and the rounds (the walk each started from, the check's chi-square and limit,
+    the loads' PSD)."""
     rounds: list[dict[str, Any]] = []
     inp, settings = problem.inputs, problem.settings
     r = inertial_wind_share(inp, settings)
@@ -395,7 +402,8 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
         else:
             within = (inp.liftoff_t + ROLL_WITNESS_S, inp.touchdown_t - ROLL_WITNESS_S)
     for _ in range(max(0, settings.wind_rounds)):
-        nz = problem.settings.noise
+        s = problem.settings
+        nz = s.noise
         c = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m,
                             loads_psd_m2ps3=r, within_s=within,
                             p_false=LOADS_WITNESS_P_FALSE if r > 0 else 0.01)
@@ -403,36 +411,20 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
             break
         rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
                        "limit": c["limit"], "loads_psd_m2ps3": r})
-        problem = wind_walk_adjusted(problem, c, r)
+        L = c["t1_s"] - c["t0_s"]
+        q = nz.wind_rw_mps_sqrt_s ** 2
+        q_h = c["walk_var_m2ps2"] - q * L
+        if r > 0:
+            q_new = (c["z2"] * (c["walk_var_m2ps2"] + c["loads_var_m2ps2"]) / c["limit"]
+                     - c["loads_var_m2ps2"] - q_h) / L
+        else:
+            q_new = q * 0.5 * c["z2"]
+        q_new = max(q_new, q)
+        walk = min(float(np.sqrt(q_new)), s.wind_rw_max_mps_sqrt_s)
+        why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
+               f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
+               f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
+        problem = adjusted(problem, settings=replace(s, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
+                           choice=SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why))
         run = smooth_joint(problem)
     return problem, run, rounds
-
-
-def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
-                       loads_psd_m2ps3: float) -> JointProblem:
-    """The problem with the wind walk the check ``check``
-    (:func:`~flightrecon.methods.joint.health.wind_walk_check`) calls for, its choice and evidence
-    appended.  The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from
-    the height flown through, the loads' ``r L``, ``r`` = ``loads_psd_m2ps3``) has ``z^2 = |dw|^2 /
-    (kappa Q)``, ``kappa = Q / (Q + r L)``.  With ``r = 0`` (another witness of the wind) the walk
-    is scaled so that this window would be a typical one, its chi-square the mean 2 of
-    chi-square(2): ``q' = q z^2 / 2``; where the loads are the only witness, the smallest walk the
-    check accepts: ``q' L = z^2 (Q + r L) / limit - r L - Q_h`` (docs/joint.md, "Wind and
-    turbulence").  Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``."""
-    settings = problem.settings
-    nz, c, r = settings.noise, check, loads_psd_m2ps3
-    L = c["t1_s"] - c["t0_s"]
-    q = nz.wind_rw_mps_sqrt_s ** 2
-    q_h = c["walk_var_m2ps2"] - q * L
-    if r > 0:
-        q_new = (c["z2"] * (c["walk_var_m2ps2"] + c["loads_var_m2ps2"]) / c["limit"]
-                 - c["loads_var_m2ps2"] - q_h) / L
-    else:
-        q_new = q * 0.5 * c["z2"]
-    q_new = max(q_new, q)
-    walk = min(float(np.sqrt(q_new)), settings.wind_rw_max_mps_sqrt_s)
-    why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
-           f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
-           f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
-    return adjusted(problem, settings=replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
-                    choice=SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why))
