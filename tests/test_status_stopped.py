@@ -93,6 +93,7 @@ def test_the_widened_sd_adds_the_remaining_movement_in_quadrature():
     from flightrecon.geo.navframe import ned_to_ecef_matrix
     from flightrecon.methods.joint import layout as jl
     from flightrecon.methods.joint.output import joint_track
+    from flightrecon.methods.joint.solve import hermite_positions
 
     T = np.array([0.0, 2.0])
     x = np.zeros((2, jl.N_STATE))
@@ -103,6 +104,9 @@ def test_the_widened_sd_adds_the_remaining_movement_in_quadrature():
     run = SimpleNamespace(t=T, x=x, P_pv=P, var=np.ones((2, jl.N_STATE)),
                           Cen=np.repeat(C[None], 2, 0),
                           meas=SimpleNamespace(t=np.zeros(0), source=np.zeros(0, int)))
+    # the smoothed positions as JointRun.positions_ecef gives them (at rest: the states')
+    run.positions_ecef = lambda t_s: hermite_positions(t_s, T, x[:, jl.S_POS],
+                                                       np.zeros((2, 3)))
     plane, t = TangentPlane(45.0, 10.0, 0.0), np.array([0.0, 1.0, 2.0])
     tr, base = joint_track(t, plane, run, np.array([4.0, 0.0])), joint_track(t, plane, run)
     assert tr["joint_north_sd_m"].tolist() == pytest.approx([5.0, np.hypot(3.0, 2.0), 3.0])

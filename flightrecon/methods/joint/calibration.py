@@ -2,15 +2,10 @@
 (:func:`~flightrecon.methods.joint.problem.adjusted`) solved again: the wind walk re-estimated
 where the smoothed wind outran it (:func:`wind_walk_rounds`; docs/joint.md, "Wind and
 turbulence"), and the position sd inside GNSS gaps calibrated on held-out stretches
-(:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
-
-Inside a GNSS gap the smoothed position's variance grows with the process noise that carries the
-track across it, mostly the wind's random walk, whose one default cannot serve every flight: the
-flight's own GNSS sets the scale.  Stretches of the real gaps' lengths are withheld where the GNSS
-is present (:func:`pseudo_gaps`), the flight is smoothed once more without them, and the withheld
-fixes' normalised errors give the factor ``f`` of the in-gap excess variance
-(:func:`calibration_factor`, eq. G3) applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
-"""
+(:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches":
+the stretches withheld, :func:`pseudo_gaps`; the withheld fixes' errors, :func:`fix_errors`, eq.
+G4; the factor of the in-gap excess variance, :func:`calibration_factor`, eq. G3, applied to the
+real gaps, :func:`apply_factor`, eq. G1/G2)."""
 
 from __future__ import annotations
 
@@ -265,31 +260,25 @@ def apply_factor(run: JointRun, gaps: list[tuple[float, float]], f: float) -> Jo
 HELDOUT_ENOUGH = 10.0
 
 
-def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> JointProblem:
-    """The problem without the held-out fixes (``keep`` False: withheld) and, for the warm start
-    (``settings.gap_heldout_passes`` > 0), with the gust sd of ``run`` held (the gust estimate is
-    the flight's)."""
-    inp, settings = problem.inputs, problem.settings
+def heldout_smoothing(problem: JointProblem, keep: np.ndarray, run: JointRun) -> JointRun:
+    """The flight smoothed once more without the held-out fixes (``keep`` False: withheld), an
+    adjusted problem: by default ``settings.gap_heldout_passes`` Gauss-Newton passes from the
+    converged ``run`` with its gust sd held (the gust estimate is the flight's;
+    :func:`~flightrecon.methods.joint.solve.smooth_joint_from`; one pass costs a third of the whole
+    iteration and gives the held-out errors and sd of the whole iteration to a few per cent of their
+    spread: docs/joint.md, "GNSS gaps"); with 0 the whole iteration again from the nominal."""
+    inp, s = problem.inputs, problem.settings
     held = replace(inp, gnss=inp.gnss[keep].reset_index(drop=True))
-    if not (settings.gap_heldout_passes > 0 and run.gust is not None
-            and np.isfinite(run.gust.get("sd_mps", np.nan))):
-        return adjusted(problem, inputs=held)
-    s = replace(settings, estimate_gust=False,
-                noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
-    return adjusted(problem, inputs=held, settings=s, choice=SettingChoice(
-        "noise.gust_mps", s.noise.gust_mps,
-        "held at the converged run's estimate for the held-out smoothing"))
-
-
-def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
-    """The flight smoothed once more without the held-out fixes (``problem_h``,
-    :func:`heldout_problem`): by default ``settings.gap_heldout_passes`` Gauss-Newton passes from
-    the converged ``run`` (:func:`~flightrecon.methods.joint.solve.smooth_joint_from`; one pass
-    costs a third of the whole iteration and gives the held-out errors and sd of the whole iteration
-    to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0 the whole iteration again
-    from the nominal."""
-    s = problem_h.settings
-    if s.gap_heldout_passes <= 0:
+    warm = s.gap_heldout_passes > 0
+    if warm and run.gust is not None and np.isfinite(run.gust.get("sd_mps", np.nan)):
+        s = replace(s, estimate_gust=False,
+                    noise=replace(s.noise, gust_mps=float(run.gust["sd_mps"])))
+        problem_h = adjusted(problem, inputs=held, settings=s, choice=SettingChoice(
+            "noise.gust_mps", s.noise.gust_mps,
+            "held at the converged run's estimate for the held-out smoothing"))
+    else:
+        problem_h = adjusted(problem, inputs=held)
+    if not warm:
         return smooth_joint(problem_h)
     return smooth_joint_from(problem_h, run, s.gap_heldout_passes,
                              enough_m=HELDOUT_ENOUGH * s.converge_m)
@@ -298,10 +287,10 @@ def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
 def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict[str, Any] | None]:
     """Held-out gap calibration: where the GNSS has gaps longer than ``settings.gap_min_s``,
     withhold up to ``settings.gap_stretches`` stretches of their lengths, smooth the adjusted
-    problem (:func:`heldout_problem`) from ``run``, measure the held-out NEES and rescale the real
-    gaps' position variance by the factor (:func:`calibration_factor`).  Returns the run (unchanged
-    without gaps, with ``gap_stretches`` 0 or without room for a stretch) and the report (None
-    without gaps)."""
+    problem without them from ``run`` (:func:`heldout_smoothing`), measure the held-out NEES and
+    rescale the real gaps' position variance by the factor (:func:`calibration_factor`).  Returns
+    the run (unchanged without gaps, with ``gap_stretches`` 0 or without room for a stretch) and
+    the report (None without gaps)."""
     inp, settings = problem.inputs, problem.settings
     if settings.gap_stretches <= 0:
         return run, None
@@ -323,7 +312,7 @@ def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict
     # (its peak would otherwise add to the held-out one; flightrecon/memory.py)
     release_unused()
     try:
-        run_h = heldout_smoothing(heldout_problem(problem, keep, run), run)
+        run_h = heldout_smoothing(problem, keep, run)
     except (FlightReconError, ValueError, ArithmeticError) as exc:
         # the held-out smoothing's own breakdown leaves the flight's result standing: the
         # gaps keep the model's sd, said in the report (and by run_joint's warning)

@@ -287,11 +287,6 @@ def end_points_at(ends: tuple[EndPoint, ...], roll: TakeoffRoll) -> tuple[EndPoi
                  if e.which == "departure" and e.model == "runway" else e for e in ends)
 
 
-def with_end_points(inp: JointInputs, nz: JointNoise) -> JointInputs:
-    """``inp`` with its end points (:func:`end_points`) under the noise settings ``nz``."""
-    return replace(inp, end_points=end_points(inp, nz))
-
-
 def airborne_samples(inp: JointInputs) -> np.ndarray:
     """Input samples from lift-off to touchdown (the whole record where either is unknown)."""
     t = inp.t_in

@@ -91,8 +91,7 @@ class _MeasBuilder:
         """The table, its rows sorted by state step (every part added with its steps)."""
         T = self.T
         N = len(T)
-        parts = self.parts
-        cat = (_Part(*map(np.concatenate, zip(*parts))) if parts
+        cat = (_Part(*map(np.concatenate, zip(*self.parts))) if self.parts
                else _Part(*[np.zeros(0)] * len(_Part._fields)))
         half_first = 0.5 * (T[1] - T[0] if N > 1 else 1)
         half_last = 0.5 * (T[-1] - T[-2] if N > 1 else 1)
@@ -607,8 +606,7 @@ def ground_rolls(inp: JointInputs, settings: JointSettings, T: np.ndarray
         centre = cl_side[sel]
         point, Ca = None, np.eye(3)
         if pos is not None and centre.any():
-            ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-            point = np.array([float(ex), float(ey), float(ez)])
+            point = _ecef(pos[0], pos[1], pos[2])[0]
             Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
         # off the line (no threshold): one error of endpoint_h_m common to the roll's m rows
         r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line

@@ -42,7 +42,6 @@ def provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.nd
     return names[lookup[code]]
 
 
-
 def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
                 remaining_k_m: np.ndarray | None = None) -> pd.DataFrame:
     """The smoothed trajectory at the times ``t_out`` (the input grid's), in the output conventions

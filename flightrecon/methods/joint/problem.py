@@ -6,13 +6,9 @@ that made it (:class:`SettingChoice`), the priors and what the output needs of t
 (:class:`OutputFrame`).  After the build nothing reads the cleaned flight and no setting is
 rewritten: a later adjustment (the wind walk re-estimated, the held-out smoothing of the GNSS gaps:
 :mod:`~flightrecon.methods.joint.calibration`) is a new problem (:func:`adjusted`) with its choice
-appended, and a problem of hand-made inputs is :func:`problem_of`.
-
-The data-driven settings (docs/joint.md): the priors of a heading from the body rates and of a
-derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g`` (those of the channels alone:
-:mod:`~flightrecon.methods.joint.settings`), the loads' sampling noise of a slow record, the
-pressure-altitude scale from the SAT and the attitude reference's tilt noise
-(:mod:`~flightrecon.methods.joint.problem`)."""
+appended, and a problem of hand-made inputs is :func:`problem_of` (docs/joint.md, "How the joint
+is built and solved", item 1: the data-driven settings, those of the channels alone in
+:mod:`~flightrecon.methods.joint.settings`, those of the inputs here)."""
 
 from __future__ import annotations
 
@@ -33,12 +29,11 @@ from flightrecon.geo.pressure_height import isa_deviation_k
 from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.ingest.priors import wind_aloft_on_grid
 from flightrecon.methods.joint.inputs import (
-    EndPoint,
     JointInputs,
     airborne_samples,
+    end_points,
     nearest_index,
     phases_roll,
-    with_end_points,
     without_floor_loads,
 )
 from flightrecon.methods.joint.linearisation import (
@@ -93,7 +88,7 @@ class JointProblem:
 
     Attributes
     ----------
-    inputs : the smoother's inputs, with the end points (:attr:`end_points`)
+    inputs : the smoother's inputs, with the end points (``inputs.end_points``)
     settings : the settings, every data-driven one resolved
     choices : the data-driven choices in the order made, each with its evidence
     tilt_evidence : what the GNSS fixes measured of the attitude's load-driven error
@@ -114,16 +109,6 @@ class JointProblem:
     attitude_note: str | None = None
     frame: OutputFrame | None = None
     flight: SmootherFlight | None = None
-
-    @property
-    def end_points(self) -> tuple[EndPoint, ...]:
-        """Where and when the record is tied to its airfields (built once with the inputs)."""
-        return self.inputs.end_points
-
-    @property
-    def priors(self) -> tuple[tuple[str, float, float], ...]:
-        """The sensor-error priors (state, mean, sd) replacing N(0, budget^2)."""
-        return self.settings.priors
 
 
 def held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
@@ -327,7 +312,7 @@ def joint_inputs(clean: CleanFlight, noise: JointNoise | None = None) -> JointIn
         if not np.isfinite(roll.start_t) and ph is not None:
             roll = phases_roll(ph)
         inp = replace(inp, roll=roll)
-    return with_end_points(inp, JointNoise() if noise is None else noise)
+    return replace(inp, end_points=end_points(inp, JointNoise() if noise is None else noise))
 
 
 def choices_between(before: JointSettings, after: JointSettings,
