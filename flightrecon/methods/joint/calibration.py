@@ -110,21 +110,16 @@ def _ned_cov(run: JointRun, k: np.ndarray) -> np.ndarray:
     return np.einsum("kji,kjl,klm->kim", C, run.P_pv[k, 0:3, 0:3], C)
 
 
-def fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray, sd_m: float
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``), once for the gap calibration: their
-    times (the smoother's GNSS clock offset applied), the error of the smoothed antenna position
-    against the fix in north and east (K, 2) [m] (eq. G4: the body lever arm rotated to NED with
-    the recorded attitude), the smoother's NED position covariance (K, 3, 3) interpolated to them
-    and their declared horizontal sd (K,) [m] (:func:`~flightrecon.methods.joint.inputs.per_fix_sd`,
-    ``sd_m`` where the receiver gives none)."""
+def fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray, tf: np.ndarray, p: np.ndarray,
+               sd_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The gap calibration's errors at the GNSS fixes ``sel`` (indices into ``inp.gnss``), at their
+    own times ``tf`` where the smoothed ECEF positions are ``p`` (K, 3) [m]: the smoothed antenna
+    position's error against the fix, north and east (K, 2) [m] (eq. G4: the body lever arm rotated
+    to NED with the recorded attitude), the smoother's NED position covariance there (K, 3, 3), the
+    declared horizontal sd (K,) [m] (:func:`~flightrecon.methods.joint.inputs.per_fix_sd`, ``sd_m``
+    where the receiver gives none)."""
     g = inp.gnss
-    # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
-    # estimated (seconds added to the stamps, as in its measurements)
-    off = run.clock_offsets_s.get("gnss", (0.0, 0.0))[0]
-    tf = g["t_s"].to_numpy(float)[sel] + (off if np.isfinite(off) else 0.0)
     T = run.t
-    p = run.positions_ecef(tf)
     declared = per_fix_sd(g, "h_sd_m", sd_m)[sel]
     k = np.clip(np.searchsorted(T, tf), 0, len(T) - 1)
     j = np.clip(np.searchsorted(inp.t_in, tf), 0, len(inp.t_in) - 1)
@@ -139,7 +134,7 @@ def fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray, sd_m: float
     Pn = _ned_cov(run, ks)
     P = np.stack([np.stack([np.interp(tf, T[ks], Pn[:, a, b]) for b in range(3)], axis=1)
                   for a in range(3)], axis=1)
-    return tf, d, P, declared
+    return d, P, declared
 
 
 def fix_noise(d: np.ndarray, P: np.ndarray, declared_m: np.ndarray) -> np.ndarray:
@@ -320,7 +315,12 @@ def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict
         return run, report
     sel = np.flatnonzero(np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
                          & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
-    tf, d, P, declared = fix_errors(inp, run_h, sel, settings.noise.gnss_h_m)
+    # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
+    # estimated (seconds added to the stamps, as in its measurements)
+    off = run_h.clock_offsets_s.get("gnss", (0.0, 0.0))[0]
+    tf = tg[sel] + (off if np.isfinite(off) else 0.0)
+    p = run_h.positions_ecef(tf)
+    d, P, declared = fix_errors(inp, run_h, sel, tf, p, settings.noise.gnss_h_m)
     used = keep[sel]
     r = fix_noise(d[used], P[used], declared[used])
     held = heldout_errors(run_h, stretches, tg[sel], (tf, d, P), r)
