@@ -255,8 +255,8 @@ def test_the_held_out_smoothing_reuses_the_problems_fixed_parts_to_the_bit():
     solver, a problem whose flight is not of its inputs and settings (a field replaced by hand)."""
     from dataclasses import replace as dc_replace
 
-    from flightrecon.methods.joint.calibration import heldout_problem, heldout_smoothing
-    from flightrecon.methods.joint.solve import smooth_joint
+    from flightrecon.methods.joint.calibration import HELDOUT_ENOUGH, heldout_smoothing
+    from flightrecon.methods.joint.solve import smooth_joint, smooth_joint_from
 
     problem, run = _circuit_with_a_gap()
     inp, settings, fl = problem.inputs, problem.settings, problem.flight
@@ -276,10 +276,13 @@ def test_the_held_out_smoothing_reuses_the_problems_fixed_parts_to_the_bit():
         adjusted(problem, inputs=dc_replace(inp_h, tas=inp.tas.copy()), settings=s_h)
     keep = np.zeros(len(inp.gnss), bool)
     keep[::2] = True
-    problem_h = heldout_problem(problem, keep, run)
-    assert problem_h.inputs.gnss.equals(inp_h.gnss)
-    warm = heldout_smoothing(problem_h, run)
-    fresh = heldout_smoothing(problem_of(problem_h.inputs, problem_h.settings), run)
+    warm = heldout_smoothing(problem, keep, run)
+    # the same smoothing on a problem built again (the gust sd held at the run's)
+    assert run.gust is not None
+    s_w = dc_replace(settings, estimate_gust=False,
+                     noise=dc_replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
+    fresh = smooth_joint_from(problem_of(inp_h, s_w), run, s_w.gap_heldout_passes,
+                              enough_m=HELDOUT_ENOUGH * s_w.converge_m)
     assert np.array_equal(warm.x, fresh.x) and np.array_equal(warm.var, fresh.var)
     with pytest.raises(ValueError, match="problem.adjusted"):
         smooth_joint(dc_replace(problem, settings=s_h))

@@ -13,7 +13,7 @@ from flightrecon.errors import FlightReconWarning
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.health import run_health
 from flightrecon.methods.joint.output import provenance
-from flightrecon.methods.joint.settings import SOURCES, JointSettings
+from flightrecon.methods.joint.settings import SOURCES, JointSettings, prior_table
 
 
 def _run(n: int = 200, **over) -> SimpleNamespace:
@@ -36,7 +36,7 @@ def _problem(**settings) -> SimpleNamespace:
 
 
 def test_a_clean_run_is_healthy_and_says_only_its_notes():
-    h = run_health(_problem(), _run(), [], None)
+    h = run_health(_problem(), _run(), [], None, prior_table(JointSettings()))
     assert h.healthy and h.converged and not h.consistency.gross
     assert h.warnings == ["an input note", "the attitude note"]
     assert h.settling is None and h.remaining_k_m is None
@@ -63,7 +63,7 @@ def test_every_warning_in_its_order_and_the_verdicts():
                gust={"rounds": [1], "sd_mps": s.gust_bounds_mps[1]})
     gaps = {"factor": None, "gaps_s": [[10.0, 40.0]], "note": "no room for a held-out stretch"}
     with pytest.warns(FlightReconWarning, match="GNSS gaps"):
-        h = run_health(_problem(estimate_noise=True), run, [], gaps)
+        h = run_health(_problem(estimate_noise=True), run, [], gaps, prior_table(s))
     starts = ["an input note", "the attitude note", "joint: source 'baro' inconsistent",
               "joint: the estimated noise did not raise", "joint: noise estimation did not",
               "joint: not converged after 1 passes: at the cap", "joint: gnss clock offset +0.80",

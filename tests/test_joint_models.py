@@ -623,20 +623,17 @@ def test_ground_roll_tells_the_heading_no_more_than_one_track_angle():
 def test_lined_up_at_rest_the_heading_gives_its_bias():
     """Guards the line-up row (docs/joint.md, "The heading reference"): lined up at rest before
     the roll the recorded heading minus the runway's direction is the heading bias, one row
-    for the rest (the circular mean of its samples) with the sd ``lineup_heading_deg``; the
-    runway given in the opposite direction is the same line; without the runway's direction
-    there is no row."""
+    for the rest (the circular mean of its samples, at their mean time); the runway given in the
+    opposite direction is the same line; without the runway's direction there is no row."""
     import pandas as pd
 
     from flightrecon.methods.joint.inputs import JointInputs
-    from flightrecon.methods.joint.measurements import _MeasBuilder, lineup_heading
-    from flightrecon.methods.joint.settings import JointSettings
+    from flightrecon.methods.joint.measurements import lineup_heading
 
     t = np.arange(0.0, 60.0, 0.25)
     n = len(t)
     rng = np.random.default_rng(4)
     psi = np.radians(160.0 + 1.5 + rng.normal(0.0, 0.2, n))   # 1.5 deg bias, 0.2 deg noise
-    s = JointSettings()
 
     def row(rw):
         inp = JointInputs(t_in=t, acc_ned=np.zeros((n, 3)),
@@ -645,21 +642,13 @@ def test_lined_up_at_rest_the_heading_gives_its_bias():
                           gnss=pd.DataFrame(), radar=pd.DataFrame(), station=None,
                           departure=(40.0, 20.0, 100.0), arrival=None, liftoff_t=50.0,
                           touchdown_t=np.nan, field_h=100.0, runway_rad=(rw, None))
-        b = _MeasBuilder(t[::4])
-        lineup_heading(b, inp, s, t[(t >= 5.0) & (t <= 35.0)])
-        return b
+        return lineup_heading(inp, t[(t >= 5.0) & (t <= 35.0)])
     for rw in (np.radians(160.0), np.radians(340.0)):
-        b = row(rw)
-        (p,) = b.parts
-        H = b.H[0]
-        assert len(p.t) == 1 and H[0, jl.IPSI] == 1.0 and np.count_nonzero(H) == 1
+        t_row, z = row(rw)
+        assert 5.0 <= t_row <= 35.0
         # the mean of 121 samples of 0.2 deg noise: 0.02 deg sd, bound 4 sd
-        assert np.degrees(p.z[0]) == pytest.approx(1.5, abs=0.08)
-        assert p.r[0] == pytest.approx(np.radians(s.noise.lineup_heading_deg) ** 2)
-    assert row(None).parts == []
-    # the same row with the velocity rows along the nose
-    s = JointSettings(roll_velocity="nose")
-    assert row(np.radians(160.0)).parts[0].z == pytest.approx(b.parts[0].z, abs=1e-15)
+        assert np.degrees(z) == pytest.approx(1.5, abs=0.08)
+    assert len(row(None)) == 0
 
 
 def _runway_rows(t, hdg, tas, settings=None, **where):

@@ -43,7 +43,7 @@ def test_the_problem_is_frozen_and_its_choices_are_its_settings(circuit):
         if kind == "noise":
             assert getattr(problem.settings.noise, name) == c.value
         else:
-            assert kind == "priors" and (name, *c.value) in problem.priors
+            assert kind == "priors" and (name, *c.value) in problem.settings.priors
     assert "priors.baro_scale" in {c.setting for c in problem.choices}
     # what the output needs of the flight is in the problem
     assert problem.frame is not None
@@ -86,7 +86,7 @@ def test_the_result_is_the_problems_alone(circuit):
     assert np.array_equal(res.track["t_s"].to_numpy(float), problem.frame.t_s)
     assert res.summary["settings"] == asdict(problem.settings)
     assert res.summary["chosen_settings"] == [asdict(c) for c in problem.choices]
-    built = {e.which: e for e in problem.end_points}
+    built = {e.which: e for e in problem.inputs.end_points}
     for e in res.summary["end_points"]:
         b = built[e["which"]]
         assert (e["model"], e["lat_deg"], e["lon_deg"], e["sd_m"]) == (

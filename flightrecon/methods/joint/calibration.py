@@ -2,15 +2,10 @@
 (:func:`~flightrecon.methods.joint.problem.adjusted`) solved again: the wind walk re-estimated
 where the smoothed wind outran it (:func:`wind_walk_rounds`; docs/joint.md, "Wind and
 turbulence"), and the position sd inside GNSS gaps calibrated on held-out stretches
-(:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches").
-
-Inside a GNSS gap the smoothed position's variance grows with the process noise that carries the
-track across it, mostly the wind's random walk, whose one default cannot serve every flight: the
-flight's own GNSS sets the scale.  Stretches of the real gaps' lengths are withheld where the GNSS
-is present (:func:`pseudo_gaps`), the flight is smoothed once more without them, and the withheld
-fixes' normalised errors give the factor ``f`` of the in-gap excess variance
-(:func:`calibration_factor`, eq. G3) applied to the real gaps (:func:`apply_factor`, eq. G1/G2).
-"""
+(:func:`calibrate_gaps`; docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches":
+the stretches withheld, :func:`pseudo_gaps`; the withheld fixes' errors, :func:`fix_errors`, eq.
+G4; the factor of the in-gap excess variance, :func:`calibration_factor`, eq. G3, applied to the
+real gaps, :func:`apply_factor`, eq. G1/G2)."""
 
 from __future__ import annotations
 
@@ -26,8 +21,7 @@ from flightrecon.geo.frames import geodetic_to_ecef
 from flightrecon.memory import release_unused
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.health import wind_walk_check
-from flightrecon.methods.joint.inputs import JointInputs
-from flightrecon.methods.joint.measurements import per_fix_sd
+from flightrecon.methods.joint.inputs import JointInputs, per_fix_sd
 from flightrecon.methods.joint.problem import JointProblem, SettingChoice, adjusted
 from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.solve import JointRun, smooth_joint, smooth_joint_from
@@ -116,26 +110,17 @@ def _ned_cov(run: JointRun, k: np.ndarray) -> np.ndarray:
     return np.einsum("kji,kjl,klm->kim", C, run.P_pv[k, 0:3, 0:3], C)
 
 
-def _around(T: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The states on either side of each time ``t`` (what a linear interpolation in ``T`` reads),
-    sorted and unique."""
-    i = np.searchsorted(T, t)
-    return np.unique(np.clip(np.concatenate([i - 1, i]), 0, len(T) - 1))
-
-
-def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At the GNSS fixes ``sel`` (indices into ``inp.gnss``): their times (the smoother's GNSS clock
-    offset applied), the error of the smoothed antenna position against the fix in north and east
-    (K, 2) [m] (eq. G4: the body lever arm rotated to NED with the recorded attitude) and the
-    smoother's NED position covariance (K, 3, 3) interpolated to them."""
+def fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray, tf: np.ndarray, p: np.ndarray,
+               sd_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The gap calibration's errors at the GNSS fixes ``sel`` (indices into ``inp.gnss``), at their
+    own times ``tf`` where the smoothed ECEF positions are ``p`` (K, 3) [m]: the smoothed antenna
+    position's error against the fix, north and east (K, 2) [m] (eq. G4: the body lever arm rotated
+    to NED with the recorded attitude), the smoother's NED position covariance there (K, 3, 3), the
+    declared horizontal sd (K,) [m] (:func:`~flightrecon.methods.joint.inputs.per_fix_sd`, ``sd_m``
+    where the receiver gives none)."""
     g = inp.gnss
-    # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
-    # estimated (seconds added to the stamps, as in its measurements)
-    off = run.clock_offsets_s.get("gnss", (0.0, 0.0))[0]
-    tf = g["t_s"].to_numpy(float)[sel] + (off if np.isfinite(off) else 0.0)
     T = run.t
-    p = run.positions_ecef(tf)
+    declared = per_fix_sd(g, "h_sd_m", sd_m)[sel]
     k = np.clip(np.searchsorted(T, tf), 0, len(T) - 1)
     j = np.clip(np.searchsorted(inp.t_in, tf), 0, len(inp.t_in) - 1)
     lever = np.einsum("kij,j->ki", inp.body_to_ned(j), np.asarray(inp.lever_arm, float))
@@ -143,43 +128,42 @@ def _fix_errors(inp: JointInputs, run: JointRun, sel: np.ndarray
     fx = np.stack(geodetic_to_ecef(g["lat_deg"].to_numpy(float)[sel],
                                    g["lon_deg"].to_numpy(float)[sel], h_s), axis=1)
     d = np.einsum("kji,kj->ki", run.Cen[k], fx - p)[:, :2] - lever[:, :2]
-    ks = _around(T, tf)   # the covariance is interpolated to the fixes from these states
+    # the covariance interpolated to the fixes from the states on either side of each
+    i = np.searchsorted(T, tf)
+    ks = np.unique(np.clip(np.concatenate([i - 1, i]), 0, len(T) - 1))
     Pn = _ned_cov(run, ks)
     P = np.stack([np.stack([np.interp(tf, T[ks], Pn[:, a, b]) for b in range(3)], axis=1)
                   for a in range(3)], axis=1)
-    return tf, d, P
+    return d, P, declared
 
 
-def fix_noise(inp: JointInputs, run: JointRun, used: np.ndarray, declared_m: float) -> np.ndarray:
+def fix_noise(d: np.ndarray, P: np.ndarray, declared_m: np.ndarray) -> np.ndarray:
     """The horizontal fixes' own variance per axis (2,) [m^2] measured on this flight from the
-    smoothed residuals of the ``used`` fixes, ``R = mean(eps^2) + mean(P_s)`` (eq. G5: E[eps^2] = R
-    - P_s), never above the declared ``declared_m`` squared (the rms of the used fixes' declared
-    sd), which keeps the model's misfit from being credited as the fixes' noise (docs/joint.md,
-    "GNSS gaps: the sd calibrated on held-out stretches")."""
-    sel = np.flatnonzero(used)
-    _, d, P = _fix_errors(inp, run, sel)
+    smoothed residuals ``d`` (K, 2) and covariances ``P`` (K, 3, 3) of the used fixes
+    (:func:`fix_errors`), ``R = mean(eps^2) + mean(P_s)`` (eq. G5: E[eps^2] = R - P_s), never above
+    the rms of their declared sd ``declared_m``, which keeps the model's misfit from being credited
+    as the fixes' noise (docs/joint.md, "GNSS gaps: the sd calibrated on held-out stretches")."""
     r = np.mean(d ** 2, axis=0) + np.mean(np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1), axis=0)
-    return np.minimum(r, declared_m ** 2)
+    return np.minimum(r, float(np.sqrt(np.mean(declared_m ** 2))) ** 2)
 
 
-def heldout_errors(inp: JointInputs, run: JointRun, stretches: list[tuple[float, float]],
-                   r: np.ndarray) -> list[dict[str, np.ndarray]]:
-    """Per held-out stretch, at its withheld fixes: the error of the smoothed antenna position
-    against the fix in north and east ``e`` (K, 2) [m], the smoother's variance ``v`` (K, 2), the
-    covered level ``b`` (K, 2) (eq. G1) and the fixes' variance ``r`` (2,) [m^2]
-    (:func:`fix_noise`).  ``run`` is the run without them."""
-    g = inp.gnss
-    tg = g["t_s"].to_numpy(float)
-    ok = np.isfinite(g["lat_deg"].to_numpy(float)) & np.isfinite(g["lon_deg"].to_numpy(float))
+def heldout_errors(run: JointRun, stretches: list[tuple[float, float]], t_s: np.ndarray,
+                   errors: tuple[np.ndarray, np.ndarray, np.ndarray], r: np.ndarray
+                   ) -> list[dict[str, np.ndarray]]:
+    """Per held-out stretch, at its withheld fixes (stamps ``t_s``; ``errors``: their times, errors
+    and covariances, :func:`fix_errors`): the error of the smoothed antenna position against the fix
+    in north and east ``e`` (K, 2) [m], the smoother's variance ``v`` (K, 2), the covered level
+    ``b`` (K, 2) (eq. G1) and the fixes' variance ``r`` (2,) [m^2] (:func:`fix_noise`).  ``run``
+    is the run without them."""
     T = run.t
     out = []
     for a, b in stretches:
         base = _edge_baseline(T, lambda k: _ned_cov(run, k), a, b)
-        sel = np.flatnonzero((tg > a) & (tg < b) & ok)
-        if base is None or not len(sel):
+        sel = (t_s > a) & (t_s < b)
+        if base is None or not sel.any():
             continue
         inside, Pb = base
-        tf, d, P = _fix_errors(inp, run, sel)
+        tf, d, P = (x[sel] for x in errors)
         v = np.stack([P[:, 0, 0], P[:, 1, 1]], axis=1)
         Ti = T[inside]
         bb = np.stack([np.interp(tf, Ti, Pb[:, i, i]) for i in (0, 1)], axis=1)
@@ -271,31 +255,25 @@ def apply_factor(run: JointRun, gaps: list[tuple[float, float]], f: float) -> Jo
 HELDOUT_ENOUGH = 10.0
 
 
-def heldout_problem(problem: JointProblem, keep: np.ndarray, run: JointRun) -> JointProblem:
-    """The problem without the held-out fixes (``keep`` False: withheld) and, for the warm start
-    (``settings.gap_heldout_passes`` > 0), with the gust sd of ``run`` held (the gust estimate is
-    the flight's)."""
-    inp, settings = problem.inputs, problem.settings
+def heldout_smoothing(problem: JointProblem, keep: np.ndarray, run: JointRun) -> JointRun:
+    """The flight smoothed once more without the held-out fixes (``keep`` False: withheld), an
+    adjusted problem: by default ``settings.gap_heldout_passes`` Gauss-Newton passes from the
+    converged ``run`` with its gust sd held (the gust estimate is the flight's;
+    :func:`~flightrecon.methods.joint.solve.smooth_joint_from`; one pass costs a third of the whole
+    iteration and gives the held-out errors and sd of the whole iteration to a few per cent of their
+    spread: docs/joint.md, "GNSS gaps"); with 0 the whole iteration again from the nominal."""
+    inp, s = problem.inputs, problem.settings
     held = replace(inp, gnss=inp.gnss[keep].reset_index(drop=True))
-    if not (settings.gap_heldout_passes > 0 and run.gust is not None
-            and np.isfinite(run.gust.get("sd_mps", np.nan))):
-        return adjusted(problem, inputs=held)
-    s = replace(settings, estimate_gust=False,
-                noise=replace(settings.noise, gust_mps=float(run.gust["sd_mps"])))
-    return adjusted(problem, inputs=held, settings=s, choice=SettingChoice(
-        "noise.gust_mps", s.noise.gust_mps,
-        "held at the converged run's estimate for the held-out smoothing"))
-
-
-def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
-    """The flight smoothed once more without the held-out fixes (``problem_h``,
-    :func:`heldout_problem`): by default ``settings.gap_heldout_passes`` Gauss-Newton passes from
-    the converged ``run`` (:func:`~flightrecon.methods.joint.solve.smooth_joint_from`; one pass
-    costs a third of the whole iteration and gives the held-out errors and sd of the whole iteration
-    to a few per cent of their spread: docs/joint.md, "GNSS gaps"); with 0 the whole iteration again
-    from the nominal."""
-    s = problem_h.settings
-    if s.gap_heldout_passes <= 0:
+    warm = s.gap_heldout_passes > 0
+    if warm and run.gust is not None and np.isfinite(run.gust.get("sd_mps", np.nan)):
+        s = replace(s, estimate_gust=False,
+                    noise=replace(s.noise, gust_mps=float(run.gust["sd_mps"])))
+        problem_h = adjusted(problem, inputs=held, settings=s, choice=SettingChoice(
+            "noise.gust_mps", s.noise.gust_mps,
+            "held at the converged run's estimate for the held-out smoothing"))
+    else:
+        problem_h = adjusted(problem, inputs=held)
+    if not warm:
         return smooth_joint(problem_h)
     return smooth_joint_from(problem_h, run, s.gap_heldout_passes,
                              enough_m=HELDOUT_ENOUGH * s.converge_m)
@@ -304,10 +282,10 @@ def heldout_smoothing(problem_h: JointProblem, run: JointRun) -> JointRun:
 def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict[str, Any] | None]:
     """Held-out gap calibration: where the GNSS has gaps longer than ``settings.gap_min_s``,
     withhold up to ``settings.gap_stretches`` stretches of their lengths, smooth the adjusted
-    problem (:func:`heldout_problem`) from ``run``, measure the held-out NEES and rescale the real
-    gaps' position variance by the factor (:func:`calibration_factor`).  Returns the run (unchanged
-    without gaps, with ``gap_stretches`` 0 or without room for a stretch) and the report (None
-    without gaps)."""
+    problem without them from ``run`` (:func:`heldout_smoothing`), measure the held-out NEES and
+    rescale the real gaps' position variance by the factor (:func:`calibration_factor`).  Returns
+    the run (unchanged without gaps, with ``gap_stretches`` 0 or without room for a stretch) and
+    the report (None without gaps)."""
     inp, settings = problem.inputs, problem.settings
     if settings.gap_stretches <= 0:
         return run, None
@@ -329,17 +307,23 @@ def calibrate_gaps(problem: JointProblem, run: JointRun) -> tuple[JointRun, dict
     # (its peak would otherwise add to the held-out one; flightrecon/memory.py)
     release_unused()
     try:
-        run_h = heldout_smoothing(heldout_problem(problem, keep, run), run)
+        run_h = heldout_smoothing(problem, keep, run)
     except (FlightReconError, ValueError, ArithmeticError) as exc:
         # the held-out smoothing's own breakdown leaves the flight's result standing: the
         # gaps keep the model's sd, said in the report (and by run_joint's warning)
         report["note"] = f"the held-out smoothing failed ({type(exc).__name__}: {exc})"
         return run, report
-    ok = (np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
-          & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
-    declared = per_fix_sd(inp.gnss, "h_sd_m", settings.noise.gnss_h_m)[keep & ok]
-    r = fix_noise(inp, run_h, keep & ok, float(np.sqrt(np.mean(declared ** 2))))
-    held = heldout_errors(inp, run_h, stretches, r)
+    sel = np.flatnonzero(np.isfinite(inp.gnss["lat_deg"].to_numpy(float))
+                         & np.isfinite(inp.gnss["lon_deg"].to_numpy(float)))
+    # the fixes at their own times: the stamps plus the GNSS clock offset the smoother
+    # estimated (seconds added to the stamps, as in its measurements)
+    off = run_h.clock_offsets_s.get("gnss", (0.0, 0.0))[0]
+    tf = tg[sel] + (off if np.isfinite(off) else 0.0)
+    p = run_h.positions_ecef(tf)
+    d, P, declared = fix_errors(inp, run_h, sel, tf, p, settings.noise.gnss_h_m)
+    used = keep[sel]
+    r = fix_noise(d[used], P[used], declared[used])
+    held = heldout_errors(run_h, stretches, tg[sel], (tf, d, P), r)
     if not held:
         report["note"] = "no held-out fix inside the stretches"
         return run, report
@@ -384,12 +368,19 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
                      ) -> tuple[JointProblem, JointRun, list[dict[str, Any]]]:
     """Where the smoothed wind moved faster than its random walk allows
     (:func:`~flightrecon.methods.joint.health.wind_walk_check`, with the loads' PSD ``r`` of
-    :func:`inertial_wind_share`), the walk re-estimated from the flight (:func:`wind_walk_adjusted`)
-    and the adjusted problem solved again, at most ``settings.wind_rounds`` times, until the
-    smoothed wind is within the walk or the walk reaches ``wind_rw_max_mps_sqrt_s`` (docs/joint.md,
-    "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30 minutes).  Returns the
-    last problem, its run and the rounds (the walk each started from, the check's chi-square and
-    limit, the loads' PSD)."""
+    :func:`inertial_wind_share`), the walk re-estimated from the flight and the adjusted problem,
+    its choice and evidence appended, solved again, at most ``settings.wind_rounds`` times, until
+    the smoothed wind is within the walk or the walk reaches ``wind_rw_max_mps_sqrt_s``
+    (docs/joint.md, "Wind and turbulence": JSBSim's holding, 22 m/s turning 100 deg in 30 minutes).
+
+    The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from the height
+    flown through, the loads' ``r L``) has ``z^2 = |dw|^2 / (kappa Q)``, ``kappa = Q / (Q + r L)``.
+    With ``r = 0`` (another witness of the wind) the walk ``q`` is scaled so that this window would
+    be a typical one, its chi-square the mean 2 of chi-square(2): ``q' = q z^2 / 2``; where the
+    loads are the only witness, the smallest walk the check accepts: ``q' L = z^2 (Q + r L) / limit
+    - r L - Q_h``; never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``.  Returns the last
+    problem, its run and the rounds (the walk each started from, the check's chi-square and limit,
+    the loads' PSD)."""
     rounds: list[dict[str, Any]] = []
     inp, settings = problem.inputs, problem.settings
     r = inertial_wind_share(inp, settings)
@@ -400,7 +391,8 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
         else:
             within = (inp.liftoff_t + ROLL_WITNESS_S, inp.touchdown_t - ROLL_WITNESS_S)
     for _ in range(max(0, settings.wind_rounds)):
-        nz = problem.settings.noise
+        s = problem.settings
+        nz = s.noise
         c = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m,
                             loads_psd_m2ps3=r, within_s=within,
                             p_false=LOADS_WITNESS_P_FALSE if r > 0 else 0.01)
@@ -408,36 +400,20 @@ def wind_walk_rounds(problem: JointProblem, run: JointRun
             break
         rounds.append({"wind_rw_mps_sqrt_s": nz.wind_rw_mps_sqrt_s, "z2": c["z2"],
                        "limit": c["limit"], "loads_psd_m2ps3": r})
-        problem = wind_walk_adjusted(problem, c, r)
+        L = c["t1_s"] - c["t0_s"]
+        q = nz.wind_rw_mps_sqrt_s ** 2
+        q_h = c["walk_var_m2ps2"] - q * L
+        if r > 0:
+            q_new = (c["z2"] * (c["walk_var_m2ps2"] + c["loads_var_m2ps2"]) / c["limit"]
+                     - c["loads_var_m2ps2"] - q_h) / L
+        else:
+            q_new = q * 0.5 * c["z2"]
+        q_new = max(q_new, q)
+        walk = min(float(np.sqrt(q_new)), s.wind_rw_max_mps_sqrt_s)
+        why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
+               f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
+               f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
+        problem = adjusted(problem, settings=replace(s, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
+                           choice=SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why))
         run = smooth_joint(problem)
     return problem, run, rounds
-
-
-def wind_walk_adjusted(problem: JointProblem, check: dict[str, Any],
-                       loads_psd_m2ps3: float) -> JointProblem:
-    """The problem with the wind walk the check ``check``
-    (:func:`~flightrecon.methods.joint.health.wind_walk_check`) calls for, its choice and evidence
-    appended.  The check's worst window (length L, the model's variance ``Q`` of which ``Q_h`` from
-    the height flown through, the loads' ``r L``, ``r`` = ``loads_psd_m2ps3``) has ``z^2 = |dw|^2 /
-    (kappa Q)``, ``kappa = Q / (Q + r L)``.  With ``r = 0`` (another witness of the wind) the walk
-    is scaled so that this window would be a typical one, its chi-square the mean 2 of
-    chi-square(2): ``q' = q z^2 / 2``; where the loads are the only witness, the smallest walk the
-    check accepts: ``q' L = z^2 (Q + r L) / limit - r L - Q_h`` (docs/joint.md, "Wind and
-    turbulence").  Never below ``q``, kept below ``wind_rw_max_mps_sqrt_s``."""
-    settings = problem.settings
-    nz, c, r = settings.noise, check, loads_psd_m2ps3
-    L = c["t1_s"] - c["t0_s"]
-    q = nz.wind_rw_mps_sqrt_s ** 2
-    q_h = c["walk_var_m2ps2"] - q * L
-    if r > 0:
-        q_new = (c["z2"] * (c["walk_var_m2ps2"] + c["loads_var_m2ps2"]) / c["limit"]
-                 - c["loads_var_m2ps2"] - q_h) / L
-    else:
-        q_new = q * 0.5 * c["z2"]
-    q_new = max(q_new, q)
-    walk = min(float(np.sqrt(q_new)), settings.wind_rw_max_mps_sqrt_s)
-    why = (f"the smoothed wind moved faster than the walk {nz.wind_rw_mps_sqrt_s:.3g} "
-           f"m/s/sqrt(s) allows: chi-square {c['z2']:.3g} over {L:.0f} s from "
-           f"t = {c['t0_s']:.0f} s, beyond {c['limit']:.3g}")
-    return adjusted(problem, settings=replace(settings, noise=replace(nz, wind_rw_mps_sqrt_s=walk)),
-                    choice=SettingChoice("noise.wind_rw_mps_sqrt_s", walk, why))

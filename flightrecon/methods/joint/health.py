@@ -2,17 +2,9 @@
 (docs/output.md, "Method health"; docs/joint.md, "Outputs"): per-source residual statistics, the
 innovations' chi-square, the sensor errors and how far from their priors, clock offsets and gusts
 that deserve a word, the wind-walk check, and how far the track still was from its fixed point
-when the passes stopped short of the convergence test (:func:`settling`; docs/joint.md, "Filter,
-smoother, iterations"), by which the output track's sd is widened.
-
-The settling bound (docs/output.md, "Stopped short").  Passes that reach the cap still contracting
-(each moving the track by ``0 < rho < 1`` times the last) would still move each state by at most the
-geometric tail of its last change, ``d_k rho / (1 - rho)`` (``rho`` the slowest contraction of the
-last :data:`CONTRACTION_PASSES`): within :data:`SETTLE_SD_FRACTION` of the state's smallest position
-sd the track is left as it is, beyond it the bound is added in quadrature to its position sd.
-Without contraction (or a failed line search), or while the last pass moved a state by more than
-:data:`LINEAR_REGION_SD` of its sd, nothing bounds the passes to come: the track stays unconverged.
-"""
+when the passes stopped short of the convergence test (:func:`settling`, the geometric tail of
+the last pass's change: docs/output.md, "Method status", "Stopped short"; docs/joint.md, "Filter,
+smoother, iterations"), by which the output track's sd is widened."""
 
 from __future__ import annotations
 
@@ -26,7 +18,7 @@ from flightrecon.errors import FlightReconWarning
 from flightrecon.estimation.consistency import ChiSquareVerdict, chi_square_verdict
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.problem import JointProblem
-from flightrecon.methods.joint.settings import PRIOR_STATES, SOURCES, JointSettings, prior_of
+from flightrecon.methods.joint.settings import PRIOR_STATES, SOURCES
 from flightrecon.methods.joint.solve import JointRun
 
 
@@ -297,29 +289,21 @@ CORRECTION_UNITS = {
 """What each sensor error of the summary's ``corrections`` means (docs/joint.md, "Outputs")."""
 
 
-def corrections_at_middle(run: JointRun, settings: JointSettings | None = None) -> dict[str, Any]:
+def corrections_at_middle(run: JointRun, priors: dict[str, tuple[float, float]]
+                          ) -> dict[str, Any]:
     """The sensor errors of :data:`~flightrecon.methods.joint.settings.PRIOR_STATES`, value and sd
-    at the middle of the record in the reported unit, with the prior each was given
-    (``prior_mean``, ``prior_sd``, same unit)."""
+    at the middle of the record in the reported unit, with the prior each was given (``priors``:
+    :func:`~flightrecon.methods.joint.settings.prior_table`; ``prior_mean``, ``prior_sd``, same
+    unit)."""
     k = len(run.t) // 2
-    settings = settings or JointSettings()
     out = {}
     for name, (i, state_per_unit, _budget) in PRIOR_STATES.items():
         scale = 1.0 / state_per_unit
-        mean, sd = prior_of(name, settings)
+        mean, sd = priors[name]
         out[name] = {"value": float(run.x[k, i] * scale),
                      "sd": float(np.sqrt(max(run.var[k, i], 0.0)) * scale),
                      "unit": CORRECTION_UNITS[name], "prior_mean": mean, "prior_sd": sd}
     return out
-
-
-def innovation_verdict(run: JointRun) -> ChiSquareVerdict:
-    """The chi-square verdict of the forward innovations of the measurements the smoother kept at
-    full weight (the robustly down-weighted ones are reported per source, not held against the
-    noise model)."""
-    full = (run.weights >= 1.0) & (run.innov_var > 0)
-    nis = run.innov ** 2 / np.where(full, run.innov_var, 1.0)
-    return chi_square_verdict(np.where(full, nis, np.nan))
 
 
 @dataclass(frozen=True)
@@ -339,12 +323,15 @@ class RunHealth:
 
 
 def run_health(problem: JointProblem, run: JointRun, wind_rounds: list[dict[str, Any]],
-               gap_calibration: dict[str, Any] | None) -> RunHealth:
+               gap_calibration: dict[str, Any] | None,
+               priors: dict[str, tuple[float, float]]) -> RunHealth:
     """Every check of the solved and calibrated ``run``, once, with the warnings in the order the
-    user reads them (``wind_rounds``, ``gap_calibration``: the calibrations' reports).  Healthy:
-    finite states with positive position and velocity variances, no gross mean NIS, no sensor error
-    beyond :data:`IMPLAUSIBLE_PRIOR_SD`, the wind within its walk (:func:`wind_walk_check`);
-    converged: finite and the passes' own test (docs/joint.md, "Filter, smoother, iterations")."""
+    user reads them (``wind_rounds``, ``gap_calibration``: the calibrations' reports; ``priors``:
+    the sensor errors' priors, :func:`~flightrecon.methods.joint.settings.prior_table`).  Healthy:
+    finite states with positive position and velocity variances, no gross mean NIS of the
+    innovations kept at full weight, no sensor error beyond :data:`IMPLAUSIBLE_PRIOR_SD`, the wind
+    within its walk (:func:`wind_walk_check`); converged: finite and the passes' own test
+    (docs/joint.md, "Filter, smoother, iterations")."""
     settings, nz, nc = problem.settings, problem.settings.noise, run.noise_check
     settle = settling(run)
     sources = source_report(run)
@@ -378,7 +365,7 @@ def run_health(problem: JointProblem, run: JointRun, wind_rounds: list[dict[str,
                         f"{gap_calibration['note']}: their position sd is the model's, not "
                         "calibrated on this flight")
         _warnings.warn(warnings[-1], FlightReconWarning, stacklevel=4)
-    corrections = corrections_at_middle(run, settings)
+    corrections = corrections_at_middle(run, priors)
     far = implausible_corrections(corrections)
     walk = wind_walk_check(run, nz.wind_rw_mps_sqrt_s, nz.wind_shear_mps_per_sqrt_m)
     later = [far_warning(name, corrections[name], z) for name, z in far.items()]
@@ -395,7 +382,11 @@ def run_health(problem: JointProblem, run: JointRun, wind_rounds: list[dict[str,
                   "sentence": settling_sentence(settle)}
         widen = settle["remaining_k_m"] if settle["verdict"] == "widened" else None
     finite = bool(np.isfinite(run.x).all() and np.all(run.var[:, jl.IP:jl.IV + 3] > 0))
-    verdict = innovation_verdict(run)
+    # the forward innovations the smoother kept at full weight (the robustly down-weighted ones
+    # are reported per source, not held against the noise model)
+    full = (run.weights >= 1.0) & (run.innov_var > 0)
+    nis = run.innov ** 2 / np.where(full, run.innov_var, 1.0)
+    verdict = chi_square_verdict(np.where(full, nis, np.nan))
     gross = [f"joint: mean NIS per measurement {verdict.mean:.1f} (expected 1): the noise "
              "settings do not fit this flight"] if verdict.gross else []
     return RunHealth(healthy=finite and not verdict.gross and not far and walk is None,

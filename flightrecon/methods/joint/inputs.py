@@ -287,11 +287,6 @@ def end_points_at(ends: tuple[EndPoint, ...], roll: TakeoffRoll) -> tuple[EndPoi
                  if e.which == "departure" and e.model == "runway" else e for e in ends)
 
 
-def with_end_points(inp: JointInputs, nz: JointNoise) -> JointInputs:
-    """``inp`` with its end points (:func:`end_points`) under the noise settings ``nz``."""
-    return replace(inp, end_points=end_points(inp, nz))
-
-
 def airborne_samples(inp: JointInputs) -> np.ndarray:
     """Input samples from lift-off to touchdown (the whole record where either is unknown)."""
     t = inp.t_in
@@ -301,6 +296,15 @@ def airborne_samples(inp: JointInputs) -> np.ndarray:
     if np.isfinite(inp.touchdown_t):
         air &= t <= inp.touchdown_t
     return air
+
+
+def per_fix_sd(g: pd.DataFrame, column: str, default: float) -> np.ndarray:
+    """Per-fix standard deviations from ``column`` of the GNSS table ``g`` (the receiver's own
+    accuracy figures: ``JointInputs.gnss``), ``default`` where absent or not finite."""
+    if column not in g.columns:
+        return np.full(len(g), float(default))
+    v = g[column].to_numpy(float)
+    return np.where(np.isfinite(v) & (v > 0), v, float(default))
 
 
 def nearest_index(t: np.ndarray, tq: np.ndarray) -> np.ndarray:

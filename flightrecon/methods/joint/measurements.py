@@ -17,28 +17,21 @@ from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import (
+    EndPoint,
     JointInputs,
     TakeoffRoll,
     airborne_samples,
     end_points_at,
     nearest_index,
+    per_fix_sd,
 )
 from flightrecon.methods.joint.layout import Measurements
 from flightrecon.methods.joint.settings import SOURCES, JointSettings
 
 
-def per_fix_sd(g, column: str, default: float) -> np.ndarray:
-    """Per-fix standard deviations from ``column`` of the GNSS table (the receiver's own accuracy
-    figures), ``default`` where absent or not finite."""
-    if column not in g.columns:
-        return np.full(len(g), float(default))
-    v = g[column].to_numpy(float)
-    return np.where(np.isfinite(v) & (v > 0), v, float(default))
-
-
 class _Part(NamedTuple):
-    """One call's rows of the table (:meth:`_MeasBuilder.add`), with their state steps (None: found
-    by :meth:`_MeasBuilder.build`)."""
+    """One call's rows of the table (:meth:`_MeasBuilder.add`), with their state steps (None only
+    while the static table is built: :func:`static_measurements` finds them once)."""
 
     source: np.ndarray
     mtype: np.ndarray
@@ -87,19 +80,18 @@ class _MeasBuilder:
         self.parts.append(_Part(np.full(m, SOURCES.index(source)), np.full(m, mtype), t, z, r,
                                 hrow, dm, ok, rt, step))
 
-    def add_state(self, source: str, t: np.ndarray, z, r, col: int) -> None:
+    def add_state(self, source: str, t: np.ndarray, z, r, col: int,
+                  step: np.ndarray | None = None) -> None:
         """``LINEAR`` rows on the state component ``col`` alone: h = x[col]."""
         H = np.zeros((len(t), self.n))
         H[:, col] = 1.0
-        self.add(source, jl.LINEAR, t, z, r, H)
+        self.add(source, jl.LINEAR, t, z, r, H, step=step)
 
     def build(self) -> Measurements:
+        """The table, its rows sorted by state step (every part added with its steps)."""
         T = self.T
         N = len(T)
-        # the steps of the parts added without them (the static parts have theirs)
-        parts = [p if p.step is not None else p._replace(step=nearest_index(T, p.t))
-                 for p in self.parts]
-        cat = (_Part(*map(np.concatenate, zip(*parts))) if parts
+        cat = (_Part(*map(np.concatenate, zip(*self.parts))) if self.parts
                else _Part(*[np.zeros(0)] * len(_Part._fields)))
         half_first = 0.5 * (T[1] - T[0] if N > 1 else 1)
         half_last = 0.5 * (T[-1] - T[-2] if N > 1 else 1)
@@ -177,7 +169,9 @@ class StaticTable:
     their state steps, and their rows of ``H``), the ground samples' times ``ground_t``
     (:func:`on_ground_mask`), the ground ``rolls``, the known positions (``--fix``: their (F, 5)
     table, state steps and ECEF positions, None where one has no height) or None, each end point's
-    ECEF position and NED-to-ECEF rotation (``inp.end_points``' order)."""
+    ECEF position and NED-to-ECEF rotation (``inp.end_points``' order), the winds-aloft prior's
+    pseudo-measurements ``wind_prior`` (:func:`wind_prior_measurements`: t, w, sd, rho; the
+    summary reads them) and the ground samples' state steps ``ground_k``."""
 
     parts: tuple[_Part, ...]
     H: tuple[np.ndarray, ...]
@@ -185,6 +179,8 @@ class StaticTable:
     rolls: tuple[GroundRoll, ...]
     fixes: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None
     ends: tuple[tuple[np.ndarray, np.ndarray], ...]
+    wind_prior: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    ground_k: np.ndarray
 
 
 def _ecef(lat_deg, lon_deg, h_m) -> np.ndarray:
@@ -238,7 +234,8 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
         for i in range(2):
             b.add_state("wind", t_in[okw], inp.wind_ne[okw, i], nz.wind_sensor_mps ** 2, jl.IW + i)
     # the winds-aloft prior (--wind): one pseudo-measurement per correlation length
-    tw, ww, sdw, _rho = wind_prior_measurements(inp, settings)
+    wind_prior = wind_prior_measurements(inp, settings)
+    tw, ww, sdw, _rho = wind_prior
     for i in range(2):
         b.add_state("wind_aloft", tw, ww[:, i], sdw ** 2, jl.IW + i)
     # pressure altitude
@@ -258,7 +255,7 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
                  for e in inp.end_points)
     # the rows' state steps, found once
     parts = tuple(p._replace(step=nearest_index(T, p.t)) for p in b.parts)
-    return StaticTable(parts, tuple(b.H), tt, rolls, fixes, ends)
+    return StaticTable(parts, tuple(b.H), tt, rolls, fixes, ends, wind_prior, nearest_index(T, tt))
 
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
@@ -271,7 +268,9 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     positions ``pnom`` and NED velocities ``vnom`` on the state grid), the clock offsets ``clock``
     (seconds *added* to each group's time stamps, as ``flightrecon clean --radar-clock-offset``),
     the pass's take-off roll ``roll`` (:func:`~flightrecon.methods.joint.inputs.refined_roll`) and
-    the last pass's heading bias ``psi_hat`` (per state step; None: zero)."""
+    the last pass's heading bias ``psi_hat`` (per state step; None: zero).  The state steps of the
+    radar, rest, line-up and end-point rows are found at once (those of the GNSS by
+    :func:`_gnss_measurements`, of the rest from the ground samples')."""
     nz = settings.noise
     b = _MeasBuilder(T, parts=static.parts, H=static.H)
     _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
@@ -286,26 +285,29 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         sd = fx[:, 4]
         _ned_positions(b, Cen, "fix", fx[:, 0], k, (sd, sd, np.where(no_h, np.nan, sd)), ecef)
     runway_measurements(b, static.rolls, pnom, vnom, psi_hat)
-    # radar
+    # at rest before the take-off roll (lined up): zero north and east velocity, and the line-up
+    # row; the end points with the runway departure at the start of the pass's roll
+    rest = (static.ground_t >= roll.rest_t[0]) & (static.ground_t <= roll.rest_t[1])
+    tt, kt = static.ground_t[rest], static.ground_k[rest]
+    line = lineup_heading(inp, tt)
     rd = inp.radar
-    if len(rd) and inp.station is not None:
-        tr = rd["t_s"].to_numpy() + clock.get("radar", 0.0)
-        b.add("radar", jl.RANGE, tr, rd["range_m"].to_numpy(), nz.radar_range_m ** 2)
+    radar = len(rd) > 0 and inp.station is not None
+    tr = rd["t_s"].to_numpy() + clock.get("radar", 0.0) if radar else np.zeros(0)
+    ends = end_points_at(inp.end_points, roll)
+    kr, ke, kl = np.split(nearest_index(T, np.r_[tr, [e.t_s for e in ends], line[:1]]),
+                          [len(tr), len(tr) + len(ends)])
+    if radar:
+        b.add("radar", jl.RANGE, tr, rd["range_m"].to_numpy(), nz.radar_range_m ** 2, step=kr)
         b.add("radar", jl.AZIMUTH, tr, rd["azimuth_rad"].to_numpy(),
-              np.radians(nz.radar_azimuth_deg) ** 2)
+              np.radians(nz.radar_azimuth_deg) ** 2, step=kr)
         if "elevation_rad" in rd.columns:
             b.add("radar", jl.ELEVATION, tr, rd["elevation_rad"].to_numpy(),
-                  np.radians(nz.radar_elevation_deg) ** 2)
-    # the take-off roll, with the smoothed lift-off speed once there is one (the recorded
-    # airspeed carries the head wind); at rest before it (lined up): zero north and east velocity
-    r0, r1 = roll.rest_t
-    if np.isfinite(r0):
-        tg = static.ground_t
-        tt = tg[(tg >= r0) & (tg <= r1)]
-        for i in range(2):
-            b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + i)
-        lineup_heading(b, inp, settings, tt)
-    _endpoint_measurements(b, inp, T, Cen, roll, static.ends)
+                  np.radians(nz.radar_elevation_deg) ** 2, step=kr)
+    for i in range(2):
+        b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + i, kt)
+    b.add_state("runway", line[:1], line[1:], np.radians(nz.lineup_heading_deg) ** 2, jl.IPSI,
+                kl)
+    _endpoint_measurements(b, ends, ke, T, Cen, static.ends)
     return b.build()
 
 
@@ -334,6 +336,10 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
     # the velocities' own clock offset (the positions' where none is given)
     tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
     k, kv = nearest_index(T, np.stack([tg, tv]))
+    # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd,
+    # velocity sd), else the noise settings
+    sd_h, sd_v, sd_vel = (per_fix_sd(g, c, d) for c, d in (
+        ("h_sd_m", nz.gnss_h_m), ("v_sd_m", nz.gnss_v_m), ("vel_sd_mps", nz.gnss_vel_mps)))
     L = np.asarray(inp.lever_arm, float)
     arm, v_arm = np.zeros((len(tg), 3)), np.zeros((len(tg), 3))
     if np.any(L != 0):
@@ -354,13 +360,9 @@ def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSetting
         hg = np.where(no_h, ecef_to_geodetic(pnom[k, 0], pnom[k, 1], pnom[k, 2])[2], hg)
     ex, ey, ez = geodetic_to_ecef(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy(), hg)
     ant = np.c_[ex, ey, ez] - arm   # the antenna moved to the reference point
-    # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd),
-    # else the noise settings; no height: no vertical component
-    sd_h = per_fix_sd(g, "h_sd_m", nz.gnss_h_m)
-    sd_v = np.where(no_h, np.nan, per_fix_sd(g, "v_sd_m", nz.gnss_v_m))
-    _ned_positions(b, Cen, "gnss_pos", tg, k, (sd_h, sd_h, sd_v), ant)
+    # no height: no vertical component
+    _ned_positions(b, Cen, "gnss_pos", tg, k, (sd_h, sd_h, np.where(no_h, np.nan, sd_v)), ant)
     if {"vn_mps", "ve_mps"} <= set(g.columns):
-        sd_vel = per_fix_sd(g, "vel_sd_mps", nz.gnss_vel_mps)
         vel = (g["vn_mps"].to_numpy() - v_arm[:, 0], g["ve_mps"].to_numpy() - v_arm[:, 1])
         # each carried to its own time by its acceleration a: h = v_i + a_i tau
         acc = gnss_acceleration(tv, np.column_stack(vel))
@@ -395,14 +397,13 @@ def gnss_acceleration(t: np.ndarray, v: np.ndarray, max_gap_s: float = 2.5) -> n
     return a
 
 
-def _endpoint_measurements(b: _MeasBuilder, inp: JointInputs, T: np.ndarray, Cen: np.ndarray,
-                           roll: TakeoffRoll, ecef: tuple[tuple[np.ndarray, np.ndarray], ...]
-                           ) -> None:
-    """The end points (``inp.end_points``, the runway departure at the start of ``roll``:
-    :func:`end_points_at`; ``ecef``: each one's ECEF position and NED-to-ECEF rotation): the runway
-    model along / across the runway and vertically, the reference model in north, east, down."""
-    ends = end_points_at(inp.end_points, roll)
-    ks = nearest_index(T, np.array([ep.t_s for ep in ends]))
+def _endpoint_measurements(b: _MeasBuilder, ends: tuple[EndPoint, ...], ks: np.ndarray,
+                           T: np.ndarray, Cen: np.ndarray,
+                           ecef: tuple[tuple[np.ndarray, np.ndarray], ...]) -> None:
+    """The end points ``ends`` (the runway departure at the start of the pass's roll:
+    :func:`~flightrecon.methods.joint.inputs.end_points_at`; ``ks``: their state steps; ``ecef``:
+    each one's ECEF position and NED-to-ECEF rotation): the runway model along / across the runway
+    and vertically, the reference model in north, east, down."""
     for j, (ep, (pe, Ca)) in enumerate(zip(ends, ecef)):
         tt, k = np.array([ep.t_s]), ks[j:j + 1]
         if ep.model in ("reference", "last_position") or ep.runway_rad is None:
@@ -605,8 +606,7 @@ def ground_rolls(inp: JointInputs, settings: JointSettings, T: np.ndarray
         centre = cl_side[sel]
         point, Ca = None, np.eye(3)
         if pos is not None and centre.any():
-            ex, ey, ez = geodetic_to_ecef(pos[0], pos[1], pos[2])
-            point = np.array([float(ex), float(ey), float(ez)])
+            point = _ecef(pos[0], pos[1], pos[2])[0]
             Ca = ned_to_ecef_matrix(pos[0], pos[1])[0]
         # off the line (no threshold): one error of endpoint_h_m common to the roll's m rows
         r_cl = nz.runway_halfwidth_m ** 2 + (0.0 if on_line
@@ -681,27 +681,24 @@ def steering_variance(heading_rad: np.ndarray, v_roll_mps: float,
     return (v_roll_mps * np.sin(d)) ** 2
 
 
-def lineup_heading(b: _MeasBuilder, inp: JointInputs, settings: JointSettings,
-                   t_rest: np.ndarray) -> None:
-    """Lined up at rest before the take-off roll, the nose points along the departure runway: one
+def lineup_heading(inp: JointInputs, t_rest: np.ndarray) -> np.ndarray:
+    """Lined up at rest before the take-off roll, the nose points along the departure runway: the
     row on the heading bias, dpsi = mean(psi_rec - psi_rw) (the circular mean over the rest's
-    samples ``t_rest``, wrapped to the runway's line: a reversed direction is the same runway), sd
-    ``lineup_heading_deg``, where the metadata give the runway's direction (docs/joint.md, "The
-    heading reference: runways")."""
+    samples ``t_rest``, wrapped to the runway's line: a reversed direction is the same runway),
+    where the metadata give the runway's direction: (time, dpsi), else empty (its sd
+    ``lineup_heading_deg``: :func:`build_measurements`; docs/joint.md, "The heading reference:
+    runways")."""
     rw = inp.runway_rad[0]
     if rw is None or len(t_rest) == 0:
-        return
+        return np.zeros(0)
     psi = np.interp(t_rest, inp.t_in, np.unwrap(np.where(np.isfinite(inp.heading_rad),
                                                          inp.heading_rad, 0.0)))
     ok = np.interp(t_rest, inp.t_in, np.isfinite(inp.heading_rad).astype(float)) > 0.999
     if not ok.any():
-        return
+        return np.zeros(0)
     d = psi[ok] - rw
-    mean = 0.5 * float(np.arctan2(np.mean(np.sin(2.0 * d)), np.mean(np.cos(2.0 * d))))
-    H = np.zeros((1, jl.N_STATE))
-    H[0, jl.IPSI] = 1.0
-    b.add("runway", jl.LINEAR, [float(np.mean(t_rest[ok]))], [mean],
-          np.radians(settings.noise.lineup_heading_deg) ** 2, H)
+    return np.array([float(np.mean(t_rest[ok])),
+                     0.5 * float(np.arctan2(np.mean(np.sin(2.0 * d)), np.mean(np.cos(2.0 * d))))])
 
 
 def roll_speed(inp: JointInputs, settings: JointSettings, t_edge: float) -> float:

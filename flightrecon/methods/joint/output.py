@@ -15,7 +15,6 @@ import pandas as pd
 from flightrecon.geo.frames import TangentPlane, ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.health import RunHealth
-from flightrecon.methods.joint.measurements import wind_prior_measurements
 from flightrecon.methods.joint.problem import JointProblem, OutputFrame
 from flightrecon.methods.joint.settings import SOURCES
 from flightrecon.methods.joint.solve import JointRun
@@ -41,7 +40,6 @@ def provenance(run: JointRun, t_out: np.ndarray, window_s: float = 5.0) -> np.nd
     names = np.array(["+".join(n for i, n in enumerate(SOURCES) if c >> i & 1) for c in present],
                      dtype=object)
     return names[lookup[code]]
-
 
 
 def joint_track(t_out: np.ndarray, plane: TangentPlane, run: JointRun,
@@ -115,14 +113,14 @@ def fix_report(frame: OutputFrame, track: pd.DataFrame) -> list[dict[str, Any]]:
 
 def wind_prior_report(problem: JointProblem) -> dict[str, Any] | None:
     """Which winds-aloft prior the smoother used (docs/wind.md): its levels, the pseudo-measurements
-    and their sd."""
-    inp, settings = problem.inputs, problem.settings
-    if inp.wind_aloft is None or problem.frame is None:
+    (those of the measurement table's static part, :attr:`OutputFrame.wind_prior`) and their sd."""
+    frame = problem.frame
+    if problem.inputs.wind_aloft is None or frame is None:
         return None
-    tw, _w, sd, rho = wind_prior_measurements(inp, settings)
-    lv = problem.frame.wind_levels
+    tw, _w, sd, rho = frame.wind_prior
+    lv = frame.wind_levels
     return {"levels": len(lv), "alt_msl_m": [lv[0].alt_msl_m, lv[-1].alt_msl_m],
-            "correlation_s_m_spacing": list(settings.wind_prior),
+            "correlation_s_m_spacing": list(problem.settings.wind_prior),
             "pseudo_measurements": len(tw), "t_s": [float(x) for x in tw],
             "sd_mps": [float(x) for x in sd], "rho": [float(x) for x in rho]}
 

@@ -6,13 +6,9 @@ that made it (:class:`SettingChoice`), the priors and what the output needs of t
 (:class:`OutputFrame`).  After the build nothing reads the cleaned flight and no setting is
 rewritten: a later adjustment (the wind walk re-estimated, the held-out smoothing of the GNSS gaps:
 :mod:`~flightrecon.methods.joint.calibration`) is a new problem (:func:`adjusted`) with its choice
-appended, and a problem of hand-made inputs is :func:`problem_of`.
-
-The data-driven settings (docs/joint.md): the priors of a heading from the body rates and of a
-derived ``n_long_g``, the loads' noise of an assumed ``n_lat_g`` (those of the channels alone:
-:mod:`~flightrecon.methods.joint.settings`), the loads' sampling noise of a slow record, the
-pressure-altitude scale from the SAT and the attitude reference's tilt noise
-(:mod:`~flightrecon.methods.joint.problem`)."""
+appended, and a problem of hand-made inputs is :func:`problem_of` (docs/joint.md, "How the joint
+is built and solved", item 1: the data-driven settings, those of the channels alone in
+:mod:`~flightrecon.methods.joint.settings`, those of the inputs here)."""
 
 from __future__ import annotations
 
@@ -33,12 +29,11 @@ from flightrecon.geo.pressure_height import isa_deviation_k
 from flightrecon.geo.wind import wind_toward_ne
 from flightrecon.ingest.priors import wind_aloft_on_grid
 from flightrecon.methods.joint.inputs import (
-    EndPoint,
     JointInputs,
     airborne_samples,
+    end_points,
     nearest_index,
     phases_roll,
-    with_end_points,
     without_floor_loads,
 )
 from flightrecon.methods.joint.linearisation import (
@@ -73,8 +68,10 @@ class SettingChoice:
 class OutputFrame:
     """What the output needs of the cleaned flight: the grid times ``t_s`` the track is given on,
     the output tangent ``plane``, the known positions ``fixes`` (``--fix``) and the geoid undulation
-    [m] that takes them to ellipsoidal heights, the declared ``attitude_source`` and the winds-aloft
-    levels ``wind_levels`` (``--wind``)."""
+    [m] that takes them to ellipsoidal heights, the declared ``attitude_source``, the winds-aloft
+    levels ``wind_levels`` (``--wind``) and the pseudo-measurements the measurement table's static
+    part made of them, ``wind_prior`` (t, w, sd, rho:
+    :func:`~flightrecon.methods.joint.measurements.wind_prior_measurements`)."""
 
     t_s: np.ndarray
     plane: TangentPlane
@@ -82,6 +79,7 @@ class OutputFrame:
     geoid_undulation_m: float = 0.0
     attitude_source: str | None = None
     wind_levels: tuple[WindLevel, ...] = ()
+    wind_prior: tuple[np.ndarray, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -90,7 +88,7 @@ class JointProblem:
 
     Attributes
     ----------
-    inputs : the smoother's inputs, with the end points (:attr:`end_points`)
+    inputs : the smoother's inputs, with the end points (``inputs.end_points``)
     settings : the settings, every data-driven one resolved
     choices : the data-driven choices in the order made, each with its evidence
     tilt_evidence : what the GNSS fixes measured of the attitude's load-driven error
@@ -111,16 +109,6 @@ class JointProblem:
     attitude_note: str | None = None
     frame: OutputFrame | None = None
     flight: SmootherFlight | None = None
-
-    @property
-    def end_points(self) -> tuple[EndPoint, ...]:
-        """Where and when the record is tied to its airfields (built once with the inputs)."""
-        return self.inputs.end_points
-
-    @property
-    def priors(self) -> tuple[tuple[str, float, float], ...]:
-        """The sensor-error priors (state, mean, sd) replacing N(0, budget^2)."""
-        return self.settings.priors
 
 
 def held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
@@ -324,7 +312,7 @@ def joint_inputs(clean: CleanFlight, noise: JointNoise | None = None) -> JointIn
         if not np.isfinite(roll.start_t) and ph is not None:
             roll = phases_roll(ph)
         inp = replace(inp, roll=roll)
-    return with_end_points(inp, JointNoise() if noise is None else noise)
+    return replace(inp, end_points=end_points(inp, JointNoise() if noise is None else noise))
 
 
 def choices_between(before: JointSettings, after: JointSettings,
@@ -381,12 +369,13 @@ def resolved_settings(clean: CleanFlight, inp: JointInputs, settings: JointSetti
     return current, choices, tilt_ev, attitude_note
 
 
-def output_frame(clean: CleanFlight) -> OutputFrame:
-    """What the output needs of ``clean`` (:class:`OutputFrame`)."""
+def output_frame(clean: CleanFlight, flight: SmootherFlight) -> OutputFrame:
+    """What the output needs of ``clean`` and of its ``flight`` (:class:`OutputFrame`)."""
     meta = clean.meta
     return OutputFrame(t_s=clean.grid["t_s"].to_numpy(float), plane=output_plane(meta),
                        fixes=tuple(meta.fixes), geoid_undulation_m=meta.geoid_undulation_m,
-                       attitude_source=meta.attitude_source, wind_levels=tuple(meta.wind_aloft))
+                       attitude_source=meta.attitude_source, wind_levels=tuple(meta.wind_aloft),
+                       wind_prior=flight.static.wind_prior)
 
 
 def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> JointProblem:
@@ -403,9 +392,10 @@ def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> 
         choices += choices_between(before, s, WHY[why])
     inp = joint_inputs(clean, s.noise)
     final, more, tilt_ev, note = resolved_settings(clean, inp, s)
+    flight = smoother_flight(inp, final)
     return JointProblem(inputs=inp, settings=final, choices=choices + more,
-                        tilt_evidence=tilt_ev, attitude_note=note, frame=output_frame(clean),
-                        flight=smoother_flight(inp, final))
+                        tilt_evidence=tilt_ev, attitude_note=note,
+                        frame=output_frame(clean, flight), flight=flight)
 
 
 def problem_of(inp: JointInputs, settings: JointSettings | None = None) -> JointProblem:

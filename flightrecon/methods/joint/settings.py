@@ -59,7 +59,7 @@ class JointNoise:
     baro_offset_m: float = 60.0
     baro_offset_rw_m_sqrt_s: float = 0.05
     baro_scale: float = 0.05                 # without a recorded SAT: a 15 K deviation from
-    #                                          the ISA; with one, from it (joint_method.
+    #                                          the ISA; with one, from it (problem.
     #                                          temperature_baro_prior)
     sat_column_k: float = 1.5                # the column's mean temperature against the
     #                                          recorded SAT, beyond the samples' spread: the
@@ -92,7 +92,7 @@ class JointNoise:
     float_wind_mps: float = 8.0              # runway wind component over that air distance
     roll_start_sd_m: float = 100.0           # start of the take-off roll vs the threshold
     lineup_heading_deg: float = 1.0          # the nose vs the runway, lined up at rest before
-    #                                          the take-off roll (ground.lineup_heading; with
+    #                                          the take-off roll (measurements.lineup_heading; with
     #                                          JointSettings.roll_velocity "nose")
     ground_mps: float = 0.5                  # zero vertical and cross-track velocity on ground
     runway_halfwidth_m: float = 25.0         # cross-track offset from the runway centreline
@@ -112,12 +112,11 @@ class JointNoise:
         if len(acs) != 3 or not all(np.isfinite(v) and v >= 0 for v in acs):
             raise ValueError("joint noise setting 'accel_sampling_mps2_sqrt_hz' must be three "
                              f"non-negative numbers (north, east, down), got {acs!r}")
-        if not (np.isfinite(self.ahrs_tilt_mps2_per_g) and self.ahrs_tilt_mps2_per_g >= 0):
-            raise ValueError("joint noise setting 'ahrs_tilt_mps2_per_g' must be a "
-                             f"non-negative number, got {self.ahrs_tilt_mps2_per_g!r}")
-        if not (np.isfinite(self.ahrs_tilt_horizontal) and self.ahrs_tilt_horizontal >= 0):
-            raise ValueError("joint noise setting 'ahrs_tilt_horizontal' must be a "
-                             f"non-negative number, got {self.ahrs_tilt_horizontal!r}")
+        for name in ("ahrs_tilt_mps2_per_g", "ahrs_tilt_horizontal"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"joint noise setting '{name}' must be a non-negative number, "
+                                 f"got {v!r}")
         for name in POSITIVE_NOISE:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
@@ -152,14 +151,14 @@ class JointSettings:
     roll_velocity: str = "runway"            # the ground roll's velocity rows: along the
     #                                          runway's direction where known ("runway"), or
     #                                          along the true heading with a line-up row on the
-    #                                          heading bias ("nose"; ground.runway_measurements)
+    #                                          heading bias ("nose"; runway_measurements)
     crab_s: float = 10.0                     # no air-data heading this close to the runway
     heading_max_roll_deg: float = 45.0       # no air-data heading beyond these attitudes: the
     heading_max_pitch_deg: float = 30.0      # nose is then not along the air velocity (angle of
     #                                          attack times sin(roll), a spin's sideslip)
     heading_attack_offset: bool = True       # the heading measures the nose: take out the angle
     #                                          between it and the air velocity that the angle of
-    #                                          attack makes in a bank (airdata.nose_offset)
+    #                                          attack makes in a bank (measurements.nose_offset)
     iterations: int = 50                     # cap on the Gauss-Newton passes
     converge_m: float = 2.0                  # nominal shift below which the linearisation holds
     converge_weight: float = 0.01            # largest weight change that counts as settled
@@ -180,12 +179,12 @@ class JointSettings:
     reject_c: float = 8.0
     robust: bool = True
     estimate_gust: bool = True               # the gust sd re-estimated from each pass's track
-    #                                          (turbulence.py) and the iterations continued
+    #                                          (solve.gust_round) and the iterations continued
     gust_rounds: int = 10                    # at most this many changes of it
     gust_tol: float = 0.1                    # stop when the estimate moves by less (relative)
     gust_bounds_mps: tuple[float, float] = (0.02, 8.0)  # estimates kept inside
     wind_rounds: int = 4                     # where the smoothed wind moves faster than its
-    #                                          random walk allows (diagnostics.wind_walk_check):
+    #                                          random walk allows (health.wind_walk_check):
     #                                          at most this many re-estimates of the walk (0: the
     #                                          track is then unhealthy)
     wind_rw_max_mps_sqrt_s: float = 1.0      # the re-estimated walk kept below this
@@ -208,7 +207,7 @@ class JointSettings:
     long_load_derived: bool = False          # the forward load factor was derived from the
     #                                          airspeed at ingest (derived_long_priors): the
     #                                          GNSS positions' clock offset is then held
-    #                                          (updates.clock_columns)
+    #                                          (solve.clock_columns)
     estimate_noise: bool = False
     noise_iterations: int = 30               # cap on the EM iterations with estimate_noise
     noise_tol: float = 0.01                  # EM stops when no variance moves by more
@@ -257,13 +256,18 @@ PRIOR_STATES: dict[str, tuple[int, float, str]] = {
 }
 
 
+def prior_table(settings: JointSettings) -> dict[str, tuple[float, float]]:
+    """(mean, sd) of the prior of every sensor-error state of :data:`PRIOR_STATES`, in its reported
+    unit: the one given in ``settings.priors``, else N(0, the noise budget's sd); the table the
+    run's checks receive (docs/joint.md, "Outputs": the summary's ``corrections``)."""
+    given = {n: (float(mean), float(sd)) for n, mean, sd in settings.priors}
+    return {name: given.get(name, (0.0, float(getattr(settings.noise, budget))))
+            for name, (_i, _unit, budget) in PRIOR_STATES.items()}
+
+
 def prior_of(name: str, settings: JointSettings) -> tuple[float, float]:
-    """(mean, sd) of the prior of the sensor-error state ``name``, in its reported unit: the one
-    given in ``settings.priors``, else N(0, the noise budget's sd)."""
-    for n, mean, sd in settings.priors:
-        if n == name:
-            return float(mean), float(sd)
-    return 0.0, float(getattr(settings.noise, PRIOR_STATES[name][2]))
+    """(mean, sd) of the prior of the sensor-error state ``name`` (:func:`prior_table`)."""
+    return prior_table(settings)[name]
 
 
 def derived_heading_noise(clean: CleanFlight, settings: JointSettings) -> JointSettings:
