@@ -275,9 +275,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, *, client: Any = No
         options redoes the flights
     started : called once with the number of flights, as soon as the logs are found (before
         any flight is checked or run: a progress bar's total)
-    frame_rate_hz : frames a second of the logs whose time is their frame count (``--frame-rate``
-        of every flight, as for :func:`flightrecon.pipeline.reconstruct`); part of the settings'
-        key
+    frame_rate_hz : frames a second of the logs whose time is their frame count (``--frame-rate``,
+        as for :func:`flightrecon.pipeline.reconstruct`); part of the settings' key
 
     Returns
     -------
