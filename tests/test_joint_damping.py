@@ -88,8 +88,9 @@ def test_cost_kernel_matches_the_python_formula(recorder_flight):
     # (the flight with the run's prior of x_0: models_about gives the candidate's cost too)
     fl = replace(problem.flight, x0=run.prior[0], P0inv=np.linalg.inv(run.prior[1]))
     assert len(run.meas.z) == len(run.weights)
-    mdl, X, _ = lin.models_about(fl, run.x, run.Cen, {"gnss": 0.0, "radar": 0.0}, run.roll,
-                                 run.meas.r, run.weights)
+    at = lin.models_at(fl, lin.Nominal(run.lat_deg, run.lon_deg, run.h_m, run.x[:, jl.S_VEL]),
+                       {"gnss": 0.0, "radar": 0.0}, run.roll)
+    mdl, X, _ = lin.models_about(fl, run.x, at, run.meas.r, run.weights)
     assert len(mdl.meas.z) == len(run.meas.z)
     rng = np.random.default_rng(3)
     Xp = X.copy()

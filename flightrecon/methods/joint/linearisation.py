@@ -20,7 +20,7 @@ from flightrecon.geo.navframe import (
     ned_to_ecef_matrix,
 )
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.inputs import JointInputs, TakeoffRoll, enu_to_ecef_matrix
+from flightrecon.methods.joint.inputs import EndPoint, JointInputs, TakeoffRoll, enu_to_ecef_matrix
 from flightrecon.methods.joint.layout import Cost, Measurements
 from flightrecon.methods.joint.measurements import (
     build_measurements,
@@ -350,10 +350,10 @@ def smoother_flight(inp: JointInputs, settings: JointSettings) -> SmootherFlight
 
 def models_at(fl: SmootherFlight, nom: Nominal, clock: dict[str, float],
               roll: TakeoffRoll) -> PassModels:
-    """Dynamics, measurements (with their noise groups) and geometry linearised about the nominal
-    ``nom`` (its positions, velocity and heading bias; ``psi_hat`` None: zero, the first pass),
-    with the clock offsets ``clock`` and the take-off roll ``roll`` (docs/joint.md, "Filter,
-    smoother, iterations", item 2)."""
+    """Dynamics, measurements (with their noise groups and the end points at ``roll``) and geometry
+    linearised about the nominal ``nom`` (its positions, velocity and heading bias; ``psi_hat``
+    None: zero, the first pass), with the clock offsets ``clock`` and the take-off roll ``roll``
+    (docs/joint.md, "Filter, smoother, iterations", item 2)."""
     lat, lon, h, vnom, psi_hat = nom.lat, nom.lon, nom.h, nom.vnom, nom.psi_hat
     ex, ey, ez = geodetic_to_ecef(lat, lon, h)
     pnom = np.ascontiguousarray(np.c_[ex, ey, ez])
@@ -367,11 +367,11 @@ def models_at(fl: SmootherFlight, nom: Nominal, clock: dict[str, float],
     dyn = jl.Dynamics(fl.dt, Cen, fl.Cnb, fl.Csf, fl.Jatt, acc_k, dP_k, dV_k, dz, fl.qv_extra,
                       fl.q, fl.ga)
     geo = jl.Geometry(pnom, h - fl.inp.field_h, fl.pst, fl.Cst)
-    meas = build_measurements(fl.inp, fl.settings, fl.T, Cen, dict(clock), fl.static, pnom,
+    meas, ends = build_measurements(fl.inp, fl.settings, fl.T, Cen, dict(clock), fl.static, pnom,
                               vnom, roll, psi_hat)
     sc = jl.Scalars(meas.start, meas.mtype, meas.z, meas.r, np.ones(len(meas.z)),
                     meas.t - fl.T[meas.step], meas.H, meas.hrow, meas.d)
-    return PassModels(lat, lon, h, meas, dyn, geo, roll, dict(clock), noise_groups(meas), sc)
+    return PassModels(lat, lon, h, meas, dyn, geo, roll, ends, dict(clock), noise_groups(meas), sc)
 
 
 def _with_frame_rate(acc: np.ndarray, dV: np.ndarray, dP: np.ndarray, dt: np.ndarray,
@@ -404,19 +404,18 @@ def _in_frame(X: np.ndarray, Cen_from: np.ndarray, Cen_to: np.ndarray) -> np.nda
     return Y
 
 
-def models_about(fl: SmootherFlight, X: np.ndarray, Cen_from: np.ndarray, clock: dict[str, float],
-                 roll: TakeoffRoll, r: np.ndarray, weights: np.ndarray
-                 ) -> tuple[PassModels, np.ndarray, Cost]:
+def models_about(fl: SmootherFlight, X: np.ndarray, like: PassModels, r: np.ndarray,
+                 weights: np.ndarray) -> tuple[PassModels, np.ndarray, Cost]:
     """:func:`models_at` about the trajectory ``X`` itself (its positions, velocities and heading
-    bias; its local-level components in the frames ``Cen_from``), ``X`` in its own frames
-    (:func:`_in_frame`) and its MAP cost in those models with the variances ``r`` and weights
-    ``weights`` (:func:`pass_cost`: its nonlinear cost; a line-search or Levenberg-Marquardt
-    candidate, docs/joint.md, "Damping")."""
+    bias; its local-level components in the frames of ``like``, whose clock offsets and take-off
+    roll it keeps), ``X`` in its own frames (:func:`_in_frame`) and its MAP cost in those
+    models with the variances ``r`` and weights ``weights`` (:func:`pass_cost`: its nonlinear
+    cost; a line-search or Levenberg-Marquardt candidate, docs/joint.md, "Damping")."""
     lat, lon, h = ecef_to_geodetic(X[:, 0], X[:, 1], X[:, 2])
     Cen = np.ascontiguousarray(ned_to_ecef_matrix(lat, lon))
-    Y = _in_frame(X, Cen_from, Cen)
+    Y = _in_frame(X, like.dyn.Cen, Cen)
     mdl = models_at(fl, Nominal(lat, lon, h, Y[:, jl.S_VEL], np.ascontiguousarray(Y[:, jl.IPSI])),
-                    clock, roll)
+                    like.clock, like.roll)
     return mdl, Y, pass_cost(fl, mdl, Y, r, weights)
 
 
@@ -522,6 +521,7 @@ class PassModels:
     dyn: jl.Dynamics
     geo: jl.Geometry
     roll: TakeoffRoll
+    ends: tuple[EndPoint, ...]   # the end points at ``roll`` (inputs.end_points_at)
     clock: dict[str, float]
     groups: np.ndarray        # index into NOISE_GROUPS of each measurement (-1: none)
     scalars: jl.Scalars       # the kernels' measurements, nominal variances, unit weights: a

@@ -260,15 +260,16 @@ def static_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray
 
 def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray, Cen: np.ndarray,
                        clock: dict[str, float], static: StaticTable, pnom: np.ndarray,
-                       vnom: np.ndarray, roll: TakeoffRoll,
-                       psi_hat: np.ndarray | None) -> Measurements:
+                       vnom: np.ndarray, roll: TakeoffRoll, psi_hat: np.ndarray | None
+                       ) -> tuple[Measurements, tuple[EndPoint, ...]]:
     """Every source as scalar measurements at its own time (recorder time base): the ``static``
     table's rows (:func:`static_measurements`) and the GNSS, radar, known-position (``--fix``),
     end-point and runway rows, which depend on the linearisation (``Cen``, the nominal ECEF
     positions ``pnom`` and NED velocities ``vnom`` on the state grid), the clock offsets ``clock``
     (seconds *added* to each group's time stamps, as ``flightrecon clean --radar-clock-offset``),
     the pass's take-off roll ``roll`` (:func:`~flightrecon.methods.joint.inputs.refined_roll`) and
-    the last pass's heading bias ``psi_hat`` (per state step; None: zero).  The state steps of the
+    the last pass's heading bias ``psi_hat`` (per state step; None: zero); with the end points at
+    the roll (:func:`~flightrecon.methods.joint.inputs.end_points_at`).  The state steps of the
     radar, rest, line-up and end-point rows are found at once (those of the GNSS by
     :func:`_gnss_measurements`, of the rest from the ground samples')."""
     nz = settings.noise
@@ -308,7 +309,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     b.add_state("runway", line[:1], line[1:], np.radians(nz.lineup_heading_deg) ** 2, jl.IPSI,
                 kl)
     _endpoint_measurements(b, ends, ke, T, Cen, static.ends)
-    return b.build()
+    return b.build(), ends
 
 
 def _ned_positions(b: _MeasBuilder, Cen: np.ndarray, source: str, t: np.ndarray, k: np.ndarray,

@@ -15,7 +15,7 @@ from flightrecon.methods.joint.calibration import calibrate_gaps, wind_walk_roun
 from flightrecon.methods.joint.health import run_health
 from flightrecon.methods.joint.output import PREFIX, joint_summary, joint_track
 from flightrecon.methods.joint.problem import JointProblem, joint_problem
-from flightrecon.methods.joint.settings import JointSettings, prior_table
+from flightrecon.methods.joint.settings import JointSettings
 from flightrecon.methods.joint.solve import smooth_joint
 from flightrecon.types import CleanFlight, MethodResult
 
@@ -41,10 +41,10 @@ def joint_result(problem: JointProblem) -> MethodResult:
     run, gap_cal = calibrate_gaps(problem, run)
     # the iteration-independent parts go before the checks and the track
     problem = replace(problem, flight=None)
-    if problem.frame is None:
-        raise ValueError("the joint result needs the problem's output frame "
-                         "(joint_problem builds it)")
-    health = run_health(problem, run, wind_rounds, gap_cal, prior_table(problem.settings))
+    if problem.frame is None or problem.priors is None:
+        raise ValueError("the joint result needs the problem's output frame and priors' table "
+                         "(joint_problem builds them)")
+    health = run_health(problem, run, wind_rounds, gap_cal, problem.priors)
     track = joint_track(problem.frame.t_s, problem.frame.plane, run, health.remaining_k_m)
     return MethodResult(name="joint", track=track, summary=joint_summary(
         problem, run, track, health, wind_rounds=wind_rounds, gap_calibration=gap_cal))

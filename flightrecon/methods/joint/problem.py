@@ -48,6 +48,7 @@ from flightrecon.methods.joint.settings import (
     derived_heading_noise,
     derived_lat_noise,
     derived_long_priors,
+    prior_table,
 )
 from flightrecon.methods.joint.tilt import erection_driver_g, remembered, tilt_evidence
 from flightrecon.types import CleanFlight, FlightMeta, PositionFix, WindLevel
@@ -95,6 +96,9 @@ class JointProblem:
         (:func:`~flightrecon.methods.joint.problem.gnss_tilt_evidence`), or None
     attitude_note : the attitude source's note for the user, or None
     frame : what the output needs of the flight (None: a problem built from inputs alone)
+    priors : (mean, sd) of each sensor-error state's prior, the checks' table
+        (:func:`~flightrecon.methods.joint.settings.prior_table`; what :func:`adjusted` may change
+        leaves it as it is)
     flight : what the passes hold fixed, built once of ``inputs`` and ``settings`` (the state grid,
         the increments of the held inputs, the attitude step means, the measurement table's static
         part, the first pass's nominal:
@@ -109,6 +113,7 @@ class JointProblem:
     attitude_note: str | None = None
     frame: OutputFrame | None = None
     flight: SmootherFlight | None = None
+    priors: dict[str, tuple[float, float]] | None = None
 
 
 def held_attitude(t: np.ndarray, *angles_deg: np.ndarray) -> tuple[list[np.ndarray], list[str]]:
@@ -395,14 +400,16 @@ def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> 
     flight = smoother_flight(inp, final)
     return JointProblem(inputs=inp, settings=final, choices=choices + more,
                         tilt_evidence=tilt_ev, attitude_note=note,
-                        frame=output_frame(clean, flight), flight=flight)
+                        frame=output_frame(clean, flight), flight=flight,
+                        priors=prior_table(final))
 
 
 def problem_of(inp: JointInputs, settings: JointSettings | None = None) -> JointProblem:
     """The problem of inputs made without a cleaned flight (tests, studies): ``settings`` (the
     defaults where not given) as they are, no choices, no output frame."""
     s = JointSettings() if settings is None else settings
-    return JointProblem(inputs=inp, settings=s, flight=smoother_flight(inp, s))
+    return JointProblem(inputs=inp, settings=s, flight=smoother_flight(inp, s),
+                        priors=prior_table(s))
 
 
 def adjusted(problem: JointProblem, *, inputs: JointInputs | None = None,

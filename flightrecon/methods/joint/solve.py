@@ -35,7 +35,6 @@ from flightrecon.methods.joint import layout as jl
 from flightrecon.methods.joint.inputs import (
     EndPoint,
     TakeoffRoll,
-    end_points_at,
     refined_roll,
 )
 from flightrecon.methods.joint.layout import (
@@ -721,7 +720,7 @@ def _finish(fl: SmootherFlight, it: Iterate, ws: Buffers, last: Pass,
                     clock_offsets_s={k: (it.clock[k], it.clock_sd[k]) for k in it.clock},
                     noise_scale={name: float(scale[i]) for i, name in
                                  enumerate(NOISE_GROUPS.values())},
-                    iterations=history, end_points=end_points_at(fl.inp.end_points, mdl.roll),
+                    iterations=history, end_points=mdl.ends,
                     roll=mdl.roll, noise_check=noise_check, cholesky_fallbacks=int(fin.n_fallback),
                     converged=converged, stop_reason=reason,
                     gust={"sd_mps": fl.settings.noise.gust_mps, "rounds": list(it.gust_rounds)},
@@ -805,7 +804,7 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
     alpha, evals, gn_cost = 1.0, 0, np.nan
     while True:
         Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
-        mc, Xc, (cost, res, rate) = models_about(fl, Xc, mdl.dyn.Cen, mdl.clock, mdl.roll, r,
+        mc, Xc, (cost, res, rate) = models_about(fl, Xc, mdl, r,
                                                  weights)
         evals += 1
         if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
@@ -864,7 +863,7 @@ def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels, sta
         sc = with_pseudo(mdl.scalars._replace(r=r, w=weights), X, sd, lam)
         forward(ws.lm, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
         xs = backward(ws.lm, mdl.dyn, sc, mdl.geo, False).x
-        mc, Xc, (cost, res, rate) = models_about(fl, xs, mdl.dyn.Cen, mdl.clock, mdl.roll, r,
+        mc, Xc, (cost, res, rate) = models_about(fl, xs, mdl, r,
                                                  weights)
         evals += 1
         if np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"]:
