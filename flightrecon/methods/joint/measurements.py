@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numba as nb
 import numpy as np
+import pandas as pd
 
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
@@ -269,12 +270,38 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     (seconds *added* to each group's time stamps, as ``flightrecon clean --radar-clock-offset``),
     the pass's take-off roll ``roll`` (:func:`~flightrecon.methods.joint.inputs.refined_roll`) and
     the last pass's heading bias ``psi_hat`` (per state step; None: zero); with the end points at
-    the roll (:func:`~flightrecon.methods.joint.inputs.end_points_at`).  The state steps of the
-    radar, rest, line-up and end-point rows are found at once (those of the GNSS by
-    :func:`_gnss_measurements`, of the rest from the ground samples')."""
+    the roll (:func:`~flightrecon.methods.joint.inputs.end_points_at`).  What the rows take of the
+    inputs is looked up first: the state steps of the GNSS, radar, line-up and end-point rows at
+    once (the rest's from the ground samples'), the fixes' sd and the attitude at the fixes."""
     nz = settings.noise
     b = _MeasBuilder(T, parts=static.parts, H=static.H)
-    _gnss_measurements(b, inp, settings, T, Cen, clock, pnom)
+    # at rest before the take-off roll (lined up): zero north and east velocity, and the line-up
+    # row; the GNSS positions' and velocities' times (the velocities' own clock offset, the
+    # positions' where none is given) and the radar's
+    rest = (static.ground_t >= roll.rest_t[0]) & (static.ground_t <= roll.rest_t[1])
+    tt, kt = static.ground_t[rest], static.ground_k[rest]
+    line = lineup_heading(inp, tt)
+    rd, g = inp.radar, inp.gnss
+    radar = len(rd) > 0 and inp.station is not None
+    tr = rd["t_s"].to_numpy() + clock.get("radar", 0.0) if radar else np.zeros(0)
+    tg, tv = (g["t_s"].to_numpy() + clock.get(c, clock.get("gnss", 0.0)) if len(g) else np.zeros(0)
+              for c in ("gnss", "gnss_velocity"))
+    # the end points with the runway departure at the start of the pass's roll
+    ends = end_points_at(inp.end_points, roll)
+    k, kv, kr, ke, kl = np.split(nearest_index(T, np.r_[tg, tv, tr, [e.t_s for e in ends],
+                                                        line[:1]]),
+                                 np.cumsum([len(tg), len(tv), len(tr), len(ends)]))
+    # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd, velocity
+    # sd), else the noise settings; the attitude at each fix (nearest input sample) and +-0.5 s
+    sds = tuple(per_fix_sd(g, c, d) for c, d in (
+        ("h_sd_m", nz.gnss_h_m), ("v_sd_m", nz.gnss_v_m), ("vel_sd_mps", nz.gnss_vel_mps)))
+    att = None
+    if len(g) and np.any(np.asarray(inp.lever_arm, float) != 0):
+        ii, ip, im = nearest_index(inp.t_in, tg + np.array([[0.0], [0.5], [-0.5]]))
+        att = (inp.body_to_ned(np.r_[ii, ip, im]).reshape(3, len(tg), 3, 3),
+               np.maximum(inp.t_in[ip] - inp.t_in[im], 1e-9)[:, None])
+    if len(g):
+        _gnss_measurements(b, g, inp.lever_arm, T, Cen, (tg, k, tv, kv), sds, att, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
     # height (then at the nominal's height, as a GNSS fix without one)
     if static.fixes is not None:
@@ -286,17 +313,6 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         sd = fx[:, 4]
         _ned_positions(b, Cen, "fix", fx[:, 0], k, (sd, sd, np.where(no_h, np.nan, sd)), ecef)
     runway_measurements(b, static.rolls, pnom, vnom, psi_hat)
-    # at rest before the take-off roll (lined up): zero north and east velocity, and the line-up
-    # row; the end points with the runway departure at the start of the pass's roll
-    rest = (static.ground_t >= roll.rest_t[0]) & (static.ground_t <= roll.rest_t[1])
-    tt, kt = static.ground_t[rest], static.ground_k[rest]
-    line = lineup_heading(inp, tt)
-    rd = inp.radar
-    radar = len(rd) > 0 and inp.station is not None
-    tr = rd["t_s"].to_numpy() + clock.get("radar", 0.0) if radar else np.zeros(0)
-    ends = end_points_at(inp.end_points, roll)
-    kr, ke, kl = np.split(nearest_index(T, np.r_[tr, [e.t_s for e in ends], line[:1]]),
-                          [len(tr), len(tr) + len(ends)])
     if radar:
         b.add("radar", jl.RANGE, tr, rd["range_m"].to_numpy(), nz.radar_range_m ** 2, step=kr)
         b.add("radar", jl.AZIMUTH, tr, rd["azimuth_rad"].to_numpy(),
@@ -322,35 +338,25 @@ def _ned_positions(b: _MeasBuilder, Cen: np.ndarray, source: str, t: np.ndarray,
         b.add(source, jl.NED_POS, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), index=i, step=k)
 
 
-def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, settings: JointSettings, T: np.ndarray,
-                       Cen: np.ndarray, clock: dict[str, float], pnom: np.ndarray) -> None:
-    """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities, at
-    their own times shifted by ``clock["gnss"]`` and ``clock["gnss_velocity"]``, with the receiver's
-    per-fix accuracy; the velocities carried to their time by their own acceleration
-    (:func:`gnss_acceleration`; docs/joint.md, "Filter, smoother, iterations", item 4)."""
-    nz = settings.noise
-    g = inp.gnss
-    if not len(g):
-        return
-    t_in = inp.t_in
-    tg = g["t_s"].to_numpy() + clock.get("gnss", 0.0)
-    # the velocities' own clock offset (the positions' where none is given)
-    tv = g["t_s"].to_numpy() + clock.get("gnss_velocity", clock.get("gnss", 0.0))
-    k, kv = nearest_index(T, np.stack([tg, tv]))
-    # per-fix accuracy where the receiver gave it (horizontal sd per axis, vertical sd,
-    # velocity sd), else the noise settings
-    sd_h, sd_v, sd_vel = (per_fix_sd(g, c, d) for c, d in (
-        ("h_sd_m", nz.gnss_h_m), ("v_sd_m", nz.gnss_v_m), ("vel_sd_mps", nz.gnss_vel_mps)))
-    L = np.asarray(inp.lever_arm, float)
+def _gnss_measurements(b: _MeasBuilder, g: pd.DataFrame, lever_arm: tuple[float, float, float],
+                       T: np.ndarray, Cen: np.ndarray, times: tuple[np.ndarray, ...],
+                       sds: tuple[np.ndarray, ...], att: tuple[np.ndarray, np.ndarray] | None,
+                       pnom: np.ndarray) -> None:
+    """The GNSS fixes ``g`` (antenna moved to the reference point by the lever arm ``lever_arm``)
+    and velocities at their own times and state steps ``times`` (tg, k, tv, kv: the stamps shifted
+    by ``clock["gnss"]`` and ``clock["gnss_velocity"]``), with their sd ``sds`` (horizontal,
+    vertical, velocity) and the attitude ``att`` (C_nb at each fix and +-0.5 s about it, the
+    second's span; None without an arm); the velocities carried to their time by their own
+    acceleration (:func:`gnss_acceleration`; docs/joint.md, "Filter, smoother, iterations")."""
+    (tg, k, tv, kv), (sd_h, sd_v, sd_vel) = times, sds
+    L = np.asarray(lever_arm, float)
     arm, v_arm = np.zeros((len(tg), 3)), np.zeros((len(tg), 3))
-    if np.any(L != 0):
-        # attitude at the fix (nearest input sample) and +-0.5 s about it: the antenna's velocity
-        # adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of yaw), a central difference of
-        # the recorded attitude (its noise, 0.05 deg at 8 Hz, then adds under 0.01 m/s)
-        ii, ip, im = nearest_index(t_in, tg + np.array([[0.0], [0.5], [-0.5]]))
-        C = inp.body_to_ned(np.r_[ii, ip, im]).reshape(3, len(tg), 3, 3)
+    if att is not None:
+        # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of yaw), a
+        # central difference of the recorded attitude (its noise, 0.05 deg at 8 Hz, then adds
+        # under 0.01 m/s)
+        C, span = att
         arm = np.einsum("mij,mj->mi", Cen[k], np.einsum("mij,j->mi", C[0], L))
-        span = np.maximum(t_in[ip] - t_in[im], 1e-9)[:, None]
         v_arm = np.einsum("mij,j->mi", C[1] - C[2], L) / span
     hg = g["h_m"].to_numpy(float)
     no_h = ~np.isfinite(hg)
