@@ -12,7 +12,6 @@ from typing import NamedTuple
 
 import numba as nb
 import numpy as np
-import pandas as pd
 
 from flightrecon.geo.frames import ecef_to_geodetic, geodetic_to_ecef
 from flightrecon.geo.navframe import ned_to_ecef_matrix
@@ -275,9 +274,8 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
     once (the rest's from the ground samples'), the fixes' sd and the attitude at the fixes."""
     nz = settings.noise
     b = _MeasBuilder(T, parts=static.parts, H=static.H)
-    # at rest before the take-off roll (lined up): zero north and east velocity, and the line-up
-    # row; the GNSS positions' and velocities' times (the velocities' own clock offset, the
-    # positions' where none is given) and the radar's
+    # at rest before the take-off roll (lined up): zero north and east velocity, the line-up row;
+    # the radar's and GNSS's times (the velocities' own clock offset, else the positions')
     rest = (static.ground_t >= roll.rest_t[0]) & (static.ground_t <= roll.rest_t[1])
     tt, kt = static.ground_t[rest], static.ground_k[rest]
     line = lineup_heading(inp, tt)
@@ -301,7 +299,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
         att = (inp.body_to_ned(np.r_[ii, ip, im]).reshape(3, len(tg), 3, 3),
                np.maximum(inp.t_in[ip] - inp.t_in[im], 1e-9)[:, None])
     if len(g):
-        _gnss_measurements(b, g, inp.lever_arm, T, Cen, (tg, k, tv, kv), sds, att, pnom)
+        _gnss_measurements(b, inp, T, Cen, (tg, k, tv, kv), sds, att, pnom)
     # known positions (--fix): at their own time with their sd, horizontal only without a
     # height (then at the nominal's height, as a GNSS fix without one)
     if static.fixes is not None:
@@ -322,8 +320,7 @@ def build_measurements(inp: JointInputs, settings: JointSettings, T: np.ndarray,
                   np.radians(nz.radar_elevation_deg) ** 2, step=kr)
     for i in range(2):
         b.add_state("ground", tt, np.zeros(len(tt)), nz.ground_mps ** 2, jl.IV + i, kt)
-    b.add_state("runway", line[:1], line[1:], np.radians(nz.lineup_heading_deg) ** 2, jl.IPSI,
-                kl)
+    b.add_state("runway", line[:1], line[1:], np.radians(nz.lineup_heading_deg) ** 2, jl.IPSI, kl)
     _endpoint_measurements(b, ends, ke, T, Cen, static.ends)
     return b.build(), ends
 
@@ -338,18 +335,16 @@ def _ned_positions(b: _MeasBuilder, Cen: np.ndarray, source: str, t: np.ndarray,
         b.add(source, jl.NED_POS, t, z, np.broadcast_to(sd[i] ** 2, (len(t),)), index=i, step=k)
 
 
-def _gnss_measurements(b: _MeasBuilder, g: pd.DataFrame, lever_arm: tuple[float, float, float],
-                       T: np.ndarray, Cen: np.ndarray, times: tuple[np.ndarray, ...],
-                       sds: tuple[np.ndarray, ...], att: tuple[np.ndarray, np.ndarray] | None,
-                       pnom: np.ndarray) -> None:
-    """The GNSS fixes ``g`` (antenna moved to the reference point by the lever arm ``lever_arm``)
-    and velocities at their own times and state steps ``times`` (tg, k, tv, kv: the stamps shifted
-    by ``clock["gnss"]`` and ``clock["gnss_velocity"]``), with their sd ``sds`` (horizontal,
-    vertical, velocity) and the attitude ``att`` (C_nb at each fix and +-0.5 s about it, the
-    second's span; None without an arm); the velocities carried to their time by their own
-    acceleration (:func:`gnss_acceleration`; docs/joint.md, "Filter, smoother, iterations")."""
-    (tg, k, tv, kv), (sd_h, sd_v, sd_vel) = times, sds
-    L = np.asarray(lever_arm, float)
+def _gnss_measurements(b: _MeasBuilder, inp: JointInputs, T: np.ndarray, Cen: np.ndarray,
+                       times: tuple[np.ndarray, ...], sds: tuple[np.ndarray, ...],
+                       att: tuple[np.ndarray, np.ndarray] | None, pnom: np.ndarray) -> None:
+    """The GNSS fixes (antenna moved to the reference point by the lever arm) and velocities at
+    their own times and state steps ``times`` (tg, k, tv, kv: the stamps shifted by the clock
+    offsets), with their sd ``sds`` (horizontal, vertical, velocity) and the attitude ``att`` (C_nb
+    at each fix and +-0.5 s about it, the second's span; None without an arm); the velocities
+    carried to their time by their own acceleration (:func:`gnss_acceleration`)."""
+    (tg, k, tv, kv), (sd_h, sd_v, sd_vel), g = times, sds, inp.gnss
+    L = np.asarray(inp.lever_arm, float)
     arm, v_arm = np.zeros((len(tg), 3)), np.zeros((len(tg), 3))
     if att is not None:
         # the antenna's velocity adds d(C_nb L)/dt (0.26 m/s for a 5 m arm at 3 deg/s of yaw), a

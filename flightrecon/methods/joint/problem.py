@@ -96,9 +96,7 @@ class JointProblem:
         (:func:`~flightrecon.methods.joint.problem.gnss_tilt_evidence`), or None
     attitude_note : the attitude source's note for the user, or None
     frame : what the output needs of the flight (None: a problem built from inputs alone)
-    priors : (mean, sd) of each sensor-error state's prior, the checks' table
-        (:func:`~flightrecon.methods.joint.settings.prior_table`; what :func:`adjusted` may change
-        leaves it as it is)
+    priors : the checks' table of the sensor errors' priors (``settings.prior_table``)
     flight : what the passes hold fixed, built once of ``inputs`` and ``settings`` (the state grid,
         the increments of the held inputs, the attitude step means, the measurement table's static
         part, the first pass's nominal:
@@ -398,9 +396,8 @@ def joint_problem(clean: CleanFlight, settings: JointSettings | None = None) -> 
     inp = joint_inputs(clean, s.noise)
     final, more, tilt_ev, note = resolved_settings(clean, inp, s)
     flight = smoother_flight(inp, final)
-    return JointProblem(inputs=inp, settings=final, choices=choices + more,
-                        tilt_evidence=tilt_ev, attitude_note=note,
-                        frame=output_frame(clean, flight), flight=flight,
+    return JointProblem(inputs=inp, settings=final, choices=choices + more, tilt_evidence=tilt_ev,
+                        attitude_note=note, frame=output_frame(clean, flight), flight=flight,
                         priors=prior_table(final))
 
 

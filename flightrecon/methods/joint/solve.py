@@ -32,11 +32,7 @@ from flightrecon.estimation.linalg import packed_size, unpack_sym
 from flightrecon.estimation.smoothing import backward_pass
 from flightrecon.geo.frames import ecef_to_geodetic
 from flightrecon.methods.joint import layout as jl
-from flightrecon.methods.joint.inputs import (
-    EndPoint,
-    TakeoffRoll,
-    refined_roll,
-)
+from flightrecon.methods.joint.inputs import EndPoint, TakeoffRoll, refined_roll
 from flightrecon.methods.joint.layout import (
     N_STATE,
     Cost,
@@ -804,8 +800,7 @@ def line_search(fl: SmootherFlight, mdl: PassModels, X: np.ndarray | None, start
     alpha, evals, gn_cost = 1.0, 0, np.nan
     while True:
         Xc = X_gn if alpha == 1.0 or X is None else X + alpha * (X_gn - X)
-        mc, Xc, (cost, res, rate) = models_about(fl, Xc, mdl, r,
-                                                 weights)
+        mc, Xc, (cost, res, rate) = models_about(fl, Xc, mdl, r, weights)
         evals += 1
         if alpha == 1.0:   # the backward pass's residuals: the undamped iterations unchanged
             res, rate = out.res, out.rate
@@ -863,8 +858,7 @@ def lm_step(fl: SmootherFlight, X: np.ndarray, ws: Buffers, mdl: PassModels, sta
         sc = with_pseudo(mdl.scalars._replace(r=r, w=weights), X, sd, lam)
         forward(ws.lm, fl.x0, fl.P0, mdl.dyn, sc, mdl.geo, 0.0, X)
         xs = backward(ws.lm, mdl.dyn, sc, mdl.geo, False).x
-        mc, Xc, (cost, res, rate) = models_about(fl, xs, mdl, r,
-                                                 weights)
+        mc, Xc, (cost, res, rate) = models_about(fl, xs, mdl, r, weights)
         evals += 1
         if np.isfinite(cost["cost"]) and cost["cost"] <= start.terms["cost"]:
             return PassStep(Xc, 1.0, cost, mc, res, rate, evals, True, np.nan, np.nan,
