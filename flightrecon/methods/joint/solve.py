@@ -25,6 +25,7 @@ import threading
 from dataclasses import dataclass, replace
 from typing import Any, NamedTuple
 
+import numba as nb
 import numpy as np
 
 from flightrecon.estimation.filtering import forward_pass
@@ -936,19 +937,36 @@ def hermite_positions(t_out: np.ndarray, T: np.ndarray, p: np.ndarray, v: np.nda
     the state times ``T`` (sorted) to ``t_out`` (any order; clamped to the span): error O(dt^4)
     instead of the a dt^2 / 8 of linear interpolation, 0.6 m in a 25-degree turn at a 1 s state
     step."""
-    t_out, T = np.asarray(t_out, float), np.asarray(T, float)
-    p, v = np.asarray(p, float), np.asarray(v, float)
     if len(T) < 2:
-        return np.repeat(p[:1], len(t_out), axis=0)
-    k = np.clip(np.searchsorted(T, t_out, side="right") - 1, 0, len(T) - 2)
-    h = T[k + 1] - T[k]
-    s = np.clip(np.divide(t_out - T[k], h, out=np.zeros_like(h), where=h > 0), 0.0, 1.0)
-    s2 = s * s
-    s3 = s2 * s
-    h00, h10 = 2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h
-    h01, h11 = -2 * s3 + 3 * s2, (s3 - s2) * h
-    return (h00[:, None] * p[k] + h10[:, None] * v[k] + h01[:, None] * p[k + 1]
-            + h11[:, None] * v[k + 1])
+        return np.repeat(np.asarray(p, float)[:1], len(t_out), axis=0)
+    return hermite_kernel(np.asarray(t_out, float), np.asarray(T, float),
+                          np.ascontiguousarray(p, dtype=float),
+                          np.ascontiguousarray(v, dtype=float))
+
+
+@nb.njit(cache=True, nogil=True)
+def hermite_kernel(t_out, T, p, v):
+    """:func:`hermite_positions`' loop, one pass over sorted ``t_out`` (searched again from the
+    start where it goes back); numpy's searchsorted and temporaries take ten times as long on a
+    10-hour 16 Hz grid."""
+    out = np.empty((t_out.shape[0], 3))
+    N = T.shape[0]
+    k = 0
+    for i in range(t_out.shape[0]):
+        t = t_out[i]
+        if k > 0 and t < T[k]:
+            k = 0
+        while k < N - 2 and T[k + 1] <= t:
+            k += 1
+        h = T[k + 1] - T[k]
+        s = min(max((t - T[k]) / h if h > 0 else 0.0, 0.0), 1.0)
+        s2 = s * s
+        s3 = s2 * s
+        h00, h10 = 2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h
+        h01, h11 = -2 * s3 + 3 * s2, (s3 - s2) * h
+        for j in range(3):
+            out[i, j] = h00 * p[k, j] + h10 * v[k, j] + h01 * p[k + 1, j] + h11 * v[k + 1, j]
+    return out
 
 
 @dataclass(frozen=True)
